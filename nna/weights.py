@@ -1,0 +1,99 @@
+"""Weights of the NNA descriptor layer: the built-in placeholder and .npz files.
+
+A weight file is an ``.npz`` archive with three arrays:
+
+* ``weights``: int8 (C, K, K), [channel, ky, kx], 1 <= C <= 64, K odd;
+* ``bias``: int32 (C,);
+* ``input_offset``: an integer scalar in 0..255.
+
+Until trained weights exist, :func:`default_weights` returns a deterministic random placeholder
+whose kernels each sum to exactly zero, so the descriptor ignores a brightness offset between the
+two cameras (away from clipping), as a trained descriptor should.
+"""
+
+from __future__ import annotations
+
+import os
+import zipfile
+
+import numpy as np
+
+from nna.conv import check_layer
+from sim.errors import ConfigError
+
+DEFAULT_SEED = 20261122
+DEFAULT_SHAPE = (32, 9, 9)
+DEFAULT_SIGMA = 24.0
+DEFAULT_INPUT_OFFSET = 128
+KEYS = ("weights", "bias", "input_offset")
+
+
+def default_weights() -> tuple[np.ndarray, np.ndarray, int]:
+    """Deterministic placeholder layer: ``(weights int8 (32, 9, 9), bias int32 (32,), 128)``.
+
+    Weights are round(N(0, 24)) from ``np.random.default_rng(20261122)``, each kernel shifted to
+    zero mean before rounding, clipped to -127..127, and the rounding residue taken off the
+    centre tap so every kernel sums to exactly zero. Bias is zero and the input offset 128.
+    """
+    rng = np.random.default_rng(DEFAULT_SEED)
+    n_channels, k_rows, k_cols = DEFAULT_SHAPE
+    w_f64 = rng.normal(0.0, DEFAULT_SIGMA, size=DEFAULT_SHAPE)
+    w_f64 -= w_f64.mean(axis=(1, 2), keepdims=True)
+    w_i64 = np.clip(np.rint(w_f64), -127, 127).astype(np.int64)
+    w_i64[:, k_rows // 2, k_cols // 2] -= w_i64.sum(axis=(1, 2))
+    if np.abs(w_i64).max() > 127:  # cannot happen for this seed; guards a changed constant
+        raise RuntimeError("default_weights: the zero-sum correction left the int8 range")
+    weights = w_i64.astype(np.int8)
+    bias = np.zeros(n_channels, dtype=np.int32)
+    return weights, bias, DEFAULT_INPUT_OFFSET
+
+
+def save_weights(path, weights, bias, input_offset) -> None:
+    """Validate a layer and write it to ``path`` as .npz (under that exact name, no suffix)."""
+    weights, bias, input_offset = check_layer(weights, bias, input_offset)
+    with open(path, "wb") as f:
+        np.savez(f, weights=weights, bias=bias, input_offset=np.int32(input_offset))
+
+
+def load_weights(path) -> tuple[np.ndarray, np.ndarray, int]:
+    """Read and validate a layer saved by :func:`save_weights`.
+
+    Returns ``(weights int8 (C, K, K), bias int32 (C,), input_offset int)``. Every problem (missing
+    file, not an .npz, missing key, wrong dtype, shape or range) raises :class:`ConfigError` with
+    the file name and a one-line reason.
+    """
+    name = os.fspath(path)
+    if not os.path.isfile(name):
+        raise ConfigError(f"weight file {name!r} not found; give the path of an .npz file")
+    try:
+        archive = np.load(name, allow_pickle=False)
+    except (OSError, ValueError, zipfile.BadZipFile) as err:
+        raise ConfigError(
+            f"weight file {name!r} is not a readable .npz archive ({err}); "
+            "write it with nna.save_weights"
+        ) from None
+    if not isinstance(archive, np.lib.npyio.NpzFile):
+        raise ConfigError(
+            f"weight file {name!r} holds a single array, not an .npz archive with keys "
+            f"{', '.join(KEYS)}; write it with nna.save_weights"
+        )
+    with archive:
+        missing = [k for k in KEYS if k not in archive.files]
+        if missing:
+            raise ConfigError(
+                f"weight file {name!r} lacks {', '.join(missing)}; it has "
+                f"{', '.join(archive.files) or 'no arrays'} (needs {', '.join(KEYS)})"
+            )
+        try:
+            weights, bias, offset = (archive[k] for k in KEYS)
+        except (OSError, ValueError, zipfile.BadZipFile) as err:
+            raise ConfigError(f"weight file {name!r} has a damaged array ({err})") from None
+    if offset.shape != () or offset.dtype.kind not in "iu":
+        raise ConfigError(
+            f"weight file {name!r}: input_offset must be an integer scalar, "
+            f"got {offset.dtype} with shape {offset.shape}"
+        )
+    try:
+        return check_layer(weights, bias, int(offset))
+    except ConfigError as err:
+        raise ConfigError(f"weight file {name!r}: {err}") from None

@@ -1,0 +1,1 @@
+"""Integer arithmetic of the chip (rounding, saturation) and, later, the int8 quantizer."""

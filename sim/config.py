@@ -1,0 +1,284 @@
+"""The one configuration object of the chip.
+
+Frozen dataclasses, one per block, nested in :class:`ChipConfig`. Every field declares its type,
+its legal range or choices and a one-line help text; :func:`load_config` builds the object from the
+defaults, an optional TOML file and dotted-key overrides, and rejects unknown keys and bad values
+with the key's dotted name. ``stereosim config show`` prints the result as TOML.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import tomllib
+import typing
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from sim.errors import ConfigError
+
+LEGAL_DISPARITIES = tuple(range(16, 257, 16))
+
+
+def param(default, help: str, *, lo=None, hi=None, choices=None, odd=False):
+    """A config field with its validation rules in the metadata."""
+    meta = {"help": help, "lo": lo, "hi": hi, "choices": choices, "odd": odd}
+    return field(default=default, metadata=meta)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class CensusConfig:
+    window: tuple[int, int] = param(
+        (9, 7), "census window [width, height], both odd", lo=1, hi=15, odd=True
+    )
+    kind: str = param(
+        "symmetric",
+        "plain: each pixel vs the centre; symmetric: each pixel vs its mirror through the centre",
+        choices=("plain", "symmetric"),
+    )
+    stride: int = param(1, "sampling step inside the window (2 = sparse census)", lo=1, hi=4)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class CnnConfig:
+    weights: str = param(
+        "default", "int8 weight file (.npz) of the 9x9x32 layer, or 'default' for the shipped one"
+    )
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class NnaConfig:
+    descriptor: str = param(
+        "census", "per-pixel binary descriptor: census or cnn", choices=("census", "cnn")
+    )
+    census: CensusConfig = field(default_factory=CensusConfig)
+    cnn: CnnConfig = field(default_factory=CnnConfig)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class SvaConfig:
+    disparities: int = param(
+        128, "disparity range D (d in [0, D)); multiple of 16 in [16, 256]", choices=LEGAL_DISPARITIES
+    )
+    box_size: int = param(5, "box-filter aggregation window k (k x k, odd; 1 = off)", lo=1, hi=15, odd=True)
+    cost_bits: int = param(11, "width of the aggregated matching cost (saturating)", lo=6, hi=15)
+    p1: int = param(12, "SGM penalty for a disparity change of 1", lo=0, hi=32767)
+    p2: int = param(96, "SGM penalty for a disparity change of more than 1", lo=0, hi=32767)
+    p2_adaptive: bool = param(False, "lower P2 at intensity steps: P2 - (slope*|dI| >> 4), >= P1")
+    p2_slope: int = param(16, "slope of the adaptive P2 (in 1/16 per grey level)", lo=0, hi=1024)
+    path_bits: int = param(13, "width of each SGM path cost register (saturating)", lo=8, hi=14)
+    sum_bits: int = param(16, "width of the summed path cost S (saturating)", lo=8, hi=16)
+    paths: int = param(
+        4, "SGM paths: 1 = left-to-right, 2 = + top, 3 = + top-left, 4 = + top-right", lo=1, hi=4
+    )
+    uniqueness: int = param(
+        5, "uniqueness margin in percent (0 = off): best must beat the runner-up by this", lo=0, hi=99
+    )
+    subpixel: str = param(
+        "equiangular", "sub-pixel fit: off, parabola or equiangular",
+        choices=("off", "parabola", "equiangular"),
+    )
+    subpixel_bits: int = param(4, "fractional bits F of the output disparity", lo=0, hi=8)
+    lr_check: bool = param(True, "left-right consistency check from the same aggregated volume")
+    lr_max_diff: int = param(1, "largest |dL - dR| (integer disparities) accepted by the LR check", lo=0, hi=255)
+    median: int = param(0, "median filter on the output: 0 (off), 3 or 5", choices=(0, 3, 5))
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class ChipConfig:
+    nna: NnaConfig = field(default_factory=NnaConfig)
+    sva: SvaConfig = field(default_factory=SvaConfig)
+
+
+# ----------------------------------------------------------------------------------------------
+# building from TOML / overrides
+
+
+def _is_config_class(tp) -> bool:
+    return isinstance(tp, type) and dataclasses.is_dataclass(tp)
+
+
+def _field_types(cls) -> dict[str, Any]:
+    return typing.get_type_hints(cls)
+
+
+def _coerce(dotted: str, value, tp, meta) -> Any:
+    """Check one leaf value against its declared type and rules; return the typed value."""
+    origin = typing.get_origin(tp)
+    if origin is tuple:
+        args = typing.get_args(tp)
+        if not isinstance(value, (list, tuple)) or len(value) != len(args):
+            raise ConfigError(
+                f"config key '{dotted}' must be a list of {len(args)} values, e.g. "
+                f"{dotted} = [9, 7]; got {value!r}"
+            )
+        return tuple(_coerce(dotted, v, a, meta) for v, a in zip(value, args))
+    if tp is bool:
+        if not isinstance(value, bool):
+            raise ConfigError(f"config key '{dotted}' must be true or false; got {value!r}")
+        return value
+    if tp is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ConfigError(f"config key '{dotted}' must be an integer; got {value!r}")
+    elif tp is float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ConfigError(f"config key '{dotted}' must be a number; got {value!r}")
+        value = float(value)
+    elif tp is str:
+        if not isinstance(value, str):
+            raise ConfigError(f"config key '{dotted}' must be a string; got {value!r}")
+    choices = meta.get("choices")
+    if choices is not None and value not in choices:
+        shown = ", ".join(str(c) for c in choices)
+        raise ConfigError(f"config key '{dotted}' must be one of {shown}; got {value!r}")
+    lo, hi = meta.get("lo"), meta.get("hi")
+    if lo is not None and value < lo or hi is not None and value > hi:
+        raise ConfigError(f"config key '{dotted}' must be in [{lo}, {hi}]; got {value!r}")
+    if meta.get("odd") and value % 2 == 0:
+        raise ConfigError(f"config key '{dotted}' must be odd; got {value!r}")
+    return value
+
+
+def _build(cls, data: dict, prefix: str):
+    hints = _field_types(cls)
+    names = {f.name: f for f in dataclasses.fields(cls)}
+    for key in data:
+        if key not in names:
+            dotted = f"{prefix}{key}"
+            known = ", ".join(f"{prefix}{n}" for n in names)
+            raise ConfigError(f"unknown config key '{dotted}' (known here: {known})")
+    kwargs = {}
+    for name, f in names.items():
+        tp = hints[name]
+        dotted = f"{prefix}{name}"
+        if _is_config_class(tp):
+            sub = data.get(name, {})
+            if not isinstance(sub, dict):
+                raise ConfigError(f"config key '{dotted}' is a table; set its keys, e.g. {dotted}.<key>")
+            kwargs[name] = _build(tp, sub, dotted + ".")
+        elif name in data:
+            if isinstance(data[name], dict):
+                raise ConfigError(f"config key '{dotted}' is a value, not a table")
+            kwargs[name] = _coerce(dotted, data[name], tp, f.metadata)
+    return cls(**kwargs)
+
+
+def _parse_value(text: str):
+    """A --set value: TOML syntax (numbers, true/false, [a, b], "str"), else a bare string."""
+    try:
+        return tomllib.loads(f"v = {text}")["v"]
+    except tomllib.TOMLDecodeError:
+        return text
+
+
+def _insert(tree: dict, dotted: str, value) -> None:
+    parts = dotted.split(".")
+    node = tree
+    for i, part in enumerate(parts[:-1]):
+        nxt = node.setdefault(part, {})
+        if not isinstance(nxt, dict):
+            raise ConfigError(f"config key '{'.'.join(parts[: i + 1])}' is a value, not a table")
+        node = nxt
+    node[parts[-1]] = value
+
+
+def load_config(
+    path: str | Path | None = None, overrides: dict[str, Any] | None = None
+) -> ChipConfig:
+    """Defaults, then the TOML file at ``path``, then ``overrides`` (dotted keys).
+
+    Override values may be typed Python values or strings in TOML syntax (as given on the
+    command line with ``--set key=value``).
+    """
+    tree: dict = {}
+    if path is not None:
+        p = Path(path)
+        if not p.is_file():
+            raise ConfigError(f"config file {p} not found: give the path of a TOML file")
+        try:
+            tree = tomllib.loads(p.read_text())
+        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+            raise ConfigError(f"config file {p} is not valid TOML: {exc}") from None
+    for key, value in (overrides or {}).items():
+        if not isinstance(key, str) or not key:
+            raise ConfigError(f"override key {key!r} must be a dotted name such as sva.p1")
+        if isinstance(value, str):
+            value = _parse_value(value)
+        _insert(tree, key, value)
+    return _build(ChipConfig, tree, "")
+
+
+def parse_set_options(items: list[str] | None) -> dict[str, str]:
+    """``["sva.p1=10", ...]`` from the CLI into an override dict (values parsed later)."""
+    out: dict[str, str] = {}
+    for item in items or []:
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip():
+            raise ConfigError(f"--set expects KEY=VALUE (e.g. --set sva.p1=10); got {item!r}")
+        out[key.strip()] = value.strip()
+    return out
+
+
+# ----------------------------------------------------------------------------------------------
+# output
+
+
+def config_to_dict(cfg) -> dict:
+    out = {}
+    for f in dataclasses.fields(cfg):
+        v = getattr(cfg, f.name)
+        if dataclasses.is_dataclass(v):
+            out[f.name] = config_to_dict(v)
+        elif isinstance(v, tuple):
+            out[f.name] = list(v)
+        else:
+            out[f.name] = v
+    return out
+
+
+def _toml_value(v) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    if isinstance(v, str):
+        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    return repr(v)
+
+
+def config_to_toml(cfg, *, comments: bool = True) -> str:
+    """The effective configuration as TOML (loadable again with :func:`load_config`)."""
+    lines: list[str] = []
+
+    def emit(obj, prefix: str):
+        scalars = [f for f in dataclasses.fields(obj) if not dataclasses.is_dataclass(getattr(obj, f.name))]
+        tables = [f for f in dataclasses.fields(obj) if dataclasses.is_dataclass(getattr(obj, f.name))]
+        if scalars and prefix:
+            if lines:
+                lines.append("")
+            lines.append(f"[{prefix}]")
+        for f in scalars:
+            text = f"{f.name} = {_toml_value(getattr(obj, f.name))}"
+            if comments and f.metadata.get("help"):
+                text = f"{text:<28} # {f.metadata['help']}"
+            lines.append(text)
+        for f in tables:
+            emit(getattr(obj, f.name), f"{prefix}.{f.name}" if prefix else f.name)
+
+    emit(cfg, "")
+    return "\n".join(lines) + "\n"
+
+
+def config_diff(a: ChipConfig, b: ChipConfig) -> dict[str, tuple[Any, Any]]:
+    """Dotted keys whose values differ between two configurations."""
+    out: dict[str, tuple[Any, Any]] = {}
+
+    def walk(x, y, prefix):
+        for k in x:
+            if isinstance(x[k], dict):
+                walk(x[k], y[k], f"{prefix}{k}.")
+            elif x[k] != y[k]:
+                out[f"{prefix}{k}"] = (x[k], y[k])
+
+    walk(config_to_dict(a), config_to_dict(b), "")
+    return out

@@ -1,0 +1,184 @@
+"""Accuracy of a disparity map against ground truth (Middlebury SDK metrics and the paper's KPIs).
+
+For each mask, the evaluated pixels are ``mask & isfinite(gt)`` (their count is ``n``). A
+disparity that is not finite (NaN or inf) is *invalid*; every other disparity is *valid* and has
+the error ``|d - gt|``. All thresholds are in pixels **of the GT's resolution**: evaluating a
+quarter-resolution (MiddEval3 trainingQ) result against the quarter-resolution GT counts quarter-
+resolution pixels, whereas the Middlebury online table upsamples results to full resolution, where
+the same error is 4x larger. See ``docs/metrics.md`` for every definition.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping, Sequence
+
+import numpy as np
+
+from sim.errors import InputError
+
+BAD_THRESHOLDS = (0.5, 1.0, 2.0, 4.0)
+T_THRESHOLDS = (0.125, 0.25, 0.5, 0.75, 1.0, 2.0, 4.0)
+M_THRESHOLDS = (0.125, 0.25, 0.5, 0.75)
+F_THRESHOLDS = (0.5, 0.75, 1.0)
+
+
+def _tag(t: float) -> str:
+    """0.5 -> '0.5', 1.0 -> '1', 0.125 -> '0.125'."""
+    return f"{t:g}"
+
+
+BAD_KEYS = tuple(f"bad{_tag(t)}" for t in BAD_THRESHOLDS)
+T_KEYS = tuple(f"T{_tag(t)}" for t in T_THRESHOLDS)
+M_KEYS = tuple(f"M{_tag(t)}" for t in M_THRESHOLDS)
+F_KEYS = ("F0.5", "F0.75", "F1.0")
+
+#: Every key of a per-mask result, in a sensible column order.
+METRIC_KEYS = (
+    ("n",)
+    + BAD_KEYS
+    + ("invalid", "totbad", "avgerr", "rms", "fill_factor", "rms_valid")
+    + T_KEYS
+    + M_KEYS
+    + F_KEYS
+)
+
+#: The columns of the Middlebury table and of the paper's Table (MiddEval3 metrics).
+MIDDLEBURY_KEYS = ("bad0.5", "bad1", "bad2", "bad4", "invalid", "totbad", "avgerr", "rms")
+#: The paper's development KPIs.
+PAPER_KEYS = ("fill_factor", "rms_valid") + M_KEYS + T_KEYS + F_KEYS
+
+
+def _percent(count: int, total: int) -> float:
+    return 100.0 * count / total if total else math.nan
+
+
+def _evaluate_mask(disp: np.ndarray, gt: np.ndarray, evaluated: np.ndarray) -> dict[str, float]:
+    n = int(np.count_nonzero(evaluated))
+    d = disp[evaluated]
+    g = gt[evaluated]
+    valid = np.isfinite(d)
+    err = np.abs(d[valid] - g[valid])  # float64: errors of the valid evaluated pixels
+    n_valid = int(err.size)
+    n_invalid = n - n_valid
+
+    out: dict[str, float] = {"n": float(n)}
+    for key, t in zip(BAD_KEYS, BAD_THRESHOLDS, strict=True):
+        out[key] = _percent(int(np.count_nonzero(err > t)), n)
+    out["invalid"] = _percent(n_invalid, n)
+    out["totbad"] = out["bad2"] + out["invalid"]
+    out["avgerr"] = float(err.mean()) if n_valid else math.nan
+    out["rms"] = float(np.sqrt(np.mean(err * err))) if n_valid else math.nan
+    out["fill_factor"] = _percent(n_valid, n)
+    out["rms_valid"] = out["rms"]
+    for key, t in zip(T_KEYS, T_THRESHOLDS, strict=True):
+        out[key] = _percent(int(np.count_nonzero(err > t)), n_valid)
+    near = err[err <= 1.0]
+    for key, t in zip(M_KEYS, M_THRESHOLDS, strict=True):
+        out[key] = _percent(int(np.count_nonzero(near > t)), int(near.size))
+    for key, t in zip(F_KEYS, F_THRESHOLDS, strict=True):
+        good = int(np.count_nonzero(err <= t))
+        if n_valid == 0:
+            out[key] = math.nan  # precision undefined
+        elif good == 0:
+            out[key] = 0.0
+        else:
+            precision = good / n_valid
+            recall = good / n
+            out[key] = 2.0 * precision * recall / (precision + recall)
+    return out
+
+
+def evaluate(
+    disp: np.ndarray, gt: np.ndarray, masks: Mapping[str, np.ndarray]
+) -> dict[str, dict[str, float]]:
+    """Metrics of ``disp`` against ``gt`` for each mask: ``{mask name: {metric: value}}``.
+
+    ``disp`` and ``gt`` are 2-D disparity maps in pixels of the same shape; non-finite ``disp``
+    means invalid, non-finite ``gt`` unknown. Each mask is a boolean (or 0/non-zero) array of the
+    same shape. Percentages are in 0..100, F-scores in 0..1, errors in pixels; a value with an
+    empty denominator is NaN. Keys: see :data:`METRIC_KEYS` and ``docs/metrics.md``.
+    """
+    d = np.asarray(disp)
+    g = np.asarray(gt)
+    if d.ndim != 2:
+        raise InputError(f"disparity map has shape {d.shape}: a 2-D (H, W) map is needed")
+    if g.shape != d.shape:
+        raise InputError(
+            f"disparity map is {d.shape} but GT is {g.shape}: evaluate at the GT's size"
+        )
+    for arr, what in ((d, "disparity map"), (g, "GT")):
+        if not (np.issubdtype(arr.dtype, np.floating) or np.issubdtype(arr.dtype, np.integer)):
+            raise InputError(f"{what} has dtype {arr.dtype}: give a float32 array")
+    d = d.astype(np.float64)
+    g = g.astype(np.float64)
+    known = np.isfinite(g)
+    results: dict[str, dict[str, float]] = {}
+    for name, mask in masks.items():
+        m = np.asarray(mask)
+        if m.shape != d.shape:
+            raise InputError(
+                f"mask '{name}' is {m.shape} but the disparity map is {d.shape}: "
+                "use the masks of the same scene and size"
+            )
+        results[name] = _evaluate_mask(d, g, (m != 0) & known)
+    return results
+
+
+def mean_metrics(
+    results: Sequence[Mapping[str, Mapping[str, float]]],
+) -> dict[str, dict[str, float]]:
+    """Plain (unweighted) mean over scenes of :func:`evaluate` results, per mask and per key.
+
+    A mask or key missing from some scenes is averaged over the scenes that have it. NaN values
+    propagate, so an undefined metric in any scene makes its mean NaN.
+    """
+    sums: dict[str, dict[str, list[float]]] = {}
+    for result in results:
+        for mask, metrics in result.items():
+            per_mask = sums.setdefault(mask, {})
+            for key, value in metrics.items():
+                per_mask.setdefault(key, []).append(float(value))
+    return {
+        mask: {key: float(np.mean(values)) for key, values in per_mask.items()}
+        for mask, per_mask in sums.items()
+    }
+
+
+def _cell(key: str, value: float | None) -> str:
+    if value is None:
+        return "-"
+    if key == "n" and math.isfinite(value) and float(value).is_integer():
+        return str(int(value))
+    return f"{value:.3f}"
+
+
+def format_table(rows: Iterable[tuple[str, Mapping[str, float]]], keys: Sequence[str]) -> str:
+    """An aligned text table: one row per ``(name, {key: value})``, one column per key, and a
+    ``MEAN`` row with the plain mean of each column (over the rows that have the key).
+
+    Values print with 3 decimals (``n`` as an integer); a missing key prints ``-``.
+    """
+    rows = list(rows)
+    header = ["scene", *keys]
+    lines = [[name, *(_cell(k, metrics.get(k)) for k in keys)] for name, metrics in rows]
+    if rows:
+        mean_row = ["MEAN"]
+        for k in keys:
+            values = [float(m[k]) for _, m in rows if k in m]
+            mean_row.append(_cell(k, float(np.mean(values)) if values else None))
+        lines.append(mean_row)
+    table = [header, *lines]
+    widths = [max(len(r[i]) for r in table) for i in range(len(header))]
+
+    def fmt(row: list[str]) -> str:
+        cells = [row[0].ljust(widths[0])]
+        cells += [cell.rjust(w) for cell, w in zip(row[1:], widths[1:], strict=True)]
+        return "  ".join(cells).rstrip()
+
+    out = [fmt(header), "  ".join("-" * w for w in widths)]
+    out += [fmt(r) for r in lines[:-1]] if rows else []
+    if rows:
+        out.append("  ".join("-" * w for w in widths))
+        out.append(fmt(lines[-1]))
+    return "\n".join(out) + "\n"

@@ -1,0 +1,129 @@
+"""Winner-take-all, uniqueness check and sub-pixel refinement -- SVA disparity selection.
+
+Definitions (the chip's), on the summed SGM cost S(p, d), d in [0, D):
+
+- **WTA**: d*(p) = the smallest d with S(p, d) = min_k S(p, k).
+- **Uniqueness** (margin u percent, 0 = off): let S1 = S(p, d*) and S2 = min S(p, d) over
+  |d - d*| >= 2. The pixel is invalid when S2 * 100 < S1 * (100 + u): the winner does not beat
+  every clearly different disparity by u percent.
+- **Sub-pixel** with F fractional bits: output word q = (d* << F) + o where, for 0 < d* < D - 1,
+  a = S(d* - 1), c = S(d*), b = S(d* + 1) and
+
+      parabola:     o = round(2^F (a - b) / (2 (a + b - 2c)))      (0 when a + b - 2c = 0)
+      equiangular:  o = round(2^F (a - b) / (2 max(a - c, b - c))) (0 when the max is 0)
+
+  round = half up, computed with floor division only (quant.fixedpoint.div_round_half_up).
+  o = 0 at d* = 0, d* = D - 1, when the fit is off, or when F = 0. |o| <= 2^(F-1) always.
+
+Invalid output words are -1; the float disparity is q / 2^F with inf for invalid.
+"""
+
+import numpy as np
+from numba import njit
+
+from quant.fixedpoint import div_round_half_up
+
+INVALID = -1
+SUBPIXEL_MODES = ("off", "parabola", "equiangular")
+
+
+def subpixel_offset(a: int, c: int, b: int, mode: str, frac_bits: int) -> int:
+    """The offset o of the module docstring (plain Python, used by the references)."""
+    if mode == "off" or frac_bits == 0:
+        return 0
+    num = (a - b) << frac_bits
+    if mode == "parabola":
+        den = 2 * (a + b - 2 * c)
+    else:
+        den = 2 * max(a - c, b - c)
+    if den <= 0:
+        return 0
+    return div_round_half_up(num, den)
+
+
+def wta_ref(s, *, uniqueness: int, subpixel: str, frac_bits: int):
+    """Naive reference over a whole volume: (q int32 (H, W), d_int int32 (H, W)).
+
+    ``q`` is the output word with -1 where the uniqueness check fails; ``d_int`` the integer
+    winner d* for every pixel (the LR check uses it).
+    """
+    h, w, dn = s.shape
+    q = np.empty((h, w), np.int32)
+    dint = np.empty((h, w), np.int32)
+    for y in range(h):
+        for x in range(w):
+            costs = [int(v) for v in s[y, x]]
+            s1 = min(costs)
+            best = costs.index(s1)
+            dint[y, x] = best
+            far = [costs[d] for d in range(dn) if abs(d - best) >= 2]
+            if uniqueness > 0 and far and min(far) * 100 < s1 * (100 + uniqueness):
+                q[y, x] = INVALID
+                continue
+            o = 0
+            if 0 < best < dn - 1:
+                o = subpixel_offset(costs[best - 1], s1, costs[best + 1], subpixel, frac_bits)
+            q[y, x] = (best << frac_bits) + o
+    return q, dint
+
+
+@njit(cache=True)
+def wta_row(s_row, uniqueness, mode, frac_bits, q_row, dint_row):
+    """One row of :func:`wta_ref`. ``mode``: 0 off, 1 parabola, 2 equiangular."""
+    w = s_row.shape[0]
+    dn = s_row.shape[1]
+    for x in range(w):
+        sx = s_row[x]
+        s1 = sx[0]
+        best = 0
+        for d in range(1, dn):
+            if sx[d] < s1:
+                s1 = sx[d]
+                best = d
+        dint_row[x] = best
+        if uniqueness > 0:
+            s2 = np.int64(0x7FFFFFFF)
+            for d in range(dn):
+                if (d - best >= 2 or best - d >= 2) and sx[d] < s2:
+                    s2 = np.int64(sx[d])
+            if s2 != 0x7FFFFFFF and s2 * 100 < np.int64(s1) * (100 + uniqueness):
+                q_row[x] = INVALID
+                continue
+        o = np.int64(0)
+        if mode != 0 and frac_bits > 0 and 0 < best < dn - 1:
+            a = np.int64(sx[best - 1])
+            b = np.int64(sx[best + 1])
+            c = np.int64(s1)
+            if mode == 1:
+                den = 2 * (a + b - 2 * c)
+            else:
+                den = 2 * max(a - c, b - c)
+            if den > 0:
+                o = div_round_half_up((a - b) << frac_bits, den)
+        q_row[x] = (best << frac_bits) + o
+
+
+def subpixel_mode_code(mode: str) -> int:
+    return SUBPIXEL_MODES.index(mode)
+
+
+@njit(cache=True)
+def _wta_volume(s, uniqueness, mode, frac_bits, q, dint):
+    for y in range(s.shape[0]):
+        wta_row(s[y], uniqueness, mode, frac_bits, q[y], dint[y])
+
+
+def wta(s, *, uniqueness: int, subpixel: str, frac_bits: int):
+    """Numba version of :func:`wta_ref` (same arguments and results)."""
+    h, w, _ = s.shape
+    q = np.empty((h, w), np.int32)
+    dint = np.empty((h, w), np.int32)
+    _wta_volume(np.ascontiguousarray(s), uniqueness, subpixel_mode_code(subpixel), frac_bits, q, dint)
+    return q, dint
+
+
+def to_float(q, frac_bits: int) -> np.ndarray:
+    """Output words to float32 disparities in pixels, inf where invalid (q < 0)."""
+    out = q.astype(np.float32) / np.float32(1 << frac_bits)
+    out[q < 0] = np.inf
+    return out

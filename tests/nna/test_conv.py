@@ -1,0 +1,290 @@
+"""NNA descriptor layer: kernel == naive reference, accumulators == an independent numpy sum,
+and the weight files."""
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from numpy.lib.stride_tricks import sliding_window_view
+from numpy.testing import assert_array_equal
+
+from nna.conv import check_layer, cnn_accumulators, cnn_descriptor, cnn_descriptor_ref
+from nna.weights import default_weights, load_weights, save_weights
+from sim.errors import ConfigError, InputError
+
+
+def _layer(seed, n_channels=32, k_size=9, bias_range=20000):
+    """Random int8 weights with both extremes present, random int32 bias."""
+    rng = np.random.default_rng(seed)
+    weights = rng.integers(-128, 128, size=(n_channels, k_size, k_size), dtype=np.int8)
+    weights.flat[0] = -128
+    weights.flat[-1] = 127
+    bias = rng.integers(-bias_range, bias_range + 1, size=n_channels).astype(np.int32)
+    return weights, bias
+
+
+def _image(shape, seed):
+    return np.random.default_rng(seed).integers(0, 256, size=shape, dtype=np.uint8)
+
+
+def _numpy_accumulators(img, weights, bias, input_offset):
+    """Independent int64 computation: pad with edge replication, sum over sliding windows."""
+    k_size = weights.shape[1]
+    r = k_size // 2
+    x_i64 = np.pad(img.astype(np.int64) - input_offset, r, mode="edge")
+    windows = sliding_window_view(x_i64, (k_size, k_size))  # (H, W, K, K)
+    return np.einsum("hwij,cij->hwc", windows, weights.astype(np.int64)) + bias.astype(np.int64)
+
+
+def _pack_signs(acc):
+    n_channels = acc.shape[-1]
+    dtype = np.uint32 if n_channels <= 32 else np.uint64
+    out = np.zeros(acc.shape[:2], dtype=dtype)
+    for c in range(n_channels):
+        out |= (acc[..., c] > 0).astype(dtype) << np.array(c, dtype=dtype)
+    return out
+
+
+@pytest.mark.parametrize("input_offset", [0, 128, 255])
+@pytest.mark.parametrize("shape", [(1, 1), (5, 3), (3, 5), (31, 17)])
+def test_descriptor_kernel_equals_ref(shape, input_offset):
+    weights, bias = _layer(seed=shape[0] * 100 + shape[1] + input_offset)
+    img = _image(shape, seed=input_offset)
+    got = cnn_descriptor(img, weights, bias, input_offset)
+    want = cnn_descriptor_ref(img, weights, bias, input_offset)
+    assert got.dtype == np.uint32
+    assert_array_equal(got, want)
+    # Not a vacuous comparison: both signs occur on the larger images.
+    if img.size > 100:
+        assert got.any() and (~got).any()
+
+
+@pytest.mark.parametrize(
+    ("n_channels", "k_size"), [(1, 1), (7, 3), (32, 5), (33, 5), (64, 9), (3, 11)]
+)
+def test_other_layer_shapes(n_channels, k_size):
+    weights, bias = _layer(seed=n_channels + k_size, n_channels=n_channels, k_size=k_size)
+    img = _image((13, 10), seed=k_size)
+    got = cnn_descriptor(img, weights, bias, 128)
+    assert got.dtype == (np.uint32 if n_channels <= 32 else np.uint64)
+    assert_array_equal(got, cnn_descriptor_ref(img, weights, bias, 128))
+    acc = cnn_accumulators(img, weights, bias, 128)
+    assert_array_equal(acc, _numpy_accumulators(img, weights, bias, 128))
+    assert_array_equal(got, _pack_signs(acc))
+
+
+@pytest.mark.parametrize("input_offset", [0, 128, 255])
+@pytest.mark.parametrize("shape", [(1, 1), (5, 3), (31, 17), (40, 70)])
+def test_accumulators_equal_numpy(shape, input_offset):
+    weights, bias = _layer(seed=7 + input_offset)
+    img = _image(shape, seed=11)
+    acc = cnn_accumulators(img, weights, bias, input_offset)
+    assert acc.dtype == np.int32 and acc.shape == shape + (32,)
+    assert_array_equal(acc, _numpy_accumulators(img, weights, bias, input_offset))
+    assert_array_equal(cnn_descriptor(img, weights, bias, input_offset), _pack_signs(acc))
+
+
+def test_largest_accumulator_is_exact():
+    # Every tap at its extreme product: -128 * (0 - 255) = 32640, 81 taps, plus the largest
+    # bias check_layer accepts for 9x9: the int32 accumulator must reach 2**31 - 1 exactly.
+    weights = np.full((2, 9, 9), -128, dtype=np.int8)
+    weights[1] = 127  # 127 * -255 * 81, negative
+    limit = 2**31 - 1 - 81 * 32640
+    bias = np.array([limit, -limit], dtype=np.int32)
+    img = np.zeros((3, 4), dtype=np.uint8)
+    acc = cnn_accumulators(img, weights, bias, 255)
+    assert (acc[..., 0] == 2**31 - 1).all()
+    assert (acc[..., 1] == -limit - 127 * 255 * 81).all()
+    assert_array_equal(cnn_descriptor(img, weights, bias, 255), np.full((3, 4), 1, np.uint32))
+    with pytest.raises(ConfigError, match="overflow"):
+        check_layer(weights, np.array([limit + 1, 0], dtype=np.int32), 255)
+
+
+def test_zero_accumulator_gives_zero_bit():
+    # Threshold is strict: acc == 0 -> bit 0; acc == 1 -> bit 1.
+    weights = np.zeros((2, 3, 3), dtype=np.int8)
+    bias = np.array([0, 1], dtype=np.int32)
+    desc = cnn_descriptor(_image((4, 4), 0), weights, bias, 0)
+    assert_array_equal(desc, np.full((4, 4), 0b10, np.uint32))
+
+
+def test_non_contiguous_input():
+    weights, bias = _layer(seed=3)
+    img = _image((12, 30), seed=4)[:, ::3]
+    assert_array_equal(
+        cnn_descriptor(img, weights, bias, 100),
+        cnn_descriptor_ref(np.ascontiguousarray(img), weights, bias, 100),
+    )
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    height=st.integers(1, 12),
+    width=st.integers(1, 12),
+    n_channels=st.integers(1, 64),
+    k_size=st.integers(0, 5).map(lambda i: 2 * i + 1),
+    input_offset=st.integers(0, 255),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_kernel_equals_ref_hypothesis(height, width, n_channels, k_size, input_offset, seed):
+    weights, bias = _layer(seed, n_channels=n_channels, k_size=k_size)
+    img = _image((height, width), seed)
+    got = cnn_descriptor(img, weights, bias, input_offset)
+    assert_array_equal(got, cnn_descriptor_ref(img, weights, bias, input_offset))
+    acc = cnn_accumulators(img, weights, bias, input_offset)
+    assert_array_equal(acc, _numpy_accumulators(img, weights, bias, input_offset))
+
+
+def _good():
+    weights, bias = _layer(seed=0, n_channels=4, k_size=3)
+    return weights, bias, 128
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"weights": np.zeros((4, 3, 3), np.int16)}, "int8"),
+        ({"weights": np.zeros((4, 3, 3), np.float32)}, "int8"),
+        ({"weights": np.zeros((4, 3, 5), np.int8)}, "shape"),
+        ({"weights": np.zeros((4, 9), np.int8)}, "shape"),
+        ({"weights": np.zeros((4, 4, 4), np.int8)}, "odd"),
+        ({"weights": np.zeros((65, 3, 3), np.int8)}, "channels"),
+        ({"bias": np.zeros(4, np.int64)}, "int32"),
+        ({"bias": np.zeros(5, np.int32)}, r"shape \(4,\)"),
+        ({"input_offset": 256}, "0..255"),
+        ({"input_offset": -1}, "0..255"),
+        ({"input_offset": 1.5}, "int"),
+    ],
+)
+def test_bad_layer_raises_config_error(change, message):
+    weights, bias, input_offset = _good()
+    args = {"weights": weights, "bias": bias, "input_offset": input_offset} | change
+    with pytest.raises(ConfigError, match=message):
+        cnn_descriptor(np.zeros((4, 4), np.uint8), **args)
+
+
+@pytest.mark.parametrize(
+    "img", [np.zeros((4, 4), np.float64), np.zeros((4, 4, 3), np.uint8), np.zeros((4, 0), np.uint8)]
+)
+def test_bad_image_raises_input_error(img):
+    weights, bias, input_offset = _good()
+    for fn in (cnn_descriptor, cnn_accumulators, cnn_descriptor_ref):
+        with pytest.raises(InputError):
+            fn(img, weights, bias, input_offset)
+
+
+def test_default_weights_deterministic_and_zero_sum():
+    weights, bias, input_offset = default_weights()
+    again = default_weights()
+    assert_array_equal(weights, again[0])
+    assert_array_equal(bias, again[1])
+    assert input_offset == again[2] == 128
+    assert weights.dtype == np.int8 and weights.shape == (32, 9, 9)
+    assert bias.dtype == np.int32 and bias.shape == (32,) and not bias.any()
+    assert (weights.astype(np.int64).sum(axis=(1, 2)) == 0).all()
+    assert np.abs(weights.astype(np.int64)).max() <= 127
+    assert 15 < weights.astype(np.float64).std() < 35  # roughly N(0, 24), not degenerate
+    check_layer(weights, bias, input_offset)
+
+
+def test_default_weights_ignore_brightness_offset():
+    weights, bias, input_offset = default_weights()
+    img = _image((30, 41), seed=9) // 2  # 0..127
+    desc = cnn_descriptor(img, weights, bias, input_offset)
+    assert_array_equal(cnn_descriptor(img + np.uint8(100), weights, bias, input_offset), desc)
+    assert desc.any()
+
+
+def test_save_load_round_trip(tmp_path):
+    weights, bias = _layer(seed=5, n_channels=40, k_size=7)
+    path = tmp_path / "layer.npz"
+    save_weights(path, weights, bias, 17)
+    got_w, got_b, got_offset = load_weights(path)
+    assert got_w.dtype == np.int8 and got_b.dtype == np.int32
+    assert_array_equal(got_w, weights)
+    assert_array_equal(got_b, bias)
+    assert got_offset == 17 and isinstance(got_offset, int)
+    # A str path works too, and the defaults survive the trip.
+    save_weights(str(path), *default_weights())
+    for a, b in zip(load_weights(str(path)), default_weights(), strict=True):
+        assert_array_equal(a, b)
+
+
+def _write(path, **arrays):
+    with open(path, "wb") as f:
+        np.savez(f, **arrays)
+    return path
+
+
+@pytest.mark.parametrize(
+    ("arrays", "message"),
+    [
+        ({"weights": np.zeros((4, 3, 3), np.int8), "bias": np.zeros(4, np.int32)}, "lacks"),
+        (
+            {
+                "weights": np.zeros((4, 3, 3), np.float32),
+                "bias": np.zeros(4, np.int32),
+                "input_offset": np.int32(0),
+            },
+            "int8",
+        ),
+        (
+            {
+                "weights": np.zeros((4, 3, 2), np.int8),
+                "bias": np.zeros(4, np.int32),
+                "input_offset": np.int32(0),
+            },
+            "shape",
+        ),
+        (
+            {
+                "weights": np.zeros((4, 3, 3), np.int8),
+                "bias": np.zeros(3, np.int32),
+                "input_offset": np.int32(0),
+            },
+            "bias",
+        ),
+        (
+            {
+                "weights": np.zeros((4, 3, 3), np.int8),
+                "bias": np.zeros(4, np.int32),
+                "input_offset": np.int32(300),
+            },
+            "0..255",
+        ),
+        (
+            {
+                "weights": np.zeros((4, 3, 3), np.int8),
+                "bias": np.zeros(4, np.int32),
+                "input_offset": np.float32(1),
+            },
+            "integer scalar",
+        ),
+    ],
+    ids=[
+        "missing-key",
+        "float-weights",
+        "bad-shape",
+        "bias-length",
+        "offset-range",
+        "offset-float",
+    ],
+)
+def test_bad_weight_files_raise_config_error(tmp_path, arrays, message):
+    path = _write(tmp_path / "bad.npz", **arrays)
+    with pytest.raises(ConfigError, match=message) as info:
+        load_weights(path)
+    assert "bad.npz" in str(info.value)
+
+
+def test_missing_or_garbage_weight_file(tmp_path):
+    with pytest.raises(ConfigError, match="not found"):
+        load_weights(tmp_path / "nope.npz")
+    garbage = tmp_path / "garbage.npz"
+    garbage.write_bytes(b"this is not an npz archive")
+    with pytest.raises(ConfigError, match="not a readable"):
+        load_weights(garbage)
+    single = tmp_path / "single.npy"
+    np.save(single, np.zeros((4, 3, 3), np.int8))
+    with pytest.raises(ConfigError, match="single array"):
+        load_weights(single)

@@ -1,0 +1,1 @@
+"""Waveform traces (VCD, timeline) -- arrives with the trace issue."""
