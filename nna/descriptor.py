@@ -1,0 +1,39 @@
+"""The descriptor the configuration selects (``nna.descriptor``): census or the int8 CNN."""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+
+from nna.census import census, census_bits
+from nna.conv import cnn_descriptor
+from nna.weights import default_weights, load_weights
+from sim.config import NnaConfig
+
+
+@lru_cache(maxsize=8)
+def _layer(weights: str):
+    return default_weights() if weights == "default" else load_weights(weights)
+
+
+def layer(cfg: NnaConfig) -> tuple[np.ndarray, np.ndarray, int]:
+    """(int8 weights, int32 bias, input offset) of the CNN descriptor the config names."""
+    return _layer(cfg.cnn.weights)
+
+
+def descriptor_bits(cfg: NnaConfig) -> int:
+    """Width in bits of the configured descriptor (the largest Hamming cost)."""
+    if cfg.descriptor == "census":
+        c = cfg.census
+        return census_bits(c.window, c.kind, c.stride)
+    return int(layer(cfg)[0].shape[0])
+
+
+def compute_descriptor(img: np.ndarray, cfg: NnaConfig) -> np.ndarray:
+    """Descriptor image (H, W) uint32/uint64 of a grey uint8 image."""
+    if cfg.descriptor == "census":
+        c = cfg.census
+        return census(img, c.window, c.kind, c.stride)
+    weights, bias, offset = layer(cfg)
+    return cnn_descriptor(img, weights, bias, offset)

@@ -1,0 +1,117 @@
+"""Public Python interface: ``sim.run(left, right, ...) -> Result``."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from nna.descriptor import compute_descriptor, descriptor_bits
+from sim.config import ChipConfig, config_to_dict, load_config
+from sim.errors import ConfigError, InputError
+from sim.io import to_grey
+from sim.metrics import evaluate
+from sva.pipeline import sva_stream
+from sva.wta import to_float
+
+MODES = ("functional",)
+VERSION = "0.1.0"
+
+
+@dataclass(frozen=True)
+class Result:
+    """What one simulated frame produced.
+
+    ``disparity``: float32 (H, W), pixels, ``inf`` where invalid. ``disparity_fixed``: the chip's
+    output words, int32 with ``subpixel_bits`` fractional bits, -1 where invalid. ``report``: the
+    dict written as report.json. ``config``: the effective configuration.
+    """
+
+    disparity: np.ndarray
+    disparity_fixed: np.ndarray
+    report: dict
+    config: ChipConfig
+
+
+def prepare_pair(left, right) -> tuple[np.ndarray, np.ndarray]:
+    """Validate a stereo pair and return both views as grey uint8 (H, W).
+
+    RGB (H, W, 3) views are converted with the integer BT.601 formula of :func:`sim.io.to_grey`.
+    """
+    for name, img in (("left", left), ("right", right)):
+        if not isinstance(img, np.ndarray):
+            raise InputError(f"the {name} image must be a numpy array, got {type(img).__name__}")
+    gl, gr = to_grey(left), to_grey(right)
+    if gl.shape != gr.shape:
+        raise InputError(
+            f"left and right images differ in size ({gl.shape[1]}x{gl.shape[0]} vs "
+            f"{gr.shape[1]}x{gr.shape[0]}): give a rectified pair of equal size"
+        )
+    h, w = gl.shape
+    if h < 1 or w < 2:
+        raise InputError(f"the images are {w}x{h}: a stereo pair needs at least 2 columns and 1 row")
+    return gl, gr
+
+
+def resolve_config(config: ChipConfig | str | None, overrides: dict[str, Any] | None) -> ChipConfig:
+    if isinstance(config, ChipConfig):
+        if not overrides:
+            return config
+        raise ConfigError("give either a ChipConfig object or overrides, not both")
+    return load_config(config, overrides)
+
+
+def run(
+    left,
+    right,
+    *,
+    mode: str = "functional",
+    config: ChipConfig | str | None = None,
+    overrides: dict[str, Any] | None = None,
+    gt: np.ndarray | None = None,
+    masks: dict[str, np.ndarray] | None = None,
+) -> Result:
+    """Simulate one stereo frame.
+
+    ``left``/``right``: 2-D uint8 arrays (or RGB, converted to grey). ``config``: a
+    :class:`ChipConfig`, a TOML path or None (defaults); ``overrides``: dotted keys such as
+    ``{"sva.disparities": 128, "nna.descriptor": "census"}``. With ``gt`` (float32, inf unknown)
+    the report gains ``metrics`` over ``masks`` (default: every pixel with known GT).
+    """
+    if mode not in MODES:
+        raise ConfigError(f"mode must be one of {', '.join(MODES)}; got {mode!r}")
+    cfg = resolve_config(config, overrides)
+    gl, gr = prepare_pair(left, right)
+    h, w = gl.shape
+    if cfg.sva.disparities >= w:
+        raise ConfigError(
+            f"sva.disparities={cfg.sva.disparities} is not smaller than the image width {w}: "
+            f"use a smaller disparity range (--disparities) or a wider image"
+        )
+    bits = descriptor_bits(cfg.nna)
+    desc_l = compute_descriptor(gl, cfg.nna)
+    desc_r = compute_descriptor(gr, cfg.nna)
+    fixed = sva_stream(desc_l, desc_r, gl, cfg.sva, bits)
+    disp = to_float(fixed, cfg.sva.subpixel_bits)
+    report = build_report(cfg, mode, fixed, bits)
+    if gt is not None:
+        report["metrics"] = evaluate(disp, gt, masks if masks else {"all": np.isfinite(gt)})
+    return Result(disparity=disp, disparity_fixed=fixed, report=report, config=cfg)
+
+
+def build_report(cfg: ChipConfig, mode: str, fixed: np.ndarray, bits: int) -> dict:
+    h, w = fixed.shape
+    valid = int(np.count_nonzero(fixed >= 0))
+    return {
+        "stereosim": VERSION,
+        "mode": mode,
+        "image": {"width": w, "height": h},
+        "descriptor": {"kind": cfg.nna.descriptor, "bits": bits},
+        "output": {
+            "valid_pixels": valid,
+            "invalid_percent": round(100.0 * (h * w - valid) / (h * w), 4),
+            "fractional_bits": cfg.sva.subpixel_bits,
+        },
+        "config": config_to_dict(cfg),
+    }

@@ -1,0 +1,293 @@
+"""The ``stereosim`` command line.
+
+Every user mistake ends in one line on stderr (``stereosim: error: ...``) and exit status 2,
+never a traceback; outputs are written only after the whole frame has been computed, each file
+atomically, so a failed run leaves nothing half-written.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from sim.config import config_diff, config_to_toml, load_config, parse_set_options
+from sim.errors import InputError, UserError
+
+EVAL_KEYS = ("bad0.5", "bad1", "bad2", "bad4", "invalid", "totbad", "avgerr", "rms")
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse, but a usage mistake is one line and exit status 2 like every other error."""
+
+    def error(self, message):
+        raise UserError(f"{message} (see '{self.prog} --help')")
+
+
+def _add_config_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--config", metavar="FILE", help="TOML configuration file")
+    p.add_argument(
+        "--set", metavar="KEY=VALUE", action="append", default=[],
+        help="override one configuration key, e.g. --set sva.p1=10 (repeatable)",
+    )
+    p.add_argument("--disparities", type=int, metavar="N", help="disparity range D (sva.disparities)")
+    p.add_argument(
+        "--descriptor", choices=("census", "cnn"), help="per-pixel descriptor (nna.descriptor)"
+    )
+
+
+def _overrides(args) -> dict:
+    over = parse_set_options(args.set)
+    if args.disparities is not None:
+        over["sva.disparities"] = args.disparities
+    if args.descriptor is not None:
+        over["nna.descriptor"] = args.descriptor
+    return over
+
+
+def _user_set_disparities(args, over: dict) -> bool:
+    """Did the user choose D (flag, --set or config file)? Then a scene's calib.txt does not."""
+    if "sva.disparities" in over:
+        return True
+    if args.config:
+        import tomllib
+
+        try:
+            tree = tomllib.loads(Path(args.config).read_text())
+        except (OSError, ValueError):
+            return False  # load_config reports the problem
+        return "disparities" in tree.get("sva", {})
+    return False
+
+
+def _scene_config(args, ndisp: int | None):
+    over = _overrides(args)
+    if ndisp is not None and not _user_set_disparities(args, over):
+        from sim.datasets import legal_disparities
+
+        over["sva.disparities"] = legal_disparities(ndisp)
+    return load_config(args.config, over)
+
+
+# ----------------------------------------------------------------------------------------------
+# stereosim run
+
+
+def _load_run_inputs(args) -> dict:
+    """The stereo pair (+ GT and masks) from a scene folder, --left/--right, or the default."""
+    from sim.datasets import default_scene, find_scene, load_scene
+    from sim.io import read_gt, read_image, read_mask
+
+    if args.scene and (args.left or args.right):
+        raise InputError("give either a scene folder or --left/--right, not both")
+    if bool(args.left) != bool(args.right):
+        raise InputError("give both --left and --right (or neither, for the default scene)")
+    if args.scene:
+        data = load_scene(find_scene(args.scene, gt_scale=args.gt_scale))
+        data["source"] = str(args.scene)
+    elif args.left:
+        data = {
+            "name": Path(args.left).parent.name or Path(args.left).stem,
+            "left": read_image(args.left),
+            "right": read_image(args.right),
+            "gt": None,
+            "masks": {},
+            "ndisp": None,
+            "source": f"{args.left} + {args.right}",
+        }
+    else:
+        data = default_scene()
+        data["source"] = "embedded default scene (scikit-image stereo_motorcycle)"
+    if args.gt:
+        data["gt"] = read_gt(args.gt, args.gt_scale)
+        data["masks"] = {}
+    if args.mask:
+        if data.get("gt") is None:
+            raise InputError("--mask needs ground truth: give --gt too")
+        mask = read_mask(args.mask)
+        if mask.shape != data["gt"].shape:
+            raise InputError(
+                f"mask {args.mask} is {mask.shape[1]}x{mask.shape[0]} but the GT is "
+                f"{data['gt'].shape[1]}x{data['gt'].shape[0]}"
+            )
+        data["masks"] = {"nonocc": mask == 255, "all": np.isfinite(data["gt"])}
+    gt = data.get("gt")
+    if gt is not None:
+        h, w = data["left"].shape[:2]
+        if gt.shape != (h, w):
+            raise InputError(
+                f"the GT is {gt.shape[1]}x{gt.shape[0]} but the images are {w}x{h}: "
+                f"give the GT of this pair"
+            )
+        if not data.get("masks"):
+            data["masks"] = {"all": np.isfinite(gt)}
+    return data
+
+
+def _write_outputs(out_dir: Path, result, dmax: float) -> None:
+    from sim.io import atomic_write_bytes, disparity_to_colour, encode_png, pfm_bytes
+
+    # Encode everything first, then write: a failure leaves no partial set of outputs.
+    blobs = {
+        "disparity.pfm": pfm_bytes(result.disparity),
+        "disparity.png": encode_png(disparity_to_colour(result.disparity, dmax)),
+        "report.json": (json.dumps(result.report, indent=2, sort_keys=True) + "\n").encode(),
+    }
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"cannot create the output folder {out_dir}: {exc.strerror}") from None
+    for name, data in blobs.items():
+        atomic_write_bytes(out_dir / name, data)
+
+
+def _summary(report: dict, seconds: float) -> str:
+    img = report["image"]
+    lines = [
+        f"stereosim {report['mode']}: {img['width']}x{img['height']}, "
+        f"D={report['config']['sva']['disparities']}, descriptor {report['descriptor']['kind']} "
+        f"({report['descriptor']['bits']} bits), {report['config']['sva']['paths']} SGM paths, "
+        f"{seconds:.2f} s wall",
+        f"valid pixels: {100 - report['output']['invalid_percent']:.2f}%",
+    ]
+    for mask, m in report.get("metrics", {}).items():
+        lines.append(
+            f"{mask:>7}: bad2 {m['bad2']:.2f}%  invalid {m['invalid']:.2f}%  "
+            f"totbad {m['totbad']:.2f}%  avgerr {m['avgerr']:.3f}  rms {m['rms']:.3f}"
+        )
+    return "\n".join(lines)
+
+
+def cmd_run(args) -> int:
+    from sim.api import run
+
+    data = _load_run_inputs(args)
+    cfg = _scene_config(args, data.get("ndisp"))
+    t0 = time.perf_counter()
+    result = run(data["left"], data["right"], mode=args.mode, config=cfg,
+                 gt=data.get("gt"), masks=data.get("masks"))
+    seconds = time.perf_counter() - t0
+    result.report["scene"] = {"name": data["name"], "source": data["source"]}
+    out_dir = Path(args.out)
+    _write_outputs(out_dir, result, float(cfg.sva.disparities))
+    if args.json:
+        print(json.dumps(result.report, indent=2, sort_keys=True))
+    else:
+        print(_summary(result.report, seconds))
+        print(f"wrote {out_dir}/disparity.pfm, disparity.png, report.json")
+    return 0
+
+
+# ----------------------------------------------------------------------------------------------
+# stereosim eval
+
+
+def cmd_eval(args) -> int:
+    from tqdm import tqdm
+
+    from sim.api import run
+    from sim.datasets import find_scenes, load_scene
+    from sim.metrics import format_table, mean_metrics
+
+    scenes = find_scenes(args.dataset, gt_scale=args.gt_scale)
+    rows = []
+    results = []
+    for scene in tqdm(scenes, desc="eval", unit="scene", disable=args.json or None, file=sys.stderr):
+        data = load_scene(scene)
+        cfg = _scene_config(args, data.get("ndisp"))
+        res = run(data["left"], data["right"], mode=args.mode, config=cfg,
+                  gt=data["gt"], masks=data["masks"])
+        results.append(res.report["metrics"])
+        rows.append((scene.name, res.report["metrics"], cfg.sva.disparities))
+    mean = mean_metrics(results)
+    if args.json:
+        out = {
+            "dataset": str(args.dataset),
+            "scenes": {name: {"disparities": d, "metrics": m} for name, m, d in rows},
+            "mean": mean,
+        }
+        print(json.dumps(out, indent=2, sort_keys=True))
+        return 0
+    for mask in ("nonocc", "all"):
+        table_rows = [(name, m[mask]) for name, m, _ in rows if mask in m]
+        if table_rows:
+            print(f"\n[{mask}]  (thresholds in pixels of the GT's resolution)")
+            print(format_table(table_rows, EVAL_KEYS))
+    return 0
+
+
+# ----------------------------------------------------------------------------------------------
+# stereosim config
+
+
+def cmd_config_show(args) -> int:
+    cfg = load_config(args.config, _overrides(args))
+    sys.stdout.write(config_to_toml(cfg, comments=not args.plain))
+    return 0
+
+
+def cmd_config_diff(args) -> int:
+    diff = config_diff(load_config(args.a), load_config(args.b))
+    if not diff:
+        print("no differences")
+    for key, (va, vb) in sorted(diff.items()):
+        print(f"{key}: {va!r} -> {vb!r}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = _Parser(prog="stereosim", description="Simulator of an edge stereo-vision SoC.")
+    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    r = sub.add_parser("run", help="simulate one stereo frame")
+    r.add_argument("scene", nargs="?", help="a Middlebury scene folder (im0/im1/disp0GT/...)")
+    r.add_argument("--left", help="left image (PNG etc.; RGB is converted to grey)")
+    r.add_argument("--right", help="right image")
+    r.add_argument("--gt", help="ground-truth disparity (.pfm, or .png with --gt-scale)")
+    r.add_argument("--gt-scale", type=float, help="GT PNG value per pixel of disparity")
+    r.add_argument("--mask", help="evaluation mask PNG (255 = non-occluded)")
+    r.add_argument("--mode", default="functional", choices=("functional",), help="model to run")
+    r.add_argument("--out", default="out", help="output folder (default: out)")
+    r.add_argument("--json", action="store_true", help="print the report as JSON")
+    _add_config_options(r)
+    r.set_defaults(func=cmd_run)
+
+    e = sub.add_parser("eval", help="run and score every scene of a Middlebury-layout folder")
+    e.add_argument("dataset", help="folder of scenes (e.g. ../shared/data/middlebury2014_trainingQ)")
+    e.add_argument("--gt-scale", type=float, help="GT PNG scale for non-standard sizes")
+    e.add_argument("--mode", default="functional", choices=("functional",))
+    e.add_argument("--json", action="store_true", help="print per-scene and mean metrics as JSON")
+    _add_config_options(e)
+    e.set_defaults(func=cmd_eval)
+
+    c = sub.add_parser("config", help="show or compare configurations")
+    csub = c.add_subparsers(dest="config_command", required=True, parser_class=_Parser)
+    cs = csub.add_parser("show", help="print the effective configuration as TOML")
+    cs.add_argument("--plain", action="store_true", help="without the help comments")
+    _add_config_options(cs)
+    cs.set_defaults(func=cmd_config_show)
+    cd = csub.add_parser("diff", help="keys that differ between two TOML configurations")
+    cd.add_argument("a")
+    cd.add_argument("b")
+    cd.set_defaults(func=cmd_config_diff)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    try:
+        args = build_parser().parse_args(argv)
+        return args.func(args)
+    except UserError as exc:
+        print(f"stereosim: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("stereosim: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

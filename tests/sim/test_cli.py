@@ -1,0 +1,142 @@
+"""The command line: outputs, one-line errors with exit status 2, nothing half-written."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from sim.cli import main
+from sim.datasets import shared_data_dir
+from sim.io import encode_png, read_pfm
+
+DATA = shared_data_dir()
+
+
+def _write_pair(tmp_path, h=21, w=57, shift=4):
+    rng = np.random.default_rng(1)
+    base = rng.integers(0, 256, (h, w + shift), dtype=np.uint8)
+    left, right = tmp_path / "l.png", tmp_path / "r.png"
+    left.write_bytes(encode_png(base[:, :w].copy()))
+    right.write_bytes(encode_png(base[:, shift:].copy()))
+    return left, right
+
+
+def _run(args, capsys):
+    code = main(args)
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_run_writes_the_three_outputs(tmp_path, capsys):
+    left, right = _write_pair(tmp_path)
+    out = tmp_path / "out"
+    code, stdout, _ = _run(["run", "--left", str(left), "--right", str(right), "--disparities",
+                            "16", "--out", str(out), "--json"], capsys)
+    assert code == 0
+    report = json.loads(stdout)
+    assert report == json.loads((out / "report.json").read_text())
+    disp = read_pfm(out / "disparity.pfm")
+    assert disp.shape == (21, 57)
+    assert report["output"]["valid_pixels"] == int(np.isfinite(disp).sum())
+    assert (out / "disparity.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_run_is_byte_for_byte_deterministic(tmp_path, capsys):
+    left, right = _write_pair(tmp_path)
+    outs = []
+    for name in ("a", "b"):
+        code, _, _ = _run(["run", "--left", str(left), "--right", str(right), "--disparities",
+                           "16", "--out", str(tmp_path / name)], capsys)
+        assert code == 0
+        outs.append({f: (tmp_path / name / f).read_bytes()
+                     for f in ("disparity.pfm", "disparity.png", "report.json")})
+    assert outs[0] == outs[1]
+
+
+def _bad_cases(tmp_path):
+    left, right = _write_pair(tmp_path)
+    small = tmp_path / "small.png"
+    small.write_bytes(encode_png(np.zeros((21, 30), np.uint8)))
+    corrupt = tmp_path / "corrupt.png"
+    corrupt.write_bytes(b"\x89PNG\r\n\x1a\n this is not an image")
+    one = tmp_path / "one.png"
+    one.write_bytes(encode_png(np.zeros((1, 1), np.uint8)))
+    empty_cfg = tmp_path / "bad.toml"
+    empty_cfg.write_text("[sva]\nbogus = 1\n")
+    lr = ["--left", str(left), "--right", str(right)]
+    return {
+        "mismatched sizes": ["run", "--left", str(left), "--right", str(small)],
+        "1-pixel images": ["run", "--left", str(one), "--right", str(one)],
+        "D >= width": ["run", "--left", str(small), "--right", str(small), "--disparities", "32"],
+        "missing file": ["run", "--left", str(tmp_path / "nope.png"), "--right", str(right)],
+        "corrupt file": ["run", "--left", str(corrupt), "--right", str(right)],
+        "unknown key": ["run", *lr, "--set", "sva.bogus=1"],
+        "unknown key in file": ["run", *lr, "--config", str(empty_cfg)],
+        "bad value": ["run", *lr, "--disparities", "17"],
+        "one view only": ["run", "--left", str(left)],
+        "bad flag": ["run", "--frobnicate"],
+        "missing gt": ["run", *lr, "--gt", str(tmp_path / "gt.pfm")],
+        "png gt without scale": ["run", *lr, "--gt", str(left)],
+        "missing dataset": ["eval", str(tmp_path / "nowhere")],
+    }
+
+
+@pytest.mark.parametrize("case", [
+    "mismatched sizes", "1-pixel images", "D >= width", "missing file", "corrupt file",
+    "unknown key", "unknown key in file", "bad value", "one view only", "bad flag",
+    "missing gt", "png gt without scale", "missing dataset"])
+def test_bad_input_is_one_line_exit_2_and_writes_nothing(case, tmp_path, capsys):
+    args = _bad_cases(tmp_path)[case]
+    out = tmp_path / "out"
+    if args[0] == "run":
+        args = [*args, "--out", str(out)]
+    code, stdout, stderr = _run(args, capsys)
+    assert code == 2, stderr
+    lines = stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("stereosim: error: "), stderr
+    assert "Traceback" not in stderr
+    assert not out.exists()
+
+
+def test_console_script_has_no_traceback(tmp_path):
+    proc = subprocess.run(
+        [sys.executable, "-m", "sim.cli", "run", "--left", str(tmp_path / "x.png"),
+         "--right", str(tmp_path / "y.png")],
+        capture_output=True, text=True, check=False,
+    )
+    assert proc.returncode == 2
+    assert proc.stderr.startswith("stereosim: error: image file")
+    assert "Traceback" not in proc.stderr
+
+
+def test_config_show_prints_loadable_toml(tmp_path, capsys):
+    code, stdout, _ = _run(["config", "show", "--set", "sva.p1=3"], capsys)
+    assert code == 0
+    path = tmp_path / "c.toml"
+    path.write_text(stdout)
+    code, stdout, _ = _run(["config", "show", "--config", str(path), "--plain"], capsys)
+    assert code == 0 and "p1 = 3\n" in stdout
+
+
+def test_config_diff(tmp_path, capsys):
+    a, b = tmp_path / "a.toml", tmp_path / "b.toml"
+    a.write_text("[sva]\np1 = 3\n")
+    b.write_text("[sva]\np1 = 4\npaths = 2\n")
+    code, stdout, _ = _run(["config", "diff", str(a), str(b)], capsys)
+    assert code == 0
+    assert stdout.splitlines() == ["sva.p1: 3 -> 4", "sva.paths: 4 -> 2"]
+
+
+@pytest.mark.skipif(DATA is None, reason="../shared/data (Middlebury scenes) is not present")
+def test_run_on_a_2014_scene_folder_takes_d_from_calib(tmp_path, capsys):
+    scene = DATA / "middlebury2014_trainingQ" / "ArtL"
+    code, stdout, _ = _run(["run", str(scene), "--out", str(tmp_path), "--json"], capsys)
+    assert code == 0
+    report = json.loads(stdout)
+    assert report["config"]["sva"]["disparities"] == 64  # ndisp 64 in calib.txt
+    assert set(report["metrics"]) == {"nonocc", "all"}
+    code, stdout, _ = _run(["run", str(scene), "--out", str(tmp_path), "--json",
+                            "--disparities", "80"], capsys)
+    assert json.loads(stdout)["config"]["sva"]["disparities"] == 80
