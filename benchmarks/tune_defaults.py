@@ -4,7 +4,8 @@ This is the documented sweep behind the default P1/P2, box size, uniqueness and 
 (docs/tuning.md). Every point runs all 15 scenes (nonocc mask, D from each calib.txt) and the
 ranking is by mean totbad among the points with mean bad2 <= 11.
 
-    python benchmarks/tune_defaults.py [--data DIR] [--stage coarse|fine] [--descriptor census]
+    python benchmarks/tune_defaults.py [--data DIR] [--stage coarse|fine] [--base KEY=VALUE ...]
+                                       [--grid KEY=V1,V2,... ...]
 """
 
 from __future__ import annotations
@@ -63,6 +64,9 @@ def main(argv=None):
     ap.add_argument("--stage", choices=tuple(GRIDS), default="coarse")
     ap.add_argument("--base", action="append", default=[], metavar="KEY=VALUE",
                     help="fixed overrides for every point (e.g. the stage-1 winner)")
+    ap.add_argument("--grid", action="append", default=[], metavar="KEY=V1,V2,...",
+                    help="sweep these values instead of the stage's grid (repeatable; "
+                         "separate with | when values contain commas, e.g. [9,7]|[13,5])")
     ap.add_argument("--top", type=int, default=15)
     args = ap.parse_args(argv)
     data = args.data or (shared_data_dir() / "middlebury2014_trainingQ" if shared_data_dir() else None)
@@ -71,6 +75,11 @@ def main(argv=None):
     scenes = load_all(data)
     base = dict(kv.split("=", 1) for kv in args.base)
     grid = GRIDS[args.stage]
+    if args.grid:
+        grid = {}
+        for item in args.grid:
+            key, _, values = item.partition("=")
+            grid[key] = values.split("|" if "|" in values else ",")
     keys = list(grid)
     results = []
     t0 = time.perf_counter()

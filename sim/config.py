@@ -28,11 +28,14 @@ def param(default, help: str, *, lo=None, hi=None, choices=None, odd=False):
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class CensusConfig:
+    """The census descriptor. The default, plain 11x3, is exactly 32 bits -- the width of the NNA
+    descriptor -- and won the sweep in docs/tuning.md among the 31/32-bit windows."""
+
     window: tuple[int, int] = param(
-        (9, 7), "census window [width, height], both odd", lo=1, hi=15, odd=True
+        (11, 3), "census window [width, height], both odd", lo=1, hi=15, odd=True
     )
     kind: str = param(
-        "symmetric",
+        "plain",
         "plain: each pixel vs the centre; symmetric: each pixel vs its mirror through the centre",
         choices=("plain", "symmetric"),
     )
@@ -57,22 +60,27 @@ class NnaConfig:
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class SvaConfig:
+    """The stereo accelerator. Accuracy defaults (box, P1, P2, checks, median) come from the
+    sweep in docs/tuning.md; widths are the narrowest that never saturate with the default
+    32-bit descriptor: box 5x5 sums <= 800 < 2^10, a path cost <= 800 + P2 < 2^11, and the sum of
+    four paths < 2^13."""
+
     disparities: int = param(
         128, "disparity range D (d in [0, D)); multiple of 16 in [16, 256]", choices=LEGAL_DISPARITIES
     )
     box_size: int = param(5, "box-filter aggregation window k (k x k, odd; 1 = off)", lo=1, hi=15, odd=True)
-    cost_bits: int = param(11, "width of the aggregated matching cost (saturating)", lo=6, hi=15)
-    p1: int = param(12, "SGM penalty for a disparity change of 1", lo=0, hi=32767)
-    p2: int = param(96, "SGM penalty for a disparity change of more than 1", lo=0, hi=32767)
+    cost_bits: int = param(10, "width of the aggregated matching cost (saturating)", lo=6, hi=15)
+    p1: int = param(64, "SGM penalty for a disparity change of 1", lo=0, hi=32767)
+    p2: int = param(512, "SGM penalty for a disparity change of more than 1", lo=0, hi=32767)
     p2_adaptive: bool = param(False, "lower P2 at intensity steps: P2 - (slope*|dI| >> 4), >= P1")
     p2_slope: int = param(16, "slope of the adaptive P2 (in 1/16 per grey level)", lo=0, hi=1024)
-    path_bits: int = param(13, "width of each SGM path cost register (saturating)", lo=8, hi=14)
-    sum_bits: int = param(16, "width of the summed path cost S (saturating)", lo=8, hi=16)
+    path_bits: int = param(11, "width of each SGM path cost register (saturating)", lo=8, hi=14)
+    sum_bits: int = param(13, "width of the summed path cost S (saturating)", lo=8, hi=16)
     paths: int = param(
         4, "SGM paths: 1 = left-to-right, 2 = + top, 3 = + top-left, 4 = + top-right", lo=1, hi=4
     )
     uniqueness: int = param(
-        5, "uniqueness margin in percent (0 = off): best must beat the runner-up by this", lo=0, hi=99
+        0, "uniqueness margin in percent (0 = off): best must beat the runner-up by this", lo=0, hi=99
     )
     subpixel: str = param(
         "equiangular", "sub-pixel fit: off, parabola or equiangular",
@@ -80,8 +88,8 @@ class SvaConfig:
     )
     subpixel_bits: int = param(4, "fractional bits F of the output disparity", lo=0, hi=8)
     lr_check: bool = param(True, "left-right consistency check from the same aggregated volume")
-    lr_max_diff: int = param(1, "largest |dL - dR| (integer disparities) accepted by the LR check", lo=0, hi=255)
-    median: int = param(0, "median filter on the output: 0 (off), 3 or 5", choices=(0, 3, 5))
+    lr_max_diff: int = param(2, "largest |dL - dR| (integer disparities) accepted by the LR check", lo=0, hi=255)
+    median: int = param(3, "median filter on the output: 0 (off), 3 or 5", choices=(0, 3, 5))
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

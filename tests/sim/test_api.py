@@ -29,10 +29,12 @@ def test_run_returns_float_disparity_with_inf_invalid_and_fixed_words():
 
 def test_functional_model_equals_the_naive_reference_end_to_end():
     left, right = _pair(h=15, w=41, shift=3, seed=4)
-    res = sim.run(left, right, overrides={"sva.disparities": 16, "nna.census.window": [5, 5]})
+    over = {"sva.disparities": 16, "nna.census.window": [5, 5], "nna.census.kind": "symmetric"}
+    res = sim.run(left, right, overrides=over)
     from nna.census import census
 
-    ref = sva_ref(census(left, (5, 5)), census(right, (5, 5)), left, res.config.sva, 12)
+    ref = sva_ref(census(left, (5, 5), "symmetric"), census(right, (5, 5), "symmetric"), left,
+                  res.config.sva, 12)
     np.testing.assert_array_equal(res.disparity_fixed, ref)
 
 

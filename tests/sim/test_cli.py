@@ -140,3 +140,17 @@ def test_run_on_a_2014_scene_folder_takes_d_from_calib(tmp_path, capsys):
     code, stdout, _ = _run(["run", str(scene), "--out", str(tmp_path), "--json",
                             "--disparities", "80"], capsys)
     assert json.loads(stdout)["config"]["sva"]["disparities"] == 80
+
+
+@pytest.mark.skipif(DATA is None, reason="../shared/data (Middlebury scenes) is not present")
+def test_eval_on_the_2003_layout(capsys):
+    code, stdout, _ = _run(["eval", str(DATA / "middlebury2003_quarter"), "--json",
+                            "--disparities", "64"], capsys)
+    assert code == 0
+    out = json.loads(stdout)
+    assert sorted(out["scenes"]) == ["cones", "teddy"]
+    for mask in ("nonocc", "all"):
+        per_scene = [out["scenes"][s]["metrics"][mask]["bad2"] for s in ("cones", "teddy")]
+        assert out["mean"][mask]["bad2"] == pytest.approx(sum(per_scene) / 2)
+    # a working matcher on real data: far better than chance on these easy scenes
+    assert out["mean"]["nonocc"]["bad2"] < 20

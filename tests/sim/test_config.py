@@ -15,8 +15,11 @@ def test_defaults_round_trip_through_toml(tmp_path):
     path = tmp_path / "c.toml"
     path.write_text(config_to_toml(cfg))
     assert load_config(path) == cfg
-    assert config_diff(cfg, ChipConfig()) == {"sva.p1": (7, ChipConfig().sva.p1),
-                                              "nna.census.window": ([5, 5], [9, 7])}
+    default = ChipConfig()
+    assert config_diff(cfg, default) == {
+        "sva.p1": (7, default.sva.p1),
+        "nna.census.window": ([5, 5], list(default.nna.census.window)),
+    }
 
 
 def test_cli_strings_are_parsed_as_toml_values():
