@@ -58,33 +58,44 @@ def vertical_sum_row(rows, k, height, y, out):
                 out[x, d] = np.uint16(out[x, d] + np.uint16(src[x, d]))
 
 
+@njit(cache=True, inline="always")
+def box_start(colsum, k, acc):
+    """The horizontal window sum at x = 0: columns clamp(-r) .. clamp(r) of ``colsum``."""
+    r = k // 2
+    w, dn = colsum.shape
+    for d in range(dn):
+        acc[d] = 0
+    for i in range(-r, r + 1):
+        src = colsum[min(max(i, 0), w - 1)]
+        for d in range(dn):
+            acc[d] = np.uint16(acc[d] + src[d])
+
+
+@njit(cache=True, inline="always")
+def box_step(acc, c_in, c_out, cap, out):
+    """Emit the window sum of this pixel saturated at ``cap`` into ``out``, then slide the
+    window one column right: ``acc += c_in - c_out``. The window sum is at most
+    k*k*255 < 2^16 (k <= 15), so uint16 arithmetic (modulo 2^16 in between) is exact."""
+    for d in range(acc.shape[0]):
+        v = acc[d]
+        out[d] = min(v, cap)
+        acc[d] = np.uint16(np.uint16(v + c_in[d]) - c_out[d])
+
+
 @njit(cache=True)
 def horizontal_sum_row(colsum, k, cap, out):
     """Sliding horizontal sum of k columns of ``colsum`` (W, D) with replicate borders.
 
     The running sum adds the column entering the window and subtracts the one leaving it; with
-    replicate borders the column index of both is clamped. Saturates at ``cap``. The window sum
-    is at most k*k*255 < 2^16 (k <= 15), so uint16 arithmetic (modulo 2^16 in between) is exact.
+    replicate borders the column index of both is clamped. Saturates at ``cap``.
     """
     r = k // 2
-    w = colsum.shape[0]
-    dn = colsum.shape[1]
+    w, dn = colsum.shape
     capu = np.uint16(cap)
-    acc = np.zeros(dn, np.uint16)
-    for i in range(-r, r + 1):
-        xx = min(max(i, 0), w - 1)
-        for d in range(dn):
-            acc[d] = np.uint16(acc[d] + colsum[xx, d])
+    acc = np.empty(dn, np.uint16)
+    box_start(colsum, k, acc)
     for x in range(w):
-        x_in = min(x + r + 1, w - 1)
-        x_out = max(x - r, 0)
-        o = out[x]
-        c_in = colsum[x_in]
-        c_out = colsum[x_out]
-        for d in range(dn):
-            v = acc[d]
-            o[d] = capu if v > capu else v
-            acc[d] = np.uint16(np.uint16(v + c_in[d]) - c_out[d])
+        box_step(acc, colsum[min(x + r + 1, w - 1)], colsum[max(x - r, 0)], capu, out[x])
 
 
 @njit(cache=True)
@@ -96,7 +107,11 @@ def _box_volume(cost, k, cap, out):
     for y in range(h):
         for j in range(-r, r + 1):
             yy = min(max(y + j, 0), h - 1)
-            ring[yy % k] = cost[yy]
+            src = cost[yy]
+            dst = ring[yy % k]
+            for x in range(w):
+                for d in range(dn):
+                    dst[x, d] = src[x, d]
         vertical_sum_row(ring, k, h, y, colsum)
         horizontal_sum_row(colsum, k, cap, out[y])
 
@@ -109,6 +124,8 @@ def box_filter(cost, k: int, cost_bits: int) -> np.ndarray:
         raise InputError(f"the box size must be odd and >= 1, got {k}")
     if k > 15:
         raise InputError(f"box size {k} is too large for 16-bit column sums (k <= 15)")
+    if not 1 <= cost_bits <= 16:
+        raise InputError(f"the aggregated cost width must be 1..16 bits, got {cost_bits}")
     out = np.empty(cost.shape, np.uint16)
     _box_volume(np.ascontiguousarray(cost), k, (1 << cost_bits) - 1, out)
     return out

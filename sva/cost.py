@@ -59,6 +59,53 @@ def cost_row(dl_row, dr_row, disparities, bits, out):
 
 
 @njit(cache=True)
+def reverse_row(row, out):
+    """``out[i] = row[W - 1 - i]``: with the right row reversed, the right pixels x - d of a
+    fixed left pixel x are contiguous and ascending in d (out[W - 1 - x + d]), so the d-loops
+    below are plain vector loads, not gathers."""
+    w = row.shape[0]
+    for i in range(w):
+        out[i] = row[w - 1 - i]
+
+
+@njit(cache=True)
+def cost_row_add(dl_row, dr_rev, bits, sums):
+    """``sums[x, d] += C(x, d)`` (uint16) for one row of the cost volume; ``dr_rev`` is the
+    right row reversed (:func:`reverse_row`)."""
+    w, dn = sums.shape
+    bits16 = np.uint16(bits)
+    for x in range(w):
+        a = dl_row[x]
+        lim = min(dn, x + 1)
+        right = dr_rev[w - 1 - x :]
+        sx = sums[x]
+        for d in range(lim):
+            sx[d] = np.uint16(sx[d] + np.uint16(popcount(a ^ right[d])))
+        for d in range(lim, dn):
+            sx[d] = np.uint16(sx[d] + bits16)
+
+
+@njit(cache=True)
+def cost_row_update(dl_in, dr_rev_in, dl_out, dr_rev_out, sums):
+    """``sums[x, d] += C_in(x, d) - C_out(x, d)`` (uint16, modulo 2^16) for two rows of the
+    cost volume: the vertical box sum slides down one row (the row entering the window in,
+    the one leaving it out) without storing cost rows. Where x - d < 0 both costs are B and
+    cancel, so only d <= x is visited."""
+    w, dn = sums.shape
+    for x in range(w):
+        a_in = dl_in[x]
+        a_out = dl_out[x]
+        lim = min(dn, x + 1)
+        r_in = dr_rev_in[w - 1 - x :]
+        r_out = dr_rev_out[w - 1 - x :]
+        sx = sums[x]
+        for d in range(lim):
+            c_in = np.uint16(popcount(a_in ^ r_in[d]))
+            c_out = np.uint16(popcount(a_out ^ r_out[d]))
+            sx[d] = np.uint16(np.uint16(sx[d] + c_in) - c_out)
+
+
+@njit(cache=True)
 def _cost_volume(desc_l, desc_r, disparities, bits, out):
     for y in range(desc_l.shape[0]):
         cost_row(desc_l[y], desc_r[y], disparities, bits, out[y])

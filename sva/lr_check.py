@@ -14,6 +14,7 @@ aggregation alone this shear is exact; through SGM's causal paths it is the usua
 import numpy as np
 from numba import njit
 
+from sim.errors import InputError
 from sva.wta import INVALID
 
 
@@ -46,25 +47,61 @@ def lr_check_ref(q, dint, dr, max_diff: int) -> np.ndarray:
     return out
 
 
+def new_diagonal_buffers(width: int, disparities: int):
+    """Scratch of :func:`diagonal_update`: (best cost, its d) per right pixel, int32, stored
+    reversed (x_r at index W - 1 - x_r) with room for the D - 1 pixels x_r < 0 that the
+    d-loop also touches. Reset by :func:`diagonal_start`."""
+    n = width + disparities - 1
+    return np.empty(n, np.int32), np.empty(n, np.int32)
+
+
 @njit(cache=True)
-def right_disparity_row(s_row, best_cost, dr_row):
-    """dR for one row. ``best_cost`` (W,) int64 scratch. Scans left pixels x in order and d in
-    order, keeping the first minimum, so ties resolve to the smallest d as defined."""
-    w = s_row.shape[0]
-    dn = s_row.shape[1]
+def diagonal_start(diag):
+    """Open every right pixel of a new row: cost above any S (S < 2^16), d = 0."""
+    best, best_d = diag
+    for i in range(best.shape[0]):
+        best[i] = 0x7FFFFFFF
+        best_d[i] = 0
+
+
+@njit(cache=True, inline="always")
+def diagonal_update(sx, x, diag):
+    """Feed the costs ``sx`` (D,) of left pixel x to the right pixels x_r = x - d it can match.
+
+    With x_r stored at index W - 1 - x_r, the right pixels of d = 0, 1, ... are contiguous
+    and ascending from index W - 1 - x, so the d-loop is one fixed-length vectorisable pass
+    of compares and selects (int32 lanes; uint16 lanes with selects do not vectorise). d > x
+    lands on x_r < 0, which is never read. Pixels come in order x = 0, 1, ...: for a fixed
+    x_r, d grows with x, so strict < keeps the smallest d among equal costs, as defined.
+    """
+    best, best_d = diag
+    dn = sx.shape[0]
+    base = best.shape[0] - dn - x  # index of x_r = x: W - 1 - x
+    b = best[base:]
+    i = best_d[base:]
+    for d in range(dn):
+        v = np.int32(sx[d])
+        lt = v < b[d]
+        b[d] = v if lt else b[d]
+        i[d] = np.int32(d) if lt else i[d]
+
+
+@njit(cache=True)
+def diagonal_finish(diag, dr_row):
+    """After the last pixel of a row: dR of every right pixel into ``dr_row`` (W,)."""
+    best_d = diag[1]
+    w = dr_row.shape[0]
     for xr in range(w):
-        best_cost[xr] = np.int64(1) << 40
-        dr_row[xr] = 0
-    for x in range(w):
-        sx = s_row[x]
-        lim = min(dn, x + 1)
-        for d in range(lim):
-            xr = x - d
-            c = np.int64(sx[d])
-            # for a fixed xr, d grows with x: strict < keeps the smallest d among equal costs
-            if c < best_cost[xr]:
-                best_cost[xr] = c
-                dr_row[xr] = d
+        dr_row[xr] = best_d[w - 1 - xr]
+
+
+@njit(cache=True)
+def right_disparity_row(s_row, diag, dr_row):
+    """dR for one row of S (W, D); ``diag`` from :func:`new_diagonal_buffers`."""
+    diagonal_start(diag)
+    for x in range(s_row.shape[0]):
+        diagonal_update(s_row[x], x, diag)
+    diagonal_finish(diag, dr_row)
 
 
 @njit(cache=True)
@@ -84,17 +121,27 @@ def lr_check_row(q_row, dint_row, dr_row, max_diff):
 
 
 @njit(cache=True)
-def _lr_volume(s, q, dint, max_diff, dr):
-    best = np.empty(s.shape[1], np.int64)
+def _lr_volume(s, q, dint, max_diff, dr, diag):
     for y in range(s.shape[0]):
-        right_disparity_row(s[y], best, dr[y])
+        right_disparity_row(s[y], diag, dr[y])
         lr_check_row(q[y], dint[y], dr[y], max_diff)
 
 
 def lr_check(s, q, dint, max_diff: int):
     """Numba version: (checked q, dR). ``q`` is not modified."""
+    if not isinstance(s, np.ndarray) or s.ndim != 3 or s.dtype != np.uint16:
+        raise InputError("the summed cost volume S must be a uint16 array (H, W, D)")
     h, w, _ = s.shape
-    out = np.ascontiguousarray(q).copy()
+    if q.shape != (h, w) or dint.shape != (h, w):
+        raise InputError(f"the output words and winners must be {h}x{w} like S")
+    out = np.ascontiguousarray(q, dtype=np.int32).copy()
     dr = np.empty((h, w), np.int32)
-    _lr_volume(np.ascontiguousarray(s), out, np.ascontiguousarray(dint), max_diff, dr)
+    _lr_volume(
+        np.ascontiguousarray(s),
+        out,
+        np.ascontiguousarray(dint, dtype=np.int32),
+        max_diff,
+        dr,
+        new_diagonal_buffers(w, s.shape[2]),
+    )
     return out, dr

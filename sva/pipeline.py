@@ -4,9 +4,11 @@ Two implementations that must agree bit for bit:
 
 - :func:`sva_ref` composes the naive stage references on whole (H, W, D) volumes -- slow, only
   for small images, and the definition the tests hold everything against;
-- :func:`sva_stream` runs the numba row kernels of every stage in one compiled loop, row by row,
-  the way the chip streams: a ring of k cost rows for the box filter, one row of aggregated
-  cost, the previous row of each SGM path, one row of S. Memory grows with W x D, not H x W x D.
+- :func:`sva_stream` runs the numba kernels of every stage fused in one compiled loop, row by
+  row as the chip streams and, inside a row, pixel by pixel with each stage's D-vector in the
+  L1 cache: one row of vertical box sums (slid down a row by adding the entering cost row and
+  subtracting the leaving one), one row per SGM top path (updated in place), a few D-vectors.
+  Memory grows with W x D, not H x W x D.
 """
 
 from __future__ import annotations
@@ -16,12 +18,26 @@ from numba import njit
 
 from sim.config import SvaConfig
 from sim.errors import InputError
-from sva.aggregation import box_filter_ref, horizontal_sum_row, vertical_sum_row
-from sva.cost import check_descriptor_pair, cost_row, hamming_cost_ref
-from sva.lr_check import lr_check_ref, lr_check_row, right_disparity_ref, right_disparity_row
+from sva.aggregation import box_filter_ref, box_start, box_step
+from sva.cost import (
+    check_descriptor_pair,
+    cost_row_add,
+    cost_row_update,
+    hamming_cost_ref,
+    reverse_row,
+)
+from sva.lr_check import (
+    diagonal_finish,
+    diagonal_start,
+    diagonal_update,
+    lr_check_ref,
+    lr_check_row,
+    new_diagonal_buffers,
+    right_disparity_ref,
+)
 from sva.median import median, median_ref
-from sva.sgm import new_path_buffers, sgm_ref, sgm_row
-from sva.wta import subpixel_mode_code, wta_ref, wta_row
+from sva.sgm import new_path_buffers, sgm_params, sgm_pixel, sgm_ref
+from sva.wta import disparity_index, subpixel_mode_code, wta_pixel, wta_ref
 
 
 def check_inputs(desc_l, desc_r, img_l, cfg: SvaConfig, bits: int) -> None:
@@ -36,6 +52,14 @@ def check_inputs(desc_l, desc_r, img_l, cfg: SvaConfig, bits: int) -> None:
         )
     if not 1 <= bits <= 64:
         raise InputError(f"descriptor width must be 1..64 bits, got {bits}")
+    # the uint16 lanes of the kernels (a config built without load_config skips its checks)
+    if cfg.path_bits > 14 or cfg.cost_bits > 15 or cfg.sum_bits > 16 or cfg.box_size > 15:
+        raise InputError(
+            "register widths too large for the kernels: path_bits <= 14, cost_bits <= 15, "
+            "sum_bits <= 16 and box_size <= 15"
+        )
+    if not (0 <= cfg.p1 <= 32767 and 0 <= cfg.p2 <= 32767 and cfg.p2_slope >= 0):
+        raise InputError("P1 and P2 must be in 0..32767 and the P2 slope >= 0")
 
 
 def sva_ref(desc_l, desc_r, img_l, cfg: SvaConfig, bits: int) -> np.ndarray:
@@ -58,49 +82,95 @@ def sva_ref(desc_l, desc_r, img_l, cfg: SvaConfig, bits: int) -> np.ndarray:
 
 
 @njit(cache=True)
-def _stream(desc_l, desc_r, img, dn, bits, k, cost_cap, paths, p1, p2, adaptive, slope,
-            path_cap, sum_cap, uniqueness, mode, frac_bits, lr, max_diff, path_buffers, q_out):
+def _stream(desc_l, desc_r, img, box, sgm_args, select, q_out):
+    """The fused SVA, row by row and, inside a row, pixel by pixel with every stage's D-vector
+    in the L1 cache.
+
+    ``box`` = (k, bits, agg_cap): the box size, the descriptor width and the cap of the
+    aggregated cost fed to SGM, min(2^cost_bits, 2^path_bits) - 1 (clamping A to the path cap
+    first is exact: min(A + x, cap) = min(min(A, cap) + x, cap) for x >= 0).
+    ``sgm_args`` = (state, params, sum_cap) of :func:`sva.sgm.sgm_pixel`.
+    ``select`` = (uniqueness, mode, frac_bits, lr, max_diff, diag).
+
+    Per row: the vertical box sums slide down one row (the cost row entering the window added,
+    the one leaving it subtracted, both recomputed from the descriptors: no ring of cost rows).
+    Per pixel: the horizontal box sum, the SGM paths (top paths updated in place), S, WTA and
+    the diagonal search of the right disparity. Per row again: the LR check.
+    """
+    k, bits, agg_cap = box
+    state, params, sum_cap = sgm_args
+    uniqueness, mode, frac_bits, lr, max_diff, diag = select
     h, w = desc_l.shape
+    dn = state[0].shape[1] - 2
     r = k // 2
-    ring = np.empty((k, w, dn), np.uint8)
-    colsum = np.empty((w, dn), np.uint16)
-    agg = np.empty((w, dn), np.uint16)
-    s_row = np.empty((w, dn), np.uint16)
-    prev, cur, prev_min, cur_min, left = path_buffers
+    scap = np.uint16(sum_cap)
+    colsum = np.zeros((w, dn), np.uint16)
+    rev_in = np.empty(w, desc_r.dtype)
+    rev_out = np.empty(w, desc_r.dtype)
+    hacc = np.empty(dn, np.uint16)
+    agg = np.empty(dn, np.uint16)
+    acc = np.empty(dn, np.uint16)
+    s = np.empty(dn, np.uint16)
+    idx = disparity_index(dn)
     dint = np.empty(w, np.int32)
     dr = np.empty(w, np.int32)
-    best = np.empty(w, np.int64)
-    next_row = 0
+    for j in range(-r, r + 1):
+        yy = min(max(j, 0), h - 1)
+        reverse_row(desc_r[yy], rev_in)
+        cost_row_add(desc_l[yy], rev_in, bits, colsum)
     for y in range(h):
-        # the cost rows up to clamp(y + r) must be in the ring (row i lives in slot i % k)
-        need = min(y + r, h - 1)
-        while next_row <= need:
-            cost_row(desc_l[next_row], desc_r[next_row], dn, bits, ring[next_row % k])
-            next_row += 1
-        vertical_sum_row(ring, k, h, y, colsum)
-        horizontal_sum_row(colsum, k, cost_cap, agg)
+        # vertical sums of rows clamp(y - r) .. clamp(y + r): slide down from y - 1
+        y_in = min(y + r, h - 1)
+        y_out = max(y - 1 - r, 0)
+        if y > 0 and y_in != y_out:
+            reverse_row(desc_r[y_in], rev_in)
+            reverse_row(desc_r[y_out], rev_out)
+            cost_row_update(desc_l[y_in], rev_in, desc_l[y_out], rev_out, colsum)
+        box_start(colsum, k, hacc)
+        img_row = img[y]
         img_prev = img[y - 1] if y > 0 else img[0]
-        sgm_row(agg, img[y], img_prev, y, prev, prev_min, cur, cur_min, left, paths, p1, p2,
-                adaptive, slope, path_cap, sum_cap, s_row)
-        prev, cur = cur, prev
-        prev_min, cur_min = cur_min, prev_min
-        wta_row(s_row, uniqueness, mode, frac_bits, q_out[y], dint)
+        q_row = q_out[y]
+        diagonal_start(diag)
+        for x in range(w):
+            box_step(hacc, colsum[min(x + r + 1, w - 1)], colsum[max(x - r, 0)], agg_cap, agg)
+            for d in range(dn):
+                acc[d] = 0
+            sgm_pixel(agg, x, y, img_row, img_prev, state, params, acc)
+            for d in range(dn):
+                v = acc[d]
+                s[d] = min(v, scap)
+            q_row[x], dint[x] = wta_pixel(s, idx, uniqueness, mode, frac_bits)
+            # unconditional even without the LR check: a branch around array code in this
+            # loop would cost numba reference counting on every pixel
+            diagonal_update(s, x, diag)
+        diagonal_finish(diag, dr)
         if lr:
-            right_disparity_row(s_row, best, dr)
-            lr_check_row(q_out[y], dint, dr, max_diff)
+            lr_check_row(q_row, dint, dr, max_diff)
 
 
 def sva_stream(desc_l, desc_r, img_l, cfg: SvaConfig, bits: int) -> np.ndarray:
     """Output words (H, W) int32 (-1 invalid) from the compiled streaming pipeline."""
     check_inputs(desc_l, desc_r, img_l, cfg, bits)
     h, w = desc_l.shape
+    dn = cfg.disparities
     q = np.empty((h, w), np.int32)
+    agg_cap = min((1 << cfg.cost_bits) - 1, (1 << cfg.path_bits) - 1)
+    params = sgm_params(cfg.paths, cfg.p1, cfg.p2, cfg.p2_adaptive, cfg.p2_slope, cfg.path_bits)
     _stream(
-        np.ascontiguousarray(desc_l), np.ascontiguousarray(desc_r), np.ascontiguousarray(img_l),
-        cfg.disparities, np.uint8(bits), cfg.box_size, np.uint32((1 << cfg.cost_bits) - 1),
-        cfg.paths, cfg.p1, cfg.p2, cfg.p2_adaptive, cfg.p2_slope, (1 << cfg.path_bits) - 1,
-        (1 << cfg.sum_bits) - 1, cfg.uniqueness, subpixel_mode_code(cfg.subpixel),
-        cfg.subpixel_bits, cfg.lr_check, cfg.lr_max_diff, new_path_buffers(w, cfg.disparities), q,
+        np.ascontiguousarray(desc_l),
+        np.ascontiguousarray(desc_r),
+        np.ascontiguousarray(img_l),
+        (np.int64(cfg.box_size), np.uint16(bits), np.uint16(agg_cap)),
+        (new_path_buffers(w, dn), params, np.uint16((1 << cfg.sum_bits) - 1)),
+        (
+            np.int64(cfg.uniqueness),
+            np.int64(subpixel_mode_code(cfg.subpixel)),
+            np.int64(cfg.subpixel_bits),
+            bool(cfg.lr_check),
+            np.int64(cfg.lr_max_diff),
+            new_diagonal_buffers(w, dn),
+        ),
+        q,
     )
     if cfg.median > 1:
         q = median(q, cfg.median)

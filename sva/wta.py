@@ -22,6 +22,7 @@ import numpy as np
 from numba import njit
 
 from quant.fixedpoint import div_round_half_up
+from sim.errors import InputError
 
 INVALID = -1
 SUBPIXEL_MODES = ("off", "parabola", "equiangular")
@@ -67,40 +68,69 @@ def wta_ref(s, *, uniqueness: int, subpixel: str, frac_bits: int):
     return q, dint
 
 
+@njit(cache=True, inline="always")
+def _min_u16(sx):
+    """min sx as uint16: a vectorised reduction."""
+    m = np.uint16(0xFFFF)
+    for d in range(sx.shape[0]):
+        m = min(m, sx[d])
+    return m
+
+
 @njit(cache=True)
-def wta_row(s_row, uniqueness, mode, frac_bits, q_row, dint_row):
+def disparity_index(disparities):
+    """0, 1, ..., D - 1 as uint16: the d of the vectorised passes of :func:`wta_pixel`.
+
+    Read from an array rather than converted from the loop counter, the uint16 lanes
+    vectorise (a counter converted per element does not)."""
+    return np.arange(disparities).astype(np.uint16)
+
+
+@njit(cache=True, inline="always")
+def wta_pixel(sx, idx, uniqueness, mode, frac_bits):
+    """One pixel of :func:`wta_ref` from its costs ``sx`` (D,) uint16: (q, d*).
+
+    ``idx`` is :func:`disparity_index`. Three branch-free passes over d in uint16 lanes: the
+    minimum S1; the first index holding it, a minimum over ``d if S(d) == S1 else 0xFFFF``;
+    the runner-up over |d - d*| >= 2, a minimum over ``S(d) if d - (d* - 1) > 2 (modulo
+    2^16) else 0xFFFF`` (0xFFFF is a legal S too, so whether such a d exists is decided
+    apart). ``mode``: 0 off, 1 parabola, 2 equiangular.
+    """
+    dn = sx.shape[0]
+    s1 = _min_u16(sx)
+    first = np.uint16(0xFFFF)
+    for d in range(dn):
+        first = min(first, idx[d] if sx[d] == s1 else np.uint16(0xFFFF))
+    best = np.int64(first)
+    b1 = np.uint16(best - 1)
+    far = np.uint16(0xFFFF)
+    for d in range(dn):
+        far = min(far, sx[d] if np.uint16(idx[d] - b1) > np.uint16(2) else np.uint16(0xFFFF))
+    # the neighbours are read (clamped) before any branch: in numba an array last used inside
+    # a branch costs reference counting on every call, and this runs once per pixel
+    a = np.int64(sx[max(best - 1, 0)])
+    b = np.int64(sx[min(best + 1, dn - 1)])
+    o = np.int64(0)
+    if mode != 0 and frac_bits > 0 and 0 < best < dn - 1:
+        c = np.int64(s1)
+        if mode == 1:
+            den = 2 * (a + b - 2 * c)
+        else:
+            den = 2 * max(a - c, b - c)
+        if den > 0:
+            o = div_round_half_up((a - b) << frac_bits, den)
+    q = (best << frac_bits) + o
+    has_far = best >= 2 or best + 2 < dn
+    if uniqueness > 0 and has_far and np.int64(far) * 100 < np.int64(s1) * (100 + uniqueness):
+        q = np.int64(INVALID)
+    return q, best
+
+
+@njit(cache=True)
+def wta_row(s_row, idx, uniqueness, mode, frac_bits, q_row, dint_row):
     """One row of :func:`wta_ref`. ``mode``: 0 off, 1 parabola, 2 equiangular."""
-    w = s_row.shape[0]
-    dn = s_row.shape[1]
-    for x in range(w):
-        sx = s_row[x]
-        s1 = sx[0]
-        best = 0
-        for d in range(1, dn):
-            if sx[d] < s1:
-                s1 = sx[d]
-                best = d
-        dint_row[x] = best
-        if uniqueness > 0:
-            s2 = np.int64(0x7FFFFFFF)
-            for d in range(dn):
-                if (d - best >= 2 or best - d >= 2) and sx[d] < s2:
-                    s2 = np.int64(sx[d])
-            if s2 != 0x7FFFFFFF and s2 * 100 < np.int64(s1) * (100 + uniqueness):
-                q_row[x] = INVALID
-                continue
-        o = np.int64(0)
-        if mode != 0 and frac_bits > 0 and 0 < best < dn - 1:
-            a = np.int64(sx[best - 1])
-            b = np.int64(sx[best + 1])
-            c = np.int64(s1)
-            if mode == 1:
-                den = 2 * (a + b - 2 * c)
-            else:
-                den = 2 * max(a - c, b - c)
-            if den > 0:
-                o = div_round_half_up((a - b) << frac_bits, den)
-        q_row[x] = (best << frac_bits) + o
+    for x in range(s_row.shape[0]):
+        q_row[x], dint_row[x] = wta_pixel(s_row[x], idx, uniqueness, mode, frac_bits)
 
 
 def subpixel_mode_code(mode: str) -> int:
@@ -108,17 +138,29 @@ def subpixel_mode_code(mode: str) -> int:
 
 
 @njit(cache=True)
-def _wta_volume(s, uniqueness, mode, frac_bits, q, dint):
+def _wta_volume(s, idx, uniqueness, mode, frac_bits, q, dint):
     for y in range(s.shape[0]):
-        wta_row(s[y], uniqueness, mode, frac_bits, q[y], dint[y])
+        wta_row(s[y], idx, uniqueness, mode, frac_bits, q[y], dint[y])
 
 
 def wta(s, *, uniqueness: int, subpixel: str, frac_bits: int):
     """Numba version of :func:`wta_ref` (same arguments and results)."""
+    if not isinstance(s, np.ndarray) or s.ndim != 3 or s.dtype != np.uint16:
+        raise InputError("the summed cost volume S must be a uint16 array (H, W, D)")
+    if subpixel not in SUBPIXEL_MODES:
+        raise InputError(f"sub-pixel mode must be one of {SUBPIXEL_MODES}, got {subpixel!r}")
     h, w, _ = s.shape
     q = np.empty((h, w), np.int32)
     dint = np.empty((h, w), np.int32)
-    _wta_volume(np.ascontiguousarray(s), uniqueness, subpixel_mode_code(subpixel), frac_bits, q, dint)
+    _wta_volume(
+        np.ascontiguousarray(s),
+        disparity_index(s.shape[2]),
+        uniqueness,
+        subpixel_mode_code(subpixel),
+        frac_bits,
+        q,
+        dint,
+    )
     return q, dint
 
 

@@ -1,0 +1,238 @@
+"""The whole SVA: the fused streaming kernels == the composition of the naive references."""
+
+import dataclasses
+import itertools
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from numpy.testing import assert_array_equal
+
+from nna.census import census
+from sim.config import load_config
+from sim.errors import InputError
+from sva.aggregation import box_filter_ref
+from sva.cost import hamming_cost_ref
+from sva.pipeline import sva_ref, sva_stream
+from sva.sgm import sgm_ref
+from sva.wta import INVALID
+
+
+def sva_config(**overrides):
+    return load_config(overrides={f"sva.{k}": v for k, v in overrides.items()}).sva
+
+
+def descriptor_pair(h, w, bits, seed, flip=0.05):
+    """Random descriptors; the right view is the left one shifted by a per-row disparity
+    (DR(x - s) = DL(x)) with a fraction ``flip`` of its bits flipped."""
+    rng = np.random.default_rng(seed)
+    shifts = rng.integers(0, 12, size=h)
+    weights = np.uint64(1) << np.arange(bits, dtype=np.uint64)
+    scene = (rng.integers(0, 2, size=(h, w + 12, bits), dtype=np.uint64) * weights).sum(
+        axis=2, dtype=np.uint64
+    )
+    left = scene[:, :w].copy()
+    right = np.stack([scene[y, s : s + w] for y, s in enumerate(shifts)])
+    right ^= ((rng.random((h, w, bits)) < flip) * weights).sum(axis=2, dtype=np.uint64)
+    dtype = np.uint32 if bits <= 32 else np.uint64
+    img = rng.integers(0, 256, size=(h, w), dtype=np.uint8)
+    return left.astype(dtype), right.astype(dtype), img
+
+
+def census_pair(h, w, seed, shift=5):
+    """Census descriptors (31 bits, the chip default) of a smooth random texture and its copy
+    shifted by ``shift`` pixels plus a little noise: structured costs with a real minimum."""
+    rng = np.random.default_rng(seed)
+    base = rng.integers(0, 256, size=(h + 4, w + shift + 4)).astype(np.float64)
+    smooth = (base[:-4, :-4] + base[2:-2, 2:-2] + base[4:, 4:] + base[2:-2, :-4]) / 4
+    left = smooth[:, shift:].astype(np.uint8)
+    right = np.clip(smooth[:, :w] + rng.integers(-3, 4, size=(h, w)), 0, 255).astype(np.uint8)
+    return census(left), census(right), left
+
+
+def check(desc_l, desc_r, img, cfg, bits):
+    got = sva_stream(desc_l, desc_r, img, cfg, bits)
+    assert got.dtype == np.int32 and got.shape == desc_l.shape
+    assert_array_equal(got, sva_ref(desc_l, desc_r, img, cfg, bits))
+    return got
+
+
+# Every path count x sub-pixel mode x LR on/off; the remaining knobs cycle through their
+# interesting values (small register widths so the saturations bite, F = 0 and F > 0,
+# uniqueness off and on, adaptive P2, all box sizes and median filters).
+CYCLED = [
+    {
+        "box_size": 5,
+        "cost_bits": 11,
+        "path_bits": 13,
+        "sum_bits": 16,
+        "subpixel_bits": 4,
+        "uniqueness": 5,
+        "p2_adaptive": False,
+        "median": 0,
+        "lr_max_diff": 1,
+    },
+    {
+        "box_size": 3,
+        "cost_bits": 6,
+        "path_bits": 8,
+        "sum_bits": 9,
+        "subpixel_bits": 0,
+        "uniqueness": 0,
+        "p2_adaptive": True,
+        "median": 3,
+        "lr_max_diff": 0,
+    },
+    {
+        "box_size": 1,
+        "cost_bits": 7,
+        "path_bits": 14,
+        "sum_bits": 16,
+        "subpixel_bits": 8,
+        "uniqueness": 20,
+        "p2_adaptive": True,
+        "median": 5,
+        "lr_max_diff": 2,
+    },
+    {
+        "box_size": 7,
+        "cost_bits": 15,
+        "path_bits": 9,
+        "sum_bits": 10,
+        "subpixel_bits": 1,
+        "uniqueness": 0,
+        "p2_adaptive": False,
+        "median": 0,
+        "lr_max_diff": 1,
+        "p1": 40,
+        "p2": 300,
+    },
+]
+PRODUCT = [
+    dict(paths=paths, subpixel=mode, lr_check=lr, **CYCLED[i % len(CYCLED)])
+    for i, (paths, mode, lr) in enumerate(
+        itertools.product([1, 2, 3, 4], ["off", "parabola", "equiangular"], [False, True])
+    )
+]
+
+
+@pytest.mark.parametrize("overrides", PRODUCT, ids=lambda o: "-".join(str(v) for v in o.values()))
+def test_stream_equals_ref_config_product(overrides):
+    cfg = sva_config(disparities=16, **overrides)
+    dl, dr, img = descriptor_pair(7, 29, 31, seed=len(str(overrides)))
+    check(dl, dr, img, cfg, 31)
+
+
+@pytest.mark.parametrize(
+    "overrides", PRODUCT[::5], ids=lambda o: "-".join(str(v) for v in o.values())
+)
+def test_stream_equals_ref_on_census(overrides):
+    cfg = sva_config(disparities=16, **overrides)
+    dl, dr, img = census_pair(9, 31, seed=3)
+    got = check(dl, dr, img, cfg, 31)
+    assert (got != INVALID).any()
+
+
+@pytest.mark.parametrize(("paths", "sum_bits"), [(1, 16), (4, 9)])
+def test_saturation_caps_bite(paths, sum_bits):
+    # narrow registers: the box, path and sum caps all occur inside the pipeline (checked on the
+    # reference stages), and the stream must still agree with the reference on every word
+    cfg = sva_config(
+        disparities=16,
+        box_size=5,
+        cost_bits=8,
+        path_bits=8,
+        sum_bits=sum_bits,
+        p1=20,
+        p2=150,
+        paths=paths,
+        subpixel="parabola",
+        lr_check=True,
+        uniqueness=0,
+    )
+    dl, dr, img = descriptor_pair(7, 29, 31, seed=11)
+    cost = hamming_cost_ref(dl, dr, 16, 31)
+    agg = box_filter_ref(cost, 5, 8)
+    assert (agg == 255).any() and (agg < 100).any()
+    s = sgm_ref(agg, p1=20, p2=150, paths=paths, path_bits=8, sum_bits=sum_bits)
+    cap = 255 if paths == 1 else (1 << sum_bits) - 1  # one path: S = L, which hits its cap
+    assert (s == cap).any() and (s < cap).any()
+    got = check(dl, dr, img, cfg, 31)
+    assert (got != INVALID).any()
+
+
+@pytest.mark.parametrize(
+    ("height", "width", "disparities"), [(5, 17, 16), (3, 33, 32), (1, 17, 16)]
+)
+def test_largest_disparity_range_for_the_width(height, width, disparities):
+    # D = W - 1: the first D columns have no full set of right pixels
+    cfg = sva_config(disparities=disparities, box_size=3, paths=4, lr_check=True)
+    dl, dr, img = descriptor_pair(height, width, 31, seed=width)
+    check(dl, dr, img, cfg, 31)
+
+
+def test_largest_disparity_range():
+    cfg = sva_config(disparities=256, box_size=1, paths=4, lr_check=True, median=3)
+    dl, dr, img = descriptor_pair(2, 257, 31, seed=256)
+    check(dl, dr, img, cfg, 31)
+
+
+@pytest.mark.parametrize("shape", [(1, 20), (2, 20), (4, 21)])
+@pytest.mark.parametrize("box_size", [9, 15])
+def test_fewer_rows_than_the_box(shape, box_size):
+    # the window is clamped at the top and the bottom at once; with k = 15 on 20 columns
+    # it is clamped on both sides horizontally too
+    cfg = sva_config(disparities=16, box_size=box_size, paths=4)
+    dl, dr, img = descriptor_pair(*shape, 31, seed=shape[0])
+    check(dl, dr, img, cfg, 31)
+
+
+def test_flat_descriptors():
+    dl = np.full((7, 21), 0x1234567, np.uint32)
+    img = np.full((7, 21), 90, np.uint8)
+    for lr in (False, True):
+        cfg = sva_config(disparities=16, lr_check=lr, uniqueness=0, subpixel="parabola")
+        got = check(dl, dl.copy(), img, cfg, 31)
+        assert (got[:, :] <= 0).all()  # every cost ties: d* = 0, so word 0 (or invalid)
+
+
+@settings(max_examples=15, deadline=None)
+@given(
+    h=st.integers(1, 8),
+    w=st.integers(17, 30),
+    box_size=st.sampled_from([1, 3, 5]),
+    cost_bits=st.integers(6, 15),
+    p1=st.integers(0, 50),
+    p2=st.integers(0, 300),
+    p2_adaptive=st.booleans(),
+    p2_slope=st.integers(0, 64),
+    path_bits=st.integers(8, 14),
+    sum_bits=st.integers(8, 16),
+    paths=st.integers(1, 4),
+    uniqueness=st.sampled_from([0, 5, 40]),
+    subpixel=st.sampled_from(["off", "parabola", "equiangular"]),
+    subpixel_bits=st.integers(0, 8),
+    lr_check=st.booleans(),
+    lr_max_diff=st.integers(0, 3),
+    median=st.sampled_from([0, 3, 5]),
+    bits=st.sampled_from([8, 31, 64]),
+    seed=st.integers(0, 2**16),
+)
+def test_stream_equals_ref_hypothesis(h, w, bits, seed, **overrides):
+    cfg = sva_config(disparities=16, **overrides)
+    dl, dr, img = descriptor_pair(h, w, bits, seed)
+    check(dl, dr, img, cfg, bits)
+
+
+def test_bad_inputs_raise():
+    dl, dr, img = descriptor_pair(3, 16, 31, seed=0)
+    with pytest.raises(InputError, match="not smaller than the image width"):
+        sva_stream(dl, dr, img, sva_config(disparities=16), 31)
+    dl, dr, img = descriptor_pair(3, 20, 31, seed=0)
+    with pytest.raises(InputError, match="grey image"):
+        sva_stream(dl, dr, img[:, :5], sva_config(disparities=16), 31)
+    # a config built without load_config skips its range checks; the kernels' limits hold
+    too_wide = dataclasses.replace(sva_config(disparities=16), path_bits=15)
+    with pytest.raises(InputError, match="path_bits <= 14"):
+        sva_stream(dl, dr, img, too_wide, 31)
