@@ -1,8 +1,9 @@
 """Speed of the SVA row kernels and of the fused streaming pipeline against OpenCV's SGBM.
 
 The frame: the motorcycle pair of scikit-image in grey, resized to 1280 x 720 with cv2.resize,
-31-bit census descriptors (the chip default, 9 x 7 symmetric). The SVA runs D = 128, box 5,
-4 paths, equiangular sub-pixel (F = 4), LR check, no median (BENCH_CONFIG), the rest default. OpenCV runs StereoSGBM (D = 128, block 5, P1 = 200, P2 = 800, single-pass SGBM mode)
+census descriptors (the configured default census). The SVA runs D = 128, box 5, 4 paths,
+equiangular sub-pixel (F = 4), LR check, no median (BENCH_CONFIG), the rest default. OpenCV
+runs StereoSGBM (D = 128, block 5, P1 = 200, P2 = 800, single-pass SGBM mode)
 single-threaded in the same process, alternating with the SVA run so both see the same
 machine state (timings on a shared machine vary by tens of percent: compare the ratio).
 
@@ -23,8 +24,7 @@ import numpy as np
 import skimage.data
 from numba import njit
 
-import sim  # noqa: F401 -- imported before nna: nna.census -> sim -> sim.api -> nna is a cycle
-from nna.census import census
+from nna.descriptor import compute_descriptor, descriptor_bits
 from sim.config import load_config
 from sva.aggregation import box_filter, box_start, box_step
 from sva.cost import cost_row_update, hamming_cost, reverse_row
@@ -46,6 +46,7 @@ BENCH_CONFIG = {
     "sva.subpixel_bits": 4,
     "sva.median": 0,
 }
+BITS = descriptor_bits(load_config().nna)
 
 
 def frame():
@@ -56,7 +57,9 @@ def frame():
         )
         for im in (left, right)
     ]
-    return grey[0], grey[1], census(grey[0]), census(grey[1])
+    nna_cfg = load_config().nna
+    desc = [compute_descriptor(g, nna_cfg) for g in grey]
+    return grey[0], grey[1], desc[0], desc[1]
 
 
 @njit(cache=True)
@@ -151,7 +154,7 @@ def main() -> None:
 
     # real rows from a strip of the frame: the middle row of each stage's output
     strip = slice(HEIGHT // 2 - 16, HEIGHT // 2 + 16)
-    agg = box_filter(hamming_cost(desc_l[strip], desc_r[strip], dn, 31), k, cfg.cost_bits)
+    agg = box_filter(hamming_cost(desc_l[strip], desc_r[strip], dn, BITS), k, cfg.cost_bits)
     s = sgm(
         agg,
         p1=cfg.p1,
@@ -205,7 +208,7 @@ def main() -> None:
         mode=cv2.STEREO_SGBM_MODE_SGBM,
     )
     # the fused pipeline and OpenCV alternate, so both see the same (noisy) machine state
-    run_sva = lambda: sva_stream(desc_l, desc_r, grey_l, cfg, 31)
+    run_sva = lambda: sva_stream(desc_l, desc_r, grey_l, cfg, BITS)
     run_cv = lambda: sgbm.compute(grey_l, grey_r)
     run_sva()
     run_cv()
