@@ -82,7 +82,7 @@ def sva_ref(desc_l, desc_r, img_l, cfg: SvaConfig, bits: int) -> np.ndarray:
 
 
 @njit(cache=True)
-def _stream(desc_l, desc_r, img, box, sgm_args, select, q_out):
+def _stream(desc_l, desc_r, img, box, sgm_args, select, q_out, colsum, y_start, y_stop):
     """The fused SVA, row by row and, inside a row, pixel by pixel with every stage's D-vector
     in the L1 cache.
 
@@ -91,6 +91,11 @@ def _stream(desc_l, desc_r, img, box, sgm_args, select, q_out):
     first is exact: min(A + x, cap) = min(min(A, cap) + x, cap) for x >= 0).
     ``sgm_args`` = (state, params, sum_cap) of :func:`sva.sgm.sgm_pixel`.
     ``select`` = (uniqueness, mode, frac_bits, lr, max_diff, diag).
+
+    Rows ``y_start`` .. ``y_stop - 1`` are processed; ``colsum`` (W, D) uint16 and the buffers in
+    ``sgm_args``/``select`` carry the stream's state from one call to the next, so a caller may
+    feed the rows as they arrive (the cycle model does). Row y reads descriptor rows up to
+    clamp(y + r) only.
 
     Per row: the vertical box sums slide down one row (the cost row entering the window added,
     the one leaving it subtracted, both recomputed from the descriptors: no ring of cost rows).
@@ -104,7 +109,6 @@ def _stream(desc_l, desc_r, img, box, sgm_args, select, q_out):
     dn = state[0].shape[1] - 2
     r = k // 2
     scap = np.uint16(sum_cap)
-    colsum = np.zeros((w, dn), np.uint16)
     rev_in = np.empty(w, desc_r.dtype)
     rev_out = np.empty(w, desc_r.dtype)
     hacc = np.empty(dn, np.uint16)
@@ -114,11 +118,12 @@ def _stream(desc_l, desc_r, img, box, sgm_args, select, q_out):
     idx = disparity_index(dn)
     dint = np.empty(w, np.int32)
     dr = np.empty(w, np.int32)
-    for j in range(-r, r + 1):
-        yy = min(max(j, 0), h - 1)
-        reverse_row(desc_r[yy], rev_in)
-        cost_row_add(desc_l[yy], rev_in, bits, colsum)
-    for y in range(h):
+    if y_start == 0:
+        for j in range(-r, r + 1):
+            yy = min(max(j, 0), h - 1)
+            reverse_row(desc_r[yy], rev_in)
+            cost_row_add(desc_l[yy], rev_in, bits, colsum)
+    for y in range(y_start, y_stop):
         # vertical sums of rows clamp(y - r) .. clamp(y + r): slide down from y - 1
         y_in = min(y + r, h - 1)
         y_out = max(y - 1 - r, 0)
@@ -148,30 +153,67 @@ def _stream(desc_l, desc_r, img, box, sgm_args, select, q_out):
             lr_check_row(q_row, dint, dr, max_diff)
 
 
-def sva_stream(desc_l, desc_r, img_l, cfg: SvaConfig, bits: int) -> np.ndarray:
-    """Output words (H, W) int32 (-1 invalid) from the compiled streaming pipeline."""
-    check_inputs(desc_l, desc_r, img_l, cfg, bits)
-    h, w = desc_l.shape
-    dn = cfg.disparities
-    q = np.empty((h, w), np.int32)
-    agg_cap = min((1 << cfg.cost_bits) - 1, (1 << cfg.path_bits) - 1)
-    params = sgm_params(cfg.paths, cfg.p1, cfg.p2, cfg.p2_adaptive, cfg.p2_slope, cfg.path_bits)
-    _stream(
-        np.ascontiguousarray(desc_l),
-        np.ascontiguousarray(desc_r),
-        np.ascontiguousarray(img_l),
-        (np.int64(cfg.box_size), np.uint16(bits), np.uint16(agg_cap)),
-        (new_path_buffers(w, dn), params, np.uint16((1 << cfg.sum_bits) - 1)),
-        (
+class SvaStream:
+    """The fused SVA kept open between calls: feed descriptor rows as they arrive.
+
+    ``advance(rows_in)`` processes every output row whose inputs are among the first ``rows_in``
+    descriptor rows (row y needs rows up to clamp(y + r), r = box radius) and returns how many
+    output rows are final -- after the median, which needs m = median // 2 checked rows below.
+    ``q`` holds the output words; rows below the returned count are final. The arrays
+    ``desc_l``/``desc_r``/``img_l`` are read in place, so a caller may fill them row by row.
+    """
+
+    def __init__(self, desc_l, desc_r, img_l, cfg: SvaConfig, bits: int):
+        check_inputs(desc_l, desc_r, img_l, cfg, bits)
+        h, w = desc_l.shape
+        dn = cfg.disparities
+        self.cfg = cfg
+        self.height = h
+        self.desc_l, self.desc_r, self.img_l = desc_l, desc_r, img_l
+        agg_cap = min((1 << cfg.cost_bits) - 1, (1 << cfg.path_bits) - 1)
+        params = sgm_params(cfg.paths, cfg.p1, cfg.p2, cfg.p2_adaptive, cfg.p2_slope, cfg.path_bits)
+        self._box = (np.int64(cfg.box_size), np.uint16(bits), np.uint16(agg_cap))
+        self._sgm = (new_path_buffers(w, dn), params, np.uint16((1 << cfg.sum_bits) - 1))
+        self._select = (
             np.int64(cfg.uniqueness),
             np.int64(subpixel_mode_code(cfg.subpixel)),
             np.int64(cfg.subpixel_bits),
             bool(cfg.lr_check),
             np.int64(cfg.lr_max_diff),
             new_diagonal_buffers(w, dn),
-        ),
-        q,
+        )
+        self._colsum = np.zeros((w, dn), np.uint16)
+        self.checked = np.empty((h, w), np.int32)  # after WTA, sub-pixel and the LR check
+        self.q = self.checked if cfg.median <= 1 else np.empty((h, w), np.int32)
+        self.rows_checked = 0
+        self.rows_final = 0
+
+    def advance(self, rows_in: int) -> int:
+        h = self.height
+        r = self.cfg.box_size // 2
+        # output row y is computable once rows up to min(y + r, h - 1) are in
+        stop = h if rows_in >= h else max(0, rows_in - r)
+        if stop > self.rows_checked:
+            _stream(self.desc_l, self.desc_r, self.img_l, self._box, self._sgm, self._select,
+                    self.checked, self._colsum, self.rows_checked, stop)
+            self.rows_checked = stop
+        m = self.cfg.median // 2 if self.cfg.median > 1 else 0
+        final = h if self.rows_checked >= h else max(0, self.rows_checked - m)
+        if final > self.rows_final:
+            if m:
+                lo = max(0, self.rows_final - m)
+                hi = min(h, final + m)
+                block = median(self.checked[lo:hi], self.cfg.median)
+                self.q[self.rows_final:final] = block[self.rows_final - lo:final - lo]
+            self.rows_final = final
+        return self.rows_final
+
+
+def sva_stream(desc_l, desc_r, img_l, cfg: SvaConfig, bits: int) -> np.ndarray:
+    """Output words (H, W) int32 (-1 invalid) from the compiled streaming pipeline."""
+    stream = SvaStream(
+        np.ascontiguousarray(desc_l), np.ascontiguousarray(desc_r), np.ascontiguousarray(img_l),
+        cfg, bits,
     )
-    if cfg.median > 1:
-        q = median(q, cfg.median)
-    return q
+    stream.advance(desc_l.shape[0])
+    return stream.q
