@@ -154,6 +154,12 @@ def _summary(report: dict, seconds: float) -> str:
         f"{seconds:.2f} s wall",
         f"valid pixels: {100 - report['output']['invalid_percent']:.2f}%",
     ]
+    if "throughput" in report:
+        thr, lat = report["throughput"], report["latency"]
+        lines.append(
+            f"cycles: {report['cycles']['total']}; first output {lat['first_output_ns'] / 1e3:.1f} us, "
+            f"frame {lat['frame_ns'] / 1e6:.3f} ms; {thr['fps']} fps, bottleneck {thr['bottleneck']}"
+        )
     for mask, m in report.get("metrics", {}).items():
         lines.append(
             f"{mask:>7}: bad2 {m['bad2']:.2f}%  invalid {m['invalid']:.2f}%  "
@@ -250,7 +256,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--gt", help="ground-truth disparity (.pfm, or .png with --gt-scale)")
     r.add_argument("--gt-scale", type=float, help="GT PNG value per pixel of disparity")
     r.add_argument("--mask", help="evaluation mask PNG (255 = non-occluded)")
-    r.add_argument("--mode", default="functional", choices=("functional",), help="model to run")
+    r.add_argument("--mode", default="functional", choices=("functional", "cycle"),
+                   help="functional (bit-exact model) or cycle (clocked chip with cycle counts)")
     r.add_argument("--out", default="out", help="output folder (default: out)")
     r.add_argument("--json", action="store_true", help="print the report as JSON")
     _add_config_options(r)
@@ -259,7 +266,7 @@ def build_parser() -> argparse.ArgumentParser:
     e = sub.add_parser("eval", help="run and score every scene of a Middlebury-layout folder")
     e.add_argument("dataset", help="folder of scenes (e.g. ../shared/data/middlebury2014_trainingQ)")
     e.add_argument("--gt-scale", type=float, help="GT PNG scale for non-standard sizes")
-    e.add_argument("--mode", default="functional", choices=("functional",))
+    e.add_argument("--mode", default="functional", choices=("functional", "cycle"))
     e.add_argument("--json", action="store_true", help="print per-scene and mean metrics as JSON")
     _add_config_options(e)
     e.set_defaults(func=cmd_eval)

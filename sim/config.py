@@ -56,6 +56,14 @@ class NnaConfig:
     )
     census: CensusConfig = field(default_factory=CensusConfig)
     cnn: CnnConfig = field(default_factory=CnnConfig)
+    macs: int = param(
+        288, "MAC units per NNA submodule: a 9x9x32 descriptor takes ceil(2592 / macs) cycles",
+        lo=1, hi=2592,
+    )
+    line_buffer_rows: int = param(
+        10, "input rows a submodule's line buffer holds (9 = the window; 10 lets a row arrive "
+        "while the window computes; at least the descriptor window's height)", lo=3, hi=64,
+    )
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -90,12 +98,60 @@ class SvaConfig:
     lr_check: bool = param(True, "left-right consistency check from the same aggregated volume")
     lr_max_diff: int = param(2, "largest |dL - dR| (integer disparities) accepted by the LR check", lo=0, hi=255)
     median: int = param(3, "median filter on the output: 0 (off), 3 or 5", choices=(0, 3, 5))
+    cycles_per_pixel: int = param(
+        2, "SVA clock cycles per output disparity in steady state (initiation interval)", lo=1,
+        hi=64,
+    )
+    pipeline_latency: int = param(
+        16, "SVA cycles from the start of an output row to its first disparity", lo=1, hi=4096
+    )
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class ClockConfig:
+    camera_mhz: float = param(74.25, "camera pixel clock (CEA-861 720p: 74.25 MHz)", lo=0.001, hi=10000.0)
+    nna_mhz: float = param(460.0, "NNA clock", lo=0.001, hi=10000.0)
+    sva_mhz: float = param(465.0, "SVA clock", lo=0.001, hi=10000.0)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class SourceConfig:
+    kind: str = param(
+        "memory", "where frames come from: memory (at memory_gbps) or camera (pixel clock with "
+        "blanking; a camera cannot stall)", choices=("memory", "camera"),
+    )
+    memory_gbps: float = param(
+        4.0, "memory read bandwidth per camera in GB/s (at most one pixel per NNA cycle)",
+        lo=0.000001, hi=1000.0,
+    )
+    camera_hblank: int = param(370, "camera horizontal blanking in pixel clocks", lo=0, hi=100000)
+    camera_vblank: int = param(30, "camera vertical blanking in lines", lo=0, hi=100000)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class FifoConfig:
+    source_to_nna_depth: int = param(16, "pixels the source-to-NNA FIFO holds", lo=1, hi=1 << 24)
+    nna_to_sva_depth: int = param(64, "descriptors each NNA-to-SVA FIFO holds", lo=1, hi=1 << 24)
+    sva_to_sink_depth: int = param(16, "disparities the SVA-to-sink FIFO holds", lo=1, hi=1 << 24)
+    latency_cycles: int = param(1, "FIFO latency in consumer cycles (>= 1)", lo=1, hi=1024)
+    sync_cycles: int = param(2, "synchroniser stages of a clock-domain crossing", lo=1, hi=16)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class SimConfig:
+    watchdog_cycles: int = param(
+        200000, "steps without progress before a run is declared deadlocked", lo=10, hi=1 << 40
+    )
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class ChipConfig:
     nna: NnaConfig = field(default_factory=NnaConfig)
     sva: SvaConfig = field(default_factory=SvaConfig)
+    clocks: ClockConfig = field(default_factory=ClockConfig)
+    source: SourceConfig = field(default_factory=SourceConfig)
+    fifo: FifoConfig = field(default_factory=FifoConfig)
+    sim: SimConfig = field(default_factory=SimConfig)
 
 
 # ----------------------------------------------------------------------------------------------

@@ -1,0 +1,133 @@
+"""The chip assembled from clocked blocks: sources -> NNA submodules -> SVA -> sink.
+
+:func:`run_cycle` simulates one stereo frame on the readable two-phase kernel
+(:mod:`sim.clock`) and returns the output words with a cycle report. Domains: ``nna`` and
+``sva`` (and ``camera`` with a camera source; a memory source runs in the ``nna`` domain).
+FIFOs, named by where data flows: ``src_left_to_nna``, ``src_right_to_nna``,
+``nna_left_to_sva``, ``nna_right_to_sva`` (crossing nna -> sva), ``sva_to_sink``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from nna.blocks import NnaSubmodule, cycles_per_descriptor
+from nna.descriptor import descriptor_bits
+from sim.clock import ClockDomain, Simulator
+from sim.config import ChipConfig
+from sim.fifo import Fifo
+from sim.sources import CameraSource, MemorySource, Sink
+from sva.blocks import SvaBlock
+
+FS_PER_S = 10**15
+
+
+class Chip:
+    """The blocks, FIFOs and domains of one frame's simulation (built by :func:`build_chip`)."""
+
+    def __init__(self, sim: Simulator, domains: dict, fifos: dict, blocks: dict, sink: Sink):
+        self.sim = sim
+        self.domains = domains
+        self.fifos = fifos
+        self.blocks = blocks
+        self.sink = sink
+
+
+def build_chip(left: np.ndarray, right: np.ndarray, cfg: ChipConfig, *, order_seed=None,
+               sink_stall=None, trace=None) -> Chip:
+    shape = left.shape
+    bits = descriptor_bits(cfg.nna)
+    dtype = np.uint32 if bits <= 32 else np.uint64
+    sim = Simulator(order_seed=order_seed, trace=trace)
+    nna = sim.add_domain(ClockDomain("nna", cfg.clocks.nna_mhz * 1e6))
+    sva = sim.add_domain(ClockDomain("sva", cfg.clocks.sva_mhz * 1e6))
+    domains = {"nna": nna, "sva": sva}
+    src_domain = nna
+    if cfg.source.kind == "camera":
+        src_domain = sim.add_domain(ClockDomain("camera", cfg.clocks.camera_mhz * 1e6))
+        domains["camera"] = src_domain
+    f = cfg.fifo
+    fifos = {}
+
+    def fifo(name, depth, width, src, dst):
+        fifos[name] = sim.add_fifo(Fifo(name, depth, width, f.latency_cycles, src=src, dst=dst,
+                                        sync_cycles=f.sync_cycles))
+        return fifos[name]
+
+    word_bits = 1 + math.ceil(math.log2(cfg.sva.disparities)) + cfg.sva.subpixel_bits
+    desc_bits = bits + (8 if cfg.sva.p2_adaptive else 0)
+    blocks = {}
+    outs = {}
+    for side, image in (("left", left), ("right", right)):
+        src_fifo = fifo(f"src_{side}_to_nna", f.source_to_nna_depth, 8, src_domain, nna)
+        if cfg.source.kind == "camera":
+            source = CameraSource(f"camera_{side}", src_domain, image, src_fifo,
+                                  cfg.source.camera_hblank)
+        else:
+            source = MemorySource(f"memory_{side}", src_domain, image, src_fifo,
+                                  round(cfg.source.memory_gbps * 1e9))
+        out = fifo(f"nna_{side}_to_sva", f.nna_to_sva_depth, desc_bits, nna, sva)
+        sub = NnaSubmodule(f"nna_{side}", nna, shape, src_fifo, out, cfg.nna)
+        blocks[source.name] = sim.add_block(source)
+        blocks[sub.name] = sim.add_block(sub)
+        outs[side] = out
+    to_sink = fifo("sva_to_sink", f.sva_to_sink_depth, word_bits, sva, sva)
+    blocks["sva"] = sim.add_block(
+        SvaBlock("sva", sva, shape, outs["left"], outs["right"], to_sink, cfg.sva, bits, dtype)
+    )
+    sink = Sink("sink", sva, to_sink, shape, stall=sink_stall)
+    blocks["sink"] = sim.add_block(sink)
+    return Chip(sim, domains, fifos, blocks, sink)
+
+
+def _budget(shape, cfg: ChipConfig, domains: dict) -> dict[str, int]:
+    """A generous cycle budget: 20x a frame at the slowest block's rate, per domain."""
+    h, w = shape
+    per_pixel_s = max(
+        cycles_per_descriptor(cfg.nna) / (cfg.clocks.nna_mhz * 1e6),
+        cfg.sva.cycles_per_pixel / (cfg.clocks.sva_mhz * 1e6),
+        (w + cfg.source.camera_hblank) / w / (cfg.clocks.camera_mhz * 1e6)
+        if cfg.source.kind == "camera" else 0.0,
+    )
+    frame_s = (h + 16) * w * per_pixel_s + 1e-6
+    return {name: int(20 * frame_s * d.freq_hz) + 100_000 for name, d in domains.items()}
+
+
+def run_cycle(left: np.ndarray, right: np.ndarray, cfg: ChipConfig, *, order_seed=None,
+              sink_stall=None, trace=None) -> tuple[np.ndarray, dict, Chip]:
+    """Simulate one frame; returns (output words (H, W) int32, cycle report, the chip)."""
+    chip = build_chip(left, right, cfg, order_seed=order_seed, sink_stall=sink_stall, trace=trace)
+    stats = chip.sim.run(lambda: chip.sink.done, budget_cycles=_budget(left.shape, cfg, chip.domains),
+                         watchdog_cycles=cfg.sim.watchdog_cycles)
+    return chip.sink.words.copy(), cycle_report(chip, stats), chip
+
+
+def cycle_report(chip: Chip, stats: dict) -> dict:
+    """Cycle counts, latency, throughput and bottleneck, per-block activity, FIFO statistics."""
+    sva = chip.domains["sva"]
+    first_fs = sva.edge_fs(chip.sink.first_cycle)
+    last_fs = sva.edge_fs(chip.sink.last_cycle)
+    busy_s = {}
+    for name, block in chip.blocks.items():
+        if name == "sink":
+            continue
+        busy_s[name] = block.activity["busy"] / block.domain.freq_hz
+    bottleneck = max(sorted(busy_s), key=lambda n: busy_s[n])
+    frame_busy_s = busy_s[bottleneck]
+    return {
+        "cycles": {
+            "total": dict(sorted(stats["cycles"].items())),
+            "first_output": {"sva": chip.sink.first_cycle, "ns": first_fs / 1e6},
+            "last_output": {"sva": chip.sink.last_cycle, "ns": last_fs / 1e6},
+        },
+        "latency": {"first_output_ns": first_fs / 1e6, "frame_ns": last_fs / 1e6},
+        "throughput": {
+            "fps": round(1.0 / frame_busy_s, 3) if frame_busy_s > 0 else None,
+            "bottleneck": bottleneck,
+            "busy_ms_per_frame": {n: round(v * 1e3, 6) for n, v in sorted(busy_s.items())},
+        },
+        "blocks": {n: b.activity for n, b in sorted(chip.blocks.items())},
+        "fifos": {n: chip.fifos[n].stats() for n in sorted(chip.fifos)},
+    }

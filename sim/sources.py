@@ -1,0 +1,159 @@
+"""Frame sources (memory, camera) and the disparity sink of the cycle model.
+
+Beats are tuples: a source pushes ``(x, y, pixel)`` in raster order; the sink pops
+``(x, y, word)``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sim.clock import Block, ClockDomain
+from sim.errors import UserError
+
+
+class CameraOverflow(UserError):
+    """A camera cannot stall: its FIFO was full when a pixel arrived."""
+
+
+class MemorySource(Block):
+    """Reads one frame from memory in raster order, one pixel (one byte) per beat.
+
+    Port: ``out`` (pixels). Bandwidth: a token bucket filled at ``bytes_per_s``; pixel k (from 0)
+    may leave in cycle c only if ``(k + 1) * freq_hz <= (c + 1) * bytes_per_s``, and at most one
+    pixel leaves per cycle. With ``bytes_per_s >= freq_hz`` pixel k leaves in cycle k unless the
+    FIFO is full. Activity: busy while pixels remain (waiting for bandwidth counts as busy: the
+    transfer is under way), blocked when ``out`` is full, idle once the frame has left.
+    """
+
+    def __init__(self, name: str, domain: ClockDomain, image: np.ndarray, out, bytes_per_s: int):
+        super().__init__(name, domain)
+        self.image = image
+        self.out = out
+        self.freq_hz = round(domain.freq_hz)
+        self.bytes_per_s = int(bytes_per_s)
+        self.sent = 0
+        self._pushed = False
+
+    def evaluate(self, now_cycle: int) -> None:
+        h, w = self.image.shape
+        if self.sent >= h * w:
+            self.idle()
+            return
+        if (self.sent + 1) * self.freq_hz > (now_cycle + 1) * self.bytes_per_s:
+            self.busy()
+            return
+        if not self.out.can_push():
+            self.blocked(self.out)
+            return
+        y, x = divmod(self.sent, w)
+        self.out.push((x, y, int(self.image[y, x])))
+        self._pushed = True
+        self.busy()
+
+    def commit(self) -> None:
+        if self._pushed:
+            self.sent += 1
+            self._pushed = False
+
+    def signals(self):
+        return [("pixels_sent", 32)]
+
+    def signal_values(self):
+        return {"pixels_sent": self.sent}
+
+
+class CameraSource(Block):
+    """A camera streaming one frame at its pixel clock, with blanking, from cycle 0.
+
+    Cycle c is line ``c // (W + hblank)``, column ``c % (W + hblank)``; columns < W of lines < H
+    are active and push pixel (column, line). The frame lasts until the last active pixel; the
+    vertical blanking that follows belongs to the next frame. A camera cannot wait: a full FIFO
+    when a pixel is due raises :class:`CameraOverflow` naming the rates. Activity: busy from the
+    first to the last active pixel (blanking included), idle after.
+    """
+
+    def __init__(self, name: str, domain: ClockDomain, image: np.ndarray, out, hblank: int):
+        super().__init__(name, domain)
+        self.image = image
+        self.out = out
+        self.line_clocks = image.shape[1] + hblank
+        self.sent = 0
+        self._pushed = False
+
+    def evaluate(self, now_cycle: int) -> None:
+        h, w = self.image.shape
+        line, col = divmod(now_cycle, self.line_clocks)
+        if line >= h:
+            self.idle()
+            return
+        if col < w:
+            if not self.out.can_push():
+                raise CameraOverflow(
+                    f"camera '{self.name}' overflowed FIFO {self.out.name} at pixel ({col}, "
+                    f"{line}), cycle {now_cycle}: the NNA does not keep up with the camera; use a "
+                    "slower camera, more NNA throughput (clocks.nna_mhz, nna.macs) or a deeper "
+                    "fifo.source_to_nna_depth"
+                )
+            self.out.push((col, line, int(self.image[line, col])))
+            self._pushed = True
+        self.busy()
+
+    def commit(self) -> None:
+        if self._pushed:
+            self.sent += 1
+            self._pushed = False
+
+    def signals(self):
+        return [("pixels_sent", 32)]
+
+    def signal_values(self):
+        return {"pixels_sent": self.sent}
+
+
+class Sink(Block):
+    """Collects the disparity words: pops one beat per cycle whenever one is visible.
+
+    ``stall`` (optional): a function of the cycle returning True on cycles the sink refuses to
+    pop (back-pressure tests). Records the femtosecond times of the first and last word.
+    """
+
+    def __init__(self, name: str, domain: ClockDomain, inp, shape: tuple[int, int], stall=None):
+        super().__init__(name, domain)
+        self.inp = inp
+        self.words = np.full(shape, -1, np.int32)
+        self.total = shape[0] * shape[1]
+        self.received = 0
+        self.stall = stall
+        self.first_cycle: int | None = None
+        self.last_cycle: int | None = None
+        self._beat = None
+        self._cycle = 0
+
+    def evaluate(self, now_cycle: int) -> None:
+        if self.received >= self.total:
+            self.idle()
+            return
+        if self.stall is not None and self.stall(now_cycle):
+            self.idle()
+            return
+        if not self.inp.can_pop():
+            self.starved(self.inp)
+            return
+        self._beat = self.inp.pop()
+        self._cycle = now_cycle
+        self.busy()
+
+    def commit(self) -> None:
+        if self._beat is not None:
+            x, y, word = self._beat
+            self.words[y, x] = word
+            self.received += 1
+            if self.first_cycle is None:
+                self.first_cycle = self._cycle
+            self.last_cycle = self._cycle
+            self._beat = None
+
+    @property
+    def done(self) -> bool:
+        return self.received >= self.total

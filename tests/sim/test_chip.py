@@ -1,0 +1,137 @@
+"""The cycle model on the readable kernel: exact cycles, bit-exactness, stalls and deadlock."""
+
+import numpy as np
+import pytest
+
+from sim.api import run
+from sim.chip import run_cycle
+from sim.clock import DeadlockError
+from sim.config import load_config
+from sim.sources import CameraOverflow
+
+# Equal NNA and SVA clocks make the crossing easy to count by hand: an item pushed at NNA cycle
+# t is visible at SVA cycle t + 2 (latency 1 + synchroniser 2 - 1, edges coinciding).
+SAME_CLOCKS = {"clocks.nna_mhz": 400, "clocks.sva_mhz": 400, "sva.disparities": 16}
+
+
+def _pair(h, w, seed=0, shift=3):
+    rng = np.random.default_rng(seed)
+    base = rng.integers(0, 256, (h, w + shift), dtype=np.uint8)
+    return base[:, :w].copy(), base[:, shift:].copy()
+
+
+@pytest.mark.parametrize("h, w", [(11, 37), (7, 41), (5, 33)])
+def test_census_first_and_last_output_cycles(h, w):
+    """Census (1 cycle per descriptor, window half-height 1), memory at one pixel per cycle.
+
+    Source pixel k leaves in cycle k and is popped by the NNA in cycle k + 1. NNA output row 0
+    needs input row 1 complete (popped in cycle 2W), so descriptor (x, y) leaves in cycle
+    (y + 2)W + 1 + x and is popped by the SVA two cycles later. SVA output row 0 needs input row
+    r + m = 2 + 1 = 3, whose last pair is popped in cycle 6W + 2: ready in 6W + 3, first word
+    pushed L cycles later and popped by the sink one cycle after that: 6W + 4 + L. The SVA (2
+    cycles per word) is slower than the census NNA (1), so the words follow at 2 cycles each:
+    the last is popped in 6W + 4 + L + 2(HW - 1).
+    """
+    left, right = _pair(h, w)
+    cfg = load_config(overrides=SAME_CLOCKS)
+    words, report, chip = run_cycle(left, right, cfg)
+    lat = cfg.sva.pipeline_latency
+    assert chip.sink.first_cycle == 6 * w + 4 + lat
+    assert chip.sink.last_cycle == 6 * w + 4 + lat + 2 * (h * w - 1)
+    assert report["throughput"]["bottleneck"] == "sva"
+    np.testing.assert_array_equal(words, run(left, right, config=cfg).disparity_fixed)
+
+
+@pytest.mark.parametrize("h, w", [(11, 37), (7, 41), (5, 33)])
+def test_cnn_first_and_last_output_cycles(h, w):
+    """CNN: ceil(81 * 32 / 288) = 9 cycles per descriptor, window half-height 4.
+
+    NNA output row 0 needs input row 4 (popped in cycle 5W): it starts in 5W + 1 and pushes
+    descriptor j in cycle 5W + 9 + 9j (the line buffer of 10 rows always has the next rows in
+    time). The SVA pops pair j in 5W + 11 + 9j; input row 3 completes with pair 4W - 1 in
+    41W + 2, so the first word reaches the sink in 41W + 4 + L. Input row y' completes in
+    (9y' + 14)W + 2; output rows H-4 .. H-1 all wait for row H-1, ready in (9H + 5)W + 3, and
+    then leave back to back: the last word reaches the sink in (9H + 5)W + 3 + L + 2(4W - 1) + 1.
+    """
+    left, right = _pair(h, w, seed=1)
+    cfg = load_config(overrides={**SAME_CLOCKS, "nna.descriptor": "cnn"})
+    words, report, chip = run_cycle(left, right, cfg)
+    lat = cfg.sva.pipeline_latency
+    assert chip.sink.first_cycle == 41 * w + 4 + lat
+    assert chip.sink.last_cycle == (9 * h + 5) * w + 3 + lat + 2 * (4 * w - 1) + 1
+    assert report["throughput"]["bottleneck"] in ("nna_left", "nna_right")
+    # the bottleneck's busy time per frame is its descriptors x 9 cycles
+    assert report["blocks"]["nna_left"]["busy"] >= 9 * h * w
+    np.testing.assert_array_equal(words, run(left, right, config=cfg).disparity_fixed)
+
+
+@pytest.mark.parametrize(
+    "over",
+    [
+        {"sva.paths": 1, "sva.lr_check": False, "sva.median": 0},
+        {"sva.paths": 2, "sva.box_size": 3, "sva.median": 5},
+        {"sva.paths": 3, "sva.disparities": 32, "sva.subpixel": "parabola"},
+        {"sva.paths": 4, "fifo.source_to_nna_depth": 1, "fifo.nna_to_sva_depth": 1,
+         "fifo.sva_to_sink_depth": 1},
+        {"nna.descriptor": "cnn", "fifo.nna_to_sva_depth": 2, "sva.cycles_per_pixel": 1},
+        {"source.kind": "camera", "clocks.camera_mhz": 20, "source.camera_hblank": 7},
+        {"nna.line_buffer_rows": 9, "nna.descriptor": "cnn", "sva.uniqueness": 5},
+        {"source.memory_gbps": 0.1, "clocks.nna_mhz": 300, "clocks.sva_mhz": 700},
+    ],
+)
+def test_cycle_model_is_bit_exact_with_the_functional_model(over):
+    left, right = _pair(13, 45, seed=len(over))
+    cfg = load_config(overrides={"sva.disparities": 16, **over})
+    words, _, _ = run_cycle(left, right, cfg)
+    np.testing.assert_array_equal(words, run(left, right, config=cfg).disparity_fixed)
+
+
+def test_backpressure_from_a_stalling_sink_keeps_data_exact():
+    left, right = _pair(9, 35, seed=5)
+    cfg = load_config(overrides={**SAME_CLOCKS, "fifo.sva_to_sink_depth": 1})
+    words, report, chip = run_cycle(left, right, cfg, sink_stall=lambda c: c % 3 != 0)
+    np.testing.assert_array_equal(words, run(left, right, config=cfg).disparity_fixed)
+    assert report["blocks"]["sva"]["blocked"] > 0
+    # the sink pops at most every third cycle: the frame cannot end sooner
+    assert chip.sink.last_cycle - chip.sink.first_cycle >= 3 * (9 * 35 - 1)
+
+
+def test_deeper_fifo_removes_the_nna_stalls():
+    """Census NNA (1 per cycle) feeds the SVA (2 per cycle, bounded look-ahead): a shallow
+    NNA-to-SVA FIFO blocks the NNA; one that holds the whole frame never does."""
+    left, right = _pair(9, 35, seed=6)
+    blocked = []
+    for depth in (1, 4, 64, 9 * 35):
+        cfg = load_config(overrides={**SAME_CLOCKS, "fifo.nna_to_sva_depth": depth})
+        _, report, _ = run_cycle(left, right, cfg)
+        blocked.append(report["blocks"]["nna_left"]["blocked"])
+        assert report["fifos"]["nna_left_to_sva"]["max_producer_occupancy"] <= depth
+    assert blocked == sorted(blocked, reverse=True) and blocked[0] > 0 and blocked[-1] == 0
+
+
+def test_evaluation_order_does_not_change_anything():
+    left, right = _pair(7, 29, seed=7)
+    cfg = load_config(overrides={"sva.disparities": 16, "nna.descriptor": "cnn"})
+    results = [run_cycle(left, right, cfg, order_seed=seed) for seed in (None, 1, 2, 3)]
+    for words, report, _ in results[1:]:
+        np.testing.assert_array_equal(words, results[0][0])
+        assert report == results[0][1]
+
+
+def test_a_sink_that_never_drains_is_reported_as_a_deadlock():
+    left, right = _pair(7, 29, seed=8)
+    cfg = load_config(overrides={"sva.disparities": 16, "sim.watchdog_cycles": 500})
+    with pytest.raises(DeadlockError) as exc:
+        run_cycle(left, right, cfg, sink_stall=lambda c: True)
+    msg = str(exc.value)
+    assert "sva_to_sink" in msg and "nna_left_to_sva" in msg and "\n" not in msg
+    assert exc.value.blocks["sva"]["status"] == "blocked"
+
+
+def test_a_camera_faster_than_the_nna_overflows():
+    left, right = _pair(25, 29, seed=9)  # taller than the 10-row line buffer
+    cfg = load_config(overrides={"sva.disparities": 16, "source.kind": "camera",
+                                 "nna.descriptor": "cnn", "clocks.camera_mhz": 400,
+                                 "source.camera_hblank": 0})
+    with pytest.raises(CameraOverflow, match="overflowed FIFO src_left_to_nna"):
+        run_cycle(left, right, cfg)
