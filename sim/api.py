@@ -114,9 +114,12 @@ def run(
 
 
 def build_report(cfg: ChipConfig, mode: str, fixed: np.ndarray, bits: int) -> dict:
+    from sim.architecture import architecture_report
+
     h, w = fixed.shape
     valid = int(np.count_nonzero(fixed >= 0))
     return {
+        "architecture": architecture_report(cfg, (h, w)),
         "stereosim": VERSION,
         "mode": mode,
         "image": {"width": w, "height": h},

@@ -130,4 +130,9 @@ def cycle_report(chip: Chip, stats: dict) -> dict:
         },
         "blocks": {n: b.activity for n, b in sorted(chip.blocks.items())},
         "fifos": {n: chip.fifos[n].stats() for n in sorted(chip.fifos)},
+        "fifo_bytes_per_frame": {
+            n: chip.fifos[n].stats()["bits_transferred"] // 8 for n in sorted(chip.fifos)
+        },
+        "fifo_sram_bits": {n: chip.fifos[n].depth * chip.fifos[n].width_bits
+                           for n in sorted(chip.fifos)},
     }
