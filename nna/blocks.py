@@ -30,6 +30,7 @@ the bit-exactness tests.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -45,6 +46,58 @@ def half_window(cfg: NnaConfig) -> int:
     return layer(cfg)[0].shape[1] // 2
 
 
+def half_window_width(cfg: NnaConfig) -> int:
+    """Columns left and right of a pixel that its descriptor reads: K // 2 or w // 2."""
+    if cfg.descriptor == "census":
+        return cfg.census.window[0] // 2
+    return layer(cfg)[0].shape[2] // 2
+
+
+@dataclass(frozen=True)
+class Tile:
+    """The part of a camera's frame one submodule serves: the output region
+    [x0, x1) x [y0, y1) and the input region it needs (the output region widened by the
+    descriptor window's halo, clipped to the image)."""
+
+    x0: int
+    x1: int
+    y0: int
+    y1: int
+    in_x0: int
+    in_x1: int
+    in_y0: int
+    in_y1: int
+
+    def takes_input(self, x: int, y: int) -> bool:
+        return self.in_x0 <= x < self.in_x1 and self.in_y0 <= y < self.in_y1
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.y1 - self.y0, self.x1 - self.x0
+
+
+def split_frame(shape: tuple[int, int], parts: int, split: str, cfg: NnaConfig) -> list[Tile]:
+    """``parts`` tiles of a frame: column tiles (split = "columns") or row bands ("rows"),
+    as equal as integers allow (part t covers [floor(t N / parts), floor((t+1) N / parts))),
+    each with the halo its window needs. One part is the whole frame."""
+    h, w = shape
+    hy, hx = half_window(cfg), half_window_width(cfg)
+    n = w if split == "columns" else h
+    if parts > n:
+        raise ConfigError(
+            f"cannot split {n} {'columns' if split == 'columns' else 'rows'} into {parts} parts: "
+            "use fewer nna.stereo_submodules"
+        )
+    tiles = []
+    for t in range(parts):
+        a, b = t * n // parts, (t + 1) * n // parts
+        if split == "columns":
+            tiles.append(Tile(a, b, 0, h, max(0, a - hx), min(w, b + hx), 0, h))
+        else:
+            tiles.append(Tile(0, w, a, b, 0, w, max(0, a - hy), min(h, b + hy)))
+    return tiles
+
+
 def cycles_per_descriptor(cfg: NnaConfig) -> int:
     """MAC-array cycles per descriptor: ceil(K*K*C / macs) for the CNN, 1 for the census unit."""
     if cfg.descriptor == "census":
@@ -55,12 +108,23 @@ def cycles_per_descriptor(cfg: NnaConfig) -> int:
 
 
 class NnaSubmodule(Block):
-    """One NNA submodule (see the module docstring for ports, latency and initiation interval)."""
+    """One NNA submodule (see the module docstring for ports, latency and initiation interval).
+
+    With a ``tile`` it serves part of the frame: it receives the tile's input region in raster
+    order and emits the tile's output region in raster order; rows and columns below are then
+    those of the tile, the image borders (replicate) stay those of the whole frame.
+    """
 
     def __init__(self, name: str, domain: ClockDomain, shape: tuple[int, int], inp, out,
-                 cfg: NnaConfig):
+                 cfg: NnaConfig, tile: Tile | None = None):
         super().__init__(name, domain)
-        self.height, self.width = shape
+        self.image_height, self.image_width = shape
+        if tile is None:
+            tile = Tile(0, shape[1], 0, shape[0], 0, shape[1], 0, shape[0])
+        self.tile = tile
+        self.height, self.width = tile.shape  # the output region
+        self.in_width = tile.in_x1 - tile.in_x0
+        self.in_rows = tile.in_y1 - tile.in_y0
         self.inp, self.out, self.cfg = inp, out, cfg
         self.rows = cfg.line_buffer_rows
         self.half = half_window(cfg)
@@ -70,7 +134,7 @@ class NnaSubmodule(Block):
                 f"descriptor window: use at least {2 * self.half + 1}"
             )
         self.cycles_per_descriptor = cycles_per_descriptor(cfg)
-        self.pixels = np.zeros(shape, np.uint8)  # what the line buffer received
+        self.pixels = np.zeros(shape, np.uint8)  # what the line buffer received (image coords)
         self.received = 0  # pixels popped so far (raster order)
         self.emitted = 0  # descriptors pushed so far (raster order)
         self.phase = 0  # MAC cycles spent on the current descriptor
@@ -81,31 +145,38 @@ class NnaSubmodule(Block):
         self._phase_next = 0
 
     def _rows_complete(self) -> int:
-        return self.received // self.width
+        return self.received // self.in_width
 
     def _row_ready(self, y: int) -> bool:
-        return self._rows_complete() > min(y + self.half, self.height - 1)
+        """Image row y's descriptors may start: input rows up to min(y + h, H - 1) are in."""
+        last_in = self.tile.in_y0 + self._rows_complete() - 1
+        return last_in >= min(y + self.half, self.image_height - 1)
 
     def _room_for_input(self) -> bool:
-        y_in = self.received // self.width
-        y_out = self.emitted // self.width
-        if y_out >= self.height:
+        y_in = self.tile.in_y0 + self.received // self.in_width
+        y_out = self.tile.y0 + self.emitted // self.width
+        if y_out >= self.tile.y1:
             return True
-        return y_in - max(0, y_out - self.half) + 1 <= self.rows
+        return y_in - max(self.tile.in_y0, y_out - self.half) + 1 <= self.rows
 
     def _descriptors_of_row(self, y: int) -> np.ndarray:
+        """Descriptors of image row y over the tile's columns, from the received pixels."""
         if self._desc_y != y:
-            lo = max(0, y - self.half)
-            hi = min(self.height, y + self.half + 1)
-            self._desc_row = compute_descriptor(self.pixels[lo:hi], self.cfg)[y - lo].copy()
+            t = self.tile
+            lo = max(t.in_y0, y - self.half)
+            hi = min(t.in_y1, y + self.half + 1)
+            window = self.pixels[lo:hi, t.in_x0:t.in_x1]
+            row = compute_descriptor(np.ascontiguousarray(window), self.cfg)[y - lo]
+            self._desc_row = row[t.x0 - t.in_x0:t.x1 - t.in_x0].copy()
             self._desc_y = y
         return self._desc_row
 
     def evaluate(self, now_cycle: int) -> None:
         n = self.height * self.width
+        n_in = self.in_rows * self.in_width
         moved = False
         # line buffer: one pixel per cycle while there is room
-        if self.received < n and self.inp.can_pop() and self._room_for_input():
+        if self.received < n_in and self.inp.can_pop() and self._room_for_input():
             self._beat_in = self.inp.pop()
             moved = True
         # MAC array
@@ -114,6 +185,7 @@ class NnaSubmodule(Block):
         mac_wait = None
         if self.emitted < n:
             y, x = divmod(self.emitted, self.width)
+            y += self.tile.y0
             if self.phase == 0 and not self._row_ready(y):
                 mac_wait = "starved"
             else:
@@ -121,6 +193,7 @@ class NnaSubmodule(Block):
                 if self.phase + 1 >= self.cycles_per_descriptor:
                     if self.out.can_push():
                         desc = self._descriptors_of_row(y)[x]
+                        x += self.tile.x0
                         self.out.push((x, y, int(desc), int(self.pixels[y, x])))
                         self._pushed = True
                         self._phase_next = 0
@@ -136,7 +209,7 @@ class NnaSubmodule(Block):
             self.busy()
         elif mac_wait == "blocked":
             self.blocked(self.out)
-        elif self.emitted < n or self.received < n:
+        elif self.emitted < n or self.received < n_in:
             self.starved(self.inp)
         else:
             self.idle()
@@ -161,3 +234,54 @@ class NnaSubmodule(Block):
             "descriptors_out": self.emitted,
             "mac_phase": self.phase,
         }
+
+
+class Merge(Block):
+    """Reassembles a camera's descriptor stream from its submodules' tiles, in raster order.
+
+    Ports: ``inputs`` (one FIFO per tile), ``out``. Each cycle it moves the next descriptor in
+    raster order (from the tile that owns it) to ``out``: pop and push in the same cycle, so one
+    beat per cycle at most; starved on that tile's FIFO, blocked on ``out``. With row bands it
+    drains band after band, so a later band's output waits in its FIFO meanwhile.
+    """
+
+    def __init__(self, name: str, domain: ClockDomain, shape: tuple[int, int], inputs, tiles,
+                 out):
+        super().__init__(name, domain)
+        self.height, self.width = shape
+        self.inputs, self.tiles, self.out = inputs, tiles, out
+        self.moved = 0
+        self._pushed = False
+
+    def _owner(self, x: int, y: int) -> int:
+        for i, t in enumerate(self.tiles):
+            if t.x0 <= x < t.x1 and t.y0 <= y < t.y1:
+                return i
+        raise AssertionError(f"no tile owns pixel ({x}, {y})")
+
+    def evaluate(self, now_cycle: int) -> None:
+        if self.moved >= self.height * self.width:
+            self.idle()
+            return
+        y, x = divmod(self.moved, self.width)
+        src = self.inputs[self._owner(x, y)]
+        if not src.can_pop():
+            self.starved(src)
+            return
+        if not self.out.can_push():
+            self.blocked(self.out)
+            return
+        self.out.push(src.pop())
+        self._pushed = True
+        self.busy()
+
+    def commit(self) -> None:
+        if self._pushed:
+            self.moved += 1
+            self._pushed = False
+
+    def signals(self):
+        return [("descriptors_out", 32)]
+
+    def signal_values(self):
+        return {"descriptors_out": self.moved}

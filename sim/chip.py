@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from nna.blocks import NnaSubmodule, cycles_per_descriptor
+from nna.blocks import Merge, NnaSubmodule, cycles_per_descriptor, split_frame
 from nna.descriptor import descriptor_bits
 from sim.clock import ClockDomain, Simulator
 from sim.config import ChipConfig
@@ -60,18 +60,34 @@ def build_chip(left: np.ndarray, right: np.ndarray, cfg: ChipConfig, *, order_se
     desc_bits = bits + (8 if cfg.sva.p2_adaptive else 0)
     blocks = {}
     outs = {}
+    parts = cfg.nna.stereo_submodules // 2
+    tiles = split_frame(shape, parts, cfg.nna.split, cfg.nna)
     for side, image in (("left", left), ("right", right)):
-        src_fifo = fifo(f"src_{side}_to_nna", f.source_to_nna_depth, 8, src_domain, nna)
+        out = fifo(f"nna_{side}_to_sva", f.nna_to_sva_depth, desc_bits, nna, sva)
+        if parts == 1:
+            src_fifos = [fifo(f"src_{side}_to_nna", f.source_to_nna_depth, 8, src_domain, nna)]
+            sub_outs = [out]
+        else:
+            src_fifos = [fifo(f"src_{side}_to_nna{t}", f.source_to_nna_depth, 8, src_domain, nna)
+                         for t in range(parts)]
+            sub_outs = [fifo(f"nna_{side}{t}_to_merge", f.nna_to_sva_depth, desc_bits, nna, nna)
+                        for t in range(parts)]
+        targets = src_fifos[0] if parts == 1 else list(zip(src_fifos, tiles))
         if cfg.source.kind == "camera":
-            source = CameraSource(f"camera_{side}", src_domain, image, src_fifo,
+            source = CameraSource(f"camera_{side}", src_domain, image, targets,
                                   cfg.source.camera_hblank)
         else:
-            source = MemorySource(f"memory_{side}", src_domain, image, src_fifo,
+            source = MemorySource(f"memory_{side}", src_domain, image, targets,
                                   round(cfg.source.memory_gbps * 1e9))
-        out = fifo(f"nna_{side}_to_sva", f.nna_to_sva_depth, desc_bits, nna, sva)
-        sub = NnaSubmodule(f"nna_{side}", nna, shape, src_fifo, out, cfg.nna)
         blocks[source.name] = sim.add_block(source)
-        blocks[sub.name] = sim.add_block(sub)
+        for t in range(parts):
+            name = f"nna_{side}" if parts == 1 else f"nna_{side}{t}"
+            sub = NnaSubmodule(name, nna, shape, src_fifos[t], sub_outs[t], cfg.nna,
+                               tile=tiles[t] if parts > 1 else None)
+            blocks[name] = sim.add_block(sub)
+        if parts > 1:
+            merge = Merge(f"merge_{side}", nna, shape, sub_outs, tiles, out)
+            blocks[merge.name] = sim.add_block(merge)
         outs[side] = out
     to_sink = fifo("sva_to_sink", f.sva_to_sink_depth, word_bits, sva, sva)
     blocks["sva"] = sim.add_block(

@@ -64,6 +64,15 @@ class NnaConfig:
         10, "input rows a submodule's line buffer holds (9 = the window; 10 lets a row arrive "
         "while the window computes; at least the descriptor window's height)", lo=3, hi=64,
     )
+    submodules: int = param(10, "NNA submodules on the chip", lo=1, hi=256)
+    stereo_submodules: int = param(
+        2, "submodules serving the stereo pair (even: half per camera; the rest are free for "
+        "other networks)", lo=2, hi=256,
+    )
+    split: str = param(
+        "columns", "how a camera's frame is shared by its submodules: columns (tiles with a "
+        "halo) or rows (bands with a halo)", choices=("columns", "rows"),
+    )
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -269,7 +278,22 @@ def load_config(
         if isinstance(value, str):
             value = _parse_value(value)
         _insert(tree, key, value)
-    return _build(ChipConfig, tree, "")
+    return _check_combinations(_build(ChipConfig, tree, ""))
+
+
+def _check_combinations(cfg: ChipConfig) -> ChipConfig:
+    """Rules that involve more than one key."""
+    nna = cfg.nna
+    if nna.stereo_submodules % 2:
+        raise ConfigError(
+            f"nna.stereo_submodules={nna.stereo_submodules} must be even (half per camera)"
+        )
+    if nna.stereo_submodules > nna.submodules:
+        raise ConfigError(
+            f"nna.stereo_submodules={nna.stereo_submodules} exceeds nna.submodules="
+            f"{nna.submodules}: raise nna.submodules or use fewer for the stereo pair"
+        )
+    return cfg
 
 
 def parse_set_options(items: list[str] | None) -> dict[str, str]:

@@ -1,7 +1,9 @@
 """Frame sources (memory, camera) and the disparity sink of the cycle model.
 
 Beats are tuples: a source pushes ``(x, y, pixel)`` in raster order; the sink pops
-``(x, y, word)``.
+``(x, y, word)``. A source feeds one FIFO, or several when a camera's frame is split over
+several NNA submodules: then each pixel goes to every FIFO whose region (``Tile`` input range)
+holds it, to all of them in the same cycle (a joint push that waits until each has space).
 """
 
 from __future__ import annotations
@@ -14,6 +16,17 @@ from sim.errors import UserError
 
 class CameraOverflow(UserError):
     """A camera cannot stall: its FIFO was full when a pixel arrived."""
+
+
+def _as_outputs(out) -> list:
+    """``out``: one FIFO, or a list of (FIFO, tile) pairs (tile: the region it takes)."""
+    if isinstance(out, list):
+        return out
+    return [(out, None)]
+
+
+def _targets(outs, x: int, y: int) -> list:
+    return [f for f, tile in outs if tile is None or tile.takes_input(x, y)]
 
 
 class MemorySource(Block):
@@ -29,7 +42,7 @@ class MemorySource(Block):
     def __init__(self, name: str, domain: ClockDomain, image: np.ndarray, out, bytes_per_s: int):
         super().__init__(name, domain)
         self.image = image
-        self.out = out
+        self.outs = _as_outputs(out)
         self.freq_hz = round(domain.freq_hz)
         self.bytes_per_s = int(bytes_per_s)
         self.sent = 0
@@ -43,11 +56,14 @@ class MemorySource(Block):
         if (self.sent + 1) * self.freq_hz > (now_cycle + 1) * self.bytes_per_s:
             self.busy()
             return
-        if not self.out.can_push():
-            self.blocked(self.out)
-            return
         y, x = divmod(self.sent, w)
-        self.out.push((x, y, int(self.image[y, x])))
+        targets = _targets(self.outs, x, y)
+        full = next((f for f in targets if not f.can_push()), None)
+        if full is not None:
+            self.blocked(full)
+            return
+        for f in targets:
+            f.push((x, y, int(self.image[y, x])))
         self._pushed = True
         self.busy()
 
@@ -76,7 +92,7 @@ class CameraSource(Block):
     def __init__(self, name: str, domain: ClockDomain, image: np.ndarray, out, hblank: int):
         super().__init__(name, domain)
         self.image = image
-        self.out = out
+        self.outs = _as_outputs(out)
         self.line_clocks = image.shape[1] + hblank
         self.sent = 0
         self._pushed = False
@@ -88,14 +104,17 @@ class CameraSource(Block):
             self.idle()
             return
         if col < w:
-            if not self.out.can_push():
+            targets = _targets(self.outs, col, line)
+            full = next((f for f in targets if not f.can_push()), None)
+            if full is not None:
                 raise CameraOverflow(
-                    f"camera '{self.name}' overflowed FIFO {self.out.name} at pixel ({col}, "
+                    f"camera '{self.name}' overflowed FIFO {full.name} at pixel ({col}, "
                     f"{line}), cycle {now_cycle}: the NNA does not keep up with the camera; use a "
                     "slower camera, more NNA throughput (clocks.nna_mhz, nna.macs) or a deeper "
                     "fifo.source_to_nna_depth"
                 )
-            self.out.push((col, line, int(self.image[line, col])))
+            for f in targets:
+                f.push((col, line, int(self.image[line, col])))
             self._pushed = True
         self.busy()
 

@@ -135,3 +135,56 @@ def test_a_camera_faster_than_the_nna_overflows():
                                  "source.camera_hblank": 0})
     with pytest.raises(CameraOverflow, match="overflowed FIFO src_left_to_nna"):
         run_cycle(left, right, cfg)
+
+
+@pytest.mark.parametrize(
+    "over",
+    [
+        {"nna.stereo_submodules": 4},
+        {"nna.stereo_submodules": 6, "nna.descriptor": "cnn"},
+        {"nna.stereo_submodules": 4, "nna.split": "rows"},
+        {"nna.stereo_submodules": 6, "nna.split": "rows", "nna.descriptor": "cnn",
+         "fifo.nna_to_sva_depth": 2},
+        {"nna.stereo_submodules": 4, "source.kind": "camera", "clocks.camera_mhz": 30},
+    ],
+)
+def test_split_frames_are_bit_exact(over):
+    """Column tiles and row bands with their halos, merged back into raster order, give the
+    functional model's words: the halo and border handling of every tile is right."""
+    left, right = _pair(19, 45, seed=11)
+    cfg = load_config(overrides={"sva.disparities": 16, **over})
+    words, report, _ = run_cycle(left, right, cfg)
+    np.testing.assert_array_equal(words, run(left, right, config=cfg).disparity_fixed)
+    parts = over["nna.stereo_submodules"] // 2
+    assert {f"nna_left{t}" for t in range(parts)} <= set(report["blocks"])
+
+
+def test_column_tiles_speed_up_an_nna_bound_frame():
+    """CNN descriptors (9 cycles each) make the NNA the bottleneck; two column tiles per camera
+    share the work, so the frame ends sooner and the busiest submodule does about half."""
+    left, right = _pair(15, 64, seed=12)
+    ends, busiest = [], []
+    for k in (2, 4):
+        cfg = load_config(overrides={"sva.disparities": 16, "nna.descriptor": "cnn",
+                                     "nna.stereo_submodules": k})
+        _, report, chip = run_cycle(left, right, cfg)
+        ends.append(chip.sink.last_cycle)
+        busiest.append(max(v for n, v in report["throughput"]["busy_ms_per_frame"].items()
+                           if n.startswith("nna_left")))
+    assert ends[1] < ends[0]
+    # a tile of 32 (+4 halo) columns does at least 9 x 15 x 32 MAC-array cycles
+    assert busiest[1] < 0.6 * busiest[0]
+
+
+def test_bad_split_configurations_are_refused():
+    from sim.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="must be even"):
+        load_config(overrides={"nna.stereo_submodules": 3})
+    with pytest.raises(ConfigError, match="exceeds nna.submodules"):
+        load_config(overrides={"nna.stereo_submodules": 12})
+    left, right = _pair(4, 20, seed=13)
+    cfg = load_config(overrides={"sva.disparities": 16, "nna.stereo_submodules": 10,
+                                 "nna.split": "rows"})
+    with pytest.raises(ConfigError, match="cannot split 4 rows into 5 parts"):
+        run_cycle(left, right, cfg)
