@@ -143,6 +143,9 @@ def cycle_report(chip: Chip, stats: dict) -> dict:
             "fps": round(1.0 / frame_busy_s, 3) if frame_busy_s > 0 else None,
             "bottleneck": bottleneck,
             "busy_ms_per_frame": {n: round(v * 1e3, 6) for n, v in sorted(busy_s.items())},
+            # the frame rate each block alone would sustain (1 / its busy time per frame)
+            "fps_per_block": {n: round(1.0 / v, 3) if v > 0 else None
+                              for n, v in sorted(busy_s.items())},
         },
         "blocks": {n: b.activity for n, b in sorted(chip.blocks.items())},
         "fifos": {n: chip.fifos[n].stats() for n in sorted(chip.fifos)},
