@@ -225,6 +225,10 @@ class NnaSubmodule(Block):
             self._pushed = False
         self.phase = self._phase_next
 
+    def work_cycles(self) -> int:
+        """MAC-array cycles: cycles_per_descriptor for every descriptor emitted."""
+        return self.emitted * self.cycles_per_descriptor
+
     def signals(self):
         return [("rows_in", 16), ("descriptors_out", 32), ("mac_phase", 16)]
 
@@ -279,6 +283,9 @@ class Merge(Block):
         if self._pushed:
             self.moved += 1
             self._pushed = False
+
+    def work_cycles(self) -> int:
+        return self.moved
 
     def signals(self):
         return [("descriptors_out", 32)]

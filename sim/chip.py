@@ -125,11 +125,13 @@ def cycle_report(chip: Chip, stats: dict) -> dict:
     sva = chip.domains["sva"]
     first_fs = sva.edge_fs(chip.sink.first_cycle)
     last_fs = sva.edge_fs(chip.sink.last_cycle)
+    # a block's work per frame: the cycles its critical resource is occupied (the MAC array,
+    # the SVA's output pipeline, a source's port); in a stream of frames the block with the
+    # most work time sets the frame rate
     busy_s = {}
     for name, block in chip.blocks.items():
-        if name == "sink":
-            continue
-        busy_s[name] = block.activity["busy"] / block.domain.freq_hz
+        if name != "sink":
+            busy_s[name] = block.work_cycles() / block.domain.freq_hz
     bottleneck = max(sorted(busy_s), key=lambda n: busy_s[n])
     frame_busy_s = busy_s[bottleneck]
     return {
@@ -142,8 +144,8 @@ def cycle_report(chip: Chip, stats: dict) -> dict:
         "throughput": {
             "fps": round(1.0 / frame_busy_s, 3) if frame_busy_s > 0 else None,
             "bottleneck": bottleneck,
-            "busy_ms_per_frame": {n: round(v * 1e3, 6) for n, v in sorted(busy_s.items())},
-            # the frame rate each block alone would sustain (1 / its busy time per frame)
+            "work_ms_per_frame": {n: round(v * 1e3, 6) for n, v in sorted(busy_s.items())},
+            # the frame rate each block alone would sustain (1 / its work time per frame)
             "fps_per_block": {n: round(1.0 / v, 3) if v > 0 else None
                               for n, v in sorted(busy_s.items())},
         },

@@ -72,6 +72,10 @@ class MemorySource(Block):
             self.sent += 1
             self._pushed = False
 
+    def work_cycles(self) -> int:
+        """Cycles the port was transferring (pushing, or waiting for bandwidth/the raster)."""
+        return self.activity["busy"]
+
     def signals(self):
         return [("pixels_sent", 32)]
 
@@ -123,6 +127,10 @@ class CameraSource(Block):
             self.sent += 1
             self._pushed = False
 
+    def work_cycles(self) -> int:
+        """Cycles the port was transferring (pushing, or waiting for bandwidth/the raster)."""
+        return self.activity["busy"]
+
     def signals(self):
         return [("pixels_sent", 32)]
 
@@ -172,6 +180,9 @@ class Sink(Block):
                 self.first_cycle = self._cycle
             self.last_cycle = self._cycle
             self._beat = None
+
+    def work_cycles(self) -> int:
+        return self.received
 
     @property
     def done(self) -> bool:

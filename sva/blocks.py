@@ -120,6 +120,10 @@ class SvaBlock(Block):
             self.emitted += 1
             self._pushed_at = None
 
+    def work_cycles(self) -> int:
+        """Output-pipeline cycles: cycles_per_pixel for every word (the SVA's throughput)."""
+        return self.emitted * self.cfg.cycles_per_pixel
+
     def signals(self):
         return [("rows_in", 16), ("words_out", 32)]
 

@@ -169,7 +169,7 @@ def test_column_tiles_speed_up_an_nna_bound_frame():
                                      "nna.stereo_submodules": k})
         _, report, chip = run_cycle(left, right, cfg)
         ends.append(chip.sink.last_cycle)
-        busiest.append(max(v for n, v in report["throughput"]["busy_ms_per_frame"].items()
+        busiest.append(max(v for n, v in report["throughput"]["work_ms_per_frame"].items()
                            if n.startswith("nna_left")))
     assert ends[1] < ends[0]
     # a tile of 32 (+4 halo) columns does at least 9 x 15 x 32 MAC-array cycles
