@@ -29,43 +29,20 @@ def _targets(outs, x: int, y: int) -> list:
     return [f for f, tile in outs if tile is None or tile.takes_input(x, y)]
 
 
-class MemorySource(Block):
-    """Reads one frame from memory in raster order, one pixel (one byte) per beat.
+class _FrameSource(Block):
+    """What both sources share: the frame, the output FIFO(s), the pixel count."""
 
-    Port: ``out`` (pixels). Bandwidth: a token bucket filled at ``bytes_per_s``; pixel k (from 0)
-    may leave in cycle c only if ``(k + 1) * freq_hz <= (c + 1) * bytes_per_s``, and at most one
-    pixel leaves per cycle. With ``bytes_per_s >= freq_hz`` pixel k leaves in cycle k unless the
-    FIFO is full. Activity: busy while pixels remain (waiting for bandwidth counts as busy: the
-    transfer is under way), blocked when ``out`` is full, idle once the frame has left.
-    """
-
-    def __init__(self, name: str, domain: ClockDomain, image: np.ndarray, out, bytes_per_s: int):
+    def __init__(self, name: str, domain: ClockDomain, image: np.ndarray, out):
         super().__init__(name, domain)
         self.image = image
         self.outs = _as_outputs(out)
-        self.freq_hz = round(domain.freq_hz)
-        self.bytes_per_s = int(bytes_per_s)
         self.sent = 0
         self._pushed = False
 
-    def evaluate(self, now_cycle: int) -> None:
-        h, w = self.image.shape
-        if self.sent >= h * w:
-            self.idle()
-            return
-        if (self.sent + 1) * self.freq_hz > (now_cycle + 1) * self.bytes_per_s:
-            self.busy()
-            return
-        y, x = divmod(self.sent, w)
-        targets = _targets(self.outs, x, y)
-        full = next((f for f in targets if not f.can_push()), None)
-        if full is not None:
-            self.blocked(full)
-            return
+    def _push_pixel(self, x: int, y: int, targets) -> None:
         for f in targets:
             f.push((x, y, int(self.image[y, x])))
         self._pushed = True
-        self.busy()
 
     def commit(self) -> None:
         if self._pushed:
@@ -83,7 +60,40 @@ class MemorySource(Block):
         return {"pixels_sent": self.sent}
 
 
-class CameraSource(Block):
+class MemorySource(_FrameSource):
+    """Reads one frame from memory in raster order, one pixel (one byte) per beat.
+
+    Port: ``out`` (pixels). Bandwidth: a token bucket filled at ``bytes_per_s``; pixel k (from 0)
+    may leave in cycle c only if ``(k + 1) * freq_hz <= (c + 1) * bytes_per_s``, and at most one
+    pixel leaves per cycle. With ``bytes_per_s >= freq_hz`` pixel k leaves in cycle k unless the
+    FIFO is full. Activity: busy while pixels remain (waiting for bandwidth counts as busy: the
+    transfer is under way), blocked when ``out`` is full, idle once the frame has left.
+    """
+
+    def __init__(self, name: str, domain: ClockDomain, image: np.ndarray, out, bytes_per_s: int):
+        super().__init__(name, domain, image, out)
+        self.freq_hz = round(domain.freq_hz)
+        self.bytes_per_s = int(bytes_per_s)
+
+    def evaluate(self, now_cycle: int) -> None:
+        h, w = self.image.shape
+        if self.sent >= h * w:
+            self.idle()
+            return
+        if (self.sent + 1) * self.freq_hz > (now_cycle + 1) * self.bytes_per_s:
+            self.busy()
+            return
+        y, x = divmod(self.sent, w)
+        targets = _targets(self.outs, x, y)
+        full = next((f for f in targets if not f.can_push()), None)
+        if full is not None:
+            self.blocked(full)
+            return
+        self._push_pixel(x, y, targets)
+        self.busy()
+
+
+class CameraSource(_FrameSource):
     """A camera streaming one frame at its pixel clock, with blanking, from cycle 0.
 
     Cycle c is line ``c // (W + hblank)``, column ``c % (W + hblank)``; columns < W of lines < H
@@ -94,12 +104,8 @@ class CameraSource(Block):
     """
 
     def __init__(self, name: str, domain: ClockDomain, image: np.ndarray, out, hblank: int):
-        super().__init__(name, domain)
-        self.image = image
-        self.outs = _as_outputs(out)
+        super().__init__(name, domain, image, out)
         self.line_clocks = image.shape[1] + hblank
-        self.sent = 0
-        self._pushed = False
 
     def evaluate(self, now_cycle: int) -> None:
         h, w = self.image.shape
@@ -117,25 +123,8 @@ class CameraSource(Block):
                     "slower camera, more NNA throughput (clocks.nna_mhz, nna.macs) or a deeper "
                     "fifo.source_to_nna_depth"
                 )
-            for f in targets:
-                f.push((col, line, int(self.image[line, col])))
-            self._pushed = True
+            self._push_pixel(col, line, targets)
         self.busy()
-
-    def commit(self) -> None:
-        if self._pushed:
-            self.sent += 1
-            self._pushed = False
-
-    def work_cycles(self) -> int:
-        """Cycles the port was transferring (pushing, or waiting for bandwidth/the raster)."""
-        return self.activity["busy"]
-
-    def signals(self):
-        return [("pixels_sent", 32)]
-
-    def signal_values(self):
-        return {"pixels_sent": self.sent}
 
 
 class Sink(Block):
