@@ -1,0 +1,937 @@
+"""The compiled cycle engine: the chip of :mod:`sim.chip` in one numba loop, cycle for cycle.
+
+:func:`run_cycle_fast` simulates the same chip as :func:`sim.chip.run_cycle` -- memory or camera
+sources, one NNA submodule per camera (census or CNN), the SVA and the sink, joined by the FIFOs
+of :mod:`sim.fifo` with their latency and clock-domain-crossing synchronisers -- and returns the
+same output words, the same cycle report and the same kernel statistics. It is exact, not an
+estimate: every rule of :mod:`sim.clock` and :mod:`sim.fifo` is mirrored on arrays.
+
+* **Steps.** One compiled loop (:func:`_run_steps`, driven by :func:`_run_loop`): ``t`` = the
+  earliest next edge over the domains; the domains with an edge at ``t`` tick; every FIFO touched
+  by a ticking domain samples its per-cycle statistics (``Fifo._begin_step``); the blocks of the
+  ticking domains evaluate from committed state and stage their FIFO pushes and pops; then the
+  FIFOs commit. A block's own registers are only read by itself, so it updates them at the end
+  of its evaluation.
+* **FIFOs.** Per FIFO a ring of ``depth`` items ``(visible-at consumer cycle, payload)`` and a
+  ring of freed-slot visibility cycles (``Fifo._items`` / ``Fifo._frees``); neither ever holds
+  more than ``depth`` entries (the producer counts a slot free only once its freeing is seen).
+* **Data.** Pixels, descriptors and output words travel in the FIFOs. The NNA keeps what it
+  popped in its own (H, W) array and computes a descriptor row with
+  :func:`descriptor_row_census` / :func:`descriptor_row_cnn` from those pixels only, as soon as
+  the row's input rows are in (the readable block does it at the row's first push; the rows it
+  reads never change in between, so the bits are the same). The SVA keeps the received
+  descriptors and runs the functional streaming kernel (:func:`sva.pipeline._stream` and the
+  median kernels) on the rows received so far once the output row in progress is ready and not
+  yet final -- exactly what :class:`sva.pipeline.SvaStream` computes.
+
+Not covered: frames split over several NNA submodules (``nna.stereo_submodules`` > 2), traces
+and shuffled evaluation orders (results cannot depend on the order anyway), and sink stall
+functions other than a periodic pattern ``(period, allowed_phase)``: the sink pops only in
+cycles with ``cycle % period == allowed_phase``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from nna.blocks import cycles_per_descriptor, half_window
+from nna.census import census_offsets
+from nna.descriptor import descriptor_bits, layer
+from sim.chip import _budget
+from sim.clock import ACTIVITIES, BudgetExceeded, ClockDomain, DeadlockError
+from sim.config import ChipConfig
+from sim.errors import ConfigError
+from sim.sources import CameraOverflow
+from sva.median import _median3, _median_network, selection_network
+from sva.pipeline import SvaStream, _stream
+
+# ---- indices of the fixed topology (insertion order of sim.chip.build_chip) --------------------
+
+D_NNA, D_SVA, D_CAM = 0, 1, 2
+DOMAIN_NAMES = ("nna", "sva", "camera")
+# FIFOs
+F_NNA_L, F_SRC_L, F_NNA_R, F_SRC_R, F_SINK = 0, 1, 2, 3, 4
+FIFO_NAMES = ("nna_left_to_sva", "src_left_to_nna", "nna_right_to_sva", "src_right_to_nna",
+              "sva_to_sink")
+# blocks
+B_SRC_L, B_NNA_L, B_SRC_R, B_NNA_R, B_SVA, B_SINK = 0, 1, 2, 3, 4, 5
+# activities (index into ACTIVITIES: busy, starved, blocked, idle)
+A_BUSY, A_STARVED, A_BLOCKED, A_IDLE = 0, 1, 2, 3
+
+# domain table columns
+DC_PERIOD, DC_PHASE, DC_CYCLES, DC_NEXT, DC_LIMIT = 0, 1, 2, 3, 4
+# FIFO table columns
+(FC_DEPTH, FC_DATA_EDGES, FC_SPACE_EDGES, FC_SRC, FC_DST, FC_OFF, FC_HOFF, FC_IHEAD, FC_ICOUNT,
+ FC_FHEAD, FC_FCOUNT, FC_PUSHES, FC_POPS, FC_SEEN, FC_MAXOCC, FC_MAXPROD, FC_FULL, FC_EMPTY,
+ FC_PUSH_ST, FC_POP_ST, FC_STAGED) = range(21)
+N_FC = 21
+# block table columns: status, waiting FIFO (-1 none), 4 activity counts, then per-block state
+(BC_STATUS, BC_WAIT, BC_BUSY, BC_STARVED, BC_BLOCKED, BC_IDLE, BC_S0, BC_S1, BC_S2, BC_S3,
+ BC_S4, BC_S5, BC_S0Y, BC_S0X, BC_S1Y, BC_S1X) = range(16)
+N_BC = 16
+# per-block state: sources BC_S0 = pixels sent; NNA S0 received, S1 emitted, S2 MAC phase,
+# S3 row of the cached descriptors; SVA S0 received, S1 emitted, S2 last push cycle, S3 ready
+# rows, S4 rows checked, S5 rows final; sink S0 received, S1 first cycle, S2 last cycle.
+# BC_S0Y/BC_S0X and BC_S1Y/BC_S1X hold the raster (row, column) of the counters S0 and S1, so
+# the loop never divides by W
+# global scalars
+G_STEPS, G_NOW, G_QUIET, G_EVENT_A, G_EVENT_B, G_EVENT_C, G_EVENT_D = range(7)
+N_G = 7
+EV_DONE, EV_DEADLOCK, EV_BUDGET, EV_OVERFLOW, EV_DATA = 0, 1, 2, 3, 4
+
+
+# ---- descriptor rows -----------------------------------------------------------------------
+
+
+@njit(cache=True)
+def descriptor_row_census(pixels, y, offsets_a, offsets_b, out):
+    """Census descriptors of image row ``y`` of ``pixels`` (uint8 (H, W)) into ``out`` (W,).
+
+    Bit k compares ``pixels[y + offsets_a[k]] > pixels[y + offsets_b[k]]`` (offsets are
+    ``(dy, dx)``; for the plain census ``offsets_b`` is all zero, for the symmetric one it is
+    ``-offsets_a``), coordinates clamped into the image (replicate border) -- the definition of
+    :mod:`nna.census`. Reads rows ``y - h .. y + h`` only.
+    """
+    h, w = pixels.shape
+    n_bits = offsets_a.shape[0]
+    for x in range(w):
+        out[x] = 0
+    for k in range(n_bits):
+        ya = min(max(y + offsets_a[k, 0], 0), h - 1)
+        yb = min(max(y + offsets_b[k, 0], 0), h - 1)
+        dxa = offsets_a[k, 1]
+        dxb = offsets_b[k, 1]
+        row_a = pixels[ya]
+        row_b = pixels[yb]
+        mask = np.uint64(1) << np.uint64(k)
+        for x in range(w):
+            a = row_a[min(max(x + dxa, 0), w - 1)]
+            b = row_b[min(max(x + dxb, 0), w - 1)]
+            out[x] |= mask if a > b else np.uint64(0)
+
+
+@njit(cache=True)
+def descriptor_row_cnn(pixels, y, weights_kkc, bias, input_offset, out):
+    """CNN descriptors of image row ``y`` of ``pixels`` (uint8 (H, W)) into ``out`` (W,).
+
+    ``weights_kkc`` int32 (K, K, C) is the layer's int8 (C, K, K) weights laid out [ky, kx, c];
+    ``bias`` int32 (C,). Bit c is ``bias[c] + sum w[c, ky, kx] * (pixel - input_offset) > 0``
+    with clamped coordinates (:mod:`nna.conv`), in int32 accumulators (exact: the layer check
+    bounds the sum). Reads rows ``y - K // 2 .. y + K // 2`` only. Channel by channel, the
+    innermost loop runs along the row (vectorised over x): measured faster than a channel-inner
+    loop over (8, C) accumulator blocks or per pixel.
+    """
+    h, w = pixels.shape
+    k_size = weights_kkc.shape[0]
+    n_ch = weights_kkc.shape[2]
+    r = k_size // 2
+    # the K input rows, replicate-padded by r columns on each side, minus the zero point
+    rows_i32 = np.empty((k_size, w + 2 * r), np.int32)
+    for ky in range(k_size):
+        src = pixels[min(max(y + ky - r, 0), h - 1)]
+        dst = rows_i32[ky]
+        for x in range(w + 2 * r):
+            dst[x] = np.int32(src[min(max(x - r, 0), w - 1)]) - input_offset
+    acc_i32 = np.empty(w, np.int32)
+    for x in range(w):
+        out[x] = 0
+    for c in range(n_ch):
+        b = bias[c]
+        for x in range(w):
+            acc_i32[x] = b
+        for ky in range(k_size):
+            row = rows_i32[ky]
+            for kx in range(k_size):
+                wv = weights_kkc[ky, kx, c]
+                shifted = row[kx:kx + w]
+                for x in range(w):
+                    acc_i32[x] += wv * shifted[x]
+        mask = np.uint64(1) << np.uint64(c)
+        for x in range(w):
+            if acc_i32[x] > 0:
+                out[x] |= mask
+
+
+def census_tables(cfg_census) -> tuple[np.ndarray, np.ndarray]:
+    """``(offsets_a, offsets_b)`` int64 (n, 2) of ``(dy, dx)`` for :func:`descriptor_row_census`."""
+    offsets = census_offsets(cfg_census.window, cfg_census.kind, cfg_census.stride)
+    a = np.array([(dy, dx) for dx, dy in offsets], np.int64).reshape(-1, 2)
+    b = np.zeros_like(a) if cfg_census.kind == "plain" else -a
+    return a, b
+
+
+def cnn_tables(weights, bias) -> tuple[np.ndarray, np.ndarray]:
+    """``(weights_kkc int32 (K, K, C), bias int32)`` for :func:`descriptor_row_cnn`."""
+    return (np.ascontiguousarray(np.transpose(weights, (1, 2, 0)).astype(np.int32)),
+            np.ascontiguousarray(bias.astype(np.int32)))
+
+
+# ---- FIFO primitives -----------------------------------------------------------------------
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def _edge_after(dom, tick, d):
+    """Index of the first edge of domain ``d`` strictly after the current step's instant t.
+
+    ``ClockDomain.first_edge_after(t)`` without a division: the domain's next edge (index
+    ``cycles``, at ``phase + cycles * period >= t``) if it does not tick at t, else the one
+    after it (``cycles`` is advanced only after the commit).
+    """
+    return dom[d, DC_CYCLES] + (1 if tick[d] else 0)
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def _wrap(i, depth):
+    """``i % depth`` for ``0 <= i < 2 * depth`` (ring indices) without a division."""
+    return i - depth if i >= depth else i
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def _can_push(fq, f):
+    return fq[f, FC_PUSH_ST] == 0 and fq[f, FC_PUSHES] - fq[f, FC_SEEN] < fq[f, FC_DEPTH]
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def _can_pop(fq, ready, f, cyc):
+    return (fq[f, FC_POP_ST] == 0 and fq[f, FC_ICOUNT] > 0
+            and ready[fq[f, FC_OFF] + fq[f, FC_IHEAD]] <= cyc)
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def _head(fq, f):
+    """Ring index of the head item."""
+    return fq[f, FC_OFF] + fq[f, FC_IHEAD]
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def _push(fq, staged_desc, f, value, desc):
+    fq[f, FC_PUSH_ST] = 1
+    fq[f, FC_STAGED] = value
+    staged_desc[f] = desc
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def _begin_step(fq, ready, frees, hist, dom, tick, f):
+    """``Fifo._begin_step``: see the frees that reached the producer, sample the statistics."""
+    src = fq[f, FC_SRC]
+    dst = fq[f, FC_DST]
+    depth = fq[f, FC_DEPTH]
+    off = fq[f, FC_OFF]
+    if tick[src]:
+        cyc = dom[src, DC_CYCLES]
+        while fq[f, FC_FCOUNT] > 0 and frees[off + fq[f, FC_FHEAD]] <= cyc:
+            fq[f, FC_FHEAD] = _wrap(fq[f, FC_FHEAD] + 1, depth)
+            fq[f, FC_FCOUNT] -= 1
+            fq[f, FC_SEEN] += 1
+        if fq[f, FC_PUSHES] - fq[f, FC_SEEN] >= depth:
+            fq[f, FC_FULL] += 1
+    if tick[dst]:
+        cyc = dom[dst, DC_CYCLES]
+        hist[fq[f, FC_HOFF] + fq[f, FC_PUSHES] - fq[f, FC_POPS]] += 1
+        if fq[f, FC_ICOUNT] == 0 or ready[off + fq[f, FC_IHEAD]] > cyc:
+            fq[f, FC_EMPTY] += 1
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def _commit(fq, ready, pay, pay_desc, frees, staged_desc, dom, tick, f):
+    """``Fifo._commit``: apply the staged push and pop; True if either happened."""
+    depth = fq[f, FC_DEPTH]
+    off = fq[f, FC_OFF]
+    moved = False
+    if fq[f, FC_PUSH_ST]:
+        pos = off + _wrap(fq[f, FC_IHEAD] + fq[f, FC_ICOUNT], depth)
+        ready[pos] = _edge_after(dom, tick, fq[f, FC_DST]) + fq[f, FC_DATA_EDGES] - 1
+        pay[pos] = fq[f, FC_STAGED]
+        pay_desc[pos] = staged_desc[f]
+        fq[f, FC_ICOUNT] += 1
+        fq[f, FC_PUSHES] += 1
+        fq[f, FC_PUSH_ST] = 0
+        moved = True
+    if fq[f, FC_POP_ST]:
+        fq[f, FC_IHEAD] = _wrap(fq[f, FC_IHEAD] + 1, depth)
+        fq[f, FC_ICOUNT] -= 1
+        fq[f, FC_POPS] += 1
+        pos = off + _wrap(fq[f, FC_FHEAD] + fq[f, FC_FCOUNT], depth)
+        frees[pos] = _edge_after(dom, tick, fq[f, FC_SRC]) + fq[f, FC_SPACE_EDGES] - 1
+        fq[f, FC_FCOUNT] += 1
+        fq[f, FC_POP_ST] = 0
+        moved = True
+    occ = fq[f, FC_PUSHES] - fq[f, FC_POPS]
+    if occ > fq[f, FC_MAXOCC]:
+        fq[f, FC_MAXOCC] = occ
+    seen = fq[f, FC_PUSHES] - fq[f, FC_SEEN]
+    if seen > fq[f, FC_MAXPROD]:
+        fq[f, FC_MAXPROD] = seen
+    return moved
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def _advance(bs, b, counter, col, w):
+    """Count one more beat on block ``b``'s raster counter (BC_S0 or BC_S1) and its (row, col)."""
+    bs[b, counter] += 1
+    x = bs[b, col] + 1
+    if x == w:
+        bs[b, col] = 0
+        bs[b, col - 1] += 1
+    else:
+        bs[b, col] = x
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def _report(bs, b, status, fifo):
+    bs[b, BC_STATUS] = status
+    bs[b, BC_WAIT] = fifo
+    bs[b, BC_BUSY + status] += 1
+    return status == A_BUSY
+
+
+# ---- blocks --------------------------------------------------------------------------------
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def _memory_eval(bs, fq, staged_desc, b, f, image, cyc, freq_hz, bytes_per_s):
+    """``MemorySource.evaluate`` + commit (token bucket, one pixel per cycle)."""
+    h, w = image.shape
+    sent = bs[b, BC_S0]
+    if sent >= h * w:
+        return _report(bs, b, A_IDLE, -1)
+    # with bytes_per_s >= freq_hz the bucket never limits (sent <= cyc); skipping the products
+    # then also keeps them far from int64 overflow
+    if bytes_per_s < freq_hz and (sent + 1) * freq_hz > (cyc + 1) * bytes_per_s:
+        return _report(bs, b, A_BUSY, -1)
+    if not _can_push(fq, f):
+        return _report(bs, b, A_BLOCKED, f)
+    _push(fq, staged_desc, f, np.int64(image[bs[b, BC_S0Y], bs[b, BC_S0X]]), np.uint64(0))
+    _advance(bs, b, BC_S0, BC_S0X, w)
+    return _report(bs, b, A_BUSY, -1)
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def _camera_eval(bs, fq, staged_desc, b, f, image, cyc, line_clocks):
+    """``CameraSource.evaluate`` + commit; False if the FIFO overflowed (nothing reported)."""
+    h, w = image.shape
+    line = cyc // line_clocks
+    col = cyc % line_clocks
+    if line >= h:
+        _report(bs, b, A_IDLE, -1)
+        return True
+    if col < w:
+        if not _can_push(fq, f):
+            return False
+        _push(fq, staged_desc, f, np.int64(image[line, col]), np.uint64(0))
+        bs[b, BC_S0] += 1
+    _report(bs, b, A_BUSY, -1)
+    return True
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def _nna_eval(bs, fq, ready, pay, staged_desc, b, side, cyc, pixels, row_desc, timing):
+    """``NnaSubmodule.evaluate`` + commit for a whole-frame submodule of camera ``side``.
+
+    ``pixels`` (2, H, W) and ``row_desc`` (2, W) hold both submodules' line buffers and
+    descriptor rows; ``timing`` = (half window, line buffer rows, cycles per descriptor). The
+    descriptor row the MAC array works on is computed by :func:`_nna_prepare_row`.
+    """
+    half, rows, cpd = timing[0], timing[1], timing[2]
+    f_in = F_SRC_L if side == 0 else F_SRC_R
+    f_out = F_NNA_L if side == 0 else F_NNA_R
+    h, w = pixels.shape[1], pixels.shape[2]
+    n = h * w
+    received = bs[b, BC_S0]
+    emitted = bs[b, BC_S1]
+    phase = bs[b, BC_S2]
+    moved = False
+    pop = False
+    # line buffer: one pixel per cycle while there is room
+    if received < n and _can_pop(fq, ready, f_in, cyc):
+        y_in = bs[b, BC_S0Y]
+        y_out = bs[b, BC_S1Y]
+        if y_out >= h or y_in - max(0, y_out - half) + 1 <= rows:
+            pop = True
+            fq[f_in, FC_POP_ST] = 1
+            moved = True
+    # MAC array
+    phase_next = phase
+    pushed = False
+    mac_blocked = False
+    if emitted < n:
+        y = bs[b, BC_S1Y]
+        x = bs[b, BC_S1X]
+        if phase == 0 and bs[b, BC_S0Y] - 1 < min(y + half, h - 1):
+            pass  # the row's input is not in yet: starved
+        else:
+            worked = phase < cpd
+            if phase + 1 >= cpd:
+                if _can_push(fq, f_out):
+                    _push(fq, staged_desc, f_out, np.int64(pixels[side, y, x]),
+                          row_desc[side, x])
+                    pushed = True
+                    phase_next = 0
+                    moved = True
+                else:
+                    phase_next = cpd
+                    if not worked:
+                        mac_blocked = True
+                    moved = moved or worked
+            else:
+                phase_next = phase + 1
+                moved = True
+    # commit
+    if pop:
+        pixels[side, bs[b, BC_S0Y], bs[b, BC_S0X]] = pay[_head(fq, f_in)]
+        _advance(bs, b, BC_S0, BC_S0X, w)
+    if pushed:
+        _advance(bs, b, BC_S1, BC_S1X, w)
+    bs[b, BC_S2] = phase_next
+    if moved:
+        return _report(bs, b, A_BUSY, -1)
+    if mac_blocked:
+        return _report(bs, b, A_BLOCKED, f_out)
+    if emitted < n or received < n:
+        return _report(bs, b, A_STARVED, f_in)
+    return _report(bs, b, A_IDLE, -1)
+
+
+@njit(cache=True)
+def _nna_prepare_row(bs, b, side, pixels, row_desc, nna):
+    """Compute the descriptors of the row the MAC array is on once its input rows are in.
+
+    The readable block computes them when the row's first descriptor is pushed; the rows it
+    reads (y - h .. y + h) are complete from the moment the row may start and are never written
+    again, so computing them then gives the same bits.
+    """
+    half, rows, cpd, is_cnn, offsets_a, offsets_b, weights_kkc, bias, input_offset = nna
+    h, w = pixels.shape[1], pixels.shape[2]
+    y = bs[b, BC_S1Y]
+    if y >= h or bs[b, BC_S3] == y or bs[b, BC_S0Y] - 1 < min(y + half, h - 1):
+        return
+    if is_cnn:
+        descriptor_row_cnn(pixels[side], y, weights_kkc, bias, input_offset, row_desc[side])
+    else:
+        descriptor_row_census(pixels[side], y, offsets_a, offsets_b, row_desc[side])
+    bs[b, BC_S3] = y
+
+
+@njit(cache=True)
+def _sva_advance(bs, rows_in, sva):
+    """``SvaStream.advance(rows_in)`` on the block's state (rows checked S4, rows final S5)."""
+    (desc_l, desc_r, img_l, box, sgm, select, checked, q, colsum, box_r, median_k,
+     network) = sva
+    h = desc_l.shape[0]
+    rows_checked = bs[B_SVA, BC_S4]
+    rows_final = bs[B_SVA, BC_S5]
+    stop = h if rows_in >= h else max(0, rows_in - box_r)
+    if stop > rows_checked:
+        _stream(desc_l, desc_r, img_l, box, sgm, select, checked, colsum, rows_checked, stop)
+        rows_checked = stop
+    m = median_k // 2 if median_k > 1 else 0
+    final = h if rows_checked >= h else max(0, rows_checked - m)
+    if final > rows_final:
+        if m:
+            lo = max(0, rows_final - m)
+            hi = min(h, final + m)
+            block = np.empty((hi - lo, checked.shape[1]), np.int32)
+            src = np.ascontiguousarray(checked[lo:hi])
+            if median_k == 3:
+                _median3(src, block)
+            else:
+                _median_network(src, median_k, network, block)
+            for yy in range(rows_final, final):
+                q[yy, :] = block[yy - lo]
+        rows_final = final
+    bs[B_SVA, BC_S4] = rows_checked
+    bs[B_SVA, BC_S5] = rows_final
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def _sva_eval(bs, fq, ready, pay, pay_desc, staged_desc, cyc, ready_cycle, received_data, q,
+              timing):
+    """``SvaBlock.evaluate`` + commit. ``received_data`` = (desc_l, desc_r, img_l); ``q`` the
+    stream's output words, made final by :func:`_sva_advance` before a row's first push;
+    ``timing`` = (look-ahead rows, pipeline latency, cycles per pixel)."""
+    lookahead, latency, cpp = timing[0], timing[1], timing[2]
+    desc_l, desc_r, img_l = received_data
+    h, w = desc_l.shape
+    n = h * w
+    received = bs[B_SVA, BC_S0]
+    emitted = bs[B_SVA, BC_S1]
+    moved = False
+    pair = False
+    wait = -1
+    if received < n and bs[B_SVA, BC_S0Y] <= bs[B_SVA, BC_S1Y] + lookahead + 1:
+        can_l = _can_pop(fq, ready, F_NNA_L, cyc)
+        if can_l and _can_pop(fq, ready, F_NNA_R, cyc):
+            pair = True
+            fq[F_NNA_L, FC_POP_ST] = 1
+            fq[F_NNA_R, FC_POP_ST] = 1
+            moved = True
+        else:
+            wait = F_NNA_L if not can_l else F_NNA_R
+    blocked = False
+    pending = False
+    pushed = False
+    if emitted < n:
+        y = bs[B_SVA, BC_S1Y]
+        if y < bs[B_SVA, BC_S3]:
+            pending = True
+            due = max(ready_cycle[y] + latency, bs[B_SVA, BC_S2] + cpp)
+            if cyc >= due:
+                if _can_push(fq, F_SINK):
+                    _push(fq, staged_desc, F_SINK, np.int64(q[y, bs[B_SVA, BC_S1X]]), np.uint64(0))
+                    pushed = True
+                    moved = True
+                else:
+                    blocked = True
+    # commit
+    if pair:
+        yy = bs[B_SVA, BC_S0Y]
+        xx = bs[B_SVA, BC_S0X]
+        hl = _head(fq, F_NNA_L)
+        desc_l[yy, xx] = pay_desc[hl]
+        img_l[yy, xx] = pay[hl]
+        desc_r[yy, xx] = pay_desc[_head(fq, F_NNA_R)]
+        _advance(bs, B_SVA, BC_S0, BC_S0X, w)
+        if bs[B_SVA, BC_S0X] == 0:
+            rows = bs[B_SVA, BC_S0Y]
+            n_ready = h if rows >= h else max(0, rows - lookahead)
+            for yr in range(bs[B_SVA, BC_S3], n_ready):
+                ready_cycle[yr] = cyc + 1
+            if n_ready > bs[B_SVA, BC_S3]:
+                bs[B_SVA, BC_S3] = n_ready
+    if pushed:
+        bs[B_SVA, BC_S2] = cyc
+        _advance(bs, B_SVA, BC_S1, BC_S1X, w)
+    if moved:
+        return _report(bs, B_SVA, A_BUSY, -1)
+    if blocked:
+        return _report(bs, B_SVA, A_BLOCKED, F_SINK)
+    if pending:
+        return _report(bs, B_SVA, A_BUSY, -1)
+    if emitted < n:
+        return _report(bs, B_SVA, A_STARVED, wait if wait >= 0 else F_NNA_L)
+    return _report(bs, B_SVA, A_IDLE, -1)
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def _sink_eval(bs, fq, ready, pay, cyc, words, stall_period, stall_phase):
+    """``Sink.evaluate`` + commit; the optional stall refuses cycles off the periodic pattern."""
+    h, w = words.shape
+    received = bs[B_SINK, BC_S0]
+    if received >= h * w:
+        return _report(bs, B_SINK, A_IDLE, -1)
+    if stall_period > 0 and cyc % stall_period != stall_phase:
+        return _report(bs, B_SINK, A_IDLE, -1)
+    if not _can_pop(fq, ready, F_SINK, cyc):
+        return _report(bs, B_SINK, A_STARVED, F_SINK)
+    fq[F_SINK, FC_POP_ST] = 1
+    words[bs[B_SINK, BC_S0Y], bs[B_SINK, BC_S0X]] = pay[_head(fq, F_SINK)]
+    _advance(bs, B_SINK, BC_S0, BC_S0X, w)
+    if bs[B_SINK, BC_S1] < 0:
+        bs[B_SINK, BC_S1] = cyc
+    bs[B_SINK, BC_S2] = cyc
+    return _report(bs, B_SINK, A_BUSY, -1)
+
+
+# ---- the loop ------------------------------------------------------------------------------
+
+
+@njit(cache=True)
+def _run_loop(g, dom, fq, rings, bs, images, nna_data, sva_data, sink_data, src_params):
+    """Step until the sink holds the frame or an event stops the run; returns the event code.
+
+    ``g`` global scalars, ``dom`` the domain table, ``fq``/``rings`` the FIFOs, ``bs`` the block
+    table; ``src_params`` = (is_camera, freq_hz, bytes_per_s, line_clocks, watchdog).
+
+    The steps run in :func:`_run_steps`, compiled without numba's reference counting (an atomic
+    update per array per call made it six times slower) and therefore without allocations; it
+    returns whenever the data kernels, which allocate, must run: a new NNA descriptor row or
+    SVA output rows to finish. Both may run at any moment after their input rows are complete
+    (those rows never change again), so running them between steps is exact.
+    """
+    pixels, row_desc, nna = nna_data[0], nna_data[1], nna_data[2]
+    sva = sva_data[0]
+    while True:
+        event = _run_steps(g, dom, fq, rings, bs, images, nna_data, sva_data, sink_data,
+                           src_params)
+        if event != EV_DATA:
+            return event
+        for side in range(2):
+            _nna_prepare_row(bs, B_NNA_L if side == 0 else B_NNA_R, side, pixels, row_desc, nna)
+        y = bs[B_SVA, BC_S1Y]
+        if y < bs[B_SVA, BC_S3] and y >= bs[B_SVA, BC_S5]:
+            _sva_advance(bs, bs[B_SVA, BC_S0Y], sva)
+
+
+@njit(cache=True, _nrt=False)
+def _run_steps(g, dom, fq, rings, bs, images, nna_data, sva_data, sink_data, src_params):
+    """The steps of :func:`_run_loop`; returns an event code (EV_DATA: run the kernels)."""
+    is_camera, freq_hz, bytes_per_s, line_clocks, watchdog = src_params
+    left, right = images
+    pixels, row_desc, nna, nna_timing = nna_data
+    half = nna[0]
+    sva, ready_cycle, sva_timing, scratch = sva_data
+    received_data = (sva[0], sva[1], sva[2])
+    q = sva[7]
+    tick, staged_desc = scratch
+    words, stall_period, stall_phase = sink_data
+    ready, pay, pay_desc, frees, hist = rings
+    n_dom = dom.shape[0]
+    n_fifo = fq.shape[0]
+    h, w = words.shape
+    total = h * w
+    src_dom = D_CAM if is_camera else D_NNA
+    while bs[B_SINK, BC_S0] < total:
+        # the data kernels this state needs (their conditions as in _nna_prepare_row and
+        # SvaStream.advance)
+        for b in (B_NNA_L, B_NNA_R):
+            y = bs[b, BC_S1Y]
+            if y < h and bs[b, BC_S3] != y and bs[b, BC_S0Y] - 1 >= min(y + half, h - 1):
+                return EV_DATA
+        y = bs[B_SVA, BC_S1Y]
+        if y < bs[B_SVA, BC_S3] and y >= bs[B_SVA, BC_S5]:
+            return EV_DATA
+        t = dom[0, DC_NEXT]
+        for d in range(1, n_dom):
+            t = min(t, dom[d, DC_NEXT])
+        for d in range(n_dom):
+            tick[d] = dom[d, DC_NEXT] == t
+            if tick[d] and dom[d, DC_LIMIT] >= 0 and dom[d, DC_CYCLES] >= dom[d, DC_LIMIT]:
+                g[G_EVENT_A] = d
+                return EV_BUDGET
+        g[G_NOW] = t
+        for f in range(n_fifo):
+            if tick[fq[f, FC_SRC]] or tick[fq[f, FC_DST]]:
+                _begin_step(fq, ready, frees, hist, dom, tick, f)
+        progress = False
+        if tick[src_dom]:
+            cyc = dom[src_dom, DC_CYCLES]
+            if is_camera:
+                if not _camera_eval(bs, fq, staged_desc, B_SRC_L, F_SRC_L, left, cyc,
+                                    line_clocks):
+                    g[G_EVENT_A] = 0
+                elif not _camera_eval(bs, fq, staged_desc, B_SRC_R, F_SRC_R, right, cyc,
+                                      line_clocks):
+                    g[G_EVENT_A] = 1
+                else:
+                    g[G_EVENT_A] = -1
+                if g[G_EVENT_A] >= 0:
+                    g[G_EVENT_B] = cyc % line_clocks
+                    g[G_EVENT_C] = cyc // line_clocks
+                    g[G_EVENT_D] = cyc
+                    return EV_OVERFLOW
+                if bs[B_SRC_L, BC_STATUS] == A_BUSY or bs[B_SRC_R, BC_STATUS] == A_BUSY:
+                    progress = True
+            else:
+                if _memory_eval(bs, fq, staged_desc, B_SRC_L, F_SRC_L, left, cyc, freq_hz,
+                                bytes_per_s):
+                    progress = True
+                if _memory_eval(bs, fq, staged_desc, B_SRC_R, F_SRC_R, right, cyc, freq_hz,
+                                bytes_per_s):
+                    progress = True
+        if tick[D_NNA]:
+            cyc = dom[D_NNA, DC_CYCLES]
+            for side in range(2):
+                b = B_NNA_L if side == 0 else B_NNA_R
+                if _nna_eval(bs, fq, ready, pay, staged_desc, b, side, cyc, pixels, row_desc,
+                             nna_timing):
+                    progress = True
+        if tick[D_SVA]:
+            cyc = dom[D_SVA, DC_CYCLES]
+            if _sva_eval(bs, fq, ready, pay, pay_desc, staged_desc, cyc, ready_cycle,
+                         received_data, q, sva_timing):
+                progress = True
+            if _sink_eval(bs, fq, ready, pay, cyc, words, stall_period, stall_phase):
+                progress = True
+        for f in range(n_fifo):
+            if tick[fq[f, FC_SRC]] or tick[fq[f, FC_DST]]:
+                if _commit(fq, ready, pay, pay_desc, frees, staged_desc, dom, tick, f):
+                    progress = True
+        for d in range(n_dom):
+            if tick[d]:
+                dom[d, DC_CYCLES] += 1
+                dom[d, DC_NEXT] = t + dom[d, DC_PERIOD]
+        g[G_STEPS] += 1
+        if progress:
+            g[G_QUIET] = 0
+        else:
+            g[G_QUIET] += 1
+            if watchdog > 0 and g[G_QUIET] >= watchdog and bs[B_SINK, BC_S0] < total:
+                return EV_DEADLOCK
+    return EV_DONE
+
+
+# ---- the Python side -----------------------------------------------------------------------
+
+
+class _Setup:
+    """Names, domains and constants of one run, as :func:`sim.chip.build_chip` would build."""
+
+    def __init__(self, shape, cfg: ChipConfig):
+        self.camera = cfg.source.kind == "camera"
+        self.domains = {"nna": ClockDomain("nna", cfg.clocks.nna_mhz * 1e6),
+                        "sva": ClockDomain("sva", cfg.clocks.sva_mhz * 1e6)}
+        if self.camera:
+            self.domains["camera"] = ClockDomain("camera", cfg.clocks.camera_mhz * 1e6)
+        src = "camera" if self.camera else "memory"
+        self.block_names = (f"{src}_left", "nna_left", f"{src}_right", "nna_right", "sva",
+                            "sink")
+        bits = descriptor_bits(cfg.nna)
+        self.bits = bits
+        desc_bits = bits + (8 if cfg.sva.p2_adaptive else 0)
+        word_bits = 1 + math.ceil(math.log2(cfg.sva.disparities)) + cfg.sva.subpixel_bits
+        f = cfg.fifo
+        src_dom = D_CAM if self.camera else D_NNA
+        # name -> (depth, width, src domain, dst domain), in FIFO index order
+        self.fifos = (
+            (f.nna_to_sva_depth, desc_bits, D_NNA, D_SVA),
+            (f.source_to_nna_depth, 8, src_dom, D_NNA),
+            (f.nna_to_sva_depth, desc_bits, D_NNA, D_SVA),
+            (f.source_to_nna_depth, 8, src_dom, D_NNA),
+            (f.sva_to_sink_depth, word_bits, D_SVA, D_SVA),
+        )
+        self.budget = _budget(shape, cfg, self.domains)
+
+
+def _sva_arrays(shape, cfg: ChipConfig, setup: _Setup):
+    # uint64 for every descriptor width (the readable block uses uint32 up to 32 bits): the
+    # values and so every Hamming cost are the same, and the loop compiles once
+    desc_l = np.zeros(shape, np.uint64)
+    desc_r = np.zeros(shape, np.uint64)
+    img_l = np.zeros(shape, np.uint8)
+    # SvaStream validates the configuration and builds the kernel's argument tuples; its
+    # private fields are the arguments of sva.pipeline._stream
+    stream = SvaStream(desc_l, desc_r, img_l, cfg.sva, setup.bits)
+    k = cfg.sva.median
+    network = selection_network(k) if k > 3 else np.zeros((0, 2), np.int64)
+    return (desc_l, desc_r, img_l, stream._box, stream._sgm, stream._select, stream.checked,
+            stream.q, stream._colsum, cfg.sva.box_size // 2, k, network)
+
+
+def _nna_tables(cfg: ChipConfig):
+    n = cfg.nna
+    half = half_window(n)
+    if n.descriptor == "census":
+        offsets_a, offsets_b = census_tables(n.census)
+        weights_kkc = np.zeros((1, 1, 1), np.int32)
+        bias = np.zeros(1, np.int32)
+        offset = 0
+    else:
+        weights, bias8, offset = layer(n)
+        weights_kkc, bias = cnn_tables(weights, bias8)
+        offsets_a = offsets_b = np.zeros((0, 2), np.int64)
+    return (np.int64(half), np.int64(n.line_buffer_rows), np.int64(cycles_per_descriptor(n)),
+            n.descriptor == "cnn", offsets_a, offsets_b, weights_kkc, bias, np.int32(offset))
+
+
+def run_cycle_fast(left: np.ndarray, right: np.ndarray, cfg: ChipConfig, *,
+                   sink_stall: tuple[int, int] | None = None) -> tuple[np.ndarray, dict, dict]:
+    """Simulate one frame on the compiled engine: ``(words (H, W) int32, cycle report, stats)``.
+
+    Equal to :func:`sim.chip.run_cycle` in the words, in the report (:func:`sim.chip.cycle_report`)
+    and in ``chip.sim.stats()``; raises the same :class:`~sim.sources.CameraOverflow`,
+    :class:`~sim.clock.DeadlockError` and :class:`~sim.clock.BudgetExceeded`. ``sink_stall``:
+    ``(period, allowed_phase)`` -- the sink pops only in cycles ``c`` with
+    ``c % period == allowed_phase`` (``Sink(stall=lambda c: c % period != allowed_phase)``).
+    """
+    if cfg.nna.stereo_submodules != 2:
+        raise ConfigError(
+            f"the fast engine models one NNA submodule per camera; nna.stereo_submodules="
+            f"{cfg.nna.stereo_submodules} needs sim.chip.run_cycle"
+        )
+    left = np.ascontiguousarray(left, np.uint8)
+    right = np.ascontiguousarray(right, np.uint8)
+    shape = left.shape
+    h, w = shape
+    if right.shape != shape:
+        raise ConfigError(f"left {shape} and right {right.shape} images differ in shape")
+    stall_period, stall_phase = (0, 0) if sink_stall is None else sink_stall
+    if sink_stall is not None and not (stall_period >= 1 and 0 <= stall_phase < stall_period):
+        raise ConfigError(
+            f"sink_stall must be (period >= 1, 0 <= allowed_phase < period); got {sink_stall!r}"
+        )
+    setup = _Setup(shape, cfg)
+    names = list(setup.domains)
+    dom = np.zeros((len(names), 5), np.int64)
+    for i, name in enumerate(names):
+        d = setup.domains[name]
+        dom[i] = (d.period_fs, d.phase_fs, 0, d.phase_fs, setup.budget.get(name, -1))
+    n_f = len(setup.fifos)
+    fq = np.zeros((n_f, N_FC), np.int64)
+    off = hoff = 0
+    for i, (depth, _, src, dst) in enumerate(setup.fifos):
+        crossing = src != dst
+        fq[i, FC_DEPTH] = depth
+        fq[i, FC_DATA_EDGES] = cfg.fifo.latency_cycles + (
+            cfg.fifo.sync_cycles - 1 if crossing else 0)
+        fq[i, FC_SPACE_EDGES] = cfg.fifo.sync_cycles if crossing else 1
+        fq[i, FC_SRC], fq[i, FC_DST] = src, dst
+        fq[i, FC_OFF], fq[i, FC_HOFF] = off, hoff
+        off += depth
+        hoff += depth + 1
+    rings = (np.zeros(off, np.int64), np.zeros(off, np.int64), np.zeros(off, np.uint64),
+             np.zeros(off, np.int64), np.zeros(hoff, np.int64))
+    bs = np.zeros((6, N_BC), np.int64)
+    bs[:, BC_STATUS] = -1
+    bs[:, BC_WAIT] = -1
+    bs[B_NNA_L, BC_S3] = bs[B_NNA_R, BC_S3] = -1
+    bs[B_SVA, BC_S2] = -(1 << 40)
+    bs[B_SINK, BC_S1] = bs[B_SINK, BC_S2] = -1
+    g = np.zeros(N_G, np.int64)
+    nna = _nna_tables(cfg)
+    nna_data = (np.zeros((2, h, w), np.uint8), np.zeros((2, w), np.uint64), nna,
+                np.array(nna[:3], np.int64))
+    sva = _sva_arrays(shape, cfg, setup)
+    lookahead = cfg.sva.box_size // 2 + (cfg.sva.median // 2 if cfg.sva.median > 1 else 0)
+    timing = np.array([lookahead, cfg.sva.pipeline_latency, cfg.sva.cycles_per_pixel], np.int64)
+    # the loop allocates nothing (it runs without numba's reference counting)
+    scratch = (np.zeros(len(names), np.bool_), np.zeros(n_f, np.uint64))
+    sva_data = (sva, np.full(h, -1, np.int64), timing, scratch)
+    words = np.full(shape, -1, np.int32)
+    sink_data = (words, np.int64(stall_period), np.int64(stall_phase))
+    src_freq = setup.domains["camera" if setup.camera else "nna"].freq_hz
+    src_params = (setup.camera, np.int64(round(src_freq)),
+                  np.int64(round(cfg.source.memory_gbps * 1e9)),
+                  np.int64(w + cfg.source.camera_hblank), np.int64(cfg.sim.watchdog_cycles))
+    event = _run_loop(g, dom, fq, rings, bs, (left, right), nna_data, sva_data, sink_data,
+                      src_params)
+    state = _State(setup, cfg, g, dom, fq, rings, bs)
+    if event == EV_OVERFLOW:
+        side = "left" if g[G_EVENT_A] == 0 else "right"
+        raise CameraOverflow(
+            f"camera '{setup.block_names[2 * g[G_EVENT_A]]}' overflowed FIFO src_{side}_to_nna "
+            f"at pixel ({g[G_EVENT_B]}, {g[G_EVENT_C]}), cycle {g[G_EVENT_D]}: the NNA does not "
+            "keep up with the camera; use a slower camera, more NNA throughput (clocks.nna_mhz, "
+            "nna.macs) or a deeper fifo.source_to_nna_depth"
+        )
+    if event == EV_DEADLOCK:
+        raise state.stop(
+            DeadlockError, "deadlock",
+            f"no FIFO moved and no block was busy for {g[G_QUIET]} steps: deepen a FIFO or "
+            "change what a block waits for",
+        )
+    if event == EV_BUDGET:
+        d = names[g[G_EVENT_A]]
+        raise state.stop(
+            BudgetExceeded, "cycle budget exceeded",
+            f"{d} ran its budget of {setup.budget[d]} cycles before the until condition held: "
+            "raise budget_cycles or check the until condition",
+        )
+    stats = state.stats()
+    return words, fast_report(state, stats), stats
+
+
+class _State:
+    """The engine's arrays after a run, read back as the readable engine's dicts."""
+
+    def __init__(self, setup: _Setup, cfg: ChipConfig, g, dom, fq, rings, bs):
+        self.setup, self.cfg, self.g, self.dom, self.fq, self.rings, self.bs = (
+            setup, cfg, g, dom, fq, rings, bs)
+
+    def cycles(self) -> dict[str, int]:
+        return {name: int(self.dom[i, DC_CYCLES]) for i, name in enumerate(self.setup.domains)}
+
+    def activity(self, b: int) -> dict[str, int]:
+        return {a: int(self.bs[b, BC_BUSY + ACTIVITIES.index(a)]) for a in sorted(ACTIVITIES)}
+
+    def fifo_stats(self, f: int) -> dict:
+        fq = self.fq
+        depth, width, _, _ = self.setup.fifos[f]
+        hist = self.rings[4][fq[f, FC_HOFF]:fq[f, FC_HOFF] + depth + 1]
+        return {
+            "bits_transferred": int(fq[f, FC_POPS]) * width,
+            "cycles_empty": int(fq[f, FC_EMPTY]),
+            "cycles_full": int(fq[f, FC_FULL]),
+            "depth": depth,
+            "max_occupancy": int(fq[f, FC_MAXOCC]),
+            "max_producer_occupancy": int(fq[f, FC_MAXPROD]),
+            "occupancy_histogram": [int(v) for v in hist],
+            "pops": int(fq[f, FC_POPS]),
+            "pushes": int(fq[f, FC_PUSHES]),
+            "width_bits": width,
+        }
+
+    def stats(self) -> dict:
+        """The shape of ``Simulator.stats()``."""
+        names = self.setup.block_names
+        return {
+            "blocks": {n: self.activity(names.index(n)) for n in sorted(names)},
+            "cycles": dict(sorted(self.cycles().items())),
+            "end_time_fs": int(self.g[G_NOW]),
+            "fifos": {n: self.fifo_stats(FIFO_NAMES.index(n)) for n in sorted(FIFO_NAMES)},
+            "steps": int(self.g[G_STEPS]),
+        }
+
+    def stop(self, cls, head: str, tail: str):
+        """The exception ``Simulator._stop`` would raise, from the engine's state."""
+        fq, bs = self.fq, self.bs
+        fifos = {}
+        fifo_words = []
+        for f, name in enumerate(FIFO_NAMES):
+            occ, depth = int(fq[f, FC_PUSHES] - fq[f, FC_POPS]), int(fq[f, FC_DEPTH])
+            fifos[name] = {"occupancy": occ, "depth": depth}
+            tag = " full" if occ >= depth else " empty" if occ == 0 else ""
+            fifo_words.append(f"{name} {occ}/{depth}{tag}")
+        blocks = {}
+        block_words = []
+        for b, name in enumerate(self.setup.block_names):
+            status = ACTIVITIES[bs[b, BC_STATUS]] if bs[b, BC_STATUS] >= 0 else None
+            waiting = None
+            if bs[b, BC_WAIT] >= 0:
+                waiting = (FIFO_NAMES[bs[b, BC_WAIT]],
+                           "full" if status == "blocked" else "empty")
+            blocks[name] = {"status": status, "waiting_on": waiting}
+            if waiting is not None:
+                block_words.append(f"{name} {status} on {waiting[0]} ({waiting[1]})")
+            else:
+                block_words.append(f"{name} {status or 'never clocked'}")
+        now = int(self.g[G_NOW])
+        cyc = ", ".join(f"{d} {n}" for d, n in self.cycles().items())
+        msg = (f"{head} at t={now} fs (cycles run: {cyc}): fifo {', '.join(fifo_words)}; "
+               f"blocks: {', '.join(block_words)}; {tail}")
+        return cls(msg, time_fs=now, cycles=dict(sorted(self.cycles().items())), fifos=fifos,
+                   blocks=blocks)
+
+
+def fast_report(state: _State, stats: dict) -> dict:
+    """The dict of :func:`sim.chip.cycle_report`, from the engine's arrays."""
+    setup, cfg, bs = state.setup, state.cfg, state.bs
+    sva = setup.domains["sva"]
+    first_cycle = int(bs[B_SINK, BC_S1])
+    last_cycle = int(bs[B_SINK, BC_S2])
+    first_fs = sva.edge_fs(first_cycle)
+    last_fs = sva.edge_fs(last_cycle)
+    src_domain = setup.domains["camera" if setup.camera else "nna"]
+    cpd = cycles_per_descriptor(cfg.nna)
+    work = {
+        B_SRC_L: (int(bs[B_SRC_L, BC_BUSY]), src_domain),
+        B_NNA_L: (int(bs[B_NNA_L, BC_S1]) * cpd, setup.domains["nna"]),
+        B_SRC_R: (int(bs[B_SRC_R, BC_BUSY]), src_domain),
+        B_NNA_R: (int(bs[B_NNA_R, BC_S1]) * cpd, setup.domains["nna"]),
+        B_SVA: (int(bs[B_SVA, BC_S1]) * cfg.sva.cycles_per_pixel, sva),
+    }
+    busy_s = {setup.block_names[b]: n / d.freq_hz for b, (n, d) in work.items()}
+    bottleneck = max(sorted(busy_s), key=lambda n: busy_s[n])
+    frame_busy_s = busy_s[bottleneck]
+    fifos = stats["fifos"]
+    return {
+        "cycles": {
+            "total": dict(sorted(stats["cycles"].items())),
+            "first_output": {"sva": first_cycle, "ns": first_fs / 1e6},
+            "last_output": {"sva": last_cycle, "ns": last_fs / 1e6},
+        },
+        "latency": {"first_output_ns": first_fs / 1e6, "frame_ns": last_fs / 1e6},
+        "throughput": {
+            "fps": round(1.0 / frame_busy_s, 3) if frame_busy_s > 0 else None,
+            "bottleneck": bottleneck,
+            "work_ms_per_frame": {n: round(v * 1e3, 6) for n, v in sorted(busy_s.items())},
+            "fps_per_block": {n: round(1.0 / v, 3) if v > 0 else None
+                              for n, v in sorted(busy_s.items())},
+        },
+        "blocks": stats["blocks"],
+        "fifos": fifos,
+        "fifo_bytes_per_frame": {n: fifos[n]["bits_transferred"] // 8 for n in sorted(fifos)},
+        "fifo_sram_bits": {n: fifos[n]["depth"] * fifos[n]["width_bits"] for n in sorted(fifos)},
+    }
