@@ -76,9 +76,8 @@ def run(
 
     ``mode="functional"`` runs the bit-exact integer model; ``mode="cycle"`` runs the clocked
     chip (sources, NNA submodules, FIFOs, SVA, sink) on the readable two-phase kernel -- the
-    same output words plus cycle counts, latency, throughput, bottleneck and FIFO statistics
-    (about 5e4 simulated cycles per second: meant for small frames until the compiled engine
-    lands).
+    same output words plus cycle counts, latency, throughput, bottleneck and FIFO statistics,
+    on the compiled engine where it models the configuration (``sim.engine``).
 
     ``left``/``right``: 2-D uint8 arrays (or RGB, converted to grey). ``config``: a
     :class:`ChipConfig`, a TOML path or None (defaults); ``overrides``: dotted keys such as
@@ -97,9 +96,9 @@ def run(
         )
     bits = descriptor_bits(cfg.nna)
     if mode == "cycle":
-        from sim.chip import run_cycle
+        from sim.chip import simulate
 
-        fixed, cycle_report, _ = run_cycle(gl, gr, cfg)
+        fixed, cycle_report = simulate(gl, gr, cfg)
     else:
         desc_l = compute_descriptor(gl, cfg.nna)
         desc_r = compute_descriptor(gr, cfg.nna)

@@ -120,6 +120,30 @@ def run_cycle(left: np.ndarray, right: np.ndarray, cfg: ChipConfig, *, order_see
     return chip.sink.words.copy(), cycle_report(chip, stats), chip
 
 
+def fast_engine_models(cfg: ChipConfig) -> bool:
+    """The compiled engine (sim/fast.py) covers one NNA submodule per camera."""
+    return cfg.nna.stereo_submodules == 2
+
+
+def simulate(left: np.ndarray, right: np.ndarray, cfg: ChipConfig) -> tuple[np.ndarray, dict]:
+    """One frame on the engine ``sim.engine`` selects: (output words, cycle report).
+
+    Both engines give identical words, reports and statistics (tests/sim/test_fast.py); the
+    readable one is the reference and runs ~5e4 cycles/s, the compiled one millions.
+    """
+    engine = cfg.sim.engine
+    if engine == "auto":
+        engine = "fast" if fast_engine_models(cfg) else "readable"
+    if engine == "fast":
+        from sim.fast import run_cycle_fast
+
+        words, report, _ = run_cycle_fast(left, right, cfg)
+    else:
+        words, report, _ = run_cycle(left, right, cfg)
+    report["engine"] = engine
+    return words, report
+
+
 def cycle_report(chip: Chip, stats: dict) -> dict:
     """Cycle counts, latency, throughput and bottleneck, per-block activity, FIFO statistics."""
     sva = chip.domains["sva"]

@@ -148,6 +148,11 @@ class FifoConfig:
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class SimConfig:
+    engine: str = param(
+        "auto", "cycle-model engine: fast (compiled), readable (the reference kernel, slow), or "
+        "auto (fast where it models the configuration, else readable)",
+        choices=("auto", "fast", "readable"),
+    )
     watchdog_cycles: int = param(
         200000, "steps without progress before a run is declared deadlocked", lo=10, hi=1 << 40
     )
