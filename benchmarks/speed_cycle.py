@@ -1,0 +1,87 @@
+"""Speed of the cycle-accurate model on a 1280x720 frame against OpenCV StereoSGBM, same run.
+
+stereosim: `sim.run(mode="cycle")` with the CNN int8 descriptor, D = 128, 4 SGM paths, LR check
+(the issue's benchmark configuration); it prints the wall time, the simulated cycles per second
+(all clock domains together) and the peak resident memory of a fresh process that runs one
+frame. OpenCV: StereoSGBM MODE_SGBM, D = 128, blockSize 5, single-threaded, on the same pair.
+
+    python benchmarks/speed_cycle.py [--repeat 3] [--engine fast|readable]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import subprocess
+import sys
+import time
+
+import cv2
+
+from sim.api import run
+from sim.datasets import default_scene
+from sim.io import to_grey
+
+CONFIG = {"nna.descriptor": "cnn", "sva.disparities": 128, "sva.paths": 4, "sva.lr_check": True}
+
+
+def frame():
+    scene = default_scene()
+    left = cv2.resize(to_grey(scene["left"]), (1280, 720), interpolation=cv2.INTER_LINEAR)
+    right = cv2.resize(to_grey(scene["right"]), (1280, 720), interpolation=cv2.INTER_LINEAR)
+    return left, right
+
+
+def one_frame_child(engine: str) -> None:
+    """Run one frame and print the wall time, cycles and peak RSS (MiB) as JSON."""
+    left, right = frame()
+    over = dict(CONFIG, **({"sim.engine": engine} if engine else {}))
+    run(left[:48, :256], right[:48, :256], mode="cycle", overrides=dict(over, **{"sva.disparities": 64}))
+    t0 = time.perf_counter()
+    res = run(left, right, mode="cycle", overrides=over)
+    wall = time.perf_counter() - t0
+    peak_mib = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    cycles = sum(res.report["cycles"]["total"].values())
+    print(json.dumps({"wall_s": wall, "cycles": cycles, "peak_mib": peak_mib,
+                      "fps": res.report["throughput"]["fps"],
+                      "bottleneck": res.report["throughput"]["bottleneck"]}))
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--engine", default="", help="sim.engine override (default: the config's)")
+    ap.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
+    args = ap.parse_args(argv)
+    if args.child:
+        one_frame_child(args.engine)
+        return
+    runs = []
+    for _ in range(args.repeat):
+        out = subprocess.run([sys.executable, __file__, "--child", "--engine", args.engine],
+                             capture_output=True, text=True, check=True)
+        runs.append(json.loads(out.stdout.strip().splitlines()[-1]))
+    left, right = frame()
+    cv2.setNumThreads(1)
+    sgbm = cv2.StereoSGBM_create(0, 128, 5, P1=8 * 25, P2=32 * 25, disp12MaxDiff=1,
+                                 uniquenessRatio=10, mode=cv2.STEREO_SGBM_MODE_SGBM)
+    sgbm.compute(left, right)
+    cv_times = []
+    for _ in range(args.repeat):
+        t0 = time.perf_counter()
+        sgbm.compute(left, right)
+        cv_times.append(time.perf_counter() - t0)
+    best = min(runs, key=lambda r: r["wall_s"])
+    cv_best = min(cv_times)
+    print(f"1280x720, CNN descriptor, D=128, 4 paths, LR check; best of {args.repeat}:")
+    print(f"  stereosim cycle model : {best['wall_s']:.3f} s, {best['cycles']:,} cycles "
+          f"({best['cycles'] / best['wall_s'] / 1e6:.2f} M simulated cycles/s), "
+          f"peak RSS {max(r['peak_mib'] for r in runs):.0f} MiB; "
+          f"chip: {best['fps']} fps, bottleneck {best['bottleneck']}")
+    print(f"  OpenCV SGBM, 1 thread : {cv_best:.3f} s")
+    print(f"  ratio stereosim / OpenCV: {best['wall_s'] / cv_best:.2f}  (target <= 2.0)")
+
+
+if __name__ == "__main__":
+    main()
