@@ -146,38 +146,44 @@ def simulate(left: np.ndarray, right: np.ndarray, cfg: ChipConfig) -> tuple[np.n
 
 def cycle_report(chip: Chip, stats: dict) -> dict:
     """Cycle counts, latency, throughput and bottleneck, per-block activity, FIFO statistics."""
-    sva = chip.domains["sva"]
-    first_fs = sva.edge_fs(chip.sink.first_cycle)
-    last_fs = sva.edge_fs(chip.sink.last_cycle)
-    # a block's work per frame: the cycles its critical resource is occupied (the MAC array,
-    # the SVA's output pipeline, a source's port); in a stream of frames the block with the
-    # most work time sets the frame rate
-    busy_s = {}
-    for name, block in chip.blocks.items():
-        if name != "sink":
-            busy_s[name] = block.work_cycles() / block.domain.freq_hz
-    bottleneck = max(sorted(busy_s), key=lambda n: busy_s[n])
-    frame_busy_s = busy_s[bottleneck]
+    work = {name: (block.work_cycles(), block.domain.freq_hz)
+            for name, block in chip.blocks.items() if name != "sink"}
+    return assemble_report(chip.domains["sva"], chip.sink.first_cycle, chip.sink.last_cycle,
+                           work, stats)
+
+
+def assemble_report(sva: ClockDomain, first_cycle: int, last_cycle: int,
+                    work: dict[str, tuple[int, float]], stats: dict) -> dict:
+    """The cycle report from what either engine measured: the sink's first and last pop (SVA
+    cycles), each block's work (cycles, clock in Hz) and the kernel statistics.
+
+    A block's work per frame is the cycles its critical resource is occupied (the MAC array,
+    the SVA's output pipeline, a source's port); in a stream of frames the block with the most
+    work time sets the frame rate.
+    """
+    first_fs = sva.edge_fs(first_cycle)
+    last_fs = sva.edge_fs(last_cycle)
+    work_s = {name: cycles / freq for name, (cycles, freq) in work.items()}
+    bottleneck = max(sorted(work_s), key=lambda n: work_s[n])
+    frame_s = work_s[bottleneck]
+    fifos = stats["fifos"]
     return {
         "cycles": {
             "total": dict(sorted(stats["cycles"].items())),
-            "first_output": {"sva": chip.sink.first_cycle, "ns": first_fs / 1e6},
-            "last_output": {"sva": chip.sink.last_cycle, "ns": last_fs / 1e6},
+            "first_output": {"sva": first_cycle, "ns": first_fs / 1e6},
+            "last_output": {"sva": last_cycle, "ns": last_fs / 1e6},
         },
         "latency": {"first_output_ns": first_fs / 1e6, "frame_ns": last_fs / 1e6},
         "throughput": {
-            "fps": round(1.0 / frame_busy_s, 3) if frame_busy_s > 0 else None,
+            "fps": round(1.0 / frame_s, 3) if frame_s > 0 else None,
             "bottleneck": bottleneck,
-            "work_ms_per_frame": {n: round(v * 1e3, 6) for n, v in sorted(busy_s.items())},
+            "work_ms_per_frame": {n: round(v * 1e3, 6) for n, v in sorted(work_s.items())},
             # the frame rate each block alone would sustain (1 / its work time per frame)
             "fps_per_block": {n: round(1.0 / v, 3) if v > 0 else None
-                              for n, v in sorted(busy_s.items())},
+                              for n, v in sorted(work_s.items())},
         },
-        "blocks": {n: b.activity for n, b in sorted(chip.blocks.items())},
-        "fifos": {n: chip.fifos[n].stats() for n in sorted(chip.fifos)},
-        "fifo_bytes_per_frame": {
-            n: chip.fifos[n].stats()["bits_transferred"] // 8 for n in sorted(chip.fifos)
-        },
-        "fifo_sram_bits": {n: chip.fifos[n].depth * chip.fifos[n].width_bits
-                           for n in sorted(chip.fifos)},
+        "blocks": {n: stats["blocks"][n] for n in sorted(stats["blocks"])},
+        "fifos": {n: fifos[n] for n in sorted(fifos)},
+        "fifo_bytes_per_frame": {n: fifos[n]["bits_transferred"] // 8 for n in sorted(fifos)},
+        "fifo_sram_bits": {n: fifos[n]["depth"] * fifos[n]["width_bits"] for n in sorted(fifos)},
     }

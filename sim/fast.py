@@ -40,7 +40,7 @@ from numba import njit
 from nna.blocks import cycles_per_descriptor, half_window
 from nna.census import census_offsets
 from nna.descriptor import descriptor_bits, layer
-from sim.chip import _budget
+from sim.chip import _budget, assemble_report
 from sim.clock import ACTIVITIES, BudgetExceeded, ClockDomain, DeadlockError
 from sim.config import ChipConfig
 from sim.errors import ConfigError
@@ -898,40 +898,15 @@ class _State:
 def fast_report(state: _State, stats: dict) -> dict:
     """The dict of :func:`sim.chip.cycle_report`, from the engine's arrays."""
     setup, cfg, bs = state.setup, state.cfg, state.bs
-    sva = setup.domains["sva"]
-    first_cycle = int(bs[B_SINK, BC_S1])
-    last_cycle = int(bs[B_SINK, BC_S2])
-    first_fs = sva.edge_fs(first_cycle)
-    last_fs = sva.edge_fs(last_cycle)
     src_domain = setup.domains["camera" if setup.camera else "nna"]
+    nna, sva = setup.domains["nna"], setup.domains["sva"]
     cpd = cycles_per_descriptor(cfg.nna)
     work = {
-        B_SRC_L: (int(bs[B_SRC_L, BC_BUSY]), src_domain),
-        B_NNA_L: (int(bs[B_NNA_L, BC_S1]) * cpd, setup.domains["nna"]),
-        B_SRC_R: (int(bs[B_SRC_R, BC_BUSY]), src_domain),
-        B_NNA_R: (int(bs[B_NNA_R, BC_S1]) * cpd, setup.domains["nna"]),
-        B_SVA: (int(bs[B_SVA, BC_S1]) * cfg.sva.cycles_per_pixel, sva),
+        B_SRC_L: (int(bs[B_SRC_L, BC_BUSY]), src_domain.freq_hz),
+        B_NNA_L: (int(bs[B_NNA_L, BC_S1]) * cpd, nna.freq_hz),
+        B_SRC_R: (int(bs[B_SRC_R, BC_BUSY]), src_domain.freq_hz),
+        B_NNA_R: (int(bs[B_NNA_R, BC_S1]) * cpd, nna.freq_hz),
+        B_SVA: (int(bs[B_SVA, BC_S1]) * cfg.sva.cycles_per_pixel, sva.freq_hz),
     }
-    busy_s = {setup.block_names[b]: n / d.freq_hz for b, (n, d) in work.items()}
-    bottleneck = max(sorted(busy_s), key=lambda n: busy_s[n])
-    frame_busy_s = busy_s[bottleneck]
-    fifos = stats["fifos"]
-    return {
-        "cycles": {
-            "total": dict(sorted(stats["cycles"].items())),
-            "first_output": {"sva": first_cycle, "ns": first_fs / 1e6},
-            "last_output": {"sva": last_cycle, "ns": last_fs / 1e6},
-        },
-        "latency": {"first_output_ns": first_fs / 1e6, "frame_ns": last_fs / 1e6},
-        "throughput": {
-            "fps": round(1.0 / frame_busy_s, 3) if frame_busy_s > 0 else None,
-            "bottleneck": bottleneck,
-            "work_ms_per_frame": {n: round(v * 1e3, 6) for n, v in sorted(busy_s.items())},
-            "fps_per_block": {n: round(1.0 / v, 3) if v > 0 else None
-                              for n, v in sorted(busy_s.items())},
-        },
-        "blocks": stats["blocks"],
-        "fifos": fifos,
-        "fifo_bytes_per_frame": {n: fifos[n]["bits_transferred"] // 8 for n in sorted(fifos)},
-        "fifo_sram_bits": {n: fifos[n]["depth"] * fifos[n]["width_bits"] for n in sorted(fifos)},
-    }
+    return assemble_report(sva, int(bs[B_SINK, BC_S1]), int(bs[B_SINK, BC_S2]),
+                           {setup.block_names[b]: v for b, v in work.items()}, stats)
