@@ -39,6 +39,7 @@ from numba import njit
 
 from nna.blocks import cycles_per_descriptor, half_window
 from nna.census import census_offsets
+from nna.conv import _channel_row
 from nna.descriptor import descriptor_bits, layer
 from sim.chip import _budget, assemble_report
 from sim.clock import ACTIVITIES, BudgetExceeded, ClockDomain, DeadlockError
@@ -114,41 +115,32 @@ def descriptor_row_census(pixels, y, offsets_a, offsets_b, out):
 
 
 @njit(cache=True)
-def descriptor_row_cnn(pixels, y, weights_kkc, bias, input_offset, out):
+def descriptor_row_cnn(pixels, y, w_pad, bias, input_offset, out):
     """CNN descriptors of image row ``y`` of ``pixels`` (uint8 (H, W)) into ``out`` (W,).
 
-    ``weights_kkc`` int32 (K, K, C) is the layer's int8 (C, K, K) weights laid out [ky, kx, c];
-    ``bias`` int32 (C,). Bit c is ``bias[c] + sum w[c, ky, kx] * (pixel - input_offset) > 0``
-    with clamped coordinates (:mod:`nna.conv`), in int32 accumulators (exact: the layer check
-    bounds the sum). Reads rows ``y - K // 2 .. y + K // 2`` only. Channel by channel, the
-    innermost loop runs along the row (vectorised over x): measured faster than a channel-inner
-    loop over (8, C) accumulator blocks or per pixel.
+    ``w_pad`` int32 (C, K, Kp) is the layer's int8 (C, K, K) weights with zero columns up to Kp,
+    a multiple of 3 (:func:`cnn_tables`); ``bias`` int32 (C,). Bit c is ``bias[c] + sum
+    w[c, ky, kx] * (pixel - input_offset) > 0`` with clamped coordinates (:mod:`nna.conv`), in
+    int32 accumulators (exact: the layer check bounds the sum). Reads rows ``y - K // 2 ..
+    y + K // 2`` only, and runs :func:`nna.conv._channel_row` -- the full-frame kernel's inner
+    loop, three taps per pass along the row -- on those K rows.
     """
     h, w = pixels.shape
-    k_size = weights_kkc.shape[0]
-    n_ch = weights_kkc.shape[2]
+    n_ch, k_size, k_cols = w_pad.shape
     r = k_size // 2
-    # the K input rows, replicate-padded by r columns on each side, minus the zero point
-    rows_i32 = np.empty((k_size, w + 2 * r), np.int32)
+    # the K input rows, replicate-padded (r left, r + Kp - K right), minus the zero point
+    width = w + 2 * r + (k_cols - k_size)
+    rows_i32 = np.empty((k_size, width), np.int32)
     for ky in range(k_size):
         src = pixels[min(max(y + ky - r, 0), h - 1)]
         dst = rows_i32[ky]
-        for x in range(w + 2 * r):
+        for x in range(width):
             dst[x] = np.int32(src[min(max(x - r, 0), w - 1)]) - input_offset
     acc_i32 = np.empty(w, np.int32)
     for x in range(w):
         out[x] = 0
     for c in range(n_ch):
-        b = bias[c]
-        for x in range(w):
-            acc_i32[x] = b
-        for ky in range(k_size):
-            row = rows_i32[ky]
-            for kx in range(k_size):
-                wv = weights_kkc[ky, kx, c]
-                shifted = row[kx:kx + w]
-                for x in range(w):
-                    acc_i32[x] += wv * shifted[x]
+        _channel_row(rows_i32, w_pad, bias[c], c, 0, acc_i32)
         mask = np.uint64(1) << np.uint64(c)
         for x in range(w):
             if acc_i32[x] > 0:
@@ -164,9 +156,13 @@ def census_tables(cfg_census) -> tuple[np.ndarray, np.ndarray]:
 
 
 def cnn_tables(weights, bias) -> tuple[np.ndarray, np.ndarray]:
-    """``(weights_kkc int32 (K, K, C), bias int32)`` for :func:`descriptor_row_cnn`."""
-    return (np.ascontiguousarray(np.transpose(weights, (1, 2, 0)).astype(np.int32)),
-            np.ascontiguousarray(bias.astype(np.int32)))
+    """``(w_pad int32 (C, K, Kp), bias int32)`` for :func:`descriptor_row_cnn`: the weights with
+    zero columns up to Kp, the next multiple of 3 (the taps per pass of the row loop)."""
+    n_ch, k_size, _ = weights.shape
+    k_cols = -(-k_size // 3) * 3
+    w_pad = np.zeros((n_ch, k_size, k_cols), np.int32)
+    w_pad[:, :, :k_size] = weights
+    return w_pad, np.ascontiguousarray(bias.astype(np.int32))
 
 
 # ---- FIFO primitives -----------------------------------------------------------------------
@@ -403,13 +399,13 @@ def _nna_prepare_row(bs, b, side, pixels, row_desc, nna):
     reads (y - h .. y + h) are complete from the moment the row may start and are never written
     again, so computing them then gives the same bits.
     """
-    half, rows, cpd, is_cnn, offsets_a, offsets_b, weights_kkc, bias, input_offset = nna
+    half, rows, cpd, is_cnn, offsets_a, offsets_b, w_pad, bias, input_offset = nna
     h, w = pixels.shape[1], pixels.shape[2]
     y = bs[b, BC_S1Y]
     if y >= h or bs[b, BC_S3] == y or bs[b, BC_S0Y] - 1 < min(y + half, h - 1):
         return
     if is_cnn:
-        descriptor_row_cnn(pixels[side], y, weights_kkc, bias, input_offset, row_desc[side])
+        descriptor_row_cnn(pixels[side], y, w_pad, bias, input_offset, row_desc[side])
     else:
         descriptor_row_census(pixels[side], y, offsets_a, offsets_b, row_desc[side])
     bs[b, BC_S3] = y
@@ -715,15 +711,15 @@ def _nna_tables(cfg: ChipConfig):
     half = half_window(n)
     if n.descriptor == "census":
         offsets_a, offsets_b = census_tables(n.census)
-        weights_kkc = np.zeros((1, 1, 1), np.int32)
+        w_pad = np.zeros((1, 1, 1), np.int32)
         bias = np.zeros(1, np.int32)
         offset = 0
     else:
         weights, bias8, offset = layer(n)
-        weights_kkc, bias = cnn_tables(weights, bias8)
+        w_pad, bias = cnn_tables(weights, bias8)
         offsets_a = offsets_b = np.zeros((0, 2), np.int64)
     return (np.int64(half), np.int64(n.line_buffer_rows), np.int64(cycles_per_descriptor(n)),
-            n.descriptor == "cnn", offsets_a, offsets_b, weights_kkc, bias, np.int32(offset))
+            n.descriptor == "cnn", offsets_a, offsets_b, w_pad, bias, np.int32(offset))
 
 
 def run_cycle_fast(left: np.ndarray, right: np.ndarray, cfg: ChipConfig, *,
