@@ -55,6 +55,20 @@ def save_weights(path, weights, bias, input_offset) -> None:
         np.savez(f, weights=weights, bias=bias, input_offset=np.int32(input_offset))
 
 
+def open_npz(name: str, what: str, fix: str):
+    """Open an .npz archive for reading; a missing, unreadable or single-array file raises
+    :class:`ConfigError` naming ``what`` and the file, ending with ``fix``."""
+    if not os.path.isfile(name):
+        raise ConfigError(f"{what} {name!r} not found; give the path of an .npz file")
+    try:
+        archive = np.load(name, allow_pickle=False)
+    except (OSError, ValueError, zipfile.BadZipFile) as err:
+        raise ConfigError(f"{what} {name!r} is not a readable .npz archive ({err}); {fix}") from None
+    if not isinstance(archive, np.lib.npyio.NpzFile):
+        raise ConfigError(f"{what} {name!r} holds a single array, not an .npz archive; {fix}")
+    return archive
+
+
 def load_weights(path) -> tuple[np.ndarray, np.ndarray, int]:
     """Read and validate a layer saved by :func:`save_weights`.
 
@@ -63,20 +77,7 @@ def load_weights(path) -> tuple[np.ndarray, np.ndarray, int]:
     the file name and a one-line reason.
     """
     name = os.fspath(path)
-    if not os.path.isfile(name):
-        raise ConfigError(f"weight file {name!r} not found; give the path of an .npz file")
-    try:
-        archive = np.load(name, allow_pickle=False)
-    except (OSError, ValueError, zipfile.BadZipFile) as err:
-        raise ConfigError(
-            f"weight file {name!r} is not a readable .npz archive ({err}); "
-            "write it with nna.save_weights"
-        ) from None
-    if not isinstance(archive, np.lib.npyio.NpzFile):
-        raise ConfigError(
-            f"weight file {name!r} holds a single array, not an .npz archive with keys "
-            f"{', '.join(KEYS)}; write it with nna.save_weights"
-        )
+    archive = open_npz(name, "weight file", f"write it with nna.save_weights (keys {', '.join(KEYS)})")
     with archive:
         missing = [k for k in KEYS if k not in archive.files]
         if missing:

@@ -44,6 +44,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from nna.weights import open_npz
+
 from quant.distances import DISTANCES, get_distance, l1
 from quant.intconv import (
     ACT_MAX,
@@ -577,16 +579,7 @@ def _int32(value, key, name):
 def load_quantized(path) -> QuantizedModel:
     """Read and validate a file written by :func:`save_quantized`; problems raise ConfigError."""
     name = os.fspath(path)
-    if not os.path.isfile(name):
-        raise ConfigError(f"quantized model {name!r} not found")
-    try:
-        archive = np.load(name, allow_pickle=False)
-    except (OSError, ValueError, zipfile.BadZipFile) as err:
-        raise ConfigError(
-            f"quantized model {name!r} is not a readable .npz archive ({err})"
-        ) from None
-    if not isinstance(archive, np.lib.npyio.NpzFile):
-        raise ConfigError(f"quantized model {name!r} is a single array, not an .npz archive")
+    archive = open_npz(name, "quantized model", "write it with quant.save_quantized")
     with archive:
         fmt = str(_scalar(_get(archive, "format", name), "format", name, "U"))
         if fmt != FORMAT:
