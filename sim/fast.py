@@ -735,7 +735,8 @@ def run_cycle_fast(left: np.ndarray, right: np.ndarray, cfg: ChipConfig, *,
     if cfg.nna.stereo_submodules != 2:
         raise ConfigError(
             f"the fast engine models one NNA submodule per camera; nna.stereo_submodules="
-            f"{cfg.nna.stereo_submodules} needs sim.chip.run_cycle"
+            f"{cfg.nna.stereo_submodules} needs the readable engine: set sim.engine=readable "
+            "(or auto, which picks it)"
         )
     left = np.ascontiguousarray(left, np.uint8)
     right = np.ascontiguousarray(right, np.uint8)

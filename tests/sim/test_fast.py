@@ -144,7 +144,7 @@ def test_split_frames_are_refused_with_a_pointer_to_the_readable_engine():
 
     left, right = _pair(9, 35)
     cfg = load_config(overrides={"sva.disparities": 16, "nna.stereo_submodules": 4})
-    with pytest.raises(ConfigError, match="sim.chip.run_cycle"):
+    with pytest.raises(ConfigError, match="set sim.engine=readable"):
         run_cycle_fast(left, right, cfg)
 
 
