@@ -1,29 +1,12 @@
-"""The chip's integer arithmetic: saturation and rounding, defined once.
+"""The chip's integer rounding, defined once.
 
-Every other layer (naive references, numba kernels, clocked blocks) imports these, so the
-definition of "saturating add" or "round half up" cannot drift between them. All functions are
-numba-compiled and also callable from plain Python with Python ints.
+The naive references and the numba kernels both import :func:`div_round_half_up`, so the
+sub-pixel rounding cannot drift between them; it is numba-compiled and also callable from plain
+Python with Python ints. (Saturation is a plain ``min(value, 2^bits - 1)`` wherever it occurs,
+stated in each stage's docstring; the int8 multiply-shift lives in :mod:`quant.intconv`.)
 """
 
 from numba import njit
-
-
-def max_unsigned(bits: int) -> int:
-    """Largest value an unsigned register of ``bits`` bits holds (the saturation ceiling)."""
-    return (1 << bits) - 1
-
-
-@njit(cache=True, inline="always")
-def sat_add(a, b, cap):
-    """Unsigned saturating add: min(a + b, cap)."""
-    s = a + b
-    return cap if s > cap else s
-
-
-@njit(cache=True, inline="always")
-def saturate(a, cap):
-    """Clamp a non-negative value to the register ceiling ``cap``."""
-    return cap if a > cap else a
 
 
 @njit(cache=True, inline="always")

@@ -98,7 +98,7 @@ def build_chip(left: np.ndarray, right: np.ndarray, cfg: ChipConfig, *, order_se
     return Chip(sim, domains, fifos, blocks, sink)
 
 
-def _budget(shape, cfg: ChipConfig, domains: dict) -> dict[str, int]:
+def frame_budget(shape, cfg: ChipConfig, domains: dict) -> dict[str, int]:
     """A generous cycle budget: 20x a frame at the slowest block's rate, per domain."""
     h, w = shape
     per_pixel_s = max(
@@ -115,7 +115,7 @@ def run_cycle(left: np.ndarray, right: np.ndarray, cfg: ChipConfig, *, order_see
               sink_stall=None, trace=None) -> tuple[np.ndarray, dict, Chip]:
     """Simulate one frame; returns (output words (H, W) int32, cycle report, the chip)."""
     chip = build_chip(left, right, cfg, order_seed=order_seed, sink_stall=sink_stall, trace=trace)
-    stats = chip.sim.run(lambda: chip.sink.done, budget_cycles=_budget(left.shape, cfg, chip.domains),
+    stats = chip.sim.run(lambda: chip.sink.done, budget_cycles=frame_budget(left.shape, cfg, chip.domains),
                          watchdog_cycles=cfg.sim.watchdog_cycles)
     return chip.sink.words.copy(), cycle_report(chip, stats), chip
 

@@ -41,7 +41,7 @@ from nna.blocks import cycles_per_descriptor, half_window
 from nna.census import census_offsets
 from nna.conv import _channel_row
 from nna.descriptor import descriptor_bits, layer
-from sim.chip import _budget, assemble_report
+from sim.chip import assemble_report, frame_budget
 from sim.clock import ACTIVITIES, BudgetExceeded, ClockDomain, DeadlockError
 from sim.config import ChipConfig
 from sim.errors import ConfigError
@@ -688,7 +688,7 @@ class _Setup:
             (f.source_to_nna_depth, 8, src_dom, D_NNA),
             (f.sva_to_sink_depth, word_bits, D_SVA, D_SVA),
         )
-        self.budget = _budget(shape, cfg, self.domains)
+        self.budget = frame_budget(shape, cfg, self.domains)
 
 
 def _sva_arrays(shape, cfg: ChipConfig, setup: _Setup):
@@ -697,13 +697,13 @@ def _sva_arrays(shape, cfg: ChipConfig, setup: _Setup):
     desc_l = np.zeros(shape, np.uint64)
     desc_r = np.zeros(shape, np.uint64)
     img_l = np.zeros(shape, np.uint8)
-    # SvaStream validates the configuration and builds the kernel's argument tuples; its
-    # private fields are the arguments of sva.pipeline._stream
+    # SvaStream validates the configuration and builds the arguments of sva.pipeline._stream
     stream = SvaStream(desc_l, desc_r, img_l, cfg.sva, setup.bits)
+    box, sgm_args, select, colsum = stream.kernel_state()
     k = cfg.sva.median
     network = selection_network(k) if k > 3 else np.zeros((0, 2), np.int64)
-    return (desc_l, desc_r, img_l, stream._box, stream._sgm, stream._select, stream.checked,
-            stream.q, stream._colsum, cfg.sva.box_size // 2, k, network)
+    return (desc_l, desc_r, img_l, box, sgm_args, select, stream.checked,
+            stream.q, colsum, cfg.sva.box_size // 2, k, network)
 
 
 def _nna_tables(cfg: ChipConfig):

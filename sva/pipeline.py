@@ -188,6 +188,11 @@ class SvaStream:
         self.rows_checked = 0
         self.rows_final = 0
 
+    def kernel_state(self) -> tuple:
+        """``(box, sgm_args, select, colsum)``: the state arguments of the compiled row loop
+        ``_stream`` (for engines that call it from their own compiled code)."""
+        return self._box, self._sgm, self._select, self._colsum
+
     def advance(self, rows_in: int) -> int:
         h = self.height
         r = self.cfg.box_size // 2
