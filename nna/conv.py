@@ -145,6 +145,47 @@ def _channel_row(xp, w_pad, bias_c, c, y, acc):
                 acc[x] += w0 * s0[x] + w1 * s1[x] + w2 * s2[x]
 
 
+# float32 holds every integer up to 2^24 exactly: while K*K*MAX_PRODUCT < 2^24 (K <= 21), every
+# product and partial sum of a kernel's taps is such an integer, so float32 arithmetic -- in any
+# order, fused multiply-add included -- gives the exact int32 sum. float32 lanes multiply-add
+# about twice as fast as int32 ones (vpmulld is slow), so the descriptor kernels use them.
+F32_EXACT = 1 << 24
+
+
+def f32_exact(k_size: int) -> bool:
+    """True if the K x K tap sums of :func:`_channel_row_f32` are exact in float32."""
+    return k_size * k_size * MAX_PRODUCT < F32_EXACT
+
+
+@njit(cache=True, fastmath={"contract"})
+def _channel_row_f32(xp, w_pad, c, y, acc):
+    """acc[x] = sum over (ky, kx) of w_pad[c, ky, kx] * xp[y + ky, x + kx] in float32, without
+    the bias. Exact (an integer-valued float) when :func:`f32_exact` holds for K; the caller adds
+    the int32 bias after converting. Same three-taps-per-pass loop as :func:`_channel_row`."""
+    width = acc.shape[0]
+    k_rows, k_cols = w_pad.shape[1], w_pad.shape[2]
+    acc[:] = 0
+    for ky in range(k_rows):
+        row = xp[y + ky]
+        for kx in range(0, k_cols, 3):
+            w0 = w_pad[c, ky, kx]
+            w1 = w_pad[c, ky, kx + 1]
+            w2 = w_pad[c, ky, kx + 2]
+            s0 = row[kx : kx + width]
+            s1 = row[kx + 1 : kx + 1 + width]
+            s2 = row[kx + 2 : kx + 2 + width]
+            for x in range(width):
+                acc[x] += w0 * s0[x] + w1 * s1[x] + w2 * s2[x]
+
+
+@njit(cache=True)
+def _sign_bits_f32(acc, bias_c, mask, bits):
+    """bits[x] |= mask where bias_c + acc[x] > 0 (acc an exact integer-valued float32 row)."""
+    zero = mask ^ mask
+    for x in range(acc.shape[0]):
+        bits[x] |= mask if np.int32(acc[x]) > -bias_c else zero
+
+
 @njit(cache=True)
 def _descriptor_kernel(xp, w_pad, bias, masks, out):
     """Descriptor bits of every pixel: bit c of out[y, x] = acc[c] > 0 (masks[c] = 1 << c)."""
@@ -160,6 +201,23 @@ def _descriptor_kernel(xp, w_pad, bias, masks, out):
             mask = masks[c]
             for x in range(width):
                 bits[x] |= mask if acc[x] > 0 else zero
+        out[y, :] = bits
+
+
+@njit(cache=True)
+def _descriptor_kernel_f32(xp, w_pad, bias, masks, out):
+    """:func:`_descriptor_kernel` on float32 lanes (``xp``, ``w_pad`` float32; exact, see
+    :func:`f32_exact`)."""
+    height, width = out.shape
+    n_channels = w_pad.shape[0]
+    acc = np.empty(width, dtype=np.float32)
+    bits = np.zeros(width, dtype=out.dtype)
+    zero = bits[0]
+    for y in range(height):
+        bits[:] = zero
+        for c in range(n_channels):
+            _channel_row_f32(xp, w_pad, c, y, acc)
+            _sign_bits_f32(acc, bias[c], masks[c], bits)
         out[y, :] = bits
 
 
@@ -202,7 +260,10 @@ def cnn_descriptor(img, weights, bias, input_offset) -> np.ndarray:
     dtype = descriptor_dtype(n_channels)
     masks = np.array([1 << c for c in range(n_channels)], dtype=dtype)
     out = np.empty(img.shape, dtype=dtype)
-    _descriptor_kernel(xp, w_pad, bias, masks, out)
+    if f32_exact(w_pad.shape[1]):
+        _descriptor_kernel_f32(xp.astype(np.float32), w_pad.astype(np.float32), bias, masks, out)
+    else:
+        _descriptor_kernel(xp, w_pad, bias, masks, out)
     return out
 
 

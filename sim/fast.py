@@ -39,7 +39,7 @@ from numba import njit
 
 from nna.blocks import cycles_per_descriptor, half_window
 from nna.census import census_offsets
-from nna.conv import _channel_row
+from nna.conv import _channel_row, _channel_row_f32, _sign_bits_f32, f32_exact
 from nna.descriptor import descriptor_bits, layer
 from sim.chip import assemble_report, frame_budget
 from sim.clock import ACTIVITIES, BudgetExceeded, ClockDomain, DeadlockError
@@ -115,36 +115,45 @@ def descriptor_row_census(pixels, y, offsets_a, offsets_b, out):
 
 
 @njit(cache=True)
-def descriptor_row_cnn(pixels, y, w_pad, bias, input_offset, out):
+def descriptor_row_cnn(pixels, y, w_f32, w_i32, bias, input_offset, out):
     """CNN descriptors of image row ``y`` of ``pixels`` (uint8 (H, W)) into ``out`` (W,).
 
-    ``w_pad`` int32 (C, K, Kp) is the layer's int8 (C, K, K) weights with zero columns up to Kp,
-    a multiple of 3 (:func:`cnn_tables`); ``bias`` int32 (C,). Bit c is ``bias[c] + sum
-    w[c, ky, kx] * (pixel - input_offset) > 0`` with clamped coordinates (:mod:`nna.conv`), in
-    int32 accumulators (exact: the layer check bounds the sum). Reads rows ``y - K // 2 ..
-    y + K // 2`` only, and runs :func:`nna.conv._channel_row` -- the full-frame kernel's inner
-    loop, three taps per pass along the row -- on those K rows.
+    ``w_f32`` / ``w_i32`` (C, K, Kp) are the layer's int8 (C, K, K) weights with zero columns up
+    to Kp, a multiple of 3 (:func:`cnn_tables`): in float32 when the tap sums are exact in
+    float32 (:func:`nna.conv.f32_exact`, every 9x9 layer), else in int32 -- the other one is
+    empty; ``bias`` int32 (C,). Bit c is ``bias[c] + sum w[c, ky, kx] * (pixel - input_offset)
+    > 0`` with clamped coordinates (:mod:`nna.conv`). Reads rows ``y - K // 2 .. y + K // 2``
+    only, and runs the full-frame kernel's inner loop (:func:`nna.conv._channel_row_f32` or
+    ``_channel_row``, three taps per pass along the row) on those K rows.
     """
+    use_f32 = w_f32.shape[0] > 0
     h, w = pixels.shape
-    n_ch, k_size, k_cols = w_pad.shape
+    n_ch, k_size, k_cols = w_f32.shape if use_f32 else w_i32.shape
     r = k_size // 2
     # the K input rows, replicate-padded (r left, r + Kp - K right), minus the zero point
     width = w + 2 * r + (k_cols - k_size)
-    rows_i32 = np.empty((k_size, width), np.int32)
+    rows = np.empty((k_size, width), np.int32)
     for ky in range(k_size):
         src = pixels[min(max(y + ky - r, 0), h - 1)]
-        dst = rows_i32[ky]
+        dst = rows[ky]
         for x in range(width):
             dst[x] = np.int32(src[min(max(x - r, 0), w - 1)]) - input_offset
-    acc_i32 = np.empty(w, np.int32)
     for x in range(w):
         out[x] = 0
-    for c in range(n_ch):
-        _channel_row(rows_i32, w_pad, bias[c], c, 0, acc_i32)
-        mask = np.uint64(1) << np.uint64(c)
-        for x in range(w):
-            if acc_i32[x] > 0:
-                out[x] |= mask
+    if use_f32:
+        rows_f32 = rows.astype(np.float32)
+        acc_f32 = np.empty(w, np.float32)
+        for c in range(n_ch):
+            _channel_row_f32(rows_f32, w_f32, c, 0, acc_f32)
+            _sign_bits_f32(acc_f32, bias[c], np.uint64(1) << np.uint64(c), out)
+    else:
+        acc_i32 = np.empty(w, np.int32)
+        for c in range(n_ch):
+            _channel_row(rows, w_i32, bias[c], c, 0, acc_i32)
+            mask = np.uint64(1) << np.uint64(c)
+            for x in range(w):
+                if acc_i32[x] > 0:
+                    out[x] |= mask
 
 
 def census_tables(cfg_census) -> tuple[np.ndarray, np.ndarray]:
@@ -155,14 +164,18 @@ def census_tables(cfg_census) -> tuple[np.ndarray, np.ndarray]:
     return a, b
 
 
-def cnn_tables(weights, bias) -> tuple[np.ndarray, np.ndarray]:
-    """``(w_pad int32 (C, K, Kp), bias int32)`` for :func:`descriptor_row_cnn`: the weights with
-    zero columns up to Kp, the next multiple of 3 (the taps per pass of the row loop)."""
+def cnn_tables(weights, bias) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(w_f32, w_i32, bias int32)`` for :func:`descriptor_row_cnn`: the weights with zero
+    columns up to Kp, the next multiple of 3 (the taps per pass of the row loop), in float32
+    where that is exact (:func:`nna.conv.f32_exact`), else in int32; the other array is empty
+    (0, K, Kp)."""
     n_ch, k_size, _ = weights.shape
     k_cols = -(-k_size // 3) * 3
-    w_pad = np.zeros((n_ch, k_size, k_cols), np.int32)
-    w_pad[:, :, :k_size] = weights
-    return w_pad, np.ascontiguousarray(bias.astype(np.int32))
+    exact = f32_exact(k_size)
+    w_f32 = np.zeros((n_ch if exact else 0, k_size, k_cols), np.float32)
+    w_i32 = np.zeros((0 if exact else n_ch, k_size, k_cols), np.int32)
+    (w_f32 if exact else w_i32)[:, :, :k_size] = weights
+    return w_f32, w_i32, np.ascontiguousarray(bias.astype(np.int32))
 
 
 # ---- FIFO primitives -----------------------------------------------------------------------
@@ -399,13 +412,13 @@ def _nna_prepare_row(bs, b, side, pixels, row_desc, nna):
     reads (y - h .. y + h) are complete from the moment the row may start and are never written
     again, so computing them then gives the same bits.
     """
-    half, rows, cpd, is_cnn, offsets_a, offsets_b, w_pad, bias, input_offset = nna
+    half, rows, cpd, is_cnn, offsets_a, offsets_b, w_f32, w_i32, bias, input_offset = nna
     h, w = pixels.shape[1], pixels.shape[2]
     y = bs[b, BC_S1Y]
     if y >= h or bs[b, BC_S3] == y or bs[b, BC_S0Y] - 1 < min(y + half, h - 1):
         return
     if is_cnn:
-        descriptor_row_cnn(pixels[side], y, w_pad, bias, input_offset, row_desc[side])
+        descriptor_row_cnn(pixels[side], y, w_f32, w_i32, bias, input_offset, row_desc[side])
     else:
         descriptor_row_census(pixels[side], y, offsets_a, offsets_b, row_desc[side])
     bs[b, BC_S3] = y
@@ -711,15 +724,16 @@ def _nna_tables(cfg: ChipConfig):
     half = half_window(n)
     if n.descriptor == "census":
         offsets_a, offsets_b = census_tables(n.census)
-        w_pad = np.zeros((1, 1, 1), np.int32)
+        w_f32 = np.zeros((0, 1, 3), np.float32)
+        w_i32 = np.zeros((0, 1, 3), np.int32)
         bias = np.zeros(1, np.int32)
         offset = 0
     else:
         weights, bias8, offset = layer(n)
-        w_pad, bias = cnn_tables(weights, bias8)
+        w_f32, w_i32, bias = cnn_tables(weights, bias8)
         offsets_a = offsets_b = np.zeros((0, 2), np.int64)
     return (np.int64(half), np.int64(n.line_buffer_rows), np.int64(cycles_per_descriptor(n)),
-            n.descriptor == "cnn", offsets_a, offsets_b, w_pad, bias, np.int32(offset))
+            n.descriptor == "cnn", offsets_a, offsets_b, w_f32, w_i32, bias, np.int32(offset))
 
 
 def run_cycle_fast(left: np.ndarray, right: np.ndarray, cfg: ChipConfig, *,

@@ -60,7 +60,9 @@ def test_descriptor_kernel_equals_ref(shape, input_offset):
 
 
 @pytest.mark.parametrize(
-    ("n_channels", "k_size"), [(1, 1), (7, 3), (32, 5), (33, 5), (64, 9), (3, 11)]
+    ("n_channels", "k_size"),
+    # up to K = 21 the kernel sums in float32 (exact); K = 23 takes the int32 path
+    [(1, 1), (7, 3), (32, 5), (33, 5), (64, 9), (3, 11), (3, 21), (2, 23)],
 )
 def test_other_layer_shapes(n_channels, k_size):
     weights, bias = _layer(seed=n_channels + k_size, n_channels=n_channels, k_size=k_size)
@@ -98,6 +100,24 @@ def test_largest_accumulator_is_exact():
     assert_array_equal(cnn_descriptor(img, weights, bias, 255), np.full((3, 4), 1, np.uint32))
     with pytest.raises(ConfigError, match="overflow"):
         check_layer(weights, np.array([limit + 1, 0], dtype=np.int32), 255)
+
+
+@pytest.mark.parametrize("k_size", [9, 21, 23])
+def test_threshold_at_the_largest_tap_sums(k_size):
+    # Tap sums at their extreme, +-K*K*32640 (14.4 million for K = 21, just under 2**24, the
+    # limit of exact float32 integers), with the bias set so the accumulator is exactly 0, 1 or
+    # -1: the float32 lanes (K <= 21) and the int32 path (K = 23) must both see the sign.
+    extreme = k_size * k_size * 32640
+    weights = np.full((6, k_size, k_size), -128, dtype=np.int8)
+    weights[3:] = 127  # 127 * -255 per tap: -K*K*32385
+    low = k_size * k_size * 127 * 255
+    bias = np.array([-extreme, 1 - extreme, -1 - extreme, low, low + 1, low - 1], np.int32)
+    img = np.zeros((4, 5), dtype=np.uint8)
+    acc = cnn_accumulators(img, weights, bias, 255)
+    assert_array_equal(acc[0, 0], [0, 1, -1, 0, 1, -1])
+    assert_array_equal(cnn_descriptor(img, weights, bias, 255), np.full((4, 5), 0b010010, np.uint32))
+    assert_array_equal(cnn_descriptor(img, weights, bias, 255),
+                       cnn_descriptor_ref(img, weights, bias, 255))
 
 
 def test_zero_accumulator_gives_zero_bit():

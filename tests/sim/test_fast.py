@@ -178,18 +178,17 @@ def test_census_rows_equal_the_census_kernel(window, kind, stride, shape):
 def test_cnn_rows_equal_the_cnn_kernel_with_the_default_layer(shape):
     img = np.random.default_rng(shape[0]).integers(0, 256, shape, dtype=np.uint8)
     weights, bias, offset = layer(load_config(overrides={"nna.descriptor": "cnn"}).nna)
-    weights_kkc, bias_i32 = cnn_tables(weights, bias)
-    got = _rows(descriptor_row_cnn, img, weights_kkc, bias_i32, np.int32(offset))
+    got = _rows(descriptor_row_cnn, img, *cnn_tables(weights, bias), np.int32(offset))
     np.testing.assert_array_equal(
         got, cnn_descriptor(img, weights, bias, offset).astype(np.uint64))
 
 
-@pytest.mark.parametrize("channels, k", [(40, 3), (7, 5), (64, 1)])
+# k = 23 is too large for exact float32 sums: the int32 path
+@pytest.mark.parametrize("channels, k", [(40, 3), (7, 5), (64, 1), (5, 21), (3, 23)])
 def test_cnn_rows_equal_the_cnn_kernel_with_random_layers(channels, k):
     rng = np.random.default_rng(channels)
     img = rng.integers(0, 256, (11, 23), dtype=np.uint8)
     weights = rng.integers(-128, 128, (channels, k, k)).astype(np.int8)
     bias = rng.integers(-5000, 5000, channels).astype(np.int32)
-    weights_kkc, bias_i32 = cnn_tables(weights, bias)
-    got = _rows(descriptor_row_cnn, img, weights_kkc, bias_i32, np.int32(128))
+    got = _rows(descriptor_row_cnn, img, *cnn_tables(weights, bias), np.int32(128))
     np.testing.assert_array_equal(got, cnn_descriptor(img, weights, bias, 128).astype(np.uint64))
