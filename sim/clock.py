@@ -15,7 +15,8 @@ checked against it cycle for cycle. docs/clock-kernel.md states the rules with t
 * **Activity.** In each of its cycles a block reports exactly one of ``busy``, ``starved``
   (waits for data from an input FIFO), ``blocked`` (waits for space in an output FIFO) or
   ``idle``. A step makes **progress** if a FIFO pushed or popped or a block was busy; a run raises
-  :class:`DeadlockError` after ``watchdog_cycles`` consecutive steps without progress and
+  :class:`DeadlockError` once ``watchdog_cycles`` periods of the slowest clock passed without
+  progress and
   :class:`BudgetExceeded` when a domain would run past its cycle budget.
 """
 
@@ -55,7 +56,7 @@ class RunStopped(UserError):
 
 
 class DeadlockError(RunStopped):
-    """No FIFO moved and no block was busy for ``watchdog_cycles`` consecutive steps."""
+    """No FIFO moved and no block was busy for ``watchdog_cycles`` periods of the slowest clock."""
 
 
 class BudgetExceeded(RunStopped):
@@ -109,6 +110,48 @@ class ClockDomain:
         if t_fs < self.phase_fs:
             return 0
         return (t_fs - self.phase_fs) // self.period_fs + 1
+
+
+def watchdog_message(quiet_fs: int, p_max_fs: int) -> str:
+    """The tail of the watchdog's :class:`DeadlockError` (shared by both cycle engines)."""
+    return (f"no FIFO moved and no block was busy for {quiet_fs} fs ({quiet_fs // p_max_fs} "
+            "periods of the slowest clock): deepen a FIFO or change what a block waits for")
+
+
+def count_instants(edges: list[tuple[int, int, int]]) -> int:
+    """Number of distinct instants among clock edges: ``edges`` lists per domain
+    ``(phase_fs, period_fs, n)`` for its first ``n`` edges ``phase + k * period``, k < n.
+
+    The kernel runs one step per instant, so this is :attr:`Simulator.steps` after every
+    domain ran ``n`` cycles. Inclusion-exclusion over the sets of domains whose edges coincide:
+    the common instants of a set solve ``t = phase_d (mod period_d)`` for each member (Chinese
+    remainder theorem) and lie below every member's last edge.
+    """
+    edges = [(ph, per, n) for ph, per, n in edges if n > 0]
+    total = 0
+    for mask in range(1, 1 << len(edges)):
+        members = [edges[i] for i in range(len(edges)) if mask >> i & 1]
+        r, m = 0, 1  # t = r (mod m)
+        feasible = True
+        for ph, per, _ in members:
+            g = math.gcd(m, per)
+            if (ph - r) % g:
+                feasible = False
+                break
+            # r + m * k = ph (mod per)  ->  k = (ph - r) / g * inv(m / g) (mod per / g)
+            k = (ph - r) // g * pow(m // g, -1, per // g) % (per // g)
+            r, m = r + m * k, m * per // g
+            r %= m
+        if not feasible:
+            continue
+        lo = max(ph for ph, _, _ in members)
+        hi = min(ph + (n - 1) * per for ph, per, n in members)
+        if hi < lo:
+            continue
+        first = r + -(-(lo - r) // m) * m  # the first solution >= lo
+        count = 0 if first > hi else (hi - first) // m + 1
+        total += count if len(members) % 2 else -count
+    return total
 
 
 class Register:
@@ -462,16 +505,22 @@ class Simulator:
         ``budget_cycles``: the most cycles this run may execute, for every domain (int) or per
         domain name (dict; domains not named are unbounded). The run raises
         :class:`BudgetExceeded` instead of starting a step that would take a domain past it.
-        ``watchdog_cycles``: raise :class:`DeadlockError` after this many consecutive steps
-        without progress (``None`` disables it). Returns :meth:`stats`.
+        ``watchdog_cycles``: raise :class:`DeadlockError` at the first step without progress
+        that ends ``watchdog_cycles`` periods of the slowest clock domain after the last step
+        with progress (or after one slowest period before the run's first step); ``None``
+        disables it. In time, not in steps, so an engine that skips quiet stretches reaches the
+        same verdict at the same instant. Returns :meth:`stats`.
         """
         budget = self._budget(budget_cycles)
         if watchdog_cycles is not None:
             _check_int(
-                "watchdog_cycles", watchdog_cycles, 1, "steps without progress before a deadlock"
+                "watchdog_cycles", watchdog_cycles, 1,
+                "periods of the slowest clock without progress before a deadlock"
             )
         start = dict(self._cycles)
-        quiet = 0
+        p_max = max((dom.period_fs for dom in self._domains.values()), default=1)
+        # time of the last step with progress; before the first step: one slowest period back
+        last_progress = (min(self._next_fs.values()) if self._domains else 0) - p_max
         while not until():
             t = min(self._next_fs.values()) if self._domains else 0
             for d, limit in budget.items():
@@ -483,16 +532,11 @@ class Simulator:
                         "raise budget_cycles or check the until condition",
                     )
             if self.step():
-                quiet = 0
-            else:
-                quiet += 1
-                if watchdog_cycles is not None and quiet >= watchdog_cycles and not until():
-                    raise self._stop(
-                        DeadlockError,
-                        "deadlock",
-                        f"no FIFO moved and no block was busy for {quiet} steps: deepen a FIFO "
-                        "or change what a block waits for",
-                    )
+                last_progress = t
+            elif (watchdog_cycles is not None and t - last_progress >= watchdog_cycles * p_max
+                  and not until()):
+                raise self._stop(DeadlockError, "deadlock",
+                                 watchdog_message(t - last_progress, p_max))
         return self.stats()
 
     def _budget(self, budget_cycles) -> dict[str, int]:

@@ -42,7 +42,14 @@ from nna.census import census_offsets
 from nna.conv import _channel_row, _channel_row_f32, _sign_bits_f32, f32_exact
 from nna.descriptor import descriptor_bits, layer
 from sim.chip import assemble_report, frame_budget
-from sim.clock import ACTIVITIES, BudgetExceeded, ClockDomain, DeadlockError
+from sim.clock import (
+    ACTIVITIES,
+    BudgetExceeded,
+    ClockDomain,
+    DeadlockError,
+    count_instants,
+    watchdog_message,
+)
 from sim.config import ChipConfig
 from sim.errors import ConfigError
 from sim.sources import CameraOverflow
@@ -63,7 +70,10 @@ B_SRC_L, B_NNA_L, B_SRC_R, B_NNA_R, B_SVA, B_SINK = 0, 1, 2, 3, 4, 5
 A_BUSY, A_STARVED, A_BLOCKED, A_IDLE = 0, 1, 2, 3
 
 # domain table columns
-DC_PERIOD, DC_PHASE, DC_CYCLES, DC_NEXT, DC_LIMIT = 0, 1, 2, 3, 4
+# (parked: 1 while the domain's edges are settled in bulk, see "quiet stretches"; wake: the
+# edge at which a parked domain steps again; pbusy: a parked domain's blocks include a busy one)
+DC_PERIOD, DC_PHASE, DC_CYCLES, DC_NEXT, DC_LIMIT, DC_PARKED, DC_WAKE, DC_PBUSY = range(8)
+N_DC = 8
 # FIFO table columns
 (FC_DEPTH, FC_DATA_EDGES, FC_SPACE_EDGES, FC_SRC, FC_DST, FC_OFF, FC_HOFF, FC_IHEAD, FC_ICOUNT,
  FC_FHEAD, FC_FCOUNT, FC_PUSHES, FC_POPS, FC_SEEN, FC_MAXOCC, FC_MAXPROD, FC_FULL, FC_EMPTY,
@@ -71,16 +81,17 @@ DC_PERIOD, DC_PHASE, DC_CYCLES, DC_NEXT, DC_LIMIT = 0, 1, 2, 3, 4
 N_FC = 21
 # block table columns: status, waiting FIFO (-1 none), 4 activity counts, then per-block state
 (BC_STATUS, BC_WAIT, BC_BUSY, BC_STARVED, BC_BLOCKED, BC_IDLE, BC_S0, BC_S1, BC_S2, BC_S3,
- BC_S4, BC_S5, BC_S0Y, BC_S0X, BC_S1Y, BC_S1X) = range(16)
-N_BC = 16
+ BC_S4, BC_S5, BC_S0Y, BC_S0X, BC_S1Y, BC_S1X, BC_PSTATUS, BC_PWAIT) = range(18)
+N_BC = 18
 # per-block state: sources BC_S0 = pixels sent; NNA S0 received, S1 emitted, S2 MAC phase,
 # S3 row of the cached descriptors; SVA S0 received, S1 emitted, S2 last push cycle, S3 ready
 # rows, S4 rows checked, S5 rows final; sink S0 received, S1 first cycle, S2 last cycle.
 # BC_S0Y/BC_S0X and BC_S1Y/BC_S1X hold the raster (row, column) of the counters S0 and S1, so
-# the loop never divides by W
+# the loop never divides by W; BC_PSTATUS/BC_PWAIT: the status a parked block reports each edge
 # global scalars
-G_STEPS, G_NOW, G_QUIET, G_EVENT_A, G_EVENT_B, G_EVENT_C, G_EVENT_D = range(7)
-N_G = 7
+# (now: the last step's instant; tlp: the instant of the last step with progress)
+G_NOW, G_TLP, G_EVENT_A, G_EVENT_B, G_EVENT_C, G_EVENT_D = range(6)
+N_G = 6
 EV_DONE, EV_DEADLOCK, EV_BUDGET, EV_OVERFLOW, EV_DATA = 0, 1, 2, 3, 4
 
 
@@ -544,6 +555,237 @@ def _sink_eval(bs, fq, ready, pay, cyc, words, stall_period, stall_phase):
     return _report(bs, B_SINK, A_BUSY, -1)
 
 
+# ---- quiet stretches -----------------------------------------------------------------------
+#
+# A domain whose blocks would repeat their last activity edge after edge -- the NNA counting
+# MAC cycles, the SVA starved, a camera in blanking -- is *parked*: its edges are not stepped
+# one by one but settled in bulk (:func:`_settle`) when something can change what they do: the
+# domain's own next event (its *wake* edge: a MAC phase ending, a FIFO head becoming visible, a
+# free slot being seen, a pending output falling due, a throttle or blanking ending, the cycle
+# budget), or a push or pop committed by another domain on a FIFO the parked domain touches
+# (settled first, up to and including that instant, so the commit sees the cycle counts the
+# step-by-step engine would have; the domain then parks again at once if it still can). Settling
+# adds per edge exactly what a step would: the blocks' activity counts, the NNA's MAC phase, the
+# FIFOs' histogram, empty and full counts, the free slots the producer sees. The predictions
+# below read the state after a step's commit and mirror the evaluations above: what each block
+# would report at every edge from the next one until the wake edge, at which it may act.
+
+INF = 1 << 62
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def _edge_time(dom, d, k):
+    """Instant of edge ``k`` of domain ``d`` (INF for INF)."""
+    if k >= INF:
+        return INF
+    return dom[d, DC_PHASE] + k * dom[d, DC_PERIOD]
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def _ready_at(fq, ready, f):
+    """Consumer cycle from which FIFO ``f``'s head item is visible (INF if it is empty)."""
+    if fq[f, FC_ICOUNT] == 0:
+        return INF
+    return ready[fq[f, FC_OFF] + fq[f, FC_IHEAD]]
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def _space_at(fq, frees, f, c1):
+    """Producer cycle (>= c1) from which FIFO ``f`` has a slot the producer sees (INF: not
+    before a pop that has not happened)."""
+    if fq[f, FC_PUSHES] - fq[f, FC_SEEN] < fq[f, FC_DEPTH]:
+        return c1
+    if fq[f, FC_FCOUNT] == 0:
+        return INF
+    return max(frees[fq[f, FC_OFF] + fq[f, FC_FHEAD]], c1)
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def _memory_quiet(bs, fq, frees, b, f, c1, n, freq_hz, bytes_per_s):
+    """(status, waited FIFO, wake cycle) of a memory source from cycle c1 on; wake <= c1: it
+    acts at c1."""
+    sent = bs[b, BC_S0]
+    if sent >= n:
+        return A_IDLE, -1, INF
+    if bytes_per_s < freq_hz and (sent + 1) * freq_hz > (c1 + 1) * bytes_per_s:
+        # the bucket allows the next pixel from cycle ceil((sent + 1) * f / bw) - 1 on
+        return A_BUSY, -1, ((sent + 1) * freq_hz + bytes_per_s - 1) // bytes_per_s - 1
+    return A_BLOCKED, f, _space_at(fq, frees, f, c1)
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def _camera_quiet(c1, line_clocks, h, w):
+    line = c1 // line_clocks
+    if line >= h:
+        return A_IDLE, -1, INF
+    if c1 - line * line_clocks < w:
+        return A_BUSY, -1, c1  # an active pixel: it pushes
+    return A_BUSY, -1, (line + 1) * line_clocks  # blanking until the next line
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def _nna_quiet(bs, fq, ready, frees, b, side, c1, h, w, timing):
+    half, rows, cpd = timing[0], timing[1], timing[2]
+    f_in = F_SRC_L if side == 0 else F_SRC_R
+    f_out = F_NNA_L if side == 0 else F_NNA_R
+    n = h * w
+    received = bs[b, BC_S0]
+    emitted = bs[b, BC_S1]
+    phase = bs[b, BC_S2]
+    wake = INF
+    if received < n:
+        y_out = bs[b, BC_S1Y]
+        if y_out >= h or bs[b, BC_S0Y] - max(0, y_out - half) + 1 <= rows:
+            wake = _ready_at(fq, ready, f_in)  # the line buffer pops from then on
+    if emitted < n:
+        y = bs[b, BC_S1Y]
+        if phase == 0 and bs[b, BC_S0Y] - 1 < min(y + half, h - 1):
+            return A_STARVED, f_in, wake
+        if phase + 1 >= cpd:
+            if phase < cpd:
+                return A_BUSY, -1, c1  # a push attempt
+            return A_BLOCKED, f_out, min(wake, _space_at(fq, frees, f_out, c1))
+        return A_BUSY, -1, min(wake, c1 + cpd - 1 - phase)
+    if received < n:
+        return A_STARVED, f_in, wake
+    return A_IDLE, -1, INF
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def _sva_quiet(bs, fq, ready, frees, c1, ready_cycle, h, w, timing):
+    lookahead, latency, cpp = timing[0], timing[1], timing[2]
+    n = h * w
+    wake = INF
+    wait = -1
+    if bs[B_SVA, BC_S0] < n and bs[B_SVA, BC_S0Y] <= bs[B_SVA, BC_S1Y] + lookahead + 1:
+        r_l = _ready_at(fq, ready, F_NNA_L)
+        r_r = _ready_at(fq, ready, F_NNA_R)
+        if r_l <= c1 and r_r <= c1:
+            return A_BUSY, -1, c1  # pops a pair
+        wait = F_NNA_L if r_l > c1 else F_NNA_R
+        if r_l > c1:
+            wake = min(wake, r_l)
+        if r_r > c1:
+            wake = min(wake, r_r)
+    if bs[B_SVA, BC_S1] < n:
+        y = bs[B_SVA, BC_S1Y]
+        if y < bs[B_SVA, BC_S3]:
+            due = max(ready_cycle[y] + latency, bs[B_SVA, BC_S2] + cpp)
+            if c1 < due:
+                return A_BUSY, -1, min(wake, due)
+            return A_BLOCKED, F_SINK, min(wake, _space_at(fq, frees, F_SINK, c1))
+        return A_STARVED, (wait if wait >= 0 else F_NNA_L), wake
+    return A_IDLE, -1, wake
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def _sink_quiet(bs, fq, ready, c1, total):
+    if bs[B_SINK, BC_S0] >= total:
+        return A_IDLE, -1, INF
+    return A_STARVED, F_SINK, max(_ready_at(fq, ready, F_SINK), c1)
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def _try_park(d, dom, fq, rings, bs, bdom, h, w, nna_timing, sva_timing, ready_cycle,
+              src_params, stall_period):
+    """Park domain ``d`` (after a step or a settlement) if each of its blocks would report one
+    status edge after edge, acting at none, for at least its next edge; True if parked."""
+    is_camera, freq_hz, bytes_per_s, line_clocks = (src_params[0], src_params[1],
+                                                    src_params[2], src_params[3])
+    ready, frees = rings[0], rings[3]
+    c1 = dom[d, DC_CYCLES]
+    wake = INF
+    busy = False
+    for b in range(6):
+        if bdom[b] != d:
+            continue
+        if b == B_SRC_L or b == B_SRC_R:
+            if is_camera:
+                st, wt, wk = _camera_quiet(c1, line_clocks, h, w)
+            else:
+                st, wt, wk = _memory_quiet(bs, fq, frees, b, F_SRC_L if b == B_SRC_L else F_SRC_R,
+                                           c1, h * w, freq_hz, bytes_per_s)
+        elif b == B_NNA_L or b == B_NNA_R:
+            st, wt, wk = _nna_quiet(bs, fq, ready, frees, b, 0 if b == B_NNA_L else 1, c1, h, w,
+                                    nna_timing)
+        elif b == B_SVA:
+            st, wt, wk = _sva_quiet(bs, fq, ready, frees, c1, ready_cycle, h, w, sva_timing)
+        else:
+            if stall_period > 0:
+                return False
+            st, wt, wk = _sink_quiet(bs, fq, ready, c1, h * w)
+        if wk <= c1:
+            return False
+        bs[b, BC_PSTATUS] = st
+        bs[b, BC_PWAIT] = wt
+        wake = min(wake, wk)
+        busy = busy or st == A_BUSY
+    for f in range(fq.shape[0]):
+        # a producer that sees its FIFO full counts 'full' per edge until a free slot shows
+        if fq[f, FC_SRC] == d and fq[f, FC_PUSHES] - fq[f, FC_SEEN] >= fq[f, FC_DEPTH]:
+            wake = min(wake, _space_at(fq, frees, f, c1))
+    if dom[d, DC_LIMIT] >= 0:
+        wake = min(wake, dom[d, DC_LIMIT])
+    if wake <= c1:
+        return False
+    dom[d, DC_PARKED] = 1
+    dom[d, DC_WAKE] = wake
+    dom[d, DC_PBUSY] = 1 if busy else 0
+    return True
+
+
+@njit(cache=True, _nrt=False)
+def _settle(d, t_lim, g, dom, fq, rings, bs, bdom):
+    """Run parked domain ``d``'s edges before the instant ``t_lim`` in bulk and unpark it."""
+    dom[d, DC_PARKED] = 0
+    nxt = dom[d, DC_NEXT]
+    if t_lim <= nxt:
+        return
+    ready, frees, hist = rings[0], rings[3], rings[4]
+    per = dom[d, DC_PERIOD]
+    n = (t_lim - nxt + per - 1) // per
+    c0 = dom[d, DC_CYCLES]
+    c_last = c0 + n - 1
+    t_last = nxt + (n - 1) * per
+    for b in range(6):
+        if bdom[b] == d:
+            st = bs[b, BC_PSTATUS]
+            bs[b, BC_STATUS] = st
+            bs[b, BC_WAIT] = bs[b, BC_PWAIT]
+            bs[b, BC_BUSY + st] += n
+            if (b == B_NNA_L or b == B_NNA_R) and st == A_BUSY:
+                bs[b, BC_S2] += n  # MAC phases
+    for f in range(fq.shape[0]):
+        depth = fq[f, FC_DEPTH]
+        off = fq[f, FC_OFF]
+        if fq[f, FC_SRC] == d:
+            if fq[f, FC_PUSHES] - fq[f, FC_SEEN] >= depth:
+                fq[f, FC_FULL] += n  # (no free slot shows before the wake edge)
+            while fq[f, FC_FCOUNT] > 0 and frees[off + fq[f, FC_FHEAD]] <= c_last:
+                fq[f, FC_FHEAD] = _wrap(fq[f, FC_FHEAD] + 1, depth)
+                fq[f, FC_FCOUNT] -= 1
+                fq[f, FC_SEEN] += 1
+        if fq[f, FC_DST] == d:
+            hist[fq[f, FC_HOFF] + fq[f, FC_PUSHES] - fq[f, FC_POPS]] += n
+            if fq[f, FC_ICOUNT] == 0:
+                fq[f, FC_EMPTY] += n
+            else:
+                fq[f, FC_EMPTY] += min(n, max(0, ready[off + fq[f, FC_IHEAD]] - c0))
+    dom[d, DC_CYCLES] = c0 + n
+    dom[d, DC_NEXT] = nxt + n * per
+    if t_last > g[G_NOW]:
+        g[G_NOW] = t_last
+    if dom[d, DC_PBUSY] and t_last > g[G_TLP]:
+        g[G_TLP] = t_last
+
+
+@njit(cache=True, _nrt=False)
+def _settle_all(t_lim, g, dom, fq, rings, bs, bdom):
+    for d in range(dom.shape[0]):
+        if dom[d, DC_PARKED]:
+            _settle(d, t_lim, g, dom, fq, rings, bs, bdom)
+
+
 # ---- the loop ------------------------------------------------------------------------------
 
 
@@ -584,7 +826,7 @@ def _run_steps(g, dom, fq, rings, bs, images, nna_data, sva_data, sink_data, src
     sva, ready_cycle, sva_timing, scratch = sva_data
     received_data = (sva[0], sva[1], sva[2])
     q = sva[7]
-    tick, staged_desc = scratch
+    tick, staged_desc, bdom, touched = scratch
     words, stall_period, stall_phase = sink_data
     ready, pay, pay_desc, frees, hist = rings
     n_dom = dom.shape[0]
@@ -592,6 +834,10 @@ def _run_steps(g, dom, fq, rings, bs, images, nna_data, sva_data, sink_data, src
     h, w = words.shape
     total = h * w
     src_dom = D_CAM if is_camera else D_NNA
+    p_max = dom[0, DC_PERIOD]
+    for d in range(1, n_dom):
+        p_max = max(p_max, dom[d, DC_PERIOD])
+    quiet_limit = watchdog * p_max
     while bs[B_SINK, BC_S0] < total:
         # the data kernels this state needs (their conditions as in _nna_prepare_row and
         # SvaStream.advance)
@@ -602,12 +848,35 @@ def _run_steps(g, dom, fq, rings, bs, images, nna_data, sva_data, sink_data, src
         y = bs[B_SVA, BC_S1Y]
         if y < bs[B_SVA, BC_S3] and y >= bs[B_SVA, BC_S5]:
             return EV_DATA
-        t = dom[0, DC_NEXT]
-        for d in range(1, n_dom):
-            t = min(t, dom[d, DC_NEXT])
+        # the next instant: an active domain's edge or a parked domain's wake edge
+        t = INF
+        any_parked = False
+        busy_parked = False
         for d in range(n_dom):
-            tick[d] = dom[d, DC_NEXT] == t
+            if dom[d, DC_PARKED]:
+                any_parked = True
+                busy_parked = busy_parked or dom[d, DC_PBUSY] == 1
+                t = min(t, _edge_time(dom, d, dom[d, DC_WAKE]))
+            else:
+                t = min(t, dom[d, DC_NEXT])
+        if any_parked and not busy_parked and watchdog > 0:
+            # the instant the watchdog would fire if nothing progresses: step it for real
+            x = g[G_TLP] + quiet_limit
+            t_dog = INF
+            for d in range(n_dom):
+                nxt = dom[d, DC_NEXT]
+                per = dom[d, DC_PERIOD]
+                t_dog = min(t_dog, nxt if nxt >= x else nxt + (x - nxt + per - 1) // per * per)
+            if t_dog <= t:
+                t = t_dog
+                _settle_all(t, g, dom, fq, rings, bs, bdom)
+        for d in range(n_dom):
+            if dom[d, DC_PARKED] and _edge_time(dom, d, dom[d, DC_WAKE]) == t:
+                _settle(d, t, g, dom, fq, rings, bs, bdom)
+        for d in range(n_dom):
+            tick[d] = dom[d, DC_PARKED] == 0 and dom[d, DC_NEXT] == t
             if tick[d] and dom[d, DC_LIMIT] >= 0 and dom[d, DC_CYCLES] >= dom[d, DC_LIMIT]:
+                _settle_all(t, g, dom, fq, rings, bs, bdom)
                 g[G_EVENT_A] = d
                 return EV_BUDGET
         g[G_NOW] = t
@@ -654,6 +923,17 @@ def _run_steps(g, dom, fq, rings, bs, images, nna_data, sva_data, sink_data, src
                 progress = True
             if _sink_eval(bs, fq, ready, pay, cyc, words, stall_period, stall_phase):
                 progress = True
+        # a parked domain at the other end of a FIFO that moves is settled up to and including
+        # this instant before the commit (and parks again after it if it can)
+        for d in range(n_dom):
+            touched[d] = tick[d]
+        for f in range(n_fifo):
+            if fq[f, FC_PUSH_ST] and dom[fq[f, FC_DST], DC_PARKED]:
+                touched[fq[f, FC_DST]] = True
+                _settle(fq[f, FC_DST], t + 1, g, dom, fq, rings, bs, bdom)
+            if fq[f, FC_POP_ST] and dom[fq[f, FC_SRC], DC_PARKED]:
+                touched[fq[f, FC_SRC]] = True
+                _settle(fq[f, FC_SRC], t + 1, g, dom, fq, rings, bs, bdom)
         for f in range(n_fifo):
             if tick[fq[f, FC_SRC]] or tick[fq[f, FC_DST]]:
                 if _commit(fq, ready, pay, pay_desc, frees, staged_desc, dom, tick, f):
@@ -662,13 +942,20 @@ def _run_steps(g, dom, fq, rings, bs, images, nna_data, sva_data, sink_data, src
             if tick[d]:
                 dom[d, DC_CYCLES] += 1
                 dom[d, DC_NEXT] = t + dom[d, DC_PERIOD]
-        g[G_STEPS] += 1
         if progress:
-            g[G_QUIET] = 0
-        else:
-            g[G_QUIET] += 1
-            if watchdog > 0 and g[G_QUIET] >= watchdog and bs[B_SINK, BC_S0] < total:
+            g[G_TLP] = t
+        elif watchdog > 0 and t - g[G_TLP] >= quiet_limit and bs[B_SINK, BC_S0] < total:
+            busy_parked = False
+            for d in range(n_dom):
+                busy_parked = busy_parked or (dom[d, DC_PARKED] == 1 and dom[d, DC_PBUSY] == 1)
+            if not busy_parked:
+                _settle_all(t + 1, g, dom, fq, rings, bs, bdom)
                 return EV_DEADLOCK
+        for d in range(n_dom):
+            if touched[d]:
+                _try_park(d, dom, fq, rings, bs, bdom, h, w, nna_timing, sva_timing,
+                          ready_cycle, src_params, stall_period)
+    _settle_all(g[G_NOW] + 1, g, dom, fq, rings, bs, bdom)
     return EV_DONE
 
 
@@ -765,10 +1052,11 @@ def run_cycle_fast(left: np.ndarray, right: np.ndarray, cfg: ChipConfig, *,
         )
     setup = _Setup(shape, cfg)
     names = list(setup.domains)
-    dom = np.zeros((len(names), 5), np.int64)
+    dom = np.zeros((len(names), N_DC), np.int64)
     for i, name in enumerate(names):
         d = setup.domains[name]
-        dom[i] = (d.period_fs, d.phase_fs, 0, d.phase_fs, setup.budget.get(name, -1))
+        dom[i, :DC_PARKED] = (d.period_fs, d.phase_fs, 0, d.phase_fs,
+                              setup.budget.get(name, -1))
     n_f = len(setup.fifos)
     fq = np.zeros((n_f, N_FC), np.int64)
     off = hoff = 0
@@ -791,6 +1079,8 @@ def run_cycle_fast(left: np.ndarray, right: np.ndarray, cfg: ChipConfig, *,
     bs[B_SVA, BC_S2] = -(1 << 40)
     bs[B_SINK, BC_S1] = bs[B_SINK, BC_S2] = -1
     g = np.zeros(N_G, np.int64)
+    # the watchdog counts from one slowest period before the first edge (sim.clock.run)
+    g[G_TLP] = int(dom[:, DC_PHASE].min() - dom[:, DC_PERIOD].max())
     nna = _nna_tables(cfg)
     nna_data = (np.zeros((2, h, w), np.uint8), np.zeros((2, w), np.uint64), nna,
                 np.array(nna[:3], np.int64))
@@ -798,7 +1088,10 @@ def run_cycle_fast(left: np.ndarray, right: np.ndarray, cfg: ChipConfig, *,
     lookahead = cfg.sva.box_size // 2 + (cfg.sva.median // 2 if cfg.sva.median > 1 else 0)
     timing = np.array([lookahead, cfg.sva.pipeline_latency, cfg.sva.cycles_per_pixel], np.int64)
     # the loop allocates nothing (it runs without numba's reference counting)
-    scratch = (np.zeros(len(names), np.bool_), np.zeros(n_f, np.uint64))
+    src_dom = D_CAM if setup.camera else D_NNA
+    block_domain = np.array([src_dom, D_NNA, src_dom, D_NNA, D_SVA, D_SVA], np.int64)
+    scratch = (np.zeros(len(names), np.bool_), np.zeros(n_f, np.uint64), block_domain,
+               np.zeros(len(names), np.bool_))
     sva_data = (sva, np.full(h, -1, np.int64), timing, scratch)
     words = np.full(shape, -1, np.int32)
     sink_data = (words, np.int64(stall_period), np.int64(stall_phase))
@@ -818,11 +1111,8 @@ def run_cycle_fast(left: np.ndarray, right: np.ndarray, cfg: ChipConfig, *,
             "nna.macs) or a deeper fifo.source_to_nna_depth"
         )
     if event == EV_DEADLOCK:
-        raise state.stop(
-            DeadlockError, "deadlock",
-            f"no FIFO moved and no block was busy for {g[G_QUIET]} steps: deepen a FIFO or "
-            "change what a block waits for",
-        )
+        raise state.stop(DeadlockError, "deadlock",
+                         watchdog_message(int(g[G_NOW] - g[G_TLP]), int(dom[:, DC_PERIOD].max())))
     if event == EV_BUDGET:
         d = names[g[G_EVENT_A]]
         raise state.stop(
@@ -872,7 +1162,8 @@ class _State:
             "cycles": dict(sorted(self.cycles().items())),
             "end_time_fs": int(self.g[G_NOW]),
             "fifos": {n: self.fifo_stats(FIFO_NAMES.index(n)) for n in sorted(FIFO_NAMES)},
-            "steps": int(self.g[G_STEPS]),
+            "steps": count_instants([(int(p), int(per), int(n)) for per, p, n in
+                                     self.dom[:, [DC_PERIOD, DC_PHASE, DC_CYCLES]]]),
         }
 
     def stop(self, cls, head: str, tail: str):

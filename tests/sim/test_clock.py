@@ -11,6 +11,7 @@ from sim.clock import (
     KernelError,
     Register,
     Simulator,
+    count_instants,
 )
 from sim.errors import ConfigError, UserError
 from sim.fifo import Fifo
@@ -343,7 +344,8 @@ def test_window_of_3_needs_depth_4_for_full_rate(depth, cycles):
 
 def test_window_of_3_on_a_depth_2_fifo_deadlocks_with_every_fifo_and_wait_named():
     """The source pushes in cycles 0 and 1 and is then blocked; nothing moves from cycle 2 on, so
-    with a watchdog of W steps the error is raised after the step of cycle 1 + W."""
+    with a watchdog of W periods (one clock: W steps) the error is raised after the step of
+    cycle 1 + W, W periods after the last progress."""
     w = 10
     sim, sink = _window(2)
     with pytest.raises(DeadlockError) as info:
@@ -355,8 +357,8 @@ def test_window_of_3_on_a_depth_2_fifo_deadlocks_with_every_fifo_and_wait_named(
         "fifo src_to_win 2/2 full, win_to_sink 0/4 empty; "
         "blocks: source blocked on src_to_win (full), win starved on src_to_win (empty), "
         "sink starved on win_to_sink (empty); "
-        f"no FIFO moved and no block was busy for {w} steps: deepen a FIFO or change what a "
-        "block waits for"
+        f"no FIFO moved and no block was busy for {w * P} fs ({w} periods of the slowest clock): "
+        "deepen a FIFO or change what a block waits for"
     )
     assert "\n" not in str(err)
     assert err.time_fs == (1 + w) * P
@@ -478,6 +480,52 @@ def test_shuffled_evaluation_orders_give_identical_stats_and_traces():
     stats = results[0][0]
     assert stats["blocks"]["camera"]["blocked"] > 0 and stats["blocks"]["stage"]["blocked"] > 0
     assert len(results[0][1]) == stats["steps"]
+
+
+@pytest.mark.parametrize(
+    "domains",
+    [
+        [(0, 7, 30), (0, 5, 40)],
+        [(3, 6, 25), (1, 4, 40), (0, 9, 20)],
+        [(0, 2173913, 900), (0, 2150538, 910), (0, 13468013, 150)],
+        [(2, 4, 10), (0, 4, 10)],  # never coincide
+        [(0, 6, 0), (5, 5, 7)],
+    ],
+)
+def test_count_instants_equals_the_union_of_the_edges(domains):
+    brute = {ph + k * per for ph, per, n in domains for k in range(n)}
+    assert count_instants(domains) == len(brute)
+
+
+def test_count_instants_equals_the_steps_the_kernel_runs():
+    sim, sink, out = _busy_chip()
+    stats = sim.run(lambda: len(sink.items) == 20 and len(out.items) == 23,
+                    budget_cycles=10_000, watchdog_cycles=50)
+    doms = [(0, ClockDomain("cam", 100e6).period_fs, stats["cycles"]["cam"]),
+            (0, ClockDomain("core", 150e6).period_fs, stats["cycles"]["core"])]
+    assert count_instants(doms) == stats["steps"]
+
+
+def test_watchdog_counts_periods_of_the_slowest_clock():
+    """A 100 MHz source fills a depth-2 FIFO to a 150 MHz window of 3 that can never fire: the
+    last progress is the push in source cycle 1 (t = 10 ns); the watchdog of W periods of the
+    slowest clock (10 ns) fires at the first edge at or after 10 ns + W * 10 ns."""
+    w = 12
+    slow = ClockDomain("slow", 100e6)
+    fast = ClockDomain("fast", 150e6)
+    sim = _sim(slow, fast)
+    a = sim.add_fifo(Fifo("src_to_win", 2, 8, src=slow, dst=fast, sync_cycles=2))
+    b = sim.add_fifo(Fifo("win_to_sink", 4, 10, src=fast, dst=fast))
+    sim.add_block(Source("source", slow, a, 10))
+    sim.add_block(Window3("win", fast, a, b))
+    sink = sim.add_block(Sink("sink", fast, b))
+    with pytest.raises(DeadlockError) as info:
+        sim.run(lambda: len(sink.items) == 4, budget_cycles=10_000, watchdog_cycles=w)
+    p_slow = slow.period_fs
+    t_last = p_slow  # the source's second push
+    deadline = t_last + w * p_slow
+    assert info.value.time_fs == deadline  # an edge of both clocks (3 fast per 2 slow periods)
+    assert f"busy for {w * p_slow} fs ({w} periods of the slowest clock)" in str(info.value)
 
 
 def test_shuffling_does_change_the_order_a_combinational_path_would_see():
