@@ -39,7 +39,7 @@ from numba import njit
 
 from nna.blocks import cycles_per_descriptor, half_window
 from nna.census import census_offsets
-from nna.conv import _channel_row, _channel_row_f32, _sign_bits_f32, f32_exact
+from nna.conv import _channel_row, _sign_bits_rows_f32, f32_exact
 from nna.descriptor import descriptor_bits, layer
 from sim.chip import assemble_report, frame_budget
 from sim.clock import (
@@ -152,11 +152,11 @@ def descriptor_row_cnn(pixels, y, w_f32, w_i32, bias, input_offset, out):
     for x in range(w):
         out[x] = 0
     if use_f32:
-        rows_f32 = rows.astype(np.float32)
-        acc_f32 = np.empty(w, np.float32)
+        masks = np.empty(n_ch, np.uint64)
         for c in range(n_ch):
-            _channel_row_f32(rows_f32, w_f32, c, 0, acc_f32)
-            _sign_bits_f32(acc_f32, bias[c], np.uint64(1) << np.uint64(c), out)
+            masks[c] = np.uint64(1) << np.uint64(c)
+        _sign_bits_rows_f32(rows.astype(np.float32), w_f32, bias, masks, 0,
+                            np.empty((4, w), np.float32), np.empty(w, np.float32), out)
     else:
         acc_i32 = np.empty(w, np.int32)
         for c in range(n_ch):
