@@ -136,7 +136,8 @@ def pareto_plot(rows: list[dict], png: str | Path, *, sram: str = "sram_bits",
     front = pareto_front(pts)
     plt, fig, ax = _figure()
     xs, ys, cs = zip(*pts)
-    sc = ax.scatter(xs, ys, c=cs if error else None, cmap="viridis_r", s=40, zorder=3)
+    colour = {"c": cs, "cmap": "viridis_r"} if error else {}
+    sc = ax.scatter(xs, ys, s=40, zorder=3, **colour)
     fx = [p for p, on in zip(pts, front) if on]
     ax.scatter([p[0] for p in fx], [p[1] for p in fx], s=160, facecolors="none",
                edgecolors="red", zorder=4, label="Pareto-optimal")
@@ -191,7 +192,7 @@ def sweep_plots(rows: list[dict], axes: list[str], out_dir: str | Path) -> list[
         plot_xy(ok, x, totbad, p, hue=hue, title=f"accuracy: {totbad} vs {x}")
         written.append(p)
     if "sram_bits" in cols and "throughput.fps" in cols and len(varying) > 0:
-        p = out / "pareto_sram_fps_totbad.png"
+        p = out / ("pareto_sram_fps_totbad.png" if totbad else "pareto_sram_fps.png")
         pareto_plot(ok, p, error=totbad)
         written.append(p)
     return written
