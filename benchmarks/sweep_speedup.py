@@ -2,7 +2,7 @@
 
 Each worker is warmed up first (imports and the numba cache load once per process), so the
 figure is the sweep's own scaling: wall time on 1 worker / wall time on 2 workers (target
->= 1.7x). Every point is a cycle-model run of a synthetic 480x270 frame with the CNN descriptor.
+>= 1.7x). Every point is a cycle-model run of a synthetic 960x540 frame with the CNN descriptor.
 
     python benchmarks/sweep_speedup.py [--points 8]
 """
@@ -25,7 +25,7 @@ def _sweep_file(folder: Path, points: int) -> Path:
     path = folder / "speedup.toml"
     depths = ", ".join(str(16 + 8 * i) for i in range(points))
     path.write_text(
-        'mode = "cycle"\nscenes = ["480x270"]\n[set]\n"nna.descriptor" = "cnn"\n'
+        'mode = "cycle"\nscenes = ["960x540"]\n[set]\n"nna.descriptor" = "cnn"\n'
         f'"sva.disparities" = 64\n[grid]\n"fifo.nna_to_sva_depth" = [{depths}]\n'
     )
     return path
@@ -56,7 +56,7 @@ def main() -> None:
         sweep = load_sweep(_sweep_file(folder, args.points))
         one = _timed(sweep, 1, folder)
         two = _timed(sweep, 2, folder)
-    print(f"sweep of {len(sweep.tasks)} cycle-model runs (480x270, CNN), {os.cpu_count()} CPUs")
+    print(f"sweep of {len(sweep.tasks)} cycle-model runs (960x540, CNN), {os.cpu_count()} CPUs")
     print(f"1 worker : {one:6.2f} s")
     print(f"2 workers: {two:6.2f} s")
     print(f"speed-up : {one / two:.2f}x (target >= 1.7x)")
