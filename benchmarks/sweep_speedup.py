@@ -2,7 +2,8 @@
 
 Each worker is warmed up first (imports and the numba cache load once per process), so the
 figure is the sweep's own scaling: wall time on 1 worker / wall time on 2 workers (target
->= 1.7x). Every point is a cycle-model run of a synthetic 960x540 frame with the CNN descriptor.
+>= 1.7x). For reference it also times the same runs on a plain process pool, which shows how
+much parallelism the machine offers at the moment (on a shared machine, less than its CPUs). Every point is a cycle-model run of a synthetic 960x540 frame with the CNN descriptor.
 
     python benchmarks/sweep_speedup.py [--points 8]
 """
@@ -14,6 +15,7 @@ import logging
 import os
 import tempfile
 import time
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 from distributed import Client, LocalCluster
@@ -47,6 +49,15 @@ def _timed(sweep, workers: int, folder: Path) -> float:
     return seconds
 
 
+def _pool_seconds(sweep, workers: int) -> float:
+    """The same tasks on a plain process pool (warmed up): what the machine allows right now."""
+    with ProcessPoolExecutor(max_workers=workers) as pool:
+        list(pool.map(run_task, [sweep.tasks[0]] * workers))
+        t0 = time.perf_counter()
+        list(pool.map(run_task, sweep.tasks))
+        return time.perf_counter() - t0
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--points", type=int, default=8)
@@ -56,10 +67,17 @@ def main() -> None:
         sweep = load_sweep(_sweep_file(folder, args.points))
         one = _timed(sweep, 1, folder)
         two = _timed(sweep, 2, folder)
-    print(f"sweep of {len(sweep.tasks)} cycle-model runs (960x540, CNN), {os.cpu_count()} CPUs")
+        pool_one = _pool_seconds(sweep, 1)
+        pool_two = _pool_seconds(sweep, 2)
+    load = os.getloadavg()[0]
+    print(f"sweep of {len(sweep.tasks)} cycle-model runs (960x540, CNN), {os.cpu_count()} CPUs, "
+          f"load average {load:.2f} at the end")
     print(f"1 worker : {one:6.2f} s")
     print(f"2 workers: {two:6.2f} s")
     print(f"speed-up : {one / two:.2f}x (target >= 1.7x)")
+    print(f"reference: the same runs on a plain process pool, 1 vs 2 processes: {pool_one:.2f} s"
+          f" / {pool_two:.2f} s = {pool_one / pool_two:.2f}x (the parallelism the machine "
+          "offers now; other jobs share its cores)")
 
 
 if __name__ == "__main__":
