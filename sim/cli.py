@@ -282,6 +282,10 @@ def build_parser() -> argparse.ArgumentParser:
     cd.add_argument("a")
     cd.add_argument("b")
     cd.set_defaults(func=cmd_config_diff)
+
+    from sim import whatif_cli
+
+    whatif_cli.register(sub, _add_config_options, _scene_config)
     return p
 
 

@@ -1,0 +1,104 @@
+"""The what-if subcommands of ``stereosim``: ``estimate``, ``sweep`` and ``plot``.
+
+Registered by :func:`register` from :func:`sim.cli.build_parser`; errors follow the CLI's rule
+(one line, exit status 2, nothing half-written).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+from pathlib import Path
+
+from sim.errors import InputError
+
+
+def register(sub, add_config_options, scene_config) -> None:
+    """Add the three subcommands to ``sub`` (the parser's subparsers)."""
+
+    def cmd_estimate(args) -> int:
+        from sim.estimate import estimate, format_estimate, parse_size
+
+        size = args.size or "1280x720"
+        ndisp = None
+        if size == "default" or Path(size).is_dir():
+            from sim.sweep import _load
+
+            data = _load(size if size == "default" else str(Path(size)))
+            shape = data["left"].shape[:2]
+            ndisp = data.get("ndisp")
+        else:
+            shape = parse_size(size)
+        cfg = scene_config(args, ndisp)
+        if cfg.sva.disparities >= shape[1]:
+            raise InputError(
+                f"sva.disparities={cfg.sva.disparities} is not smaller than the image width "
+                f"{shape[1]}: use a smaller disparity range or a wider image"
+            )
+        est = estimate(cfg, shape)
+        if args.json:
+            print(json.dumps(est, indent=2, sort_keys=True))
+        else:
+            print(format_estimate(est))
+        return 0
+
+    e = sub.add_parser("estimate", help="analytic fps, latency, SRAM and traffic (no simulation)")
+    e.add_argument("--size", metavar="WxH|SCENE",
+                   help="frame size (default 1280x720), 'default' or a scene folder")
+    e.add_argument("--json", action="store_true", help="print the estimate as JSON")
+    add_config_options(e)
+    e.set_defaults(func=cmd_estimate)
+
+    def cmd_sweep(args) -> int:
+        from sim.plot import sweep_plots
+        from sim.sweep import CSV_NAME, load_sweep, read_rows, run_sweep
+
+        sweep = load_sweep(args.sweep_file)
+        if args.workers is not None and args.workers < 1:
+            raise InputError(f"--workers must be at least 1; got {args.workers}")
+        workers = args.workers or min(2, os.cpu_count() or 1)
+        out = Path(args.out)
+        counts = run_sweep(sweep, out, scheduler=args.scheduler, workers=workers,
+                           progress=not args.quiet)
+        rows = read_rows(out / CSV_NAME)
+        plots = sweep_plots(rows, sweep.axes, out)
+        print(f"{counts['tasks']} runs ({len(sweep.points)} points x {len(sweep.scenes)} scenes): "
+              f"{counts['skipped']} already done, {counts['ok']} ok, {counts['error']} failed")
+        print(f"wrote {out / CSV_NAME}" + "".join(f", {p.name}" for p in plots))
+        failed = [r for r in rows if r.get("status") == "error"]
+        for r in failed[:5]:
+            print(f"  point {r['point']} {r['scene']}: {r['error']}", file=sys.stderr)
+        return 0
+
+    s = sub.add_parser("sweep", help="run a grid of configurations x scenes in parallel (Dask)")
+    s.add_argument("sweep_file", help="sweep TOML: [grid], optional [zip] and [set], scenes, mode")
+    s.add_argument("--scheduler", metavar="ADDRESS",
+                   help="an existing Dask scheduler, e.g. tcp://host:8786 (default: a local "
+                   "cluster of worker processes)")
+    s.add_argument("--workers", type=int, metavar="N",
+                   help="local worker processes (default: min(2, CPUs))")
+    s.add_argument("--out", default="sweep", help="output folder (default: sweep)")
+    s.add_argument("--quiet", action="store_true", help="no progress bar")
+    s.set_defaults(func=cmd_sweep)
+
+    def cmd_plot(args) -> int:
+        from sim.plot import plot_xy
+        from sim.sweep import read_rows
+
+        path = Path(args.results)
+        if not path.is_file():
+            raise InputError(f"results file {path} not found: give a sweep's results.csv")
+        rows = read_rows(path)
+        plot_xy(rows, args.x, args.y, args.png, hue=args.hue, title=args.title, source=str(path))
+        print(f"wrote {args.png}")
+        return 0
+
+    p = sub.add_parser("plot", help="plot one column of a sweep's results.csv against another")
+    p.add_argument("results", help="a sweep's results.csv")
+    p.add_argument("--x", required=True, metavar="COLUMN")
+    p.add_argument("--y", required=True, metavar="COLUMN")
+    p.add_argument("--hue", metavar="COLUMN", help="one line per value of this column")
+    p.add_argument("--title")
+    p.add_argument("--png", required=True, metavar="OUT.png")
+    p.set_defaults(func=cmd_plot)
