@@ -23,6 +23,9 @@ estimate: every rule of :mod:`sim.clock` and :mod:`sim.fifo` is mirrored on arra
   descriptors and runs the functional streaming kernel (:func:`sva.pipeline._stream` and the
   median kernels) on the rows received so far once the output row in progress is ready and not
   yet final -- exactly what :class:`sva.pipeline.SvaStream` computes.
+* **Quiet stretches.** A clock domain whose blocks would report one status edge after edge is
+  *parked* and its edges settled in bulk (see the section of that name below); 4.3 M of the
+  16.7 M edges of a 720p CNN frame are stepped.
 
 Not covered: frames split over several NNA submodules (``nna.stereo_submodules`` > 2), traces
 and shuffled evaluation orders (results cannot depend on the order anyway), and sink stall
