@@ -95,7 +95,12 @@ N_BC = 18
 # (now: the last step's instant; tlp: the instant of the last step with progress)
 G_NOW, G_TLP, G_EVENT_A, G_EVENT_B, G_EVENT_C, G_EVENT_D = range(6)
 N_G = 6
-EV_DONE, EV_DEADLOCK, EV_BUDGET, EV_OVERFLOW, EV_DATA = 0, 1, 2, 3, 4
+EV_DONE, EV_DEADLOCK, EV_BUDGET, EV_OVERFLOW, EV_DATA, EV_TRACE = 0, 1, 2, 3, 4, 5
+# trace state (see "traces"): TR_* index the int64 control array
+TR_ON, TR_START, TR_END, TR_STARTED, TR_COUNT = range(5)
+# hold table columns per FIFO: pushed / popped in the last tick of its producer / consumer, the
+# last value pushed
+H_PUSH, H_POP, H_VALUE = range(3)
 
 
 # ---- descriptor rows -----------------------------------------------------------------------
@@ -738,8 +743,9 @@ def _try_park(d, dom, fq, rings, bs, bdom, h, w, nna_timing, sva_timing, ready_c
 
 
 @njit(cache=True, _nrt=False)
-def _settle(d, t_lim, g, dom, fq, rings, bs, bdom):
-    """Run parked domain ``d``'s edges before the instant ``t_lim`` in bulk and unpark it."""
+def _settle(d, t_lim, g, dom, fq, rings, bs, bdom, hold):
+    """Run parked domain ``d``'s edges before the instant ``t_lim`` in bulk and unpark it
+    (``hold``: the trace's push/pop flags, cleared: a parked domain moves nothing)."""
     dom[d, DC_PARKED] = 0
     nxt = dom[d, DC_NEXT]
     if t_lim <= nxt:
@@ -762,6 +768,7 @@ def _settle(d, t_lim, g, dom, fq, rings, bs, bdom):
         depth = fq[f, FC_DEPTH]
         off = fq[f, FC_OFF]
         if fq[f, FC_SRC] == d:
+            hold[f, H_PUSH] = 0
             if fq[f, FC_PUSHES] - fq[f, FC_SEEN] >= depth:
                 fq[f, FC_FULL] += n  # (no free slot shows before the wake edge)
             while fq[f, FC_FCOUNT] > 0 and frees[off + fq[f, FC_FHEAD]] <= c_last:
@@ -769,6 +776,7 @@ def _settle(d, t_lim, g, dom, fq, rings, bs, bdom):
                 fq[f, FC_FCOUNT] -= 1
                 fq[f, FC_SEEN] += 1
         if fq[f, FC_DST] == d:
+            hold[f, H_POP] = 0
             hist[fq[f, FC_HOFF] + fq[f, FC_PUSHES] - fq[f, FC_POPS]] += n
             if fq[f, FC_ICOUNT] == 0:
                 fq[f, FC_EMPTY] += n
@@ -783,17 +791,86 @@ def _settle(d, t_lim, g, dom, fq, rings, bs, bdom):
 
 
 @njit(cache=True, _nrt=False)
-def _settle_all(t_lim, g, dom, fq, rings, bs, bdom):
+def _settle_all(t_lim, g, dom, fq, rings, bs, bdom, hold):
     for d in range(dom.shape[0]):
         if dom[d, DC_PARKED]:
-            _settle(d, t_lim, g, dom, fq, rings, bs, bdom)
+            _settle(d, t_lim, g, dom, fq, rings, bs, bdom, hold)
+
+
+# ---- traces --------------------------------------------------------------------------------
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def _status_code(st):
+    """Block status as traced: 0 idle, 1 busy, 2 starved, 3 blocked (ACTIVITIES index + 1 mod 4;
+    never clocked: idle)."""
+    return np.uint64(0) if st < 0 else np.uint64((st + 1) % 4)
+
+
+@njit(cache=True, _nrt=False)
+def _trace_sample(vals, bs, fq, hold, hold_desc, h, half, word_mask):
+    """The traced signals' values, in the order of :func:`trace_signals`."""
+    i = 0
+    for b in (B_SRC_L, B_SRC_R):
+        vals[i] = _status_code(bs[b, BC_STATUS])
+        vals[i + 1] = bs[b, BC_S0]
+        i += 2
+    for side in range(2):
+        b = B_NNA_L if side == 0 else B_NNA_R
+        f = F_NNA_L if side == 0 else F_NNA_R
+        y_in = min(bs[b, BC_S0Y], h)
+        vals[i] = _status_code(bs[b, BC_STATUS])
+        vals[i + 1] = y_in
+        vals[i + 2] = max(0, y_in - max(0, bs[b, BC_S1Y] - half))
+        vals[i + 3] = bs[b, BC_S2]
+        vals[i + 4] = min(bs[b, BC_S1Y], h)
+        vals[i + 5] = bs[b, BC_S1X]
+        vals[i + 6] = hold[f, H_PUSH]
+        vals[i + 7] = hold_desc[f]
+        i += 8
+    for f in range(fq.shape[0]):
+        occ = fq[f, FC_PUSHES] - fq[f, FC_POPS]
+        vals[i] = occ
+        vals[i + 1] = hold[f, H_PUSH]
+        vals[i + 2] = hold[f, H_POP]
+        vals[i + 3] = 1 if fq[f, FC_PUSHES] - fq[f, FC_SEEN] >= fq[f, FC_DEPTH] else 0
+        vals[i + 4] = 1 if occ == 0 else 0
+        i += 5
+    vals[i] = _status_code(bs[B_SVA, BC_STATUS])
+    vals[i + 1] = min(bs[B_SVA, BC_S0Y], h)
+    vals[i + 2] = bs[B_SVA, BC_S0X]
+    vals[i + 3] = bs[B_SVA, BC_S3]
+    vals[i + 4] = min(bs[B_SVA, BC_S1Y], h)
+    vals[i + 5] = bs[B_SVA, BC_S1X]
+    vals[i + 6] = hold[F_SINK, H_PUSH]
+    vals[i + 7] = np.uint64(hold[F_SINK, H_VALUE] & word_mask)
+    vals[i + 8] = 1 if hold[F_SINK, H_PUSH] and hold[F_SINK, H_VALUE] < 0 else 0
+    i += 9
+    vals[i] = _status_code(bs[B_SINK, BC_STATUS])
+    vals[i + 1] = bs[B_SINK, BC_S0]
+    vals[i + 2] = hold[F_SINK, H_POP]
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def _trace_record(t, tr):
+    """Append the signals that changed since the last record, at instant ``t``."""
+    ctl, vals, last, hold, hold_desc, log_t, log_id, log_v = tr
+    n = ctl[TR_COUNT]
+    for k in range(vals.shape[0]):
+        if vals[k] != last[k]:
+            last[k] = vals[k]
+            log_t[n] = t
+            log_id[n] = k
+            log_v[n] = vals[k]
+            n += 1
+    ctl[TR_COUNT] = n
 
 
 # ---- the loop ------------------------------------------------------------------------------
 
 
 @njit(cache=True)
-def _run_loop(g, dom, fq, rings, bs, images, nna_data, sva_data, sink_data, src_params):
+def _run_loop(g, dom, fq, rings, bs, images, nna_data, sva_data, sink_data, src_params, tr):
     """Step until the sink holds the frame or an event stops the run; returns the event code.
 
     ``g`` global scalars, ``dom`` the domain table, ``fq``/``rings`` the FIFOs, ``bs`` the block
@@ -809,7 +886,7 @@ def _run_loop(g, dom, fq, rings, bs, images, nna_data, sva_data, sink_data, src_
     sva = sva_data[0]
     while True:
         event = _run_steps(g, dom, fq, rings, bs, images, nna_data, sva_data, sink_data,
-                           src_params)
+                           src_params, tr)
         if event != EV_DATA:
             return event
         for side in range(2):
@@ -820,8 +897,9 @@ def _run_loop(g, dom, fq, rings, bs, images, nna_data, sva_data, sink_data, src_
 
 
 @njit(cache=True, _nrt=False)
-def _run_steps(g, dom, fq, rings, bs, images, nna_data, sva_data, sink_data, src_params):
-    """The steps of :func:`_run_loop`; returns an event code (EV_DATA: run the kernels)."""
+def _run_steps(g, dom, fq, rings, bs, images, nna_data, sva_data, sink_data, src_params, tr):
+    """The steps of :func:`_run_loop`; returns an event code (EV_DATA: run the kernels,
+    EV_TRACE: the trace buffers need room)."""
     is_camera, freq_hz, bytes_per_s, line_clocks, watchdog = src_params
     left, right = images
     pixels, row_desc, nna, nna_timing = nna_data
@@ -841,7 +919,13 @@ def _run_steps(g, dom, fq, rings, bs, images, nna_data, sva_data, sink_data, src
     for d in range(1, n_dom):
         p_max = max(p_max, dom[d, DC_PERIOD])
     quiet_limit = watchdog * p_max
+    ctl, tr_vals, tr_last, hold, hold_desc = tr[0], tr[1], tr[2], tr[3], tr[4]
+    tracing = ctl[TR_ON] == 1
+    n_sig = tr_vals.shape[0]
+    word_mask = ctl[5]
     while bs[B_SINK, BC_S0] < total:
+        if tracing and ctl[TR_COUNT] + n_sig > tr[5].shape[0]:
+            return EV_TRACE
         # the data kernels this state needs (their conditions as in _nna_prepare_row and
         # SvaStream.advance)
         for b in (B_NNA_L, B_NNA_R):
@@ -872,14 +956,31 @@ def _run_steps(g, dom, fq, rings, bs, images, nna_data, sva_data, sink_data, src
                 t_dog = min(t_dog, nxt if nxt >= x else nxt + (x - nxt + per - 1) // per * per)
             if t_dog <= t:
                 t = t_dog
-                _settle_all(t, g, dom, fq, rings, bs, bdom)
+                _settle_all(t, g, dom, fq, rings, bs, bdom, hold)
+        if tracing and ctl[TR_STARTED] == 0 and t >= ctl[TR_START]:
+            # the window opens: every domain steps edge by edge until it closes
+            _settle_all(ctl[TR_START], g, dom, fq, rings, bs, bdom, hold)
+            t = INF
+            for d in range(n_dom):
+                t = min(t, dom[d, DC_NEXT])
+            _trace_sample(tr_vals, bs, fq, hold, hold_desc, h, half, word_mask)
+            # the values at the window's start: every signal once, at the start instant
+            n = ctl[TR_COUNT]
+            for k in range(n_sig):
+                tr_last[k] = tr_vals[k]
+                tr[5][n + k] = ctl[TR_START]
+                tr[6][n + k] = k
+                tr[7][n + k] = tr_vals[k]
+            ctl[TR_COUNT] = n + n_sig
+            ctl[TR_STARTED] = 1
+        in_window = tracing and ctl[TR_STARTED] == 1 and t < ctl[TR_END]
         for d in range(n_dom):
             if dom[d, DC_PARKED] and _edge_time(dom, d, dom[d, DC_WAKE]) == t:
-                _settle(d, t, g, dom, fq, rings, bs, bdom)
+                _settle(d, t, g, dom, fq, rings, bs, bdom, hold)
         for d in range(n_dom):
             tick[d] = dom[d, DC_PARKED] == 0 and dom[d, DC_NEXT] == t
             if tick[d] and dom[d, DC_LIMIT] >= 0 and dom[d, DC_CYCLES] >= dom[d, DC_LIMIT]:
-                _settle_all(t, g, dom, fq, rings, bs, bdom)
+                _settle_all(t, g, dom, fq, rings, bs, bdom, hold)
                 g[G_EVENT_A] = d
                 return EV_BUDGET
         g[G_NOW] = t
@@ -933,10 +1034,19 @@ def _run_steps(g, dom, fq, rings, bs, images, nna_data, sva_data, sink_data, src
         for f in range(n_fifo):
             if fq[f, FC_PUSH_ST] and dom[fq[f, FC_DST], DC_PARKED]:
                 touched[fq[f, FC_DST]] = True
-                _settle(fq[f, FC_DST], t + 1, g, dom, fq, rings, bs, bdom)
+                _settle(fq[f, FC_DST], t + 1, g, dom, fq, rings, bs, bdom, hold)
             if fq[f, FC_POP_ST] and dom[fq[f, FC_SRC], DC_PARKED]:
                 touched[fq[f, FC_SRC]] = True
-                _settle(fq[f, FC_SRC], t + 1, g, dom, fq, rings, bs, bdom)
+                _settle(fq[f, FC_SRC], t + 1, g, dom, fq, rings, bs, bdom, hold)
+        if tracing:
+            for f in range(n_fifo):
+                if tick[fq[f, FC_SRC]]:
+                    hold[f, H_PUSH] = fq[f, FC_PUSH_ST]
+                    if fq[f, FC_PUSH_ST]:
+                        hold[f, H_VALUE] = fq[f, FC_STAGED]
+                        hold_desc[f] = staged_desc[f]
+                if tick[fq[f, FC_DST]]:
+                    hold[f, H_POP] = fq[f, FC_POP_ST]
         for f in range(n_fifo):
             if tick[fq[f, FC_SRC]] or tick[fq[f, FC_DST]]:
                 if _commit(fq, ready, pay, pay_desc, frees, staged_desc, dom, tick, f):
@@ -952,13 +1062,17 @@ def _run_steps(g, dom, fq, rings, bs, images, nna_data, sva_data, sink_data, src
             for d in range(n_dom):
                 busy_parked = busy_parked or (dom[d, DC_PARKED] == 1 and dom[d, DC_PBUSY] == 1)
             if not busy_parked:
-                _settle_all(t + 1, g, dom, fq, rings, bs, bdom)
+                _settle_all(t + 1, g, dom, fq, rings, bs, bdom, hold)
                 return EV_DEADLOCK
+        if in_window:
+            _trace_sample(tr_vals, bs, fq, hold, hold_desc, h, half, word_mask)
+            _trace_record(t, tr)
+            continue
         for d in range(n_dom):
             if touched[d]:
                 _try_park(d, dom, fq, rings, bs, bdom, h, w, nna_timing, sva_timing,
                           ready_cycle, src_params, stall_period)
-    _settle_all(g[G_NOW] + 1, g, dom, fq, rings, bs, bdom)
+    _settle_all(g[G_NOW] + 1, g, dom, fq, rings, bs, bdom, hold)
     return EV_DONE
 
 
@@ -1026,8 +1140,64 @@ def _nna_tables(cfg: ChipConfig):
             n.descriptor == "cnn", offsets_a, offsets_b, w_f32, w_i32, bias, np.int32(offset))
 
 
+def trace_signals(shape, cfg: ChipConfig) -> list[tuple[str, int, str]]:
+    """The signals the engine traces, ``(path, width, domain)`` in the order of
+    :func:`_trace_sample`: per block its status (0 idle, 1 busy, 2 starved, 3 blocked) and
+    counters, per FIFO occupancy / push / pop / full (as the producer sees it) / empty, the
+    descriptors and disparities with their valid pulses. A pulse or a pushed value belongs to the
+    last edge of its producer's (push) or consumer's (pop) domain."""
+    setup = _Setup(shape, cfg)
+    h, w = shape
+
+    def nb(n):
+        return max(1, int(n).bit_length())
+
+    src = "camera" if setup.camera else "memory"
+    src_dom = "camera" if setup.camera else "nna"
+    cpd = cycles_per_descriptor(cfg.nna)
+    word_bits = 1 + math.ceil(math.log2(cfg.sva.disparities)) + cfg.sva.subpixel_bits
+    out = []
+    for side in ("left", "right"):
+        out += [(f"top.{src}_{side}.status", 2, src_dom),
+                (f"top.{src}_{side}.sent", nb(h * w), src_dom)]
+    for side in ("left", "right"):
+        p = f"top.nna.{side}.sub0"
+        out += [(f"{p}.status", 2, "nna"), (f"{p}.line_buffer.row_in", nb(h), "nna"),
+                (f"{p}.line_buffer.fill", nb(cfg.nna.line_buffer_rows), "nna"),
+                (f"{p}.mac.phase", nb(cpd), "nna"), (f"{p}.mac.row", nb(h), "nna"),
+                (f"{p}.mac.col", nb(w), "nna"), (f"{p}.out.valid", 1, "nna"),
+                (f"{p}.out.descriptor", setup.fifos[0][1], "nna")]
+    for f, name in enumerate(FIFO_NAMES):
+        depth, _, s_dom, d_dom = setup.fifos[f]
+        dn = DOMAIN_NAMES[d_dom]
+        out += [(f"top.fifo.{name}.occupancy", nb(depth), dn),
+                (f"top.fifo.{name}.push", 1, DOMAIN_NAMES[s_dom]), (f"top.fifo.{name}.pop", 1, dn),
+                (f"top.fifo.{name}.full", 1, DOMAIN_NAMES[s_dom]), (f"top.fifo.{name}.empty", 1, dn)]
+    out += [("top.sva.status", 2, "sva"), ("top.sva.input.row", nb(h), "sva"),
+            ("top.sva.input.col", nb(w), "sva"), ("top.sva.input.rows_ready", nb(h), "sva"),
+            ("top.sva.output.row", nb(h), "sva"), ("top.sva.output.col", nb(w), "sva"),
+            ("top.sva.output.valid", 1, "sva"), ("top.sva.output.disparity", word_bits, "sva"),
+            ("top.sva.lr_check.reject", 1, "sva"),
+            ("top.sink.status", 2, "sva"), ("top.sink.count", nb(h * w), "sva"),
+            ("top.sink.valid", 1, "sva")]
+    return out
+
+
+def _trace_state(n_sig, n_fifo, window, word_bits, capacity):
+    ctl = np.zeros(6, np.int64)
+    if window is not None:
+        ctl[TR_ON], ctl[TR_START], ctl[TR_END] = 1, window[0], window[1]
+    ctl[5] = (1 << word_bits) - 1
+    return (ctl, np.zeros(n_sig, np.uint64), np.zeros(n_sig, np.uint64),
+            np.zeros((n_fifo, 3), np.int64), np.zeros(n_fifo, np.uint64),
+            np.zeros(capacity, np.int64), np.zeros(capacity, np.int32),
+            np.zeros(capacity, np.uint64))
+
+
 def run_cycle_fast(left: np.ndarray, right: np.ndarray, cfg: ChipConfig, *,
-                   sink_stall: tuple[int, int] | None = None) -> tuple[np.ndarray, dict, dict]:
+                   sink_stall: tuple[int, int] | None = None,
+                   trace_window: tuple[int, int] | None = None,
+                   trace_out: dict | None = None) -> tuple[np.ndarray, dict, dict]:
     """Simulate one frame on the compiled engine: ``(words (H, W) int32, cycle report, stats)``.
 
     Equal to :func:`sim.chip.run_cycle` in the words, in the report (:func:`sim.chip.cycle_report`)
@@ -1035,6 +1205,12 @@ def run_cycle_fast(left: np.ndarray, right: np.ndarray, cfg: ChipConfig, *,
     :class:`~sim.clock.DeadlockError` and :class:`~sim.clock.BudgetExceeded`. ``sink_stall``:
     ``(period, allowed_phase)`` -- the sink pops only in cycles ``c`` with
     ``c % period == allowed_phase`` (``Sink(stall=lambda c: c % period != allowed_phase)``).
+
+    ``trace_window=(start_fs, end_fs)``: record the signals of :func:`trace_signals` over that
+    window (every edge in it is stepped) into ``trace_out``: ``signals``, ``initial`` (values at
+    ``start_fs``), ``times_fs``, ``ids``, ``values`` (changes, in time order), ``domains`` (name,
+    period, phase). Tracing changes nothing else: the words, the report and the statistics are
+    the same with and without it.
     """
     if cfg.nna.stereo_submodules != 2:
         raise ConfigError(
@@ -1102,8 +1278,31 @@ def run_cycle_fast(left: np.ndarray, right: np.ndarray, cfg: ChipConfig, *,
     src_params = (setup.camera, np.int64(round(src_freq)),
                   np.int64(round(cfg.source.memory_gbps * 1e9)),
                   np.int64(w + cfg.source.camera_hblank), np.int64(cfg.sim.watchdog_cycles))
-    event = _run_loop(g, dom, fq, rings, bs, (left, right), nna_data, sva_data, sink_data,
-                      src_params)
+    signals = trace_signals(shape, cfg)
+    word_bits = 1 + math.ceil(math.log2(cfg.sva.disparities)) + cfg.sva.subpixel_bits
+    tr = _trace_state(len(signals), n_f, trace_window, word_bits,
+                      1 << 16 if trace_window is not None else 0)
+    while True:
+        event = _run_loop(g, dom, fq, rings, bs, (left, right), nna_data, sva_data, sink_data,
+                          src_params, tr)
+        if event != EV_TRACE:
+            break
+        n_log = int(tr[0][TR_COUNT])
+        grown = [np.zeros(2 * a.shape[0] + len(signals), a.dtype) for a in tr[5:]]
+        for new, old in zip(grown, tr[5:]):
+            new[:n_log] = old[:n_log]
+        tr = (*tr[:5], *grown)
+    if trace_window is not None and trace_out is not None:
+        n_log = int(tr[0][TR_COUNT])
+        n_sig = len(signals)
+        started = bool(tr[0][TR_STARTED])
+        trace_out.update(
+            signals=signals, started=started,
+            initial=tr[7][:n_sig].copy() if started else None,
+            times_fs=tr[5][n_sig:n_log].copy(), ids=tr[6][n_sig:n_log].copy(),
+            values=tr[7][n_sig:n_log].copy(),
+            domains=[(n, setup.domains[n].period_fs, setup.domains[n].phase_fs)
+                     for n in setup.domains])
     state = _State(setup, cfg, g, dom, fq, rings, bs)
     if event == EV_OVERFLOW:
         side = "left" if g[G_EVENT_A] == 0 else "right"
