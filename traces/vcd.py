@@ -436,11 +436,17 @@ def vcd_text_pyvcd(log: TraceLog, *, date: str = "", version: str | None = None)
             writer.register_var(scope, name, "wire", size=sig.width, init=int(log.initial[i]))
         )
     all_vars = clock_vars + sig_vars
-    times = np.concatenate([*edge_t, log.times_fs])
-    values = np.concatenate([*edge_v, log.values])
-    which = np.concatenate([*edge_var, log.ids.astype(np.int64) + len(clock_vars)])
-    order = np.argsort(times, kind="stable")  # clocks before signals at one instant
-    for t, k, v in zip(times[order].tolist(), which[order].tolist(), values[order].tolist()):
+    # The log's semantics, plainly: the last change of a signal at an instant wins.
+    last: dict[tuple[int, int], int] = {}
+    for t, i, v in zip(log.times_fs.tolist(), log.ids.tolist(), log.values.tolist()):
+        last[(t, i)] = v
+    events = [(t, len(clock_vars) + i, v) for (t, i), v in last.items()]
+    for t, k, v in zip(np.concatenate(edge_t).tolist() if edge_t else [],
+                       np.concatenate(edge_var).tolist() if edge_var else [],
+                       np.concatenate(edge_v).tolist() if edge_v else []):
+        events.append((t, k, v))
+    events.sort()  # by time, clocks (lower index) first
+    for t, k, v in events:
         writer.change(all_vars[k], t, v)
     writer.close(log.end_fs)
     return out.getvalue()
