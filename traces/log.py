@@ -439,3 +439,24 @@ class TraceRecorder:
             end_fs=int(end_fs), initial=initial, times_fs=times[keep], ids=ids[keep],
             values=values[keep],
         ))
+
+
+def changes_of(log: TraceLog, sig_id: int) -> tuple[np.ndarray, np.ndarray]:
+    """Signal ``sig_id``'s value at ``start_fs`` and at each real change after it: instants
+    (int64, the first is ``start_fs``) and values (uint64), with the log's semantics applied
+    (the last change at an instant wins, repeats are dropped)."""
+    sel = log.ids == sig_id
+    t = log.times_fs[sel]
+    v = log.values[sel]
+    if t.size:
+        last = np.ones(t.size, dtype=bool)
+        last[:-1] = t[1:] != t[:-1]
+        t, v = t[last], v[last]
+    if t.size and t[0] == log.start_fs:
+        t, v = t.copy(), v.copy()
+    else:
+        t = np.concatenate([np.array([log.start_fs], np.int64), t])
+        v = np.concatenate([log.initial[sig_id : sig_id + 1], v])
+    keep = np.ones(t.size, dtype=bool)
+    keep[1:] = v[1:] != v[:-1]
+    return t[keep], v[keep]
