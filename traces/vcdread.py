@@ -70,6 +70,8 @@ def _parse_header(header: str, path: Path) -> tuple[int, list[VcdVar]]:
             elif not tok.startswith("$"):
                 raise ValueError(tok)
             k = end + 1
+    except InputError:
+        raise
     except (ValueError, IndexError):
         raise InputError(
             f"VCD file {path} has a corrupt header near token {k} ('{tokens[k][:20]}'): "
