@@ -107,7 +107,9 @@ def check_path(path) -> list[str]:
 
 def _check_signals(signals) -> None:
     if not isinstance(signals, list):
-        raise ConfigError(f"trace log signals must be a list of Signal; got {type(signals).__name__}")
+        raise ConfigError(
+            f"trace log signals must be a list of Signal; got {type(signals).__name__}"
+        )
     seen: set[str] = set()
     scopes: set[str] = set()
     for i, sig in enumerate(signals):
@@ -116,7 +118,8 @@ def _check_signals(signals) -> None:
         parts = check_path(sig.path)
         if not _is_int(sig.width) or not 1 <= sig.width <= 64:
             raise ConfigError(
-                f"signal '{sig.path}': width must be an integer from 1 to 64 bits; got {sig.width!r}"
+                f"signal '{sig.path}': width must be an integer from 1 to 64 bits; "
+                f"got {sig.width!r}"
             )
         if not isinstance(sig.domain, str):
             raise ConfigError(
@@ -432,7 +435,9 @@ class TraceRecorder:
         try:
             initial = np.array(self._state, dtype=np.uint64)
         except (OverflowError, TypeError, ValueError):
-            raise ConfigError("an initial trace value is not an unsigned integer below 2**64") from None
+            raise ConfigError(
+                "an initial trace value is not an unsigned integer below 2**64"
+            ) from None
         keep = times < end_fs
         return validate(TraceLog(
             signals=list(self.signals), clocks=list(self.clocks), start_fs=self.start_fs,

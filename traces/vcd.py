@@ -19,10 +19,11 @@ The file is laid out as follows (``docs/traces.md`` shows an example):
 Each clock has a rising edge at ``phase_fs + k * period_fs`` and a falling edge ``period_fs // 2``
 later; the edges in the window are generated here, not logged.
 
-:func:`vcd_bytes` is the fast writer: two passes of a compiled kernel over the log (count the
-bytes, then format them into one buffer). :func:`vcd_text_pyvcd` writes the same dump with pyvcd
-and serves as the reference it is tested against. :func:`estimate_vcd_bytes` gives the size of
-the fast writer's output from the counting pass alone; :func:`bound_vcd_bytes` bounds it before a
+:func:`vcd_bytes` is the fast writer, three compiled (numba) passes: merge the log's changes with
+the clock edges and drop repeats, size the text, format it into one buffer.
+:func:`vcd_text_pyvcd` writes the same dump with pyvcd and serves as the reference it is tested
+against. :func:`estimate_vcd_bytes` gives the exact size of the fast writer's output from the
+first two passes; :func:`bound_vcd_bytes` bounds it before a
 run, from the signals and the window only.
 """
 

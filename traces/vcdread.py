@@ -89,7 +89,9 @@ def read_vcd(path: str | os.PathLike, select: Callable | None = None) -> VcdData
     try:
         data = p.read_bytes()
     except OSError as exc:
-        raise InputError(f"cannot read VCD file {p} ({exc.strerror}): check its permissions") from exc
+        raise InputError(
+            f"cannot read VCD file {p} ({exc.strerror}): check its permissions"
+        ) from exc
     try:
         text = data.decode("ascii")
     except UnicodeDecodeError:
@@ -149,7 +151,9 @@ def read_vcd(path: str | os.PathLike, select: Callable | None = None) -> VcdData
                 continue
             raise ValueError(f"unexpected token '{tok[:20]}'")
     except (ValueError, IndexError) as exc:
-        raise InputError(f"VCD file {p} is corrupt in its value changes ({exc}): replace it") from None
+        raise InputError(
+            f"VCD file {p} is corrupt in its value changes ({exc}): replace it"
+        ) from None
     if now is None:
         raise InputError(f"VCD file {p} has no timestamp: it holds no values")
     return VcdData(unit_fs=unit_fs, vars=variables, first_time=first, last_time=now,

@@ -113,8 +113,9 @@ def wave_png(data: VcdData, variables: list[VcdVar], a: int, b: int, *,
     n = len(variables)
     dpi = 100
     fig = Figure(figsize=(width_in, 0.9 + 0.42 * n), dpi=dpi)
-    label_w = min(0.45, 0.012 * max(len(v.path) for v in variables) + 0.02)
-    ax = fig.add_axes((label_w, 0.55 / (0.9 + 0.42 * n), 0.98 - label_w, 0.42 * n / (0.9 + 0.42 * n)))
+    label_w = min(0.45, 0.0056 * max(len(v.path) for v in variables) + 0.025)
+    height_in = 0.9 + 0.42 * n
+    ax = fig.add_axes((label_w, 0.55 / height_in, 0.98 - label_w, 0.42 * n / height_in))
     ax.set_xlim(a * k, b * k)
     ax.set_ylim(-0.2, n)
     axis_px = width_in * dpi * (0.98 - label_w)

@@ -186,5 +186,6 @@ def test_dump_of_a_simulation_reads_back_as_the_simulators_state(tmp_path):
         for key, sig in zip(keys, signals):
             assert int(got[sig.path].value_at(t)) == state[key], (sig.path, t)
             checked += 1
-        assert int(got["clocks.nna"].value_at(t)) == (1 if (t % fast.period_fs) < fast.period_fs // 2 else 0)
+        high = (t % fast.period_fs) < fast.period_fs // 2
+        assert int(got["clocks.nna"].value_at(t)) == (1 if high else 0)
     assert checked > 80
