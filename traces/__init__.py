@@ -1,1 +1,13 @@
-"""Waveform traces (VCD, timeline) -- arrives with the trace issue."""
+"""Waveform traces of the cycle model: VCD for GTKWave and Surfer, GTKWave save files, a
+Perfetto timeline and waveform pictures, all from one engine-agnostic columnar log.
+
+- :mod:`traces.log` -- :class:`~traces.log.TraceLog` (what the engines produce), validation,
+  :class:`~traces.log.TraceRecorder` (the readable engine's trace hook), ``select`` / ``window``;
+- :mod:`traces.vcd` -- the fast VCD writer, the pyvcd reference writer, size estimate and bound;
+- :mod:`traces.gtkw` -- a GTKWave save file with one group per unit;
+- :mod:`traces.timeline` -- Chrome/Perfetto trace-event JSON (busy/stall spans, FIFO counters);
+- :mod:`traces.vcdread` and :mod:`traces.wave` -- read a VCD back, draw it with matplotlib;
+- :mod:`traces.cli` -- the ``stereosim wave`` subcommand.
+
+``docs/traces.md`` describes the format, the signal names and the viewers.
+"""
