@@ -25,13 +25,15 @@ class Result:
 
     ``disparity``: float32 (H, W), pixels, ``inf`` where invalid. ``disparity_fixed``: the chip's
     output words, int32 with ``subpixel_bits`` fractional bits, -1 where invalid. ``report``: the
-    dict written as report.json. ``config``: the effective configuration.
+    dict written as report.json. ``config``: the effective configuration. ``trace``: the
+    :class:`traces.log.TraceLog` of a traced cycle run, else None.
     """
 
     disparity: np.ndarray
     disparity_fixed: np.ndarray
     report: dict
     config: ChipConfig
+    trace: Any = None
 
 
 def prepare_pair(left, right) -> tuple[np.ndarray, np.ndarray]:
@@ -71,6 +73,7 @@ def run(
     overrides: dict[str, Any] | None = None,
     gt: np.ndarray | None = None,
     masks: dict[str, np.ndarray] | None = None,
+    trace=None,
 ) -> Result:
     """Simulate one stereo frame.
 
@@ -83,6 +86,8 @@ def run(
     :class:`ChipConfig`, a TOML path or None (defaults); ``overrides``: dotted keys such as
     ``{"sva.disparities": 128, "nna.descriptor": "census"}``. With ``gt`` (float32, inf unknown)
     the report gains ``metrics`` over ``masks`` (default: every pixel with known GT).
+    ``trace``: a :class:`sim.tracing.TraceRequest` (cycle mode only): the result carries the
+    recorded :class:`traces.log.TraceLog` (files are written by :func:`sim.tracing.write_traces`).
     """
     if mode not in MODES:
         raise ConfigError(f"mode must be one of {', '.join(MODES)}; got {mode!r}")
@@ -95,7 +100,15 @@ def run(
             f"use a smaller disparity range (--disparities) or a wider image"
         )
     bits = descriptor_bits(cfg.nna)
-    if mode == "cycle":
+    log = None
+    if trace is not None and mode != "cycle":
+        raise ConfigError("traces need the cycle model: use mode='cycle' (--mode cycle)")
+    if mode == "cycle" and trace is not None:
+        from sim.tracing import run_traced
+
+        fixed, cycle_report, log = run_traced(gl, gr, cfg, trace)
+        cycle_report["engine"] = "fast"
+    elif mode == "cycle":
         from sim.chip import simulate
 
         fixed, cycle_report = simulate(gl, gr, cfg)
@@ -109,7 +122,7 @@ def run(
         report.update(cycle_report)
     if gt is not None:
         report["metrics"] = evaluate(disp, gt, masks if masks else {"all": np.isfinite(gt)})
-    return Result(disparity=disp, disparity_fixed=fixed, report=report, config=cfg)
+    return Result(disparity=disp, disparity_fixed=fixed, report=report, config=cfg, trace=log)
 
 
 def build_report(cfg: ChipConfig, mode: str, fixed: np.ndarray, bits: int) -> dict:

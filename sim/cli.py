@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from sim.config import config_diff, config_to_toml, load_config, parse_set_options
-from sim.errors import InputError, UserError
+from sim.errors import ConfigError, InputError, UserError
 
 EVAL_KEYS = ("bad0.5", "bad1", "bad2", "bad4", "invalid", "totbad", "avgerr", "rms")
 
@@ -171,21 +171,54 @@ def _summary(report: dict, seconds: float) -> str:
 def cmd_run(args) -> int:
     from sim.api import run
 
+    request = _trace_request(args)
     data = _load_run_inputs(args)
     cfg = _scene_config(args, data.get("ndisp"))
     t0 = time.perf_counter()
     result = run(data["left"], data["right"], mode=args.mode, config=cfg,
-                 gt=data.get("gt"), masks=data.get("masks"))
+                 gt=data.get("gt"), masks=data.get("masks"), trace=request)
     seconds = time.perf_counter() - t0
     result.report["scene"] = {"name": data["name"], "source": data["source"]}
+    traced = []
+    if request is not None:
+        from sim.tracing import check_size, write_traces
+
+        check_size(result.trace, request)  # refuse before anything is written
+        result.report["trace"] = {
+            "window_fs": [result.trace.start_fs, result.trace.end_fs],
+            "signals": len(result.trace.signals), "value_changes": result.trace.n_changes,
+        }
     out_dir = Path(args.out)
     _write_outputs(out_dir, result, float(cfg.sva.disparities))
+    if request is not None:
+        traced = write_traces(result.trace, request)
     if args.json:
         print(json.dumps(result.report, indent=2, sort_keys=True))
     else:
         print(_summary(result.report, seconds))
         print(f"wrote {out_dir}/disparity.pfm, disparity.png, report.json")
+        if traced:
+            print(f"wrote {', '.join(traced)} ({result.trace.n_changes} value changes)")
     return 0
+
+
+def _trace_request(args):
+    """The TraceRequest of run's trace options, or None without --vcd/--timeline."""
+    from sim.tracing import TraceRequest, parse_window
+
+    if not (args.vcd or args.timeline):
+        if args.trace_window or args.trace or args.force:
+            raise ConfigError("--trace-window, --trace and --force need --vcd FILE or --timeline "
+                              "FILE")
+        return None
+    if args.mode != "cycle":
+        raise ConfigError("traces need the cycle model: drop --mode functional")
+    parse_window(args.trace_window)  # bad windows fail before the run
+    if args.trace_limit <= 0:
+        raise ConfigError(f"--trace-limit must be > 0 MB, got {args.trace_limit:g}")
+    patterns = tuple(p for item in args.trace for p in item.split(",") if p)
+    return TraceRequest(window=args.trace_window, patterns=patterns, vcd=args.vcd,
+                        timeline=args.timeline, force=args.force, limit_mb=args.trace_limit)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -261,6 +294,18 @@ def build_parser() -> argparse.ArgumentParser:
                    "functional (the bit-exact model alone, faster)")
     r.add_argument("--out", default="out", help="output folder (default: out)")
     r.add_argument("--json", action="store_true", help="print the report as JSON")
+    t = r.add_argument_group("traces (cycle model; see docs/traces.md)")
+    t.add_argument("--vcd", help="write a VCD waveform of the trace window (and a .gtkw next to it)")
+    t.add_argument("--timeline", help="write a Chrome/Perfetto trace-event JSON of the window")
+    t.add_argument("--trace-window", metavar="A:B",
+                   help="SVA cycles A:B, or nna:A:B / sva:A:B / camera:A:B, or rows:A:B "
+                   "(default: the whole frame)")
+    t.add_argument("--trace", action="append", default=[], metavar="PATTERNS",
+                   help="keep signals matching these glob patterns (comma-separated, "
+                   "repeatable), e.g. 'top.sva.*,top.fifo.*.occupancy'")
+    t.add_argument("--trace-limit", type=float, default=500.0, metavar="MB",
+                   help="refuse a VCD larger than this (default 500 MB) unless --force")
+    t.add_argument("--force", action="store_true", help="write the VCD whatever its size")
     _add_config_options(r)
     r.set_defaults(func=cmd_run)
 
@@ -284,8 +329,10 @@ def build_parser() -> argparse.ArgumentParser:
     cd.set_defaults(func=cmd_config_diff)
 
     from sim import whatif_cli
+    from traces.cli import add_wave_parser
 
     whatif_cli.register(sub, _add_config_options, _scene_config)
+    add_wave_parser(sub)
     return p
 
 

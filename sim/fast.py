@@ -854,7 +854,7 @@ def _trace_sample(vals, bs, fq, hold, hold_desc, h, half, word_mask):
 @njit(cache=True, _nrt=False, inline="always")
 def _trace_record(t, tr):
     """Append the signals that changed since the last record, at instant ``t``."""
-    ctl, vals, last, hold, hold_desc, log_t, log_id, log_v = tr
+    ctl, vals, last, log_t, log_id, log_v = tr[0], tr[1], tr[2], tr[5], tr[6], tr[7]
     n = ctl[TR_COUNT]
     for k in range(vals.shape[0]):
         if vals[k] != last[k]:
@@ -919,7 +919,7 @@ def _run_steps(g, dom, fq, rings, bs, images, nna_data, sva_data, sink_data, src
     for d in range(1, n_dom):
         p_max = max(p_max, dom[d, DC_PERIOD])
     quiet_limit = watchdog * p_max
-    ctl, tr_vals, tr_last, hold, hold_desc = tr[0], tr[1], tr[2], tr[3], tr[4]
+    ctl, tr_vals, tr_last, hold, hold_desc, row_times = tr[0], tr[1], tr[2], tr[3], tr[4], tr[8]
     tracing = ctl[TR_ON] == 1
     n_sig = tr_vals.shape[0]
     word_mask = ctl[5]
@@ -1064,6 +1064,14 @@ def _run_steps(g, dom, fq, rings, bs, images, nna_data, sva_data, sink_data, src
             if not busy_parked:
                 _settle_all(t + 1, g, dom, fq, rings, bs, bdom, hold)
                 return EV_DEADLOCK
+        # row times (for windows given in rows): the instant the left line buffer reaches row
+        # r, and the instant the sink holds row r - 1 complete
+        y_in = bs[B_NNA_L, BC_S0Y]
+        if y_in <= h and row_times[0, y_in] < 0:
+            row_times[0, y_in] = t
+        y_out = bs[B_SINK, BC_S0Y]
+        if y_out <= h and row_times[1, y_out] < 0:
+            row_times[1, y_out] = t
         if in_window:
             _trace_sample(tr_vals, bs, fq, hold, hold_desc, h, half, word_mask)
             _trace_record(t, tr)
@@ -1183,15 +1191,17 @@ def trace_signals(shape, cfg: ChipConfig) -> list[tuple[str, int, str]]:
     return out
 
 
-def _trace_state(n_sig, n_fifo, window, word_bits, capacity):
+def _trace_state(n_sig, n_fifo, window, word_bits, capacity, h):
     ctl = np.zeros(6, np.int64)
     if window is not None:
         ctl[TR_ON], ctl[TR_START], ctl[TR_END] = 1, window[0], window[1]
     ctl[5] = (1 << word_bits) - 1
+    row_times = np.full((2, h + 1), -1, np.int64)
+    row_times[:, 0] = 0
     return (ctl, np.zeros(n_sig, np.uint64), np.zeros(n_sig, np.uint64),
             np.zeros((n_fifo, 3), np.int64), np.zeros(n_fifo, np.uint64),
             np.zeros(capacity, np.int64), np.zeros(capacity, np.int32),
-            np.zeros(capacity, np.uint64))
+            np.zeros(capacity, np.uint64), row_times)
 
 
 def run_cycle_fast(left: np.ndarray, right: np.ndarray, cfg: ChipConfig, *,
@@ -1281,17 +1291,19 @@ def run_cycle_fast(left: np.ndarray, right: np.ndarray, cfg: ChipConfig, *,
     signals = trace_signals(shape, cfg)
     word_bits = 1 + math.ceil(math.log2(cfg.sva.disparities)) + cfg.sva.subpixel_bits
     tr = _trace_state(len(signals), n_f, trace_window, word_bits,
-                      1 << 16 if trace_window is not None else 0)
+                      1 << 16 if trace_window is not None else 0, h)
     while True:
         event = _run_loop(g, dom, fq, rings, bs, (left, right), nna_data, sva_data, sink_data,
                           src_params, tr)
         if event != EV_TRACE:
             break
         n_log = int(tr[0][TR_COUNT])
-        grown = [np.zeros(2 * a.shape[0] + len(signals), a.dtype) for a in tr[5:]]
-        for new, old in zip(grown, tr[5:]):
+        grown = [np.zeros(2 * a.shape[0] + len(signals), a.dtype) for a in tr[5:8]]
+        for new, old in zip(grown, tr[5:8]):
             new[:n_log] = old[:n_log]
-        tr = (*tr[:5], *grown)
+        tr = (*tr[:5], *grown, tr[8])
+    if trace_out is not None:
+        trace_out["row_times"] = tr[8].copy()
     if trace_window is not None and trace_out is not None:
         n_log = int(tr[0][TR_COUNT])
         n_sig = len(signals)

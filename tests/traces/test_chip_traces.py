@@ -1,0 +1,208 @@
+"""Traces of the chip (issue 5 acceptance): the compiled engine's trace read back by two
+independent VCD readers equals the readable kernel's own state; tracing changes nothing; the
+output-valid pulses count the disparities; two runs give identical files; bad trace options
+fail cleanly."""
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+import pywellen
+import vcdvcd
+
+from sim.chip import build_chip, frame_budget
+from sim.cli import main
+from sim.clock import BudgetExceeded
+from sim.config import load_config
+from sim.fast import run_cycle_fast
+from sim.io import read_pfm
+from sim.tracing import TraceRequest, run_traced, write_traces
+
+SHAPE = (14, 40)
+CONFIG = {"sva.disparities": 16, "nna.descriptor": "cnn", "sva.paths": 4, "sva.lr_check": True,
+          "fifo.nna_to_sva_depth": 4}
+STATUS = {"idle": 0, "busy": 1, "starved": 2, "blocked": 3}
+
+
+def _pair(shape=SHAPE, seed=3):
+    rng = np.random.default_rng(seed)
+    left = rng.integers(0, 256, shape, dtype=np.uint8)
+    return left, np.roll(left, -4, axis=1)
+
+
+def _traced(tmp_path, cfg, left, right, window=None):
+    req = TraceRequest(window=window, vcd=str(tmp_path / "t.vcd"),
+                       timeline=str(tmp_path / "t.json"))
+    words, report, log = run_traced(left, right, cfg, req)
+    write_traces(log, req)
+    return words, report, log, req
+
+
+class _Wellen:
+    """Values of a VCD through pywellen (Surfer's backend)."""
+
+    def __init__(self, path):
+        self.vars = {var.full_name: var.signal for var in pywellen.Waveform(str(path)).all_vars()}
+
+    def value(self, name, t_fs):
+        return int(self.vars[name].value_at(t_fs))
+
+
+def _vcdvcd_value(vcd, name, t_fs):
+    return int(vcd[name][t_fs], 2)
+
+
+def test_trace_values_equal_the_readable_kernels_state_at_sampled_instants(tmp_path):
+    """At SVA cycles k, the readable kernel stopped by a budget of k SVA cycles reports every
+    FIFO's occupancy and every block's status; the VCD of the compiled engine, read by pywellen
+    and by vcdvcd just before that instant, says the same."""
+    cfg = load_config(overrides=CONFIG)
+    left, right = _pair()
+    _, _, log, req = _traced(tmp_path, cfg, left, right)
+    wellen = _Wellen(req.vcd)
+    vv = vcdvcd.VCDVCD(req.vcd, store_scopes=True)
+    blocks = {"memory_left": "top.memory_left", "memory_right": "top.memory_right",
+              "nna_left": "top.nna.left.sub0", "nna_right": "top.nna.right.sub0",
+              "sva": "top.sva", "sink": "top.sink"}
+    sva_cycles = [3, 250, 1200, 2500, 3001]
+    checked = 0
+    for k in sva_cycles:
+        chip = build_chip(left, right, cfg)
+        budget = frame_budget(left.shape, cfg, chip.domains)
+        budget["sva"] = k
+        with pytest.raises(BudgetExceeded) as info:
+            chip.sim.run(lambda chip=chip: chip.sink.done, budget_cycles=budget,
+                         watchdog_cycles=cfg.sim.watchdog_cycles)
+        err = info.value
+        t = err.time_fs - 1  # the state every step before the instant holds
+        assert t >= log.start_fs
+        for fifo, st in err.fifos.items():
+            name = f"top.fifo.{fifo}.occupancy"
+            assert wellen.value(name, t) == st["occupancy"]
+            assert _vcdvcd_value(vv, _vcdvcd_name(vv, name), t) == st["occupancy"]
+        for block, st in err.blocks.items():
+            name = f"{blocks[block]}.status"
+            expected = STATUS[st["status"]] if st["status"] else 0
+            assert wellen.value(name, t) == expected
+            assert _vcdvcd_value(vv, _vcdvcd_name(vv, name), t) == expected
+            checked += 1
+    assert checked == 6 * len(sva_cycles)
+
+
+def _vcdvcd_name(vv, dotted):
+    """vcdvcd names vectors with their range: find the reference for a dotted path."""
+    for ref in vv.references_to_ids:
+        if ref == dotted or ref.split("[")[0] == dotted:
+            return ref
+    raise KeyError(dotted)
+
+
+def test_tracing_changes_nothing_and_valid_pulses_count_the_disparities(tmp_path):
+    cfg = load_config(overrides=CONFIG)
+    left, right = _pair()
+    words0, report0, stats0 = run_cycle_fast(left, right, cfg)
+    words1, report1, log, req = _traced(tmp_path, cfg, left, right)
+    assert np.array_equal(words0, words1) and report0 == report1
+    # output valid sampled at every SVA clock edge of the window = words the SVA produced
+    wellen = _Wellen(req.vcd)
+    sva = next(c for c in log.clocks if c.name == "sva")
+    edges = range(-(-(log.start_fs - sva.phase_fs) // sva.period_fs),
+                  (log.end_fs - 1 - sva.phase_fs) // sva.period_fs + 1)
+    pulses = sum(wellen.value("top.sva.output.valid", sva.phase_fs + k * sva.period_fs)
+                 for k in edges)
+    assert pulses == words0.size == report0["fifos"]["sva_to_sink"]["pushes"]
+
+
+def test_a_window_traces_only_its_instants_and_leaves_results_alone(tmp_path):
+    cfg = load_config(overrides=CONFIG)
+    left, right = _pair()
+    words0, report0, _ = run_cycle_fast(left, right, cfg)
+    words1, report1, log, _ = _traced(tmp_path, cfg, left, right, window="sva:500:900")
+    assert np.array_equal(words0, words1) and report0 == report1
+    sva = next(c for c in log.clocks if c.name == "sva")
+    assert log.start_fs == sva.phase_fs + 500 * sva.period_fs
+    assert log.end_fs == sva.phase_fs + 900 * sva.period_fs
+    assert log.n_changes > 0 and log.times_fs.min() >= log.start_fs
+    assert log.times_fs.max() < log.end_fs
+
+
+def test_rows_window_spans_from_the_line_buffer_to_the_sink(tmp_path):
+    cfg = load_config(overrides=CONFIG)
+    left, right = _pair()
+    _, _, log, req = _traced(tmp_path, cfg, left, right, window="rows:2:5")
+    wellen = _Wellen(req.vcd)
+    # at the start the left line buffer has just reached row 2; at the end the sink holds 5 rows
+    assert wellen.value("top.nna.left.sub0.line_buffer.row_in", log.start_fs) == 2
+    assert wellen.value("top.sink.count", log.end_fs - 1) == 5 * SHAPE[1]
+    # ... and did not hold it one instant before (the last step of the window completed it)
+    assert wellen.value("top.sink.count", log.times_fs[-1] - 1) < 5 * SHAPE[1]
+
+
+def _cli_run(tmp_path, name, *extra):
+    left, right = _pair((20, 48))
+    cv2.imwrite(str(tmp_path / "l.png"), left)
+    cv2.imwrite(str(tmp_path / "r.png"), right)
+    out = tmp_path / name
+    argv = ["run", "--left", str(tmp_path / "l.png"), "--right", str(tmp_path / "r.png"),
+            "--disparities", "16", "--set", "nna.descriptor=cnn", "--out", str(out), *extra]
+    return main(argv), out
+
+
+def test_cli_traces_are_deterministic_and_do_not_change_the_outputs(tmp_path, capsys):
+    rc, plain = _cli_run(tmp_path, "plain")
+    assert rc == 0
+    files = []
+    for name in ("a", "b"):
+        rc, out = _cli_run(tmp_path, name, "--vcd", str(tmp_path / f"{name}.vcd"), "--timeline",
+                           str(tmp_path / f"{name}.json"), "--trace-window", "0:3000")
+        assert rc == 0
+        files.append(out)
+    for ext in ("vcd", "gtkw", "json"):
+        assert (tmp_path / f"a.{ext}").read_bytes().replace(b"a.vcd", b"b.vcd") == \
+            (tmp_path / f"b.{ext}").read_bytes()
+    assert np.array_equal(read_pfm(plain / "disparity.pfm"), read_pfm(files[0] / "disparity.pfm"),
+                          equal_nan=True)
+    rep0 = json.loads((plain / "report.json").read_text())
+    rep1 = json.loads((files[0] / "report.json").read_text())
+    rep1.pop("trace")
+    assert rep0 == rep1
+
+
+def test_cli_trace_patterns_keep_only_matching_signals(tmp_path):
+    rc, _ = _cli_run(tmp_path, "p", "--vcd", str(tmp_path / "p.vcd"), "--trace",
+                     "top.sva.output.*", "--trace", "top.fifo.*.occupancy")
+    assert rc == 0
+    names = set(_Wellen(tmp_path / "p.vcd").vars)
+    assert "top.sva.output.valid" in names and "top.fifo.sva_to_sink.occupancy" in names
+    assert not any(n.startswith("top.nna") for n in names)
+
+
+@pytest.mark.parametrize(
+    "extra, words",
+    [
+        (["--trace-window", "0:100"], "need --vcd"),
+        (["--vcd", "X.vcd", "--mode", "functional"], "cycle model"),
+        (["--vcd", "X.vcd", "--trace-window", "9:3"], "0 <= A < B"),
+        (["--vcd", "X.vcd", "--trace-window", "gpu:0:3"], "expected A:B"),
+        (["--vcd", "X.vcd", "--trace-window", "camera:0:3"], "no camera clock"),
+        (["--vcd", "X.vcd", "--trace-window", "sva:900000000:900000001"], "after the frame"),
+        (["--vcd", "X.vcd", "--trace-limit", "0.001"], "--force"),
+        (["--vcd", "X.vcd", "--trace", "top.nothing.*"], "match"),
+        (["--vcd", "X.vcd", "--set", "nna.stereo_submodules=4"], "compiled engine"),
+    ],
+)
+def test_bad_trace_options_fail_in_one_line_and_write_nothing(tmp_path, capsys, extra, words):
+    extra = [e.replace("X.vcd", str(tmp_path / "x.vcd")) for e in extra]
+    rc, out = _cli_run(tmp_path, "bad", *extra)
+    err = capsys.readouterr().err.strip()
+    assert rc == 2
+    assert err.startswith("stereosim: error:") and "\n" not in err and words in err
+    assert "Traceback" not in err
+    assert not (tmp_path / "x.vcd").exists() and not out.exists()
+
+
+def test_forced_trace_above_the_limit_is_written(tmp_path):
+    rc, _ = _cli_run(tmp_path, "f", "--vcd", str(tmp_path / "f.vcd"), "--trace-limit", "0.001",
+                     "--force")
+    assert rc == 0 and (tmp_path / "f.vcd").stat().st_size > 1000
