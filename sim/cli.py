@@ -184,10 +184,6 @@ def cmd_run(args) -> int:
         from sim.tracing import check_size, write_traces
 
         check_size(result.trace, request)  # refuse before anything is written
-        result.report["trace"] = {
-            "window_fs": [result.trace.start_fs, result.trace.end_fs],
-            "signals": len(result.trace.signals), "value_changes": result.trace.n_changes,
-        }
     out_dir = Path(args.out)
     _write_outputs(out_dir, result, float(cfg.sva.disparities))
     if request is not None:

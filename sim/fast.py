@@ -97,7 +97,7 @@ G_NOW, G_TLP, G_EVENT_A, G_EVENT_B, G_EVENT_C, G_EVENT_D = range(6)
 N_G = 6
 EV_DONE, EV_DEADLOCK, EV_BUDGET, EV_OVERFLOW, EV_DATA, EV_TRACE = 0, 1, 2, 3, 4, 5
 # trace state (see "traces"): TR_* index the int64 control array
-TR_ON, TR_START, TR_END, TR_STARTED, TR_COUNT = range(5)
+TR_ON, TR_START, TR_END, TR_STARTED, TR_COUNT, TR_WORD_MASK, TR_OUT0, TR_OUT1, TR_CLOSED = range(9)
 # hold table columns per FIFO: pushed / popped in the last tick of its producer / consumer, the
 # last value pushed
 H_PUSH, H_POP, H_VALUE = range(3)
@@ -922,7 +922,7 @@ def _run_steps(g, dom, fq, rings, bs, images, nna_data, sva_data, sink_data, src
     ctl, tr_vals, tr_last, hold, hold_desc, row_times = tr[0], tr[1], tr[2], tr[3], tr[4], tr[8]
     tracing = ctl[TR_ON] == 1
     n_sig = tr_vals.shape[0]
-    word_mask = ctl[5]
+    word_mask = ctl[TR_WORD_MASK]
     while bs[B_SINK, BC_S0] < total:
         if tracing and ctl[TR_COUNT] + n_sig > tr[5].shape[0]:
             return EV_TRACE
@@ -946,8 +946,9 @@ def _run_steps(g, dom, fq, rings, bs, images, nna_data, sva_data, sink_data, src
                 t = min(t, _edge_time(dom, d, dom[d, DC_WAKE]))
             else:
                 t = min(t, dom[d, DC_NEXT])
-        if any_parked and not busy_parked and watchdog > 0:
-            # the instant the watchdog would fire if nothing progresses: step it for real
+        if any_parked and not busy_parked and watchdog > 0 and t >= g[G_TLP] + quiet_limit:
+            # the instant the watchdog would fire if nothing progresses (the first edge at or
+            # after x; none before t unless t >= x): step it for real
             x = g[G_TLP] + quiet_limit
             t_dog = INF
             for d in range(n_dom):
@@ -973,6 +974,10 @@ def _run_steps(g, dom, fq, rings, bs, images, nna_data, sva_data, sink_data, src
                 tr[7][n + k] = tr_vals[k]
             ctl[TR_COUNT] = n + n_sig
             ctl[TR_STARTED] = 1
+            ctl[TR_OUT0] = fq[F_SINK, FC_PUSHES]  # output words produced before the window
+        if tracing and ctl[TR_STARTED] == 1 and ctl[TR_CLOSED] == 0 and t >= ctl[TR_END]:
+            ctl[TR_OUT1] = fq[F_SINK, FC_PUSHES]  # ... and before its end
+            ctl[TR_CLOSED] = 1
         in_window = tracing and ctl[TR_STARTED] == 1 and t < ctl[TR_END]
         for d in range(n_dom):
             if dom[d, DC_PARKED] and _edge_time(dom, d, dom[d, DC_WAKE]) == t:
@@ -1081,6 +1086,9 @@ def _run_steps(g, dom, fq, rings, bs, images, nna_data, sva_data, sink_data, src
                 _try_park(d, dom, fq, rings, bs, bdom, h, w, nna_timing, sva_timing,
                           ready_cycle, src_params, stall_period)
     _settle_all(g[G_NOW] + 1, g, dom, fq, rings, bs, bdom, hold)
+    if tracing and ctl[TR_STARTED] == 1 and ctl[TR_CLOSED] == 0:
+        ctl[TR_OUT1] = fq[F_SINK, FC_PUSHES]
+        ctl[TR_CLOSED] = 1
     return EV_DONE
 
 
@@ -1192,10 +1200,10 @@ def trace_signals(shape, cfg: ChipConfig) -> list[tuple[str, int, str]]:
 
 
 def _trace_state(n_sig, n_fifo, window, word_bits, capacity, h):
-    ctl = np.zeros(6, np.int64)
+    ctl = np.zeros(9, np.int64)
     if window is not None:
         ctl[TR_ON], ctl[TR_START], ctl[TR_END] = 1, window[0], window[1]
-    ctl[5] = (1 << word_bits) - 1
+    ctl[TR_WORD_MASK] = (1 << word_bits) - 1
     row_times = np.full((2, h + 1), -1, np.int64)
     row_times[:, 0] = 0
     return (ctl, np.zeros(n_sig, np.uint64), np.zeros(n_sig, np.uint64),
@@ -1310,6 +1318,7 @@ def run_cycle_fast(left: np.ndarray, right: np.ndarray, cfg: ChipConfig, *,
         started = bool(tr[0][TR_STARTED])
         trace_out.update(
             signals=signals, started=started,
+            outputs_in_window=int(tr[0][TR_OUT1] - tr[0][TR_OUT0]),
             initial=tr[7][:n_sig].copy() if started else None,
             times_fs=tr[5][n_sig:n_log].copy(), ids=tr[6][n_sig:n_log].copy(),
             values=tr[7][n_sig:n_log].copy(),

@@ -136,6 +136,9 @@ def run_traced(left: np.ndarray, right: np.ndarray, cfg: ChipConfig, request: Tr
         )
     out["window"] = (start, min(end, last + 1))
     log = build_log(out, request.patterns)
+    report["trace"] = {"window_fs": [log.start_fs, log.end_fs], "signals": len(log.signals),
+                       "value_changes": log.n_changes,
+                       "outputs_in_window": out["outputs_in_window"]}
     return words, report, log
 
 

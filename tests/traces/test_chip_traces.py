@@ -103,6 +103,7 @@ def test_tracing_changes_nothing_and_valid_pulses_count_the_disparities(tmp_path
     left, right = _pair()
     words0, report0, stats0 = run_cycle_fast(left, right, cfg)
     words1, report1, log, req = _traced(tmp_path, cfg, left, right)
+    assert report1.pop("trace")["outputs_in_window"] == words0.size
     assert np.array_equal(words0, words1) and report0 == report1
     # output valid sampled at every SVA clock edge of the window = words the SVA produced
     wellen = _Wellen(req.vcd)
@@ -118,11 +119,18 @@ def test_a_window_traces_only_its_instants_and_leaves_results_alone(tmp_path):
     cfg = load_config(overrides=CONFIG)
     left, right = _pair()
     words0, report0, _ = run_cycle_fast(left, right, cfg)
-    words1, report1, log, _ = _traced(tmp_path, cfg, left, right, window="sva:500:900")
+    words1, report1, log, req = _traced(tmp_path, cfg, left, right, window="sva:1500:2600")
+    produced = report1.pop("trace")["outputs_in_window"]
     assert np.array_equal(words0, words1) and report0 == report1
+    # the output-valid pulses at the window's SVA edges = the words the engine counted in it
+    wellen = _Wellen(req.vcd)
     sva = next(c for c in log.clocks if c.name == "sva")
-    assert log.start_fs == sva.phase_fs + 500 * sva.period_fs
-    assert log.end_fs == sva.phase_fs + 900 * sva.period_fs
+    pulses = sum(wellen.value("top.sva.output.valid", sva.phase_fs + k * sva.period_fs)
+                 for k in range(1500, 2600))
+    assert 0 < produced < words0.size and pulses == produced
+    sva = next(c for c in log.clocks if c.name == "sva")
+    assert log.start_fs == sva.phase_fs + 1500 * sva.period_fs
+    assert log.end_fs == sva.phase_fs + 2600 * sva.period_fs
     assert log.n_changes > 0 and log.times_fs.min() >= log.start_fs
     assert log.times_fs.max() < log.end_fs
 
