@@ -75,7 +75,7 @@ def build_chip(left: np.ndarray, right: np.ndarray, cfg: ChipConfig, *, order_se
         targets = src_fifos[0] if parts == 1 else list(zip(src_fifos, tiles))
         if cfg.source.kind == "camera":
             source = CameraSource(f"camera_{side}", src_domain, image, targets,
-                                  cfg.source.camera_hblank)
+                                  cfg.source.camera_hblank, cfg.source.camera_vblank)
         else:
             source = MemorySource(f"memory_{side}", src_domain, image, targets,
                                   round(cfg.source.memory_gbps * 1e9))

@@ -129,15 +129,11 @@ def fifo_plan(cfg: ChipConfig, shape: tuple[int, int]) -> dict[str, dict]:
     return dict(sorted(out.items()))
 
 
-def block_work(cfg: ChipConfig, shape: tuple[int, int],
-               end_fs: float | None = None) -> dict[str, tuple[int, float]]:
+def block_work(cfg: ChipConfig, shape: tuple[int, int]) -> dict[str, tuple[int, float]]:
     """Work per frame of every block as (cycles, clock in Hz), as the cycle report counts it.
 
-    A camera is busy from cycle 0 to the end of its last line, blanking included, but only for
-    as long as the simulation runs: ``end_fs`` (the last word's instant) cuts it short when the
-    chip finishes within the last line's blanking. Its vertical blanking is never counted, so a
-    camera-bound rate here is the rate of back-to-back frames without vertical blanking
-    (:func:`estimate` also gives the camera's real frame rate).
+    A camera's work is its frame period, ``(H + vblank) (W + hblank)`` pixel clocks, so a
+    camera-bound rate is the camera's own frame rate.
     """
     h, w = shape
     n = h * w
@@ -147,10 +143,9 @@ def block_work(cfg: ChipConfig, shape: tuple[int, int],
     out: dict[str, tuple[int, float]] = {}
     for side in ("left", "right"):
         if cfg.source.kind == "camera":
-            busy = h * (w + cfg.source.camera_hblank)
-            if end_fs is not None:
-                busy = min(busy, int(end_fs // _period_fs(cfg.clocks.camera_mhz)) + 1)
-            out[f"camera_{side}"] = (busy, cfg.clocks.camera_mhz * 1e6)
+            # the camera's frame period: its whole raster, vertical blanking included
+            raster = (h + cfg.source.camera_vblank) * (w + cfg.source.camera_hblank)
+            out[f"camera_{side}"] = (raster, cfg.clocks.camera_mhz * 1e6)
         else:
             f_hz = round(nna_hz)
             b = round(cfg.source.memory_gbps * 1e9)
@@ -362,7 +357,7 @@ def estimate(cfg: ChipConfig, shape: tuple[int, int]) -> dict:
     the cycle report's where both have the figure."""
     h, w = shape
     tl = timeline(cfg, shape)
-    work = block_work(cfg, shape, end_fs=tl["last_output_cycle"] * tl["period_fs"]["sva"])
+    work = block_work(cfg, shape)
     work_s = {name: cycles / hz for name, (cycles, hz) in work.items()}
     bottleneck = max(sorted(work_s), key=lambda n: work_s[n])
     frame_s = work_s[bottleneck]

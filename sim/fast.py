@@ -1099,6 +1099,7 @@ class _Setup:
     """Names, domains and constants of one run, as :func:`sim.chip.build_chip` would build."""
 
     def __init__(self, shape, cfg: ChipConfig):
+        self.shape = tuple(shape)
         self.camera = cfg.source.kind == "camera"
         self.domains = {"nna": ClockDomain("nna", cfg.clocks.nna_mhz * 1e6),
                         "sva": ClockDomain("sva", cfg.clocks.sva_mhz * 1e6)}
@@ -1426,10 +1427,16 @@ def fast_report(state: _State, stats: dict) -> dict:
     src_domain = setup.domains["camera" if setup.camera else "nna"]
     nna, sva = setup.domains["nna"], setup.domains["sva"]
     cpd = cycles_per_descriptor(cfg.nna)
+    h, w = state.setup.shape
+    if setup.camera:  # a camera's frame period, vertical blanking included (CameraSource)
+        src_work = (h + cfg.source.camera_vblank) * (w + cfg.source.camera_hblank)
+        src_l = src_r = src_work
+    else:
+        src_l, src_r = int(bs[B_SRC_L, BC_BUSY]), int(bs[B_SRC_R, BC_BUSY])
     work = {
-        B_SRC_L: (int(bs[B_SRC_L, BC_BUSY]), src_domain.freq_hz),
+        B_SRC_L: (src_l, src_domain.freq_hz),
         B_NNA_L: (int(bs[B_NNA_L, BC_S1]) * cpd, nna.freq_hz),
-        B_SRC_R: (int(bs[B_SRC_R, BC_BUSY]), src_domain.freq_hz),
+        B_SRC_R: (src_r, src_domain.freq_hz),
         B_NNA_R: (int(bs[B_NNA_R, BC_S1]) * cpd, nna.freq_hz),
         B_SVA: (int(bs[B_SVA, BC_S1]) * cfg.sva.cycles_per_pixel, sva.freq_hz),
     }

@@ -100,12 +100,20 @@ class CameraSource(_FrameSource):
     are active and push pixel (column, line). The frame lasts until the last active pixel; the
     vertical blanking that follows belongs to the next frame. A camera cannot wait: a full FIFO
     when a pixel is due raises :class:`CameraOverflow` naming the rates. Activity: busy from the
-    first to the last active pixel (blanking included), idle after.
+    first to the last line's end (horizontal blanking included), idle after. Its work per frame
+    is its whole raster, ``(H + vblank) (W + hblank)`` pixel clocks: a camera delivers frames no
+    faster than that, whatever the chip does.
     """
 
-    def __init__(self, name: str, domain: ClockDomain, image: np.ndarray, out, hblank: int):
+    def __init__(self, name: str, domain: ClockDomain, image: np.ndarray, out, hblank: int,
+                 vblank: int = 0):
         super().__init__(name, domain, image, out)
         self.line_clocks = image.shape[1] + hblank
+        self.frame_clocks = (image.shape[0] + vblank) * self.line_clocks
+
+    def work_cycles(self) -> int:
+        """The camera's frame period in pixel clocks, vertical blanking included."""
+        return self.frame_clocks
 
     def evaluate(self, now_cycle: int) -> None:
         h, w = self.image.shape
