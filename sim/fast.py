@@ -201,13 +201,16 @@ def cnn_tables(weights, bias) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 @njit(cache=True, _nrt=False, inline="always")
-def _edge_after(dom, tick, d):
+def _edge_after(dom, tick, d, t):
     """Index of the first edge of domain ``d`` strictly after the current step's instant t.
 
     ``ClockDomain.first_edge_after(t)`` without a division: the domain's next edge (index
     ``cycles``, at ``phase + cycles * period >= t``) if it does not tick at t, else the one
-    after it (``cycles`` is advanced only after the commit).
+    after it (``cycles`` is advanced only after the commit). A parked domain's ``cycles`` lags
+    behind t: then with the division.
     """
+    if dom[d, DC_PARKED]:
+        return (t - dom[d, DC_PHASE]) // dom[d, DC_PERIOD] + 1 if t >= dom[d, DC_PHASE] else 0
     return dom[d, DC_CYCLES] + (1 if tick[d] else 0)
 
 
@@ -264,14 +267,14 @@ def _begin_step(fq, ready, frees, hist, dom, tick, f):
 
 
 @njit(cache=True, _nrt=False, inline="always")
-def _commit(fq, ready, pay, pay_desc, frees, staged_desc, dom, tick, f):
+def _commit(fq, ready, pay, pay_desc, frees, staged_desc, dom, tick, f, t):
     """``Fifo._commit``: apply the staged push and pop; True if either happened."""
     depth = fq[f, FC_DEPTH]
     off = fq[f, FC_OFF]
     moved = False
     if fq[f, FC_PUSH_ST]:
         pos = off + _wrap(fq[f, FC_IHEAD] + fq[f, FC_ICOUNT], depth)
-        ready[pos] = _edge_after(dom, tick, fq[f, FC_DST]) + fq[f, FC_DATA_EDGES] - 1
+        ready[pos] = _edge_after(dom, tick, fq[f, FC_DST], t) + fq[f, FC_DATA_EDGES] - 1
         pay[pos] = fq[f, FC_STAGED]
         pay_desc[pos] = staged_desc[f]
         fq[f, FC_ICOUNT] += 1
@@ -283,7 +286,7 @@ def _commit(fq, ready, pay, pay_desc, frees, staged_desc, dom, tick, f):
         fq[f, FC_ICOUNT] -= 1
         fq[f, FC_POPS] += 1
         pos = off + _wrap(fq[f, FC_FHEAD] + fq[f, FC_FCOUNT], depth)
-        frees[pos] = _edge_after(dom, tick, fq[f, FC_SRC]) + fq[f, FC_SPACE_EDGES] - 1
+        frees[pos] = _edge_after(dom, tick, fq[f, FC_SRC], t) + fq[f, FC_SPACE_EDGES] - 1
         fq[f, FC_FCOUNT] += 1
         fq[f, FC_POP_ST] = 0
         moved = True
@@ -1040,7 +1043,10 @@ def _run_steps(g, dom, fq, rings, bs, images, nna_data, sva_data, sink_data, src
             if fq[f, FC_PUSH_ST] and dom[fq[f, FC_DST], DC_PARKED]:
                 touched[fq[f, FC_DST]] = True
                 _settle(fq[f, FC_DST], t + 1, g, dom, fq, rings, bs, bdom, hold)
-            if fq[f, FC_POP_ST] and dom[fq[f, FC_SRC], DC_PARKED]:
+            # (a pop only frees a slot: a parked producer that does not see its FIFO full
+            # neither acts on it nor counts it before its wake; it sees the slot when settled)
+            if (fq[f, FC_POP_ST] and dom[fq[f, FC_SRC], DC_PARKED]
+                    and fq[f, FC_PUSHES] - fq[f, FC_SEEN] >= fq[f, FC_DEPTH]):
                 touched[fq[f, FC_SRC]] = True
                 _settle(fq[f, FC_SRC], t + 1, g, dom, fq, rings, bs, bdom, hold)
         if tracing:
@@ -1054,7 +1060,7 @@ def _run_steps(g, dom, fq, rings, bs, images, nna_data, sva_data, sink_data, src
                     hold[f, H_POP] = fq[f, FC_POP_ST]
         for f in range(n_fifo):
             if tick[fq[f, FC_SRC]] or tick[fq[f, FC_DST]]:
-                if _commit(fq, ready, pay, pay_desc, frees, staged_desc, dom, tick, f):
+                if _commit(fq, ready, pay, pay_desc, frees, staged_desc, dom, tick, f, t):
                     progress = True
         for d in range(n_dom):
             if tick[d]:
