@@ -411,8 +411,10 @@ def calibration_scene_dirs(path) -> list[Path]:
         raise InputError(f"calibration folder {root} not found: give --calib DIR")
     if any((root / coll).is_dir() for coll in TRAIN_COLLECTIONS):
         return training_scene_dirs(root)
+    if root.name == EVALUATION_COLLECTION or root.parent.name == EVALUATION_COLLECTION:
+        raise InputError(f"{root} is MiddEval3, the evaluation set: calibrate on training scenes")
     scenes = [Path(s.left).parent for s in find_scenes(root)]
-    if root.name == EVALUATION_COLLECTION or any((s / "mask0nocc.png").exists() for s in scenes):
+    if any((s / "mask0nocc.png").exists() for s in scenes):
         raise InputError(f"{root} is MiddEval3, the evaluation set: calibrate on training scenes")
     return scenes
 
