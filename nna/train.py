@@ -22,7 +22,10 @@ constants fixed before training (recorded in the output file), nothing per patch
 Loss: hinge ``max(0, margin + s(L, N) - s(L, P))`` on a similarity s. ``cosine`` is MC-CNN's;
 ``tanh`` is the relaxation of the binary Hamming comparison the chip makes:
 ``s = mean_c tanh(f_L[c]) tanh(f_R[c])``, which for outputs of large magnitude tends to
-``1 - 2 * Hamming(sign f_L, sign f_R) / 32``. ``both`` adds the two losses.
+``1 - 2 * Hamming(sign f_L, sign f_R) / 32``. ``both`` adds the two losses. With
+``aggregate = A > 1`` the patches grow to (8 + A) x (8 + A), each gives an A x A map of
+descriptors and the similarity is averaged over the map -- the A x A box filter the SVA applies
+to the matching costs, seen by the loss.
 
 The training scenes are Middlebury 2005 (without Art, which is MiddEval3's ArtL) and 2006
 ThirdSize; MiddEval3 is the evaluation set and is never read here.
@@ -72,6 +75,7 @@ class TrainConfig:
     neg_high: float = 6.0
     margin: float = 0.2
     similarity: str = "tanh"
+    aggregate: int = 1
     gain: float = 0.2
     offset: float = 20.0
     noise_max: float = 12.0
@@ -88,6 +92,8 @@ class TrainConfig:
             raise ConfigError(
                 f"unknown similarity {self.similarity!r}; choose one of {', '.join(SIMILARITIES)}"
             )
+        if self.aggregate < 1 or self.aggregate % 2 == 0:
+            raise ConfigError(f"aggregate must be odd and >= 1, got {self.aggregate}")
         for name in ("epochs", "steps_per_epoch", "batch", "threads"):
             if getattr(self, name) < 1:
                 raise ConfigError(f"{name} must be at least 1, got {getattr(self, name)}")
@@ -152,7 +158,7 @@ def load_training_set(scene_dirs, cfg: TrainConfig) -> TrainingSet:
     from sim.datasets import find_scene, load_scene
     from sim.io import to_grey
 
-    r = PATCH // 2
+    r = patch_size(cfg) // 2
     reach = cfg.neg_high + r + 2  # how far the right patch may reach from x - d
     chunks, bases_l, bases_r, widths = [], [], [], []
     cand = {"scene": [], "y": [], "x": [], "disp": []}
@@ -188,9 +194,14 @@ def load_training_set(scene_dirs, cfg: TrainConfig) -> TrainingSet:
     )
 
 
+def patch_size(cfg: TrainConfig) -> int:
+    """Side of the training patches: the 9x9 receptive field, grown by the aggregation window."""
+    return PATCH + cfg.aggregate - 1
+
+
 def sample_batch(ts: TrainingSet, cfg: TrainConfig, rng: np.random.Generator) -> np.ndarray:
-    """One batch as uint8-valued float32 (3, B, 9, 9): left, positive right, negative right,
-    each view with its own photometric change."""
+    """One batch as uint8-valued float32 (3, B, P, P), P = :func:`patch_size`: left, positive
+    right, negative right, each view with its own photometric change."""
     n = cfg.batch
     pick = rng.integers(0, ts.scene.size, size=n)
     s, y, x, d = ts.scene[pick], ts.y[pick], ts.x[pick], ts.disp[pick].astype(np.float64)
@@ -198,11 +209,12 @@ def sample_batch(ts: TrainingSet, cfg: TrainConfig, rng: np.random.Generator) ->
     pos = rng.uniform(-cfg.pos_offset, cfg.pos_offset, n)
     neg = rng.uniform(cfg.neg_low, cfg.neg_high, n) * rng.choice((-1.0, 1.0), n)
     xr = x - d
-    view = _Patches(ts, widths)
+    view = _Patches(ts, widths, patch_size(cfg))
     left = view.at(ts.left_base[s], y, x.astype(np.float64))
     right_p = view.at(ts.right_base[s], y, xr + pos)
     right_n = view.at(ts.right_base[s], y, xr + neg)
-    out = np.empty((3, n, PATCH, PATCH), np.float32)
+    size = patch_size(cfg)
+    out = np.empty((3, n, size, size), np.float32)
     out[0] = _photometric(left, cfg, rng)
     # both right patches come from the same right view: one change for the two
     pair = _photometric(np.stack([right_p, right_n]), cfg, rng, shared_axis=True)
@@ -213,12 +225,13 @@ def sample_batch(ts: TrainingSet, cfg: TrainConfig, rng: np.random.Generator) ->
 class _Patches:
     """Gathers 9x9 patches at fractional columns from the flattened views."""
 
-    def __init__(self, ts: TrainingSet, widths: np.ndarray):
+    def __init__(self, ts: TrainingSet, widths: np.ndarray, size: int):
         self.pixels = ts.pixels
         self.widths = widths
+        self.size = size
 
     def at(self, base, y, xf) -> np.ndarray:
-        r = PATCH // 2
+        r = self.size // 2
         x0 = np.floor(xf).astype(np.int64)
         frac = (xf - x0).astype(np.float32)[:, None, None]
         taps = np.arange(-r, r + 1)
@@ -260,12 +273,15 @@ def build_network(variant: str):
 
 
 def similarity(f_a, f_b, kind: str):
-    """Similarity of two batches of descriptors (B, C): cosine or the tanh relaxation."""
+    """Similarity of two batches of descriptors (B, C), or of descriptor maps (B, C, A, A):
+    cosine or the tanh relaxation, at each of the A x A positions averaged over them."""
     import torch
 
     if kind == "cosine":
-        return torch.nn.functional.cosine_similarity(f_a, f_b, dim=1, eps=1e-6)
-    return (torch.tanh(f_a) * torch.tanh(f_b)).mean(dim=1)
+        per_pos = torch.nn.functional.cosine_similarity(f_a, f_b, dim=1, eps=1e-6)
+    else:
+        per_pos = (torch.tanh(f_a) * torch.tanh(f_b)).mean(dim=1)
+    return per_pos if per_pos.ndim == 1 else per_pos.flatten(1).mean(dim=1)
 
 
 def hinge_loss(f_l, f_p, f_n, cfg: TrainConfig):
@@ -305,7 +321,11 @@ def train(cfg: TrainConfig, scene_dirs, *, progress: bool = True) -> dict:
             for _ in range(cfg.steps_per_epoch):
                 batch = sample_batch(ts, cfg, rng)
                 x = (torch.from_numpy(batch) - float(cfg.input_offset)) * cfg.input_scale
-                f = net(x.reshape(3 * cfg.batch, 1, PATCH, PATCH)).reshape(3, cfg.batch, -1)
+                f = net(x.reshape(3 * cfg.batch, 1, *batch.shape[2:]))
+                if cfg.aggregate == 1:
+                    f = f.reshape(3, cfg.batch, -1)
+                else:
+                    f = f.reshape(3, cfg.batch, *f.shape[1:])
                 loss = hinge_loss(f[0], f[1], f[2], cfg)
                 opt.zero_grad()
                 loss.backward()

@@ -265,7 +265,7 @@ def cmd_train(args) -> int:
     cfg = TrainConfig(
         variant=args.variant, epochs=args.epochs, steps_per_epoch=args.steps, batch=args.batch,
         lr=args.lr, seed=args.seed, similarity=args.similarity, noise_max=args.noise_max,
-        threads=args.threads,
+        aggregate=args.aggregate, threads=args.threads,
     )
     data = args.data or shared_data_dir()
     if data is None:
@@ -356,6 +356,8 @@ def build_parser() -> argparse.ArgumentParser:
                    "comparison (default), or both")
     t.add_argument("--noise-max", type=float, default=12.0, metavar="SIGMA",
                    help="augmentation noise: sigma ~ U(0, SIGMA) grey levels per view")
+    t.add_argument("--aggregate", type=int, default=1, metavar="A", help="average the "
+                   "similarity over A x A neighbouring descriptors, as the box filter does (odd)")
     t.add_argument("--threads", type=int, default=2, metavar="N", help="torch CPU threads")
     t.add_argument("--out", metavar="FILE", help="float model .npz (default: VARIANT.npz)")
     t.add_argument("--quiet", action="store_true", help="no progress bar")

@@ -195,3 +195,15 @@ def test_each_descriptor_gets_its_own_penalties(tmp_path):
         assert (cfg.sva.p1, cfg.sva.p2) == (tuned["p1"], 300)
     with pytest.raises(ConfigError, match="nna.descriptor"):
         load_config(None, {"nna.descriptor": "sift"})
+
+
+def test_aggregated_training_sees_larger_patches(data_root):
+    cfg = TrainConfig(aggregate=3, pos_offset=0.0, gain=0.0, offset=0.0, noise_max=0.0, batch=8)
+    ts = load_training_set(training_scene_dirs(data_root), cfg)
+    batch = sample_batch(ts, cfg, np.random.default_rng(1))
+    assert batch.shape == (3, 8, PATCH + 2, PATCH + 2)
+    assert_array_equal(batch[1], batch[0])
+    res = _train(data_root, aggregate=3)
+    assert res["weights"][0].shape == (32, 1, 9, 9)
+    with pytest.raises(ConfigError, match="aggregate"):
+        TrainConfig(aggregate=2)
