@@ -25,6 +25,7 @@ the noisy one) and leaves the discussion around it alone.
 from __future__ import annotations
 
 import argparse
+import fcntl
 import json
 import re
 import sys
@@ -147,7 +148,9 @@ def mean_rows(per_scene):
 def format_tables(rows, agree, models, args, n_scenes, seconds) -> str:
     cnn = load_config(None, {"nna.descriptor": "cnn"}).sva
     cen = load_config(None, {"nna.descriptor": "census"}).sva
-    noise = f"Gaussian noise sigma = {args.noise:g} per view (seed {args.seed})" if args.noise else "clean images"
+    noise = "clean images"
+    if args.noise:
+        noise = f"Gaussian noise sigma = {args.noise:g} per view (seed {args.seed})"
     lines = [
         f"MiddEval3 trainingQ, {n_scenes} scenes, nonocc, quarter-resolution pixels, {noise}; "
         f"census at P1/P2 = {cen.p1}/{cen.p2}, every network row at the CNN's "
@@ -156,7 +159,8 @@ def format_tables(rows, agree, models, args, n_scenes, seconds) -> str:
         f"{f' --scenes {args.scenes}' if args.scenes else ''} --write docs/ablation.md` "
         f"({seconds:.0f} s).",
         "",
-        "| descriptor | cost | bad2 % | invalid % | totbad % | avgerr px | int8 bits = float signs |",
+        "| descriptor | cost | bad2 % | invalid % | totbad % | avgerr px "
+        "| int8 bits = float signs |",
         "|---|---|---:|---:|---:|---:|---:|",
     ]
     m = rows["census"]
@@ -184,7 +188,8 @@ def format_tables(rows, agree, models, args, n_scenes, seconds) -> str:
 
 def format_architecture() -> str:
     lines = [
-        "| descriptor | MACs / pixel | G MAC / 720p frame | weights + biases | weight bytes (int8 + int32 bias) "
+        "| descriptor | MACs / pixel | G MAC / 720p frame | weights + biases "
+        "| weight bytes (int8 + int32 bias) "
         "| hidden feature maps / 720p frame | descriptor / 720p frame: binary | float32 |",
         "|---|---:|---:|---:|---:|---:|---:|---:|",
     ]
@@ -192,7 +197,8 @@ def format_architecture() -> str:
         a = architecture(name)
         flt = f"{a['desc_float'] / 1e6:.1f} MB" if a["desc_float"] else "-"
         lines.append(
-            f"| {name} | {a['macs']:,} | {a['macs'] * FRAME_720P / 1e9:.2f} | {a['weights']:,} + {a['biases']} | "
+            f"| {name} | {a['macs']:,} | {a['macs'] * FRAME_720P / 1e9:.2f} | "
+            f"{a['weights']:,} + {a['biases']} | "
             f"{a['weight_bytes']:,} | {a['fmap_bytes'] / 1e6:.1f} MB | "
             f"{a['desc_binary'] / 1e6:.2f} MB | {flt} |"
         )
@@ -200,14 +206,18 @@ def format_architecture() -> str:
 
 
 def write_section(doc: Path, marker: str, text: str) -> None:
-    """Replace the text between ``<!-- marker:begin -->`` and ``<!-- marker:end -->``."""
-    src = doc.read_text()
+    """Replace the text between ``<!-- marker:begin -->`` and ``<!-- marker:end -->`` (under a
+    lock, so a clean and a noisy run finishing together do not lose each other's table)."""
     pattern = re.compile(
         rf"(<!-- {re.escape(marker)}:begin -->\n).*?(<!-- {re.escape(marker)}:end -->)", re.S
     )
-    if not pattern.search(src):
-        sys.exit(f"ablation: {doc} has no '<!-- {marker}:begin/end -->' markers")
-    atomic_write_bytes(doc, pattern.sub(lambda mm: mm.group(1) + text + mm.group(2), src).encode())
+    with open(doc.with_name(f".{doc.name}.lock"), "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        src = doc.read_text()
+        if not pattern.search(src):
+            sys.exit(f"ablation: {doc} has no '<!-- {marker}:begin/end -->' markers")
+        new = pattern.sub(lambda mm: mm.group(1) + text + mm.group(2), src)
+        atomic_write_bytes(doc, new.encode())
 
 
 def main(argv=None):

@@ -104,7 +104,7 @@ class TrainConfig:
             )
         if not 0 <= self.input_offset <= 255 or not self.input_scale > 0:
             raise ConfigError("input_offset must be in 0..255 and input_scale positive")
-        if self.lr <= 0 or self.margin < 0 or self.gain < 0 or self.offset < 0 or self.noise_max < 0:
+        if self.lr <= 0 or min(self.margin, self.gain, self.offset, self.noise_max) < 0:
             raise ConfigError("lr must be positive; margin, gain, offset, noise_max non-negative")
 
 

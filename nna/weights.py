@@ -46,7 +46,8 @@ def load_layer(path) -> tuple[np.ndarray, np.ndarray, int]:
     """The NNA layer of a weight file or of a single-layer quantized artifact (checked in full:
     a damaged or inconsistent artifact raises :class:`ConfigError`)."""
     name = os.fspath(path)
-    with open_npz(name, "weight file", f"write it with nna.save_weights (keys {', '.join(KEYS)})") as archive:
+    fix = f"write it with nna.save_weights (keys {', '.join(KEYS)})"
+    with open_npz(name, "weight file", fix) as archive:
         is_artifact = "format" in archive.files
     if not is_artifact:
         return load_weights(name)

@@ -349,7 +349,8 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--epochs", type=int, default=20, metavar="N")
     t.add_argument("--steps", type=int, default=4000, metavar="N", help="batches per epoch")
     t.add_argument("--batch", type=int, default=256, metavar="N", help="triplets per batch")
-    t.add_argument("--lr", type=float, default=0.002, help="Adam learning rate (decays linearly to 0)")
+    t.add_argument("--lr", type=float, default=0.002,
+                   help="Adam learning rate (decays linearly to 0)")
     t.add_argument("--seed", type=int, default=0, metavar="S")
     t.add_argument("--similarity", default="tanh", choices=("cosine", "tanh", "both"),
                    help="hinge on cosine (MC-CNN), on the tanh relaxation of the Hamming "

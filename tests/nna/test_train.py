@@ -180,7 +180,8 @@ def test_shipped_weights_are_the_quantized_single9x9():
     weights, bias, _ = default_weights()
     assert weights.shape == (32, 9, 9) and weights.dtype == np.int8
     assert len({w.tobytes() for w in weights}) == 32  # 32 distinct kernels, none degenerate
-    assert np.all(np.abs(weights.astype(int)).max(axis=(1, 2)) >= 64)  # searched scales use the range
+    # the searched scales use the int8 range
+    assert np.all(np.abs(weights.astype(int)).max(axis=(1, 2)) >= 64)
 
 
 def test_each_descriptor_gets_its_own_penalties(tmp_path):
