@@ -223,7 +223,7 @@ def sample_batch(ts: TrainingSet, cfg: TrainConfig, rng: np.random.Generator) ->
 
 
 class _Patches:
-    """Gathers 9x9 patches at fractional columns from the flattened views."""
+    """Gathers square patches at fractional columns from the flattened views."""
 
     def __init__(self, ts: TrainingSet, widths: np.ndarray, size: int):
         self.pixels = ts.pixels
