@@ -7,7 +7,13 @@ single-layer int8 CNN thresholded on zero (:mod:`nna.conv`), with its weights in
 
 from nna.census import census, census_bits, census_offsets, census_ref
 from nna.conv import check_layer, cnn_accumulators, cnn_descriptor, cnn_descriptor_ref
-from nna.weights import default_weights, load_weights, save_weights
+from nna.weights import (
+    default_weights,
+    load_layer,
+    load_weights,
+    placeholder_weights,
+    save_weights,
+)
 
 __all__ = [
     "census",
@@ -19,6 +25,8 @@ __all__ = [
     "cnn_descriptor",
     "cnn_descriptor_ref",
     "default_weights",
+    "load_layer",
     "load_weights",
+    "placeholder_weights",
     "save_weights",
 ]

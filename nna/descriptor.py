@@ -8,13 +8,13 @@ import numpy as np
 
 from nna.census import census, census_bits
 from nna.conv import cnn_descriptor
-from nna.weights import default_weights, load_weights
+from nna.weights import default_weights, load_layer
 from sim.config import NnaConfig
 
 
 @lru_cache(maxsize=8)
 def _layer(weights: str):
-    return default_weights() if weights == "default" else load_weights(weights)
+    return default_weights() if weights == "default" else load_layer(weights)
 
 
 def layer(cfg: NnaConfig) -> tuple[np.ndarray, np.ndarray, int]:

@@ -1,4 +1,4 @@
-"""Weights of the NNA descriptor layer: the built-in placeholder and .npz files.
+"""Weights of the NNA descriptor layer: the shipped trained layer, a placeholder, .npz files.
 
 A weight file is an ``.npz`` archive with three arrays:
 
@@ -6,9 +6,14 @@ A weight file is an ``.npz`` archive with three arrays:
 * ``bias``: int32 (C,);
 * ``input_offset``: an integer scalar in 0..255.
 
-Until trained weights exist, :func:`default_weights` returns a deterministic random placeholder
-whose kernels each sum to exactly zero, so the descriptor ignores a brightness offset between the
-two cameras (away from clipping), as a trained descriptor should.
+A quantized artifact written by ``stereosim quantize`` (:func:`quant.save_quantized`) of a
+single-layer model carries these three keys too, plus everything else about the model; such a
+file is read and checked in full by :func:`load_layer`.
+
+:func:`default_weights` is the shipped layer, ``nna/single9x9.npz``: the ``single9x9`` network
+trained with ``stereosim train`` and quantised with ``stereosim quantize`` (docs/ablation.md).
+:func:`placeholder_weights` is the deterministic random layer used before trained weights existed
+(kept for tests that need a layer independent of training).
 """
 
 from __future__ import annotations
@@ -28,7 +33,34 @@ DEFAULT_INPUT_OFFSET = 128
 KEYS = ("weights", "bias", "input_offset")
 
 
+SHIPPED_WEIGHTS = os.path.join(os.path.dirname(os.path.abspath(__file__)), "single9x9.npz")
+
+
 def default_weights() -> tuple[np.ndarray, np.ndarray, int]:
+    """The shipped trained layer (``nna/single9x9.npz``): ``(weights int8 (32, 9, 9), bias int32
+    (32,), input_offset)``."""
+    return load_layer(SHIPPED_WEIGHTS)
+
+
+def load_layer(path) -> tuple[np.ndarray, np.ndarray, int]:
+    """The NNA layer of a weight file or of a single-layer quantized artifact (checked in full:
+    a damaged or inconsistent artifact raises :class:`ConfigError`)."""
+    name = os.fspath(path)
+    fix = f"write it with nna.save_weights (keys {', '.join(KEYS)})"
+    with open_npz(name, "weight file", fix) as archive:
+        is_artifact = "format" in archive.files
+    if not is_artifact:
+        return load_weights(name)
+    from quant.quantizer import load_quantized, to_nna_weights
+
+    qm = load_quantized(name)
+    try:
+        return to_nna_weights(qm)
+    except ConfigError as err:
+        raise ConfigError(f"weight file {name!r}: {err}") from None
+
+
+def placeholder_weights() -> tuple[np.ndarray, np.ndarray, int]:
     """Deterministic placeholder layer: ``(weights int8 (32, 9, 9), bias int32 (32,), 128)``.
 
     Weights are round(N(0, 24)) from ``np.random.default_rng(20261122)``, each kernel shifted to

@@ -37,6 +37,7 @@ Agreement figures are measured on every pixel of the calibration images.
 
 from __future__ import annotations
 
+import io
 import os
 import zipfile
 from dataclasses import dataclass
@@ -57,6 +58,7 @@ from quant.intconv import (
     requantize,
 )
 from sim.errors import ConfigError
+from sim.io import atomic_write_bytes
 
 TAU = 127
 FORMAT = "stereosim-quant-v1"
@@ -509,7 +511,8 @@ def to_nna_weights(qm: QuantizedModel) -> tuple[np.ndarray, np.ndarray, int]:
 
 
 def save_quantized(path, qm: QuantizedModel) -> None:
-    """Validate ``qm`` and write it as .npz (exact name). A single-layer model also gets the keys
+    """Validate ``qm`` and write it as .npz (exact name, atomically: a reader sees the old file
+    or the whole new one). A single-layer model also gets the keys
     ``weights``, ``bias``, ``input_offset`` so :func:`nna.weights.load_weights` reads the file."""
     check_quantized(qm)
     arrays = {
@@ -536,8 +539,9 @@ def save_quantized(path, qm: QuantizedModel) -> None:
         weights, bias, _ = to_nna_weights(qm)
         arrays["weights"] = weights
         arrays["bias"] = bias
-    with open(path, "wb") as f:
-        np.savez(f, **arrays)
+    buf = io.BytesIO()
+    np.savez(buf, **arrays)
+    atomic_write_bytes(path, buf.getvalue())
 
 
 def _get(archive, key, name):

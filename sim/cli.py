@@ -274,6 +274,76 @@ def cmd_config_diff(args) -> int:
     return 0
 
 
+# ----------------------------------------------------------------------------------------------
+# stereosim train / quantize
+
+
+def _import_torch():
+    try:
+        import torch  # noqa: F401
+    except ImportError:
+        raise UserError(
+            "training needs torch, which is not installed: pip install 'stereosim[train]'"
+        ) from None
+
+
+def cmd_train(args) -> int:
+    from nna.train import TrainConfig, save_float_model, train, training_scene_dirs
+    from sim.datasets import shared_data_dir
+
+    cfg = TrainConfig(
+        variant=args.variant, epochs=args.epochs, steps_per_epoch=args.steps, batch=args.batch,
+        lr=args.lr, seed=args.seed, similarity=args.similarity, noise_max=args.noise_max,
+        aggregate=args.aggregate, threads=args.threads,
+    )
+    data = args.data or shared_data_dir()
+    if data is None:
+        raise InputError("no training data found: give --data DIR (the shared Middlebury folder)")
+    dirs = training_scene_dirs(data)
+    out = Path(args.out or f"{args.variant}.npz")
+    if not out.parent.is_dir():
+        raise InputError(f"output folder {out.parent} does not exist: create it first")
+    _import_torch()
+    t0 = time.perf_counter()
+    result = train(cfg, dirs, progress=not args.quiet)
+    save_float_model(out, result)
+    print(
+        f"trained {args.variant} on {len(result['scenes'])} scenes ({result['samples']} pixels) in "
+        f"{time.perf_counter() - t0:.0f} s; final loss {result['loss_per_epoch'][-1]:.4f}; "
+        f"wrote {out}"
+    )
+    return 0
+
+
+def cmd_quantize(args) -> int:
+    from nna.train import calibration_images, calibration_scene_dirs, load_float_model
+    from quant.quantizer import QuantizerConfig, quantize, save_quantized
+
+    model, variant, _ = load_float_model(args.model)
+    qcfg = QuantizerConfig(
+        n_steps=args.steps, z_bits=args.z_bits, n_samples=args.samples, seed=args.seed,
+        distance=args.distance,
+    )
+    out = Path(args.out)
+    if not out.parent.is_dir():
+        raise InputError(f"output folder {out.parent} does not exist: create it first")
+    images, names = calibration_images(calibration_scene_dirs(args.calib), args.calib_scenes)
+    calibration = (
+        f"{len(images)} views (left+right) of {', '.join(names)}; {qcfg.n_samples} sampled "
+        f"pixels, seed {qcfg.seed}, {qcfg.n_steps} scale steps, z={qcfg.z_bits}, "
+        f"distance {qcfg.distance}"
+    )
+    t0 = time.perf_counter()
+    qm = quantize(model, images, qcfg, variant=variant, calibration=calibration)
+    save_quantized(out, qm)
+    print(
+        f"quantized {variant} ({qm.n_layers} layer(s)) on {len(images)} calibration views in "
+        f"{time.perf_counter() - t0:.0f} s: {100 * qm.sign_agreement:.3f}% of descriptor bits "
+        f"agree with the float signs, accumulator RMS error {qm.acc_rms:.2f}; wrote {out}"
+    )
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="stereosim", description="Simulator of an edge stereo-vision SoC.")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
@@ -312,6 +382,45 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--json", action="store_true", help="print per-scene and mean metrics as JSON")
     _add_config_options(e)
     e.set_defaults(func=cmd_eval)
+
+    t = sub.add_parser("train", help="train a siamese descriptor network (needs torch)")
+    t.add_argument("--variant", default="single9x9", choices=("mccnn4", "mccnn4-slim", "single9x9"))
+    t.add_argument("--data", metavar="DIR", help="shared data folder holding "
+                   "middlebury2005_third/ and middlebury2006_third/ (default: ../shared/data)")
+    t.add_argument("--epochs", type=int, default=20, metavar="N")
+    t.add_argument("--steps", type=int, default=4000, metavar="N", help="batches per epoch")
+    t.add_argument("--batch", type=int, default=256, metavar="N", help="triplets per batch")
+    t.add_argument("--lr", type=float, default=0.002,
+                   help="Adam learning rate (decays linearly to 0)")
+    t.add_argument("--seed", type=int, default=0, metavar="S")
+    t.add_argument("--similarity", default="tanh", choices=("cosine", "tanh", "both"),
+                   help="hinge on cosine (MC-CNN), on the tanh relaxation of the Hamming "
+                   "comparison (default), or both")
+    t.add_argument("--noise-max", type=float, default=12.0, metavar="SIGMA",
+                   help="augmentation noise: sigma ~ U(0, SIGMA) grey levels per view")
+    t.add_argument("--aggregate", type=int, default=1, metavar="A", help="average the "
+                   "similarity over A x A neighbouring descriptors, as the box filter does (odd)")
+    t.add_argument("--threads", type=int, default=2, metavar="N", help="torch CPU threads")
+    t.add_argument("--out", metavar="FILE", help="float model .npz (default: VARIANT.npz)")
+    t.add_argument("--quiet", action="store_true", help="no progress bar")
+    t.set_defaults(func=cmd_train)
+
+    q = sub.add_parser("quantize", help="int8-quantise a trained model for the NNA")
+    q.add_argument("model", help="float model .npz written by 'stereosim train'")
+    q.add_argument("--calib", required=True, metavar="DIR", help="calibration scenes: the "
+                   "shared data folder (its training scenes), a collection or one scene")
+    q.add_argument("--out", required=True, metavar="WEIGHTS", help="quantized artifact .npz")
+    q.add_argument("--calib-scenes", type=int, default=8, metavar="N",
+                   help="use the views of at most N scenes, spread evenly (default 8)")
+    q.add_argument("--distance", default="hamming", choices=("hamming", "rms", "l1", "kl",
+                   "hist_rms"), help="distance that picks the last layer's scales")
+    q.add_argument("--steps", type=int, default=1000, metavar="N",
+                   help="scale candidates per channel (>= 1000)")
+    q.add_argument("--z-bits", type=int, default=8, metavar="Z", help="m, h in [0, 2^Z - 1]")
+    q.add_argument("--samples", type=int, default=20000, metavar="N",
+                   help="sampled pixels for the search")
+    q.add_argument("--seed", type=int, default=0, metavar="S")
+    q.set_defaults(func=cmd_quantize)
 
     c = sub.add_parser("config", help="show or compare configurations")
     csub = c.add_subparsers(dest="config_command", required=True, parser_class=_Parser)

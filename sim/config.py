@@ -19,6 +19,15 @@ from sim.errors import ConfigError
 
 LEGAL_DISPARITIES = tuple(range(16, 257, 16))
 
+# The SGM penalties tuned for each descriptor on MiddEval3 trainingQ (docs/tuning.md,
+# docs/ablation.md). A configuration that does not set a key gets the value of its
+# nna.descriptor; a key set in a file or with --set always wins.
+DESCRIPTOR_DEFAULTS = {
+    "census": {"p1": 64, "p2": 512},
+    "cnn": {"p1": 64, "p2": 512},
+}
+DEFAULT_DESCRIPTOR = "census"
+
 
 def param(default, help: str, *, lo=None, hi=None, choices=None, odd=False):
     """A config field with its validation rules in the metadata."""
@@ -52,7 +61,9 @@ class CnnConfig:
 @dataclass(frozen=True, slots=True, kw_only=True)
 class NnaConfig:
     descriptor: str = param(
-        "census", "per-pixel binary descriptor: census or cnn", choices=("census", "cnn")
+        DEFAULT_DESCRIPTOR,
+        "per-pixel binary descriptor: census or cnn (each brings its own tuned sva.p1/p2)",
+        choices=("census", "cnn"),
     )
     census: CensusConfig = field(default_factory=CensusConfig)
     cnn: CnnConfig = field(default_factory=CnnConfig)
@@ -87,8 +98,16 @@ class SvaConfig:
     )
     box_size: int = param(5, "box-filter aggregation window k (k x k, odd; 1 = off)", lo=1, hi=15, odd=True)
     cost_bits: int = param(10, "width of the aggregated matching cost (saturating)", lo=6, hi=15)
-    p1: int = param(64, "SGM penalty for a disparity change of 1", lo=0, hi=32767)
-    p2: int = param(512, "SGM penalty for a disparity change of more than 1", lo=0, hi=32767)
+    p1: int = param(
+        DESCRIPTOR_DEFAULTS[DEFAULT_DESCRIPTOR]["p1"],
+        "SGM penalty for a disparity change of 1 (default: the descriptor's tuned value)",
+        lo=0, hi=32767,
+    )
+    p2: int = param(
+        DESCRIPTOR_DEFAULTS[DEFAULT_DESCRIPTOR]["p2"],
+        "SGM penalty for a disparity change of more than 1 (default: the descriptor's tuned value)",
+        lo=0, hi=32767,
+    )
     p2_adaptive: bool = param(False, "lower P2 at intensity steps: P2 - (slope*|dI| >> 4), >= P1")
     p2_slope: int = param(16, "slope of the adaptive P2 (in 1/16 per grey level)", lo=0, hi=1024)
     path_bits: int = param(11, "width of each SGM path cost register (saturating)", lo=8, hi=14)
@@ -283,7 +302,23 @@ def load_config(
         if isinstance(value, str):
             value = _parse_value(value)
         _insert(tree, key, value)
+    _descriptor_defaults(tree)
     return _check_combinations(_build(ChipConfig, tree, ""))
+
+
+def _descriptor_defaults(tree: dict) -> None:
+    """Fill the SVA keys the configuration leaves unset with the tuned values of its
+    descriptor (:data:`DESCRIPTOR_DEFAULTS`). A malformed tree is left for :func:`_build` to
+    report."""
+    nna = tree.get("nna", {})
+    sva = tree.setdefault("sva", {})
+    if not isinstance(nna, dict) or not isinstance(sva, dict):
+        return
+    descriptor = nna.get("descriptor", DEFAULT_DESCRIPTOR)
+    if not isinstance(descriptor, str):
+        return
+    for key, value in DESCRIPTOR_DEFAULTS.get(descriptor, {}).items():
+        sva.setdefault(key, value)
 
 
 def _check_combinations(cfg: ChipConfig) -> ChipConfig:

@@ -137,3 +137,35 @@ def hamming_cost(desc_l, desc_r, disparities: int, bits: int) -> np.ndarray:
         np.ascontiguousarray(desc_l), np.ascontiguousarray(desc_r), disparities, np.uint8(bits), out
     )
     return out
+
+
+def cosine_cost(feat_l, feat_r, disparities: int, bits: int) -> np.ndarray:
+    """The float descriptor's matching cost on the Hamming scale, uint8 (H, W, D) -- not a chip
+    stage: the "float cosine" column of the ablation (``benchmarks/ablation.py``) feeds it to
+    the same SGM back end (:func:`sva.pipeline.sva_cost_volume`).
+
+    ``C(x, y, d) = rint(bits / 2 * (1 - cos(FL(x, y), FR(x - d, y))))`` in 0..bits, and ``bits``
+    where x - d < 0, with ``feat_*`` float (H, W, C). For +-1 vectors of C = bits channels this
+    is exactly the Hamming distance of their signs (``C/2 * (1 - cos) = #differing``), so the
+    float cost lives on the scale the SGM penalties were tuned for; ``rint`` rounds the float
+    cost to the same bits + 1 levels. A zero feature vector has cosine 0 with everything.
+    """
+    feat_l = np.asarray(feat_l, dtype=np.float64)
+    feat_r = np.asarray(feat_r, dtype=np.float64)
+    if feat_l.ndim != 3 or feat_l.shape != feat_r.shape:
+        raise InputError("float features must be two arrays (H, W, C) of the same shape")
+    if not 1 <= bits <= 64 or disparities < 1:
+        raise InputError("need 1..64 bits and at least one disparity")
+
+    def unit(f):
+        norm = np.sqrt((f * f).sum(axis=2, keepdims=True))
+        return np.divide(f, norm, out=np.zeros_like(f), where=norm > 0)
+
+    ul, ur = unit(feat_l), unit(feat_r)
+    h, w, _ = ul.shape
+    out = np.full((h, w, disparities), bits, np.uint8)
+    half = bits / 2.0
+    for d in range(min(disparities, w)):
+        cos = np.einsum("ywc,ywc->yw", ul[:, d:], ur[:, : w - d])
+        out[:, d:, d] = np.clip(np.rint(half * (1.0 - cos)), 0, bits).astype(np.uint8)
+    return out

@@ -222,3 +222,37 @@ def sva_stream(desc_l, desc_r, img_l, cfg: SvaConfig, bits: int) -> np.ndarray:
     )
     stream.advance(desc_l.shape[0])
     return stream.q
+
+
+def sva_cost_volume(cost, img_l, cfg: SvaConfig) -> np.ndarray:
+    """Output words (H, W) int32 (-1 invalid) from a given uint8 cost volume (H, W, D).
+
+    The same back end as :func:`sva_stream` -- box filter, SGM, WTA with sub-pixel fit, LR check,
+    median -- composed from each stage's whole-volume numba wrapper, for matching costs that do
+    not come from two binary descriptors (the float cosine cost of the ablation,
+    ``benchmarks/ablation.py``). Given the Hamming volume of two descriptors it equals
+    :func:`sva_stream` bit for bit (tested).
+    """
+    from sva.aggregation import box_filter
+    from sva.lr_check import lr_check
+    from sva.sgm import sgm
+    from sva.wta import wta
+
+    if not isinstance(cost, np.ndarray) or cost.ndim != 3 or cost.dtype != np.uint8:
+        raise InputError("the cost volume must be a uint8 array (H, W, D)")
+    h, w, dn = cost.shape
+    if dn != cfg.disparities:
+        raise InputError(f"the cost volume has {dn} disparities, the config {cfg.disparities}")
+    if not isinstance(img_l, np.ndarray) or img_l.shape != (h, w) or img_l.dtype != np.uint8:
+        raise InputError(f"the left grey image must be uint8 {h}x{w} like the cost volume")
+    agg = box_filter(cost, cfg.box_size, cfg.cost_bits)
+    s = sgm(
+        agg, p1=cfg.p1, p2=cfg.p2, paths=cfg.paths, path_bits=cfg.path_bits,
+        sum_bits=cfg.sum_bits, img=img_l, p2_adaptive=cfg.p2_adaptive, p2_slope=cfg.p2_slope,
+    )
+    q, dint = wta(s, uniqueness=cfg.uniqueness, subpixel=cfg.subpixel, frac_bits=cfg.subpixel_bits)
+    if cfg.lr_check:
+        q, _ = lr_check(s, q, dint, cfg.lr_max_diff)
+    if cfg.median > 1:
+        q = median(q, cfg.median)
+    return q

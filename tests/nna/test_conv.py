@@ -9,7 +9,7 @@ from numpy.lib.stride_tricks import sliding_window_view
 from numpy.testing import assert_array_equal
 
 from nna.conv import check_layer, cnn_accumulators, cnn_descriptor, cnn_descriptor_ref
-from nna.weights import default_weights, load_weights, save_weights
+from nna.weights import load_weights, placeholder_weights, save_weights
 from sim.errors import ConfigError, InputError
 
 
@@ -193,9 +193,9 @@ def test_bad_image_raises_input_error(img):
             fn(img, weights, bias, input_offset)
 
 
-def test_default_weights_deterministic_and_zero_sum():
-    weights, bias, input_offset = default_weights()
-    again = default_weights()
+def test_placeholder_weights_deterministic_and_zero_sum():
+    weights, bias, input_offset = placeholder_weights()
+    again = placeholder_weights()
     assert_array_equal(weights, again[0])
     assert_array_equal(bias, again[1])
     assert input_offset == again[2] == 128
@@ -207,8 +207,8 @@ def test_default_weights_deterministic_and_zero_sum():
     check_layer(weights, bias, input_offset)
 
 
-def test_default_weights_ignore_brightness_offset():
-    weights, bias, input_offset = default_weights()
+def test_placeholder_weights_ignore_brightness_offset():
+    weights, bias, input_offset = placeholder_weights()
     img = _image((30, 41), seed=9) // 2  # 0..127
     desc = cnn_descriptor(img, weights, bias, input_offset)
     assert_array_equal(cnn_descriptor(img + np.uint8(100), weights, bias, input_offset), desc)
@@ -225,8 +225,8 @@ def test_save_load_round_trip(tmp_path):
     assert_array_equal(got_b, bias)
     assert got_offset == 17 and isinstance(got_offset, int)
     # A str path works too, and the defaults survive the trip.
-    save_weights(str(path), *default_weights())
-    for a, b in zip(load_weights(str(path)), default_weights(), strict=True):
+    save_weights(str(path), *placeholder_weights())
+    for a, b in zip(load_weights(str(path)), placeholder_weights(), strict=True):
         assert_array_equal(a, b)
 
 

@@ -122,3 +122,28 @@ def test_bad_inputs_raise():
         hamming_cost(d, d, 2, 65)
     with pytest.raises(InputError, match="at least 1"):
         hamming_cost(d, d, 0, 8)
+
+
+def test_cosine_cost_of_sign_vectors_is_hamming():
+    from sva.cost import cosine_cost, hamming_cost
+
+    rng = np.random.default_rng(11)
+    for bits, h, w, dn in ((32, 7, 29, 16), (8, 5, 13, 12)):
+        signs = rng.integers(0, 2, size=(2, h, w, bits))
+        feats = np.where(signs > 0, 1.0, -1.0) * rng.uniform(0.5, 3.0, size=(2, h, w, 1))
+        weights = np.uint64(1) << np.arange(bits, dtype=np.uint64)
+        desc = (signs.astype(np.uint64) * weights).sum(axis=3, dtype=np.uint64).astype(np.uint32)
+        want = hamming_cost(desc[0], desc[1], dn, bits)
+        assert_array_equal(cosine_cost(feats[0], feats[1], dn, bits), want)
+
+
+def test_cosine_cost_by_hand():
+    from sva.cost import cosine_cost
+
+    left = np.array([[[1.0, 0.0], [0.0, 2.0], [3.0, 3.0]]])  # (1, 3, 2)
+    right = np.array([[[0.0, 1.0], [1.0, 0.0], [-1.0, -1.0]]])
+    got = cosine_cost(left, right, 2, 8)
+    # d = 0: cos = 0, 0, -1 -> 4, 4, 8; d = 1: x=0 outside -> 8, cos(L1, R0) = 1 -> 0,
+    # cos(L2, R1) = 1/sqrt2 -> rint(4 * 0.2929) = 1
+    assert_array_equal(got[0, :, 0], [4, 4, 8])
+    assert_array_equal(got[0, :, 1], [8, 0, 1])

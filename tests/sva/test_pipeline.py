@@ -261,3 +261,35 @@ def test_stream_fed_row_by_row_equals_whole_frame(box, median, paths):
         assert_array_equal(stream.q[:new_final], whole[:new_final])
         final = new_final
     assert final == 13
+
+
+@pytest.mark.parametrize(
+    "overrides",
+    [
+        {},
+        {"median": 0, "lr_check": False, "box_size": 1, "paths": 2},
+        {"subpixel": "parabola", "uniqueness": 5, "median": 5, "p2_adaptive": True},
+    ],
+)
+def test_cost_volume_backend_equals_stream(overrides):
+    from sva.cost import hamming_cost
+    from sva.pipeline import sva_cost_volume
+
+    for h, w, bits, seed in ((17, 41, 32, 3), (9, 35, 31, 4)):
+        left, right, img = descriptor_pair(h, w, bits, seed)
+        cfg = sva_config(disparities=16, **overrides)
+        want = sva_stream(left, right, img, cfg, bits)
+        got = sva_cost_volume(hamming_cost(left, right, 16, bits), img, cfg)
+        assert_array_equal(got, want)
+        assert np.count_nonzero(want >= 0) > want.size // 4  # not a trivially invalid map
+
+
+def test_cost_volume_backend_refuses_bad_volumes():
+    from sva.pipeline import sva_cost_volume
+
+    cfg = sva_config(disparities=16)
+    img = np.zeros((8, 30), np.uint8)
+    with pytest.raises(InputError, match="uint8"):
+        sva_cost_volume(np.zeros((8, 30, 16), np.uint16), img, cfg)
+    with pytest.raises(InputError, match="disparities"):
+        sva_cost_volume(np.zeros((8, 30, 32), np.uint8), img, cfg)
