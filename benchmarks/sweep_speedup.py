@@ -5,7 +5,7 @@ figure is the sweep's own scaling: wall time on 1 worker / wall time on 2 worker
 >= 1.7x). For reference it also times the same runs on a plain process pool, which shows how
 much parallelism the machine offers at the moment (on a shared machine, less than its CPUs). Every point is a cycle-model run of a synthetic 960x540 frame with the CNN descriptor.
 
-    python benchmarks/sweep_speedup.py [--points 8]
+    python benchmarks/sweep_speedup.py [--points 16]
 """
 
 from __future__ import annotations
@@ -60,7 +60,7 @@ def _pool_seconds(sweep, workers: int) -> float:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--points", type=int, default=8)
+    ap.add_argument("--points", type=int, default=16)
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
