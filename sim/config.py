@@ -173,7 +173,8 @@ class SimConfig:
         choices=("auto", "fast", "readable"),
     )
     watchdog_cycles: int = param(
-        200000, "steps without progress before a run is declared deadlocked", lo=10, hi=1 << 40
+        200000, "periods of the slowest clock without progress before a run is declared "
+        "deadlocked", lo=10, hi=1 << 40
     )
 
 
