@@ -121,13 +121,16 @@ def cnn_descriptor_ref(img, weights, bias, input_offset) -> np.ndarray:
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath={"contract"})
 def _channel_row(xp, w_pad, bias_c, c, y, acc):
-    """acc[x] = bias_c + sum over (ky, kx) of w_pad[c, ky, kx] * xp[y + ky, x + kx] (int32).
+    """acc[x] = bias_c + sum over (ky, kx) of w_pad[c, ky, kx] * xp[y + ky, x + kx].
 
-    ``w_pad`` is int32 (C, K, Kp) with Kp a multiple of 3 and zeros beyond column K, so the
-    innermost loop handles three taps per pass over the row (fewer loads and stores of ``acc``)
-    and still vectorises along x.
+    ``w_pad`` is (C, K, Kp) with Kp a multiple of 3 and zeros beyond column K, so the innermost
+    loop handles three taps per pass over the row (fewer loads and stores of ``acc``) and still
+    vectorises along x. In int32 (``bias_c`` the channel's bias), or in float32 with
+    ``bias_c = 0`` where :func:`f32_exact` holds -- then the sum is an exact integer-valued
+    float and the caller adds the int32 bias after converting (fused multiply-adds, allowed by
+    ``contract``, change nothing there and nothing in integers).
     """
     width = acc.shape[0]
     k_rows, k_cols = w_pad.shape[1], w_pad.shape[2]
@@ -153,34 +156,13 @@ F32_EXACT = 1 << 24
 
 
 def f32_exact(k_size: int) -> bool:
-    """True if the K x K tap sums of :func:`_channel_row_f32` are exact in float32."""
+    """True if the K x K tap sums of :func:`_channel_row` are exact in float32."""
     return k_size * k_size * MAX_PRODUCT < F32_EXACT
 
 
 @njit(cache=True, fastmath={"contract"})
-def _channel_row_f32(xp, w_pad, c, y, acc):
-    """acc[x] = sum over (ky, kx) of w_pad[c, ky, kx] * xp[y + ky, x + kx] in float32, without
-    the bias. Exact (an integer-valued float) when :func:`f32_exact` holds for K; the caller adds
-    the int32 bias after converting. Same three-taps-per-pass loop as :func:`_channel_row`."""
-    width = acc.shape[0]
-    k_rows, k_cols = w_pad.shape[1], w_pad.shape[2]
-    acc[:] = 0
-    for ky in range(k_rows):
-        row = xp[y + ky]
-        for kx in range(0, k_cols, 3):
-            w0 = w_pad[c, ky, kx]
-            w1 = w_pad[c, ky, kx + 1]
-            w2 = w_pad[c, ky, kx + 2]
-            s0 = row[kx : kx + width]
-            s1 = row[kx + 1 : kx + 1 + width]
-            s2 = row[kx + 2 : kx + 2 + width]
-            for x in range(width):
-                acc[x] += w0 * s0[x] + w1 * s1[x] + w2 * s2[x]
-
-
-@njit(cache=True, fastmath={"contract"})
 def _channel_rows4_f32(xp, w_pad, c, y, acc):
-    """:func:`_channel_row_f32` for channels c .. c + 3 at once into ``acc`` (4, W): each input
+    """The float32 :func:`_channel_row` (no bias) for channels c .. c + 3 at once into ``acc`` (4, W): each input
     sample loaded feeds four channels' multiply-adds, which keeps the loop bound by arithmetic
     rather than by loads (about 1.6x faster than one channel per pass)."""
     width = acc.shape[1]
@@ -219,7 +201,7 @@ def _sign_bits_rows_f32(xp, w_pad, bias, masks, y, acc4, acc, bits):
             _sign_bits_f32(acc4[j], bias[c + j], masks[c + j], bits)
         c += 4
     while c < n_channels:
-        _channel_row_f32(xp, w_pad, c, y, acc)
+        _channel_row(xp, w_pad, np.float32(0), c, y, acc)
         _sign_bits_f32(acc, bias[c], masks[c], bits)
         c += 1
 

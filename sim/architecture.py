@@ -19,6 +19,12 @@ def _bits_for(max_value: int) -> int:
     return max(1, math.ceil(math.log2(max_value + 1)))
 
 
+def output_word_bits(cfg: ChipConfig) -> int:
+    """Bits of an SVA output word: a valid flag, ceil(log2 D) integer disparity bits and the
+    sub-pixel fraction."""
+    return 1 + _bits_for(cfg.sva.disparities - 1) + cfg.sva.subpixel_bits
+
+
 def nna_macs_per_descriptor(cfg: ChipConfig) -> int:
     """K*K*C multiply-accumulates of the CNN layer; census descriptors use no MACs."""
     if cfg.nna.descriptor == "census":
@@ -45,7 +51,7 @@ def buffer_bits(cfg: ChipConfig, width: int) -> dict[str, int]:
     s = cfg.sva
     bits = descriptor_bits(cfg.nna)
     d_bits = _bits_for(s.disparities - 1)
-    word_bits = 1 + d_bits + s.subpixel_bits
+    word_bits = output_word_bits(cfg)
     out = {"nna.line_buffer": cfg.nna.line_buffer_rows * width * 8}
     if cfg.nna.descriptor == "cnn":
         c, k, _ = layer(cfg.nna)[0].shape

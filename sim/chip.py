@@ -9,12 +9,11 @@ FIFOs, named by where data flows: ``src_left_to_nna``, ``src_right_to_nna``,
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from nna.blocks import Merge, NnaSubmodule, cycles_per_descriptor, split_frame
 from nna.descriptor import descriptor_bits
+from sim.architecture import output_word_bits
 from sim.clock import ClockDomain, Simulator
 from sim.config import ChipConfig
 from sim.fifo import Fifo
@@ -56,7 +55,7 @@ def build_chip(left: np.ndarray, right: np.ndarray, cfg: ChipConfig, *, order_se
                                         sync_cycles=f.sync_cycles))
         return fifos[name]
 
-    word_bits = 1 + math.ceil(math.log2(cfg.sva.disparities)) + cfg.sva.subpixel_bits
+    word_bits = output_word_bits(cfg)
     desc_bits = bits + (8 if cfg.sva.p2_adaptive else 0)
     blocks = {}
     outs = {}

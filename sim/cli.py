@@ -187,7 +187,7 @@ def cmd_run(args) -> int:
     out_dir = Path(args.out)
     _write_outputs(out_dir, result, float(cfg.sva.disparities))
     if request is not None:
-        traced = write_traces(result.trace, request)
+        traced = write_traces(result.trace, request, size_checked=True)
     if args.json:
         print(json.dumps(result.report, indent=2, sort_keys=True))
     else:

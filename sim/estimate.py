@@ -40,7 +40,7 @@ import math
 
 from nna.blocks import Tile, cycles_per_descriptor, half_window, split_frame
 from nna.descriptor import descriptor_bits
-from sim.architecture import action_counts, buffer_bits
+from sim.architecture import action_counts, buffer_bits, output_word_bits
 from sim.config import ChipConfig, config_to_dict
 
 FS_PER_S = 10**15
@@ -92,10 +92,6 @@ def _desc_bits(cfg: ChipConfig) -> int:
     return descriptor_bits(cfg.nna) + (8 if cfg.sva.p2_adaptive else 0)
 
 
-def _word_bits(cfg: ChipConfig) -> int:
-    return 1 + math.ceil(math.log2(cfg.sva.disparities)) + cfg.sva.subpixel_bits
-
-
 def _tiles(cfg: ChipConfig, shape: tuple[int, int]) -> list[Tile]:
     parts = cfg.nna.stereo_submodules // 2
     h, w = shape
@@ -125,7 +121,7 @@ def fifo_plan(cfg: ChipConfig, shape: tuple[int, int]) -> dict[str, dict]:
                 add(f"src_{side}_to_nna{t}", f.source_to_nna_depth, 8, src, "nna", n_in)
                 add(f"nna_{side}{t}_to_merge", f.nna_to_sva_depth, _desc_bits(cfg), "nna", "nna",
                     tile.shape[0] * tile.shape[1])
-    add("sva_to_sink", f.sva_to_sink_depth, _word_bits(cfg), "sva", "sva", h * w)
+    add("sva_to_sink", f.sva_to_sink_depth, output_word_bits(cfg), "sva", "sva", h * w)
     return dict(sorted(out.items()))
 
 

@@ -35,8 +35,6 @@ cycles with ``cycle % period == allowed_phase``.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numba import njit
 
@@ -44,6 +42,7 @@ from nna.blocks import cycles_per_descriptor, half_window
 from nna.census import census_offsets
 from nna.conv import _channel_row, _sign_bits_rows_f32, f32_exact
 from nna.descriptor import descriptor_bits, layer
+from sim.architecture import output_word_bits
 from sim.chip import assemble_report, frame_budget
 from sim.clock import (
     ACTIVITIES,
@@ -142,8 +141,8 @@ def descriptor_row_cnn(pixels, y, w_f32, w_i32, bias, input_offset, out):
     float32 (:func:`nna.conv.f32_exact`, every 9x9 layer), else in int32 -- the other one is
     empty; ``bias`` int32 (C,). Bit c is ``bias[c] + sum w[c, ky, kx] * (pixel - input_offset)
     > 0`` with clamped coordinates (:mod:`nna.conv`). Reads rows ``y - K // 2 .. y + K // 2``
-    only, and runs the full-frame kernel's inner loop (:func:`nna.conv._channel_row_f32` or
-    ``_channel_row``, three taps per pass along the row) on those K rows.
+    only, and runs the full-frame kernel's inner loop (:func:`nna.conv._channel_row`, three taps
+    per pass along the row, in float32 four channels at a time) on those K rows.
     """
     use_f32 = w_f32.shape[0] > 0
     h, w = pixels.shape
@@ -1117,7 +1116,7 @@ class _Setup:
         bits = descriptor_bits(cfg.nna)
         self.bits = bits
         desc_bits = bits + (8 if cfg.sva.p2_adaptive else 0)
-        word_bits = 1 + math.ceil(math.log2(cfg.sva.disparities)) + cfg.sva.subpixel_bits
+        word_bits = self.word_bits = output_word_bits(cfg)
         f = cfg.fifo
         src_dom = D_CAM if self.camera else D_NNA
         # name -> (depth, width, src domain, dst domain), in FIFO index order
@@ -1178,7 +1177,7 @@ def trace_signals(shape, cfg: ChipConfig) -> list[tuple[str, int, str]]:
     src = "camera" if setup.camera else "memory"
     src_dom = "camera" if setup.camera else "nna"
     cpd = cycles_per_descriptor(cfg.nna)
-    word_bits = 1 + math.ceil(math.log2(cfg.sva.disparities)) + cfg.sva.subpixel_bits
+    word_bits = setup.word_bits
     out = []
     for side in ("left", "right"):
         out += [(f"top.{src}_{side}.status", 2, src_dom),
@@ -1303,9 +1302,9 @@ def run_cycle_fast(left: np.ndarray, right: np.ndarray, cfg: ChipConfig, *,
     src_params = (setup.camera, np.int64(round(src_freq)),
                   np.int64(round(cfg.source.memory_gbps * 1e9)),
                   np.int64(w + cfg.source.camera_hblank), np.int64(cfg.sim.watchdog_cycles))
-    signals = trace_signals(shape, cfg)
-    word_bits = 1 + math.ceil(math.log2(cfg.sva.disparities)) + cfg.sva.subpixel_bits
-    tr = _trace_state(len(signals), n_f, trace_window, word_bits,
+    # (the signal table only when tracing: an untraced run samples nothing)
+    signals = trace_signals(shape, cfg) if trace_window is not None else []
+    tr = _trace_state(len(signals), n_f, trace_window, setup.word_bits,
                       1 << 16 if trace_window is not None else 0, h)
     while True:
         event = _run_loop(g, dom, fq, rings, bs, (left, right), nna_data, sva_data, sink_data,

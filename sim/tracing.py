@@ -156,14 +156,16 @@ def check_size(log, request: TraceRequest) -> int:
     return size
 
 
-def write_traces(log, request: TraceRequest) -> list[str]:
+def write_traces(log, request: TraceRequest, *, size_checked: bool = False) -> list[str]:
     """Write the VCD (and its .gtkw next to it) and the timeline the request names (each file
-    atomically, after :func:`check_size`); returns the paths written."""
+    atomically, after :func:`check_size` unless the caller ran it: ``size_checked``); returns
+    the paths written."""
     from traces.gtkw import write_gtkw
     from traces.timeline import write_timeline
     from traces.vcd import write_vcd
 
-    check_size(log, request)
+    if not size_checked:
+        check_size(log, request)
     written = []
     if request.vcd:
         write_vcd(request.vcd, log)
