@@ -5,7 +5,12 @@ stereosim: `sim.run(mode="cycle")` with the CNN int8 descriptor, D = 128, 4 SGM 
 (all clock domains together) and the peak resident memory of a fresh process that runs one
 frame. OpenCV: StereoSGBM MODE_SGBM, D = 128, blockSize 5, single-threaded, on the same pair.
 
-    python benchmarks/speed_cycle.py [--repeat 3] [--engine fast|readable]
+    python benchmarks/speed_cycle.py [--repeat 3] [--engine fast|readable] [--split]
+
+``--split`` runs one more frame in the child with the compiled engine's outer loop driven from
+Python, and prints where its CPU time goes: the compiled steps (the event loop) and the data
+kernels (the NNA's descriptor rows, the SVA's stream rows and median) that it calls between
+steps.
 """
 
 from __future__ import annotations
@@ -33,7 +38,45 @@ def frame():
     return left, right
 
 
-def one_frame_child(engine: str) -> None:
+def _split_frame(left, right, over) -> dict:
+    """CPU seconds of one frame spent in the compiled steps and in the data kernels."""
+    import sim.fast as fast
+
+    acc = {"steps_s": 0.0, "nna_kernels_s": 0.0, "sva_kernels_s": 0.0}
+
+    def loop(g, dom, fq, rings, bs, images, nna_data, sva_data, sink_data, src_params, tr):
+        # sim.fast._run_loop, step for step, with clocks around its three parts
+        pixels, row_desc, nna = nna_data[0], nna_data[1], nna_data[2]
+        while True:
+            t0 = time.process_time()
+            event = fast._run_steps(g, dom, fq, rings, bs, images, nna_data, sva_data,
+                                    sink_data, src_params, tr)
+            t1 = time.process_time()
+            acc["steps_s"] += t1 - t0
+            if event != fast.EV_DATA:
+                return event
+            for side in range(2):
+                fast._nna_prepare_row(bs, fast.B_NNA_L if side == 0 else fast.B_NNA_R, side,
+                                      pixels, row_desc, nna)
+            t2 = time.process_time()
+            acc["nna_kernels_s"] += t2 - t1
+            y = bs[fast.B_SVA, fast.BC_S1Y]
+            if bs[fast.B_SVA, fast.BC_S5] <= y < bs[fast.B_SVA, fast.BC_S3]:
+                fast._sva_advance(bs, bs[fast.B_SVA, fast.BC_S0Y], sva_data[0])
+            acc["sva_kernels_s"] += time.process_time() - t2
+
+    compiled = fast._run_loop
+    fast._run_loop = loop
+    try:
+        t0 = time.process_time()
+        run(left, right, mode="cycle", overrides=over)
+        acc["total_s"] = time.process_time() - t0
+    finally:
+        fast._run_loop = compiled
+    return acc
+
+
+def one_frame_child(engine: str, split: bool) -> None:
     """Run one frame and print the wall time, cycles and peak RSS (MiB) as JSON."""
     left, right = frame()
     over = dict(CONFIG, **({"sim.engine": engine} if engine else {}))
@@ -43,23 +86,29 @@ def one_frame_child(engine: str) -> None:
     wall = time.perf_counter() - t0
     peak_mib = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     cycles = sum(res.report["cycles"]["total"].values())
-    print(json.dumps({"wall_s": wall, "cycles": cycles, "peak_mib": peak_mib,
-                      "fps": res.report["throughput"]["fps"],
-                      "bottleneck": res.report["throughput"]["bottleneck"]}))
+    out = {"wall_s": wall, "cycles": cycles, "peak_mib": peak_mib,
+           "fps": res.report["throughput"]["fps"],
+           "bottleneck": res.report["throughput"]["bottleneck"]}
+    if split:
+        out["split"] = _split_frame(left, right, over)
+    print(json.dumps(out))
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--engine", default="", help="sim.engine override (default: the config's)")
+    ap.add_argument("--split", action="store_true",
+                    help="also print the CPU split: event loop vs data kernels")
     ap.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.child:
-        one_frame_child(args.engine)
+        one_frame_child(args.engine, args.split)
         return
     runs = []
     for _ in range(args.repeat):
-        out = subprocess.run([sys.executable, __file__, "--child", "--engine", args.engine],
+        out = subprocess.run([sys.executable, __file__, "--child", "--engine", args.engine]
+                             + (["--split"] if args.split else []),
                              capture_output=True, text=True, check=True)
         runs.append(json.loads(out.stdout.strip().splitlines()[-1]))
     left, right = frame()
@@ -81,6 +130,14 @@ def main(argv=None):
           f"chip: {best['fps']} fps, bottleneck {best['bottleneck']}")
     print(f"  OpenCV SGBM, 1 thread : {cv_best:.3f} s")
     print(f"  ratio stereosim / OpenCV: {best['wall_s'] / cv_best:.2f}  (target <= 2.0)")
+    if args.split:
+        sp = min((r["split"] for r in runs), key=lambda x: x["total_s"])
+        kernels = sp["nna_kernels_s"] + sp["sva_kernels_s"]
+        rest = sp["total_s"] - sp["steps_s"] - kernels
+        print(f"  CPU of one frame (least of {args.repeat}): {sp['total_s']:.3f} s = compiled "
+              f"steps {sp['steps_s']:.3f} s + NNA descriptor rows {sp['nna_kernels_s']:.3f} s "
+              f"+ SVA stream rows {sp['sva_kernels_s']:.3f} s + set-up/report {rest:.3f} s")
+        print(f"  the data kernels alone: {kernels / cv_best:.2f} x OpenCV")
 
 
 if __name__ == "__main__":
