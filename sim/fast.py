@@ -1221,8 +1221,15 @@ def _trace_state(n_sig, n_fifo, window, word_bits, capacity, h):
 def run_cycle_fast(left: np.ndarray, right: np.ndarray, cfg: ChipConfig, *,
                    sink_stall: tuple[int, int] | None = None,
                    trace_window: tuple[int, int] | None = None,
-                   trace_out: dict | None = None) -> tuple[np.ndarray, dict, dict]:
+                   trace_out: dict | None = None,
+                   method: str = "auto") -> tuple[np.ndarray, dict, dict]:
     """Simulate one frame on the compiled engine: ``(words (H, W) int32, cycle report, stats)``.
+
+    ``method``: ``"auto"`` computes an untraced frame with the schedule engine
+    (:mod:`sim.schedule`: every beat's cycle from closed-form recurrences) and steps edge by edge
+    (this module's loop) only where that engine does not answer -- a traced window, or a run that
+    stops early (overflow, deadlock, budget, watchdog), which the steps report exactly;
+    ``"steps"`` always steps. Both give the same result wherever both answer.
 
     Equal to :func:`sim.chip.run_cycle` in the words, in the report (:func:`sim.chip.cycle_report`)
     and in ``chip.sim.stats()``; raises the same :class:`~sim.sources.CameraOverflow`,
@@ -1242,6 +1249,8 @@ def run_cycle_fast(left: np.ndarray, right: np.ndarray, cfg: ChipConfig, *,
             f"{cfg.nna.stereo_submodules} needs the readable engine: set sim.engine=readable "
             "(or auto, which picks it)"
         )
+    if method not in ("auto", "steps"):
+        raise ConfigError(f"method must be 'auto' or 'steps'; got {method!r}")
     left = np.ascontiguousarray(left, np.uint8)
     right = np.ascontiguousarray(right, np.uint8)
     shape = left.shape
@@ -1253,6 +1262,12 @@ def run_cycle_fast(left: np.ndarray, right: np.ndarray, cfg: ChipConfig, *,
         raise ConfigError(
             f"sink_stall must be (period >= 1, 0 <= allowed_phase < period); got {sink_stall!r}"
         )
+    if method == "auto" and trace_window is None:
+        from sim.schedule import run_schedule
+
+        done = run_schedule(left, right, cfg, sink_stall=sink_stall, trace_out=trace_out)
+        if done is not None:
+            return done
     setup = _Setup(shape, cfg)
     names = list(setup.domains)
     dom = np.zeros((len(names), N_DC), np.int64)

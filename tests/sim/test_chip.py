@@ -7,6 +7,7 @@ from sim.api import run
 from sim.chip import run_cycle
 from sim.clock import DeadlockError
 from sim.config import load_config
+from sim.schedule import run_schedule
 from sim.sources import CameraOverflow
 
 # Equal NNA and SVA clocks make the crossing easy to count by hand: an item pushed at NNA cycle
@@ -20,8 +21,20 @@ def _pair(h, w, seed=0, shift=3):
     return base[:, :w].copy(), base[:, shift:].copy()
 
 
+def _frame(engine, left, right, cfg):
+    """(words, report, sink's first and last pop cycle) on the readable kernel or on the
+    schedule engine (sim/schedule.py), which computes the same cycles without stepping."""
+    if engine == "readable":
+        words, report, chip = run_cycle(left, right, cfg)
+        return words, report, chip.sink.first_cycle, chip.sink.last_cycle
+    words, report, _ = run_schedule(left, right, cfg)
+    cyc = report["cycles"]
+    return words, report, cyc["first_output"]["sva"], cyc["last_output"]["sva"]
+
+
+@pytest.mark.parametrize("engine", ["readable", "schedule"])
 @pytest.mark.parametrize("h, w", [(11, 37), (7, 41), (5, 33)])
-def test_census_first_and_last_output_cycles(h, w):
+def test_census_first_and_last_output_cycles(h, w, engine):
     """Census (1 cycle per descriptor, window half-height 1), memory at one pixel per cycle.
 
     Source pixel k leaves in cycle k and is popped by the NNA in cycle k + 1. NNA output row 0
@@ -34,16 +47,17 @@ def test_census_first_and_last_output_cycles(h, w):
     """
     left, right = _pair(h, w)
     cfg = load_config(overrides=SAME_CLOCKS)
-    words, report, chip = run_cycle(left, right, cfg)
+    words, report, first, last = _frame(engine, left, right, cfg)
     lat = cfg.sva.pipeline_latency
-    assert chip.sink.first_cycle == 6 * w + 4 + lat
-    assert chip.sink.last_cycle == 6 * w + 4 + lat + 2 * (h * w - 1)
+    assert first == 6 * w + 4 + lat
+    assert last == 6 * w + 4 + lat + 2 * (h * w - 1)
     assert report["throughput"]["bottleneck"] == "sva"
     np.testing.assert_array_equal(words, run(left, right, config=cfg).disparity_fixed)
 
 
+@pytest.mark.parametrize("engine", ["readable", "schedule"])
 @pytest.mark.parametrize("h, w", [(11, 37), (7, 41), (5, 33)])
-def test_cnn_first_and_last_output_cycles(h, w):
+def test_cnn_first_and_last_output_cycles(h, w, engine):
     """CNN: ceil(81 * 32 / 288) = 9 cycles per descriptor, window half-height 4.
 
     NNA output row 0 needs input row 4 (popped in cycle 5W): it starts in 5W + 1 and pushes
@@ -55,10 +69,10 @@ def test_cnn_first_and_last_output_cycles(h, w):
     """
     left, right = _pair(h, w, seed=1)
     cfg = load_config(overrides={**SAME_CLOCKS, "nna.descriptor": "cnn"})
-    words, report, chip = run_cycle(left, right, cfg)
+    words, report, first, last = _frame(engine, left, right, cfg)
     lat = cfg.sva.pipeline_latency
-    assert chip.sink.first_cycle == 41 * w + 4 + lat
-    assert chip.sink.last_cycle == (9 * h + 5) * w + 3 + lat + 2 * (4 * w - 1) + 1
+    assert first == 41 * w + 4 + lat
+    assert last == (9 * h + 5) * w + 3 + lat + 2 * (4 * w - 1) + 1
     assert report["throughput"]["bottleneck"] in ("nna_left", "nna_right")
     # the bottleneck's busy time per frame is its descriptors x 9 cycles
     assert report["blocks"]["nna_left"]["busy"] >= 9 * h * w

@@ -1,6 +1,7 @@
-"""The compiled engine (sim/fast.py) against the readable one (sim/chip.py): same words, same
-cycle report, same kernel statistics, same errors; and its descriptor rows against the NNA
-kernels on whole images."""
+"""The compiled engine (sim/fast.py, with its two methods: steps and the schedule engine of
+sim/schedule.py) against the readable one (sim/chip.py): same words, same cycle report, same
+kernel statistics, same errors; and its descriptor rows against the NNA kernels on whole
+images."""
 
 import numpy as np
 import pytest
@@ -18,6 +19,7 @@ from sim.fast import (
     descriptor_row_cnn,
     run_cycle_fast,
 )
+from sim.schedule import run_schedule
 from sim.sources import CameraOverflow
 
 SAME_CLOCKS = {"clocks.nna_mhz": 400, "clocks.sva_mhz": 400}
@@ -37,13 +39,18 @@ def _stall_fn(stall):
 
 
 def _assert_same(h, w, over, seed=0, stall=None):
+    """Both compiled methods -- the steps of this module's loop and the schedule engine that
+    ``method="auto"`` uses for a completing untraced run -- equal the readable kernel."""
     left, right = _pair(h, w, seed=seed)
     cfg = load_config(overrides={"sva.disparities": 16, **over})
-    words_f, report_f, stats_f = run_cycle_fast(left, right, cfg, sink_stall=stall)
     words_r, report_r, chip = run_cycle(left, right, cfg, sink_stall=_stall_fn(stall))
-    np.testing.assert_array_equal(words_f, words_r)
-    assert stats_f == chip.sim.stats()
-    assert report_f == report_r
+    assert run_schedule(left, right, cfg, sink_stall=stall) is not None
+    for method in ("steps", "auto"):
+        words_f, report_f, stats_f = run_cycle_fast(left, right, cfg, sink_stall=stall,
+                                                    method=method)
+        np.testing.assert_array_equal(words_f, words_r)
+        assert stats_f == chip.sim.stats()
+        assert report_f == report_r
 
 
 @pytest.mark.parametrize(
