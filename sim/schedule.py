@@ -49,6 +49,8 @@ beat by beat (tested equal).
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 from numba import njit
 
@@ -469,8 +471,7 @@ def _level_walk(inc, inc_conv, dec, dec_conv, c_end, depth, hist):
                 break
         if ti == c:
             level += 1
-            if level > top:
-                top = level
+            top = max(top, level)
             i += 1
             ti = _cross(inc[i], ip, iq, ie) if i < n else INF
         else:
@@ -572,7 +573,6 @@ def run_schedule(left: np.ndarray, right: np.ndarray, cfg, *, sink_stall=None,
     sink has received r rows, r = 0 .. H (for trace windows given in rows). ``timings`` (a
     dict) receives the CPU seconds of the event cycles and statistics (``schedule_s``), the
     NNA's descriptors (``nna_kernels_s``) and the SVA's stream (``sva_kernels_s``)."""
-    import time
     from nna.blocks import cycles_per_descriptor
     from nna.descriptor import compute_descriptor
     from sim.chip import assemble_report
@@ -611,26 +611,26 @@ def run_schedule(left: np.ndarray, right: np.ndarray, cfg, *, sink_stall=None,
         src = names[2 * side]
         if setup.camera:
             busy = min(c_src, h * (w + cfg.source.camera_hblank))
-            blocks[src] = dict(busy=busy, starved=0, blocked=0, idle=c_src - busy)
+            blocks[src] = {"busy": busy, "starved": 0, "blocked": 0, "idle": c_src - busy}
         else:
             active = int(t[T_A + 4 * side, n - 1]) + 1
             blocked = int(cnt[C_SRC_BLOCKED + side])
-            blocks[src] = dict(busy=active - blocked, starved=0, blocked=blocked,
-                               idle=c_src - active)
+            blocks[src] = {"busy": active - blocked, "starved": 0, "blocked": blocked,
+                           "idle": c_src - active}
         starved, blocked = _mac_activity(side, prm, t)
         active = int(t[T_E + 4 * side, n - 1]) + 1
-        blocks[names[2 * side + 1]] = dict(busy=active - starved - blocked, starved=starved,
-                                           blocked=blocked, idle=c_n - active)
+        blocks[names[2 * side + 1]] = {"busy": active - starved - blocked, "starved": starved,
+                                       "blocked": blocked, "idle": c_n - active}
     starved, blocked = _sva_activity(prm, t)
     active = int(t[T_O, n - 1]) + 1
-    blocks["sva"] = dict(busy=active - starved - blocked, starved=starved, blocked=blocked,
-                         idle=c_s - active)
+    blocks["sva"] = {"busy": active - starved - blocked, "starved": starved,
+                     "blocked": blocked, "idle": c_s - active}
     period, phase = (0, 0) if sink_stall is None else sink_stall
     allowed = c_s if period == 0 else (q_last - phase) // period + 1 if q_last >= phase else 0
-    blocks["sink"] = dict(busy=n, starved=allowed - n, blocked=0, idle=c_s - allowed)
+    blocks["sink"] = {"busy": n, "starved": allowed - n, "blocked": 0, "idle": c_s - allowed}
 
     f = cfg.fifo
-    p_src, p_n, p_s = per[src_name], per["nna"], per["sva"]
+    p_src, p_n = per[src_name], per["nna"]
     de_ns = f.latency_cycles + f.sync_cycles - 1
     fifos = {}
     # (index in FIFO_NAMES, push row, pop row, producer/consumer cycles, Q-walk inc and dec

@@ -2,6 +2,8 @@
 configurations and to the step engine on large frames, declining exactly the runs the steps
 must report, and its helper kernels equal to naive references."""
 
+import itertools
+
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -210,7 +212,7 @@ def test_the_watchdog_check_is_sound(rows, watchdog):
     instants = sorted({-p_max} | {int(c) * int(periods[i]) for i in range(len(rows))
                                   for c in t[i]})
     t_end = instants[-1]
-    gap = max(b - a for a, b in zip(instants, instants[1:])) if len(instants) > 1 else 0
+    gap = max((b - a for a, b in itertools.pairwise(instants)), default=0)
     safe = _watchdog_safe(t, np.arange(len(rows), dtype=np.int64), periods, t_end, p_max,
                           watchdog)
     if safe:
