@@ -120,25 +120,36 @@ def run_cycle(left: np.ndarray, right: np.ndarray, cfg: ChipConfig, *, order_see
 
 
 def fast_engine_models(cfg: ChipConfig) -> bool:
-    """The compiled engine (sim/fast.py) covers one NNA submodule per camera."""
+    """The compiled steps (sim/fast.py) cover one NNA submodule per camera; the schedule engine
+    (sim/schedule.py) covers splits too."""
     return cfg.nna.stereo_submodules == 2
 
 
 def simulate(left: np.ndarray, right: np.ndarray, cfg: ChipConfig) -> tuple[np.ndarray, dict]:
     """One frame on the engine ``sim.engine`` selects: (output words, cycle report).
 
-    Both engines give identical words, reports and statistics (tests/sim/test_fast.py); the
-    readable one is the reference and runs ~5e4 cycles/s, the compiled one millions.
+    ``readable``: the reference kernel. ``fast`` and ``auto``: the compiled engine -- the
+    schedule engine for a frame that completes, the compiled steps (one submodule per camera)
+    or the readable kernel (splits) for one that stops early, which they report exactly. Every
+    engine gives identical words, reports and statistics (tests/sim/test_fast.py,
+    tests/sim/test_schedule.py); the readable one runs ~5e4 cycles/s, the others millions.
     """
-    engine = cfg.sim.engine
-    if engine == "auto":
-        engine = "fast" if fast_engine_models(cfg) else "readable"
-    if engine == "fast":
+    engine = "readable" if cfg.sim.engine == "readable" else "fast"
+    if engine == "fast" and fast_engine_models(cfg):
         from sim.fast import run_cycle_fast
 
         words, report, _ = run_cycle_fast(left, right, cfg)
     else:
-        words, report, _ = run_cycle(left, right, cfg)
+        done = None
+        if engine == "fast":
+            from sim.schedule import run_schedule
+
+            done = run_schedule(left, right, cfg)
+        if done is None:
+            engine = "readable"
+            words, report, _ = run_cycle(left, right, cfg)
+        else:
+            words, report, _ = done
     report["engine"] = engine
     return words, report
 
@@ -158,7 +169,10 @@ def assemble_report(sva: ClockDomain, first_cycle: int, last_cycle: int,
 
     A block's work per frame is the cycles its critical resource is occupied (the MAC array,
     the SVA's output pipeline, a source's port); in a stream of frames the block with the most
-    work time sets the frame rate.
+    work time sets the frame rate (``fps``) -- if no block waits on another beyond that.
+    ``fps_frame`` is the rate of frames run one at a time (the first input pixel at t = 0 to the
+    last output word): far below ``fps`` when blocks hold work they cannot hand on (column tiles
+    behind merge FIFOs shallower than a tile row, say).
     """
     first_fs = sva.edge_fs(first_cycle)
     last_fs = sva.edge_fs(last_cycle)
@@ -175,6 +189,9 @@ def assemble_report(sva: ClockDomain, first_cycle: int, last_cycle: int,
         "latency": {"first_output_ns": first_fs / 1e6, "frame_ns": last_fs / 1e6},
         "throughput": {
             "fps": round(1.0 / frame_s, 3) if frame_s > 0 else None,
+            # frames one at a time, first input pixel to last output word: a stream overlaps
+            # frames and reaches `fps` unless blocks wait on each other (see blocks.*.blocked)
+            "fps_frame": round(FS_PER_S / last_fs, 3) if last_fs > 0 else None,
             "bottleneck": bottleneck,
             "work_ms_per_frame": {n: round(v * 1e3, 6) for n, v in sorted(work_s.items())},
             # the frame rate each block alone would sustain (1 / its work time per frame)

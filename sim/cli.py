@@ -160,6 +160,12 @@ def _summary(report: dict, seconds: float) -> str:
             f"cycles: {report['cycles']['total']}; first output {lat['first_output_ns'] / 1e3:.1f} us, "
             f"frame {lat['frame_ns'] / 1e6:.3f} ms; {thr['fps']} fps, bottleneck {thr['bottleneck']}"
         )
+        if thr.get("fps_frame") and thr["fps"] and thr["fps_frame"] < 0.9 * thr["fps"]:
+            lines.append(
+                f"note: one frame at a time runs at {thr['fps_frame']} fps, far below the "
+                f"{thr['fps']} fps the busiest block's work allows: blocks wait on each other "
+                "(see blocks.*.blocked in report.json)"
+            )
     for mask, m in report.get("metrics", {}).items():
         lines.append(
             f"{mask:>7}: bad2 {m['bad2']:.2f}%  invalid {m['invalid']:.2f}%  "

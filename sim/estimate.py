@@ -375,6 +375,18 @@ def estimate(cfg: ChipConfig, shape: tuple[int, int]) -> dict:
                 "the NNA needs more time per row than the camera gives it: the camera will "
                 "overflow the source FIFO (more nna.stereo_submodules, nna.macs or clocks.nna_mhz)"
             )
+    tiles = _tiles(cfg, shape)
+    if len(tiles) > 1 and cfg.nna.split == "columns":
+        widest = max(t.x1 - t.x0 for t in tiles)
+        if cfg.fifo.nna_to_sva_depth < widest:
+            warnings.append(
+                f"the merge FIFOs (fifo.nna_to_sva_depth={cfg.fifo.nna_to_sva_depth}) hold less "
+                f"than a tile row ({widest} descriptors): the merge drains the tiles in raster "
+                "order, so each tile waits for the others and a frame takes longer than this "
+                "latency estimate (its fps is an upper bound"
+                + ("; a camera can overflow while they do" if cfg.source.kind == "camera" else "")
+                + f"); run the cycle model, or use a depth of at least {widest}"
+            )
     if cfg.nna.line_buffer_rows < 2 * half_window(cfg.nna) + 2:
         warnings.append(
             "nna.line_buffer_rows holds only the window: a row waits for the window to move "

@@ -59,7 +59,7 @@ NEVER = -(1 << 40)  # the SVA's "last push" before the first one (SvaBlock.last_
 
 # ---- parameter vector (int64) --------------------------------------------------------------
 (P_H, P_W, P_CAMERA, P_LINE_CLOCKS, P_MEM_HZ, P_MEM_BPS, P_HALF, P_ROWS, P_CPD, P_LA, P_LAT,
- P_CPP, P_D_SRC, P_D_NS, P_D_SK, P_DE_SRC, P_SE_SRC, P_DE_NS, P_SE_NS, P_L_SK, P_PER_SRC,
+ P_CPP, P_D_SRC, P_D_NS, P_D_SK, P_DE_SRC, P_SE_SRC, P_DE_NS, P_SE_NS, P_LATENCY, P_PER_SRC,
  P_PER_N, P_PER_S, P_STALL_PERIOD, P_STALL_PHASE, P_LIMIT_SRC, P_LIMIT_N, P_LIMIT_S,
  P_WATCHDOG) = range(29)
 N_P = 29
@@ -276,7 +276,7 @@ def _sva_pushes_and_sink(prm, t, cnt):
     p_t, o_t, q_t = t[T_P], t[T_O], t[T_Q]
     kp = cnt[C_P]
     la, lat, cpp = prm[P_LA], prm[P_LAT], prm[P_CPP]
-    depth, lat_sk = prm[P_D_SK], prm[P_L_SK]
+    depth, latency = prm[P_D_SK], prm[P_LATENCY]
     period, phase = prm[P_STALL_PERIOD], prm[P_STALL_PHASE]
     limit = prm[P_LIMIT_S]
     y = j // w
@@ -297,7 +297,7 @@ def _sva_pushes_and_sink(prm, t, cnt):
             ready_row = y
         free = q_t[j - depth] + 1 if j >= depth else 0
         o = max(ready + lat, o_prev + cpp, free)
-        vis = o + lat_sk
+        vis = o + latency
         q = max(q_prev + 1, vis)
         if period > 0:
             q += (phase - q) % period  # the sink's next allowed cycle
@@ -331,6 +331,277 @@ def _advance(prm, t, cnt):
                 return
         for side in range(2):
             moved |= _mac_pushes(side, prm, t, cnt)
+        moved |= _sva_pops(prm, t, cnt)
+        moved |= _sva_pushes_and_sink(prm, t, cnt)
+        if cnt[C_STOP] != STOP_NONE:
+            return
+        if not moved:
+            cnt[C_STOP] = STOP_DEADLOCK
+            return
+
+
+# ---- frames split over several submodules per camera -----------------------------------------
+#
+# With k > 1 submodules per camera (column tiles or row bands, :func:`nna.blocks.split_frame`)
+# the source pushes each pixel to every tile whose input region holds it, in one joint push;
+# each tile's line buffer and MAC array follow the rules above within its regions; a merge
+# block per camera moves the descriptors back into raster order (pop from the owner tile's
+# FIFO and push to the SVA's in one cycle). The rows T_E + 4 s and T_VE + 4 s then hold the
+# merge's pushes and their SVA visibility, and counter C_E + s its progress, so the SVA's
+# streams are those of the whole-frame chip. Per-tile pops and pushes live in ``tt`` at
+# ``off[s, t, 0]`` (input region) and ``off[s, t, 1]`` (output region). ``cnt2[s]`` counts the
+# source pushes (X_A), then per tile t its pops (1 + 2 t) and pushes (2 + 2 t); ``st2[s]`` holds
+# the merge's starved and blocked cycles (0, 1), then per tile t the empty counts of its source
+# FIFO (2 + 2 t) and of its merge FIFO (3 + 2 t).
+G_X0, G_X1, G_Y0, G_Y1, G_IX0, G_IX1, G_IY0, G_IY1 = range(8)
+X_A = 0
+
+
+@njit(cache=True)
+def _joint_pushes(side, prm, geom, t, tt, off, cnt, cnt2):
+    """Source pushes of camera ``side`` to every tile that takes the pixel (a joint push waits
+    until each target sees a free slot). True if it advanced."""
+    h, w = prm[P_H], prm[P_W]
+    n = h * w
+    k = cnt2[side, X_A]
+    if k >= n:
+        return False
+    a_t = t[T_A + 4 * side]
+    n_tiles = geom.shape[0]
+    depth, se = prm[P_D_SRC], prm[P_SE_SRC]
+    per_src, per_n = prm[P_PER_SRC], prm[P_PER_N]
+    camera = prm[P_CAMERA] == 1
+    line_clocks = prm[P_LINE_CLOCKS]
+    hz, bps = prm[P_MEM_HZ], prm[P_MEM_BPS]
+    throttled = not camera and bps < hz
+    y = k // w
+    x = k - y * w
+    a_prev = a_t[k - 1] if k > 0 else -1
+    start = k
+    blocked = 0
+    while k < n:
+        free = 0
+        ok = True
+        for tile in range(n_tiles):
+            g = geom[tile]
+            if g[G_IX0] <= x < g[G_IX1] and g[G_IY0] <= y < g[G_IY1]:
+                i = (y - g[G_IY0]) * (g[G_IX1] - g[G_IX0]) + x - g[G_IX0]
+                if i >= depth:
+                    if cnt2[side, 1 + 2 * tile] <= i - depth:
+                        ok = False
+                        break
+                    free = max(free, _cross(tt[off[side, tile, 0] + i - depth], per_n,
+                                            per_src, se))
+        if not ok:
+            break
+        if camera:
+            a = y * line_clocks + x
+            if free > a:
+                cnt[C_STOP] = STOP_OVERFLOW
+                cnt[C_STOP_AT] = k
+                break
+        else:
+            lo = a_prev + 1
+            if throttled:
+                lo = max(lo, ((k + 1) * hz + bps - 1) // bps - 1)
+            a = max(lo, free)
+            blocked += a - lo
+        a_t[k] = a
+        a_prev = a
+        k += 1
+        x += 1
+        if x == w:
+            x = 0
+            y += 1
+    cnt2[side, X_A] = k
+    cnt[C_SRC_BLOCKED + side] += blocked
+    return k > start
+
+
+@njit(cache=True)
+def _tile_pops(side, tile, prm, geom, t, tt, off, cnt2, st2):
+    """Line-buffer pops of one tile, as far as the source and its MAC array allow."""
+    w = prm[P_W]
+    g = geom[tile]
+    iw = g[G_IX1] - g[G_IX0]
+    n_in = (g[G_IY1] - g[G_IY0]) * iw
+    i = cnt2[side, 1 + 2 * tile]
+    if i >= n_in:
+        return False
+    ow, oh = g[G_X1] - g[G_X0], g[G_Y1] - g[G_Y0]
+    top_halo = g[G_Y0] - g[G_IY0]
+    a_t = t[T_A + 4 * side]
+    b0, e0 = off[side, tile, 0], off[side, tile, 1]
+    k_a = cnt2[side, X_A]
+    k_e = cnt2[side, 2 + 2 * tile]
+    rows, half = prm[P_ROWS], prm[P_HALF]
+    de = prm[P_DE_SRC]
+    per_src, per_n = prm[P_PER_SRC], prm[P_PER_N]
+    r = i // iw
+    c = i - r * iw
+    b_prev = tt[b0 + i - 1] if i > 0 else -1
+    start = i
+    room = 0
+    room_row = -1
+    empty = 0
+    while i < n_in:
+        if r != room_row:
+            # NnaSubmodule._room_for_input in tile rows: input row r fits once output row
+            # r + 1 - rows + half - top_halo (at most the last) has started
+            need = 0
+            if r + 1 > rows:
+                need = min(r + 1 - rows + half - top_halo, oh) * ow
+            if need > 0:
+                if k_e < need:
+                    break
+                room = tt[e0 + need - 1] + 1
+            else:
+                room = 0
+            room_row = r
+        k = (g[G_IY0] + r) * w + g[G_IX0] + c
+        if k_a <= k:
+            break
+        vis = _cross(a_t[k], per_src, per_n, de)
+        b = max(b_prev + 1, vis, room)
+        empty += max(0, vis - b_prev - 1)
+        tt[b0 + i] = b
+        b_prev = b
+        i += 1
+        c += 1
+        if c == iw:
+            c = 0
+            r += 1
+    cnt2[side, 1 + 2 * tile] = i
+    st2[side, 2 + 2 * tile] += empty
+    return i > start
+
+
+@njit(cache=True)
+def _tile_pushes(side, tile, prm, geom, t, tt, off, cnt, cnt2):
+    """Descriptor pushes of one tile's MAC array into its merge FIFO."""
+    h, w = prm[P_H], prm[P_W]
+    g = geom[tile]
+    ow, oh = g[G_X1] - g[G_X0], g[G_Y1] - g[G_Y0]
+    iw = g[G_IX1] - g[G_IX0]
+    n_out = oh * ow
+    j = cnt2[side, 2 + 2 * tile]
+    if j >= n_out:
+        return False
+    mg_t = t[T_E + 4 * side]
+    b0, e0 = off[side, tile, 0], off[side, tile, 1]
+    k_b = cnt2[side, 1 + 2 * tile]
+    k_m = cnt[C_E + side]
+    half, cpd, depth = prm[P_HALF], prm[P_CPD], prm[P_D_NS]
+    r = j // ow
+    c = j - r * ow
+    e_prev = tt[e0 + j - 1] if j > 0 else -1
+    start = j
+    rows_in = 0
+    rows_row = -1
+    while j < n_out:
+        if r != rows_row:
+            # input rows up to min(y + half, H - 1) are in (image row y = y0 + r)
+            need = (min(g[G_Y0] + r + half, h - 1) - g[G_IY0] + 1) * iw
+            if k_b < need:
+                break
+            rows_in = tt[b0 + need - 1] + 1
+            rows_row = r
+        free = 0
+        if j >= depth:
+            jj = j - depth
+            rr = jj // ow
+            m = (g[G_Y0] + rr) * w + g[G_X0] + jj - rr * ow  # its raster index
+            if k_m <= m:
+                break
+            free = mg_t[m] + 1
+        s = max(e_prev + 1, rows_in)
+        e = max(s + cpd - 1, free)
+        tt[e0 + j] = e
+        e_prev = e
+        j += 1
+        c += 1
+        if c == ow:
+            c = 0
+            r += 1
+    cnt2[side, 2 + 2 * tile] = j
+    return j > start
+
+
+@njit(cache=True)
+def _merge_moves(side, prm, geom, t, tt, off, cnt, cnt2, st2, last_pop):
+    """The merge of camera ``side``: descriptor m (raster order) moves from its owner tile's
+    FIFO to the SVA's in one cycle, once visible there and with a free slot."""
+    h, w = prm[P_H], prm[P_W]
+    n = h * w
+    m = cnt[C_E + side]
+    if m >= n:
+        return False
+    mg_t, ve_t, fp_t = t[T_E + 4 * side], t[T_VE + 4 * side], t[T_FP]
+    n_tiles = geom.shape[0]
+    kp = cnt[C_P]
+    lat, depth = prm[P_LATENCY], prm[P_D_NS]
+    de = prm[P_DE_NS]
+    per_n, per_s = prm[P_PER_N], prm[P_PER_S]
+    y = m // w
+    x = m - y * w
+    mg_prev = mg_t[m - 1] if m > 0 else -1
+    start = m
+    starved = 0
+    blocked = 0
+    while m < n:
+        owner = 0
+        for tile in range(n_tiles):
+            g = geom[tile]
+            if g[G_X0] <= x < g[G_X1] and g[G_Y0] <= y < g[G_Y1]:
+                owner = tile
+                break
+        g = geom[owner]
+        ow = g[G_X1] - g[G_X0]
+        j = (y - g[G_Y0]) * ow + x - g[G_X0]
+        if cnt2[side, 2 + 2 * owner] <= j:
+            break
+        free = 0
+        if m >= depth:
+            if kp <= m - depth:
+                break
+            free = fp_t[m - depth]
+        vis = tt[off[side, owner, 1] + j] + lat
+        mg = max(mg_prev + 1, vis, free)
+        starved += max(0, vis - mg_prev - 1)
+        blocked += mg - max(vis, mg_prev + 1)
+        # the owner's merge FIFO: consumer cycles since its last pop without a visible head
+        st2[side, 3 + 2 * owner] += max(0, vis - last_pop[side, owner] - 1)
+        last_pop[side, owner] = mg
+        mg_t[m] = mg
+        ve_t[m] = _cross(mg, per_n, per_s, de)
+        mg_prev = mg
+        m += 1
+        x += 1
+        if x == w:
+            x = 0
+            y += 1
+    cnt[C_E + side] = m
+    st2[side, 0] += starved
+    st2[side, 1] += blocked
+    return m > start
+
+
+@njit(cache=True)
+def _advance_split(prm, geom, t, tt, off, cnt, cnt2, st2, last_pop):
+    """:func:`_advance` for split frames: sources, tiles and merges, then the SVA's streams."""
+    n = prm[P_H] * prm[P_W]
+    n_tiles = geom.shape[0]
+    while cnt[C_O] < n:
+        moved = False
+        for side in range(2):
+            moved |= _joint_pushes(side, prm, geom, t, tt, off, cnt, cnt2)
+            if cnt[C_STOP] != STOP_NONE:
+                return
+            for tile in range(n_tiles):
+                moved |= _tile_pops(side, tile, prm, geom, t, tt, off, cnt2, st2)
+            for tile in range(n_tiles):
+                moved |= _tile_pushes(side, tile, prm, geom, t, tt, off, cnt, cnt2)
+            moved |= _merge_moves(side, prm, geom, t, tt, off, cnt, cnt2, st2, last_pop)
         moved |= _sva_pops(prm, t, cnt)
         moved |= _sva_pushes_and_sink(prm, t, cnt)
         if cnt[C_STOP] != STOP_NONE:
@@ -377,20 +648,20 @@ def _count_in(arr, lo, hi, i):
 
 
 @njit(cache=True)
-def _mac_activity(side, prm, t):
-    """(starved, blocked) cycles of NNA submodule ``side``: the MAC array's waits for its input
-    rows and for a free slot, less the cycles in which the line buffer pops (busy)."""
-    h, w = prm[P_H], prm[P_W]
-    b_t, e_t = t[T_B + 4 * side], t[T_E + 4 * side]
-    half, cpd = prm[P_HALF], prm[P_CPD]
+def _mac_activity(b_t, e_t, rows_out, cols_out, cols_in, top_halo, last_row, half, cpd):
+    """(starved, blocked) cycles of an NNA submodule from its pops ``b_t`` and pushes ``e_t``:
+    the MAC array's waits for its input rows and for a free slot, less the cycles in which the
+    line buffer pops (busy). Output row r needs input rows up to ``min(r + top_halo + half,
+    last_row)`` of its input region (``cols_in`` wide); the whole frame: top_halo 0, last_row
+    H - 1."""
     starved = 0
     blocked = 0
     i = 0
     e_prev = -1
     j = 0
-    for y in range(h):
-        rows_in = b_t[min(y + half + 1, h) * w - 1] + 1
-        for _ in range(w):
+    for r in range(rows_out):
+        rows_in = b_t[(min(r + top_halo + half, last_row) + 1) * cols_in - 1] + 1
+        for _ in range(cols_out):
             e = e_t[j]
             s = max(e_prev + 1, rows_in)
             if s > e_prev + 1:  # waiting for the row's input, phase 0
@@ -518,7 +789,7 @@ def _watchdog_safe(t, rows, periods, t_end, p_max, watchdog):
 
 
 def schedule_params(setup, cfg, sink_stall) -> np.ndarray:
-    """The parameter vector of one run (``setup``: :class:`sim.fast._Setup`)."""
+    """The parameter vector of one run (``setup``: a :class:`_Layout`)."""
     from nna.blocks import cycles_per_descriptor, half_window
 
     h, w = setup.shape
@@ -545,7 +816,7 @@ def schedule_params(setup, cfg, sink_stall) -> np.ndarray:
     prm[P_SE_SRC] = f.sync_cycles if crossing_src else 1
     prm[P_DE_NS] = f.latency_cycles + f.sync_cycles - 1
     prm[P_SE_NS] = f.sync_cycles
-    prm[P_L_SK] = f.latency_cycles
+    prm[P_LATENCY] = f.latency_cycles
     prm[P_PER_SRC] = src.period_fs
     prm[P_PER_N] = dom["nna"].period_fs
     prm[P_PER_S] = dom["sva"].period_fs
@@ -558,138 +829,235 @@ def schedule_params(setup, cfg, sink_stall) -> np.ndarray:
     return prm
 
 
+class _Layout:
+    """The domains, blocks, FIFOs and tiles of one run, named as :func:`sim.chip.build_chip`
+    names them."""
+
+    def __init__(self, shape, cfg):
+        from nna.blocks import split_frame
+        from nna.descriptor import descriptor_bits
+        from sim.architecture import output_word_bits
+        from sim.chip import frame_budget
+        from sim.clock import ClockDomain
+
+        self.shape = tuple(shape)
+        self.camera = cfg.source.kind == "camera"
+        self.domains = {"nna": ClockDomain("nna", cfg.clocks.nna_mhz * 1e6),
+                        "sva": ClockDomain("sva", cfg.clocks.sva_mhz * 1e6)}
+        if self.camera:
+            self.domains["camera"] = ClockDomain("camera", cfg.clocks.camera_mhz * 1e6)
+        self.src_domain = "camera" if self.camera else "nna"
+        self.budget = frame_budget(shape, cfg, self.domains)
+        self.bits = descriptor_bits(cfg.nna)
+        self.desc_bits = self.bits + (8 if cfg.sva.p2_adaptive else 0)
+        self.word_bits = output_word_bits(cfg)
+        self.parts = cfg.nna.stereo_submodules // 2
+        tiles = split_frame(shape, self.parts, cfg.nna.split, cfg.nna)
+        self.geom = np.array([[tl.x0, tl.x1, tl.y0, tl.y1, tl.in_x0, tl.in_x1, tl.in_y0,
+                               tl.in_y1] for tl in tiles], np.int64)
+        src = "camera" if self.camera else "memory"
+        self.sides = ("left", "right")
+        self.sources = tuple(f"{src}_{side}" for side in self.sides)
+        if self.parts == 1:
+            self.nnas = tuple((f"nna_{side}",) for side in self.sides)
+            self.src_fifos = tuple((f"src_{side}_to_nna",) for side in self.sides)
+            self.merge_fifos = ((), ())
+        else:
+            self.nnas = tuple(tuple(f"nna_{side}{t}" for t in range(self.parts))
+                              for side in self.sides)
+            self.src_fifos = tuple(tuple(f"src_{side}_to_nna{t}" for t in range(self.parts))
+                                   for side in self.sides)
+            self.merge_fifos = tuple(tuple(f"nna_{side}{t}_to_merge"
+                                           for t in range(self.parts)) for side in self.sides)
+
+
 def _conv(per_from: int, per_to: int, edges: int) -> np.ndarray:
     return np.array([per_from, per_to, edges], np.int64)
+
+
+SAME = _conv(1, 1, 1)  # an event of cycle c counts from cycle c + 1 of its own domain
+
+
+def _fifo_stats(inc, inc_conv, dec, dec_conv, c_q, producer_walk, empty, depth, width):
+    """One FIFO's statistics (the keys of ``Fifo.stats``) from its push and pop cycles.
+
+    ``inc``/``dec`` with their conversions count the pushes and pops in the consumer's timeline
+    (``c_q`` edges); ``producer_walk`` = ``(inc, conv, dec, conv, c_p)`` the same in the
+    producer's timeline for a FIFO that crosses domains (None: one domain, the same walk);
+    ``empty``: the consumer cycles before the last pop without a visible head."""
+    n = inc.shape[0]
+    hist = np.zeros(depth + 1, np.int64)
+    top, full = _level_walk(inc, inc_conv, dec, dec_conv, c_q, depth, hist)
+    if producer_walk is not None:
+        p_inc, p_inc_conv, p_dec, p_dec_conv, c_p = producer_walk
+        top, full = _level_walk(p_inc, p_inc_conv, p_dec, p_dec_conv, c_p, depth,
+                                np.zeros(0, np.int64))
+    return {
+        "bits_transferred": n * width,
+        "cycles_empty": int(empty + c_q - 1 - int(dec[n - 1])),
+        "cycles_full": int(full),
+        "depth": depth,
+        "max_occupancy": int(np.flatnonzero(hist).max()),
+        "max_producer_occupancy": int(top),
+        "occupancy_histogram": [int(v) for v in hist],
+        "pops": n,
+        "pushes": n,
+        "width_bits": width,
+    }
+
+
+def _activity(busy, starved, blocked, idle) -> dict:
+    return {"blocked": int(blocked), "busy": int(busy), "idle": int(idle),
+            "starved": int(starved)}
+
+
+def _tile_indices(g, w) -> tuple[np.ndarray, np.ndarray]:
+    """Raster indices of a tile's input region and of its output region, in their order."""
+    ix0, ix1, iy0, iy1 = g[G_IX0], g[G_IX1], g[G_IY0], g[G_IY1]
+    x0, x1, y0, y1 = g[G_X0], g[G_X1], g[G_Y0], g[G_Y1]
+    inp = (np.arange(iy0, iy1)[:, None] * w + np.arange(ix0, ix1)[None, :]).ravel()
+    out = (np.arange(y0, y1)[:, None] * w + np.arange(x0, x1)[None, :]).ravel()
+    return inp, out
 
 
 def run_schedule(left: np.ndarray, right: np.ndarray, cfg, *, sink_stall=None,
                  trace_out: dict | None = None, timings: dict | None = None):
     """One frame on the schedule engine: ``(words, cycle report, stats)`` equal to
     :func:`sim.chip.run_cycle`'s, or ``None`` when the run does not complete cleanly (a camera
-    overflow, a deadlock, a budget or a watchdog that could fire): the step engine then tells
-    where and why it stops. ``sink_stall``: ``(period, allowed_phase)`` as in
-    :func:`sim.fast.run_cycle_fast`. ``trace_out`` (a dict) receives ``row_times`` as the step
-    engine records it: the instants at which the left line buffer has received r rows and the
-    sink has received r rows, r = 0 .. H (for trace windows given in rows). ``timings`` (a
-    dict) receives the CPU seconds of the event cycles and statistics (``schedule_s``), the
-    NNA's descriptors (``nna_kernels_s``) and the SVA's stream (``sva_kernels_s``)."""
+    overflow, a deadlock, a budget or a watchdog that could fire): the step engine (or, for
+    split frames, the readable kernel) then tells where and why it stops. ``sink_stall``:
+    ``(period, allowed_phase)`` as in :func:`sim.fast.run_cycle_fast`. ``trace_out`` (a dict)
+    receives ``row_times`` as the step engine records it (whole frames only): the instants at
+    which the left line buffer has received r rows and the sink has received r rows,
+    r = 0 .. H (for trace windows given in rows). ``timings`` (a dict) receives the CPU seconds
+    of the event cycles and statistics (``schedule_s``), the NNA's descriptors
+    (``nna_kernels_s``) and the SVA's stream (``sva_kernels_s``)."""
     from nna.blocks import cycles_per_descriptor
     from nna.descriptor import compute_descriptor
     from sim.chip import assemble_report
-    from sim.clock import ACTIVITIES, count_instants
-    from sim.fast import FIFO_NAMES, _Setup
+    from sim.clock import count_instants
     from sva.pipeline import sva_stream
 
     t0 = time.process_time()
     h, w = left.shape
     n = h * w
-    setup = _Setup(left.shape, cfg)
-    prm = schedule_params(setup, cfg, sink_stall)
+    lay = _Layout(left.shape, cfg)
+    prm = schedule_params(lay, cfg, sink_stall)
     t = np.empty((N_T, n), np.int64)
     cnt = np.zeros(N_C, np.int64)
-    _advance(prm, t, cnt)
+    split = lay.parts > 1
+    if split:
+        sizes = [(int((g[G_IY1] - g[G_IY0]) * (g[G_IX1] - g[G_IX0])),
+                  int((g[G_Y1] - g[G_Y0]) * (g[G_X1] - g[G_X0]))) for g in lay.geom]
+        off = np.zeros((2, lay.parts, 2), np.int64)
+        pos = 0
+        for side in range(2):
+            for tile, (n_in, n_out) in enumerate(sizes):
+                off[side, tile] = pos, pos + n_in
+                pos += n_in + n_out
+        tt = np.empty(pos, np.int64)
+        cnt2 = np.zeros((2, 1 + 2 * lay.parts), np.int64)
+        st2 = np.zeros((2, 2 + 2 * lay.parts), np.int64)
+        last_pop = np.full((2, lay.parts), -1, np.int64)
+        _advance_split(prm, lay.geom, t, tt, off, cnt, cnt2, st2, last_pop)
+    else:
+        _advance(prm, t, cnt)
     if cnt[C_STOP] != STOP_NONE:
         return None
-    doms = setup.domains
+    doms = lay.domains
     per = {name: d.period_fs for name, d in doms.items()}
-    src_name = "camera" if setup.camera else "nna"
     q_last = int(t[T_Q, n - 1])
     t_end = q_last * per["sva"]
     cycles = {name: t_end // per[name] + 1 for name in doms}
-    if any(cycles[name] > setup.budget[name] for name in doms):
+    if any(cycles[name] > lay.budget[name] for name in doms):
         return None
     p_max = max(per.values())
     rows = np.array([T_A, T_E, T_Q], np.int64)
-    periods = np.array([per[src_name], per["nna"], per["sva"]], np.int64)
+    periods = np.array([per[lay.src_domain], per["nna"], per["sva"]], np.int64)
     if not _watchdog_safe(t, rows, periods, t_end, p_max, cfg.sim.watchdog_cycles):
         return None
 
-    c_src, c_n, c_s = cycles[src_name], cycles["nna"], cycles["sva"]
-    blocks = {}
-    names = setup.block_names
+    f = cfg.fifo
+    c_src, c_n, c_s = cycles[lay.src_domain], cycles["nna"], cycles["sva"]
+    p_src, p_n = per[lay.src_domain], per["nna"]
+    src_q = _conv(p_src, p_n, 1)  # a source push counts from the first nna edge after it
+    src_p = _conv(p_n, p_src, f.sync_cycles) if lay.camera else SAME  # a pop's free slot
+    half, cpd = int(prm[P_HALF]), int(prm[P_CPD])
+    blocks, fifos, work = {}, {}, {}
     for side in range(2):
-        src = names[2 * side]
-        if setup.camera:
+        src = lay.sources[side]
+        if lay.camera:
             busy = min(c_src, h * (w + cfg.source.camera_hblank))
-            blocks[src] = {"busy": busy, "starved": 0, "blocked": 0, "idle": c_src - busy}
+            blocks[src] = _activity(busy, 0, 0, c_src - busy)
+            work[src] = ((h + cfg.source.camera_vblank) * (w + cfg.source.camera_hblank),
+                         doms[lay.src_domain].freq_hz)
         else:
             active = int(t[T_A + 4 * side, n - 1]) + 1
             blocked = int(cnt[C_SRC_BLOCKED + side])
-            blocks[src] = {"busy": active - blocked, "starved": 0, "blocked": blocked,
-                           "idle": c_src - active}
-        starved, blocked = _mac_activity(side, prm, t)
-        active = int(t[T_E + 4 * side, n - 1]) + 1
-        blocks[names[2 * side + 1]] = {"busy": active - starved - blocked, "starved": starved,
-                                       "blocked": blocked, "idle": c_n - active}
+            blocks[src] = _activity(active - blocked, 0, blocked, c_src - active)
+            work[src] = (active - blocked, doms[lay.src_domain].freq_hz)
+        a_t = t[T_A + 4 * side]
+        for tile in range(lay.parts):
+            g = lay.geom[tile]
+            if split:
+                b0, e0 = off[side, tile]
+                n_in, n_out = sizes[tile]
+                b_t, e_t = tt[b0:b0 + n_in], tt[e0:e0 + n_out]
+                idx_in, idx_out = _tile_indices(g, w)
+                pushes = a_t[idx_in]
+                src_empty = int(st2[side, 2 + 2 * tile])
+            else:
+                b_t, e_t, pushes = t[T_B + 4 * side], t[T_E + 4 * side], a_t
+                n_out = n
+                src_empty = int(cnt[C_EMPTY_SRC + side])
+            starved, blocked = _mac_activity(
+                b_t, e_t, g[G_Y1] - g[G_Y0], g[G_X1] - g[G_X0], g[G_IX1] - g[G_IX0],
+                g[G_Y0] - g[G_IY0], h - 1 - g[G_IY0], half, cpd)
+            active = int(e_t[n_out - 1]) + 1
+            name = lay.nnas[side][tile]
+            blocks[name] = _activity(active - starved - blocked, starved, blocked,
+                                     c_n - active)
+            work[name] = (n_out * cpd, doms["nna"].freq_hz)
+            fifos[lay.src_fifos[side][tile]] = _fifo_stats(
+                pushes, src_q, b_t, SAME, c_n,
+                (pushes, SAME, b_t, src_p, c_src) if lay.camera else None,
+                src_empty, f.source_to_nna_depth, 8)
+            if split:
+                pops = t[T_E + 4 * side][idx_out]
+                fifos[lay.merge_fifos[side][tile]] = _fifo_stats(
+                    e_t, SAME, pops, SAME, c_n, None,
+                    int(st2[side, 3 + 2 * tile]), f.nna_to_sva_depth,
+                    lay.desc_bits)
+        if split:
+            name = f"merge_{lay.sides[side]}"
+            starved, blocked = st2[side, 0], st2[side, 1]
+            blocks[name] = _activity(n, starved, blocked,
+                                     c_n - int(t[T_E + 4 * side, n - 1]) - 1)
+            work[name] = (n, doms["nna"].freq_hz)
+        de_ns = f.latency_cycles + f.sync_cycles - 1
+        fifos[f"nna_{lay.sides[side]}_to_sva"] = _fifo_stats(
+            t[T_VE + 4 * side], _conv(1, 1, 1 - de_ns), t[T_P], SAME, c_s,
+            (t[T_E + 4 * side], SAME, t[T_FP], _conv(1, 1, 0), c_n),
+            int(cnt[C_EMPTY_NS + side]), f.nna_to_sva_depth, lay.desc_bits)
     starved, blocked = _sva_activity(prm, t)
     active = int(t[T_O, n - 1]) + 1
-    blocks["sva"] = {"busy": active - starved - blocked, "starved": starved,
-                     "blocked": blocked, "idle": c_s - active}
+    blocks["sva"] = _activity(active - starved - blocked, starved, blocked, c_s - active)
+    work["sva"] = (n * cfg.sva.cycles_per_pixel, doms["sva"].freq_hz)
     period, phase = (0, 0) if sink_stall is None else sink_stall
     allowed = c_s if period == 0 else (q_last - phase) // period + 1 if q_last >= phase else 0
-    blocks["sink"] = {"busy": n, "starved": allowed - n, "blocked": 0, "idle": c_s - allowed}
-
-    f = cfg.fifo
-    p_src, p_n = per[src_name], per["nna"]
-    de_ns = f.latency_cycles + f.sync_cycles - 1
-    fifos = {}
-    # (index in FIFO_NAMES, push row, pop row, producer/consumer cycles, Q-walk inc and dec
-    # conversions, P-walk (crossing FIFOs only) inc and dec rows and conversions, empty count)
-    plan = []
-    for side in range(2):
-        src_inc = _conv(p_src, p_n, 1)  # first nna edge after the push instant
-        src_dec_p = _conv(p_n, p_src, f.sync_cycles if setup.camera else 1)
-        plan.append((FIFO_NAMES.index(f"src_{'left' if side == 0 else 'right'}_to_nna"),
-                     T_A + 4 * side, src_inc, T_B + 4 * side, _conv(1, 1, 1), c_n,
-                     (T_A + 4 * side, _conv(1, 1, 1), T_B + 4 * side, src_dec_p, c_src)
-                     if setup.camera else None,
-                     int(cnt[C_EMPTY_SRC + side])))
-        plan.append((FIFO_NAMES.index(f"nna_{'left' if side == 0 else 'right'}_to_sva"),
-                     T_VE + 4 * side, _conv(1, 1, 1 - de_ns), T_P, _conv(1, 1, 1), c_s,
-                     (T_E + 4 * side, _conv(1, 1, 1), T_FP, _conv(1, 1, 0), c_n),
-                     int(cnt[C_EMPTY_NS + side])))
-    plan.append((FIFO_NAMES.index("sva_to_sink"), T_O, _conv(1, 1, 1), T_Q, _conv(1, 1, 1),
-                 c_s, None, int(cnt[C_EMPTY_SK])))
-    for idx, inc_row, inc_conv, dec_row, dec_conv, c_q, p_walk, empty in plan:
-        depth, width, _, _ = setup.fifos[idx]
-        hist = np.zeros(depth + 1, np.int64)
-        top, full = _level_walk(t[inc_row], inc_conv, t[dec_row], dec_conv, c_q, depth, hist)
-        if p_walk is not None:
-            p_inc, p_inc_conv, p_dec, p_dec_conv, c_p = p_walk
-            top, full = _level_walk(t[p_inc], p_inc_conv, t[p_dec], p_dec_conv, c_p, depth,
-                                    np.zeros(0, np.int64))
-        last_pop = int(t[dec_row, n - 1])
-        fifos[FIFO_NAMES[idx]] = {
-            "bits_transferred": n * width,
-            "cycles_empty": empty + c_q - 1 - last_pop,
-            "cycles_full": int(full),
-            "depth": depth,
-            "max_occupancy": int(np.flatnonzero(hist).max()),
-            "max_producer_occupancy": int(top),
-            "occupancy_histogram": [int(v) for v in hist],
-            "pops": n,
-            "pushes": n,
-            "width_bits": width,
-        }
+    blocks["sink"] = _activity(n, allowed - n, 0, c_s - allowed)
+    fifos["sva_to_sink"] = _fifo_stats(t[T_O], SAME, t[T_Q], SAME, c_s, None,
+                                       int(cnt[C_EMPTY_SK]), f.sva_to_sink_depth,
+                                       lay.word_bits)
     stats = {
-        "blocks": {b: {a: int(blocks[b][a]) for a in sorted(ACTIVITIES)} for b in sorted(blocks)},
+        "blocks": {b: blocks[b] for b in sorted(blocks)},
         "cycles": {name: int(cycles[name]) for name in sorted(cycles)},
         "end_time_fs": int(t_end),
         "fifos": {name: fifos[name] for name in sorted(fifos)},
         "steps": count_instants([(0, per[name], cycles[name]) for name in doms]),
     }
-    cpd = cycles_per_descriptor(cfg.nna)
-    src_freq = doms[src_name].freq_hz
-    if setup.camera:
-        src_work = (h + cfg.source.camera_vblank) * (w + cfg.source.camera_hblank)
-        src_l = src_r = src_work
-    else:
-        src_l, src_r = blocks[names[0]]["busy"], blocks[names[2]]["busy"]
-    work = {names[0]: (src_l, src_freq), names[1]: (n * cpd, doms["nna"].freq_hz),
-            names[2]: (src_r, src_freq), names[3]: (n * cpd, doms["nna"].freq_hz),
-            "sva": (n * cfg.sva.cycles_per_pixel, doms["sva"].freq_hz)}
     report = assemble_report(doms["sva"], int(t[T_Q, 0]), q_last, work, stats)
-    if trace_out is not None:
+    if trace_out is not None and not split:
         row_times = np.zeros((2, h + 1), np.int64)
         row_times[0, 1:] = t[T_B, w - 1::w] * per["nna"]
         row_times[1, 1:] = t[T_Q, w - 1::w] * per["sva"]
@@ -699,7 +1067,7 @@ def run_schedule(left: np.ndarray, right: np.ndarray, cfg, *, sink_stall=None,
     desc_l = compute_descriptor(left, cfg.nna)
     desc_r = compute_descriptor(right, cfg.nna)
     t2 = time.process_time()
-    words = sva_stream(desc_l, desc_r, left, cfg.sva, setup.bits)
+    words = sva_stream(desc_l, desc_r, left, cfg.sva, lay.bits)
     if timings is not None:
         timings.update(schedule_s=t1 - t0, nna_kernels_s=t2 - t1,
                        sva_kernels_s=time.process_time() - t2)

@@ -120,8 +120,14 @@ def test_paper_analysis_reproduces_the_reference_arithmetic():
 def test_camera_overflow_risk_is_warned():
     cfg = load_config(overrides={"nna.descriptor": "cnn", "source.kind": "camera"})
     assert any("overflow" in w for w in estimate(cfg, (720, 1280))["warnings"])
+    # two column tiles per camera keep up with the camera only if the merge FIFOs let them
+    # work at once (the cycle model overflows at the default depth 64, runs at 60 fps at 1024)
     cfg = load_config(overrides={"nna.descriptor": "cnn", "source.kind": "camera",
                                  "nna.stereo_submodules": 4})
+    (warning,) = estimate(cfg, (720, 1280))["warnings"]
+    assert "merge FIFOs" in warning and "overflow" in warning and "at least 640" in warning
+    cfg = load_config(overrides={"nna.descriptor": "cnn", "source.kind": "camera",
+                                 "nna.stereo_submodules": 4, "fifo.nna_to_sva_depth": 640})
     assert not estimate(cfg, (720, 1280))["warnings"]
 
 
