@@ -932,7 +932,6 @@ def run_schedule(left: np.ndarray, right: np.ndarray, cfg, *, sink_stall=None,
     r = 0 .. H (for trace windows given in rows). ``timings`` (a dict) receives the CPU seconds
     of the event cycles and statistics (``schedule_s``), the NNA's descriptors
     (``nna_kernels_s``) and the SVA's stream (``sva_kernels_s``)."""
-    from nna.blocks import cycles_per_descriptor
     from nna.descriptor import compute_descriptor
     from sim.chip import assemble_report
     from sim.clock import count_instants
