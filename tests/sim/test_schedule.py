@@ -262,3 +262,20 @@ def test_column_tiles_overlap_only_with_merge_fifos_that_hold_a_tile_row():
         frame[parts, depth] = report["cycles"]["last_output"]["sva"]
     assert frame[2, 8] > 0.8 * frame[1, 8]
     assert frame[2, 64] < 0.65 * frame[1, 8]
+
+
+def test_sim_run_takes_split_frames_to_the_schedule_and_stops_on_the_readable_kernel():
+    from sim.api import run
+    from sim.sources import CameraOverflow
+
+    left, right = _pair(19, 45, seed=17)
+    over = {"sva.disparities": 16, "nna.stereo_submodules": 4}
+    res = run(left, right, mode="cycle", overrides=over)
+    words_r, report_r, _ = run_cycle(left, right, load_config(overrides=over))
+    assert res.report["engine"] == "fast"
+    assert res.report["cycles"] == report_r["cycles"]
+    np.testing.assert_array_equal(res.disparity_fixed, words_r)
+    over.update({"source.kind": "camera", "nna.descriptor": "cnn", "clocks.camera_mhz": 400,
+                 "source.camera_hblank": 0})
+    with pytest.raises(CameraOverflow, match="src_left_to_nna"):
+        run(left, right, mode="cycle", overrides=over)
