@@ -1,7 +1,6 @@
 """The schedule engine: the cycle of every beat of a frame from closed-form recurrences.
 
-The chip of :mod:`sim.chip` (one NNA submodule per camera) is a pipeline whose timing does not
-depend on the data: when a beat moves is decided by counters, FIFO occupancies and clocks,
+The chip of :mod:`sim.chip` is a pipeline whose timing does not depend on the data: when a beat moves is decided by counters, FIFO occupancies and clocks,
 never by a pixel value. So instead of stepping clock edges, this engine computes for every beat
 ``k`` of the raster the cycle of each event directly, as the readable kernel's rules
 (:mod:`sim.clock`, :mod:`sim.fifo` and the blocks' ``evaluate``) imply:
@@ -24,17 +23,21 @@ with a FIFO's rules: an item pushed in producer cycle c is visible from consumer
 cycle c is seen by the producer from cycle ``(c Q) // P + space_edges``; in one domain that is
 ``c + latency`` and ``c + 1``. Each event depends only on earlier events of its own stream and
 on events of other streams that precede it in time, so the streams are advanced in turn, each
-as far as what it depends on is known (:func:`_advance`), until the sink has the frame.
+as far as what it depends on is known (:func:`_advance`), until the sink has the frame. A frame
+split over several submodules per camera adds the joint source push, the tiles and the merge
+(:func:`_advance_split`, section "frames split over several submodules").
 
 The statistics the readable kernel accumulates edge by edge follow from the event cycles:
-every block's busy / starved / blocked / idle count (:func:`_block_activity`), every FIFO's
+every block's busy / starved / blocked / idle count (:func:`_mac_activity`,
+:func:`_sva_activity` and counts kept on the way), every FIFO's
 occupancy histogram over its consumer's edges, its empty and full counts and its largest
 occupancies (:func:`_level_walk`). The result is the same report and the same statistics, to
 the cycle, as :func:`sim.chip.run_cycle`; tests/sim/test_schedule.py holds the three engines
 equal.
 
 The engine answers only for runs that complete: it reports ``None`` (and the caller runs the
-step engine of :mod:`sim.fast`, which stops where the readable kernel stops and says why) when
+step engine of :mod:`sim.fast`, or for split frames the readable kernel, which stops where the
+run stops and says why) when
 a camera would overflow, when the streams wait on each other (a deadlock), when a domain would
 exceed its cycle budget, or when the watchdog could fire -- it checks that the FIFO events of
 three streams leave no gap of half the watchdog's time without one, which a completing run at
@@ -58,9 +61,9 @@ INF = 1 << 62
 NEVER = -(1 << 40)  # the SVA's "last push" before the first one (SvaBlock.last_push)
 
 # ---- parameter vector (int64) --------------------------------------------------------------
-(P_H, P_W, P_CAMERA, P_LINE_CLOCKS, P_MEM_HZ, P_MEM_BPS, P_HALF, P_ROWS, P_CPD, P_LA, P_LAT,
- P_CPP, P_D_SRC, P_D_NS, P_D_SK, P_DE_SRC, P_SE_SRC, P_DE_NS, P_SE_NS, P_LATENCY, P_PER_SRC,
- P_PER_N, P_PER_S, P_STALL_PERIOD, P_STALL_PHASE, P_LIMIT_SRC, P_LIMIT_N, P_LIMIT_S,
+(P_H, P_W, P_CAMERA, P_LINE_CLOCKS, P_MEM_HZ, P_MEM_BPS, P_HALF, P_ROWS, P_CPD, P_LA,
+ P_PIPE_LAT, P_CPP, P_D_SRC, P_D_NS, P_D_SK, P_DE_SRC, P_SE_SRC, P_DE_NS, P_SE_NS, P_LATENCY,
+ P_PER_SRC, P_PER_N, P_PER_S, P_STALL_PERIOD, P_STALL_PHASE, P_LIMIT_SRC, P_LIMIT_N, P_LIMIT_S,
  P_WATCHDOG) = range(29)
 N_P = 29
 
@@ -275,7 +278,7 @@ def _sva_pushes_and_sink(prm, t, cnt):
         return False
     p_t, o_t, q_t = t[T_P], t[T_O], t[T_Q]
     kp = cnt[C_P]
-    la, lat, cpp = prm[P_LA], prm[P_LAT], prm[P_CPP]
+    la, lat, cpp = prm[P_LA], prm[P_PIPE_LAT], prm[P_CPP]
     depth, latency = prm[P_D_SK], prm[P_LATENCY]
     period, phase = prm[P_STALL_PERIOD], prm[P_STALL_PHASE]
     limit = prm[P_LIMIT_S]
@@ -683,7 +686,7 @@ def _sva_activity(prm, t):
     pair (busy)."""
     h, w = prm[P_H], prm[P_W]
     p_t, o_t = t[T_P], t[T_O]
-    la, lat, cpp = prm[P_LA], prm[P_LAT], prm[P_CPP]
+    la, lat, cpp = prm[P_LA], prm[P_PIPE_LAT], prm[P_CPP]
     starved = 0
     blocked = 0
     i = 0
@@ -807,7 +810,7 @@ def schedule_params(setup, cfg, sink_stall) -> np.ndarray:
     prm[P_ROWS] = cfg.nna.line_buffer_rows
     prm[P_CPD] = cycles_per_descriptor(cfg.nna)
     prm[P_LA] = cfg.sva.box_size // 2 + (cfg.sva.median // 2 if cfg.sva.median > 1 else 0)
-    prm[P_LAT] = cfg.sva.pipeline_latency
+    prm[P_PIPE_LAT] = cfg.sva.pipeline_latency
     prm[P_CPP] = cfg.sva.cycles_per_pixel
     prm[P_D_SRC] = f.source_to_nna_depth
     prm[P_D_NS] = f.nna_to_sva_depth
