@@ -1,8 +1,9 @@
 """The schedule engine: the cycle of every beat of a frame from closed-form recurrences.
 
 The chip of :mod:`sim.chip` is a pipeline whose timing does not depend on the data: when a beat
-moves is decided by counters, FIFO occupancies and clocks, never by a pixel value. So instead of stepping clock edges, this engine computes for every beat
-``k`` of the raster the cycle of each event directly, as the readable kernel's rules
+moves is decided by counters, FIFO occupancies and clocks, never by a pixel value. So instead
+of stepping clock edges, this engine computes for every beat ``k`` of the raster the cycle of
+each event directly, as the readable kernel's rules
 (:mod:`sim.clock`, :mod:`sim.fifo` and the blocks' ``evaluate``) imply:
 
 ============  ==========================================================================
