@@ -34,19 +34,25 @@ class Chip:
         self.sink = sink
 
 
+def chip_domains(cfg: ChipConfig) -> dict[str, ClockDomain]:
+    """The clock domains of the chip: ``nna`` and ``sva``, and ``camera`` with a camera source
+    (a memory source runs in the ``nna`` domain)."""
+    domains = {"nna": ClockDomain("nna", cfg.clocks.nna_mhz * 1e6),
+               "sva": ClockDomain("sva", cfg.clocks.sva_mhz * 1e6)}
+    if cfg.source.kind == "camera":
+        domains["camera"] = ClockDomain("camera", cfg.clocks.camera_mhz * 1e6)
+    return domains
+
+
 def build_chip(left: np.ndarray, right: np.ndarray, cfg: ChipConfig, *, order_seed=None,
                sink_stall=None, trace=None) -> Chip:
     shape = left.shape
     bits = descriptor_bits(cfg.nna)
     dtype = np.uint32 if bits <= 32 else np.uint64
     sim = Simulator(order_seed=order_seed, trace=trace)
-    nna = sim.add_domain(ClockDomain("nna", cfg.clocks.nna_mhz * 1e6))
-    sva = sim.add_domain(ClockDomain("sva", cfg.clocks.sva_mhz * 1e6))
-    domains = {"nna": nna, "sva": sva}
-    src_domain = nna
-    if cfg.source.kind == "camera":
-        src_domain = sim.add_domain(ClockDomain("camera", cfg.clocks.camera_mhz * 1e6))
-        domains["camera"] = src_domain
+    domains = {name: sim.add_domain(d) for name, d in chip_domains(cfg).items()}
+    nna, sva = domains["nna"], domains["sva"]
+    src_domain = domains.get("camera", nna)
     f = cfg.fifo
     fifos = {}
 

@@ -43,11 +43,10 @@ from nna.census import census_offsets
 from nna.conv import _channel_row, _sign_bits_rows_f32, f32_exact
 from nna.descriptor import descriptor_bits, layer
 from sim.architecture import output_word_bits
-from sim.chip import assemble_report, frame_budget
+from sim.chip import assemble_report, chip_domains, frame_budget
 from sim.clock import (
     ACTIVITIES,
     BudgetExceeded,
-    ClockDomain,
     DeadlockError,
     count_instants,
     watchdog_message,
@@ -1106,10 +1105,7 @@ class _Setup:
     def __init__(self, shape, cfg: ChipConfig):
         self.shape = tuple(shape)
         self.camera = cfg.source.kind == "camera"
-        self.domains = {"nna": ClockDomain("nna", cfg.clocks.nna_mhz * 1e6),
-                        "sva": ClockDomain("sva", cfg.clocks.sva_mhz * 1e6)}
-        if self.camera:
-            self.domains["camera"] = ClockDomain("camera", cfg.clocks.camera_mhz * 1e6)
+        self.domains = chip_domains(cfg)
         src = "camera" if self.camera else "memory"
         self.block_names = (f"{src}_left", "nna_left", f"{src}_right", "nna_right", "sva",
                             "sink")

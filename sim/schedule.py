@@ -93,6 +93,23 @@ def _cross(c, per_from, per_to, edges):
     return (c * per_from) // per_to + edges
 
 
+@njit(cache=True, inline="always")
+def _source_push(prm, k, y, x, a_prev, free):
+    """(cycle, cycles blocked before it) of the source's push of pixel k = (x, y), the previous
+    push in ``a_prev``, a slot seen free from cycle ``free``; cycle -1: a camera that overflows
+    (it cannot wait). A memory source waits for its token bucket (busy) and the slot
+    (blocked)."""
+    if prm[P_CAMERA] == 1:
+        a = y * prm[P_LINE_CLOCKS] + x
+        return (-1 if free > a else a), 0
+    lo = a_prev + 1
+    hz, bps = prm[P_MEM_HZ], prm[P_MEM_BPS]
+    if bps < hz:
+        lo = max(lo, ((k + 1) * hz + bps - 1) // bps - 1)
+    a = max(lo, free)
+    return a, a - lo
+
+
 # ---- the recurrences -----------------------------------------------------------------------
 
 
@@ -110,10 +127,6 @@ def _src_and_pops(side, prm, t, cnt):
     rows, half = prm[P_ROWS], prm[P_HALF]
     depth, de, se = prm[P_D_SRC], prm[P_DE_SRC], prm[P_SE_SRC]
     per_src, per_n = prm[P_PER_SRC], prm[P_PER_N]
-    camera = prm[P_CAMERA] == 1
-    line_clocks = prm[P_LINE_CLOCKS]
-    hz, bps = prm[P_MEM_HZ], prm[P_MEM_BPS]
-    throttled = not camera and bps < hz
     y = k // w
     x = k - y * w
     a_prev = a_t[k - 1] if k > 0 else -1
@@ -139,18 +152,12 @@ def _src_and_pops(side, prm, t, cnt):
         free = 0
         if k >= depth:
             free = _cross(b_t[k - depth], per_n, per_src, se)
-        if camera:
-            a = y * line_clocks + x
-            if free > a:
-                cnt[C_STOP] = STOP_OVERFLOW
-                cnt[C_STOP_AT] = k
-                break
-        else:
-            lo = a_prev + 1
-            if throttled:
-                lo = max(lo, ((k + 1) * hz + bps - 1) // bps - 1)
-            a = max(lo, free)
-            blocked += a - lo
+        a, waited = _source_push(prm, k, y, x, a_prev, free)
+        if a < 0:
+            cnt[C_STOP] = STOP_OVERFLOW
+            cnt[C_STOP_AT] = k
+            break
+        blocked += waited
         vis = _cross(a, per_src, per_n, de)
         b = max(b_prev + 1, vis, room)
         empty += max(0, vis - b_prev - 1)
@@ -374,10 +381,6 @@ def _joint_pushes(side, prm, geom, t, tt, off, cnt, cnt2):
     n_tiles = geom.shape[0]
     depth, se = prm[P_D_SRC], prm[P_SE_SRC]
     per_src, per_n = prm[P_PER_SRC], prm[P_PER_N]
-    camera = prm[P_CAMERA] == 1
-    line_clocks = prm[P_LINE_CLOCKS]
-    hz, bps = prm[P_MEM_HZ], prm[P_MEM_BPS]
-    throttled = not camera and bps < hz
     y = k // w
     x = k - y * w
     a_prev = a_t[k - 1] if k > 0 else -1
@@ -398,18 +401,12 @@ def _joint_pushes(side, prm, geom, t, tt, off, cnt, cnt2):
                                             per_src, se))
         if not ok:
             break
-        if camera:
-            a = y * line_clocks + x
-            if free > a:
-                cnt[C_STOP] = STOP_OVERFLOW
-                cnt[C_STOP_AT] = k
-                break
-        else:
-            lo = a_prev + 1
-            if throttled:
-                lo = max(lo, ((k + 1) * hz + bps - 1) // bps - 1)
-            a = max(lo, free)
-            blocked += a - lo
+        a, waited = _source_push(prm, k, y, x, a_prev, free)
+        if a < 0:
+            cnt[C_STOP] = STOP_OVERFLOW
+            cnt[C_STOP_AT] = k
+            break
+        blocked += waited
         a_t[k] = a
         a_prev = a
         k += 1
@@ -841,15 +838,11 @@ class _Layout:
         from nna.blocks import split_frame
         from nna.descriptor import descriptor_bits
         from sim.architecture import output_word_bits
-        from sim.chip import frame_budget
-        from sim.clock import ClockDomain
+        from sim.chip import chip_domains, frame_budget
 
         self.shape = tuple(shape)
         self.camera = cfg.source.kind == "camera"
-        self.domains = {"nna": ClockDomain("nna", cfg.clocks.nna_mhz * 1e6),
-                        "sva": ClockDomain("sva", cfg.clocks.sva_mhz * 1e6)}
-        if self.camera:
-            self.domains["camera"] = ClockDomain("camera", cfg.clocks.camera_mhz * 1e6)
+        self.domains = chip_domains(cfg)
         self.src_domain = "camera" if self.camera else "nna"
         self.budget = frame_budget(shape, cfg, self.domains)
         self.bits = descriptor_bits(cfg.nna)
