@@ -12,7 +12,8 @@ from sim.sources import CameraOverflow
 
 # Equal NNA and SVA clocks make the crossing easy to count by hand: an item pushed at NNA cycle
 # t is visible at SVA cycle t + 2 (latency 1 + synchroniser 2 - 1, edges coinciding).
-SAME_CLOCKS = {"clocks.nna_mhz": 400, "clocks.sva_mhz": 400, "sva.disparities": 16}
+SAME_CLOCKS = {"clocks.nna_mhz": 400, "clocks.sva_mhz": 400, "sva.disparities": 16,
+               "nna.descriptor": "census"}
 
 
 def _pair(h, w, seed=0, shift=3):
@@ -95,7 +96,7 @@ def test_cnn_first_and_last_output_cycles(h, w, engine):
 )
 def test_cycle_model_is_bit_exact_with_the_functional_model(over):
     left, right = _pair(13, 45, seed=len(over))
-    cfg = load_config(overrides={"sva.disparities": 16, **over})
+    cfg = load_config(overrides={"sva.disparities": 16, "nna.descriptor": "census", **over})
     words, _, _ = run_cycle(left, right, cfg)
     np.testing.assert_array_equal(words, run(left, right, config=cfg).disparity_fixed)
 
@@ -134,7 +135,8 @@ def test_evaluation_order_does_not_change_anything():
 
 def test_a_sink_that_never_drains_is_reported_as_a_deadlock():
     left, right = _pair(7, 29, seed=8)
-    cfg = load_config(overrides={"sva.disparities": 16, "sim.watchdog_cycles": 500})
+    cfg = load_config(overrides={"sva.disparities": 16, "nna.descriptor": "census",
+                                 "sim.watchdog_cycles": 500})
     with pytest.raises(DeadlockError) as exc:
         run_cycle(left, right, cfg, sink_stall=lambda c: True)
     msg = str(exc.value)
@@ -166,7 +168,7 @@ def test_split_frames_are_bit_exact(over):
     """Column tiles and row bands with their halos, merged back into raster order, give the
     functional model's words: the halo and border handling of every tile is right."""
     left, right = _pair(19, 45, seed=11)
-    cfg = load_config(overrides={"sva.disparities": 16, **over})
+    cfg = load_config(overrides={"sva.disparities": 16, "nna.descriptor": "census", **over})
     words, report, _ = run_cycle(left, right, cfg)
     np.testing.assert_array_equal(words, run(left, right, config=cfg).disparity_fixed)
     parts = over["nna.stereo_submodules"] // 2

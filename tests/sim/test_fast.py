@@ -23,6 +23,7 @@ from sim.schedule import run_schedule
 from sim.sources import CameraOverflow
 
 SAME_CLOCKS = {"clocks.nna_mhz": 400, "clocks.sva_mhz": 400}
+CENSUS = {"sva.disparities": 16, "nna.descriptor": "census"}  # unless a case sets it
 
 
 def _pair(h, w, seed=0, shift=3):
@@ -42,7 +43,7 @@ def _assert_same(h, w, over, seed=0, stall=None):
     """Both compiled methods -- the steps of this module's loop and the schedule engine that
     ``method="auto"`` uses for a completing untraced run -- equal the readable kernel."""
     left, right = _pair(h, w, seed=seed)
-    cfg = load_config(overrides={"sva.disparities": 16, **over})
+    cfg = load_config(overrides={**CENSUS, **over})
     words_r, report_r, chip = run_cycle(left, right, cfg, sink_stall=_stall_fn(stall))
     assert run_schedule(left, right, cfg, sink_stall=stall) is not None
     for method in ("steps", "auto"):
@@ -105,7 +106,7 @@ def test_a_periodically_stalling_sink_gives_the_same_backpressure(stall, depth):
 
 def test_deadlock_is_reported_with_the_same_message():
     left, right = _pair(7, 29, seed=8)
-    cfg = load_config(overrides={"sva.disparities": 16, "sim.watchdog_cycles": 500})
+    cfg = load_config(overrides={**CENSUS, "sim.watchdog_cycles": 500})
     never = (1 << 40, (1 << 40) - 1)  # the sink would pop first in cycle 2^40 - 1
     with pytest.raises(DeadlockError) as fast:
         run_cycle_fast(left, right, cfg, sink_stall=never)
@@ -123,8 +124,7 @@ def test_cycle_budget_is_enforced_with_the_same_message():
     """Without a watchdog a sink that never pops runs into the cycle budget of sim.chip (equal
     clocks: one step per cycle keeps the readable run short)."""
     left, right = _pair(3, 20, seed=10)
-    cfg = load_config(overrides={**SAME_CLOCKS, "sva.disparities": 16,
-                                 "sim.watchdog_cycles": 1 << 40})
+    cfg = load_config(overrides={**SAME_CLOCKS, **CENSUS, "sim.watchdog_cycles": 1 << 40})
     never = (1 << 40, (1 << 40) - 1)
     with pytest.raises(BudgetExceeded) as fast:
         run_cycle_fast(left, right, cfg, sink_stall=never)
@@ -150,7 +150,7 @@ def test_split_frames_are_refused_with_a_pointer_to_the_readable_engine():
     from sim.errors import ConfigError
 
     left, right = _pair(9, 35)
-    cfg = load_config(overrides={"sva.disparities": 16, "nna.stereo_submodules": 4})
+    cfg = load_config(overrides={**CENSUS, "nna.stereo_submodules": 4})
     with pytest.raises(ConfigError, match="set sim.engine=readable"):
         run_cycle_fast(left, right, cfg)
 

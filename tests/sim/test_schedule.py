@@ -135,9 +135,10 @@ def test_runs_that_stop_are_left_to_the_steps():
     messages are compared in tests/sim/test_fast.py)."""
     never = (1 << 40, (1 << 40) - 1)
     left, right = _pair(7, 29, seed=8)
-    cfg = load_config(overrides={"sva.disparities": 16, "sim.watchdog_cycles": 500})
+    base = {"sva.disparities": 16, "nna.descriptor": "census"}
+    cfg = load_config(overrides={**base, "sim.watchdog_cycles": 500})
     assert run_schedule(left, right, cfg, sink_stall=never) is None
-    cfg = load_config(overrides={"sva.disparities": 16, "sim.watchdog_cycles": 1 << 40})
+    cfg = load_config(overrides={**base, "sim.watchdog_cycles": 1 << 40})
     assert run_schedule(left, right, cfg, sink_stall=never) is None
     left, right = _pair(25, 29, seed=9)
     cfg = load_config(overrides={"sva.disparities": 16, "source.kind": "camera",
@@ -269,7 +270,7 @@ def test_sim_run_takes_split_frames_to_the_schedule_and_stops_on_the_readable_ke
     from sim.sources import CameraOverflow
 
     left, right = _pair(19, 45, seed=17)
-    over = {"sva.disparities": 16, "nna.stereo_submodules": 4}
+    over = {"sva.disparities": 16, "nna.descriptor": "census", "nna.stereo_submodules": 4}
     res = run(left, right, mode="cycle", overrides=over)
     words_r, report_r, _ = run_cycle(left, right, load_config(overrides=over))
     assert res.report["engine"] == "fast"
