@@ -1,4 +1,4 @@
-"""Training the learned descriptor: MC-CNN-fast-style siamese networks in torch on the CPU.
+"""Training the learned descriptor in torch on the CPU.
 
 Three variants, all with a 9x9 receptive field and 32 output channels (one descriptor bit each):
 
@@ -6,26 +6,41 @@ Three variants, all with a 9x9 receptive field and 32 output channels (one descr
 * ``mccnn4-slim``: four 3x3 convolutions, channels 1, 4, 4, 8, 32;
 * ``single9x9``: one 9x9 convolution, 1 -> 32 (the network the chip ships).
 
-ReLU between layers, none after the last. Training sees 9x9 patches ('valid' convolutions, one
-output per patch); at inference the same weights run on whole images with the chip's replicate
-border (:mod:`quant.quantizer` ``float_forward``), identical away from the border.
+ReLU between layers, none after the last. Training uses 'valid' convolutions on crops; at
+inference the same weights run on whole images with the chip's replicate border
+(:mod:`quant.quantizer` ``float_forward``), identical away from the border. The descriptor the
+chip uses is the **sign** of each output.
 
-Samples (MC-CNN's Middlebury recipe): a left pixel p = (x, y) with known, non-occluded ground
-truth d; the positive right patch is centred at x - d + U(-pos, pos), the negative one at
-x - d +- U(neg_low, neg_high), both interpolated linearly along the row. Each view gets its own
-photometric change -- gain, offset and Gaussian noise, then rounding and clipping to 0..255 -- so
-the descriptor learns to ignore what differs between two real cameras.
+Two objectives:
+
+* ``curve`` (default): what the SVA's winner-take-all sees after the box filter, with every
+  negative. A batch is ``strips`` strips of ``strip_width`` consecutive reference pixels of one
+  row, the reference view being the left or the right view of a scene (each with its own GT,
+  ``disp1.png`` / ``disp5.png``). One convolution over the (9 + box - 1)-row crop of the reference
+  view and over the matching crop of the other view, ``disparities - 1`` columns longer, gives
+  the descriptors; their relaxed bits ``tanh(a f)`` give the Hamming distance ``(C - b . b') / 2``
+  of every reference pixel to each of its ``disparities`` candidates, which is box-filtered as
+  the SVA does (:func:`cost_curves`). The loss is the softmax cross-entropy of ``-cost / T``
+  (T learnt) against the ground truth split between its two neighbouring integer disparities
+  (:func:`curve_loss`). The tanh scale ``a`` grows geometrically from ``scale_start`` to
+  ``scale_end`` so the relaxation tends to the signs, and the last ``sign_fraction`` of the run
+  uses the signs themselves (straight-through gradient, :func:`relaxed_bits`), so the network
+  is trained for the Hamming costs the chip computes. Two small regularisers keep every bit
+  informative (:func:`bit_regularisers`): its mean over the batch (balanced bits) and the
+  correlations between bits.
+* ``triplet``: MC-CNN's recipe. For a left pixel (x, y) with known, non-occluded ground truth
+  d, the positive right patch is centred at x - d + U(-pos, pos), the negative one at
+  x - d +- U(neg_low, neg_high), both interpolated linearly along the row; hinge loss
+  ``max(0, margin + s(L, N) - s(L, P))`` on a similarity s: ``cosine`` (MC-CNN's), ``tanh``
+  (``s = mean_c tanh(f_L[c]) tanh(f_R[c])``, which for outputs of large magnitude tends to
+  ``1 - 2 * Hamming(sign f_L, sign f_R) / 32``) or ``both``. With ``aggregate = A > 1`` the
+  patches grow to (8 + A) x (8 + A) and the similarity is averaged over the A x A map.
+
+Each view gets its own photometric change -- gain, offset and Gaussian noise, then rounding and
+clipping to 0..255 -- so the descriptor learns to ignore what differs between two real cameras.
 
 Input normalisation is the NNA's: ``x = (pixel - input_offset) * input_scale`` with two
 constants fixed before training (recorded in the output file), nothing per patch.
-
-Loss: hinge ``max(0, margin + s(L, N) - s(L, P))`` on a similarity s. ``cosine`` is MC-CNN's;
-``tanh`` is the relaxation of the binary Hamming comparison the chip makes:
-``s = mean_c tanh(f_L[c]) tanh(f_R[c])``, which for outputs of large magnitude tends to
-``1 - 2 * Hamming(sign f_L, sign f_R) / 32``. ``both`` adds the two losses. With
-``aggregate = A > 1`` the patches grow to (8 + A) x (8 + A), each gives an A x A map of
-descriptors and the similarity is averaged over the map -- the A x A box filter the SVA applies
-to the matching costs, seen by the loss.
 
 The training scenes are Middlebury 2005 (without Art, which is MiddEval3's ArtL) and 2006
 ThirdSize; MiddEval3 is the evaluation set and is never read here.
@@ -53,6 +68,7 @@ VARIANTS = {
 }
 PATCH = 9  # receptive field of every variant
 SIMILARITIES = ("cosine", "tanh", "both")
+OBJECTIVES = ("curve", "triplet")
 FORMAT = "stereosim-float-v1"
 # Training collections under the shared data folder and the scenes left out of them.
 TRAIN_COLLECTIONS = ("middlebury2005_third", "middlebury2006_third")
@@ -65,11 +81,24 @@ class TrainConfig:
     """Settings of one training run (all recorded in the output file)."""
 
     variant: str = "single9x9"
+    objective: str = "curve"
     epochs: int = 20
-    steps_per_epoch: int = 4000
-    batch: int = 256
-    lr: float = 0.002
+    steps_per_epoch: int = 1000
+    lr: float = 0.004
     seed: int = 0
+    # objective "curve": strips of the reference view against every candidate disparity
+    strips: int = 32
+    strip_width: int = 64
+    disparities: int = 96
+    box: int = 5
+    temperature: float = 1.0
+    scale_start: float = 1.0
+    scale_end: float = 12.0
+    sign_fraction: float = 0.3
+    balance: float = 1.0
+    decorrelate: float = 0.5
+    # objective "triplet": one positive and one negative right patch per left pixel
+    batch: int = 256
     pos_offset: float = 0.5
     neg_low: float = 1.5
     neg_high: float = 6.0
@@ -78,7 +107,7 @@ class TrainConfig:
     aggregate: int = 1
     gain: float = 0.2
     offset: float = 20.0
-    noise_max: float = 12.0
+    noise_max: float = 2.0
     input_offset: int = 128
     input_scale: float = 1.0 / 64.0
     threads: int = 2
@@ -88,13 +117,18 @@ class TrainConfig:
             raise ConfigError(
                 f"unknown variant {self.variant!r}; choose one of {', '.join(VARIANTS)}"
             )
+        if self.objective not in OBJECTIVES:
+            raise ConfigError(
+                f"unknown objective {self.objective!r}; choose one of {', '.join(OBJECTIVES)}"
+            )
         if self.similarity not in SIMILARITIES:
             raise ConfigError(
                 f"unknown similarity {self.similarity!r}; choose one of {', '.join(SIMILARITIES)}"
             )
-        if self.aggregate < 1 or self.aggregate % 2 == 0:
-            raise ConfigError(f"aggregate must be odd and >= 1, got {self.aggregate}")
-        for name in ("epochs", "steps_per_epoch", "batch", "threads"):
+        for name in ("aggregate", "box"):
+            if getattr(self, name) < 1 or getattr(self, name) % 2 == 0:
+                raise ConfigError(f"{name} must be odd and >= 1, got {getattr(self, name)}")
+        for name in ("epochs", "steps_per_epoch", "batch", "threads", "strips", "strip_width"):
             if getattr(self, name) < 1:
                 raise ConfigError(f"{name} must be at least 1, got {getattr(self, name)}")
         if not 0 <= self.pos_offset < self.neg_low <= self.neg_high:
@@ -106,6 +140,15 @@ class TrainConfig:
             raise ConfigError("input_offset must be in 0..255 and input_scale positive")
         if self.lr <= 0 or min(self.margin, self.gain, self.offset, self.noise_max) < 0:
             raise ConfigError("lr must be positive; margin, gain, offset, noise_max non-negative")
+        if self.disparities < 2:
+            raise ConfigError(f"disparities must be at least 2, got {self.disparities}")
+        if not (self.temperature > 0 and 0 < self.scale_start <= self.scale_end):
+            raise ConfigError(
+                "temperature must be positive and 0 < scale_start <= scale_end, got "
+                f"{self.temperature}, {self.scale_start}, {self.scale_end}"
+            )
+        if not 0 <= self.sign_fraction <= 1 or min(self.balance, self.decorrelate) < 0:
+            raise ConfigError("sign_fraction must be in [0, 1]; balance, decorrelate >= 0")
 
 
 # --- data ---------------------------------------------------------------------------------------
@@ -256,6 +299,133 @@ def _photometric(patches, cfg: TrainConfig, rng, shared_axis: bool = False) -> n
     return np.clip(np.rint(v), 0.0, 255.0)
 
 
+# --- strips (objective "curve") -----------------------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class StripSet:
+    """Both views of every scene as reference views, for the cost-curve objective.
+
+    ``views[2 i + v]`` float32 (H, W) is view v (0 left, 1 right) of scene i and
+    ``targets[2 i + v]`` float32 (H, W) its ground truth where usable (known, visible in the
+    other view by the left/right GT cross-check, below ``disparities - 1``), NaN elsewhere.
+    Candidates ``image``, ``y``, ``x`` int64 list every usable reference pixel; ``names`` the
+    scenes used.
+    """
+
+    views: tuple
+    targets: tuple
+    image: np.ndarray
+    y: np.ndarray
+    x: np.ndarray
+    names: tuple
+
+
+def load_strip_set(scene_dirs, cfg: TrainConfig) -> StripSet:
+    """Read the scenes with the GT of both views (``disp1.png`` and ``disp5.png``)."""
+    from sim.datasets import find_scene, load_scene, occluded_by_cross_check
+    from sim.io import read_gt, to_grey
+
+    views, targets, names = [], [], []
+    cand = {"image": [], "y": [], "x": []}
+    for folder in scene_dirs:
+        scene = find_scene(folder)
+        if scene.gt is None or scene.gt_right is None:
+            raise InputError(
+                f"training scene {folder} needs the GT of both views (disp1.png and disp5.png)"
+            )
+        data = load_scene(scene)
+        gt_l = data["gt"]
+        gt_r = read_gt(scene.gt_right, scene.gt_scale)
+        visible_l = np.isfinite(gt_l) & ~occluded_by_cross_check(gt_l, gt_r)
+        # the right view's check is the left view's on mirrored images
+        visible_r = np.isfinite(gt_r) & ~occluded_by_cross_check(gt_r[:, ::-1], gt_l[:, ::-1])[
+            :, ::-1
+        ]
+        names.append(f"{folder.parent.name}/{folder.name}")
+        for img, gt, visible in (
+            (data["left"], gt_l, visible_l),
+            (data["right"], gt_r, visible_r),
+        ):
+            usable = visible & (gt < cfg.disparities - 1)
+            ys, xs = np.nonzero(usable)
+            cand["image"].append(np.full(ys.size, len(views), np.int64))
+            cand["y"].append(ys.astype(np.int64))
+            cand["x"].append(xs.astype(np.int64))
+            views.append(to_grey(img).astype(np.float32))
+            targets.append(np.where(usable, gt, np.nan).astype(np.float32))
+    return StripSet(
+        views=tuple(views),
+        targets=tuple(targets),
+        names=tuple(names),
+        **{k: np.concatenate(v) for k, v in cand.items()},
+    )
+
+
+def strip_reach(cfg: TrainConfig) -> int:
+    """Pixels a strip's crop reaches beyond its reference pixels: the 9x9 receptive field and
+    the box filter."""
+    return PATCH // 2 + cfg.box // 2
+
+
+def sample_strips(ss: StripSet, cfg: TrainConfig, rng: np.random.Generator) -> dict:
+    """One batch of ``cfg.strips`` strips.
+
+    A strip is ``strip_width`` consecutive reference pixels of one row around a drawn usable
+    pixel. For a left reference view the other (right) view's crop reaches ``disparities - 1``
+    columns further left (the match of x at disparity d is x - d); for a right reference view
+    the left view's crop reaches as far right. Crops clamp coordinates into the image (the
+    chip's replicate border). Returns uint8-valued float32 ``ref`` (S, 2 R + 1, Ws + 2 R) and
+    ``other`` (S, 2 R + 1, Ws + 2 R + D - 1), R = :func:`strip_reach`, each view with its own
+    photometric change; ``target`` (S, Ws) GT or NaN, ``max_disp`` (S, Ws) the largest
+    disparity whose match lies inside the other view, and ``mirror`` (S,) bool: right
+    reference, whose descriptor maps :func:`cost_curves` mirrors into the left geometry
+    (``target`` and ``max_disp`` are already mirrored); ``image``, ``y``, ``x0`` (S,) say where
+    each strip was taken (view index in ``ss.views``, row, first reference column).
+    """
+    n, ws, dn = cfg.strips, cfg.strip_width, cfg.disparities
+    reach = strip_reach(cfg)
+    pick = rng.integers(0, ss.image.size, size=n)
+    shift = rng.integers(0, ws, size=n)
+    rows = np.arange(-reach, reach + 1)
+    ref = np.empty((n, rows.size, ws + 2 * reach), np.float32)
+    other = np.empty((n, rows.size, ws + 2 * reach + dn - 1), np.float32)
+    target = np.empty((n, ws), np.float32)
+    max_disp = np.empty((n, ws), np.float32)
+    mirror = np.zeros(n, bool)
+    starts = np.empty(n, np.int64)
+    for k in range(n):
+        i, y = int(ss.image[pick[k]]), int(ss.y[pick[k]])
+        view, partner = ss.views[i], ss.views[i ^ 1]
+        height, width = view.shape
+        x0 = int(np.clip(ss.x[pick[k]] - shift[k], 0, max(width - ws, 0)))
+        starts[k] = x0
+        xs = np.arange(x0, x0 + ws)
+        rr = np.clip(y + rows, 0, height - 1)[:, None]
+        cols = np.arange(x0 - reach, x0 + ws + reach)
+        ref[k] = view[rr, np.clip(cols, 0, width - 1)]
+        gt = ss.targets[i][y, np.clip(xs, 0, width - 1)]
+        gt[xs >= width] = np.nan
+        if i % 2 == 0:  # left reference: the right view's crop reaches left
+            ocols = np.arange(x0 - reach - (dn - 1), x0 + ws + reach)
+            target[k], max_disp[k] = gt, xs
+        else:  # right reference: the left view's crop reaches right; mirrored
+            ocols = np.arange(x0 - reach, x0 + ws + reach + dn - 1)
+            target[k], max_disp[k] = gt[::-1], (width - 1 - xs)[::-1]
+            mirror[k] = True
+        other[k] = partner[rr, np.clip(ocols, 0, width - 1)]
+    return {
+        "ref": _photometric(ref, cfg, rng),
+        "other": _photometric(other, cfg, rng),
+        "target": target,
+        "max_disp": max_disp,
+        "mirror": mirror,
+        "image": ss.image[pick],
+        "y": ss.y[pick],
+        "x0": starts,
+    }
+
+
 # --- model and loss -----------------------------------------------------------------------------
 
 
@@ -294,6 +464,105 @@ def hinge_loss(f_l, f_p, f_n, cfg: TrainConfig):
     return loss
 
 
+def relaxed_bits(f, scale: float, sign: bool):
+    """The descriptor bits as +-1: ``tanh(scale * f)``, or with ``sign`` the signs themselves
+    with the gradient of the tanh (straight-through)."""
+    import torch
+
+    soft = torch.tanh(scale * f)
+    if not sign:
+        return soft
+    return soft + (torch.sign(f) - soft).detach()
+
+
+def cost_curves(b_ref, b_other, disparities: int, box: int):
+    """Box-filtered relaxed Hamming costs (S, Ws, D) on the scale of one descriptor, 0..C.
+
+    ``b_ref`` (S, C, box, Ws + box - 1) and ``b_other`` (S, C, box, Ws + box - 1 + D - 1) are
+    +-1 bit maps (:func:`relaxed_bits`) in the left-reference geometry: column j of the
+    reference matches column j + D - 1 - d of the other map at disparity d. The Hamming
+    distance of two +-1 vectors is ``(C - a . b) / 2``; the box filter of the SVA is the mean
+    over the box x box window (the chip's sum divided by box^2).
+    """
+    import torch
+
+    n_ref, n_other = b_ref.shape[3], b_other.shape[3]
+    # every reference column against every other column of the same row, then the band of
+    # the D candidates of each reference column
+    dots = b_ref.permute(0, 2, 3, 1) @ b_other.permute(0, 2, 1, 3)  # (S, box, n_ref, n_other)
+    band = dots.as_strided(
+        (dots.shape[0], dots.shape[1], n_ref, disparities),
+        (dots.stride(0), dots.stride(1), n_other + 1, 1),
+    ).flip(-1)
+    cost = 0.5 * (b_ref.shape[1] - band)  # (S, box, n_ref, D)
+    cost = cost.mean(dim=1).permute(0, 2, 1)  # (S, D, n_ref): the box's rows
+    cost = torch.nn.functional.avg_pool1d(cost, box, stride=1)  # and its columns
+    return cost.permute(0, 2, 1)
+
+
+def curve_loss(cost, target, max_disp, log_temp):
+    """Softmax cross-entropy over the candidate disparities of every usable reference pixel.
+
+    ``-cost / T`` are the logits (T = exp(log_temp), learnt); candidates whose match lies
+    outside the other view are left out; the target splits between the two integer
+    disparities around the (sub-pixel) ground truth, in proportion to their closeness.
+    """
+    import torch
+
+    grid = torch.arange(cost.shape[2], dtype=cost.dtype)
+    logits = (-cost / log_temp.exp()).masked_fill(grid > max_disp[..., None], -1e4)
+    usable = torch.isfinite(target)
+    gt = torch.nan_to_num(target, nan=0.0)
+    weight = (1.0 - (grid - gt[..., None]).abs()).clamp(min=0.0)
+    ce = -(weight * torch.nn.functional.log_softmax(logits, dim=-1)).sum(dim=-1)
+    return ce[usable].mean() if bool(usable.any()) else cost.sum() * 0.0
+
+
+def bit_regularisers(bits):
+    """(balance, decorrelation) of the +-1 bit maps (S, C, ...): the squared mean of each bit
+    (0 when a bit is 1 as often as -1) and the squared off-diagonal correlations between bits
+    (0 when the bits are uncorrelated), each averaged, so every bit carries information."""
+    import torch
+
+    c = bits.shape[1]
+    z = bits.transpose(0, 1).reshape(c, -1)
+    mean = z.mean(dim=1)
+    z = z - mean[:, None]
+    cov = (z @ z.T) / z.shape[1]
+    std = cov.diagonal().clamp(min=1e-6).sqrt()
+    corr = cov / std[:, None] / std[None, :]
+    off = corr - torch.eye(c, dtype=corr.dtype)
+    return (mean * mean).mean(), (off * off).sum() / (c * (c - 1))
+
+
+def _scale_at(cfg: TrainConfig, frac: float) -> float:
+    """The tanh scale after ``frac`` of the run: geometric from scale_start to scale_end."""
+    return cfg.scale_start * (cfg.scale_end / cfg.scale_start) ** frac
+
+
+def _curve_step(net, batch, cfg: TrainConfig, frac: float, log_temp):
+    import torch
+
+    def features(crops):
+        x = (torch.from_numpy(crops) - float(cfg.input_offset)) * cfg.input_scale
+        return net(x[:, None])
+
+    f_ref, f_other = features(batch["ref"]), features(batch["other"])
+    mirror = torch.from_numpy(batch["mirror"])[:, None, None, None]
+    f_ref = torch.where(mirror, f_ref.flip(3), f_ref)
+    f_other = torch.where(mirror, f_other.flip(3), f_other)
+    scale, sign = _scale_at(cfg, frac), frac >= 1.0 - cfg.sign_fraction
+    b_ref, b_other = relaxed_bits(f_ref, scale, sign), relaxed_bits(f_other, scale, sign)
+    cost = cost_curves(b_ref, b_other, cfg.disparities, cfg.box)
+    loss = curve_loss(
+        cost, torch.from_numpy(batch["target"]), torch.from_numpy(batch["max_disp"]), log_temp
+    )
+    if cfg.balance or cfg.decorrelate:
+        bal, dec = bit_regularisers(b_ref)
+        loss = loss + cfg.balance * bal + cfg.decorrelate * dec
+    return loss
+
+
 # --- the run ------------------------------------------------------------------------------------
 
 
@@ -306,11 +575,20 @@ def train(cfg: TrainConfig, scene_dirs, *, progress: bool = True) -> dict:
     torch.manual_seed(cfg.seed)
     torch.use_deterministic_algorithms(True)
     rng = np.random.default_rng(cfg.seed)
-    ts = load_training_set(scene_dirs, cfg)
-    if ts.scene.size == 0:
+    if cfg.objective == "curve":
+        data = load_strip_set(scene_dirs, cfg)
+        n_samples = data.image.size
+    else:
+        data = load_training_set(scene_dirs, cfg)
+        n_samples = data.scene.size
+    if n_samples == 0:
         raise InputError("the training scenes have no pixel with usable ground truth")
     net = build_network(cfg.variant)
-    opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
+    params = list(net.parameters())
+    log_temp = torch.nn.Parameter(torch.tensor(float(np.log(cfg.temperature))))
+    if cfg.objective == "curve":
+        params.append(log_temp)
+    opt = torch.optim.Adam(params, lr=cfg.lr)
     total = cfg.epochs * cfg.steps_per_epoch
     sched = torch.optim.lr_scheduler.LambdaLR(opt, lambda step: 1.0 - step / total)
     history = []
@@ -318,15 +596,12 @@ def train(cfg: TrainConfig, scene_dirs, *, progress: bool = True) -> dict:
     try:
         for epoch in range(cfg.epochs):
             running = 0.0
-            for _ in range(cfg.steps_per_epoch):
-                batch = sample_batch(ts, cfg, rng)
-                x = (torch.from_numpy(batch) - float(cfg.input_offset)) * cfg.input_scale
-                f = net(x.reshape(3 * cfg.batch, 1, *batch.shape[2:]))
-                if cfg.aggregate == 1:
-                    f = f.reshape(3, cfg.batch, -1)
+            for step in range(cfg.steps_per_epoch):
+                if cfg.objective == "curve":
+                    frac = (epoch * cfg.steps_per_epoch + step) / total
+                    loss = _curve_step(net, sample_strips(data, cfg, rng), cfg, frac, log_temp)
                 else:
-                    f = f.reshape(3, cfg.batch, *f.shape[1:])
-                loss = hinge_loss(f[0], f[1], f[2], cfg)
+                    loss = _triplet_step(net, sample_batch(data, cfg, rng), cfg)
                 opt.zero_grad()
                 loss.backward()
                 opt.step()
@@ -342,10 +617,22 @@ def train(cfg: TrainConfig, scene_dirs, *, progress: bool = True) -> dict:
         "weights": [c.weight.detach().numpy().astype(np.float32) for c in convs],
         "biases": [c.bias.detach().numpy().astype(np.float32) for c in convs],
         "config": asdict(cfg),
-        "scenes": list(ts.names),
+        "scenes": list(data.names),
         "loss_per_epoch": history,
-        "samples": int(ts.scene.size),
+        "samples": int(n_samples),
     }
+
+
+def _triplet_step(net, batch, cfg: TrainConfig):
+    import torch
+
+    x = (torch.from_numpy(batch) - float(cfg.input_offset)) * cfg.input_scale
+    f = net(x.reshape(3 * cfg.batch, 1, *batch.shape[2:]))
+    if cfg.aggregate == 1:
+        f = f.reshape(3, cfg.batch, -1)
+    else:
+        f = f.reshape(3, cfg.batch, *f.shape[1:])
+    return hinge_loss(f[0], f[1], f[2], cfg)
 
 
 def save_float_model(path, result: dict) -> None:

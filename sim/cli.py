@@ -297,11 +297,14 @@ def cmd_train(args) -> int:
     from nna.train import TrainConfig, save_float_model, train, training_scene_dirs
     from sim.datasets import shared_data_dir
 
-    cfg = TrainConfig(
-        variant=args.variant, epochs=args.epochs, steps_per_epoch=args.steps, batch=args.batch,
-        lr=args.lr, seed=args.seed, similarity=args.similarity, noise_max=args.noise_max,
-        aggregate=args.aggregate, threads=args.threads,
-    )
+    # options left unset keep TrainConfig's defaults (the shipped recipe)
+    given = {
+        "variant": args.variant, "objective": args.objective, "epochs": args.epochs,
+        "steps_per_epoch": args.steps, "batch": args.batch, "strips": args.strips,
+        "lr": args.lr, "seed": args.seed, "similarity": args.similarity,
+        "noise_max": args.noise_max, "aggregate": args.aggregate, "threads": args.threads,
+    }
+    cfg = TrainConfig(**{k: v for k, v in given.items() if v is not None})
     data = args.data or shared_data_dir()
     if data is None:
         raise InputError("no training data found: give --data DIR (the shared Middlebury folder)")
@@ -393,18 +396,23 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--variant", default="single9x9", choices=("mccnn4", "mccnn4-slim", "single9x9"))
     t.add_argument("--data", metavar="DIR", help="shared data folder holding "
                    "middlebury2005_third/ and middlebury2006_third/ (default: ../shared/data)")
-    t.add_argument("--epochs", type=int, default=20, metavar="N")
-    t.add_argument("--steps", type=int, default=4000, metavar="N", help="batches per epoch")
-    t.add_argument("--batch", type=int, default=256, metavar="N", help="triplets per batch")
-    t.add_argument("--lr", type=float, default=0.002,
-                   help="Adam learning rate (decays linearly to 0)")
+    t.add_argument("--objective", choices=("curve", "triplet"), help="curve (default): "
+                   "softmax over the box-filtered cost of every candidate disparity of strips of "
+                   "pixels; triplet: MC-CNN's hinge on one positive and one negative patch")
+    t.add_argument("--epochs", type=int, metavar="N", help="default 20")
+    t.add_argument("--steps", type=int, metavar="N", help="batches per epoch (default 1000)")
+    t.add_argument("--strips", type=int, metavar="N", help="strips per batch, curve (default 32)")
+    t.add_argument("--batch", type=int, metavar="N", help="triplets per batch, triplet "
+                   "(default 256)")
+    t.add_argument("--lr", type=float, help="Adam learning rate, decaying linearly to 0 "
+                   "(default 0.004)")
     t.add_argument("--seed", type=int, default=0, metavar="S")
-    t.add_argument("--similarity", default="tanh", choices=("cosine", "tanh", "both"),
-                   help="hinge on cosine (MC-CNN), on the tanh relaxation of the Hamming "
-                   "comparison (default), or both")
-    t.add_argument("--noise-max", type=float, default=12.0, metavar="SIGMA",
-                   help="augmentation noise: sigma ~ U(0, SIGMA) grey levels per view")
-    t.add_argument("--aggregate", type=int, default=1, metavar="A", help="average the "
+    t.add_argument("--similarity", choices=("cosine", "tanh", "both"), help="triplet: hinge on "
+                   "cosine (MC-CNN), on the tanh relaxation of the Hamming comparison (default), "
+                   "or both")
+    t.add_argument("--noise-max", type=float, metavar="SIGMA",
+                   help="augmentation noise: sigma ~ U(0, SIGMA) grey levels per view (default 2)")
+    t.add_argument("--aggregate", type=int, metavar="A", help="triplet: average the "
                    "similarity over A x A neighbouring descriptors, as the box filter does (odd)")
     t.add_argument("--threads", type=int, default=2, metavar="N", help="torch CPU threads")
     t.add_argument("--out", metavar="FILE", help="float model .npz (default: VARIANT.npz)")

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import torch  # noqa: F401  (in the test extra: the smoke epoch must run in CI)
+import torch  # in the test extra: the smoke epoch must run in CI
 from numpy.testing import assert_array_equal
 
 from nna.conv import cnn_descriptor
@@ -16,20 +16,30 @@ from nna.train import (
     PATCH,
     VARIANTS,
     TrainConfig,
+    bit_regularisers,
+    build_network,
     calibration_scene_dirs,
+    cost_curves,
+    curve_loss,
     load_float_model,
+    load_strip_set,
     load_training_set,
+    relaxed_bits,
     sample_batch,
+    sample_strips,
+    strip_reach,
     train,
     training_scene_dirs,
 )
 from nna.weights import SHIPPED_WEIGHTS, default_weights, load_layer
 from quant.intconv import int_forward
-from quant.quantizer import load_quantized, to_nna_weights
+from quant.quantizer import FloatModel, float_forward, load_quantized, to_nna_weights
 from sim.cli import main
 from sim.config import DESCRIPTOR_DEFAULTS, load_config
 from sim.errors import ConfigError, InputError
 from sim.io import encode_png
+from sva.aggregation import box_filter
+from sva.cost import hamming_cost
 
 SHIFT = 5  # disparity of the synthetic scenes
 
@@ -95,15 +105,19 @@ def test_augmentation_changes_each_view_independently(data_root):
 
 
 def _train(data_root, **kw):
-    cfg = TrainConfig(**{"epochs": 2, "steps_per_epoch": 3, "batch": 16, "threads": 1, **kw})
+    cfg = TrainConfig(
+        **{"epochs": 2, "steps_per_epoch": 3, "batch": 16, "strips": 8, "threads": 1, **kw}
+    )
     return train(cfg, training_scene_dirs(data_root), progress=False)
 
 
-@pytest.mark.parametrize("variant", list(VARIANTS))
-def test_smoke_epoch_is_deterministic(data_root, variant):
-    a = _train(data_root, variant=variant, seed=3)
-    b = _train(data_root, variant=variant, seed=3)
-    c = _train(data_root, variant=variant, seed=4)
+@pytest.mark.parametrize(
+    "variant, objective", [(v, "curve") for v in VARIANTS] + [("single9x9", "triplet")]
+)
+def test_smoke_epoch_is_deterministic(data_root, variant, objective):
+    a = _train(data_root, variant=variant, objective=objective, seed=3)
+    b = _train(data_root, variant=variant, objective=objective, seed=3)
+    c = _train(data_root, variant=variant, objective=objective, seed=4)
     assert len(a["weights"]) == len(VARIANTS[variant])
     for (c_in, c_out, k), w in zip(VARIANTS[variant], a["weights"]):
         assert w.shape == (c_out, c_in, k, k)
@@ -113,8 +127,10 @@ def test_smoke_epoch_is_deterministic(data_root, variant):
     assert all(np.isfinite(v) for v in a["loss_per_epoch"])
 
 
-def test_training_lowers_the_loss(data_root):
-    res = _train(data_root, epochs=4, steps_per_epoch=25, batch=64, noise_max=4.0)
+@pytest.mark.parametrize("objective", ["curve", "triplet"])
+def test_training_lowers_the_loss(data_root, objective):
+    res = _train(data_root, objective=objective, epochs=4, steps_per_epoch=25, batch=64,
+                 noise_max=4.0)  # fmt: skip
     first, last = res["loss_per_epoch"][0], res["loss_per_epoch"][-1]
     assert last < 0.8 * first
 
@@ -204,7 +220,144 @@ def test_aggregated_training_sees_larger_patches(data_root):
     batch = sample_batch(ts, cfg, np.random.default_rng(1))
     assert batch.shape == (3, 8, PATCH + 2, PATCH + 2)
     assert_array_equal(batch[1], batch[0])
-    res = _train(data_root, aggregate=3)
+    res = _train(data_root, objective="triplet", aggregate=3)
     assert res["weights"][0].shape == (32, 1, 9, 9)
     with pytest.raises(ConfigError, match="aggregate"):
         TrainConfig(aggregate=2)
+
+
+# --- the cost-curve objective -------------------------------------------------------------------
+
+
+def test_strips_cover_both_views_with_their_own_ground_truth(data_root):
+    cfg = TrainConfig(strips=64, strip_width=16, disparities=12, gain=0.0, offset=0.0,
+                      noise_max=0.0)  # fmt: skip
+    ss = load_strip_set(training_scene_dirs(data_root), cfg)
+    assert ss.names == ("middlebury2005_third/Books", "middlebury2006_third/Aloe")
+    assert len(ss.views) == 4 and set(np.unique(ss.image)) == {0, 1, 2, 3}
+    # left GT is unknown in the first SHIFT columns, right GT in the last SHIFT columns; every
+    # other pixel is visible in the other view (the right view's check is mirrored)
+    left, right = ss.x[ss.image % 2 == 0], ss.x[ss.image % 2 == 1]
+    assert left.min() == SHIFT and left.max() == 399
+    assert right.min() == 0 and right.max() == 399 - SHIFT
+    batch = sample_strips(ss, cfg, np.random.default_rng(0))
+    r = strip_reach(cfg)
+    assert batch["ref"].shape == (64, 2 * r + 1, 16 + 2 * r)
+    assert batch["other"].shape == (64, 2 * r + 1, 16 + 2 * r + 11)
+    assert batch["mirror"].any() and not batch["mirror"].all()
+    known = np.isfinite(batch["target"])
+    assert known.any() and np.all(batch["target"][known] == SHIFT)
+    # without augmentation the other view's crop, at the match, is the reference crop
+    for k in range(64):
+        ref, other, x0 = batch["ref"][k], batch["other"][k], batch["x0"][k]
+        cols = x0 - r + np.arange(ref.shape[1])  # image columns of the reference crop
+        if batch["mirror"][k]:  # right reference: match at x + d, other crop starts at x0 - r
+            k_other, matched = cols - (x0 - r) + SHIFT, cols + SHIFT
+        else:  # left reference: match at x - d, other crop starts D - 1 further left
+            k_other, matched = cols - (x0 - r - 11) - SHIFT, cols - SHIFT
+        ok = (cols >= 0) & (cols < 400) & (matched >= 0) & (matched < 400)
+        assert ok.sum() >= 10
+        assert_array_equal(other[:, k_other[ok]], ref[:, ok])
+
+
+def _float_bits(model, img):
+    return float_forward(model, img) > 0
+
+
+def test_cost_curves_are_the_chips_box_filtered_hamming_costs(data_root):
+    """With sign bits, the training cost of every strip pixel equals the SVA's Hamming cost
+    box-filtered over 5 x 5 (divided by 25) at that pixel, for both reference views."""
+    cfg = TrainConfig(strips=24, strip_width=20, disparities=10, gain=0.0, offset=0.0,
+                      noise_max=0.0)  # fmt: skip
+    dirs = training_scene_dirs(data_root)
+    ss = load_strip_set(dirs, cfg)
+    torch.manual_seed(0)
+    net = build_network("single9x9").double()
+    with torch.no_grad():
+        net[0].bias.uniform_(-0.2, 0.2)
+    model = FloatModel(
+        weights=(net[0].weight.detach().numpy().astype(np.float64),),
+        biases=(net[0].bias.detach().numpy().astype(np.float64),),
+        input_offset=cfg.input_offset,
+        input_scale=cfg.input_scale,
+    )
+    batch = sample_strips(ss, cfg, np.random.default_rng(2))
+    with torch.no_grad():
+        feats = [
+            net((torch.from_numpy(batch[k]).double() - 128.0)[:, None] / 64.0)
+            for k in ("ref", "other")
+        ]
+        mirror = torch.from_numpy(batch["mirror"])[:, None, None, None]
+        feats = [torch.where(mirror, f.flip(3), f) for f in feats]
+        bits = [relaxed_bits(f, 1.0, sign=True) for f in feats]
+        cost = cost_curves(bits[0], bits[1], cfg.disparities, cfg.box).numpy()
+    # the chip's volumes: left reference directly; right reference on mirrored images with
+    # the mirrored network (conv of a mirrored image by a mirrored kernel = mirrored output)
+    mirrored = FloatModel(weights=(model.weights[0][..., ::-1],), biases=model.biases,
+                          input_offset=model.input_offset, input_scale=model.input_scale)  # fmt: skip
+    volumes = {}
+    for i in range(len(ss.views)):
+        view, partner = ss.views[i].astype(np.uint8), ss.views[i ^ 1].astype(np.uint8)
+        m = model
+        if i % 2:
+            view, partner, m = view[:, ::-1], partner[:, ::-1], mirrored
+        words = [
+            (_float_bits(m, v).astype(np.uint64) << np.arange(32, dtype=np.uint64)).sum(axis=2)
+            for v in (view, partner)
+        ]
+        c = hamming_cost(words[0].astype(np.uint32), words[1].astype(np.uint32),
+                         cfg.disparities, 32)  # fmt: skip
+        volumes[i] = box_filter(c, cfg.box, 10).astype(np.float64) / cfg.box**2
+    checked = 0
+    for k in range(cfg.strips):
+        i, y = int(batch["image"][k]), int(batch["y"][k])
+        height, width = ss.views[i].shape
+        if not 2 <= y < height - 2:
+            continue
+        for j in np.flatnonzero(np.isfinite(batch["target"][k])):
+            # max_disp is the pixel's column in the chip's (for a right reference: mirrored)
+            # geometry, where the match of column x at disparity d is column x - d
+            xc = int(batch["max_disp"][k, j])
+            if xc - 2 - (cfg.disparities - 1) < 0 or xc + 2 >= width:
+                continue
+            np.testing.assert_allclose(cost[k, j], volumes[i][y, xc], atol=1e-9)
+            checked += 1
+    assert checked > 100
+
+
+def test_curve_loss_prefers_the_ground_truth_and_ignores_unusable_pixels():
+    cost = torch.full((1, 3, 8), 10.0, dtype=torch.float64)
+    cost[0, 0, 3] = 0.0  # pixel 0: clear minimum at 3
+    cost[0, 1, 5] = 0.0  # pixel 1: minimum at 5, but its GT is unknown
+    target = torch.tensor([[3.0, float("nan"), 2.5]], dtype=torch.float64)
+    max_disp = torch.full((1, 3), 7.0, dtype=torch.float64)
+    log_t = torch.tensor(0.0, dtype=torch.float64)
+    right = curve_loss(cost, target, max_disp, log_t)
+    wrong = curve_loss(cost, torch.tensor([[6.0, float("nan"), 2.5]], dtype=torch.float64),
+                       max_disp, log_t)  # fmt: skip
+    assert right < wrong
+    # pixel 2 is flat: its loss is log(8), whatever the split of its target; pixel 0's is tiny
+    expected = (np.log(1 + 7 * np.exp(-10.0)) + np.log(8)) / 2
+    assert abs(float(right) - expected) < 1e-9
+    # candidates beyond max_disp are left out of the softmax
+    max_disp[0, 2] = 3.0
+    assert abs(float(curve_loss(cost, target, max_disp, log_t))
+               - (np.log(1 + 7 * np.exp(-10.0)) + np.log(4)) / 2) < 1e-9  # fmt: skip
+
+
+def test_bit_regularisers_are_zero_for_balanced_independent_bits():
+    gen = torch.Generator().manual_seed(0)
+    bits = torch.randint(0, 2, (64, 4, 16, 16), generator=gen).double() * 2 - 1
+    bal, dec = bit_regularisers(bits)
+    assert bal < 1e-3 and dec < 1e-3
+    same = bits[:, :1].repeat(1, 4, 1, 1)  # four copies of one bit: fully correlated
+    assert bit_regularisers(same)[1] > 0.99
+    assert bit_regularisers(torch.ones(8, 4, 3, 3, dtype=torch.float64))[0] == 1.0
+
+
+def test_straight_through_bits_are_signs_with_the_tanh_gradient():
+    f = torch.tensor([-2.0, -0.1, 0.3, 1.5], dtype=torch.float64, requires_grad=True)
+    b = relaxed_bits(f, 2.0, sign=True)
+    assert_array_equal(b.detach().numpy(), [-1.0, -1.0, 1.0, 1.0])
+    b.sum().backward()
+    np.testing.assert_allclose(f.grad.numpy(), 2.0 / np.cosh(2.0 * f.detach().numpy()) ** 2)

@@ -29,7 +29,8 @@ def test_run_returns_float_disparity_with_inf_invalid_and_fixed_words():
 
 def test_functional_model_equals_the_naive_reference_end_to_end():
     left, right = _pair(h=15, w=41, shift=3, seed=4)
-    over = {"sva.disparities": 16, "nna.census.window": [5, 5], "nna.census.kind": "symmetric"}
+    over = {"sva.disparities": 16, "nna.descriptor": "census", "nna.census.window": [5, 5],
+            "nna.census.kind": "symmetric"}
     res = sim.run(left, right, overrides=over)
     from nna.census import census
 

@@ -14,6 +14,9 @@ from sim.errors import InputError
 from sim.estimate import estimate, paper_analysis, parse_size
 
 SMALL, SPLIT = (24, 64), (16, 48)  # split frames run on the readable engine: keep them tiny
+# The grid's rows are census unless they say cnn (census: 1 NNA cycle per descriptor, so the
+# rows exercise the SVA- and FIFO-bound cases; the cnn rows the NNA-bound ones).
+BASE = {"sva.disparities": 32, "nna.descriptor": "census"}
 
 # (shape, overrides, exact to the cycle?)
 GRID = [
@@ -54,7 +57,7 @@ def _pair(shape, seed):
 
 @pytest.mark.parametrize("shape, over, exact", GRID, ids=[str(g[1]) for g in GRID])
 def test_estimate_agrees_with_the_cycle_model(shape, over, exact):
-    cfg = load_config(overrides={"sva.disparities": 32, **over})
+    cfg = load_config(overrides={**BASE, **over})
     rep = run(*_pair(shape, len(over)), mode="cycle", config=cfg).report
     est = estimate(cfg, shape)
     thr, ethr = rep["throughput"], est["throughput"]
@@ -88,8 +91,8 @@ def test_a_fifo_too_shallow_for_its_round_trip_is_seen_by_the_estimate():
     """A 1-deep NNA->SVA FIFO moves one descriptor per clock-crossing round trip (~4 cycles),
     slower than the SVA's 2 cycles per pixel: the frame takes longer than the block rates say."""
     shape = SMALL
-    deep = load_config(overrides={"sva.disparities": 32})
-    shallow = load_config(overrides={"sva.disparities": 32, "fifo.nna_to_sva_depth": 1})
+    deep = load_config(overrides=BASE)
+    shallow = load_config(overrides={**BASE, "fifo.nna_to_sva_depth": 1})
     rep = run(*_pair(shape, 1), mode="cycle", config=shallow).report
     e_deep, e_shallow = estimate(deep, shape), estimate(shallow, shape)
     assert e_shallow["latency"]["frame_ms"] > 1.5 * e_deep["latency"]["frame_ms"]
@@ -101,7 +104,7 @@ def test_720p_calibration_matches_the_paper_figures():
     cnn = estimate(load_config(overrides={"nna.descriptor": "cnn"}), (720, 1280))
     assert cnn["throughput"]["bottleneck"] == "nna_left"
     assert cnn["throughput"]["fps"] == pytest.approx(460e6 / (9 * 921_600), abs=1e-3)  # ~55 (rounded to 3 decimals)
-    census = estimate(load_config(), (720, 1280))
+    census = estimate(load_config(overrides={"nna.descriptor": "census"}), (720, 1280))
     assert census["throughput"]["fps_per_block"]["sva"] == pytest.approx(465e6 / (2 * 921_600),
                                                                          abs=1e-3)  # ~250
     assert cnn["fifo_bytes_per_frame"]["nna_left_to_sva"] == 1280 * 720 * 4  # 3.69 MB
