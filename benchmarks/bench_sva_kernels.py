@@ -3,8 +3,7 @@
 The frame: the motorcycle pair of scikit-image in grey, resized to 1280 x 720 with cv2.resize,
 11x3 census descriptors (pinned: the default descriptor is now the CNN). The SVA runs D = 128,
 box 5, 4 paths, equiangular sub-pixel (F = 4), LR check, no median (BENCH_CONFIG), the rest
-default. OpenCV
-runs StereoSGBM (D = 128, block 5, P1 = 200, P2 = 800, single-pass SGBM mode)
+default. OpenCV runs StereoSGBM (D = 128, block 5, P1 = 200, P2 = 800, single-pass SGBM mode)
 single-threaded in the same process, alternating with the SVA run so both see the same
 machine state (timings on a shared machine vary by tens of percent: compare the ratio).
 
