@@ -1241,9 +1241,9 @@ def run_cycle_fast(left: np.ndarray, right: np.ndarray, cfg: ChipConfig, *,
     """
     if cfg.nna.stereo_submodules != 2:
         raise ConfigError(
-            f"the fast engine models one NNA submodule per camera; nna.stereo_submodules="
-            f"{cfg.nna.stereo_submodules} needs the readable engine: set sim.engine=readable "
-            "(or auto, which picks it)"
+            f"the compiled steps model one NNA submodule per camera; nna.stereo_submodules="
+            f"{cfg.nna.stereo_submodules} runs on sim.chip.simulate (sim.engine=auto: the "
+            "schedule engine) or sim.engine=readable"
         )
     if method not in ("auto", "steps"):
         raise ConfigError(f"method must be 'auto' or 'steps'; got {method!r}")

@@ -146,12 +146,12 @@ def test_camera_overflow_has_the_same_message():
     assert str(fast.value) == str(slow.value)
 
 
-def test_split_frames_are_refused_with_a_pointer_to_the_readable_engine():
+def test_split_frames_are_refused_by_the_steps_with_a_pointer_to_the_engines_that_run_them():
     from sim.errors import ConfigError
 
     left, right = _pair(9, 35)
     cfg = load_config(overrides={**CENSUS, "nna.stereo_submodules": 4})
-    with pytest.raises(ConfigError, match="set sim.engine=readable"):
+    with pytest.raises(ConfigError, match="runs on sim.chip.simulate .* or sim.engine=readable"):
         run_cycle_fast(left, right, cfg)
 
 
