@@ -331,7 +331,8 @@ def cmd_quantize(args) -> int:
     model, variant, _ = load_float_model(args.model)
     qcfg = QuantizerConfig(
         n_steps=args.steps, z_bits=args.z_bits, n_samples=args.samples, seed=args.seed,
-        distance=args.distance,
+        distance=args.distance, hidden_distance=args.hidden_distance,
+        act_quantile=args.act_quantile,
     )
     out = Path(args.out)
     if not out.parent.is_dir():
@@ -341,6 +342,12 @@ def cmd_quantize(args) -> int:
         f"{len(images)} views (left+right) of {', '.join(names)}; {qcfg.n_samples} sampled "
         f"pixels, seed {qcfg.seed}, {qcfg.n_steps} scale steps, z={qcfg.z_bits}, "
         f"distance {qcfg.distance}"
+        + (
+            f", hidden layers: distance {qcfg.hidden_distance}, activation quantile "
+            f"{qcfg.act_quantile}"
+            if len(model.weights) > 1
+            else ""
+        )
     )
     t0 = time.perf_counter()
     qm = quantize(model, images, qcfg, variant=variant, calibration=calibration)
@@ -428,6 +435,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="use the views of at most N scenes, spread evenly (default 8)")
     q.add_argument("--distance", default="hamming", choices=("hamming", "rms", "l1", "kl",
                    "hist_rms"), help="distance that picks the last layer's scales")
+    q.add_argument("--hidden-distance", default="rms", choices=("hamming", "rms", "l1", "kl",
+                   "hist_rms"), help="distance that picks the other layers' scales (default rms)")
+    q.add_argument("--act-quantile", type=float, default=0.9999, metavar="Q", help="multi-layer: "
+                   "each hidden layer's int8 activations map this quantile of its ReLU outputs "
+                   "to 127 (default 0.9999; lower clips more and rounds finer)")
     q.add_argument("--steps", type=int, default=1000, metavar="N",
                    help="scale candidates per channel (>= 1000)")
     q.add_argument("--z-bits", type=int, default=8, metavar="Z", help="m, h in [0, 2^Z - 1]")

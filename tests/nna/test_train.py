@@ -27,6 +27,7 @@ from nna.train import (
     relaxed_bits,
     sample_batch,
     sample_strips,
+    save_float_model,
     strip_reach,
     train,
     training_scene_dirs,
@@ -162,6 +163,30 @@ def test_train_and_quantize_commands(data_root, tmp_path, capsys):
     code = main(["run", str(left), "--mode", "functional", "--descriptor", "cnn", "--set",
                  f"nna.cnn.weights={weights}", "--disparities", "16", "--out", str(out)])  # fmt: skip
     assert code == 0 and (out / "disparity.pfm").is_file()
+
+
+def test_quantize_takes_the_hidden_layer_settings_of_a_multi_layer_model(data_root, tmp_path,
+                                                                          capsys):
+    model = tmp_path / "slim.npz"
+    save_float_model(model, _train(data_root, variant="mccnn4-slim"))
+    scales = {}
+    for q in ("0.9999", "0.9"):
+        out = tmp_path / f"w{q}.npz"
+        args = ["quantize", str(model), "--calib", str(data_root), "--out", str(out),
+                "--samples", "300", "--act-quantile", q, "--hidden-distance", "l1"]
+        assert main(args) == 0, capsys.readouterr().err
+        qm = load_quantized(out)
+        assert qm.distances == ("l1", "l1", "l1", "hamming")
+        assert f"activation quantile {q}" in qm.calibration
+        scales[q] = qm.act_scales[1]
+    # a lower quantile of the same ReLU outputs maps a smaller value to 127
+    assert scales["0.9"] > scales["0.9999"]
+    bad = ["quantize", str(model), "--calib", str(data_root), "--out", str(tmp_path / "x.npz"),
+           "--act-quantile", "0"]
+    assert main(bad) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("stereosim: error: ") and "act_quantile" in err and err.count("\n") == 1
+    assert not (tmp_path / "x.npz").exists()
 
 
 def test_bad_inputs_are_one_line_errors(data_root, tmp_path, capsys):

@@ -14,6 +14,8 @@ from quant.quantizer import (
     FloatModel,
     QuantizerConfig,
     float_forward,
+    float_input,
+    float_layer,
     load_quantized,
     quantize,
     save_quantized,
@@ -189,7 +191,7 @@ def test_mul_shift_search_is_exhaustive():
             errors[m, h] = np.mean(np.abs(np.clip(target, 0, 127) - out))
     m, h, err = search_mul_shift(acc, target, z_bits)
     assert err == pytest.approx(errors.min(), rel=1e-12)
-    assert errors[m, h] == pytest.approx(errors.min(), rel=1e-12)
+    assert errors[m, h] == pytest.approx(errors.min(), rel=1e-9)
 
 
 # --- the whole model ----------------------------------------------------------------------------
@@ -219,6 +221,22 @@ def test_two_layer_model_agrees_and_figures_are_honest():
     assert agree > 0.95
     # the hidden activations use the int8 range, neither all zero nor all saturated
     assert np.all(qm.act_scales > 0)
+
+
+@pytest.mark.parametrize("q", [0.9999, 0.99, 0.9])
+def test_the_hidden_activation_scale_maps_the_chosen_quantile_to_127(q):
+    """With every pixel sampled, layer 1's input scale is 127 over the q-quantile of ReLU of
+    layer 0's float output over all pixels and channels (the module docstring's rule)."""
+    model = _two_layer_model(6)
+    images = _smooth_images(2, (21, 19), 3)
+    qm = quantize(model, images, QuantizerConfig(n_samples=10**6, act_quantile=q))
+    relu = np.concatenate([
+        np.maximum(float_layer(float_input(model, im), model.weights[0], model.biases[0]),
+                   0.0).reshape(4, -1)
+        for im in images
+    ], axis=1)  # fmt: skip
+    assert qm.act_scales[0] == pytest.approx(1.0 / INPUT_SCALE)
+    assert qm.act_scales[1] == pytest.approx(127.0 / np.quantile(relu.T, q), rel=1e-12)
 
 
 def test_quantize_is_deterministic():
