@@ -94,6 +94,15 @@ def _cross(c, per_from, per_to, edges):
 
 
 @njit(cache=True, inline="always")
+def _next_in_raster(x, y, w):
+    """The raster position (x, y) after (x, y) in rows of w pixels."""
+    x += 1
+    if x == w:
+        return 0, y + 1
+    return x, y
+
+
+@njit(cache=True, inline="always")
 def _source_push(prm, k, y, x, a_prev, free):
     """(cycle, cycles blocked before it) of the source's push of pixel k = (x, y), the previous
     push in ``a_prev``, a slot seen free from cycle ``free``; cycle -1: a camera that overflows
@@ -166,10 +175,7 @@ def _src_and_pops(side, prm, t, cnt):
         a_prev = a
         b_prev = b
         k += 1
-        x += 1
-        if x == w:
-            x = 0
-            y += 1
+        x, y = _next_in_raster(x, y, w)
     cnt[C_B + side] = k
     cnt[C_SRC_BLOCKED + side] += blocked
     cnt[C_EMPTY_SRC + side] += empty
@@ -216,10 +222,7 @@ def _mac_pushes(side, prm, t, cnt):
         ve_t[j] = _cross(e, per_n, per_s, de)
         e_prev = e
         j += 1
-        x += 1
-        if x == w:
-            x = 0
-            y += 1
+        x, y = _next_in_raster(x, y, w)
     cnt[C_E + side] = j
     return j > start
 
@@ -266,10 +269,7 @@ def _sva_pops(prm, t, cnt):
         fp_t[j] = _cross(p, per_s, per_n, se)
         p_prev = p
         j += 1
-        x += 1
-        if x == w:
-            x = 0
-            y += 1
+        x, y = _next_in_raster(x, y, w)
     cnt[C_P] = j
     cnt[C_EMPTY_NS] += empty_l
     cnt[C_EMPTY_NS1] += empty_r
@@ -321,10 +321,7 @@ def _sva_pushes_and_sink(prm, t, cnt):
         o_prev = o
         q_prev = q
         j += 1
-        x += 1
-        if x == w:
-            x = 0
-            y += 1
+        x, y = _next_in_raster(x, y, w)
     cnt[C_O] = j
     cnt[C_EMPTY_SK] += empty
     return j > start
@@ -410,10 +407,7 @@ def _joint_pushes(side, prm, geom, t, tt, off, cnt, cnt2):
         a_t[k] = a
         a_prev = a
         k += 1
-        x += 1
-        if x == w:
-            x = 0
-            y += 1
+        x, y = _next_in_raster(x, y, w)
     cnt2[side, X_A] = k
     cnt[C_SRC_BLOCKED + side] += blocked
     return k > start
@@ -468,10 +462,7 @@ def _tile_pops(side, tile, prm, geom, t, tt, off, cnt2, st2):
         tt[b0 + i] = b
         b_prev = b
         i += 1
-        c += 1
-        if c == iw:
-            c = 0
-            r += 1
+        c, r = _next_in_raster(c, r, iw)
     cnt2[side, 1 + 2 * tile] = i
     st2[side, 2 + 2 * tile] += empty
     return i > start
@@ -520,10 +511,7 @@ def _tile_pushes(side, tile, prm, geom, t, tt, off, cnt, cnt2):
         tt[e0 + j] = e
         e_prev = e
         j += 1
-        c += 1
-        if c == ow:
-            c = 0
-            r += 1
+        c, r = _next_in_raster(c, r, ow)
     cnt2[side, 2 + 2 * tile] = j
     return j > start
 
@@ -577,10 +565,7 @@ def _merge_moves(side, prm, geom, t, tt, off, cnt, cnt2, st2, last_pop):
         ve_t[m] = _cross(mg, per_n, per_s, de)
         mg_prev = mg
         m += 1
-        x += 1
-        if x == w:
-            x = 0
-            y += 1
+        x, y = _next_in_raster(x, y, w)
     cnt[C_E + side] = m
     st2[side, 0] += starved
     st2[side, 1] += blocked
