@@ -25,6 +25,12 @@ def output_word_bits(cfg: ChipConfig) -> int:
     return 1 + _bits_for(cfg.sva.disparities - 1) + cfg.sva.subpixel_bits
 
 
+def nna_to_sva_word_bits(cfg: ChipConfig) -> int:
+    """Bits of a beat on the NNA -> SVA FIFOs: the descriptor, plus the 8-bit image intensity
+    the adaptive P2 needs."""
+    return descriptor_bits(cfg.nna) + (8 if cfg.sva.p2_adaptive else 0)
+
+
 def nna_macs_per_descriptor(cfg: ChipConfig) -> int:
     """K*K*C multiply-accumulates of the CNN layer; census descriptors use no MACs."""
     if cfg.nna.descriptor == "census":

@@ -13,7 +13,7 @@ import numpy as np
 
 from nna.blocks import Merge, NnaSubmodule, cycles_per_descriptor, split_frame
 from nna.descriptor import descriptor_bits
-from sim.architecture import output_word_bits
+from sim.architecture import nna_to_sva_word_bits, output_word_bits
 from sim.clock import ClockDomain, Simulator
 from sim.config import ChipConfig
 from sim.fifo import Fifo
@@ -62,7 +62,7 @@ def build_chip(left: np.ndarray, right: np.ndarray, cfg: ChipConfig, *, order_se
         return fifos[name]
 
     word_bits = output_word_bits(cfg)
-    desc_bits = bits + (8 if cfg.sva.p2_adaptive else 0)
+    desc_bits = nna_to_sva_word_bits(cfg)
     blocks = {}
     outs = {}
     parts = cfg.nna.stereo_submodules // 2

@@ -39,8 +39,7 @@ from __future__ import annotations
 import math
 
 from nna.blocks import Tile, cycles_per_descriptor, half_window, split_frame
-from nna.descriptor import descriptor_bits
-from sim.architecture import action_counts, buffer_bits, output_word_bits
+from sim.architecture import action_counts, buffer_bits, nna_to_sva_word_bits, output_word_bits
 from sim.config import ChipConfig, config_to_dict
 
 FS_PER_S = 10**15
@@ -88,10 +87,6 @@ class _Domains:
 # the FIFOs and blocks of sim.chip.build_chip
 
 
-def _desc_bits(cfg: ChipConfig) -> int:
-    return descriptor_bits(cfg.nna) + (8 if cfg.sva.p2_adaptive else 0)
-
-
 def _tiles(cfg: ChipConfig, shape: tuple[int, int]) -> list[Tile]:
     parts = cfg.nna.stereo_submodules // 2
     h, w = shape
@@ -112,14 +107,14 @@ def fifo_plan(cfg: ChipConfig, shape: tuple[int, int]) -> dict[str, dict]:
         out[name] = {"depth": depth, "width_bits": width, "src": a, "dst": b, "beats": beats}
 
     for side in ("left", "right"):
-        add(f"nna_{side}_to_sva", f.nna_to_sva_depth, _desc_bits(cfg), "nna", "sva", h * w)
+        add(f"nna_{side}_to_sva", f.nna_to_sva_depth, nna_to_sva_word_bits(cfg), "nna", "sva", h * w)
         if len(tiles) == 1:
             add(f"src_{side}_to_nna", f.source_to_nna_depth, 8, src, "nna", h * w)
         else:
             for t, tile in enumerate(tiles):
                 n_in = (tile.in_x1 - tile.in_x0) * (tile.in_y1 - tile.in_y0)
                 add(f"src_{side}_to_nna{t}", f.source_to_nna_depth, 8, src, "nna", n_in)
-                add(f"nna_{side}{t}_to_merge", f.nna_to_sva_depth, _desc_bits(cfg), "nna", "nna",
+                add(f"nna_{side}{t}_to_merge", f.nna_to_sva_depth, nna_to_sva_word_bits(cfg), "nna", "nna",
                     tile.shape[0] * tile.shape[1])
     add("sva_to_sink", f.sva_to_sink_depth, output_word_bits(cfg), "sva", "sva", h * w)
     return dict(sorted(out.items()))

@@ -42,7 +42,7 @@ from nna.blocks import cycles_per_descriptor, half_window
 from nna.census import census_offsets
 from nna.conv import _channel_row, _sign_bits_rows_f32, f32_exact
 from nna.descriptor import descriptor_bits, layer
-from sim.architecture import output_word_bits
+from sim.architecture import nna_to_sva_word_bits, output_word_bits
 from sim.chip import assemble_report, chip_domains, frame_budget
 from sim.clock import (
     ACTIVITIES,
@@ -1111,7 +1111,7 @@ class _Setup:
                             "sink")
         bits = descriptor_bits(cfg.nna)
         self.bits = bits
-        desc_bits = bits + (8 if cfg.sva.p2_adaptive else 0)
+        desc_bits = nna_to_sva_word_bits(cfg)
         word_bits = self.word_bits = output_word_bits(cfg)
         f = cfg.fifo
         src_dom = D_CAM if self.camera else D_NNA

@@ -822,7 +822,7 @@ class _Layout:
     def __init__(self, shape, cfg):
         from nna.blocks import split_frame
         from nna.descriptor import descriptor_bits
-        from sim.architecture import output_word_bits
+        from sim.architecture import nna_to_sva_word_bits, output_word_bits
         from sim.chip import chip_domains, frame_budget
 
         self.shape = tuple(shape)
@@ -831,7 +831,7 @@ class _Layout:
         self.src_domain = "camera" if self.camera else "nna"
         self.budget = frame_budget(shape, cfg, self.domains)
         self.bits = descriptor_bits(cfg.nna)
-        self.desc_bits = self.bits + (8 if cfg.sva.p2_adaptive else 0)
+        self.desc_bits = nna_to_sva_word_bits(cfg)
         self.word_bits = output_word_bits(cfg)
         self.parts = cfg.nna.stereo_submodules // 2
         tiles = split_frame(shape, self.parts, cfg.nna.split, cfg.nna)
@@ -1015,9 +1015,8 @@ def run_schedule(left: np.ndarray, right: np.ndarray, cfg, *, sink_stall=None,
             blocks[name] = _activity(n, starved, blocked,
                                      c_n - int(t[T_E + 4 * side, n - 1]) - 1)
             work[name] = (n, doms["nna"].freq_hz)
-        de_ns = f.latency_cycles + f.sync_cycles - 1
         fifos[f"nna_{lay.sides[side]}_to_sva"] = _fifo_stats(
-            t[T_VE + 4 * side], _conv(1, 1, 1 - de_ns), t[T_P], SAME, c_s,
+            t[T_VE + 4 * side], _conv(1, 1, 1 - int(prm[P_DE_NS])), t[T_P], SAME, c_s,
             (t[T_E + 4 * side], SAME, t[T_FP], _conv(1, 1, 0), c_n),
             int(cnt[C_EMPTY_NS + side]), f.nna_to_sva_depth, lay.desc_bits)
     starved, blocked = _sva_activity(prm, t)
