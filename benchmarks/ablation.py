@@ -36,8 +36,9 @@ import numpy as np
 
 from nna.census import census
 from nna.train import VARIANTS, load_float_model
+from quant.artifact import load_quantized
 from quant.intconv import int_forward
-from quant.quantizer import float_forward, load_quantized
+from quant.quantizer import float_forward
 from sim.config import load_config
 from sim.datasets import find_scenes, legal_disparities, load_scene, shared_data_dir
 from sim.errors import UserError

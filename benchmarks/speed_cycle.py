@@ -43,7 +43,7 @@ def _split_frame(left, right, over) -> dict:
     """CPU seconds of one frame: the schedule engine's event cycles and statistics, and the
     data kernels (the NNA's descriptors, the SVA's stream)."""
     from sim.config import load_config
-    from sim.schedule import run_schedule
+    from sim.cycle.schedule import run_schedule
 
     cfg = load_config(overrides=over)
     acc: dict = {}

@@ -21,7 +21,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from speed_cycle import CONFIG, frame  # noqa: E402
 
 from sim.config import load_config  # noqa: E402
-from sim.fast import run_cycle_fast  # noqa: E402
+from sim.cycle.fast import run_cycle_fast  # noqa: E402
 from sim.tracing import TraceRequest, run_traced, write_traces  # noqa: E402
 
 

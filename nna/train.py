@@ -58,7 +58,10 @@ from pathlib import Path
 
 import numpy as np
 
+from quant.quantizer import FloatModel
+from sim.datasets import find_scene, find_scenes, load_scene, occluded_by_cross_check
 from sim.errors import ConfigError, InputError
+from sim.io import atomic_write_bytes, open_npz, read_gt, read_image, to_grey
 
 # (C_in, C_out, K) per layer
 VARIANTS = {
@@ -198,8 +201,6 @@ def training_scene_dirs(data_dir) -> list[Path]:
 
 def load_training_set(scene_dirs, cfg: TrainConfig) -> TrainingSet:
     """Read the scenes and list the pixels that can be sampled (module docstring)."""
-    from sim.datasets import find_scene, load_scene
-    from sim.io import to_grey
 
     r = patch_size(cfg) // 2
     reach = cfg.neg_high + r + 2  # how far the right patch may reach from x - d
@@ -323,8 +324,6 @@ class StripSet:
 
 def load_strip_set(scene_dirs, cfg: TrainConfig) -> StripSet:
     """Read the scenes with the GT of both views (``disp1.png`` and ``disp5.png``)."""
-    from sim.datasets import find_scene, load_scene, occluded_by_cross_check
-    from sim.io import read_gt, to_grey
 
     views, targets, names = [], [], []
     cand = {"image": [], "y": [], "x": []}
@@ -639,7 +638,6 @@ def save_float_model(path, result: dict) -> None:
     """Write a trained float model as .npz, atomically (format ``stereosim-float-v1``)."""
     import io
 
-    from sim.io import atomic_write_bytes
 
     cfg = result["config"]
     arrays = {
@@ -668,13 +666,10 @@ def load_float_model(path):
 
     Problems (missing file or field, wrong shapes for the variant) raise :class:`ConfigError`.
     """
-    from nna.weights import open_npz
-    from quant.quantizer import FloatModel
 
     name = os.fspath(path)
     archive = open_npz(name, "float model", "write it with 'stereosim train'")
     with archive:
-
         def get(key):
             if key not in archive.files:
                 raise ConfigError(f"float model {name!r} lacks the field {key!r}")
@@ -711,7 +706,6 @@ def calibration_scene_dirs(path) -> list[Path]:
     """Scene folders for quantizer calibration: ``path`` may be the shared data folder (its
     training scenes), a collection of scenes or one scene. MiddEval3 is refused: it is the
     evaluation set and must not tune anything."""
-    from sim.datasets import find_scenes
 
     root = Path(path)
     if not root.is_dir():
@@ -728,8 +722,6 @@ def calibration_scene_dirs(path) -> list[Path]:
 
 def calibration_images(scene_dirs, limit: int) -> tuple[list[np.ndarray], list[str]]:
     """Left and right grey views of up to ``limit`` scenes spread evenly over ``scene_dirs``."""
-    from sim.datasets import find_scene
-    from sim.io import read_image, to_grey
 
     dirs = list(scene_dirs)
     if limit < len(dirs):

@@ -6,7 +6,7 @@ A weight file is an ``.npz`` archive with three arrays:
 * ``bias``: int32 (C,);
 * ``input_offset``: an integer scalar in 0..255.
 
-A quantized artifact written by ``stereosim quantize`` (:func:`quant.save_quantized`) of a
+A quantized artifact written by ``stereosim quantize`` (:func:`quant.artifact.save_quantized`) of a
 single-layer model carries these three keys too, plus everything else about the model; such a
 file is read and checked in full by :func:`load_layer`.
 
@@ -24,7 +24,9 @@ import zipfile
 import numpy as np
 
 from nna.conv import check_layer
+from quant.artifact import load_quantized, to_nna_weights
 from sim.errors import ConfigError
+from sim.io import open_npz
 
 DEFAULT_SEED = 20261122
 DEFAULT_SHAPE = (32, 9, 9)
@@ -51,8 +53,6 @@ def load_layer(path) -> tuple[np.ndarray, np.ndarray, int]:
         is_artifact = "format" in archive.files
     if not is_artifact:
         return load_weights(name)
-    from quant.quantizer import load_quantized, to_nna_weights
-
     qm = load_quantized(name)
     try:
         return to_nna_weights(qm)
@@ -85,20 +85,6 @@ def save_weights(path, weights, bias, input_offset) -> None:
     weights, bias, input_offset = check_layer(weights, bias, input_offset)
     with open(path, "wb") as f:
         np.savez(f, weights=weights, bias=bias, input_offset=np.int32(input_offset))
-
-
-def open_npz(name: str, what: str, fix: str):
-    """Open an .npz archive for reading; a missing, unreadable or single-array file raises
-    :class:`ConfigError` naming ``what`` and the file, ending with ``fix``."""
-    if not os.path.isfile(name):
-        raise ConfigError(f"{what} {name!r} not found; give the path of an .npz file")
-    try:
-        archive = np.load(name, allow_pickle=False)
-    except (OSError, ValueError, zipfile.BadZipFile) as err:
-        raise ConfigError(f"{what} {name!r} is not a readable .npz archive ({err}); {fix}") from None
-    if not isinstance(archive, np.lib.npyio.NpzFile):
-        raise ConfigError(f"{what} {name!r} holds a single array, not an .npz archive; {fix}")
-    return archive
 
 
 def load_weights(path) -> tuple[np.ndarray, np.ndarray, int]:

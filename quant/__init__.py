@@ -1,32 +1,8 @@
-"""Integer arithmetic of the chip (rounding, saturation, multiply-shift) and the int8 quantizer."""
+"""Integer arithmetic of the chip and the int8 quantizer.
 
-from quant.distances import DISTANCES, get_distance
-from quant.intconv import check_network, int_forward, int_forward_ref, mul_shift, requantize
-from quant.quantizer import (
-    FloatModel,
-    QuantizedModel,
-    QuantizerConfig,
-    float_forward,
-    load_quantized,
-    quantize,
-    save_quantized,
-    to_nna_weights,
-)
-
-__all__ = [
-    "DISTANCES",
-    "FloatModel",
-    "QuantizedModel",
-    "QuantizerConfig",
-    "check_network",
-    "float_forward",
-    "get_distance",
-    "int_forward",
-    "int_forward_ref",
-    "load_quantized",
-    "mul_shift",
-    "quantize",
-    "requantize",
-    "save_quantized",
-    "to_nna_weights",
-]
+Layers (see the import contracts in pyproject.toml): :mod:`quant.fixedpoint` (rounding),
+:mod:`quant.intconv` (integer conv, requantisation), :mod:`quant.distances` and
+:mod:`quant.artifact` (the int8 artifact format) are the chip's integer arithmetic, below the
+stages; :mod:`quant.quantizer` (the scale search of ``stereosim quantize``) is an application
+tool on top of them.
+"""

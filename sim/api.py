@@ -9,9 +9,12 @@ import numpy as np
 
 from nna.descriptor import compute_descriptor, descriptor_bits
 from sim.config import ChipConfig, config_to_dict, load_config
+from sim.cycle.architecture import architecture_report
+from sim.cycle.simulate import simulate
 from sim.errors import ConfigError, InputError
 from sim.io import to_grey
 from sim.metrics import evaluate
+from sim.tracing import run_traced
 from sva.pipeline import sva_stream
 from sva.wta import to_float
 
@@ -104,13 +107,9 @@ def run(
     if trace is not None and mode != "cycle":
         raise ConfigError("traces need the cycle model: use mode='cycle' (--mode cycle)")
     if mode == "cycle" and trace is not None:
-        from sim.tracing import run_traced
-
         fixed, cycle_report, log = run_traced(gl, gr, cfg, trace)
         cycle_report["engine"] = "fast"
     elif mode == "cycle":
-        from sim.chip import simulate
-
         fixed, cycle_report = simulate(gl, gr, cfg)
     else:
         desc_l = compute_descriptor(gl, cfg.nna)
@@ -126,8 +125,6 @@ def run(
 
 
 def build_report(cfg: ChipConfig, mode: str, fixed: np.ndarray, bits: int) -> dict:
-    from sim.architecture import architecture_report
-
     h, w = fixed.shape
     valid = int(np.count_nonzero(fixed >= 0))
     return {

@@ -15,8 +15,41 @@ from pathlib import Path
 
 import numpy as np
 
+from nna.train import (
+    TrainConfig,
+    calibration_images,
+    calibration_scene_dirs,
+    load_float_model,
+    save_float_model,
+    train,
+    training_scene_dirs,
+)
+from quant.artifact import save_quantized
+from quant.quantizer import QuantizerConfig, quantize
+from sim import whatif_cli
+from sim.api import run
 from sim.config import config_diff, config_to_toml, load_config, parse_set_options
+from sim.datasets import (
+    default_scene,
+    find_scene,
+    find_scenes,
+    legal_disparities,
+    load_scene,
+    shared_data_dir,
+)
 from sim.errors import ConfigError, InputError, UserError
+from sim.io import (
+    atomic_write_bytes,
+    disparity_to_colour,
+    encode_png,
+    pfm_bytes,
+    read_gt,
+    read_image,
+    read_mask,
+)
+from sim.metrics import format_table, mean_metrics
+from sim.tracing import TraceRequest, check_size, parse_window, write_traces
+from traces.cli import add_wave_parser
 
 EVAL_KEYS = ("bad0.5", "bad1", "bad2", "bad4", "invalid", "totbad", "avgerr", "rms")
 
@@ -67,8 +100,6 @@ def _user_set_disparities(args, over: dict) -> bool:
 def _scene_config(args, ndisp: int | None):
     over = _overrides(args)
     if ndisp is not None and not _user_set_disparities(args, over):
-        from sim.datasets import legal_disparities
-
         over["sva.disparities"] = legal_disparities(ndisp)
     return load_config(args.config, over)
 
@@ -79,8 +110,6 @@ def _scene_config(args, ndisp: int | None):
 
 def _load_run_inputs(args) -> dict:
     """The stereo pair (+ GT and masks) from a scene folder, --left/--right, or the default."""
-    from sim.datasets import default_scene, find_scene, load_scene
-    from sim.io import read_gt, read_image, read_mask
 
     if args.scene and (args.left or args.right):
         raise InputError("give either a scene folder or --left/--right, not both")
@@ -129,8 +158,6 @@ def _load_run_inputs(args) -> dict:
 
 
 def _write_outputs(out_dir: Path, result, dmax: float) -> None:
-    from sim.io import atomic_write_bytes, disparity_to_colour, encode_png, pfm_bytes
-
     # Encode everything first, then write: a failure leaves no partial set of outputs.
     blobs = {
         "disparity.pfm": pfm_bytes(result.disparity),
@@ -175,8 +202,6 @@ def _summary(report: dict, seconds: float) -> str:
 
 
 def cmd_run(args) -> int:
-    from sim.api import run
-
     request = _trace_request(args)
     data = _load_run_inputs(args)
     cfg = _scene_config(args, data.get("ndisp"))
@@ -187,8 +212,6 @@ def cmd_run(args) -> int:
     result.report["scene"] = {"name": data["name"], "source": data["source"]}
     traced = []
     if request is not None:
-        from sim.tracing import check_size, write_traces
-
         check_size(result.trace, request)  # refuse before anything is written
     out_dir = Path(args.out)
     _write_outputs(out_dir, result, float(cfg.sva.disparities))
@@ -206,7 +229,6 @@ def cmd_run(args) -> int:
 
 def _trace_request(args):
     """The TraceRequest of run's trace options, or None without --vcd/--timeline."""
-    from sim.tracing import TraceRequest, parse_window
 
     if not (args.vcd or args.timeline):
         if args.trace_window or args.trace or args.force:
@@ -230,9 +252,6 @@ def _trace_request(args):
 def cmd_eval(args) -> int:
     from tqdm import tqdm
 
-    from sim.api import run
-    from sim.datasets import find_scenes, load_scene
-    from sim.metrics import format_table, mean_metrics
 
     scenes = find_scenes(args.dataset, gt_scale=args.gt_scale)
     rows = []
@@ -294,9 +313,6 @@ def _import_torch():
 
 
 def cmd_train(args) -> int:
-    from nna.train import TrainConfig, save_float_model, train, training_scene_dirs
-    from sim.datasets import shared_data_dir
-
     # options left unset keep TrainConfig's defaults (the shipped recipe)
     given = {
         "variant": args.variant, "objective": args.objective, "epochs": args.epochs,
@@ -325,9 +341,6 @@ def cmd_train(args) -> int:
 
 
 def cmd_quantize(args) -> int:
-    from nna.train import calibration_images, calibration_scene_dirs, load_float_model
-    from quant.quantizer import QuantizerConfig, quantize, save_quantized
-
     model, variant, _ = load_float_model(args.model)
     qcfg = QuantizerConfig(
         n_steps=args.steps, z_bits=args.z_bits, n_samples=args.samples, seed=args.seed,
@@ -459,8 +472,6 @@ def build_parser() -> argparse.ArgumentParser:
     cd.add_argument("b")
     cd.set_defaults(func=cmd_config_diff)
 
-    from sim import whatif_cli
-    from traces.cli import add_wave_parser
 
     whatif_cli.register(sub, _add_config_options, _scene_config)
     add_wave_parser(sub)

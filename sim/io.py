@@ -18,12 +18,13 @@ from __future__ import annotations
 
 import os
 import tempfile
+import zipfile
 from pathlib import Path
 
 import cv2
 import numpy as np
 
-from sim.errors import InputError
+from sim.errors import ConfigError, InputError
 
 # Integer BT.601 luma weights in 1/256: 77 + 150 + 29 == 256, so white stays 255.
 _LUMA_R, _LUMA_G, _LUMA_B = 77, 150, 29
@@ -328,3 +329,17 @@ def read_gt(path: str | os.PathLike, scale: float | None = None) -> np.ndarray:
 def read_mask(path: str | os.PathLike) -> np.ndarray:
     """Read a mask as ``uint8`` ``(H, W)`` grey levels (palette PNGs are expanded to grey)."""
     return _decode(_read_bytes(path, "mask"), cv2.IMREAD_GRAYSCALE, path, "mask")
+
+
+def open_npz(name: str, what: str, fix: str):
+    """Open an .npz archive for reading; a missing, unreadable or single-array file raises
+    :class:`ConfigError` naming ``what`` and the file, ending with ``fix``."""
+    if not os.path.isfile(name):
+        raise ConfigError(f"{what} {name!r} not found; give the path of an .npz file")
+    try:
+        archive = np.load(name, allow_pickle=False)
+    except (OSError, ValueError, zipfile.BadZipFile) as err:
+        raise ConfigError(f"{what} {name!r} is not a readable .npz archive ({err}); {fix}") from None
+    if not isinstance(archive, np.lib.npyio.NpzFile):
+        raise ConfigError(f"{what} {name!r} holds a single array, not an .npz archive; {fix}")
+    return archive

@@ -16,6 +16,7 @@ from collections import defaultdict
 from pathlib import Path
 
 from sim.errors import InputError
+from sim.io import atomic_write_bytes
 
 FIGSIZE = (6.4, 4.2)
 DPI = 100
@@ -63,8 +64,6 @@ def _png_bytes(plt, fig) -> bytes:
 
 
 def _write(path: str | Path, data: bytes) -> None:
-    from sim.io import atomic_write_bytes
-
     p = Path(path)
     if not p.parent.is_dir():
         raise InputError(f"folder {p.parent} of {p} does not exist: create it first")

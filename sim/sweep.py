@@ -47,8 +47,19 @@ from typing import Any
 
 import numpy as np
 
+from sim.api import prepare_pair, run
 from sim.config import load_config
+from sim.cycle.estimate import estimate
+from sim.datasets import (
+    default_scene,
+    find_scene,
+    find_scenes,
+    legal_disparities,
+    load_scene,
+    shared_data_dir,
+)
 from sim.errors import ConfigError, InputError, UserError
+from sim.io import atomic_write_bytes
 
 MODES = ("cycle", "functional", "estimate")
 SWEEP_KEYS = ("mode", "scenes", "config", "set", "grid", "zip")
@@ -102,7 +113,6 @@ def _synthetic_size(text: str) -> tuple[int, int] | None:
 
 def _expand_scene(entry, base: Path) -> list[tuple[str, str]]:
     """A scenes entry -> [(label, spec)]."""
-    from sim.datasets import find_scene, find_scenes, shared_data_dir
 
     if not isinstance(entry, str) or not entry:
         raise ConfigError(f"sweep scenes must be strings; got {entry!r}")
@@ -215,9 +225,7 @@ def synthetic_pair(h: int, w: int) -> tuple[np.ndarray, np.ndarray]:
     return np.ascontiguousarray(wide[:, shift:]), np.ascontiguousarray(wide[:, :w])
 
 
-def _load(spec: str) -> dict:
-    from sim.datasets import default_scene, find_scene, load_scene
-
+def load_scene_spec(spec: str) -> dict:
     if spec == "default":
         return default_scene()
     size = _synthetic_size(spec)
@@ -268,11 +276,7 @@ def _file_sets_d(config_path: str | None) -> bool:
 
 
 def _run(task: Task) -> dict[str, Any]:
-    from sim.api import prepare_pair, run
-    from sim.datasets import legal_disparities
-    from sim.estimate import estimate
-
-    data = _load(task.scene_spec)
+    data = load_scene_spec(task.scene_spec)
     over = dict(task.overrides)
     if data.get("ndisp") and "sva.disparities" not in over and not _file_sets_d(task.config_path):
         over["sva.disparities"] = legal_disparities(data["ndisp"])
@@ -323,7 +327,6 @@ def _cell(value) -> str:
 def write_rows(path: Path, rows: list[dict], axes: list[str]) -> None:
     """All rows, atomically, with a deterministic column order: the lead columns, the swept
     keys, then every other column sorted."""
-    from sim.io import atomic_write_bytes
 
     seen = set()
     for row in rows:

@@ -8,7 +8,7 @@ A trace is recorded over a window of the frame (full-frame traces are gigabytes)
   instant the sink holds row ``B - 1`` complete. The engine is deterministic, so a first
   untraced pass finds those instants and the second pass records between them.
 
-The engine records every signal of :func:`sim.fast.trace_signals` in the window (its edges are
+The engine records every signal of :func:`sim.cycle.fast.trace_signals` in the window (its edges are
 stepped one by one there; outside, quiet domains are settled in bulk as usual), ``--trace
 PATTERNS`` keeps the signals whose paths match one of the glob patterns, and the exact size of
 the VCD is computed before anything is written: above ``--trace-limit`` MB the run refuses
@@ -23,7 +23,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from sim.config import ChipConfig
+from sim.cycle.simulate import fast_engine_models
+from sim.cycle.fast import _Setup, run_cycle_fast
 from sim.errors import ConfigError
+from traces.gtkw import write_gtkw
+from traces.log import Clock, Signal, TraceLog, select, validate
+from traces.timeline import write_timeline
+from traces.vcd import estimate_vcd_bytes, write_vcd
 
 DEFAULT_LIMIT_MB = 500
 
@@ -64,8 +70,6 @@ def parse_window(spec: str | None) -> tuple[str, int, int | None]:
 
 
 def _domains(shape, cfg: ChipConfig) -> dict:
-    from sim.fast import _Setup
-
     return _Setup(shape, cfg).domains
 
 
@@ -92,7 +96,6 @@ def window_fs(spec: str | None, shape, cfg: ChipConfig, row_times=None) -> tuple
 
 def build_log(out: dict, patterns=()):
     """The :class:`traces.log.TraceLog` of a traced run's ``trace_out`` dict."""
-    from traces.log import Clock, Signal, TraceLog, select, validate
 
     start, end = out["window"]
     log = TraceLog(
@@ -109,8 +112,6 @@ def run_traced(left: np.ndarray, right: np.ndarray, cfg: ChipConfig, request: Tr
     """Simulate one frame with a trace: ``(words, cycle report, log)``; raises ConfigError
     (nothing written) for a window outside the run, a trace above the size limit, or a
     configuration the compiled engine does not model."""
-    from sim.chip import fast_engine_models
-    from sim.fast import run_cycle_fast
 
     if not fast_engine_models(cfg) or cfg.sim.engine == "readable":
         raise ConfigError(
@@ -144,7 +145,6 @@ def run_traced(left: np.ndarray, right: np.ndarray, cfg: ChipConfig, request: Tr
 
 def check_size(log, request: TraceRequest) -> int:
     """The VCD's exact size in bytes; ConfigError above the limit unless ``force``."""
-    from traces.vcd import estimate_vcd_bytes
 
     size = estimate_vcd_bytes(log)
     if request.vcd and size > request.limit_mb * 1e6 and not request.force:
@@ -160,9 +160,6 @@ def write_traces(log, request: TraceRequest, *, size_checked: bool = False) -> l
     """Write the VCD (and its .gtkw next to it) and the timeline the request names (each file
     atomically, after :func:`check_size` unless the caller ran it: ``size_checked``); returns
     the paths written."""
-    from traces.gtkw import write_gtkw
-    from traces.timeline import write_timeline
-    from traces.vcd import write_vcd
 
     if not size_checked:
         check_size(log, request)

@@ -11,21 +11,20 @@ import os
 import sys
 from pathlib import Path
 
+from sim.cycle.estimate import estimate, format_estimate, parse_size
 from sim.errors import InputError
+from sim.plot import plot_xy, sweep_plots
+from sim.sweep import CSV_NAME, load_scene_spec, load_sweep, read_rows, run_sweep
 
 
 def register(sub, add_config_options, scene_config) -> None:
     """Add the three subcommands to ``sub`` (the parser's subparsers)."""
 
     def cmd_estimate(args) -> int:
-        from sim.estimate import estimate, format_estimate, parse_size
-
         size = args.size or "1280x720"
         ndisp = None
         if size == "default" or Path(size).is_dir():
-            from sim.sweep import _load
-
-            data = _load(size if size == "default" else str(Path(size)))
+            data = load_scene_spec(size if size == "default" else str(Path(size)))
             shape = data["left"].shape[:2]
             ndisp = data.get("ndisp")
         else:
@@ -51,9 +50,6 @@ def register(sub, add_config_options, scene_config) -> None:
     e.set_defaults(func=cmd_estimate)
 
     def cmd_sweep(args) -> int:
-        from sim.plot import sweep_plots
-        from sim.sweep import CSV_NAME, load_sweep, read_rows, run_sweep
-
         sweep = load_sweep(args.sweep_file)
         if args.workers is not None and args.workers < 1:
             raise InputError(f"--workers must be at least 1; got {args.workers}")
@@ -83,9 +79,6 @@ def register(sub, add_config_options, scene_config) -> None:
     s.set_defaults(func=cmd_sweep)
 
     def cmd_plot(args) -> int:
-        from sim.plot import plot_xy
-        from sim.sweep import read_rows
-
         path = Path(args.results)
         if not path.is_file():
             raise InputError(f"results file {path} not found: give a sweep's results.csv")

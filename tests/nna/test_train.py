@@ -33,8 +33,9 @@ from nna.train import (
     training_scene_dirs,
 )
 from nna.weights import SHIPPED_WEIGHTS, default_weights, load_layer
+from quant.artifact import load_quantized, to_nna_weights
 from quant.intconv import int_forward
-from quant.quantizer import FloatModel, float_forward, load_quantized, to_nna_weights
+from quant.quantizer import FloatModel, float_forward
 from sim.cli import main
 from sim.config import DESCRIPTOR_DEFAULTS, load_config
 from sim.errors import ConfigError, InputError

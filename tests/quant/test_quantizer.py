@@ -8,6 +8,7 @@ from numpy.testing import assert_allclose, assert_array_equal
 
 from nna.conv import cnn_accumulators
 from nna.weights import load_weights
+from quant.artifact import load_quantized, save_quantized, to_nna_weights
 from quant.distances import DISTANCES, l1
 from quant.intconv import int_forward, mul_shift_ref
 from quant.quantizer import (
@@ -16,13 +17,10 @@ from quant.quantizer import (
     float_forward,
     float_input,
     float_layer,
-    load_quantized,
     quantize,
-    save_quantized,
     scale_grid,
     search_channel_scale,
     search_mul_shift,
-    to_nna_weights,
 )
 from sim.errors import ConfigError
 

@@ -4,11 +4,11 @@ import numpy as np
 import pytest
 
 from sim.api import run
-from sim.chip import run_cycle
-from sim.clock import DeadlockError
 from sim.config import load_config
-from sim.schedule import run_schedule
-from sim.sources import CameraOverflow
+from sim.cycle.blocks.sources import CameraOverflow
+from sim.cycle.chip import run_cycle
+from sim.cycle.clock import DeadlockError
+from sim.cycle.schedule import run_schedule
 
 # Equal NNA and SVA clocks make the crossing easy to count by hand: an item pushed at NNA cycle
 # t is visible at SVA cycle t + 2 (latency 1 + synchroniser 2 - 1, edges coinciding).

@@ -3,18 +3,18 @@ watchdog, the cycle budget, order independence and the trace hook -- all in exac
 
 import pytest
 
-from sim.clock import (
+from sim.cycle.clock import (
     Block,
     BudgetExceeded,
     ClockDomain,
     DeadlockError,
     KernelError,
     Register,
-    Simulator,
     count_instants,
 )
+from sim.cycle.fifo import Fifo
+from sim.cycle.kernel import Simulator
 from sim.errors import ConfigError, UserError
-from sim.fifo import Fifo
 
 P = 10_000_000  # 100 MHz in fs
 

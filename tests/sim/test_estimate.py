@@ -10,8 +10,8 @@ import pytest
 
 from sim.api import run
 from sim.config import load_config
+from sim.cycle.estimate import estimate, paper_analysis, parse_size
 from sim.errors import InputError
-from sim.estimate import estimate, paper_analysis, parse_size
 
 SMALL, SPLIT = (24, 64), (16, 48)  # split frames run on the readable engine: keep them tiny
 # The grid's rows are census unless they say cnn (census: 1 NNA cycle per descriptor, so the

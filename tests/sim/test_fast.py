@@ -9,18 +9,18 @@ import pytest
 from nna.census import census
 from nna.conv import cnn_descriptor
 from nna.descriptor import layer
-from sim.chip import run_cycle
-from sim.clock import BudgetExceeded, DeadlockError
 from sim.config import load_config
-from sim.fast import (
+from sim.cycle.blocks.sources import CameraOverflow
+from sim.cycle.chip import run_cycle
+from sim.cycle.clock import BudgetExceeded, DeadlockError
+from sim.cycle.fast import (
     census_tables,
     cnn_tables,
     descriptor_row_census,
     descriptor_row_cnn,
     run_cycle_fast,
 )
-from sim.schedule import run_schedule
-from sim.sources import CameraOverflow
+from sim.cycle.schedule import run_schedule
 
 SAME_CLOCKS = {"clocks.nna_mhz": 400, "clocks.sva_mhz": 400}
 CENSUS = {"sva.disparities": 16, "nna.descriptor": "census"}  # unless a case sets it
@@ -121,7 +121,7 @@ def test_deadlock_is_reported_with_the_same_message():
 
 
 def test_cycle_budget_is_enforced_with_the_same_message():
-    """Without a watchdog a sink that never pops runs into the cycle budget of sim.chip (equal
+    """Without a watchdog a sink that never pops runs into the cycle budget of sim.cycle.chip (equal
     clocks: one step per cycle keeps the readable run short)."""
     left, right = _pair(3, 20, seed=10)
     cfg = load_config(overrides={**SAME_CLOCKS, **CENSUS, "sim.watchdog_cycles": 1 << 40})
@@ -151,7 +151,7 @@ def test_split_frames_are_refused_by_the_steps_with_a_pointer_to_the_engines_tha
 
     left, right = _pair(9, 35)
     cfg = load_config(overrides={**CENSUS, "nna.stereo_submodules": 4})
-    with pytest.raises(ConfigError, match="runs on sim.chip.simulate .* or sim.engine=readable"):
+    with pytest.raises(ConfigError, match="runs on sim.cycle.chip.simulate .* or sim.engine=readable"):
         run_cycle_fast(left, right, cfg)
 
 

@@ -7,9 +7,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from sim.clock import Block, ClockDomain, KernelError, Simulator
+from sim.cycle.clock import Block, ClockDomain, KernelError
+from sim.cycle.fifo import Fifo
+from sim.cycle.kernel import Simulator
 from sim.errors import ConfigError
-from sim.fifo import Fifo
 
 
 def _domain(name, period_fs, phase_fs=0):

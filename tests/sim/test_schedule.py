@@ -9,17 +9,17 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from sim.chip import run_cycle
 from sim.config import load_config
-from sim.errors import UserError
-from sim.fast import run_cycle_fast
-from sim.schedule import (
+from sim.cycle.chip import run_cycle
+from sim.cycle.fast import run_cycle_fast
+from sim.cycle.schedule import (
     _conv,
     _first_at_or_after,
     _level_walk,
     _watchdog_safe,
     run_schedule,
 )
+from sim.errors import UserError
 
 
 def _pair(h, w, seed=0, shift=3):
@@ -267,7 +267,7 @@ def test_column_tiles_overlap_only_with_merge_fifos_that_hold_a_tile_row():
 
 def test_sim_run_takes_split_frames_to_the_schedule_and_stops_on_the_readable_kernel():
     from sim.api import run
-    from sim.sources import CameraOverflow
+    from sim.cycle.blocks.sources import CameraOverflow
 
     left, right = _pair(19, 45, seed=17)
     over = {"sva.disparities": 16, "nna.descriptor": "census", "nna.stereo_submodules": 4}

@@ -11,11 +11,11 @@ import pytest
 import pywellen
 import vcdvcd
 
-from sim.chip import build_chip, frame_budget
 from sim.cli import main
-from sim.clock import BudgetExceeded
 from sim.config import load_config
-from sim.fast import run_cycle_fast
+from sim.cycle.chip import build_chip, frame_budget
+from sim.cycle.clock import BudgetExceeded
+from sim.cycle.fast import run_cycle_fast
 from sim.io import read_pfm
 from sim.tracing import TraceRequest, run_traced, write_traces
 

@@ -5,7 +5,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from sim.clock import Block, ClockDomain, Simulator
+from sim.cycle.clock import Block, ClockDomain
+from sim.cycle.kernel import Simulator
 from sim.errors import ConfigError
 from traces.log import Clock, Signal, TraceLog, TraceRecorder, select, validate, window
 

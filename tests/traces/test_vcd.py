@@ -12,7 +12,7 @@ import vcdvcd
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from sim.clock import ClockDomain
+from sim.cycle.clock import ClockDomain
 from sim.errors import ConfigError
 from traces.log import Clock, Signal, TraceLog, select, window
 from traces.synthetic import synthetic_log
@@ -25,7 +25,6 @@ from traces.vcd import (
     vcd_text_pyvcd,
     write_vcd,
 )
-
 
 # ---- a naive model of what the dump must say ------------------------------------------------
 

@@ -8,7 +8,7 @@ frame through each FIFO, MACs per frame, and the paper's own arithmetic (four 3x
 rule, in arithmetic per image row instead of per cycle:
 
 - **Throughput.** A block's *work* per frame is the cycles its critical resource is busy --
-  the figure ``sim.chip.assemble_report`` ranks: descriptors x ``ceil(K*K*C / macs)`` per NNA
+  the figure ``sim.cycle.chip.assemble_report`` ranks: descriptors x ``ceil(K*K*C / macs)`` per NNA
   submodule (census: 1 cycle), words x ``cycles_per_pixel`` for the SVA, one beat per pixel for a
   merge, ``max(N, ceil(N f / B))`` cycles for a memory source (N pixels, f its clock, B its
   bandwidth in bytes/s) and ``H (W + hblank)`` pixel clocks for a camera. The block with
@@ -21,7 +21,7 @@ rule, in arithmetic per image row instead of per cycle:
   H - 1), r box and m median radius); its first word leaves ``max(ready + latency, previous
   word + II)`` and the rest of the row follows at the II. FIFOs add their visibility delay,
   ``first_edge_after(push instant) + latency + (sync - 1 if crossing) - 1`` consumer cycles,
-  computed on the same femtosecond grid as :class:`sim.clock.ClockDomain`. The line buffer's
+  computed on the same femtosecond grid as :class:`sim.cycle.clock.ClockDomain`. The line buffer's
   room rule and the SVA's look-ahead window (row y_in enters once output row y_in - r - m - 2
   is complete) are applied. Exact (to the cycle) when no FIFO fills; see docs/whatif.md for
   what is approximated when one does.
@@ -30,17 +30,23 @@ rule, in arithmetic per image row instead of per cycle:
   ``(latency + sync - 1.5) T_consumer + (sync - 0.5) T_producer`` across domains (half a period
   for the edge alignment on average). A link slower than its producer stretches the stream.
 - **Memory, traffic, work.** SRAM bits per buffer and per-action counts come from
-  :mod:`sim.architecture` (the numbers the simulator reports); the FIFO plan mirrors
-  :func:`sim.chip.build_chip` (names, depths, widths, beats per frame).
+  :mod:`sim.cycle.architecture` (the numbers the simulator reports); the FIFO plan mirrors
+  :func:`sim.cycle.chip.build_chip` (names, depths, widths, beats per frame).
 """
 
 from __future__ import annotations
 
 import math
 
-from nna.blocks import Tile, cycles_per_descriptor, half_window, split_frame
-from sim.architecture import action_counts, buffer_bits, nna_to_sva_word_bits, output_word_bits
+from nna.geometry import Tile, cycles_per_descriptor, half_window, split_frame
 from sim.config import ChipConfig, config_to_dict
+from sim.cycle.architecture import (
+    action_counts,
+    buffer_bits,
+    nna_to_sva_word_bits,
+    output_word_bits,
+)
+from sim.errors import InputError
 
 FS_PER_S = 10**15
 
@@ -50,7 +56,7 @@ SINGLE_LAYER = ((9, 1, 32),)
 
 
 def _period_fs(mhz: float) -> int:
-    """The clock period as :class:`sim.clock.ClockDomain` rounds it."""
+    """The clock period as :class:`sim.cycle.clock.ClockDomain` rounds it."""
     return round(FS_PER_S / (mhz * 1e6))
 
 
@@ -84,7 +90,7 @@ class _Domains:
 
 
 # ----------------------------------------------------------------------------------------------
-# the FIFOs and blocks of sim.chip.build_chip
+# the FIFOs and blocks of sim.cycle.chip.build_chip
 
 
 def _tiles(cfg: ChipConfig, shape: tuple[int, int]) -> list[Tile]:
@@ -426,7 +432,6 @@ def estimate(cfg: ChipConfig, shape: tuple[int, int]) -> dict:
 
 def parse_size(text: str) -> tuple[int, int]:
     """``"1280x720"`` -> (720, 1280) = (H, W); raises InputError on anything else."""
-    from sim.errors import InputError
 
     wh = text.lower().split("x")
     if len(wh) != 2 or not all(p.strip().isdigit() for p in wh):

@@ -25,8 +25,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim.clock import Block, ClockDomain
 from sim.config import SvaConfig
+from sim.cycle.clock import Block, ClockDomain
 from sva.pipeline import SvaStream
 
 

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 from collections import deque
 
-from sim.clock import ClockDomain, KernelError, _check_int
+from sim.cycle.clock import ClockDomain, KernelError, check_int
 from sim.errors import ConfigError
 
 
@@ -57,17 +57,17 @@ class Fifo:
     ):
         if not isinstance(name, str) or not name:
             raise ConfigError(f"FIFO name must be a non-empty string; got {name!r}")
-        _check_int(
+        check_int(
             f"fifo '{name}': depth", depth, 1, "a FIFO needs at least one slot: use depth=1 or more"
         )
-        _check_int(f"fifo '{name}': width_bits", width_bits, 1, "the width of one item in bits")
-        _check_int(
+        check_int(f"fifo '{name}': width_bits", width_bits, 1, "the width of one item in bits")
+        check_int(
             f"fifo '{name}': latency_cycles",
             latency_cycles,
             1,
             "no combinational path: use latency_cycles=1 or more",
         )
-        _check_int(
+        check_int(
             f"fifo '{name}': sync_cycles", sync_cycles, 1, "synchroniser stages, typically 2"
         )
         for role, dom in (("src", src), ("dst", dst)):

@@ -29,82 +29,12 @@ the bit-exactness tests.
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass
-
 import numpy as np
 
-from nna.descriptor import compute_descriptor, layer
-from sim.clock import Block, ClockDomain
+from nna.descriptor import compute_descriptor
+from nna.geometry import Tile, check_line_buffer, cycles_per_descriptor, half_window
 from sim.config import NnaConfig
-from sim.errors import ConfigError
-
-def half_window(cfg: NnaConfig) -> int:
-    """Rows above and below a pixel that its descriptor reads: K // 2 (CNN), h // 2 (census)."""
-    if cfg.descriptor == "census":
-        return cfg.census.window[1] // 2
-    return layer(cfg)[0].shape[1] // 2
-
-
-def half_window_width(cfg: NnaConfig) -> int:
-    """Columns left and right of a pixel that its descriptor reads: K // 2 or w // 2."""
-    if cfg.descriptor == "census":
-        return cfg.census.window[0] // 2
-    return layer(cfg)[0].shape[2] // 2
-
-
-@dataclass(frozen=True)
-class Tile:
-    """The part of a camera's frame one submodule serves: the output region
-    [x0, x1) x [y0, y1) and the input region it needs (the output region widened by the
-    descriptor window's halo, clipped to the image)."""
-
-    x0: int
-    x1: int
-    y0: int
-    y1: int
-    in_x0: int
-    in_x1: int
-    in_y0: int
-    in_y1: int
-
-    def takes_input(self, x: int, y: int) -> bool:
-        return self.in_x0 <= x < self.in_x1 and self.in_y0 <= y < self.in_y1
-
-    @property
-    def shape(self) -> tuple[int, int]:
-        return self.y1 - self.y0, self.x1 - self.x0
-
-
-def split_frame(shape: tuple[int, int], parts: int, split: str, cfg: NnaConfig) -> list[Tile]:
-    """``parts`` tiles of a frame: column tiles (split = "columns") or row bands ("rows"),
-    as equal as integers allow (part t covers [floor(t N / parts), floor((t+1) N / parts))),
-    each with the halo its window needs. One part is the whole frame."""
-    h, w = shape
-    hy, hx = half_window(cfg), half_window_width(cfg)
-    n = w if split == "columns" else h
-    if parts > n:
-        raise ConfigError(
-            f"cannot split {n} {'columns' if split == 'columns' else 'rows'} into {parts} parts: "
-            "use fewer nna.stereo_submodules"
-        )
-    tiles = []
-    for t in range(parts):
-        a, b = t * n // parts, (t + 1) * n // parts
-        if split == "columns":
-            tiles.append(Tile(a, b, 0, h, max(0, a - hx), min(w, b + hx), 0, h))
-        else:
-            tiles.append(Tile(0, w, a, b, 0, w, max(0, a - hy), min(h, b + hy)))
-    return tiles
-
-
-def cycles_per_descriptor(cfg: NnaConfig) -> int:
-    """MAC-array cycles per descriptor: ceil(K*K*C / macs) for the CNN, 1 for the census unit."""
-    if cfg.descriptor == "census":
-        return 1
-    weights = layer(cfg)[0]
-    c, k, _ = weights.shape
-    return math.ceil(k * k * c / cfg.macs)
+from sim.cycle.clock import Block, ClockDomain
 
 
 class NnaSubmodule(Block):
@@ -128,11 +58,7 @@ class NnaSubmodule(Block):
         self.inp, self.out, self.cfg = inp, out, cfg
         self.rows = cfg.line_buffer_rows
         self.half = half_window(cfg)
-        if self.rows < 2 * self.half + 1:
-            raise ConfigError(
-                f"nna.line_buffer_rows={self.rows} cannot hold the {2 * self.half + 1}-row "
-                f"descriptor window: use at least {2 * self.half + 1}"
-            )
+        check_line_buffer(cfg)
         self.cycles_per_descriptor = cycles_per_descriptor(cfg)
         self.pixels = np.zeros(shape, np.uint8)  # what the line buffer received (image coords)
         self.received = 0  # pixels popped so far (raster order)

@@ -1,10 +1,10 @@
-"""The compiled cycle engine: the chip of :mod:`sim.chip` in one numba loop, cycle for cycle.
+"""The compiled cycle engine: the chip of :mod:`sim.cycle.chip` in one numba loop, cycle for cycle.
 
-:func:`run_cycle_fast` simulates the same chip as :func:`sim.chip.run_cycle` -- memory or camera
+:func:`run_cycle_fast` simulates the same chip as :func:`sim.cycle.chip.run_cycle` -- memory or camera
 sources, one NNA submodule per camera (census or CNN), the SVA and the sink, joined by the FIFOs
-of :mod:`sim.fifo` with their latency and clock-domain-crossing synchronisers -- and returns the
+of :mod:`sim.cycle.fifo` with their latency and clock-domain-crossing synchronisers -- and returns the
 same output words, the same cycle report and the same kernel statistics. It is exact, not an
-estimate: every rule of :mod:`sim.clock` and :mod:`sim.fifo` is mirrored on arrays.
+estimate: every rule of :mod:`sim.cycle.clock` and :mod:`sim.cycle.fifo` is mirrored on arrays.
 
 * **Steps.** One compiled loop (:func:`_run_steps`, driven by :func:`_run_loop`): ``t`` = the
   earliest next edge over the domains; the domains with an edge at ``t`` tick; every FIFO touched
@@ -38,26 +38,27 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from nna.blocks import cycles_per_descriptor, half_window
 from nna.census import census_offsets
 from nna.conv import _channel_row, _sign_bits_rows_f32, f32_exact
 from nna.descriptor import descriptor_bits, layer
-from sim.architecture import nna_to_sva_word_bits, output_word_bits
-from sim.chip import assemble_report, chip_domains, frame_budget
-from sim.clock import (
+from nna.geometry import cycles_per_descriptor, half_window
+from sim.config import ChipConfig
+from sim.cycle.architecture import nna_to_sva_word_bits, output_word_bits
+from sim.cycle.blocks.sources import CameraOverflow
+from sim.cycle.clock import (
     ACTIVITIES,
     BudgetExceeded,
     DeadlockError,
     count_instants,
     watchdog_message,
 )
-from sim.config import ChipConfig
+from sim.cycle.report import assemble_report, chip_domains, frame_budget
+from sim.cycle.schedule import run_schedule
 from sim.errors import ConfigError
-from sim.sources import CameraOverflow
 from sva.median import _median3, _median_network, selection_network
 from sva.pipeline import SvaStream, _stream
 
-# ---- indices of the fixed topology (insertion order of sim.chip.build_chip) --------------------
+# ---- indices of the fixed topology (insertion order of sim.cycle.chip.build_chip) --------------------
 
 D_NNA, D_SVA, D_CAM = 0, 1, 2
 DOMAIN_NAMES = ("nna", "sva", "camera")
@@ -1100,7 +1101,7 @@ def _run_steps(g, dom, fq, rings, bs, images, nna_data, sva_data, sink_data, src
 
 
 class _Setup:
-    """Names, domains and constants of one run, as :func:`sim.chip.build_chip` would build."""
+    """Names, domains and constants of one run, as :func:`sim.cycle.chip.build_chip` would build."""
 
     def __init__(self, shape, cfg: ChipConfig):
         self.shape = tuple(shape)
@@ -1222,14 +1223,14 @@ def run_cycle_fast(left: np.ndarray, right: np.ndarray, cfg: ChipConfig, *,
     """Simulate one frame on the compiled engine: ``(words (H, W) int32, cycle report, stats)``.
 
     ``method``: ``"auto"`` computes an untraced frame with the schedule engine
-    (:mod:`sim.schedule`: every beat's cycle from closed-form recurrences) and steps edge by edge
+    (:mod:`sim.cycle.schedule`: every beat's cycle from closed-form recurrences) and steps edge by edge
     (this module's loop) only where that engine does not answer -- a traced window, or a run that
     stops early (overflow, deadlock, budget, watchdog), which the steps report exactly;
     ``"steps"`` always steps. Both give the same result wherever both answer.
 
-    Equal to :func:`sim.chip.run_cycle` in the words, in the report (:func:`sim.chip.cycle_report`)
-    and in ``chip.sim.stats()``; raises the same :class:`~sim.sources.CameraOverflow`,
-    :class:`~sim.clock.DeadlockError` and :class:`~sim.clock.BudgetExceeded`. ``sink_stall``:
+    Equal to :func:`sim.cycle.chip.run_cycle` in the words, in the report (:func:`sim.cycle.chip.cycle_report`)
+    and in ``chip.sim.stats()``; raises the same :class:`~sim.cycle.blocks.sources.CameraOverflow`,
+    :class:`~sim.cycle.clock.DeadlockError` and :class:`~sim.cycle.clock.BudgetExceeded`. ``sink_stall``:
     ``(period, allowed_phase)`` -- the sink pops only in cycles ``c`` with
     ``c % period == allowed_phase`` (``Sink(stall=lambda c: c % period != allowed_phase)``).
 
@@ -1242,7 +1243,7 @@ def run_cycle_fast(left: np.ndarray, right: np.ndarray, cfg: ChipConfig, *,
     if cfg.nna.stereo_submodules != 2:
         raise ConfigError(
             f"the compiled steps model one NNA submodule per camera; nna.stereo_submodules="
-            f"{cfg.nna.stereo_submodules} runs on sim.chip.simulate (sim.engine=auto: the "
+            f"{cfg.nna.stereo_submodules} runs on sim.cycle.chip.simulate (sim.engine=auto: the "
             "schedule engine) or sim.engine=readable"
         )
     if method not in ("auto", "steps"):
@@ -1259,8 +1260,6 @@ def run_cycle_fast(left: np.ndarray, right: np.ndarray, cfg: ChipConfig, *,
             f"sink_stall must be (period >= 1, 0 <= allowed_phase < period); got {sink_stall!r}"
         )
     if method == "auto" and trace_window is None:
-        from sim.schedule import run_schedule
-
         done = run_schedule(left, right, cfg, sink_stall=sink_stall, trace_out=trace_out)
         if done is not None:
             return done
@@ -1293,7 +1292,7 @@ def run_cycle_fast(left: np.ndarray, right: np.ndarray, cfg: ChipConfig, *,
     bs[B_SVA, BC_S2] = -(1 << 40)
     bs[B_SINK, BC_S1] = bs[B_SINK, BC_S2] = -1
     g = np.zeros(N_G, np.int64)
-    # the watchdog counts from one slowest period before the first edge (sim.clock.run)
+    # the watchdog counts from one slowest period before the first edge (sim.cycle.clock.run)
     g[G_TLP] = int(dom[:, DC_PHASE].min() - dom[:, DC_PERIOD].max())
     nna = _nna_tables(cfg)
     nna_data = (np.zeros((2, h, w), np.uint8), np.zeros((2, w), np.uint64), nna,
@@ -1438,7 +1437,7 @@ class _State:
 
 
 def fast_report(state: _State, stats: dict) -> dict:
-    """The dict of :func:`sim.chip.cycle_report`, from the engine's arrays."""
+    """The dict of :func:`sim.cycle.chip.cycle_report`, from the engine's arrays."""
     setup, cfg, bs = state.setup, state.cfg, state.bs
     src_domain = setup.domains["camera" if setup.camera else "nna"]
     nna, sva = setup.domains["nna"], setup.domains["sva"]

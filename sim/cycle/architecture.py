@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import math
 
-from nna.blocks import cycles_per_descriptor, half_window
 from nna.descriptor import descriptor_bits, layer
+from nna.geometry import cycles_per_descriptor, half_window
 from sim.config import ChipConfig
 
 

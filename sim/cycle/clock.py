@@ -23,8 +23,6 @@ checked against it cycle for cycle. docs/clock-kernel.md states the rules with t
 from __future__ import annotations
 
 import math
-import random
-from collections.abc import Callable
 from dataclasses import dataclass
 
 from sim.errors import ConfigError, UserError
@@ -63,7 +61,7 @@ class BudgetExceeded(RunStopped):
     """A clock domain would have run more cycles than the run's budget allows."""
 
 
-def _check_int(what: str, value, lo: int, fix: str) -> int:
+def check_int(what: str, value, lo: int, fix: str) -> int:
     if isinstance(value, bool) or not isinstance(value, int):
         raise ConfigError(f"{what} must be an integer; got {value!r} ({fix})")
     if value < lo:
@@ -93,7 +91,7 @@ class ClockDomain:
                 f"clock domain '{self.name}': freq_hz {f!r} gives a period below 1 fs; "
                 "use at most 1e15 Hz"
             )
-        _check_int(
+        check_int(
             f"clock domain '{self.name}': phase_fs", self.phase_fs, 0, "the first edge's time in fs"
         )
 
@@ -165,7 +163,7 @@ class Register:
     __slots__ = ("name", "next", "value", "width_bits")
 
     def __init__(self, name: str, width_bits: int, reset: int = 0):
-        _check_int(f"register '{name}': width_bits", width_bits, 1, "its width in bits")
+        check_int(f"register '{name}': width_bits", width_bits, 1, "its width in bits")
         self.name = name
         self.width_bits = width_bits
         self.value = reset
@@ -285,272 +283,3 @@ class Block:
         self.commit()
         for reg in self._registers:
             reg.commit()
-
-
-class Simulator:
-    """Holds the domains, FIFOs and blocks of a model and runs them step by step.
-
-    ``order_seed``: if given, the evaluation (and commit) order of the blocks is shuffled in every
-    step with ``random.Random(order_seed)`` -- results must not change. ``trace``: a callable
-    ``trace(time_fs, {domain: cycle_index}, {"block.signal": value})`` invoked after every step's
-    commit with the domains that ticked and the signals whose committed value changed (every
-    signal the first time it is seen).
-    """
-
-    def __init__(self, order_seed: int | None = None, trace: Callable | None = None):
-        self._rng = random.Random(order_seed) if order_seed is not None else None
-        self._trace = trace
-        self._domains: dict[str, ClockDomain] = {}
-        self._fifos: dict = {}
-        self._blocks: dict[str, Block] = {}
-        self._cycles: dict[str, int] = {}
-        self._next_fs: dict[str, int] = {}
-        self._blocks_of: dict[str, list[Block]] = {}
-        self._fifos_of: dict[str, list] = {}
-        self._last_values: dict[str, object] = {}
-        self._started = False
-        self.now_fs = 0
-        self.steps = 0
-
-    # ---- building ----------------------------------------------------------------------------
-
-    def _check_open(self, what: str) -> None:
-        if self._started:
-            raise KernelError(f"cannot add {what} after the simulation has started")
-
-    def _check_name(self, name: str) -> None:
-        if name in self._blocks or name in self._fifos:
-            raise ConfigError(
-                f"name '{name}' is already used by a block or FIFO; give every block and FIFO "
-                "a unique name"
-            )
-
-    def _check_domain(self, owner: str, domain: ClockDomain) -> None:
-        if self._domains.get(domain.name) != domain:
-            raise ConfigError(
-                f"{owner} uses clock domain '{domain.name}', which is not added to this "
-                "simulator; call add_domain() first"
-            )
-
-    def add_domain(self, domain: ClockDomain) -> ClockDomain:
-        self._check_open(f"clock domain '{domain.name}'")
-        if not isinstance(domain, ClockDomain):
-            raise ConfigError(f"add_domain expects a ClockDomain; got {domain!r}")
-        if domain.name in self._domains:
-            raise ConfigError(f"clock domain '{domain.name}' is already added")
-        self._domains[domain.name] = domain
-        self._cycles[domain.name] = 0
-        self._next_fs[domain.name] = domain.phase_fs
-        self._blocks_of[domain.name] = []
-        self._fifos_of[domain.name] = []
-        return domain
-
-    def add_fifo(self, fifo):
-        from sim.fifo import Fifo
-
-        if not isinstance(fifo, Fifo):
-            raise ConfigError(f"add_fifo expects a Fifo; got {fifo!r}")
-        self._check_open(f"FIFO '{fifo.name}'")
-        self._check_name(fifo.name)
-        self._check_domain(f"FIFO '{fifo.name}'", fifo.src)
-        self._check_domain(f"FIFO '{fifo.name}'", fifo.dst)
-        self._fifos[fifo.name] = fifo
-        self._fifos_of[fifo.src.name].append(fifo)
-        if fifo.dst != fifo.src:
-            self._fifos_of[fifo.dst.name].append(fifo)
-        return fifo
-
-    def add_block(self, block: Block) -> Block:
-        if not isinstance(block, Block):
-            raise ConfigError(f"add_block expects a Block; got {block!r}")
-        self._check_open(f"block '{block.name}'")
-        self._check_name(block.name)
-        self._check_domain(f"block '{block.name}'", block.domain)
-        self._blocks[block.name] = block
-        self._blocks_of[block.domain.name].append(block)
-        return block
-
-    # ---- state -------------------------------------------------------------------------------
-
-    @property
-    def cycles(self) -> dict[str, int]:
-        """Cycles run so far per domain (= index of each domain's next edge)."""
-        return dict(sorted(self._cycles.items()))
-
-    def signal_values(self) -> dict[str, object]:
-        """Every traced signal's committed value, as ``{"owner.signal": value}``."""
-        out = {}
-        for owner in (*self._blocks.values(), *self._fifos.values()):
-            for sig, v in owner.signal_values().items():
-                out[f"{owner.name}.{sig}"] = v
-        return out
-
-    def signals(self) -> list[tuple[str, int]]:
-        """Every traced signal as ``("owner.signal", width_bits)``, blocks then FIFOs."""
-        return [
-            (f"{owner.name}.{sig}", width)
-            for owner in (*self._blocks.values(), *self._fifos.values())
-            for sig, width in owner.signals()
-        ]
-
-    def stats(self) -> dict:
-        """Cycles per domain, end time, per-block activity and per-FIFO statistics (plain ints,
-        sorted keys, so two equal runs give equal dicts)."""
-        return {
-            "blocks": {n: self._blocks[n].activity for n in sorted(self._blocks)},
-            "cycles": self.cycles,
-            "end_time_fs": self.now_fs,
-            "fifos": {n: self._fifos[n].stats() for n in sorted(self._fifos)},
-            "steps": self.steps,
-        }
-
-    def _state(self) -> tuple[dict, dict, str, str]:
-        fifos = {f.name: {"occupancy": f.occupancy, "depth": f.depth} for f in self._fifos.values()}
-        blocks = {
-            b.name: {"status": b.status, "waiting_on": b.waiting_on} for b in self._blocks.values()
-        }
-        fifo_words = []
-        for name, st in fifos.items():
-            occ, depth = st["occupancy"], st["depth"]
-            tag = " full" if occ >= depth else " empty" if occ == 0 else ""
-            fifo_words.append(f"{name} {occ}/{depth}{tag}")
-        block_words = []
-        for name, st in blocks.items():
-            if st["waiting_on"] is not None:
-                fname, kind = st["waiting_on"]
-                block_words.append(f"{name} {st['status']} on {fname} ({kind})")
-            else:
-                block_words.append(f"{name} {st['status'] or 'never clocked'}")
-        return (
-            fifos,
-            blocks,
-            "fifo " + (", ".join(fifo_words) or "none"),
-            "blocks: " + (", ".join(block_words) or "none"),
-        )
-
-    def _stop(self, cls, head: str, tail: str):
-        fifos, blocks, fifo_text, block_text = self._state()
-        cyc = ", ".join(f"{d} {n}" for d, n in self._cycles.items())
-        msg = f"{head} at t={self.now_fs} fs (cycles run: {cyc}): {fifo_text}; {block_text}; {tail}"
-        return cls(msg, time_fs=self.now_fs, cycles=self.cycles, fifos=fifos, blocks=blocks)
-
-    # ---- running -----------------------------------------------------------------------------
-
-    def step(self) -> bool:
-        """Advance to the next instant with a clock edge and run it (both phases).
-
-        Returns True if the step made progress (a FIFO push or pop, or a busy block).
-        """
-        if not self._domains:
-            raise ConfigError("the simulator has no clock domain; call add_domain() first")
-        self._started = True
-        next_fs = self._next_fs
-        t = min(next_fs.values())
-        ticking = [d for d, nt in next_fs.items() if nt == t]
-        cycles = self._cycles
-        self.now_fs = t
-        if len(ticking) == 1:
-            d = ticking[0]
-            blocks = list(self._blocks_of[d])
-            fifos = self._fifos_of[d]
-        else:
-            blocks = [b for d in ticking for b in self._blocks_of[d]]
-            fifos = list({id(f): f for d in ticking for f in self._fifos_of[d]}.values())
-        tick_set = set(ticking)
-        for f in fifos:
-            f._begin_step(tick_set, cycles)
-        rng = self._rng
-        if rng is not None:
-            rng.shuffle(blocks)
-        progress = False
-        for b in blocks:
-            if b._tick(cycles[b.domain.name]):
-                progress = True
-        if rng is not None:
-            rng.shuffle(blocks)
-        for b in blocks:
-            b._commit_all()
-        for f in fifos:
-            if f._commit(t):
-                progress = True
-        if self._trace is not None:
-            self._emit_trace(t, ticking, blocks, fifos)
-        for d in ticking:
-            cycles[d] += 1
-            next_fs[d] = t + self._domains[d].period_fs
-        self.steps += 1
-        return progress
-
-    def _emit_trace(self, t: int, ticking, blocks, fifos) -> None:
-        last = self._last_values
-        changed = {}
-        owners = sorted([*blocks, *fifos], key=lambda o: o.name)
-        for owner in owners:
-            for sig, v in owner.signal_values().items():
-                path = f"{owner.name}.{sig}"
-                if path not in last or last[path] != v:
-                    last[path] = v
-                    changed[path] = v
-        self._trace(t, {d: self._cycles[d] for d in sorted(ticking)}, changed)
-
-    def run(
-        self,
-        until: Callable[[], bool],
-        *,
-        budget_cycles: dict[str, int] | int,
-        watchdog_cycles: int | None = 1000,
-    ) -> dict:
-        """Step until ``until()`` is true (checked before the first step and after every step).
-
-        ``budget_cycles``: the most cycles this run may execute, for every domain (int) or per
-        domain name (dict; domains not named are unbounded). The run raises
-        :class:`BudgetExceeded` instead of starting a step that would take a domain past it.
-        ``watchdog_cycles``: raise :class:`DeadlockError` at the first step without progress
-        that ends ``watchdog_cycles`` periods of the slowest clock domain after the last step
-        with progress (or after one slowest period before the run's first step); ``None``
-        disables it. In time, not in steps, so an engine that skips quiet stretches reaches the
-        same verdict at the same instant. Returns :meth:`stats`.
-        """
-        budget = self._budget(budget_cycles)
-        if watchdog_cycles is not None:
-            _check_int(
-                "watchdog_cycles", watchdog_cycles, 1,
-                "periods of the slowest clock without progress before a deadlock"
-            )
-        start = dict(self._cycles)
-        p_max = max((dom.period_fs for dom in self._domains.values()), default=1)
-        # time of the last step with progress; before the first step: one slowest period back
-        last_progress = (min(self._next_fs.values()) if self._domains else 0) - p_max
-        while not until():
-            t = min(self._next_fs.values()) if self._domains else 0
-            for d, limit in budget.items():
-                if self._next_fs[d] == t and self._cycles[d] - start[d] >= limit:
-                    raise self._stop(
-                        BudgetExceeded,
-                        "cycle budget exceeded",
-                        f"{d} ran its budget of {limit} cycles before the until condition held: "
-                        "raise budget_cycles or check the until condition",
-                    )
-            if self.step():
-                last_progress = t
-            elif (watchdog_cycles is not None and t - last_progress >= watchdog_cycles * p_max
-                  and not until()):
-                raise self._stop(DeadlockError, "deadlock",
-                                 watchdog_message(t - last_progress, p_max))
-        return self.stats()
-
-    def _budget(self, budget_cycles) -> dict[str, int]:
-        if isinstance(budget_cycles, dict):
-            out = {}
-            for d, n in budget_cycles.items():
-                if d not in self._domains:
-                    known = ", ".join(self._domains) or "none"
-                    raise ConfigError(
-                        f"budget_cycles names unknown clock domain '{d}' (known: {known})"
-                    )
-                out[d] = _check_int(
-                    f"budget_cycles['{d}']", n, 0, "the most cycles this run may take"
-                )
-            return out
-        n = _check_int("budget_cycles", budget_cycles, 0, "the most cycles this run may take")
-        return dict.fromkeys(self._domains, n)

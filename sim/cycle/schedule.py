@@ -1,10 +1,10 @@
 """The schedule engine: the cycle of every beat of a frame from closed-form recurrences.
 
-The chip of :mod:`sim.chip` is a pipeline whose timing does not depend on the data: when a beat
+The chip of :mod:`sim.cycle.chip` is a pipeline whose timing does not depend on the data: when a beat
 moves is decided by counters, FIFO occupancies and clocks, never by a pixel value. So instead
 of stepping clock edges, this engine computes for every beat ``k`` of the raster the cycle of
 each event directly, as the readable kernel's rules
-(:mod:`sim.clock`, :mod:`sim.fifo` and the blocks' ``evaluate``) imply:
+(:mod:`sim.cycle.clock`, :mod:`sim.cycle.fifo` and the blocks' ``evaluate``) imply:
 
 ============  ==========================================================================
 ``a[k]``      the source pushes pixel k (memory: ``max(a[k-1] + 1, throttle(k), free(k))``;
@@ -33,11 +33,11 @@ every block's busy / starved / blocked / idle count (:func:`_mac_activity`,
 :func:`_sva_activity` and counts kept on the way), every FIFO's
 occupancy histogram over its consumer's edges, its empty and full counts and its largest
 occupancies (:func:`_level_walk`). The result is the same report and the same statistics, to
-the cycle, as :func:`sim.chip.run_cycle`; tests/sim/test_schedule.py holds the three engines
+the cycle, as :func:`sim.cycle.chip.run_cycle`; tests/sim/test_schedule.py holds the three engines
 equal.
 
 The engine answers only for runs that complete: it reports ``None`` (and the caller runs the
-step engine of :mod:`sim.fast`, or for split frames the readable kernel, which stops where the
+step engine of :mod:`sim.cycle.fast`, or for split frames the readable kernel, which stops where the
 run stops and says why) when
 a camera would overflow, when the streams wait on each other (a deadlock), when a domain would
 exceed its cycle budget, or when the watchdog could fire -- it checks that the FIFO events of
@@ -57,6 +57,13 @@ import time
 
 import numpy as np
 from numba import njit
+
+from nna.descriptor import compute_descriptor, descriptor_bits
+from nna.geometry import cycles_per_descriptor, half_window, split_frame
+from sim.cycle.architecture import nna_to_sva_word_bits, output_word_bits
+from sim.cycle.clock import count_instants
+from sim.cycle.report import assemble_report, chip_domains, frame_budget
+from sva.pipeline import sva_stream
 
 INF = 1 << 62
 NEVER = -(1 << 40)  # the SVA's "last push" before the first one (SvaBlock.last_push)
@@ -350,7 +357,7 @@ def _advance(prm, t, cnt):
 
 # ---- frames split over several submodules per camera -----------------------------------------
 #
-# With k > 1 submodules per camera (column tiles or row bands, :func:`nna.blocks.split_frame`)
+# With k > 1 submodules per camera (column tiles or row bands, :func:`nna.geometry.split_frame`)
 # the source pushes each pixel to every tile whose input region holds it, in one joint push;
 # each tile's line buffer and MAC array follow the rules above within its regions; a merge
 # block per camera moves the descriptors back into raster order (pop from the owner tile's
@@ -776,8 +783,6 @@ def _watchdog_safe(t, rows, periods, t_end, p_max, watchdog):
 
 def schedule_params(setup, cfg, sink_stall) -> np.ndarray:
     """The parameter vector of one run (``setup``: a :class:`_Layout`)."""
-    from nna.blocks import cycles_per_descriptor, half_window
-
     h, w = setup.shape
     prm = np.zeros(N_P, np.int64)
     dom = setup.domains
@@ -816,15 +821,10 @@ def schedule_params(setup, cfg, sink_stall) -> np.ndarray:
 
 
 class _Layout:
-    """The domains, blocks, FIFOs and tiles of one run, named as :func:`sim.chip.build_chip`
+    """The domains, blocks, FIFOs and tiles of one run, named as :func:`sim.cycle.chip.build_chip`
     names them."""
 
     def __init__(self, shape, cfg):
-        from nna.blocks import split_frame
-        from nna.descriptor import descriptor_bits
-        from sim.architecture import nna_to_sva_word_bits, output_word_bits
-        from sim.chip import chip_domains, frame_budget
-
         self.shape = tuple(shape)
         self.camera = cfg.source.kind == "camera"
         self.domains = chip_domains(cfg)
@@ -905,20 +905,15 @@ def _tile_indices(g, w) -> tuple[np.ndarray, np.ndarray]:
 def run_schedule(left: np.ndarray, right: np.ndarray, cfg, *, sink_stall=None,
                  trace_out: dict | None = None, timings: dict | None = None):
     """One frame on the schedule engine: ``(words, cycle report, stats)`` equal to
-    :func:`sim.chip.run_cycle`'s, or ``None`` when the run does not complete cleanly (a camera
+    :func:`sim.cycle.chip.run_cycle`'s, or ``None`` when the run does not complete cleanly (a camera
     overflow, a deadlock, a budget or a watchdog that could fire): the step engine (or, for
     split frames, the readable kernel) then tells where and why it stops. ``sink_stall``:
-    ``(period, allowed_phase)`` as in :func:`sim.fast.run_cycle_fast`. ``trace_out`` (a dict)
+    ``(period, allowed_phase)`` as in :func:`sim.cycle.fast.run_cycle_fast`. ``trace_out`` (a dict)
     receives ``row_times`` as the step engine records it (whole frames only): the instants at
     which the left line buffer has received r rows and the sink has received r rows,
     r = 0 .. H (for trace windows given in rows). ``timings`` (a dict) receives the CPU seconds
     of the event cycles and statistics (``schedule_s``), the NNA's descriptors
     (``nna_kernels_s``) and the SVA's stream (``sva_kernels_s``)."""
-    from nna.descriptor import compute_descriptor
-    from sim.chip import assemble_report
-    from sim.clock import count_instants
-    from sva.pipeline import sva_stream
-
     t0 = time.process_time()
     h, w = left.shape
     n = h * w

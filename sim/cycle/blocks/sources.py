@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim.clock import Block, ClockDomain
+from sim.cycle.clock import Block, ClockDomain
 from sim.errors import UserError
 
 

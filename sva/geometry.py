@@ -1,0 +1,43 @@
+"""What the SVA's stages imply for the rows it must hold and the width of its output word.
+
+Facts of the stage, used by the chip plan (``sim.cycle.plan``), the clocked SVA block and the
+analytic estimate alike.
+"""
+
+from __future__ import annotations
+
+import math
+
+from sim.config import SvaConfig
+
+
+def box_radius(cfg: SvaConfig) -> int:
+    """Rows (and columns) of cost the box filter reads on each side: k // 2."""
+    return cfg.box_size // 2
+
+
+def median_radius(cfg: SvaConfig) -> int:
+    """Rows of output words the median filter reads on each side (0 when off)."""
+    return cfg.median // 2 if cfg.median > 1 else 0
+
+
+def row_lookahead(cfg: SvaConfig) -> int:
+    """Input rows below output row y that it needs: the box filter's r plus the median's m.
+    (The SGM paths and the LR check's diagonal search read rows already in.)"""
+    return box_radius(cfg) + median_radius(cfg)
+
+
+def bits_for(max_value: int) -> int:
+    """Bits of an unsigned register holding 0 .. max_value."""
+    return max(1, math.ceil(math.log2(max_value + 1)))
+
+
+def disparity_bits(cfg: SvaConfig) -> int:
+    """Bits of an integer disparity 0 .. D - 1."""
+    return bits_for(cfg.disparities - 1)
+
+
+def output_word_bits(cfg: SvaConfig) -> int:
+    """Bits of an SVA output word: a valid flag, the integer disparity and the sub-pixel
+    fraction."""
+    return 1 + disparity_bits(cfg) + cfg.subpixel_bits
