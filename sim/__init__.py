@@ -3,8 +3,13 @@
 ``sim.run(left, right, mode=..., config=..., overrides=...)`` simulates one frame; see
 :mod:`sim.api`. The command line is ``stereosim`` (:mod:`sim.cli`).
 
-``run`` and ``Result`` are loaded on first use, so that the stage packages (``nna``, ``sva``)
-can import ``sim.errors`` and ``sim.config`` without pulling in the whole API (no import cycle).
+The package holds three layers of the project (docs/architecture.md, "Layers"): the core every
+stage imports (:mod:`sim.errors`, :mod:`sim.config`, :mod:`sim.io`), the cycle model
+(:mod:`sim.cycle`: the chip plan, the readable kernel, the compiled engine, the estimate) and
+the application (:mod:`sim.api`, :mod:`sim.cli`, sweeps, traces, datasets, metrics). Python runs
+this file before any module of the package, so it imports only the core; ``run`` and
+``Result`` are resolved on first use (PEP 562) -- importing the API here would make every
+``import nna.census`` load the whole application.
 """
 
 from sim.config import ChipConfig, load_config
@@ -15,7 +20,7 @@ __all__ = ["ChipConfig", "ConfigError", "InputError", "Result", "UserError", "lo
 
 def __getattr__(name):
     if name in ("run", "Result"):
-        from sim import api
+        from sim.api import Result, run
 
-        return getattr(api, name)
+        return run if name == "run" else Result
     raise AttributeError(f"module 'sim' has no attribute {name!r}")

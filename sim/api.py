@@ -7,9 +7,9 @@ from typing import Any
 
 import numpy as np
 
-from nna.descriptor import compute_descriptor, descriptor_bits
+from nna.descriptor import compute_descriptor
 from sim.config import ChipConfig, config_to_dict, load_config
-from sim.cycle.architecture import architecture_report
+from sim.cycle.plan import ChipPlan, architecture_report, build_plan
 from sim.cycle.simulate import simulate
 from sim.errors import ConfigError, InputError
 from sim.io import to_grey
@@ -81,9 +81,9 @@ def run(
     """Simulate one stereo frame.
 
     ``mode="functional"`` runs the bit-exact integer model; ``mode="cycle"`` runs the clocked
-    chip (sources, NNA submodules, FIFOs, SVA, sink) on the readable two-phase kernel -- the
-    same output words plus cycle counts, latency, throughput, bottleneck and FIFO statistics,
-    on the compiled engine where it models the configuration (``sim.engine``).
+    chip (sources, NNA submodules, FIFOs, SVA, sink) -- the same output words plus cycle
+    counts, latency, throughput, bottleneck and FIFO statistics -- on the engine ``sim.engine``
+    selects (:mod:`sim.cycle.simulate`; the report's ``engine`` says which ran).
 
     ``left``/``right``: 2-D uint8 arrays (or RGB, converted to grey). ``config``: a
     :class:`ChipConfig`, a TOML path or None (defaults); ``overrides``: dotted keys such as
@@ -96,27 +96,22 @@ def run(
         raise ConfigError(f"mode must be one of {', '.join(MODES)}; got {mode!r}")
     cfg = resolve_config(config, overrides)
     gl, gr = prepare_pair(left, right)
-    h, w = gl.shape
-    if cfg.sva.disparities >= w:
-        raise ConfigError(
-            f"sva.disparities={cfg.sva.disparities} is not smaller than the image width {w}: "
-            f"use a smaller disparity range (--disparities) or a wider image"
-        )
-    bits = descriptor_bits(cfg.nna)
+    plan = build_plan(cfg, gl.shape)  # refuses a chip that cannot be built, in every mode
     log = None
     if trace is not None and mode != "cycle":
         raise ConfigError("traces need the cycle model: use mode='cycle' (--mode cycle)")
     if mode == "cycle" and trace is not None:
-        fixed, cycle_report, log = run_traced(gl, gr, cfg, trace)
-        cycle_report["engine"] = "fast"
+        frame, log = run_traced(plan, gl, gr, trace)
+        fixed, cycle_report = frame.words, frame.report
     elif mode == "cycle":
-        fixed, cycle_report = simulate(gl, gr, cfg)
+        frame = simulate(plan, gl, gr)
+        fixed, cycle_report = frame.words, frame.report
     else:
         desc_l = compute_descriptor(gl, cfg.nna)
         desc_r = compute_descriptor(gr, cfg.nna)
-        fixed = sva_stream(desc_l, desc_r, gl, cfg.sva, bits)
+        fixed = sva_stream(desc_l, desc_r, gl, cfg.sva, plan.descriptor_bits)
     disp = to_float(fixed, cfg.sva.subpixel_bits)
-    report = build_report(cfg, mode, fixed, bits)
+    report = build_report(plan, mode, fixed)
     if mode == "cycle":
         report.update(cycle_report)
     if gt is not None:
@@ -124,11 +119,13 @@ def run(
     return Result(disparity=disp, disparity_fixed=fixed, report=report, config=cfg, trace=log)
 
 
-def build_report(cfg: ChipConfig, mode: str, fixed: np.ndarray, bits: int) -> dict:
+def build_report(plan: ChipPlan, mode: str, fixed: np.ndarray) -> dict:
+    cfg = plan.cfg
+    bits = plan.descriptor_bits
     h, w = fixed.shape
     valid = int(np.count_nonzero(fixed >= 0))
     return {
-        "architecture": architecture_report(cfg, (h, w)),
+        "architecture": architecture_report(plan),
         "stereosim": VERSION,
         "mode": mode,
         "image": {"width": w, "height": h},

@@ -8,11 +8,12 @@ A trace is recorded over a window of the frame (full-frame traces are gigabytes)
   instant the sink holds row ``B - 1`` complete. The engine is deterministic, so a first
   untraced pass finds those instants and the second pass records between them.
 
-The engine records every signal of :func:`sim.cycle.fast.trace_signals` in the window (its edges are
-stepped one by one there; outside, quiet domains are settled in bulk as usual), ``--trace
-PATTERNS`` keeps the signals whose paths match one of the glob patterns, and the exact size of
-the VCD is computed before anything is written: above ``--trace-limit`` MB the run refuses
-unless ``--force``. Tracing changes nothing else (same words, report and statistics).
+The engine records every signal of the chip plan (:mod:`sim.cycle.plan`) at every clock edge in
+the window -- the compiled engine reads them off the event streams, the readable kernel records
+its blocks' state, and both give the same VCD -- ``--trace PATTERNS`` keeps the signals whose
+paths match one of the glob patterns, and the exact size of the VCD is computed before anything
+is written: above ``--trace-limit`` MB the run refuses unless ``--force``. Tracing changes
+nothing else (same words, report and statistics). Split frames are traced like whole ones.
 """
 
 from __future__ import annotations
@@ -22,12 +23,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sim.config import ChipConfig
-from sim.cycle.simulate import fast_engine_models
-from sim.cycle.fast import _Setup, run_cycle_fast
+from sim.cycle.plan import ChipPlan
+from sim.cycle.simulate import simulate
 from sim.errors import ConfigError
 from traces.gtkw import write_gtkw
-from traces.log import Clock, Signal, TraceLog, select, validate
+from traces.log import select
 from traces.timeline import write_timeline
 from traces.vcd import estimate_vcd_bytes, write_vcd
 
@@ -69,78 +69,47 @@ def parse_window(spec: str | None) -> tuple[str, int, int | None]:
     return kind, a, b
 
 
-def _domains(shape, cfg: ChipConfig) -> dict:
-    return _Setup(shape, cfg).domains
-
-
-def window_fs(spec: str | None, shape, cfg: ChipConfig, row_times=None) -> tuple[int, int]:
+def window_fs(spec: str | None, plan: ChipPlan, row_times=None) -> tuple[int, int]:
     """The window ``[start_fs, end_fs)`` of ``spec`` (``row_times`` from an untraced pass for a
     rows window; end None = the end of the run, given as a huge instant)."""
     kind, a, b = parse_window(spec)
     end_of_run = 1 << 62
     if kind == "rows":
-        h = shape[0]
+        h = plan.shape[0]
         b = h if b is None else b
         if b > h:
             raise ConfigError(f"--trace-window rows:{a}:{b}: the image has {h} rows")
         return int(row_times[0, a]), int(row_times[1, b]) + 1
-    doms = _domains(shape, cfg)
-    if kind not in doms:
+    if kind not in plan.domains:
         raise ConfigError(
             f"--trace-window {spec!r}: this configuration has no {kind} clock "
-            f"(domains: {', '.join(doms)})"
+            f"(domains: {', '.join(plan.domains)})"
         )
-    d = doms[kind]
-    return d.edge_fs(a), end_of_run if b is None else d.edge_fs(b)
+    per = plan.domains[kind].period_fs
+    return a * per, end_of_run if b is None else b * per
 
 
-def build_log(out: dict, patterns=()):
-    """The :class:`traces.log.TraceLog` of a traced run's ``trace_out`` dict."""
-
-    start, end = out["window"]
-    log = TraceLog(
-        signals=[Signal(p, w, d) for p, w, d in out["signals"]],
-        clocks=[Clock(n, per, ph) for n, per, ph in out["domains"]],
-        start_fs=start, end_fs=end, initial=out["initial"], times_fs=out["times_fs"],
-        ids=out["ids"], values=out["values"],
-    )
-    log = validate(log)
-    return select(log, patterns) if patterns else log
-
-
-def run_traced(left: np.ndarray, right: np.ndarray, cfg: ChipConfig, request: TraceRequest):
-    """Simulate one frame with a trace: ``(words, cycle report, log)``; raises ConfigError
-    (nothing written) for a window outside the run, a trace above the size limit, or a
-    configuration the compiled engine does not model."""
-
-    if not fast_engine_models(cfg) or cfg.sim.engine == "readable":
-        raise ConfigError(
-            "traces are recorded by the compiled engine, which models one NNA submodule per "
-            "camera: drop --vcd/--timeline or set nna.stereo_submodules=2 and sim.engine=auto"
-        )
-    shape = left.shape
+def run_traced(plan: ChipPlan, left: np.ndarray, right: np.ndarray, request: TraceRequest):
+    """Simulate one frame with a trace: ``(frame result, log)``; raises ConfigError (nothing
+    written) for a window outside the run or a trace above the size limit. Either engine
+    records it (sim.engine; the same signals and values)."""
     kind, _, _ = parse_window(request.window)
     row_times = None
     if kind == "rows":
-        probe: dict = {}
-        run_cycle_fast(left, right, cfg, trace_out=probe)
-        row_times = probe["row_times"]
-    start, end = window_fs(request.window, shape, cfg, row_times)
-    out: dict = {}
-    words, report, stats = run_cycle_fast(left, right, cfg, trace_window=(start, end),
-                                          trace_out=out)
-    last = int(stats["end_time_fs"])
-    if not out["started"]:
+        row_times = simulate(plan, left, right).row_times
+    start, end = window_fs(request.window, plan, row_times)
+    frame = simulate(plan, left, right, window=(start, end))
+    if frame.trace is None:
+        last = int(frame.stats["end_time_fs"])
         raise ConfigError(
             f"--trace-window {request.window!r} starts at {start} fs, after the frame ended "
             f"({last} fs): choose an earlier window"
         )
-    out["window"] = (start, min(end, last + 1))
-    log = build_log(out, request.patterns)
-    report["trace"] = {"window_fs": [log.start_fs, log.end_fs], "signals": len(log.signals),
-                       "value_changes": log.n_changes,
-                       "outputs_in_window": out["outputs_in_window"]}
-    return words, report, log
+    log = select(frame.trace, request.patterns) if request.patterns else frame.trace
+    frame.report["trace"] = {"window_fs": [log.start_fs, log.end_fs],
+                             "signals": len(log.signals), "value_changes": log.n_changes,
+                             "outputs_in_window": frame.outputs_in_window}
+    return frame, log
 
 
 def check_size(log, request: TraceRequest) -> int:

@@ -32,6 +32,7 @@ from __future__ import annotations
 import io
 import os
 from importlib import metadata
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -192,12 +193,25 @@ def _head_and_tail(log: TraceLog, date: str | None, version: str | None):
 # ---- the compiled body writer -------------------------------------------------------------------
 
 
+class Events(NamedTuple):
+    """Parallel arrays of events: instants (int64), codes (int64: a clock, or n_clocks + the
+    signal id) and values (uint64)."""
+
+    time: np.ndarray
+    code: np.ndarray
+    value: np.ndarray
+
+
 @njit(cache=True)
-def _merge(times, ids, values, cur, ctimes, ccode, cval, n_clocks, ev_time, ev_code, ev_value):
-    """Merge the log's changes (signal ``s`` has code ``n_clocks + s``) with the clock edges in
-    time order, keep the last change per signal and instant, drop repeats of the current value
-    (``cur``: values at the window's start, updated), and store the events left; at one instant
-    clocks come first, then signals by id. Returns the number of events."""
+def _merge(changes, cur, clocks, n_clocks, out):
+    """Merge the log's ``changes`` (code = signal id; signal ``s`` gets code ``n_clocks + s``)
+    with the ``clocks``' edges in time order, keep the last change per signal and instant, drop
+    repeats of the current value (``cur``: values at the window's start, updated), and store the
+    events left in ``out``; at one instant clocks come first, then signals by id. Returns the
+    number of events."""
+    times, ids, values = changes
+    ctimes, ccode, cval = clocks
+    ev_time, ev_code, ev_value = out
     n = times.shape[0]
     m = ctimes.shape[0]
     nsig = cur.shape[0]
@@ -334,7 +348,8 @@ def _events(kernel_args):
     ev_time = np.empty(cap, dtype=np.int64)
     ev_code = np.empty(cap, dtype=np.int64)
     ev_value = np.empty(cap, dtype=np.uint64)
-    n = _merge(times, ids, values, state.copy(), ct, cc, cv, n_clocks, ev_time, ev_code, ev_value)
+    n = _merge(Events(times, ids.astype(np.int64), values), state.copy(), Events(ct, cc, cv),
+               n_clocks, Events(ev_time, ev_code, ev_value))
     return ev_time[:n], ev_code[:n], ev_value[:n]
 
 

@@ -1,114 +1,200 @@
-"""The chip assembled from clocked blocks: sources -> NNA submodules -> SVA -> sink.
+"""The readable kernel's chip: the plan instantiated as clocked blocks and FIFOs, run edge by
+edge on the two-phase kernel (:mod:`sim.cycle.kernel`). It is the specification every other
+engine is held to (docs/clock-kernel.md, docs/architecture.md).
 
-:func:`run_cycle` simulates one stereo frame on the readable two-phase kernel
-(:mod:`sim.cycle.clock`) and returns the output words with a cycle report. Domains: ``nna`` and
-``sva`` (and ``camera`` with a camera source; a memory source runs in the ``nna`` domain).
-FIFOs, named by where data flows: ``src_left_to_nna``, ``src_right_to_nna``,
-``nna_left_to_sva``, ``nna_right_to_sva`` (crossing nna -> sva), ``sva_to_sink``.
+:func:`run_cycle` simulates one stereo frame and returns the output words with the cycle report
+and the chip; :func:`run_readable` does the same for the dispatcher (:mod:`sim.cycle.simulate`)
+and can record a trace window.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
+
 import numpy as np
 
-from nna.descriptor import descriptor_bits
-from nna.geometry import split_frame
 from sim.config import ChipConfig
-from sim.cycle.architecture import nna_to_sva_word_bits, output_word_bits
 from sim.cycle.blocks.nna import Merge, NnaSubmodule
 from sim.cycle.blocks.sources import CameraSource, MemorySource, Sink
 from sim.cycle.blocks.sva import SvaBlock
 from sim.cycle.fifo import Fifo
 from sim.cycle.kernel import Simulator
-from sim.cycle.report import assemble_report, chip_domains, frame_budget
-
-FS_PER_S = 10**15
+from sim.cycle.plan import ChipPlan, build_plan
+from sim.cycle.report import cycle_report
+from sim.cycle.rules import sink_may_pop
+from sim.cycle.stops import CameraOverflow, overflow_message
+from traces.log import Clock, Signal, TraceLog, TraceRecorder
 
 
 class Chip:
     """The blocks, FIFOs and domains of one frame's simulation (built by :func:`build_chip`)."""
 
-    def __init__(self, sim: Simulator, domains: dict, fifos: dict, blocks: dict, sink: Sink):
+    def __init__(self, plan: ChipPlan, sim: Simulator, domains: dict, fifos: dict,
+                 blocks: dict, sink: Sink):
+        self.plan = plan
         self.sim = sim
         self.domains = domains
         self.fifos = fifos
         self.blocks = blocks
         self.sink = sink
+        self.cameras = [b for b in blocks.values() if isinstance(b, CameraSource)]
+
+    def done(self) -> bool:
+        """The run's until condition: the sink holds the frame. A camera that overflowed in
+        the step just run stops the run here, after the step, naming every camera that did."""
+        over = [cam.overflow for cam in self.cameras if cam.overflow is not None]
+        if over:
+            raise CameraOverflow(overflow_message(over))
+        return self.sink.done
+
+    def row_times(self) -> np.ndarray:
+        """(2, H + 1) instants (fs): row r of [0] is when the left NNA's line buffers have
+        received image rows 0 .. r - 1 (every left submodule whose input holds row r - 1 has
+        it), row r of [1] when the sink holds r rows; 0 for r = 0, -1 where not reached."""
+        h = self.plan.shape[0]
+        out = np.full((2, h + 1), -1, np.int64)
+        out[:, 0] = 0
+        p_nna = self.plan.domains["nna"].period_fs
+        for y in range(h):
+            cycles = []
+            for b in self.plan.blocks:
+                if b.kind == "nna" and b.side == 0 and b.tile.in_y0 <= y < b.tile.in_y1:
+                    cycles.append(int(self.blocks[b.name].row_cycles[y - b.tile.in_y0]))
+            if min(cycles) >= 0:
+                out[0, y + 1] = max(cycles) * p_nna
+        sink = self.sink.row_cycles
+        done = sink >= 0
+        out[1, 1:][done] = sink[done] * self.plan.domains["sva"].period_fs
+        return out
 
 
-def build_chip(left: np.ndarray, right: np.ndarray, cfg: ChipConfig, *, order_seed=None,
-               sink_stall=None, trace=None) -> Chip:
-    shape = left.shape
-    bits = descriptor_bits(cfg.nna)
-    dtype = np.uint32 if bits <= 32 else np.uint64
+def _stall_function(sink_stall) -> Callable | None:
+    """The sink's stall: a function of the cycle (True: refuse to pop), or a periodic pattern
+    ``(period, allowed_phase)``."""
+    if sink_stall is None or callable(sink_stall):
+        return sink_stall
+    period, phase = sink_stall
+    return lambda c: not sink_may_pop(c, period, phase)
+
+
+def build_chip(left: np.ndarray, right: np.ndarray, cfg: ChipConfig | ChipPlan, *,
+               order_seed=None, sink_stall=None, trace=None) -> Chip:
+    """The readable chip of ``cfg`` (or of a plan) for this pair."""
+    plan = cfg if isinstance(cfg, ChipPlan) else build_plan(cfg, left.shape)
+    cfg = plan.cfg
+    shape = plan.shape
     sim = Simulator(order_seed=order_seed, trace=trace)
-    domains = {name: sim.add_domain(d) for name, d in chip_domains(cfg).items()}
-    nna, sva = domains["nna"], domains["sva"]
-    src_domain = domains.get("camera", nna)
-    f = cfg.fifo
+    domains = {name: sim.add_domain(d.clock()) for name, d in plan.domains.items()}
     fifos = {}
-
-    def fifo(name, depth, width, src, dst):
-        fifos[name] = sim.add_fifo(Fifo(name, depth, width, f.latency_cycles, src=src, dst=dst,
-                                        sync_cycles=f.sync_cycles))
-        return fifos[name]
-
-    word_bits = output_word_bits(cfg)
-    desc_bits = nna_to_sva_word_bits(cfg)
+    for f in plan.fifos:
+        fifos[f.name] = sim.add_fifo(Fifo(f.name, f.depth, f.width_bits, f.latency_cycles,
+                                          src=domains[f.src], dst=domains[f.dst],
+                                          sync_cycles=f.sync_cycles, handshake_signals=True))
+    images = (left, right)
     blocks = {}
-    outs = {}
-    parts = cfg.nna.stereo_submodules // 2
-    tiles = split_frame(shape, parts, cfg.nna.split, cfg.nna)
-    for side, image in (("left", left), ("right", right)):
-        out = fifo(f"nna_{side}_to_sva", f.nna_to_sva_depth, desc_bits, nna, sva)
-        if parts == 1:
-            src_fifos = [fifo(f"src_{side}_to_nna", f.source_to_nna_depth, 8, src_domain, nna)]
-            sub_outs = [out]
+    sink = None
+    for b in plan.blocks:
+        dom = domains[b.domain]
+        if b.kind in ("memory", "camera"):
+            outs = [(fifos[name], tile) for name, tile in zip(b.outputs, plan.tiles)]
+            cls = CameraSource if b.kind == "camera" else MemorySource
+            block = cls(b, dom, images[b.side], outs)
+        elif b.kind == "nna":
+            block = NnaSubmodule(b, dom, shape, fifos[b.inputs[0]], fifos[b.outputs[0]],
+                                 cfg.nna)
+        elif b.kind == "merge":
+            block = Merge(b, dom, shape, [fifos[name] for name in b.inputs], plan.tiles,
+                          fifos[b.outputs[0]])
+        elif b.kind == "sva":
+            block = SvaBlock(b, dom, shape, fifos[b.inputs[0]], fifos[b.inputs[1]],
+                             fifos[b.outputs[0]], cfg.sva, plan.descriptor_bits,
+                             plan.word_bits)
         else:
-            src_fifos = [fifo(f"src_{side}_to_nna{t}", f.source_to_nna_depth, 8, src_domain, nna)
-                         for t in range(parts)]
-            sub_outs = [fifo(f"nna_{side}{t}_to_merge", f.nna_to_sva_depth, desc_bits, nna, nna)
-                        for t in range(parts)]
-        targets = src_fifos[0] if parts == 1 else list(zip(src_fifos, tiles))
-        if cfg.source.kind == "camera":
-            source = CameraSource(f"camera_{side}", src_domain, image, targets,
-                                  cfg.source.camera_hblank, cfg.source.camera_vblank)
-        else:
-            source = MemorySource(f"memory_{side}", src_domain, image, targets,
-                                  round(cfg.source.memory_gbps * 1e9))
-        blocks[source.name] = sim.add_block(source)
-        for t in range(parts):
-            name = f"nna_{side}" if parts == 1 else f"nna_{side}{t}"
-            sub = NnaSubmodule(name, nna, shape, src_fifos[t], sub_outs[t], cfg.nna,
-                               tile=tiles[t] if parts > 1 else None)
-            blocks[name] = sim.add_block(sub)
-        if parts > 1:
-            merge = Merge(f"merge_{side}", nna, shape, sub_outs, tiles, out)
-            blocks[merge.name] = sim.add_block(merge)
-        outs[side] = out
-    to_sink = fifo("sva_to_sink", f.sva_to_sink_depth, word_bits, sva, sva)
-    blocks["sva"] = sim.add_block(
-        SvaBlock("sva", sva, shape, outs["left"], outs["right"], to_sink, cfg.sva, bits, dtype)
-    )
-    sink = Sink("sink", sva, to_sink, shape, stall=sink_stall)
-    blocks["sink"] = sim.add_block(sink)
-    return Chip(sim, domains, fifos, blocks, sink)
+            block = sink = Sink(b.name, dom, fifos[b.inputs[0]], shape,
+                                stall=_stall_function(sink_stall))
+        blocks[b.name] = sim.add_block(block)
+    return Chip(plan, sim, domains, fifos, blocks, sink)
 
 
-def run_cycle(left: np.ndarray, right: np.ndarray, cfg: ChipConfig, *, order_seed=None,
-              sink_stall=None, trace=None) -> tuple[np.ndarray, dict, Chip]:
+def run_cycle(left: np.ndarray, right: np.ndarray, cfg: ChipConfig | ChipPlan, *,
+              order_seed=None, sink_stall=None, trace=None) -> tuple[np.ndarray, dict, Chip]:
     """Simulate one frame; returns (output words (H, W) int32, cycle report, the chip)."""
-    chip = build_chip(left, right, cfg, order_seed=order_seed, sink_stall=sink_stall, trace=trace)
-    stats = chip.sim.run(lambda: chip.sink.done, budget_cycles=frame_budget(left.shape, cfg, chip.domains),
-                         watchdog_cycles=cfg.sim.watchdog_cycles)
-    return chip.sink.words.copy(), cycle_report(chip, stats), chip
+    chip = build_chip(left, right, cfg, order_seed=order_seed, sink_stall=sink_stall,
+                      trace=trace)
+    stats = chip.sim.run(chip.done, budget_cycles=chip.plan.budget,
+                         watchdog_cycles=chip.plan.cfg.sim.watchdog_cycles)
+    report = cycle_report(chip.plan, chip.sink.first_cycle, chip.sink.last_cycle, stats)
+    return chip.sink.words.copy(), report, chip
 
 
-def cycle_report(chip: Chip, stats: dict) -> dict:
-    """Cycle counts, latency, throughput and bottleneck, per-block activity, FIFO statistics."""
-    work = {name: (block.work_cycles(), block.domain.freq_hz)
-            for name, block in chip.blocks.items() if name != "sink"}
-    return assemble_report(chip.domains["sva"], chip.sink.first_cycle, chip.sink.last_cycle,
-                           work, stats)
+# ---- the dispatcher's entry: the same frame, optionally with a trace window ---------------------
 
+
+@dataclass
+class FrameResult:
+    """What a cycle engine returns for one frame: the output words, the cycle report, the
+    kernel statistics, the row instants (:meth:`Chip.row_times`) and, for a traced run, the
+    trace of the window with the words the SVA pushed in it."""
+
+    words: np.ndarray
+    report: dict
+    stats: dict
+    row_times: np.ndarray
+    trace: TraceLog | None = None
+    outputs_in_window: int = 0
+
+
+def trace_signals(plan: ChipPlan) -> list[Signal]:
+    return [Signal(s.path, s.width, s.domain) for s in plan.signals]
+
+
+def trace_clocks(plan: ChipPlan) -> list[Clock]:
+    return [Clock(d.name, d.period_fs, 0) for d in plan.domains.values()]
+
+
+class _WindowCounter:
+    """A trace hook around a recorder that also counts the words the SVA pushed into the
+    sink's FIFO during the window (after the steps before it, and up to its end)."""
+
+    def __init__(self, recorder: TraceRecorder, fifo: Fifo, start_fs: int, end_fs: int):
+        self.recorder, self.fifo = recorder, fifo
+        self.start_fs, self.end_fs = start_fs, end_fs
+        self.before = self.until = None
+        self.started = False
+
+    def __call__(self, time_fs, cycles, changes):
+        pushes = self.fifo.pushes
+        if time_fs < self.start_fs:
+            self.before = pushes
+        elif time_fs < self.end_fs:
+            self.started = True
+            self.until = pushes
+        self.recorder(time_fs, cycles, changes)
+
+
+def run_readable(plan: ChipPlan, left: np.ndarray, right: np.ndarray, *, sink_stall=None,
+                 window: tuple[int, int] | None = None, order_seed=None) -> FrameResult:
+    """One frame on the readable kernel; ``window`` = (start_fs, end_fs) records every signal
+    of the plan in it (the trace ends one femtosecond after the run's last step at the
+    latest). ``trace`` is None when the window starts after the run ended."""
+    hook = None
+    if window is not None:
+        names = [f"{s.owner}.{s.key}" for s in plan.signals]
+        recorder = TraceRecorder(trace_signals(plan), trace_clocks(plan), names=names,
+                                 start_fs=window[0], end_fs=window[1])
+        hook = _WindowCounter(recorder, None, *window)
+    chip = build_chip(left, right, plan, order_seed=order_seed, sink_stall=sink_stall,
+                      trace=hook)
+    if hook is not None:
+        hook.fifo = chip.fifos["sva_to_sink"]
+    stats = chip.sim.run(chip.done, budget_cycles=plan.budget,
+                         watchdog_cycles=plan.cfg.sim.watchdog_cycles)
+    report = cycle_report(plan, chip.sink.first_cycle, chip.sink.last_cycle, stats)
+    result = FrameResult(chip.sink.words.copy(), report, stats, chip.row_times())
+    if hook is not None and hook.started:
+        end = min(window[1], stats["end_time_fs"] + 1)
+        result.trace = hook.recorder.log(end)
+        result.outputs_in_window = (hook.until or 0) - (hook.before or 0)
+    return result
 

@@ -25,9 +25,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from sim.cycle.rules import period_fs
 from sim.errors import ConfigError, UserError
 
-FS_PER_S = 10**15
 ACTIVITIES = ("busy", "starved", "blocked", "idle")
 
 
@@ -86,7 +86,7 @@ class ClockDomain:
             raise ConfigError(
                 f"clock domain '{self.name}': freq_hz must be a positive number; got {f!r}"
             )
-        if round(FS_PER_S / f) < 1:
+        if period_fs(f) < 1:
             raise ConfigError(
                 f"clock domain '{self.name}': freq_hz {f!r} gives a period below 1 fs; "
                 "use at most 1e15 Hz"
@@ -97,7 +97,7 @@ class ClockDomain:
 
     @property
     def period_fs(self) -> int:
-        return round(FS_PER_S / self.freq_hz)
+        return period_fs(self.freq_hz)
 
     def edge_fs(self, k: int) -> int:
         """The instant of edge ``k``."""
@@ -108,6 +108,60 @@ class ClockDomain:
         if t_fs < self.phase_fs:
             return 0
         return (t_fs - self.phase_fs) // self.period_fs + 1
+
+
+def stop_message(head: str, now_fs: int, cycles: dict[str, int], fifos: dict[str, dict],
+                 blocks: dict[str, dict], tail: str) -> str:
+    """The one-line message of a :class:`RunStopped` (both cycle engines build it here):
+    ``cycles`` per domain in domain order, ``fifos`` name -> {"occupancy", "depth"} and
+    ``blocks`` name -> {"status", "waiting_on"} in the order the chip lists them."""
+    fifo_words = []
+    for name, st in fifos.items():
+        occ, depth = st["occupancy"], st["depth"]
+        tag = " full" if occ >= depth else " empty" if occ == 0 else ""
+        fifo_words.append(f"{name} {occ}/{depth}{tag}")
+    block_words = []
+    for name, st in blocks.items():
+        if st["waiting_on"] is not None:
+            fname, kind = st["waiting_on"]
+            block_words.append(f"{name} {st['status']} on {fname} ({kind})")
+        else:
+            block_words.append(f"{name} {st['status'] or 'never clocked'}")
+    cyc = ", ".join(f"{d} {n}" for d, n in cycles.items())
+    return (f"{head} at t={now_fs} fs (cycles run: {cyc}): fifo "
+            f"{', '.join(fifo_words) or 'none'}; blocks: {', '.join(block_words) or 'none'}; "
+            f"{tail}")
+
+
+def budget_message(domain: str, limit: int) -> str:
+    """The tail of a :class:`BudgetExceeded` (both cycle engines)."""
+    return (f"{domain} ran its budget of {limit} cycles before the until condition held: "
+            "raise budget_cycles or check the until condition")
+
+
+def activity_counts(busy: int, starved: int, blocked: int, idle: int) -> dict[str, int]:
+    """A block's cycles by activity, as every engine reports them (sorted keys)."""
+    return {"blocked": int(blocked), "busy": int(busy), "idle": int(idle),
+            "starved": int(starved)}
+
+
+def fifo_counts(*, pushes: int, pops: int, depth: int, width_bits: int, max_occupancy: int,
+                max_producer_occupancy: int, histogram, cycles_full: int,
+                cycles_empty: int) -> dict:
+    """A FIFO's statistics, as every engine reports them (sorted keys; see
+    :class:`sim.cycle.fifo.Fifo`)."""
+    return {
+        "bits_transferred": int(pops) * width_bits,
+        "cycles_empty": int(cycles_empty),
+        "cycles_full": int(cycles_full),
+        "depth": int(depth),
+        "max_occupancy": int(max_occupancy),
+        "max_producer_occupancy": int(max_producer_occupancy),
+        "occupancy_histogram": [int(v) for v in histogram],
+        "pops": int(pops),
+        "pushes": int(pushes),
+        "width_bits": int(width_bits),
+    }
 
 
 def watchdog_message(quiet_fs: int, p_max_fs: int) -> str:
@@ -251,7 +305,7 @@ class Block:
     @property
     def activity(self) -> dict[str, int]:
         """Cycles spent busy / starved / blocked / idle so far (sorted keys)."""
-        return {k: self._counts[k] for k in sorted(ACTIVITIES)}
+        return activity_counts(**self._counts)
 
     # ---- kernel side -------------------------------------------------------------------------
 

@@ -4,11 +4,11 @@
 with before running the cycle model: the frame rate each block sustains and the bottleneck, the
 first-output and whole-frame latency of one frame, SRAM bits per buffer and per FIFO, bytes per
 frame through each FIFO, MACs per frame, and the paper's own arithmetic (four 3x3 layers vs one
-9x9 layer; float vs binary descriptors). It mirrors the cycle model (``sim/chip.py``) rule for
-rule, in arithmetic per image row instead of per cycle:
+9x9 layer; float vs binary descriptors). It walks the chip plan (:mod:`sim.cycle.plan`: the same blocks, FIFOs, windows and
+work) and applies the timing rules of :mod:`sim.cycle.rules` per image row instead of per cycle:
 
 - **Throughput.** A block's *work* per frame is the cycles its critical resource is busy --
-  the figure ``sim.cycle.chip.assemble_report`` ranks: descriptors x ``ceil(K*K*C / macs)`` per NNA
+  the figure the cycle report ranks (:meth:`ChipPlan.work_cycles`): descriptors x ``ceil(K*K*C / macs)`` per NNA
   submodule (census: 1 cycle), words x ``cycles_per_pixel`` for the SVA, one beat per pixel for a
   merge, ``max(N, ceil(N f / B))`` cycles for a memory source (N pixels, f its clock, B its
   bandwidth in bytes/s) and ``H (W + hblank)`` pixel clocks for a camera. The block with
@@ -29,22 +29,25 @@ rule, in arithmetic per image row instead of per cycle:
   -> free seen by the producer): ``(latency + 1)`` cycles in one domain, about
   ``(latency + sync - 1.5) T_consumer + (sync - 0.5) T_producer`` across domains (half a period
   for the edge alignment on average). A link slower than its producer stretches the stream.
-- **Memory, traffic, work.** SRAM bits per buffer and per-action counts come from
-  :mod:`sim.cycle.architecture` (the numbers the simulator reports); the FIFO plan mirrors
-  :func:`sim.cycle.chip.build_chip` (names, depths, widths, beats per frame).
+- **Memory, traffic, work.** SRAM bits per buffer, per-action counts and the FIFOs (names,
+  depths, widths, beats per frame) come from the plan -- the numbers the simulator reports.
 """
 
 from __future__ import annotations
 
 import math
 
-from nna.geometry import Tile, cycles_per_descriptor, half_window, split_frame
+from nna.geometry import Tile
 from sim.config import ChipConfig, config_to_dict
-from sim.cycle.architecture import (
-    action_counts,
-    buffer_bits,
-    nna_to_sva_word_bits,
-    output_word_bits,
+from sim.cycle.plan import ChipPlan, FifoPlan, action_counts, build_plan, sram_bits
+from sim.cycle.rules import (
+    camera_cycle,
+    memory_first_cycle,
+    nna_last_input_row,
+    nna_rows_started_before_input,
+    seen_from,
+    sva_last_input_row,
+    sva_rows_done_before_input,
 )
 from sim.errors import InputError
 
@@ -55,105 +58,38 @@ FOUR_LAYERS = ((3, 1, 32), (3, 32, 32), (3, 32, 32), (3, 32, 32))
 SINGLE_LAYER = ((9, 1, 32),)
 
 
-def _period_fs(mhz: float) -> int:
-    """The clock period as :class:`sim.cycle.clock.ClockDomain` rounds it."""
-    return round(FS_PER_S / (mhz * 1e6))
+def visible(f: FifoPlan, cycle: float, plan: ChipPlan) -> float:
+    """The consumer cycle from which an item pushed in producer ``cycle`` can be popped."""
+    if not f.crossing:
+        return cycle + f.data_edges
+    return seen_from(round(cycle), plan.domains[f.src].period_fs, plan.domains[f.dst].period_fs,
+                     f.data_edges)
 
 
-class _Domains:
-    """Clock periods (fs) by domain name, and the FIFO visibility rule across them."""
-
-    def __init__(self, cfg: ChipConfig):
-        self.period = {"nna": _period_fs(cfg.clocks.nna_mhz), "sva": _period_fs(cfg.clocks.sva_mhz)}
-        self.freq = {"nna": cfg.clocks.nna_mhz * 1e6, "sva": cfg.clocks.sva_mhz * 1e6}
-        self.src = "nna"
-        if cfg.source.kind == "camera":
-            self.src = "camera"
-            self.period["camera"] = _period_fs(cfg.clocks.camera_mhz)
-            self.freq["camera"] = cfg.clocks.camera_mhz * 1e6
-        self.latency = cfg.fifo.latency_cycles
-        self.sync = cfg.fifo.sync_cycles
-
-    def visible(self, cycle: float, src: str, dst: str) -> float:
-        """The consumer cycle from which an item pushed in producer ``cycle`` can be popped."""
-        if src == dst:
-            return cycle + self.latency
-        t_fs = round(cycle) * self.period[src]
-        return t_fs // self.period[dst] + 1 + self.latency + self.sync - 2
-
-    def round_trip_fs(self, src: str, dst: str) -> float:
-        """Push -> visible -> pop -> free seen by the producer -> next push (module docstring)."""
-        if src == dst:
-            return (self.latency + 1) * self.period[src]
-        return ((self.latency + self.sync - 1.5) * self.period[dst]
-                + (self.sync - 0.5) * self.period[src])
+def round_trip_fs(f: FifoPlan, plan: ChipPlan) -> float:
+    """Push -> visible -> pop -> free seen by the producer -> next push (module docstring)."""
+    p_src, p_dst = plan.domains[f.src].period_fs, plan.domains[f.dst].period_fs
+    if not f.crossing:
+        return (f.latency_cycles + 1) * p_src
+    return ((f.latency_cycles + f.sync_cycles - 1.5) * p_dst + (f.sync_cycles - 0.5) * p_src)
 
 
-# ----------------------------------------------------------------------------------------------
-# the FIFOs and blocks of sim.cycle.chip.build_chip
-
-
-def _tiles(cfg: ChipConfig, shape: tuple[int, int]) -> list[Tile]:
-    parts = cfg.nna.stereo_submodules // 2
-    h, w = shape
-    if parts == 1:
-        return [Tile(0, w, 0, h, 0, w, 0, h)]
-    return split_frame(shape, parts, cfg.nna.split, cfg.nna)
-
-
-def fifo_plan(cfg: ChipConfig, shape: tuple[int, int]) -> dict[str, dict]:
-    """Every FIFO of the chip: depth, width, producer and consumer domain, beats per frame."""
-    h, w = shape
-    f = cfg.fifo
-    tiles = _tiles(cfg, shape)
-    src = "camera" if cfg.source.kind == "camera" else "nna"
-    out: dict[str, dict] = {}
-
-    def add(name, depth, width, a, b, beats):
-        out[name] = {"depth": depth, "width_bits": width, "src": a, "dst": b, "beats": beats}
-
-    for side in ("left", "right"):
-        add(f"nna_{side}_to_sva", f.nna_to_sva_depth, nna_to_sva_word_bits(cfg), "nna", "sva", h * w)
-        if len(tiles) == 1:
-            add(f"src_{side}_to_nna", f.source_to_nna_depth, 8, src, "nna", h * w)
-        else:
-            for t, tile in enumerate(tiles):
-                n_in = (tile.in_x1 - tile.in_x0) * (tile.in_y1 - tile.in_y0)
-                add(f"src_{side}_to_nna{t}", f.source_to_nna_depth, 8, src, "nna", n_in)
-                add(f"nna_{side}{t}_to_merge", f.nna_to_sva_depth, nna_to_sva_word_bits(cfg), "nna", "nna",
-                    tile.shape[0] * tile.shape[1])
-    add("sva_to_sink", f.sva_to_sink_depth, output_word_bits(cfg), "sva", "sva", h * w)
-    return dict(sorted(out.items()))
-
-
-def block_work(cfg: ChipConfig, shape: tuple[int, int]) -> dict[str, tuple[int, float]]:
-    """Work per frame of every block as (cycles, clock in Hz), as the cycle report counts it.
-
-    A camera's work is its frame period, ``(H + vblank) (W + hblank)`` pixel clocks, so a
-    camera-bound rate is the camera's own frame rate.
-    """
-    h, w = shape
+def block_work(plan: ChipPlan) -> dict[str, tuple[int, float]]:
+    """Work per frame of every block as (cycles, clock in Hz), as the cycle report counts it;
+    a memory source's is its transfer, max(N, ceil(N f / B)) cycles (its busy cycles unless it
+    is also back-pressured). A camera's work is its frame period, ``(H + vblank) (W +
+    hblank)`` pixel clocks, so a camera-bound rate is the camera's own frame rate."""
+    h, w = plan.shape
     n = h * w
-    tiles = _tiles(cfg, shape)
-    c = cycles_per_descriptor(cfg.nna)
-    nna_hz = cfg.clocks.nna_mhz * 1e6
     out: dict[str, tuple[int, float]] = {}
-    for side in ("left", "right"):
-        if cfg.source.kind == "camera":
-            # the camera's frame period: its whole raster, vertical blanking included
-            raster = (h + cfg.source.camera_vblank) * (w + cfg.source.camera_hblank)
-            out[f"camera_{side}"] = (raster, cfg.clocks.camera_mhz * 1e6)
-        else:
-            f_hz = round(nna_hz)
-            b = round(cfg.source.memory_gbps * 1e9)
-            out[f"memory_{side}"] = (max(n, -(-n * f_hz // b)), nna_hz)
-        if len(tiles) == 1:
-            out[f"nna_{side}"] = (n * c, nna_hz)
-        else:
-            for t, tile in enumerate(tiles):
-                out[f"nna_{side}{t}"] = (tile.shape[0] * tile.shape[1] * c, nna_hz)
-            out[f"merge_{side}"] = (n, nna_hz)
-    out["sva"] = (n * cfg.sva.cycles_per_pixel, cfg.clocks.sva_mhz * 1e6)
+    for b in plan.blocks:
+        if b.kind == "sink":
+            continue
+        busy = 0
+        if b.kind == "memory":
+            hz = round(plan.domains[b.domain].freq_hz)
+            busy = max(n, memory_first_cycle(n - 1, hz, b.bytes_per_s) + 1)
+        out[b.name] = (plan.work_cycles(b, busy), plan.domains[b.domain].freq_hz)
     return out
 
 
@@ -161,29 +97,30 @@ def block_work(cfg: ChipConfig, shape: tuple[int, int]) -> dict[str, tuple[int, 
 # latency: the row timeline
 
 
-def _source_cycle(cfg: ChipConfig, w: int, k: int) -> int:
+def _source_cycle(plan: ChipPlan, k: int) -> int:
     """Cycle (source domain) in which pixel k (raster) leaves an unobstructed source."""
-    if cfg.source.kind == "camera":
-        y, x = divmod(k, w)
-        return y * (w + cfg.source.camera_hblank) + x
-    f_hz = round(cfg.clocks.nna_mhz * 1e6)
-    b = round(cfg.source.memory_gbps * 1e9)
-    return max(k, -(-(k + 1) * f_hz // b) - 1)
+    w = plan.shape[1]
+    src = plan.blocks[0]
+    if src.kind == "camera":
+        return camera_cycle(k % w, k // w, src.line_clocks)
+    hz = round(plan.domains[src.domain].freq_hz)
+    return max(k, memory_first_cycle(k, hz, src.bytes_per_s))
 
 
-def _tile_rows(cfg: ChipConfig, shape, tile: Tile, dom: _Domains) -> dict[int, tuple[float, float]]:
-    """NNA cycles of the first and last descriptor push of every output row of one submodule."""
-    h_img, w_img = shape
-    half = half_window(cfg.nna)
-    c = cycles_per_descriptor(cfg.nna)
-    rows = cfg.nna.line_buffer_rows
+def _tile_rows(plan: ChipPlan, sub) -> dict[int, tuple[float, float]]:
+    """NNA cycles of the first and last descriptor push of every output row of one submodule
+    (``sub``: its block in the plan)."""
+    h_img, w_img = plan.shape
+    tile: Tile = sub.tile
+    half, c, rows = sub.half, sub.cycles, sub.rows
     tw_in = tile.in_x1 - tile.in_x0
     tw = tile.x1 - tile.x0
+    src = plan.fifo(sub.inputs[0])
+    p_nna = plan.domains["nna"].period_fs
     # the source -> NNA link: one pop per NNA cycle, at most depth items per round trip
-    ii_in = max(1.0, dom.round_trip_fs(dom.src, "nna") / cfg.fifo.source_to_nna_depth
-                / dom.period["nna"])
-    if dom.src != "nna":
-        ii_in = max(ii_in, dom.period[dom.src] / dom.period["nna"])
+    ii_in = max(1.0, round_trip_fs(src, plan) / src.depth / p_nna)
+    if src.crossing:
+        ii_in = max(ii_in, plan.domains[src.src].period_fs / p_nna)
     pop_end: dict[int, float] = {}
     out: dict[int, tuple[float, float]] = {}
     next_out = tile.y0
@@ -192,18 +129,18 @@ def _tile_rows(cfg: ChipConfig, shape, tile: Tile, dom: _Domains) -> dict[int, t
     for y_in in range(tile.in_y0, tile.in_y1):
         k0 = y_in * w_img + tile.in_x0
         k1 = y_in * w_img + tile.in_x1 - 1
-        start = max(dom.visible(_source_cycle(cfg, w_img, k0), dom.src, "nna"), prev_end + 1)
-        # line-buffer room: y_in - max(in_y0, y_out - h) + 1 <= rows
-        if y_in - tile.in_y0 + 1 > rows:
-            need = y_in - rows + 1 + half  # output row that must be in progress
-            if need - 1 in out and need <= tile.y1:
-                start = max(start, out[need - 1][1] + 1)
-        end = max(dom.visible(_source_cycle(cfg, w_img, k1), dom.src, "nna"),
+        start = max(visible(src, _source_cycle(plan, k0), plan), prev_end + 1)
+        # line-buffer room: the output rows that must have left before this row may enter
+        started = nna_rows_started_before_input(y_in - tile.in_y0, rows, half, tile.top_halo,
+                                                tile.y1 - tile.y0)
+        if started > 0 and tile.y0 + started - 1 in out:
+            start = max(start, out[tile.y0 + started - 1][1] + 1)
+        end = max(visible(src, _source_cycle(plan, k1), plan),
                   math.ceil(start + (tw_in - 1) * ii_in))
         pop_end[y_in] = end
         prev_end = end
-        while next_out < tile.y1 and min(next_out + half, h_img - 1) <= y_in:
-            ready = pop_end[min(next_out + half, h_img - 1)] + 1
+        while next_out < tile.y1 and nna_last_input_row(next_out, half, h_img) <= y_in:
+            ready = pop_end[nna_last_input_row(next_out, half, h_img)] + 1
             first = max(ready, prev_out_last + 1) + c - 1
             last = first + (tw - 1) * c
             out[next_out] = (first, last)
@@ -212,39 +149,42 @@ def _tile_rows(cfg: ChipConfig, shape, tile: Tile, dom: _Domains) -> dict[int, t
     return out
 
 
-def _merged_rows(cfg: ChipConfig, shape, tiles: list[Tile], dom: _Domains):
+def _merged_rows(plan: ChipPlan, side: int):
     """First/last push (NNA cycles) of each row of one camera's descriptor stream towards the
     SVA, and the items-per-cycle the stream can sustain."""
-    h, w = shape
-    c = cycles_per_descriptor(cfg.nna)
-    per_tile = [_tile_rows(cfg, shape, t, dom) for t in tiles]
-    if len(tiles) == 1:
+    h, w = plan.shape
+    subs = [b for b in plan.blocks if b.kind == "nna" and b.side == side]
+    c = subs[0].cycles
+    per_tile = [_tile_rows(plan, b) for b in subs]
+    if len(subs) == 1:
         return per_tile[0], float(c)
-    d = cfg.fifo.nna_to_sva_depth
+    rows_split = plan.cfg.nna.split == "rows"
     rows: dict[int, tuple[float, float]] = {}
     prev_end = -1.0
     for y in range(h):
         first = None
-        for t, tile in enumerate(tiles):
+        for t, sub in enumerate(subs):
+            tile = sub.tile
             if not tile.y0 <= y < tile.y1:
                 continue
+            link = plan.fifo(sub.outputs[0])
             tw = tile.x1 - tile.x0
             t_first, t_last = per_tile[t][y]
-            start = max(dom.visible(t_first, "nna", "nna"), prev_end + 1)
-            if cfg.nna.split == "rows" and y == tile.y0 and t > 0:
+            start = max(visible(link, t_first, plan), prev_end + 1)
+            if rows_split and y == tile.y0 and t > 0:
                 # a band's FIFO holds d items while the merge drains the bands before it: the
                 # band produced d + 1 descriptors ahead and makes the rest at its own II now
                 n_band = tile.shape[0] * tile.shape[1]
-                per_tile[t] = _delay_band(per_tile[t], tile, start, n_band, d, c)
+                per_tile[t] = _delay_band(per_tile[t], tile, start, n_band, link.depth, c)
                 t_first, t_last = per_tile[t][y]
-            end = max(start + tw - 1, dom.visible(t_last, "nna", "nna"))
+            end = max(start + tw - 1, visible(link, t_last, plan))
             first = start if first is None else first
             prev_end = end
         rows[y] = (first, prev_end)
-    if cfg.nna.split == "rows":
+    if rows_split:
         # the merge drains a band at one beat per cycle; the band's own II is in its row times
         return rows, 1.0
-    widest = max(t.x1 - t.x0 for t in tiles)
+    widest = max(b.tile.x1 - b.tile.x0 for b in subs)
     return rows, max(1.0, c * widest / w)
 
 
@@ -260,21 +200,21 @@ def _delay_band(rows, tile: Tile, merge_start: float, n_band: int, depth: int, c
     return out
 
 
-def timeline(cfg: ChipConfig, shape: tuple[int, int]) -> dict:
+def timeline(plan: ChipPlan) -> dict:
     """First and last output word of one frame (SVA cycles, as the sink pops them) and the
     cycles of intermediate events, from the row model of the module docstring."""
-    h, w = shape
-    dom = _Domains(cfg)
-    tiles = _tiles(cfg, shape)
-    nna_rows, nna_ii = _merged_rows(cfg, shape, tiles, dom)
-    s = cfg.sva
-    la = s.box_size // 2 + (s.median // 2 if s.median > 1 else 0)
+    h, w = plan.shape
+    nna_rows, nna_ii = _merged_rows(plan, 0)
+    sva = plan.block("sva")
+    la = sva.lookahead
+    link = plan.fifo(sva.inputs[0])
+    to_sink = plan.fifo(sva.outputs[0])
+    p_nna, p_sva = plan.domains["nna"].period_fs, plan.domains["sva"].period_fs
     # the NNA -> SVA stream: one pop per SVA cycle, the producer's II, the FIFO's round trip
-    rt = dom.round_trip_fs("nna", "sva") / cfg.fifo.nna_to_sva_depth
-    ii_link = max(1.0, rt / dom.period["sva"])
-    ii_in = max(ii_link, nna_ii * dom.period["nna"] / dom.period["sva"])
+    ii_link = max(1.0, round_trip_fs(link, plan) / link.depth / p_sva)
+    ii_in = max(ii_link, nna_ii * p_nna / p_sva)
     # the SVA -> sink FIFO: the SVA's II, or depth words per round trip
-    ii_out = max(float(s.cycles_per_pixel), (cfg.fifo.latency_cycles + 1) / cfg.fifo.sva_to_sink_depth)
+    ii_out = max(float(sva.cycles), (to_sink.latency_cycles + 1) / to_sink.depth)
     in_end: dict[int, float] = {}
     out_rows: dict[int, tuple[float, float]] = {}
     next_out = 0
@@ -282,31 +222,32 @@ def timeline(cfg: ChipConfig, shape: tuple[int, int]) -> dict:
     prev_out = -math.inf
     for y in range(h):
         first, last = nna_rows[y]
-        start = max(dom.visible(first, "nna", "sva"), prev_end + 1)
+        start = max(visible(link, first, plan), prev_end + 1)
         ii_row = ii_link
-        if y - la - 2 >= 0 and out_rows[y - la - 2][1] + 1 > start:
+        done = sva_rows_done_before_input(y, la)
+        if done > 0 and out_rows[done - 1][1] + 1 > start:
             # the look-ahead window held the row back: upstream was blocked and resumes at its
             # own II (its row times above are those of an unobstructed producer)
-            start = out_rows[y - la - 2][1] + 1
+            start = out_rows[done - 1][1] + 1
             ii_row = ii_in
-        end = max(dom.visible(last, "nna", "sva"), math.ceil(start + (w - 1) * ii_row))
+        end = max(visible(link, last, plan), math.ceil(start + (w - 1) * ii_row))
         in_end[y] = end
         prev_end = end
-        while next_out < h and min(next_out + la, h - 1) <= y:
-            ready = in_end[min(next_out + la, h - 1)] + 1
-            o_first = max(ready + s.pipeline_latency, prev_out + ii_out)
+        while next_out < h and sva_last_input_row(next_out, la, h) <= y:
+            ready = in_end[sva_last_input_row(next_out, la, h)] + 1
+            o_first = max(ready + sva.latency, prev_out + ii_out)
             o_first = math.ceil(o_first)
             o_last = math.ceil(o_first + (w - 1) * ii_out)
             out_rows[next_out] = (o_first, o_last)
             prev_out = o_last
             next_out += 1
-    lat = cfg.fifo.latency_cycles
+    lat = to_sink.latency_cycles
     return {
         "nna_first_push": nna_rows[0][0],
-        "sva_first_ready": in_end[min(la, h - 1)] + 1,
+        "sva_first_ready": in_end[sva_last_input_row(0, la, h)] + 1,
         "first_output_cycle": out_rows[0][0] + lat,
         "last_output_cycle": out_rows[h - 1][1] + lat,
-        "period_fs": dom.period,
+        "period_fs": {name: d.period_fs for name, d in plan.domains.items()},
         "stream_ii_sva_cycles": {"nna_to_sva": ii_in, "sva_to_sink": ii_out},
     }
 
@@ -351,48 +292,58 @@ def paper_analysis(shape: tuple[int, int]) -> dict:
 
 def estimate(cfg: ChipConfig, shape: tuple[int, int]) -> dict:
     """The analytic report for one frame of ``shape`` = (H, W) (module docstring); keys follow
-    the cycle report's where both have the figure."""
+    the cycle report's where both have the figure. The chip plan is built first, so a chip
+    that cannot be built is refused here as in the cycle model."""
+    plan = build_plan(cfg, shape)
     h, w = shape
-    tl = timeline(cfg, shape)
-    work = block_work(cfg, shape)
+    tl = timeline(plan)
+    work = block_work(plan)
     work_s = {name: cycles / hz for name, (cycles, hz) in work.items()}
     bottleneck = max(sorted(work_s), key=lambda n: work_s[n])
     frame_s = work_s[bottleneck]
     p_sva = tl["period_fs"]["sva"]
-    fifos = fifo_plan(cfg, shape)
-    dom = _Domains(cfg)
+    fifos = sorted(plan.fifos, key=lambda f: f.name)
     fifo_rate = {}
-    for name, f in fifos.items():
-        rt_s = dom.round_trip_fs(f["src"], f["dst"]) / FS_PER_S
-        fifo_rate[name] = min(f["depth"] / rt_s, dom.freq[f["src"]], dom.freq[f["dst"]])
-    buffers = buffer_bits(cfg, w)
+    for f in fifos:
+        rt_s = round_trip_fs(f, plan) / FS_PER_S
+        fifo_rate[f.name] = min(f.depth / rt_s, plan.domains[f.src].freq_hz,
+                                plan.domains[f.dst].freq_hz)
+    buffers = sram_bits(plan)
+    subs = plan.blocks_of("nna")
+    widest = max(b.tile.x1 - b.tile.x0 for b in subs)
     warnings = []
-    if cfg.source.kind == "camera":
-        line_s = (w + cfg.source.camera_hblank) / (cfg.clocks.camera_mhz * 1e6)
-        c = cycles_per_descriptor(cfg.nna)
-        widest = max(t.x1 - t.x0 for t in _tiles(cfg, shape))
-        if widest * c / (cfg.clocks.nna_mhz * 1e6) > line_s:
+    if plan.camera:
+        camera = plan.blocks_of("camera")[0]
+        line_s = camera.line_clocks / plan.domains["camera"].freq_hz
+        if widest * subs[0].cycles / plan.domains["nna"].freq_hz > line_s:
             warnings.append(
                 "the NNA needs more time per row than the camera gives it: the camera will "
                 "overflow the source FIFO (more nna.stereo_submodules, nna.macs or clocks.nna_mhz)"
             )
-    tiles = _tiles(cfg, shape)
-    if len(tiles) > 1 and cfg.nna.split == "columns":
-        widest = max(t.x1 - t.x0 for t in tiles)
-        if cfg.fifo.nna_to_sva_depth < widest:
+    merge_fifos = [f for f in plan.fifos if plan.block(f.consumer).kind == "merge"]
+    if merge_fifos and cfg.nna.split == "columns":
+        depth = merge_fifos[0].depth
+        key = merge_fifos[0].key
+        if depth < widest:
             warnings.append(
-                f"the merge FIFOs (fifo.nna_to_sva_depth={cfg.fifo.nna_to_sva_depth}) hold less "
-                f"than a tile row ({widest} descriptors): the merge drains the tiles in raster "
-                "order, so each tile waits for the others and a frame takes longer than this "
-                "latency estimate (its fps is an upper bound"
-                + ("; a camera can overflow while they do" if cfg.source.kind == "camera" else "")
+                f"the merge FIFOs ({key}={depth}) hold less than a tile row ({widest} "
+                "descriptors): the merge drains the tiles in raster order, so each tile waits "
+                "for the others and a frame takes longer than this latency estimate (its fps "
+                "is an upper bound"
+                + ("; a camera can overflow while they do" if plan.camera else "")
                 + f"); run the cycle model, or use a depth of at least {widest}"
             )
-    if cfg.nna.line_buffer_rows < 2 * half_window(cfg.nna) + 2:
+    if subs[0].rows < 2 * subs[0].half + 2:
         warnings.append(
             "nna.line_buffer_rows holds only the window: a row waits for the window to move "
             "(latency estimate approximate)"
         )
+    camera_fps = None
+    if plan.camera:
+        camera = plan.blocks_of("camera")[0]
+        camera_fps = round(plan.domains["camera"].freq_hz / camera.frame_clocks, 3)
+    nna_bits = sum(v for k, v in buffers.items() if k.startswith("nna."))
+    actions = action_counts(plan)
     return {
         "image": {"width": w, "height": h},
         "config": config_to_dict(cfg),
@@ -403,9 +354,7 @@ def estimate(cfg: ChipConfig, shape: tuple[int, int]) -> dict:
             "fps_per_block": {n: round(1.0 / v, 3) for n, v in sorted(work_s.items())},
             "fifo_items_per_s": {n: round(v, 1) for n, v in sorted(fifo_rate.items())},
             # a camera's real frame rate: its whole raster, vertical blanking included
-            "camera_fps": round(cfg.clocks.camera_mhz * 1e6 / ((h + cfg.source.camera_vblank)
-                                * (w + cfg.source.camera_hblank)), 3)
-            if cfg.source.kind == "camera" else None,
+            "camera_fps": camera_fps,
         },
         "latency": {
             "first_output_ms": tl["first_output_cycle"] * p_sva / 1e12,
@@ -415,16 +364,15 @@ def estimate(cfg: ChipConfig, shape: tuple[int, int]) -> dict:
         },
         "sram_bits": buffers,
         "sram_bits_total": {
-            "nna_per_submodule": sum(v for k, v in buffers.items() if k.startswith("nna.")),
-            "nna_stereo": cfg.nna.stereo_submodules
-            * sum(v for k, v in buffers.items() if k.startswith("nna.")),
+            "nna_per_submodule": nna_bits,
+            "nna_stereo": cfg.nna.stereo_submodules * nna_bits,
             "sva": sum(v for k, v in buffers.items() if k.startswith("sva.")),
-            "fifos": sum(f["depth"] * f["width_bits"] for f in fifos.values()),
+            "fifos": sum(f.sram_bits for f in fifos),
         },
-        "fifo_sram_bits": {n: f["depth"] * f["width_bits"] for n, f in fifos.items()},
-        "fifo_bytes_per_frame": {n: f["beats"] * f["width_bits"] // 8 for n, f in fifos.items()},
-        "actions": action_counts(cfg, shape),
-        "macs_per_frame": 2 * action_counts(cfg, shape)["nna_per_camera"]["macs"],
+        "fifo_sram_bits": {f.name: f.sram_bits for f in fifos},
+        "fifo_bytes_per_frame": {f.name: f.beats * f.width_bits // 8 for f in fifos},
+        "actions": actions,
+        "macs_per_frame": 2 * actions["nna_per_camera"]["macs"],
         "paper": paper_analysis(shape),
         "warnings": warnings,
     }

@@ -23,7 +23,8 @@ from __future__ import annotations
 
 from collections import deque
 
-from sim.cycle.clock import ClockDomain, KernelError, check_int
+from sim.cycle.clock import ClockDomain, KernelError, check_int, fifo_counts
+from sim.cycle.rules import fifo_edges
 from sim.errors import ConfigError
 
 
@@ -54,6 +55,7 @@ class Fifo:
         src: ClockDomain,
         dst: ClockDomain,
         sync_cycles: int = 2,
+        handshake_signals: bool = False,
     ):
         if not isinstance(name, str) or not name:
             raise ConfigError(f"FIFO name must be a non-empty string; got {name!r}")
@@ -82,8 +84,8 @@ class Fifo:
         self.dst = dst
         self.crossing = src != dst
         # n-th consumer edge after a push, m-th producer edge after a pop (module docstring)
-        self._data_edges = latency_cycles + (sync_cycles - 1 if self.crossing else 0)
-        self._space_edges = sync_cycles if self.crossing else 1
+        self._data_edges, self._space_edges = fifo_edges(latency_cycles, sync_cycles,
+                                                         self.crossing)
 
         self._items: deque = deque()  # (first consumer cycle it is visible, item), in order
         self._frees: deque = deque()  # first producer cycle each freed slot is seen, in order
@@ -97,6 +99,11 @@ class Fifo:
         self._push_staged = False
         self._push_item = None
         self._pop_staged = False
+        self._src_ticked = False
+        self._dst_ticked = False
+        self.pushed = False  # pushed at the producer's last edge (traced)
+        self.popped = False  # popped at the consumer's last edge (traced)
+        self.handshake_signals = handshake_signals
 
         self._max_occupancy = 0
         self._max_producer_occupancy = 0
@@ -113,6 +120,14 @@ class Fifo:
     def occupancy(self) -> int:
         """Items physically held (committed pushes minus committed pops)."""
         return self._pushes - self._pops
+
+    @property
+    def pushes(self) -> int:
+        return self._pushes
+
+    @property
+    def pops(self) -> int:
+        return self._pops
 
     @property
     def producer_occupancy(self) -> int:
@@ -190,7 +205,9 @@ class Fifo:
 
     def _begin_step(self, ticking: set, cycles: dict) -> None:
         """Open the FIFO for the domains that tick now and sample the per-cycle statistics."""
-        if self.src.name in ticking:
+        self._src_ticked = self.src.name in ticking
+        self._dst_ticked = self.dst.name in ticking
+        if self._src_ticked:
             self._src_open = True
             cyc = self._src_cycle = cycles[self.src.name]
             frees = self._frees
@@ -209,6 +226,10 @@ class Fifo:
 
     def _commit(self, now_fs: int) -> bool:
         """Apply the staged push and pop; True if either happened."""
+        if self._src_ticked:
+            self.pushed = self._push_staged
+        if self._dst_ticked:
+            self.popped = self._pop_staged
         moved = False
         if self._push_staged:
             ready = self.dst.first_edge_after(now_fs) + self._data_edges - 1
@@ -234,21 +255,24 @@ class Fifo:
     # ---- tracing and statistics --------------------------------------------------------------
 
     def signals(self) -> list[tuple[str, int]]:
-        return [("occupancy", self.depth.bit_length())]
+        if not self.handshake_signals:
+            return [("occupancy", self.depth.bit_length())]
+        return [("occupancy", self.depth.bit_length()), ("push", 1), ("pop", 1), ("full", 1),
+                ("empty", 1)]
 
     def signal_values(self) -> dict:
-        return {"occupancy": self._pushes - self._pops}
+        """Committed occupancy; with ``handshake_signals``, also the push (pop) of the
+        producer's (consumer's) last edge, full as the producer sees it, and empty."""
+        occ = self._pushes - self._pops
+        if not self.handshake_signals:
+            return {"occupancy": occ}
+        return {"occupancy": occ, "push": int(self.pushed), "pop": int(self.popped),
+                "full": int(self._pushes - self._frees_seen >= self.depth),
+                "empty": int(occ == 0)}
 
     def stats(self) -> dict:
-        return {
-            "bits_transferred": self._pops * self.width_bits,
-            "cycles_empty": self._cycles_empty,
-            "cycles_full": self._cycles_full,
-            "depth": self.depth,
-            "max_occupancy": self._max_occupancy,
-            "max_producer_occupancy": self._max_producer_occupancy,
-            "occupancy_histogram": list(self._histogram),
-            "pops": self._pops,
-            "pushes": self._pushes,
-            "width_bits": self.width_bits,
-        }
+        return fifo_counts(
+            pushes=self._pushes, pops=self._pops, depth=self.depth, width_bits=self.width_bits,
+            max_occupancy=self._max_occupancy,
+            max_producer_occupancy=self._max_producer_occupancy, histogram=self._histogram,
+            cycles_full=self._cycles_full, cycles_empty=self._cycles_empty)

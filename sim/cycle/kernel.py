@@ -16,7 +16,9 @@ from sim.cycle.clock import (
     ClockDomain,
     DeadlockError,
     KernelError,
+    budget_message,
     check_int,
+    stop_message,
     watchdog_message,
 )
 from sim.cycle.fifo import Fifo
@@ -138,34 +140,16 @@ class Simulator:
             "steps": self.steps,
         }
 
-    def _state(self) -> tuple[dict, dict, str, str]:
+    def _state(self) -> tuple[dict, dict]:
         fifos = {f.name: {"occupancy": f.occupancy, "depth": f.depth} for f in self._fifos.values()}
         blocks = {
             b.name: {"status": b.status, "waiting_on": b.waiting_on} for b in self._blocks.values()
         }
-        fifo_words = []
-        for name, st in fifos.items():
-            occ, depth = st["occupancy"], st["depth"]
-            tag = " full" if occ >= depth else " empty" if occ == 0 else ""
-            fifo_words.append(f"{name} {occ}/{depth}{tag}")
-        block_words = []
-        for name, st in blocks.items():
-            if st["waiting_on"] is not None:
-                fname, kind = st["waiting_on"]
-                block_words.append(f"{name} {st['status']} on {fname} ({kind})")
-            else:
-                block_words.append(f"{name} {st['status'] or 'never clocked'}")
-        return (
-            fifos,
-            blocks,
-            "fifo " + (", ".join(fifo_words) or "none"),
-            "blocks: " + (", ".join(block_words) or "none"),
-        )
+        return fifos, blocks
 
     def _stop(self, cls, head: str, tail: str):
-        fifos, blocks, fifo_text, block_text = self._state()
-        cyc = ", ".join(f"{d} {n}" for d, n in self._cycles.items())
-        msg = f"{head} at t={self.now_fs} fs (cycles run: {cyc}): {fifo_text}; {block_text}; {tail}"
+        fifos, blocks = self._state()
+        msg = stop_message(head, self.now_fs, dict(self._cycles), fifos, blocks, tail)
         return cls(msg, time_fs=self.now_fs, cycles=self.cycles, fifos=fifos, blocks=blocks)
 
     # ---- running -----------------------------------------------------------------------------
@@ -259,12 +243,8 @@ class Simulator:
             t = min(self._next_fs.values()) if self._domains else 0
             for d, limit in budget.items():
                 if self._next_fs[d] == t and self._cycles[d] - start[d] >= limit:
-                    raise self._stop(
-                        BudgetExceeded,
-                        "cycle budget exceeded",
-                        f"{d} ran its budget of {limit} cycles before the until condition held: "
-                        "raise budget_cycles or check the until condition",
-                    )
+                    raise self._stop(BudgetExceeded, "cycle budget exceeded",
+                                     budget_message(d, limit))
             if self.step():
                 last_progress = t
             elif (watchdog_cycles is not None and t - last_progress >= watchdog_cycles * p_max

@@ -1,43 +1,54 @@
-"""One frame on the engine ``sim.engine`` selects (the one place that decides)."""
+"""One frame of the cycle model on the engine ``sim.engine`` selects -- the one place that
+decides which engine runs.
+
+- ``readable``: the reference kernel (:mod:`sim.cycle.chip`), edge by edge, ~1e5 cycles/s;
+- ``fast``: the compiled engine (:mod:`sim.cycle.engine`), millions of cycles/s: completing
+  runs, traces and runs that stop, with the readable kernel's words, report, statistics,
+  traces and messages;
+- ``auto`` (the default): the compiled engine, unless the run asks for what only the readable
+  kernel does -- a shuffled evaluation order, or a sink stall given as a Python function rather
+  than a periodic pattern; then the readable kernel, and the report's ``engine_reason`` says
+  why.
+"""
 
 from __future__ import annotations
 
 import numpy as np
 
-from sim.config import ChipConfig
-from sim.cycle.chip import run_cycle
-from sim.cycle.fast import run_cycle_fast
-from sim.cycle.schedule import run_schedule
+from sim.cycle.chip import FrameResult, run_readable
+from sim.cycle.engine.run import run_compiled
+from sim.cycle.plan import ChipPlan
+from sim.errors import ConfigError
+
+ENGINES = ("auto", "fast", "readable")
 
 
-def fast_engine_models(cfg: ChipConfig) -> bool:
-    """The compiled steps (sim/fast.py) cover one NNA submodule per camera; the schedule engine
-    (sim/schedule.py) covers splits too."""
-    return cfg.nna.stereo_submodules == 2
+def _needs_readable(sink_stall, order_seed) -> str | None:
+    if order_seed is not None:
+        return "a shuffled evaluation order (order_seed) runs on the readable kernel"
+    if callable(sink_stall):
+        return ("a sink stall given as a function runs on the readable kernel (the compiled "
+                "engine takes a periodic pattern (period, allowed_phase))")
+    return None
 
 
-def simulate(left: np.ndarray, right: np.ndarray, cfg: ChipConfig) -> tuple[np.ndarray, dict]:
-    """One frame on the engine ``sim.engine`` selects: (output words, cycle report).
-
-    ``readable``: the reference kernel. ``fast`` and ``auto``: the compiled engine -- the
-    schedule engine for a frame that completes, the compiled steps (one submodule per camera)
-    or the readable kernel (splits) for one that stops early, which they report exactly. Every
-    engine gives identical words, reports and statistics (tests/sim/test_fast.py,
-    tests/sim/test_schedule.py); the readable one runs ~5e4 cycles/s, the others millions.
-    """
-    engine = "readable" if cfg.sim.engine == "readable" else "fast"
-    if engine == "fast" and fast_engine_models(cfg):
-        words, report, _ = run_cycle_fast(left, right, cfg)
-    else:
-        done = None
-        if engine == "fast":
-            done = run_schedule(left, right, cfg)
-        if done is None:
-            engine = "readable"
-            words, report, _ = run_cycle(left, right, cfg)
-        else:
-            words, report, _ = done
-    report["engine"] = engine
-    return words, report
-
-
+def simulate(plan: ChipPlan, left: np.ndarray, right: np.ndarray, *, sink_stall=None,
+             window: tuple[int, int] | None = None, order_seed=None) -> FrameResult:
+    """One frame of ``plan``: words, cycle report (with ``engine``), statistics, row instants
+    and, with ``window`` = (start_fs, end_fs), the trace of that window. ``sink_stall``:
+    ``(period, allowed_phase)`` (or, readable kernel only, a function of the cycle that
+    returns True when the sink refuses to pop)."""
+    engine = plan.cfg.sim.engine
+    reason = _needs_readable(sink_stall, order_seed)
+    if engine == "fast" and reason is not None:
+        raise ConfigError(f"sim.engine=fast: {reason}; use sim.engine=auto or readable")
+    if engine == "readable" or reason is not None:
+        result = run_readable(plan, left, right, sink_stall=sink_stall, window=window,
+                              order_seed=order_seed)
+        result.report["engine"] = "readable"
+        if engine == "auto":
+            result.report["engine_reason"] = reason
+        return result
+    result = run_compiled(plan, left, right, sink_stall=sink_stall, window=window)
+    result.report["engine"] = "fast"
+    return result

@@ -5,10 +5,11 @@ import pytest
 
 from sim.api import run
 from sim.config import load_config
-from sim.cycle.blocks.sources import CameraOverflow
 from sim.cycle.chip import run_cycle
 from sim.cycle.clock import DeadlockError
-from sim.cycle.schedule import run_schedule
+from sim.cycle.engine.run import run_compiled
+from sim.cycle.plan import build_plan
+from sim.cycle.stops import CameraOverflow
 
 # Equal NNA and SVA clocks make the crossing easy to count by hand: an item pushed at NNA cycle
 # t is visible at SVA cycle t + 2 (latency 1 + synchroniser 2 - 1, edges coinciding).
@@ -24,16 +25,17 @@ def _pair(h, w, seed=0, shift=3):
 
 def _frame(engine, left, right, cfg):
     """(words, report, sink's first and last pop cycle) on the readable kernel or on the
-    schedule engine (sim/schedule.py), which computes the same cycles without stepping."""
+    compiled engine (sim/cycle/engine), which computes the same cycles from the event
+    streams."""
     if engine == "readable":
         words, report, chip = run_cycle(left, right, cfg)
         return words, report, chip.sink.first_cycle, chip.sink.last_cycle
-    words, report, _ = run_schedule(left, right, cfg)
-    cyc = report["cycles"]
-    return words, report, cyc["first_output"]["sva"], cyc["last_output"]["sva"]
+    frame = run_compiled(build_plan(cfg, left.shape), left, right)
+    cyc = frame.report["cycles"]
+    return frame.words, frame.report, cyc["first_output"]["sva"], cyc["last_output"]["sva"]
 
 
-@pytest.mark.parametrize("engine", ["readable", "schedule"])
+@pytest.mark.parametrize("engine", ["readable", "compiled"])
 @pytest.mark.parametrize("h, w", [(11, 37), (7, 41), (5, 33)])
 def test_census_first_and_last_output_cycles(h, w, engine):
     """Census (1 cycle per descriptor, window half-height 1), memory at one pixel per cycle.
@@ -56,7 +58,7 @@ def test_census_first_and_last_output_cycles(h, w, engine):
     np.testing.assert_array_equal(words, run(left, right, config=cfg).disparity_fixed)
 
 
-@pytest.mark.parametrize("engine", ["readable", "schedule"])
+@pytest.mark.parametrize("engine", ["readable", "compiled"])
 @pytest.mark.parametrize("h, w", [(11, 37), (7, 41), (5, 33)])
 def test_cnn_first_and_last_output_cycles(h, w, engine):
     """CNN: ceil(81 * 32 / 288) = 9 cycles per descriptor, window half-height 4.

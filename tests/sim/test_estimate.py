@@ -130,7 +130,7 @@ def test_camera_overflow_risk_is_warned():
     (warning,) = estimate(cfg, (720, 1280))["warnings"]
     assert "merge FIFOs" in warning and "overflow" in warning and "at least 640" in warning
     cfg = load_config(overrides={"nna.descriptor": "cnn", "source.kind": "camera",
-                                 "nna.stereo_submodules": 4, "fifo.nna_to_sva_depth": 640})
+                                 "nna.stereo_submodules": 4, "fifo.nna_to_merge_depth": 640})
     assert not estimate(cfg, (720, 1280))["warnings"]
 
 

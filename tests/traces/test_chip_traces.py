@@ -13,11 +13,19 @@ import vcdvcd
 
 from sim.cli import main
 from sim.config import load_config
-from sim.cycle.chip import build_chip, frame_budget
+from sim.cycle.chip import build_chip
 from sim.cycle.clock import BudgetExceeded
-from sim.cycle.fast import run_cycle_fast
+from sim.cycle.engine.run import run_compiled
+from sim.cycle.plan import build_plan
 from sim.io import read_pfm
 from sim.tracing import TraceRequest, run_traced, write_traces
+
+
+def run_cycle_fast(left, right, cfg):
+    """The compiled engine: (words, report, statistics)."""
+    frame = run_compiled(build_plan(cfg, left.shape), left, right)
+    report = dict(frame.report, engine="fast")
+    return frame.words, report, frame.stats
 
 SHAPE = (14, 40)
 CONFIG = {"sva.disparities": 16, "nna.descriptor": "cnn", "sva.paths": 4, "sva.lr_check": True,
@@ -34,9 +42,9 @@ def _pair(shape=SHAPE, seed=3):
 def _traced(tmp_path, cfg, left, right, window=None):
     req = TraceRequest(window=window, vcd=str(tmp_path / "t.vcd"),
                        timeline=str(tmp_path / "t.json"))
-    words, report, log = run_traced(left, right, cfg, req)
+    frame, log = run_traced(build_plan(cfg, left.shape), left, right, req)
     write_traces(log, req)
-    return words, report, log, req
+    return frame.words, frame.report, log, req
 
 
 class _Wellen:
@@ -53,29 +61,35 @@ def _vcdvcd_value(vcd, name, t_fs):
     return int(vcd[name][t_fs], 2)
 
 
-def test_trace_values_equal_the_readable_kernels_state_at_sampled_instants(tmp_path):
+SPLIT = {**CONFIG, "nna.stereo_submodules": 4, "fifo.nna_to_merge_depth": 8}
+SPLIT_ROWS = {**CONFIG, "nna.stereo_submodules": 6, "nna.split": "rows",
+              "source.kind": "camera", "clocks.camera_mhz": 60}
+
+
+@pytest.mark.parametrize("over", [CONFIG, SPLIT, SPLIT_ROWS], ids=["whole", "tiles", "bands"])
+def test_trace_values_equal_the_readable_kernels_state_at_sampled_instants(tmp_path, over):
     """At SVA cycles k, the readable kernel stopped by a budget of k SVA cycles reports every
-    FIFO's occupancy and every block's status; the VCD of the compiled engine, read by pywellen
-    and by vcdvcd just before that instant, says the same."""
-    cfg = load_config(overrides=CONFIG)
+    FIFO's occupancy and every block's status after its last step; the VCD of the compiled
+    engine, read by pywellen and by vcdvcd at that step, says the same -- for a whole frame and for frames
+    split into column tiles or row bands (with their merges)."""
+    cfg = load_config(overrides=over)
     left, right = _pair()
     _, _, log, req = _traced(tmp_path, cfg, left, right)
     wellen = _Wellen(req.vcd)
     vv = vcdvcd.VCDVCD(req.vcd, store_scopes=True)
-    blocks = {"memory_left": "top.memory_left", "memory_right": "top.memory_right",
-              "nna_left": "top.nna.left.sub0", "nna_right": "top.nna.right.sub0",
-              "sva": "top.sva", "sink": "top.sink"}
+    plan = build_plan(cfg, left.shape)
+    blocks = {b.name: b.scope for b in plan.blocks}
     sva_cycles = [3, 250, 1200, 2500, 3001]
     checked = 0
     for k in sva_cycles:
         chip = build_chip(left, right, cfg)
-        budget = frame_budget(left.shape, cfg, chip.domains)
+        budget = dict(chip.plan.budget)
         budget["sva"] = k
         with pytest.raises(BudgetExceeded) as info:
-            chip.sim.run(lambda chip=chip: chip.sink.done, budget_cycles=budget,
+            chip.sim.run(chip.done, budget_cycles=budget,
                          watchdog_cycles=cfg.sim.watchdog_cycles)
         err = info.value
-        t = err.time_fs - 1  # the state every step before the instant holds
+        t = err.time_fs  # the last step run: the state the error reports holds from it on
         assert t >= log.start_fs
         for fifo, st in err.fifos.items():
             name = f"top.fifo.{fifo}.occupancy"
@@ -87,7 +101,7 @@ def test_trace_values_equal_the_readable_kernels_state_at_sampled_instants(tmp_p
             assert wellen.value(name, t) == expected
             assert _vcdvcd_value(vv, _vcdvcd_name(vv, name), t) == expected
             checked += 1
-    assert checked == 6 * len(sva_cycles)
+    assert checked == len(plan.blocks) * len(sva_cycles)
 
 
 def _vcdvcd_name(vv, dotted):
@@ -197,7 +211,6 @@ def test_cli_trace_patterns_keep_only_matching_signals(tmp_path):
         (["--vcd", "X.vcd", "--trace-window", "sva:900000000:900000001"], "after the frame"),
         (["--vcd", "X.vcd", "--trace-limit", "0.001"], "--force"),
         (["--vcd", "X.vcd", "--trace", "top.nothing.*"], "match"),
-        (["--vcd", "X.vcd", "--set", "nna.stereo_submodules=4"], "compiled engine"),
     ],
 )
 def test_bad_trace_options_fail_in_one_line_and_write_nothing(tmp_path, capsys, extra, words):

@@ -1,26 +1,23 @@
-"""The compiled engine (sim/fast.py, with its two methods: steps and the schedule engine of
-sim/schedule.py) against the readable one (sim/chip.py): same words, same cycle report, same
-kernel statistics, same errors; and its descriptor rows against the NNA kernels on whole
-images."""
+"""The compiled engine (sim/cycle/engine) against the readable kernel (sim/cycle/chip.py): same
+words, same cycle report, same kernel statistics, same errors with the same state of every FIFO
+and block."""
 
 import numpy as np
 import pytest
 
-from nna.census import census
-from nna.conv import cnn_descriptor
-from nna.descriptor import layer
 from sim.config import load_config
-from sim.cycle.blocks.sources import CameraOverflow
 from sim.cycle.chip import run_cycle
 from sim.cycle.clock import BudgetExceeded, DeadlockError
-from sim.cycle.fast import (
-    census_tables,
-    cnn_tables,
-    descriptor_row_census,
-    descriptor_row_cnn,
-    run_cycle_fast,
-)
-from sim.cycle.schedule import run_schedule
+from sim.cycle.engine.run import run_compiled
+from sim.cycle.plan import build_plan
+from sim.cycle.stops import CameraOverflow
+
+
+def run_cycle_fast(left, right, cfg, sink_stall=None):
+    """The compiled engine: (words, report, statistics)."""
+    frame = run_compiled(build_plan(cfg, left.shape), left, right, sink_stall=sink_stall)
+    return frame.words, frame.report, frame.stats
+
 
 SAME_CLOCKS = {"clocks.nna_mhz": 400, "clocks.sva_mhz": 400}
 CENSUS = {"sva.disparities": 16, "nna.descriptor": "census"}  # unless a case sets it
@@ -40,18 +37,14 @@ def _stall_fn(stall):
 
 
 def _assert_same(h, w, over, seed=0, stall=None):
-    """Both compiled methods -- the steps of this module's loop and the schedule engine that
-    ``method="auto"`` uses for a completing untraced run -- equal the readable kernel."""
+    """The compiled engine equals the readable kernel."""
     left, right = _pair(h, w, seed=seed)
     cfg = load_config(overrides={**CENSUS, **over})
     words_r, report_r, chip = run_cycle(left, right, cfg, sink_stall=_stall_fn(stall))
-    assert run_schedule(left, right, cfg, sink_stall=stall) is not None
-    for method in ("steps", "auto"):
-        words_f, report_f, stats_f = run_cycle_fast(left, right, cfg, sink_stall=stall,
-                                                    method=method)
-        np.testing.assert_array_equal(words_f, words_r)
-        assert stats_f == chip.sim.stats()
-        assert report_f == report_r
+    words_f, report_f, stats_f = run_cycle_fast(left, right, cfg, sink_stall=stall)
+    np.testing.assert_array_equal(words_f, words_r)
+    assert stats_f == chip.sim.stats()
+    assert report_f == report_r
 
 
 @pytest.mark.parametrize(
@@ -146,56 +139,24 @@ def test_camera_overflow_has_the_same_message():
     assert str(fast.value) == str(slow.value)
 
 
-def test_split_frames_are_refused_by_the_steps_with_a_pointer_to_the_engines_that_run_them():
-    from sim.errors import ConfigError
-
-    left, right = _pair(9, 35)
-    cfg = load_config(overrides={**CENSUS, "nna.stereo_submodules": 4})
-    with pytest.raises(ConfigError, match="runs on sim.cycle.chip.simulate .* or sim.engine=readable"):
-        run_cycle_fast(left, right, cfg)
-
-
-# ---- descriptor rows -----------------------------------------------------------------------
-
-
-def _rows(fn, img, *args):
-    out = np.zeros(img.shape, np.uint64)
-    for y in range(img.shape[0]):
-        fn(img, y, *args, out[y])
-    return out
-
-
 @pytest.mark.parametrize(
-    "window, kind, stride",
-    [((11, 3), "plain", 1), ((9, 7), "symmetric", 1), ((7, 7), "plain", 2),
-     ((9, 5), "symmetric", 3), ((3, 15), "plain", 2), ((1, 3), "plain", 1)],
+    "over, stall",
+    [
+        ({"nna.stereo_submodules": 4, "sim.watchdog_cycles": 500}, (1 << 40, (1 << 40) - 1)),
+        ({"nna.stereo_submodules": 6, "nna.split": "rows", "fifo.nna_to_merge_depth": 1,
+          "sim.watchdog_cycles": 300}, (1 << 40, (1 << 40) - 1)),
+        ({"nna.stereo_submodules": 4, "nna.split": "rows", "source.kind": "camera",
+          "nna.descriptor": "cnn", "clocks.camera_mhz": 400, "source.camera_hblank": 0}, None),
+    ],
 )
-@pytest.mark.parametrize("shape", [(13, 45), (1, 7), (5, 2)])
-def test_census_rows_equal_the_census_kernel(window, kind, stride, shape):
-    img = np.random.default_rng(sum(shape) + stride).integers(0, 256, shape, dtype=np.uint8)
-    img[: shape[0] // 2, : shape[1] // 3] = 77  # a flat patch: ties give zero bits
-    cfg = load_config(overrides={"nna.census.window": list(window), "nna.census.kind": kind,
-                                 "nna.census.stride": stride}).nna.census
-    offsets_a, offsets_b = census_tables(cfg)
-    got = _rows(descriptor_row_census, img, offsets_a, offsets_b)
-    np.testing.assert_array_equal(got, census(img, window, kind, stride).astype(np.uint64))
-
-
-@pytest.mark.parametrize("shape", [(13, 45), (3, 5), (10, 1)])
-def test_cnn_rows_equal_the_cnn_kernel_with_the_default_layer(shape):
-    img = np.random.default_rng(shape[0]).integers(0, 256, shape, dtype=np.uint8)
-    weights, bias, offset = layer(load_config(overrides={"nna.descriptor": "cnn"}).nna)
-    got = _rows(descriptor_row_cnn, img, *cnn_tables(weights, bias), np.int32(offset))
-    np.testing.assert_array_equal(
-        got, cnn_descriptor(img, weights, bias, offset).astype(np.uint64))
-
-
-# k = 23 is too large for exact float32 sums: the int32 path
-@pytest.mark.parametrize("channels, k", [(40, 3), (7, 5), (64, 1), (5, 21), (3, 23)])
-def test_cnn_rows_equal_the_cnn_kernel_with_random_layers(channels, k):
-    rng = np.random.default_rng(channels)
-    img = rng.integers(0, 256, (11, 23), dtype=np.uint8)
-    weights = rng.integers(-128, 128, (channels, k, k)).astype(np.int8)
-    bias = rng.integers(-5000, 5000, channels).astype(np.int32)
-    got = _rows(descriptor_row_cnn, img, *cnn_tables(weights, bias), np.int32(128))
-    np.testing.assert_array_equal(got, cnn_descriptor(img, weights, bias, 128).astype(np.uint64))
+def test_split_frames_stop_with_the_same_message(over, stall):
+    """Split frames stop as whole ones do: the same exception, message and state."""
+    left, right = _pair(25, 40, seed=18)
+    cfg = load_config(overrides={**CENSUS, **over})
+    with pytest.raises((DeadlockError, CameraOverflow)) as fast:
+        run_cycle_fast(left, right, cfg, sink_stall=stall)
+    with pytest.raises((DeadlockError, CameraOverflow)) as slow:
+        run_cycle(left, right, cfg, sink_stall=_stall_fn(stall))
+    assert type(fast.value) is type(slow.value)
+    assert str(fast.value) == str(slow.value)
+    assert getattr(fast.value, "blocks", None) == getattr(slow.value, "blocks", None)

@@ -1,0 +1,274 @@
+"""The chip plan serialised for the compiled engine: named record arrays, no magic columns.
+
+:func:`serialise` turns a :class:`~sim.cycle.plan.ChipPlan` into a :class:`Net`, the one
+argument of every kernel: the run's constants (``prm``), one record per event stream
+(``streams``: its length, how many events are known, its ring in ``ring``), per camera tile
+(``tiles``), per FIFO (``fifos``) and per block (``blocks``), the statistics the kernels
+accumulate (``acc``), the watchdog's long gaps (``gaps``) and the row instants (``rows``).
+
+Event streams (the cycle of every beat of a FIFO's producer or consumer, in beat order):
+
+- ``A`` per side: the source pushes pixel k (raster order of the frame, the source's domain);
+- ``B`` per tile: its line buffer pops input pixel i (raster order of the tile's input region);
+- ``E`` per tile: its MAC array pushes descriptor j (raster order of the tile's output region);
+- ``M`` per side, split frames only: the merge moves descriptor m (raster order);
+- ``P``: the SVA pops pair j; ``O``: it pushes word j; ``Q``: the sink pops word j.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from sim.cycle.plan import ChipPlan
+from sim.cycle.rules import FS_PER_S
+
+INF = 1 << 62
+
+# stream kinds
+S_A, S_B, S_E, S_M, S_P, S_O, S_Q = range(7)
+# FIFO kinds (how its items map onto streams)
+F_SRC, F_MERGE, F_TO_SVA, F_SINK = range(4)
+# block kinds
+K_MEMORY, K_CAMERA, K_NNA, K_MERGE, K_SVA, K_SINK = range(6)
+KIND_CODES = {"memory": K_MEMORY, "camera": K_CAMERA, "nna": K_NNA, "merge": K_MERGE,
+              "sva": K_SVA, "sink": K_SINK}
+# activities, in the order of sim.cycle.clock.ACTIVITIES
+A_BUSY, A_STARVED, A_BLOCKED, A_IDLE = range(4)
+# run outcome
+END_DONE, END_STUCK, END_CAP, END_OVERFLOW, END_WATCHDOG = range(5)
+ERR_NONE, ERR_RING, ERR_GAPS = 0, 1, 2
+
+PARAMS = np.dtype([
+    ("h", np.int64), ("w", np.int64), ("n", np.int64), ("parts", np.int64),
+    ("merge", np.int64), ("camera", np.int64), ("line_clocks", np.int64),
+    ("mem_hz", np.int64), ("mem_bps", np.int64), ("half", np.int64), ("rows", np.int64),
+    ("cpd", np.int64), ("lookahead", np.int64), ("pipe_latency", np.int64), ("cpp", np.int64),
+    ("latency", np.int64), ("stall_period", np.int64), ("stall_phase", np.int64),
+    ("per_src", np.int64), ("per_nna", np.int64), ("per_sva", np.int64), ("p_max", np.int64),
+    ("cap_fs", np.int64),  # events at instants >= cap_fs are not computed
+    ("watchdog_fs", np.int64), ("stats", np.int64),  # 1: accumulate statistics and gaps
+    # outcome
+    ("end", np.int64), ("error", np.int64), ("horizon_fs", np.int64), ("first_pop", np.int64),
+    ("iterations", np.int64),
+])
+
+STREAM = np.dtype([
+    ("kind", np.int64), ("side", np.int64), ("tile", np.int64), ("n", np.int64),
+    ("count", np.int64), ("mask", np.int64), ("off", np.int64), ("period", np.int64),
+    ("block", np.int64),
+])
+
+TILE = np.dtype([
+    ("side", np.int64), ("t", np.int64), ("x0", np.int64), ("x1", np.int64), ("y0", np.int64),
+    ("y1", np.int64), ("ix0", np.int64), ("ix1", np.int64), ("iy0", np.int64), ("iy1", np.int64),
+    ("iw", np.int64), ("ow", np.int64), ("n_in", np.int64), ("n_out", np.int64),
+    ("top_halo", np.int64), ("b", np.int64), ("e", np.int64), ("src_fifo", np.int64),
+    ("out_fifo", np.int64), ("block", np.int64),
+])
+
+FIFO = np.dtype([
+    ("kind", np.int64), ("side", np.int64), ("tile", np.int64), ("depth", np.int64),
+    ("data_edges", np.int64), ("space_edges", np.int64), ("per_src", np.int64),
+    ("per_dst", np.int64), ("push", np.int64), ("pop", np.int64), ("width", np.int64),
+    ("crossing", np.int64), ("items", np.int64),
+])
+
+BLOCK = np.dtype([
+    ("kind", np.int64), ("side", np.int64), ("tile", np.int64), ("period", np.int64),
+    ("fifo_in", np.int64), ("fifo_in2", np.int64), ("fifo_out", np.int64),
+])
+
+# statistics accumulated while the events are computed (and by the walkers behind them)
+ACC = np.dtype([
+    ("blocked", np.int64), ("starved", np.int64),  # blocks
+    ("empty", np.int64),  # FIFOs: consumer cycles without a visible head, up to the last pop
+    ("last_pop", np.int64),  # merge FIFOs: the merge's last pop of each tile FIFO
+    ("walk", np.int64),  # walkers: the next event / beat to settle
+    ("ptr", np.int64),  # walkers: a pointer into the stream they count in
+    ("prev", np.int64),  # walkers: the previous beat's event
+    ("last_busy", np.int64),  # the block's last busy instant so far (fs)
+    ("over_cycle", np.int64), ("over_k", np.int64), ("over_tile", np.int64),  # a camera's
+    ("gaps", np.int64),  # long gaps kept (Net.gaps)
+])
+
+# a FIFO's occupancy walk: consumer timeline (histogram) and producer timeline (crossing)
+WALK = np.dtype([
+    ("inc", np.int64), ("dec", np.int64), ("cycle", np.int64), ("level", np.int64),
+    ("top", np.int64), ("at_depth", np.int64), ("hoff", np.int64),
+])
+
+
+class Net(NamedTuple):
+    prm: np.ndarray  # PARAMS, one record
+    streams: np.ndarray  # STREAM
+    ring: np.ndarray  # int64: every stream's ring
+    tiles: np.ndarray  # TILE, side-major
+    fifos: np.ndarray  # FIFO, in plan order
+    blocks: np.ndarray  # BLOCK, in plan order
+    acc: np.ndarray  # ACC: per block (0 .. B-1), then per FIFO (B .. B+F-1)
+    walks: np.ndarray  # WALK: per FIFO the consumer walk, then per FIFO the producer walk
+    hist: np.ndarray  # int64: the FIFOs' occupancy histograms (WALK.hoff)
+    gaps: np.ndarray  # int64 (blocks, capacity, 2): long gaps (start_fs, end_fs) between
+    # busy instants, per block; ACC.gaps counts them
+    rows: np.ndarray  # int64 (2, H + 1): row instants (sim.cycle.chip.Chip.row_times)
+    scratch: np.ndarray  # int64 (tiles per camera, 14): per-tile tables of a kernel call
+
+
+class TraceData(NamedTuple):
+    """What a traced window shows of the data: both views' descriptors (2, H, W) uint64, the
+    output words (H, W) int32 and the output word's mask."""
+
+    desc: np.ndarray
+    words: np.ndarray
+    word_mask: np.int64
+
+
+def _pow2(n: int) -> int:
+    return 1 << max(4, int(n - 1).bit_length())
+
+
+def ring_capacity(plan: ChipPlan, scale: int = 1) -> int:
+    """Events each ring keeps: enough for every reader of a stream (the chip's storage -- line
+    buffer and SVA row windows, FIFO depths -- bounds how far one stream runs ahead of another);
+    a pass that still reads an overwritten event says so and is rerun with larger rings."""
+    cfg = plan.cfg
+    h, w = plan.shape
+    half = max(b.half for b in plan.blocks_of("nna"))
+    la = plan.block("sva").lookahead
+    depths = sum(f.depth for f in plan.fifos)
+    band = max(t.in_shape[0] for t in plan.tiles) if cfg.nna.split == "rows" else 0
+    rows = cfg.nna.line_buffer_rows + half + la + 6 + band
+    return min(_pow2(scale * (2 * rows * w + 2 * depths + 4096)), _pow2(h * w + 1))
+
+
+def serialise(plan: ChipPlan, *, sink_stall=None, cap_fs: int = INF, stats: bool = True,
+              capacity: int | None = None, gap_capacity: int = 64) -> tuple[Net, dict]:
+    """The :class:`Net` of ``plan`` and the names behind its indices."""
+    cfg = plan.cfg
+    h, w = plan.shape
+    n = h * w
+    doms = plan.domains
+    block_index = {b.name: i for i, b in enumerate(plan.blocks)}
+    fifo_index = {f.name: i for i, f in enumerate(plan.fifos)}
+    cap = capacity or ring_capacity(plan)
+    parts = plan.parts
+    # streams
+    specs = []  # (kind, side, tile, n, period, block)
+    a_id, b_id, e_id, m_id = {}, {}, {}, {}
+    for s in range(2):
+        src = next(b for b in plan.blocks if b.kind in ("memory", "camera") and b.side == s)
+        a_id[s] = len(specs)
+        specs.append((S_A, s, -1, n, doms[src.domain].period_fs, block_index[src.name]))
+    nna = [b for b in plan.blocks if b.kind == "nna"]
+    for b in nna:
+        t = plan.tiles.index(b.tile) if parts > 1 else 0
+        tile = b.tile
+        b_id[b.side, t] = len(specs)
+        specs.append((S_B, b.side, t, tile.in_shape[0] * tile.in_shape[1],
+                      doms["nna"].period_fs, block_index[b.name]))
+        e_id[b.side, t] = len(specs)
+        specs.append((S_E, b.side, t, tile.shape[0] * tile.shape[1], doms["nna"].period_fs,
+                      block_index[b.name]))
+    if parts > 1:
+        for s in range(2):
+            m_id[s] = len(specs)
+            specs.append((S_M, s, -1, n, doms["nna"].period_fs,
+                          block_index[f"merge_{('left', 'right')[s]}"]))
+    p_id = len(specs)
+    specs.append((S_P, -1, -1, n, doms["sva"].period_fs, block_index["sva"]))
+    specs.append((S_O, -1, -1, n, doms["sva"].period_fs, block_index["sva"]))
+    specs.append((S_Q, -1, -1, n, doms["sva"].period_fs, block_index["sink"]))
+    streams = np.zeros(len(specs), STREAM)
+    for i, (kind, side, tile, count, period, blk) in enumerate(specs):
+        size = min(cap, _pow2(count + 1))
+        streams[i] = (kind, side, tile, count, 0, size - 1, 0, period, blk)
+    streams["off"][1:] = np.cumsum(streams["mask"] + 1)[:-1]
+    ring = np.zeros(int((streams["mask"] + 1).sum()), np.int64)
+    # tiles
+    tiles = np.zeros(2 * parts, TILE)
+    for b in nna:
+        t = plan.tiles.index(b.tile) if parts > 1 else 0
+        tl = b.tile
+        fi = fifo_index[b.inputs[0]]
+        fo = fifo_index[b.outputs[0]]
+        tiles[b.side * parts + t] = (
+            b.side, t, tl.x0, tl.x1, tl.y0, tl.y1, tl.in_x0, tl.in_x1, tl.in_y0, tl.in_y1,
+            tl.in_x1 - tl.in_x0, tl.x1 - tl.x0, tl.in_shape[0] * tl.in_shape[1],
+            tl.shape[0] * tl.shape[1], tl.top_halo, b_id[b.side, t], e_id[b.side, t], fi, fo,
+            block_index[b.name])
+    # FIFOs
+    fifos = np.zeros(len(plan.fifos), FIFO)
+    for i, f in enumerate(plan.fifos):
+        prod, cons = plan.block(f.producer), plan.block(f.consumer)
+        if cons.kind == "nna":
+            t = plan.tiles.index(cons.tile) if parts > 1 else 0
+            kind, side, push, pop = F_SRC, cons.side, a_id[cons.side], b_id[cons.side, t]
+        elif cons.kind == "merge":
+            t = plan.tiles.index(prod.tile)
+            kind, side, push, pop = F_MERGE, cons.side, e_id[prod.side, t], m_id[prod.side]
+        elif cons.kind == "sva":
+            t = -1
+            side = prod.side
+            push = m_id[side] if parts > 1 else e_id[side, 0]
+            kind, pop = F_TO_SVA, p_id
+        else:
+            kind, side, t, push, pop = F_SINK, -1, -1, p_id + 1, p_id + 2
+        fifos[i] = (kind, side, t, f.depth, f.data_edges, f.space_edges,
+                    doms[f.src].period_fs, doms[f.dst].period_fs, push, pop, f.width_bits,
+                    1 if f.crossing else 0, f.beats)
+    blocks = np.zeros(len(plan.blocks), BLOCK)
+    for i, b in enumerate(plan.blocks):
+        t = plan.tiles.index(b.tile) if b.kind == "nna" and parts > 1 else (
+            0 if b.kind == "nna" else -1)
+        blocks[i] = (KIND_CODES[b.kind], -1 if b.side is None else b.side, t,
+                     doms[b.domain].period_fs,
+                     fifo_index[b.inputs[0]] if b.inputs else -1,
+                     fifo_index[b.inputs[1]] if len(b.inputs) > 1 and b.kind == "sva" else -1,
+                     fifo_index[b.outputs[0]] if b.outputs else -1)
+    prm = np.zeros(1, PARAMS)
+    p = prm[0]
+    p["h"], p["w"], p["n"], p["parts"] = h, w, n, parts
+    p["merge"] = 1 if parts > 1 else 0
+    p["camera"] = 1 if plan.camera else 0
+    src = plan.blocks_of("camera" if plan.camera else "memory")[0]
+    p["line_clocks"] = src.line_clocks
+    p["mem_hz"] = round(doms[plan.source_domain].freq_hz)
+    p["mem_bps"] = src.bytes_per_s
+    sub = plan.blocks_of("nna")[0]
+    p["half"], p["rows"], p["cpd"] = sub.half, sub.rows, sub.cycles
+    sva = plan.block("sva")
+    p["lookahead"], p["pipe_latency"], p["cpp"] = sva.lookahead, sva.latency, sva.cycles
+    p["latency"] = cfg.fifo.latency_cycles
+    period, phase = (0, 0) if sink_stall is None else sink_stall
+    p["stall_period"], p["stall_phase"] = period, phase
+    p["per_src"] = doms[plan.source_domain].period_fs
+    p["per_nna"], p["per_sva"] = doms["nna"].period_fs, doms["sva"].period_fs
+    p["p_max"] = plan.p_max_fs
+    p["cap_fs"] = cap_fs
+    p["watchdog_fs"] = plan.watchdog_fs
+    p["stats"] = 1 if stats else 0
+    acc = np.zeros(len(plan.blocks) + len(plan.fifos), ACC)
+    acc["last_pop"] = -1
+    acc["over_cycle"] = INF
+    acc["prev"] = -1
+    acc["last_busy"] = -plan.p_max_fs  # the watchdog counts from one slowest period before 0
+    walks = np.zeros(2 * len(plan.fifos), WALK)
+    hoff = 0
+    for i, f in enumerate(plan.fifos):
+        walks[i]["hoff"] = hoff
+        hoff += f.depth + 1
+    hist = np.zeros(hoff, np.int64)
+    gaps = np.zeros((len(plan.blocks), gap_capacity, 2), np.int64)
+    rows = np.full((2, h + 1), -1, np.int64)
+    rows[:, 0] = 0
+    names = {"streams": specs, "a": a_id, "b": b_id, "e": e_id, "m": m_id, "p": p_id,
+             "block_index": block_index, "fifo_index": fifo_index}
+    scratch = np.zeros((parts, 14), np.int64)
+    return Net(prm, streams, ring, tiles, fifos, blocks, acc, walks, hist, gaps, rows,
+               scratch), names
+
+
+def seconds(fs: int) -> float:
+    return fs / FS_PER_S

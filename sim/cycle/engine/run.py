@@ -1,0 +1,315 @@
+"""The compiled engine's driver: one frame from the plan, with the readable kernel's results.
+
+:func:`run_compiled` computes the event streams of the frame (:mod:`.streams`) with the
+statistics behind them (:mod:`.walkers`), decides how the run ends -- the sink has the frame, a
+camera overflows, the cycle budget runs out, or the watchdog fires in a stretch in which no
+block is busy (the intersection of every block's long gaps) -- and returns the words, the report
+and the statistics the readable kernel gives, or raises the exception it raises with the same
+one-line message and the same state of every FIFO and block (recomputed by a second pass that
+stops at that instant; :mod:`.replay` reads the state off the events). A traced window is
+recorded the same way: a pass that stops at the window's end keeps every event of the window
+and :func:`.replay.record_window` samples every signal at every clock edge in it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from nna.descriptor import compute_descriptor
+from sim.cycle.chip import FrameResult, trace_clocks, trace_signals
+from sim.cycle.clock import (
+    ACTIVITIES,
+    BudgetExceeded,
+    DeadlockError,
+    activity_counts,
+    budget_message,
+    count_instants,
+    fifo_counts,
+    stop_message,
+    watchdog_message,
+)
+from sim.cycle.engine.layout import (
+    END_DONE,
+    END_OVERFLOW,
+    ERR_GAPS,
+    ERR_NONE,
+    INF,
+    Net,
+    TraceData,
+    ring_capacity,
+    serialise,
+)
+from sim.cycle.engine.replay import block_status, count_le, next_instant, record_window, sample
+from sim.cycle.engine.replay import fifo_counts as fifo_state
+from sim.cycle.engine.streams import run_pass
+from sim.cycle.engine.walkers import finish_fifos, note_camera, pop_cycle
+from sim.cycle.plan import ChipPlan
+from sim.cycle.report import cycle_report
+from sim.cycle.stops import CameraOverflow, overflow_message
+from sva.pipeline import sva_stream
+from traces.log import TraceLog
+
+
+@njit(cache=True)
+def first_quiet(net, periods, end_fs):
+    """The first instant before ``end_fs`` at which the watchdog fires: a clock edge at least
+    the watchdog's time after the last busy instant of every block, before the next one.
+    Returns (that instant, the last busy instant before it) or (INF, 0)."""
+    g = net.prm[0].watchdog_fs
+    nb = net.gaps.shape[0]
+    ptr = np.zeros(nb, np.int64)
+    while True:
+        lo = -(1 << 62)
+        hi = INF
+        arg = -1
+        for b in range(nb):
+            if ptr[b] < net.acc[b].gaps:
+                u, v = net.gaps[b, ptr[b], 0], net.gaps[b, ptr[b], 1]
+            else:
+                u, v = net.acc[b].last_busy, INF
+            if u > lo:
+                lo = u
+            if v < hi or arg < 0:
+                if v < hi:
+                    hi = v
+                arg = b if v <= hi else arg
+        if hi - lo > g:
+            t = INF
+            x = max(0, lo + g)  # (edges start at t = 0)
+            for per in periods:
+                e = -(-x // per) * per
+                if e < t:
+                    t = e
+            if t < hi and t < end_fs:
+                return t, lo
+        if hi >= INF:
+            return INF, 0
+        # the gap that ends first cannot meet any later one
+        for b in range(nb):
+            v = net.gaps[b, ptr[b], 1] if ptr[b] < net.acc[b].gaps else INF
+            if v == hi:
+                ptr[b] += 1
+                break
+
+
+def _pass(plan: ChipPlan, sink_stall, cap_fs: int, stats: bool, capacity: int | None = None):
+    """One pass over the streams; reruns with larger rings (or room for more long gaps) if one
+    was too small."""
+    cap = capacity or ring_capacity(plan)
+    gap_cap = 64
+    while True:
+        net, names = serialise(plan, sink_stall=sink_stall, cap_fs=cap_fs, stats=stats,
+                               capacity=cap, gap_capacity=gap_cap)
+        if stats:
+            for i, b in enumerate(plan.blocks):
+                if b.kind == "camera":
+                    note_camera(net, i, plan.shape[0], b.line_clocks)
+        ids = np.array([names["p"], names["fifo_index"]["nna_left_to_sva"],
+                        names["fifo_index"]["nna_right_to_sva"],
+                        names["fifo_index"]["sva_to_sink"]], np.int64)
+        run_pass(net, ids)
+        error = net.prm[0]["error"]
+        if error == ERR_NONE:
+            return net, names
+        if error == ERR_GAPS:
+            gap_cap *= 16
+        else:
+            cap *= 4
+
+
+def _last(net: Net, s: int) -> int:
+    st = net.streams[s]
+    return int(net.ring[st["off"] + ((st["count"] - 1) & st["mask"])])
+
+
+def _budget_instant(plan: ChipPlan) -> int:
+    return min(plan.budget[d] * dom.period_fs for d, dom in plan.domains.items())
+
+
+def _periods(plan: ChipPlan) -> np.ndarray:
+    return np.array([d.period_fs for d in plan.domains.values()], np.int64)
+
+
+# ---- a run that completes -----------------------------------------------------------------------
+
+
+def _stats(plan: ChipPlan, net: Net, names: dict, t_end: int) -> dict:
+    h, w = plan.shape
+    n = h * w
+    per = {name: d.period_fs for name, d in plan.domains.items()}
+    cycles = {name: t_end // p + 1 for name, p in per.items()}
+    nf = len(plan.fifos)
+    fcyc = np.array([[cycles[f.dst], cycles[f.src]] for f in plan.fifos], np.int64)
+    finish_fifos(net, fcyc)
+    prm = net.prm[0]
+    blocks = {}
+    for i, b in enumerate(plan.blocks):
+        acc = net.acc[i]
+        c_d = cycles[b.domain]
+        if b.kind == "memory":
+            active = _last(net, names["a"][b.side]) + 1
+            blocks[b.name] = activity_counts(active - acc["blocked"], 0, acc["blocked"],
+                                             c_d - active)
+        elif b.kind == "camera":
+            busy = min(c_d, h * b.line_clocks)
+            blocks[b.name] = activity_counts(busy, 0, 0, c_d - busy)
+        elif b.kind in ("nna", "sva"):
+            s = net.blocks[i]
+            stream = (names["e"][b.side, max(0, int(s["tile"]))] if b.kind == "nna"
+                      else names["p"] + 1)
+            active = _last(net, stream) + 1
+            blocks[b.name] = activity_counts(active - acc["starved"] - acc["blocked"],
+                                             acc["starved"], acc["blocked"], c_d - active)
+        elif b.kind == "merge":
+            active = _last(net, names["m"][b.side]) + 1
+            blocks[b.name] = activity_counts(n, acc["starved"], acc["blocked"], c_d - active)
+        else:
+            q_last = _last(net, names["p"] + 2)
+            period, phase = int(prm["stall_period"]), int(prm["stall_phase"])
+            allowed = c_d if period == 0 else (q_last - phase) // period + 1 \
+                if q_last >= phase else 0
+            blocks[b.name] = activity_counts(n, allowed - n, 0, c_d - allowed)
+    fifos = {}
+    for k, f in enumerate(plan.fifos):
+        wk = net.walks[nf + k] if f.crossing else net.walks[k]
+        hist = net.hist[net.walks[k]["hoff"]:net.walks[k]["hoff"] + f.depth + 1]
+        last_pop = int(pop_cycle(net, k, f.beats - 1))
+        fifos[f.name] = fifo_counts(
+            pushes=f.beats, pops=f.beats, depth=f.depth, width_bits=f.width_bits,
+            max_occupancy=int(np.flatnonzero(hist).max()), max_producer_occupancy=wk["top"],
+            histogram=hist, cycles_full=wk["at_depth"],
+            cycles_empty=net.acc[len(plan.blocks) + k]["empty"] + cycles[f.dst] - 1 - last_pop)
+    return {
+        "blocks": {b: blocks[b] for b in sorted(blocks)},
+        "cycles": {name: int(cycles[name]) for name in sorted(cycles)},
+        "end_time_fs": int(t_end),
+        "fifos": {name: fifos[name] for name in sorted(fifos)},
+        "steps": count_instants([(0, per[name], cycles[name]) for name in per]),
+    }
+
+
+# ---- a run that stops ---------------------------------------------------------------------------
+
+
+def _stop(plan: ChipPlan, sink_stall, cls, now_fs: int, executed: int, tail: str):
+    """The exception the readable kernel raises at ``now_fs`` (the last executed step;
+    ``executed``: steps before this instant are executed, and this one too if ``executed`` is
+    ``now_fs + 1``), with the state of every FIFO and block."""
+    net, _ = _pass(plan, sink_stall, executed, False)
+    cycles = {name: (executed - 1) // d.period_fs + 1 for name, d in plan.domains.items()}
+    fifos = {}
+    for k, f in enumerate(plan.fifos):
+        pushes, pops, _, _, _ = fifo_state(net, k, now_fs)
+        fifos[f.name] = {"occupancy": int(pushes - pops), "depth": f.depth}
+    blocks = {}
+    for i, b in enumerate(plan.blocks):
+        act, wait = block_status(net, i, now_fs // plan.domains[b.domain].period_fs)
+        status = ACTIVITIES[act]
+        waiting = None
+        if wait >= 0:
+            waiting = (plan.fifos[wait].name, "full" if status == "blocked" else "empty")
+        blocks[b.name] = {"status": status, "waiting_on": waiting}
+    msg = stop_message("deadlock" if cls is DeadlockError else "cycle budget exceeded", now_fs,
+                       cycles, fifos, blocks, tail)
+    return cls(msg, time_fs=now_fs, cycles=dict(sorted(cycles.items())), fifos=fifos,
+               blocks=blocks)
+
+
+def _raise_stop(plan: ChipPlan, net: Net, names: dict, sink_stall, t_end: int) -> None:
+    """Raise the exception of the earliest stop before ``t_end`` (INF: the run did not end),
+    if any: the budget (checked before a step), a camera overflow (in a step), the watchdog
+    (after a step)."""
+    t_budget = _budget_instant(plan)
+    t_over = INF
+    over = []
+    if net.prm[0]["end"] == END_OVERFLOW:
+        for i, b in enumerate(plan.blocks):
+            acc = net.acc[i]
+            if b.kind == "camera" and acc["over_cycle"] < INF:
+                t = int(acc["over_cycle"]) * plan.domains[b.domain].period_fs
+                k = int(acc["over_k"])
+                entry = (t, b.name, plan.fifos[int(net.tiles[acc["over_tile"]]["src_fifo"])].name,
+                         k % plan.shape[1], k // plan.shape[1], int(acc["over_cycle"]))
+                over.append(entry)
+        t_over = min(e[0] for e in over)
+    limit = min(t_end, t_budget, t_over)
+    t_dog, quiet_from = first_quiet(net, _periods(plan), limit)
+    if t_budget <= min(t_end, t_over, t_dog):
+        now = max(((t_budget - 1) // d.period_fs) * d.period_fs for d in plan.domains.values())
+        limit_d = min(plan.budget, key=lambda d: (plan.budget[d] * plan.domains[d].period_fs,
+                                                  list(plan.domains).index(d)))
+        raise _stop(plan, sink_stall, BudgetExceeded, now, t_budget,
+                    budget_message(limit_d, plan.budget[limit_d]))
+    if t_over <= t_dog and t_over < INF:
+        raise CameraOverflow(overflow_message([e[1:] for e in over if e[0] == t_over]))
+    if t_dog < INF:
+        raise _stop(plan, sink_stall, DeadlockError, t_dog, t_dog + 1,
+                    watchdog_message(t_dog - quiet_from, plan.p_max_fs))
+
+
+# ---- traces -------------------------------------------------------------------------------------
+
+
+def _trace(plan: ChipPlan, sink_stall, window: tuple[int, int], t_end: int, data) -> tuple:
+    start, end = window
+    end = min(end, t_end + 1)
+    if start > t_end:
+        return None, 0
+    periods = _periods(plan)
+    span = (end - start) // int(periods.min()) + 16
+    cap = ring_capacity(plan) + span
+    net, names = _pass(plan, sink_stall, end, False, capacity=1 << int(cap - 1).bit_length())
+    n_sig = len(plan.signals)
+    initial = np.zeros(n_sig, np.uint64)
+    if start > 0:
+        t0 = max(((start - 1) // int(p)) * int(p) for p in periods)
+        sample(net, data, t0, initial)
+    size = max(1 << 16, 4 * n_sig)
+    ctl = np.array([0, next_instant(periods, start - 1)], np.int64)
+    last = initial.copy()
+    scratch = np.zeros(n_sig, np.uint64)
+    times = np.zeros(size, np.int64)
+    ids = np.zeros(size, np.int32)
+    values = np.zeros(size, np.uint64)
+    while not record_window(net, data, periods, end, (ctl, last, times, ids, values, scratch)):
+        times = np.concatenate([times, np.zeros_like(times)])
+        ids = np.concatenate([ids, np.zeros_like(ids)])
+        values = np.concatenate([values, np.zeros_like(values)])
+    k = int(ctl[0])
+    log = TraceLog(signals=trace_signals(plan), clocks=trace_clocks(plan), start_fs=start,
+                   end_fs=end, initial=initial, times_fs=times[:k].copy(), ids=ids[:k].copy(),
+                   values=values[:k].copy())
+    per_sva = plan.domains["sva"].period_fs
+    o_s = names["p"] + 1
+    first = -(-start // per_sva)
+    outputs = count_le(net, o_s, (end - 1) // per_sva) - (count_le(net, o_s, first - 1)
+                                                          if first > 0 else 0)
+    return log, int(outputs)
+
+
+# ---- the frame ----------------------------------------------------------------------------------
+
+
+def run_compiled(plan: ChipPlan, left: np.ndarray, right: np.ndarray, *, sink_stall=None,
+                 window: tuple[int, int] | None = None) -> FrameResult:
+    """One frame on the compiled engine: the readable kernel's words, report and statistics,
+    or its exception; ``window`` = (start_fs, end_fs) records the trace of that window.
+    ``sink_stall``: ``(period, allowed_phase)``, the sink pops only in cycles ``c`` with
+    ``c % period == allowed_phase``."""
+    net, names = _pass(plan, sink_stall, _budget_instant(plan), True)
+    t_end = INF
+    if net.prm[0]["end"] == END_DONE:
+        t_end = _last(net, names["p"] + 2) * plan.domains["sva"].period_fs
+    _raise_stop(plan, net, names, sink_stall, t_end)
+    stats = _stats(plan, net, names, t_end)
+    report = cycle_report(plan, int(net.prm[0]["first_pop"]), _last(net, names["p"] + 2),
+                          stats)
+    desc = np.stack([compute_descriptor(left, plan.cfg.nna), compute_descriptor(right,
+                                                                                plan.cfg.nna)])
+    words = sva_stream(desc[0], desc[1], left, plan.cfg.sva, plan.descriptor_bits)
+    result = FrameResult(words, report, stats, net.rows.copy())
+    if window is not None:
+        data = TraceData(desc.astype(np.uint64), words, np.int64((1 << plan.word_bits) - 1))
+        result.trace, result.outputs_in_window = _trace(plan, sink_stall, window, t_end, data)
+    return result

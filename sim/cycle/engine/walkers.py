@@ -1,0 +1,517 @@
+"""The statistics the readable kernel counts edge by edge, taken from the event streams behind
+them (docs/compiled-engine.md, "statistics"):
+
+- **activity** of the MAC arrays and the SVA: a descriptor's MAC array waits for its input rows
+  in ``[e[j-1] + 1, s)`` (starved) and holds the finished descriptor in ``(s + cycles - 1,
+  e[j])`` (blocked); the SVA's word waits for its row (starved), then for its latency and
+  initiation interval (busy), then for a free slot (blocked). A pop in such a cycle makes it
+  busy, so the walker counts the pops inside those intervals;
+- **FIFO occupancy**: a walk over the merged push and pop events of the consumer's timeline
+  (the histogram at every consumer edge, the largest occupancy) and, for a FIFO that crosses
+  domains, of the producer's (the largest occupancy it sees, its cycles full);
+- **busy instants** for the watchdog: each block's gaps between busy instants longer than the
+  watchdog's time are kept (``Net.gaps``); the run's quiet stretches are where every block has
+  one (:func:`sim.cycle.engine.run.first_quiet`).
+
+A walker settles a beat only once every event it needs is known (and no unknown event can come
+before one it processes), so it runs behind the streams and finishes when they do. Like the
+streams, the loops read rings through local offsets and masks only.
+"""
+
+from __future__ import annotations
+
+from numba import njit
+
+from sim.cycle.engine.layout import ERR_GAPS, ERR_RING, F_MERGE, F_SRC, INF, K_CAMERA, K_SVA
+from sim.cycle.rules import (
+    nna_last_input_row,
+    seen_from,
+    seen_from_scaled,
+    sva_last_input_row,
+    sva_word_due,
+)
+
+NEVER = -(1 << 40)
+
+
+@njit(cache=True, inline="always")
+def _view(streams, s):
+    st = streams[s]
+    return st.off, st.mask, st.count, st.count - 1 - st.mask
+
+
+@njit(cache=True, inline="always")
+def _rd(ring, off, mask, i):
+    return ring[off + (i & mask)]
+
+
+@njit(cache=True, inline="always")
+def _busy(gaps, blk, n_gaps, last_busy, u, v, g):
+    """(n_gaps, last busy) after the block is busy over the instants u .. v (in time order)."""
+    if u - last_busy > g:
+        if n_gaps < gaps.shape[1]:
+            gaps[blk, n_gaps, 0] = last_busy
+            gaps[blk, n_gaps, 1] = u
+        n_gaps += 1
+    return n_gaps, (v if v > last_busy else last_busy)
+
+
+@njit(cache=True, inline="always")
+def _skip(ring, off, mask, ptr, limit, c):
+    """The first of the known events ptr .. limit - 1 (increasing) at or after cycle c:
+    galloping from ptr, then bisecting (cheap when the answer is near ptr)."""
+    if ptr >= limit or ring[off + (ptr & mask)] >= c:
+        return ptr
+    step = 1
+    hi = ptr + 1
+    while hi < limit and ring[off + (hi & mask)] < c:
+        ptr = hi
+        step *= 2
+        hi = ptr + step
+    if hi > limit:
+        hi = limit
+    # event ptr < c; the answer is in (ptr, hi]
+    while hi - ptr > 1:
+        mid = (ptr + hi) // 2
+        if ring[off + (mid & mask)] < c:
+            ptr = mid
+        else:
+            hi = mid
+    return hi
+
+
+@njit(cache=True, inline="always")
+def _catch_up(ring, off, mask, ptr, lowest, lo):
+    """A pointer into a ring that has moved on: jump to the ``lowest`` event it still holds if
+    everything before it is earlier than cycle ``lo`` (then nothing uncounted was lost).
+    Returns (pointer, lost: the ring was too small)."""
+    if ptr >= lowest:
+        return ptr, False
+    return lowest, ring[off + (lowest & mask)] > lo
+
+
+@njit(cache=True, inline="always")
+def _pops_in(ring, off, mask, ptr, limit, lo, hi, long, gaps, blk, n_gaps, last_busy, per, g):
+    """Count the pops in cycles [lo, hi) (skipping those before lo); inside an interval longer
+    than the watchdog's time (``long``) each is a busy instant to note. Returns (pointer past
+    them, count, n_gaps, last busy)."""
+    ptr = _skip(ring, off, mask, ptr, limit, lo)
+    first = ptr
+    if long:
+        while ptr < limit:
+            c = ring[off + (ptr & mask)]
+            if c >= hi:
+                break
+            n_gaps, last_busy = _busy(gaps, blk, n_gaps, last_busy, c * per, c * per, g)
+            ptr += 1
+    else:
+        ptr = _skip(ring, off, mask, ptr, limit, hi)
+    return ptr, ptr - first, n_gaps, last_busy
+
+
+# ---- the MAC arrays -----------------------------------------------------------------------------
+
+
+@njit(cache=True)
+def walk_nna(net, ti, final):
+    """Settle the activity of tile ``ti``'s descriptors whose every event is known (``final``:
+    the streams have stopped; a descriptor still pending works, then waits for ever). A gap in
+    the block's busy instants can only lie in a wait (for rows or for a slot), so those are the
+    only places it is looked for."""
+    prm = net.prm[0]
+    ring = net.ring
+    gaps = net.gaps
+    tl = net.tiles[ti]
+    blk = tl.block
+    a = net.acc[blk]
+    b_off, b_mask, nb, b_lo = _view(net.streams, tl.b)
+    e_off, e_mask, ne, e_lo = _view(net.streams, tl.e)
+    cpd, half, h, g = prm.cpd, prm.half, prm.h, prm.watchdog_fs
+    per = net.blocks[blk].period
+    ow, iw, y0, iy0, n_out, n_in = tl.ow, tl.iw, tl.y0, tl.iy0, tl.n_out, tl.n_in
+    j, ptr, prev = a.walk, a.ptr, a.prev
+    last_busy, n_gaps = a.last_busy, a.gaps
+    # every pop before cycle `known_until` is known
+    known_until = INF if nb >= n_in else (_rd(ring, b_off, b_mask, nb - 1) + 1 if nb > 0 else 0)
+    err = j < ne and j <= e_lo
+    starved = 0
+    blocked = 0
+    r = j // ow
+    c = j - r * ow
+    rows_row = -1
+    rows_in = INF
+    while j < n_out:
+        if r != rows_row:
+            need = (nna_last_input_row(y0 + r, half, h) - iy0 + 1) * iw
+            rows_in = _rd(ring, b_off, b_mask, need - 1) + 1 if need <= nb else INF
+            rows_row = r
+        s_j = max(prev + 1, rows_in)
+        done = s_j + cpd - 1
+        if j >= ne:
+            if final:
+                ptr, lost = _catch_up(ring, b_off, b_mask, ptr, b_lo + 1, prev + 1)
+                err |= lost
+                long = s_j == INF or (s_j - prev) * per > g
+                ptr, _, n_gaps, last_busy = _pops_in(ring, b_off, b_mask, ptr, nb, prev + 1,
+                                                     s_j, long, gaps, blk, n_gaps, last_busy,
+                                                     per, g)
+                if s_j < INF:
+                    n_gaps, last_busy = _busy(gaps, blk, n_gaps, last_busy, s_j * per,
+                                              done * per, g)
+                    _, _, n_gaps, last_busy = _pops_in(ring, b_off, b_mask, ptr, nb, done + 1,
+                                                       INF, True, gaps, blk, n_gaps,
+                                                       last_busy, per, g)
+            break
+        e = _rd(ring, e_off, e_mask, j)
+        if e > known_until:
+            break  # a pop before e may still come
+        if s_j > prev + 1:  # waiting for the row's input (phase 0)
+            ptr, lost = _catch_up(ring, b_off, b_mask, ptr, b_lo + 1, prev + 1)
+            err |= lost
+            long = (s_j - prev) * per > g
+            ptr, cnt, n_gaps, last_busy = _pops_in(ring, b_off, b_mask, ptr, nb, prev + 1,
+                                                   s_j, long, gaps, blk, n_gaps, last_busy,
+                                                   per, g)
+            starved += s_j - prev - 1 - cnt
+            n_gaps, last_busy = _busy(gaps, blk, n_gaps, last_busy, s_j * per, done * per, g)
+        if e > done + 1:  # the finished descriptor held for a free slot
+            ptr, lost = _catch_up(ring, b_off, b_mask, ptr, b_lo + 1, done + 1)
+            err |= lost
+            long = (e - done) * per > g
+            ptr, cnt, n_gaps, last_busy = _pops_in(ring, b_off, b_mask, ptr, nb, done + 1, e,
+                                                   long, gaps, blk, n_gaps, last_busy, per, g)
+            blocked += e - done - 1 - cnt
+            n_gaps, last_busy = _busy(gaps, blk, n_gaps, last_busy, e * per, e * per, g)
+        last_busy = e * per  # busy through its MAC cycles and its push
+        prev = e
+        j += 1
+        c += 1
+        if c == ow:
+            c = 0
+            r += 1
+    a.walk, a.ptr, a.prev = j, ptr, prev
+    a.starved += starved
+    a.blocked += blocked
+    a.last_busy, a.gaps = last_busy, n_gaps
+    if err:
+        prm.error = ERR_RING
+    if n_gaps > gaps.shape[1]:
+        prm.error = ERR_GAPS
+
+
+# ---- the SVA ------------------------------------------------------------------------------------
+
+
+@njit(cache=True)
+def walk_sva(net, blk, p_s, final):
+    """Settle the SVA's activity for the words whose every event is known (``final``: the
+    streams have stopped; a pending word waits for its row, its latency, then a slot). Gaps in
+    its busy instants can only lie in a wait for a row or for a slot."""
+    prm = net.prm[0]
+    ring = net.ring
+    gaps = net.gaps
+    a = net.acc[blk]
+    p_off, p_mask, npop, p_lo = _view(net.streams, p_s)
+    o_off, o_mask, no, o_lo = _view(net.streams, p_s + 1)
+    n, w, h, la = net.streams[p_s].n, prm.w, prm.h, prm.lookahead
+    lat, cpp, g = prm.pipe_latency, prm.cpp, prm.watchdog_fs
+    per = net.blocks[blk].period
+    j, ptr, prev = a.walk, a.ptr, a.prev
+    if j == 0:
+        prev = NEVER
+    last_busy, n_gaps = a.last_busy, a.gaps
+    known_until = INF if npop >= n else (_rd(ring, p_off, p_mask, npop - 1) + 1
+                                         if npop > 0 else 0)
+    err = j < no and j <= o_lo
+    starved = 0
+    blocked = 0
+    y = j // w
+    x = j - y * w
+    ready_row = -1
+    ready = INF
+    while j < n:
+        if y != ready_row:
+            need = (sva_last_input_row(y, la, h) + 1) * w
+            ready = _rd(ring, p_off, p_mask, need - 1) + 1 if need <= npop else INF
+            ready_row = y
+        lo = max(prev + 1, 0)
+        due = sva_word_due(ready, lat, prev, cpp) if ready < INF else INF
+        if j >= no:
+            if final:
+                ptr, lost = _catch_up(ring, p_off, p_mask, ptr, p_lo + 1, lo)
+                err |= lost
+                long = ready == INF or (ready - lo) * per > g
+                ptr, _, n_gaps, last_busy = _pops_in(ring, p_off, p_mask, ptr, npop, lo, ready,
+                                                     long, gaps, blk, n_gaps, last_busy, per, g)
+                if ready < INF:
+                    if due > max(lo, ready):
+                        n_gaps, last_busy = _busy(gaps, blk, n_gaps, last_busy,
+                                                  max(lo, ready) * per, (due - 1) * per, g)
+                    _, _, n_gaps, last_busy = _pops_in(ring, p_off, p_mask, ptr, npop, due, INF,
+                                                       True, gaps, blk, n_gaps, last_busy, per,
+                                                       g)
+            break
+        o = _rd(ring, o_off, o_mask, j)
+        if o > known_until:
+            break  # a pop before o may still come
+        if ready > lo:  # waiting for the word's row
+            ptr, lost = _catch_up(ring, p_off, p_mask, ptr, p_lo + 1, lo)
+            err |= lost
+            long = (ready - lo) * per > g
+            ptr, cnt, n_gaps, last_busy = _pops_in(ring, p_off, p_mask, ptr, npop, lo, ready,
+                                                   long, gaps, blk, n_gaps, last_busy, per, g)
+            starved += ready - lo - cnt
+            if due > ready:
+                n_gaps, last_busy = _busy(gaps, blk, n_gaps, last_busy, ready * per,
+                                          (due - 1) * per, g)
+        if o > due:  # the word held for a free slot
+            ptr, lost = _catch_up(ring, p_off, p_mask, ptr, p_lo + 1, due)
+            err |= lost
+            long = (o - due) * per > g
+            ptr, cnt, n_gaps, last_busy = _pops_in(ring, p_off, p_mask, ptr, npop, due, o, long,
+                                                   gaps, blk, n_gaps, last_busy, per, g)
+            blocked += o - due - cnt
+            n_gaps, last_busy = _busy(gaps, blk, n_gaps, last_busy, o * per, o * per, g)
+        last_busy = o * per
+        prev = o
+        j += 1
+        x += 1
+        if x == w:
+            x = 0
+            y += 1
+    a.walk, a.ptr, a.prev = j, ptr, prev
+    a.starved += starved
+    a.blocked += blocked
+    a.last_busy, a.gaps = last_busy, n_gaps
+    if err:
+        prm.error = ERR_RING
+    if n_gaps > gaps.shape[1]:
+        prm.error = ERR_GAPS
+
+
+# ---- the FIFOs ----------------------------------------------------------------------------------
+
+
+@njit(cache=True, inline="always")
+def tile_input_before(tl, w, k):
+    """Pixels of a tile's input region whose raster index is below k."""
+    y = k // w
+    x = k - y * w
+    if y < tl.iy0:
+        return 0
+    if y >= tl.iy1:
+        return tl.n_in
+    return (y - tl.iy0) * tl.iw + min(max(x - tl.ix0, 0), tl.iw)
+
+
+@njit(cache=True, inline="always")
+def tile_output_before(tl, w, k):
+    """Pixels of a tile's output region whose raster index is below k."""
+    y = k // w
+    x = k - y * w
+    if y < tl.y0:
+        return 0
+    if y >= tl.y1:
+        return tl.n_out
+    return (y - tl.y0) * tl.ow + min(max(x - tl.x0, 0), tl.ow)
+
+
+@njit(cache=True, inline="always")
+def item_index(kind, x0, y0, row_w, w, i):
+    """The stream index of FIFO item i: the same, or for a tile's FIFO (``kind`` F_SRC: its
+    pushes, F_MERGE: its pops) the raster index of the i-th pixel of its region, whose origin
+    is (x0, y0) and whose rows are ``row_w`` wide."""
+    if kind == F_SRC or kind == F_MERGE:
+        r = i // row_w
+        return (y0 + r) * w + x0 + i - r * row_w
+    return i
+
+
+@njit(cache=True, inline="always")
+def fifo_known(fifos, tiles, streams, parts, w, f):
+    """(items pushed, items popped) of FIFO f whose events are known."""
+    fi = fifos[f]
+    npush = streams[fi.push].count
+    npop = streams[fi.pop].count
+    if fi.kind == F_SRC:
+        npush = tile_input_before(tiles[fi.side * parts + fi.tile], w, npush)
+    elif fi.kind == F_MERGE:
+        npop = tile_output_before(tiles[fi.side * parts + fi.tile], w, npop)
+    return npush, npop
+
+
+@njit(cache=True, inline="always")
+def fifo_region(fifos, tiles, parts, f):
+    """(x0, y0, row width) of the tile region FIFO f's items map from (0s for whole-frame
+    FIFOs)."""
+    fi = fifos[f]
+    if fi.kind == F_SRC:
+        tl = tiles[fi.side * parts + fi.tile]
+        return tl.ix0, tl.iy0, tl.iw
+    if fi.kind == F_MERGE:
+        tl = tiles[fi.side * parts + fi.tile]
+        return tl.x0, tl.y0, tl.ow
+    return 0, 0, 1
+
+
+@njit(cache=True)
+def pop_cycle(net, f, i):
+    """The consumer cycle of item i's pop."""
+    fi = net.fifos[f]
+    x0, y0, row_w = fifo_region(net.fifos, net.tiles, net.prm[0].parts, f)
+    idx = item_index(fi.kind if fi.kind == F_MERGE else -1, x0, y0, row_w, net.prm[0].w, i)
+    off, mask, _, _ = _view(net.streams, fi.pop)
+    return _rd(net.ring, off, mask, idx)
+
+
+@njit(cache=True)
+def walk_fifo(net, f, producer, c_end):
+    """Advance FIFO f's occupancy walk: the consumer's timeline (``producer`` False: a push
+    counts from the first consumer edge after it, a pop from the next consumer cycle; the
+    histogram) or the producer's (a push from its next cycle, a pop once its free slot is
+    seen). Events at equal times: pushes first. ``c_end``: the walk's last edge + 1 once the
+    run is over (then everything is settled), else -1 (only what no unknown event can
+    precede)."""
+    prm = net.prm[0]
+    ring = net.ring
+    hist = net.hist
+    fi = net.fifos[f]
+    nf = net.fifos.shape[0]
+    wk = net.walks[nf + f if producer else f]
+    n = fi.items
+    w = prm.w
+    npush, npop = fifo_known(net.fifos, net.tiles, net.streams, prm.parts, w, f)
+    x0, y0, row_w = fifo_region(net.fifos, net.tiles, prm.parts, f)
+    kind = fi.kind
+    push_kind = F_SRC if kind == F_SRC else -1
+    pop_kind = F_MERGE if kind == F_MERGE else -1
+    u_off, u_mask, _, u_lo = _view(net.streams, fi.push)
+    o_off, o_mask, _, o_lo = _view(net.streams, fi.pop)
+    per_p, per_c, se, depth = fi.per_src, fi.per_dst, fi.space_edges, fi.depth
+    final = c_end >= 0
+    limit = c_end if final else INF
+    if producer and not final:
+        limit = prm.horizon_fs // per_p + 1  # no free slot counts beyond the run's end
+    keep = not producer
+    hoff = wk.hoff
+    inc, dec, cycle, level, top, at_depth = wk.inc, wk.dec, wk.cycle, wk.level, wk.top, \
+        wk.at_depth
+    # the latest known push's time: no unknown push comes before it
+    last_inc = INF
+    if npush > 0 and npush < n:
+        pc = _rd(ring, u_off, u_mask, item_index(push_kind, x0, y0, row_w, w, npush - 1))
+        last_inc = pc + 1 if producer else seen_from(pc, per_p, per_c, 1)
+    # no unknown pop counts before an unknown push (a pop follows its push), so a push is
+    # settled once as many pops as pushes before it are known; a pop once no unknown push can
+    # come at or before it
+    inc_limit = npush if final or npop == n else min(npush, npop + 1)
+    dec_before = INF if final or npush == n else last_inc
+    rat_p = per_p / per_c
+    rat_c = per_c / per_p
+    err = False
+    ti = INF
+    if inc < npush:
+        idx = item_index(push_kind, x0, y0, row_w, w, inc)
+        err |= idx <= u_lo
+        pc = _rd(ring, u_off, u_mask, idx)
+        ti = pc + 1 if producer else seen_from_scaled(pc, per_p, per_c, rat_p, 1)
+    td = INF
+    if dec < npop:
+        idx = item_index(pop_kind, x0, y0, row_w, w, dec)
+        err |= idx <= o_lo
+        cc = _rd(ring, o_off, o_mask, idx)
+        td = seen_from_scaled(cc, per_c, per_p, rat_c, se) if producer else cc + 1
+    while True:
+        if ti <= td:
+            if ti == INF or inc >= inc_limit:
+                break
+            t = ti
+        else:
+            if td >= dec_before:
+                break
+            t = td
+        if t >= limit:
+            break
+        if t > cycle:
+            if keep:
+                hist[hoff + level] += t - cycle
+            if level >= depth:
+                at_depth += t - cycle
+            cycle = t
+        if ti <= td:
+            level += 1
+            if level > top:
+                top = level
+            inc += 1
+            ti = INF
+            if inc < npush:
+                idx = item_index(push_kind, x0, y0, row_w, w, inc)
+                pc = _rd(ring, u_off, u_mask, idx)
+                ti = pc + 1 if producer else seen_from_scaled(pc, per_p, per_c, rat_p, 1)
+        else:
+            level -= 1
+            dec += 1
+            td = INF
+            if dec < npop:
+                idx = item_index(pop_kind, x0, y0, row_w, w, dec)
+                cc = _rd(ring, o_off, o_mask, idx)
+                td = seen_from_scaled(cc, per_c, per_p, rat_c, se) if producer else cc + 1
+    if final and c_end > cycle:
+        if keep:
+            hist[hoff + level] += c_end - cycle
+        if level >= depth:
+            at_depth += c_end - cycle
+        cycle = c_end
+    wk.inc, wk.dec, wk.cycle, wk.level, wk.top, wk.at_depth = inc, dec, cycle, level, top, \
+        at_depth
+    if err:
+        prm.error = ERR_RING
+
+
+# ---- all of them --------------------------------------------------------------------------------
+
+
+@njit(cache=True)
+def walk_all(net, final):
+    """Run every walker as far as it can (``final``: the streams are done or stopped; the FIFO
+    walks are finished by :func:`finish_fifos` once the run's length is known)."""
+    prm = net.prm[0]
+    horizon = 0
+    streams, ring = net.streams, net.ring
+    for s in range(streams.shape[0]):
+        off, mask, count, _ = _view(streams, s)
+        if count > 0:
+            t = _rd(ring, off, mask, count - 1) * streams[s].period
+            if t > horizon:
+                horizon = t
+    prm.horizon_fs = horizon
+    for ti in range(net.tiles.shape[0]):
+        walk_nna(net, ti, final)
+    for blk in range(net.blocks.shape[0]):
+        if net.blocks[blk].kind == K_SVA:
+            walk_sva(net, blk, net.fifos[net.blocks[blk].fifo_in].pop, final)
+    if not final:
+        for f in range(net.fifos.shape[0]):
+            walk_fifo(net, f, False, -1)
+            if net.fifos[f].crossing == 1:
+                walk_fifo(net, f, True, -1)
+
+
+@njit(cache=True)
+def finish_fifos(net, cycles):
+    """Settle every FIFO walk up to the end of a completed run: ``cycles[f]`` = (edges of its
+    consumer's domain, edges of its producer's)."""
+    for f in range(net.fifos.shape[0]):
+        walk_fifo(net, f, False, cycles[f, 0])
+        if net.fifos[f].crossing == 1:
+            walk_fifo(net, f, True, cycles[f, 1])
+
+
+@njit(cache=True)
+def note_camera(net, blk, lines, line_clocks):
+    """A camera is busy from its first to its last line's end."""
+    if net.blocks[blk].kind == K_CAMERA:
+        a = net.acc[blk]
+        per = net.blocks[blk].period
+        a.gaps, a.last_busy = _busy(net.gaps, blk, a.gaps, a.last_busy, 0,
+                                    (lines * line_clocks - 1) * per, net.prm[0].watchdog_fs)

@@ -1,0 +1,462 @@
+"""The chip plan: the one netlist of the cycle model, built once from (configuration, frame shape).
+
+A :class:`ChipPlan` names every clock domain, FIFO (depth, width, producer and consumer, their
+domains, the visibility and free-slot delays, the configuration key that sizes it), block (kind,
+domain, ports, tile, cycles per item, windows, look-ahead, latency, buffers with their capacity
+in bits), the traced signals and the run's cycle budget. The readable kernel instantiates it
+(:mod:`sim.cycle.chip`), the compiled engine serialises it into arrays
+(:mod:`sim.cycle.engine`), the analytic model walks it (:mod:`sim.cycle.estimate`), and reports
+and traces take their names from it. A derived constant or a topology fact is computed here and
+nowhere else.
+
+Topology (the order is the readable kernel's: it fixes the order of FIFOs and blocks in the
+stop messages)::
+
+    per camera side (left, right):
+        source (memory_<side> in the nna domain, or camera_<side> in its own)
+          -> src_<side>_to_nna[t]   one per submodule t (t only when the frame is split)
+        NNA submodule nna_<side>[t] -> nna_<side>_to_sva        (one submodule per camera)
+                                    -> nna_<side>t_to_merge -> merge_<side> -> nna_<side>_to_sva
+    sva (joint pop of both sides) -> sva_to_sink -> sink
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+
+from nna.descriptor import descriptor_bits, layer
+from nna.geometry import (
+    Tile,
+    check_line_buffer,
+    cycles_per_descriptor,
+    half_window,
+    macs_per_descriptor,
+    split_frame,
+    window_rows,
+)
+from sim.config import ChipConfig
+from sim.cycle.clock import ClockDomain
+from sim.cycle.rules import fifo_edges, period_fs
+from sim.errors import ConfigError
+from sva.geometry import bits_for, disparity_bits, output_word_bits, row_lookahead
+
+SIDES = ("left", "right")
+STATUS_CODES = {"idle": 0, "busy": 1, "starved": 2, "blocked": 3}  # as traced
+
+
+@dataclass(frozen=True)
+class DomainPlan:
+    """A clock domain: edge k at k * period_fs (every domain starts at t = 0)."""
+
+    name: str
+    freq_hz: float
+    period_fs: int
+
+    def clock(self) -> ClockDomain:
+        return ClockDomain(self.name, self.freq_hz)
+
+
+@dataclass(frozen=True)
+class FifoPlan:
+    """A FIFO from ``producer`` (domain ``src``) to ``consumer`` (domain ``dst``)."""
+
+    name: str
+    key: str  # the configuration key of its depth
+    depth: int
+    width_bits: int
+    producer: str
+    consumer: str
+    src: str
+    dst: str
+    latency_cycles: int
+    sync_cycles: int
+    beats: int  # items per frame
+
+    @property
+    def crossing(self) -> bool:
+        return self.src != self.dst
+
+    @property
+    def data_edges(self) -> int:
+        return fifo_edges(self.latency_cycles, self.sync_cycles, self.crossing)[0]
+
+    @property
+    def space_edges(self) -> int:
+        return fifo_edges(self.latency_cycles, self.sync_cycles, self.crossing)[1]
+
+    @property
+    def sram_bits(self) -> int:
+        return self.depth * self.width_bits
+
+
+@dataclass(frozen=True)
+class BufferPlan:
+    """A storage of a block: ``bits`` of SRAM, what it holds."""
+
+    name: str
+    bits: int
+    holds: str
+
+
+@dataclass(frozen=True)
+class BlockPlan:
+    """A block of the chip. ``kind``: memory, camera, nna, merge, sva or sink. Per kind:
+
+    - memory: ``bytes_per_s`` (token bucket), ``items`` pixels;
+    - camera: ``line_clocks`` = W + hblank, ``frame_clocks`` = (H + vblank)(W + hblank);
+    - nna: ``tile``, ``half`` (window rows above/below), ``rows`` (line buffer), ``cycles`` per
+      descriptor (the MAC array's initiation interval and latency);
+    - merge: ``items`` descriptors moved, one per cycle;
+    - sva: ``lookahead`` rows (box + median radius), ``latency`` (row ready -> first word),
+      ``cycles`` per word (initiation interval);
+    - sink: one word per cycle.
+    """
+
+    name: str
+    kind: str
+    domain: str
+    side: int | None
+    inputs: tuple[str, ...]
+    outputs: tuple[str, ...]
+    scope: str  # trace scope, e.g. "top.nna.left.sub0"
+    items: int  # beats it emits per frame (the sink: words it takes)
+    cycles: int = 1
+    latency: int = 0
+    tile: Tile | None = None
+    half: int = 0
+    rows: int = 0
+    lookahead: int = 0
+    bytes_per_s: int = 0
+    line_clocks: int = 0
+    frame_clocks: int = 0
+    buffers: tuple[BufferPlan, ...] = ()
+
+
+@dataclass(frozen=True)
+class SignalPlan:
+    """A traced signal: VCD ``path``, ``width`` in bits, clock ``domain``; the readable kernel
+    reports it as ``owner.key``."""
+
+    path: str
+    width: int
+    domain: str
+    owner: str
+    key: str
+
+
+@dataclass(frozen=True)
+class ChipPlan:
+    cfg: ChipConfig
+    shape: tuple[int, int]
+    domains: dict[str, DomainPlan]
+    fifos: tuple[FifoPlan, ...]
+    blocks: tuple[BlockPlan, ...]
+    tiles: tuple[Tile, ...]
+    budget: dict[str, int]
+    descriptor_bits: int
+    beat_bits: int  # NNA -> SVA beat: the descriptor (+ 8 bits of intensity for adaptive P2)
+    word_bits: int  # SVA output word
+    signals: tuple[SignalPlan, ...] = field(default=())
+
+    # ---- lookups ----------------------------------------------------------------------------
+
+    def fifo(self, name: str) -> FifoPlan:
+        return self._fifo_index[name]
+
+    def block(self, name: str) -> BlockPlan:
+        return self._block_index[name]
+
+    def blocks_of(self, kind: str) -> list[BlockPlan]:
+        return [b for b in self.blocks if b.kind == kind]
+
+    @cached_property
+    def _fifo_index(self) -> dict[str, FifoPlan]:
+        return {f.name: f for f in self.fifos}
+
+    @cached_property
+    def _block_index(self) -> dict[str, BlockPlan]:
+        return {b.name: b for b in self.blocks}
+
+    @property
+    def parts(self) -> int:
+        """Submodules per camera."""
+        return len(self.tiles)
+
+    @property
+    def camera(self) -> bool:
+        return self.cfg.source.kind == "camera"
+
+    @property
+    def source_domain(self) -> str:
+        return "camera" if self.camera else "nna"
+
+    @property
+    def p_max_fs(self) -> int:
+        """The slowest clock's period (the watchdog counts in it)."""
+        return max(d.period_fs for d in self.domains.values())
+
+    @property
+    def watchdog_fs(self) -> int:
+        return self.cfg.sim.watchdog_cycles * self.p_max_fs
+
+    def work_cycles(self, block: BlockPlan, busy: int) -> int:
+        """A block's work per frame, the cycles its critical resource is occupied: the MAC
+        array's descriptors x cycles (NNA), the output pipeline's words x II (SVA), one beat per
+        cycle (merge), the whole raster with blanking (camera: a camera delivers frames no
+        faster), and the cycles its port transferred (memory source: ``busy``, measured -- a
+        bandwidth-limited source that is back-pressured banks tokens while blocked)."""
+        if block.kind == "memory":
+            return busy
+        if block.kind == "camera":
+            return block.frame_clocks
+        return block.items * block.cycles
+
+
+def _nb(n: int) -> int:
+    return max(1, int(n).bit_length())
+
+
+def frame_budget(cfg: ChipConfig, shape: tuple[int, int], freqs: dict[str, float],
+                 cpd: int) -> dict[str, int]:
+    """A generous cycle budget: 20x a frame at the slowest block's rate, per domain."""
+    h, w = shape
+    per_pixel_s = max(
+        cpd / (cfg.clocks.nna_mhz * 1e6),
+        cfg.sva.cycles_per_pixel / (cfg.clocks.sva_mhz * 1e6),
+        (w + cfg.source.camera_hblank) / w / (cfg.clocks.camera_mhz * 1e6)
+        if cfg.source.kind == "camera" else 0.0,
+    )
+    frame_s = (h + 16) * w * per_pixel_s + 1e-6
+    return {name: int(20 * frame_s * f) + 100_000 for name, f in freqs.items()}
+
+
+# ---- buffers -----------------------------------------------------------------------------------
+
+
+def nna_buffers(cfg: ChipConfig, width: int) -> tuple[BufferPlan, ...]:
+    """SRAM of one NNA submodule serving input rows ``width`` pixels wide."""
+    out = [BufferPlan("nna.line_buffer", cfg.nna.line_buffer_rows * width * 8,
+                      f"{cfg.nna.line_buffer_rows} input rows x {width} pixels x 8 bits")]
+    if cfg.nna.descriptor == "cnn":
+        c, k, _ = layer(cfg.nna)[0].shape
+        out.append(BufferPlan("nna.weights", k * k * c * 8 + c * 32,
+                              f"{k}x{k}x{c} int8 weights and {c} int32 biases"))
+    return tuple(out)
+
+
+def sva_buffers(cfg: ChipConfig, width: int, bits: int, word_bits: int) -> tuple[BufferPlan, ...]:
+    """SRAM of the SVA's streaming buffers (docs/architecture.md gives each formula)."""
+    s = cfg.sva
+    d_bits = disparity_bits(s)
+    out = [
+        BufferPlan("sva.descriptor_rows", 2 * (s.box_size + 1) * width * bits,
+                   "both views' descriptor rows the box filter slides over (k + 1 each)"),
+        BufferPlan("sva.column_sums", width * s.disparities * bits_for(s.box_size * bits),
+                   "the vertical box sums, W x D"),
+        BufferPlan("sva.right_window", s.disparities * bits,
+                   "the right descriptors x - D + 1 .. x"),
+        BufferPlan("sva.sgm_previous_row",
+                   (s.paths - 1) * width * s.disparities * s.path_bits
+                   + s.disparities * s.path_bits,
+                   "the top paths' previous row and the left path's previous pixel"),
+    ]
+    if s.lr_check:
+        out.append(BufferPlan("sva.lr_window", width * (s.sum_bits + d_bits) + width * d_bits,
+                              "the LR check's diagonal search and the row's d*"))
+    if s.median > 1:
+        out.append(BufferPlan("sva.median_rows", s.median * width * word_bits,
+                              "the median's output rows"))
+    return tuple(out)
+
+
+# ---- building ----------------------------------------------------------------------------------
+
+
+def build_plan(cfg: ChipConfig, shape: tuple[int, int]) -> ChipPlan:
+    """The plan of ``cfg`` for frames of ``shape`` = (H, W). Raises ConfigError for a chip that
+    cannot be built (a line buffer smaller than the descriptor window, more tiles than rows or
+    columns, D not below the width)."""
+    h, w = shape
+    n = h * w
+    check_line_buffer(cfg.nna)
+    if cfg.sva.disparities >= w:
+        raise ConfigError(
+            f"sva.disparities={cfg.sva.disparities} is not smaller than the image width {w}: "
+            "use a smaller disparity range (--disparities) or a wider image"
+        )
+    parts = cfg.nna.stereo_submodules // 2
+    tiles = tuple(split_frame(shape, parts, cfg.nna.split, cfg.nna))
+    camera = cfg.source.kind == "camera"
+    src_dom = "camera" if camera else "nna"
+    freqs = {"nna": cfg.clocks.nna_mhz * 1e6, "sva": cfg.clocks.sva_mhz * 1e6}
+    if camera:
+        freqs["camera"] = cfg.clocks.camera_mhz * 1e6
+    domains = {name: DomainPlan(name, f, period_fs(f)) for name, f in freqs.items()}
+    bits = descriptor_bits(cfg.nna)
+    beat_bits = bits + (8 if cfg.sva.p2_adaptive else 0)
+    word_bits = output_word_bits(cfg.sva)
+    cpd = cycles_per_descriptor(cfg.nna)
+    half = half_window(cfg.nna)
+    f = cfg.fifo
+    fifos: list[FifoPlan] = []
+    blocks: list[BlockPlan] = []
+
+    def fifo(name, key, depth, width, producer, consumer, src, dst, beats):
+        fifos.append(FifoPlan(name, key, depth, width, producer, consumer, src, dst,
+                              f.latency_cycles, f.sync_cycles, beats))
+        return name
+
+    widest_in = max(t.in_x1 - t.in_x0 for t in tiles)
+    for s, side in enumerate(SIDES):
+        src = f"camera_{side}" if camera else f"memory_{side}"
+        subs = [f"nna_{side}" if parts == 1 else f"nna_{side}{t}" for t in range(parts)]
+        merge = f"merge_{side}"
+        to_sva = fifo(f"nna_{side}_to_sva", "fifo.nna_to_sva_depth", f.nna_to_sva_depth,
+                      beat_bits, merge if parts > 1 else subs[0], "sva", "nna", "sva", n)
+        src_fifos = [fifo(f"src_{side}_to_nna" + (f"{t}" if parts > 1 else ""),
+                          "fifo.source_to_nna_depth", f.source_to_nna_depth, 8, src, subs[t],
+                          src_dom, "nna", tiles[t].in_shape[0] * tiles[t].in_shape[1])
+                     for t in range(parts)]
+        if parts == 1:
+            sub_outs = [to_sva]
+        else:
+            sub_outs = [fifo(f"nna_{side}{t}_to_merge", "fifo.nna_to_merge_depth",
+                             f.nna_to_merge_depth, beat_bits, subs[t], merge, "nna", "nna",
+                             tiles[t].shape[0] * tiles[t].shape[1]) for t in range(parts)]
+        if camera:
+            line = w + cfg.source.camera_hblank
+            blocks.append(BlockPlan(src, "camera", src_dom, s, (), tuple(src_fifos),
+                                    f"top.{src}", n, line_clocks=line,
+                                    frame_clocks=(h + cfg.source.camera_vblank) * line))
+        else:
+            blocks.append(BlockPlan(src, "memory", src_dom, s, (), tuple(src_fifos),
+                                    f"top.{src}", n,
+                                    bytes_per_s=round(cfg.source.memory_gbps * 1e9)))
+        for t, tile in enumerate(tiles):
+            blocks.append(BlockPlan(
+                subs[t], "nna", "nna", s, (src_fifos[t],), (sub_outs[t],),
+                f"top.nna.{side}.sub{t}", tile.shape[0] * tile.shape[1], cycles=cpd,
+                tile=tile, half=half, rows=cfg.nna.line_buffer_rows,
+                buffers=nna_buffers(cfg, widest_in)))
+        if parts > 1:
+            blocks.append(BlockPlan(merge, "merge", "nna", s, tuple(sub_outs), (to_sva,),
+                                    f"top.nna.{side}.merge", n))
+    to_sink = fifo("sva_to_sink", "fifo.sva_to_sink_depth", f.sva_to_sink_depth, word_bits,
+                   "sva", "sink", "sva", "sva", n)
+    blocks.append(BlockPlan("sva", "sva", "sva", None, ("nna_left_to_sva", "nna_right_to_sva"),
+                            (to_sink,), "top.sva", n, cycles=cfg.sva.cycles_per_pixel,
+                            latency=cfg.sva.pipeline_latency,
+                            lookahead=row_lookahead(cfg.sva),
+                            buffers=sva_buffers(cfg, w, bits, word_bits)))
+    blocks.append(BlockPlan("sink", "sink", "sva", None, (to_sink,), (), "top.sink", n))
+    plan = ChipPlan(cfg=cfg, shape=(h, w), domains=domains, fifos=tuple(fifos),
+                    blocks=tuple(blocks), tiles=tiles,
+                    budget=frame_budget(cfg, shape, freqs, cpd), descriptor_bits=bits,
+                    beat_bits=beat_bits, word_bits=word_bits)
+    object.__setattr__(plan, "signals", tuple(_signals(plan)))
+    return plan
+
+
+def _signals(plan: ChipPlan) -> list[SignalPlan]:
+    """The traced signals, blocks in plan order then FIFOs (docs/traces.md says what each
+    holds). Status codes: 0 idle, 1 busy, 2 starved, 3 blocked."""
+    h, w = plan.shape
+    out: list[SignalPlan] = []
+
+    def sig(block_or_fifo, scope, key, width, domain):
+        out.append(SignalPlan(f"{scope}.{key}", width, domain, block_or_fifo, key))
+
+    for b in plan.blocks:
+        d = b.domain
+        sig(b.name, b.scope, "status", 2, d)
+        if b.kind in ("memory", "camera"):
+            sig(b.name, b.scope, "sent", _nb(h * w), d)
+        elif b.kind == "nna":
+            sig(b.name, b.scope, "line_buffer.row_in", _nb(h), d)
+            sig(b.name, b.scope, "line_buffer.fill", _nb(b.rows), d)
+            sig(b.name, b.scope, "mac.phase", _nb(b.cycles), d)
+            sig(b.name, b.scope, "mac.row", _nb(h), d)
+            sig(b.name, b.scope, "mac.col", _nb(w), d)
+            sig(b.name, b.scope, "out.valid", 1, d)
+            sig(b.name, b.scope, "out.descriptor", plan.descriptor_bits, d)
+        elif b.kind == "merge":
+            sig(b.name, b.scope, "count", _nb(h * w), d)
+            sig(b.name, b.scope, "out.valid", 1, d)
+        elif b.kind == "sva":
+            for key, width in (("input.row", _nb(h)), ("input.col", _nb(w)),
+                               ("input.rows_ready", _nb(h)), ("output.row", _nb(h)),
+                               ("output.col", _nb(w)), ("output.valid", 1),
+                               ("output.disparity", plan.word_bits), ("lr_check.reject", 1)):
+                sig(b.name, b.scope, key, width, d)
+        elif b.kind == "sink":
+            sig(b.name, b.scope, "count", _nb(h * w), d)
+            sig(b.name, b.scope, "valid", 1, d)
+    for f in plan.fifos:
+        scope = f"top.fifo.{f.name}"
+        sig(f.name, scope, "occupancy", _nb(f.depth), f.dst)
+        sig(f.name, scope, "push", 1, f.src)
+        sig(f.name, scope, "pop", 1, f.dst)
+        sig(f.name, scope, "full", 1, f.src)
+        sig(f.name, scope, "empty", 1, f.dst)
+    return out
+
+
+# ---- the report's static figures ---------------------------------------------------------------
+
+
+def sram_bits(plan: ChipPlan) -> dict[str, int]:
+    """SRAM bits of every buffer (per instance; NNA: per submodule, sized for the widest tile
+    it serves)."""
+    out: dict[str, int] = {}
+    for b in plan.blocks:
+        for buf in b.buffers:
+            out[buf.name] = max(out.get(buf.name, 0), buf.bits)
+    return out
+
+
+def action_counts(plan: ChipPlan) -> dict[str, dict[str, int]]:
+    """Per-frame counts of MACs and SRAM reads/writes per block (per camera for the NNA).
+
+    NNA: H*W line-buffer writes; reads: K*K per descriptor (CNN) or the census window's samples
+    (census); MACs: K*K*C per descriptor. SVA: per pixel one write of each view's descriptor, D
+    Hamming costs, and per pixel and top path one D-vector read and write of path costs.
+    """
+    cfg = plan.cfg
+    h, w = plan.shape
+    n = h * w
+    s = cfg.sva
+    if cfg.nna.descriptor == "census":
+        win_w, win_h = cfg.nna.census.window
+        reads = n * (win_w * win_h)
+    else:
+        _, k, _ = layer(cfg.nna)[0].shape
+        reads = n * k * k
+    top_paths = s.paths - 1
+    return {
+        "nna_per_camera": {"macs": n * macs_per_descriptor(cfg.nna), "sram_writes": n,
+                           "sram_reads": reads},
+        "sva": {
+            "hamming_costs": n * s.disparities,
+            "sram_writes": 2 * n + n * top_paths * s.disparities,
+            "sram_reads": 2 * n * s.disparities + n * top_paths * s.disparities,
+        },
+    }
+
+
+def architecture_report(plan: ChipPlan) -> dict:
+    """The ``architecture`` section of every report (both modes)."""
+    h, w = plan.shape
+    buffers = sram_bits(plan)
+    return {
+        "descriptor_bits": plan.descriptor_bits,
+        "nna_cycles_per_descriptor": cycles_per_descriptor(plan.cfg.nna),
+        "nna_window_rows": window_rows(plan.cfg.nna),
+        "sram_bits": buffers,
+        "sram_bits_total": {
+            "nna_per_submodule": sum(v for k, v in buffers.items() if k.startswith("nna.")),
+            "sva": sum(v for k, v in buffers.items() if k.startswith("sva.")),
+        },
+        "descriptor_bytes_per_frame_per_camera": h * w * plan.descriptor_bits // 8,
+        "actions": action_counts(plan),
+    }

@@ -1,0 +1,133 @@
+"""The chip's timing rules that both cycle engines and the estimate apply, written once.
+
+Each rule is a small pure function of integers. ``register_jitable`` keeps it a plain Python
+function for the readable kernel and the analytic estimate, and lets the compiled engine inline
+it into its numba kernels -- so the rule below is the one every engine runs. Cycles count edges
+of a clock domain from 0; every clock of the chip has its first edge at t = 0.
+
+What is *not* here is deliberate: the readable kernel applies these rules cycle by cycle to its
+committed state (it is the specification); the compiled engine applies them to whole streams of
+beats (docs/compiled-engine.md). Derived constants (windows, depths, widths, budgets) live in the
+chip plan (:mod:`sim.cycle.plan`).
+"""
+
+from __future__ import annotations
+
+from numba.extending import register_jitable
+
+FS_PER_S = 10**15
+
+
+def period_fs(freq_hz: float) -> int:
+    """A clock's period in whole femtoseconds: round(1e15 / f)."""
+    return round(FS_PER_S / freq_hz)
+
+
+def fifo_edges(latency_cycles: int, sync_cycles: int, crossing: bool) -> tuple[int, int]:
+    """(data_edges, space_edges) of a FIFO: an item pushed at a producer edge can be popped from
+    the ``data_edges``-th consumer edge after it (latency, plus the synchroniser less one when
+    the FIFO crosses domains); a slot freed at a consumer edge is seen by the producer from its
+    ``space_edges``-th edge after it (the next one, or the synchroniser's depth across
+    domains)."""
+    if crossing:
+        return latency_cycles + sync_cycles - 1, sync_cycles
+    return latency_cycles, 1
+
+
+@register_jitable
+def seen_from(cycle, period_from, period_to, edges):
+    """The cycle of the receiving domain from which an event of ``cycle`` of the sending domain
+    counts there: the ``edges``-th receiving edge strictly after the instant ``cycle *
+    period_from`` (one domain: ``cycle + edges``). A push is visible to the consumer from
+    ``seen_from(push, P_src, P_dst, data_edges)``; a pop's free slot is seen by the producer from
+    ``seen_from(pop, P_dst, P_src, space_edges)``."""
+    if period_from == period_to:
+        return cycle + edges
+    return (cycle * period_from) // period_to + edges
+
+
+@register_jitable
+def seen_from_scaled(cycle, period_from, period_to, ratio, edges):
+    """:func:`seen_from` without a division: ``ratio`` = period_from / period_to (float), the
+    quotient estimated and then corrected, exactly (the products fit an int64)."""
+    if period_from == period_to:
+        return cycle + edges
+    x = cycle * period_from
+    q = int(cycle * ratio)
+    while q * period_to > x:
+        q -= 1
+    while (q + 1) * period_to <= x:
+        q += 1
+    return q + edges
+
+
+@register_jitable
+def memory_first_cycle(k, freq_hz, bytes_per_s):
+    """The first cycle in which a memory source's token bucket lets pixel k (from 0) leave: the
+    smallest c with (k + 1) f <= (c + 1) B (0 when the bandwidth is at least one byte per
+    cycle)."""
+    if bytes_per_s >= freq_hz:
+        return 0
+    return ((k + 1) * freq_hz + bytes_per_s - 1) // bytes_per_s - 1
+
+
+@register_jitable
+def camera_cycle(x, y, line_clocks):
+    """The pixel-clock cycle in which a camera delivers pixel (x, y): its raster of
+    ``line_clocks`` (W + hblank) clocks per line, from cycle 0."""
+    return y * line_clocks + x
+
+
+@register_jitable
+def nna_last_input_row(y, half, image_rows):
+    """The last image row the descriptors of image row y read: min(y + h, H - 1) (replicate
+    border below)."""
+    return min(y + half, image_rows - 1)
+
+
+@register_jitable
+def nna_rows_started_before_input(r, rows, half, top_halo, out_rows):
+    """Output rows (of the tile) the MAC array must have started before input row r (of the
+    tile) may enter a line buffer of ``rows`` rows: the row arriving must fit beside the rows
+    the next output row still reads, r - max(0, y_out + top_halo - h) + 1 <= rows, unless every
+    output row has started. 0: no wait."""
+    if r < rows:
+        return 0
+    return max(0, min(r + 1 - rows + half - top_halo, out_rows))
+
+
+@register_jitable
+def sva_last_input_row(y, lookahead, image_rows):
+    """The last input row the SVA's output row y needs: min(y + r + m, H - 1) (box radius r,
+    median radius m)."""
+    return min(y + lookahead, image_rows - 1)
+
+
+@register_jitable
+def sva_rows_done_before_input(y_in, lookahead):
+    """Output rows the SVA must have finished before it takes input row ``y_in``: its row
+    buffers hold the rows of the next output row plus one row arriving, y_in <= y_out + r + m +
+    1."""
+    return max(0, y_in - lookahead - 1)
+
+
+@register_jitable
+def sva_word_due(ready, pipeline_latency, last_push, cycles_per_pixel):
+    """The first cycle the SVA may push a word: its row has been ready for the pipeline latency
+    and the previous word left an initiation interval earlier."""
+    return max(ready + pipeline_latency, last_push + cycles_per_pixel)
+
+
+@register_jitable
+def sink_may_pop(cycle, stall_period, stall_phase):
+    """A sink with the periodic stall pattern (period, phase) pops only in cycles with
+    ``cycle % period == phase``; period 0: in every cycle."""
+    return stall_period == 0 or cycle % stall_period == stall_phase
+
+
+@register_jitable
+def sink_next_allowed(cycle, stall_period, stall_phase):
+    """The first cycle >= ``cycle`` in which the sink may pop."""
+    if stall_period == 0:
+        return cycle
+    return cycle + (stall_phase - cycle) % stall_period

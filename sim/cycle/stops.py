@@ -1,0 +1,25 @@
+"""How a run of the chip can stop early, as both cycle engines report it.
+
+A deadlock (:class:`~sim.cycle.clock.DeadlockError`) and an exhausted cycle budget
+(:class:`~sim.cycle.clock.BudgetExceeded`) are the kernel's; a camera overflow is the chip's: a
+camera cannot wait, so a full FIFO when a pixel is due stops the run. Every camera that
+overflows in the same step is named (the step completes first, so the order in which the
+blocks evaluate cannot change the message).
+"""
+
+from __future__ import annotations
+
+from sim.errors import UserError
+
+
+class CameraOverflow(UserError):
+    """A camera cannot stall: its FIFO was full when a pixel arrived."""
+
+
+def overflow_message(overflows: list[tuple[str, str, int, int, int]]) -> str:
+    """The one-line message of a :class:`CameraOverflow`: ``overflows`` lists, in the chip's
+    block order, ``(camera, fifo, x, y, cycle)`` for every camera that overflowed in the step."""
+    what = "; ".join(f"camera '{cam}' overflowed FIFO {fifo} at pixel ({x}, {y}), cycle {cycle}"
+                     for cam, fifo, x, y, cycle in overflows)
+    return (f"{what}: the NNA does not keep up with the camera; use a slower camera, more NNA "
+            "throughput (clocks.nna_mhz, nna.macs) or a deeper fifo.source_to_nna_depth")

@@ -1,0 +1,236 @@
+"""The two engines are one model: the compiled engine (sim/cycle/engine) equals the readable
+kernel (sim/cycle/chip.py) on random configurations -- words, report, statistics, row instants,
+the VCD of a trace window, or the same error with the same message -- and its helper kernels
+equal naive references."""
+
+import itertools
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from sim.config import load_config
+from sim.cycle.chip import run_readable
+from sim.cycle.engine.layout import INF, serialise
+from sim.cycle.engine.replay import count_le
+from sim.cycle.engine.run import first_quiet, run_compiled
+from sim.cycle.plan import build_plan
+from sim.errors import UserError
+from traces.vcd import vcd_bytes
+
+NEVER = (1 << 40, (1 << 40) - 1)  # a sink that pops first in cycle 2^40 - 1
+
+
+def _pair(h, w, seed=0, shift=3):
+    rng = np.random.default_rng(seed)
+    base = rng.integers(0, 256, (h, w + shift), dtype=np.uint8)
+    return base[:, :w].copy(), base[:, shift:].copy()
+
+
+@st.composite
+def configurations(draw):
+    """A small frame and a configuration drawn over every timing parameter of the chip: sizes,
+    D, paths, LR check, median, every FIFO depth (1 included), latency and synchroniser,
+    clocks, memory or camera sources with blanking, frames split over two or three submodules
+    per camera (column tiles or row bands), periodic sink stalls and watchdogs that fire; and a
+    trace window."""
+    d = draw(st.sampled_from([16, 16, 32]))
+    h = draw(st.integers(2, 9))
+    w = draw(st.integers(d + 1, d + 20))
+    descriptor = draw(st.sampled_from(["census", "cnn"]))
+    over = {
+        "sva.disparities": d,
+        "nna.descriptor": descriptor,
+        "clocks.nna_mhz": draw(st.sampled_from([200, 333, 400, 460])),
+        "clocks.sva_mhz": draw(st.sampled_from([150, 400, 465, 700])),
+        "fifo.source_to_nna_depth": draw(st.integers(1, 5)),
+        "fifo.nna_to_sva_depth": draw(st.integers(1, 6)),
+        "fifo.nna_to_merge_depth": draw(st.integers(1, 6)),
+        "fifo.sva_to_sink_depth": draw(st.integers(1, 4)),
+        "fifo.latency_cycles": draw(st.integers(1, 3)),
+        "fifo.sync_cycles": draw(st.integers(1, 3)),
+        "sva.cycles_per_pixel": draw(st.integers(1, 3)),
+        "sva.pipeline_latency": draw(st.integers(1, 20)),
+        "sva.box_size": draw(st.sampled_from([1, 3, 5])),
+        "sva.median": draw(st.sampled_from([0, 3, 5])),
+        "sva.paths": draw(st.integers(1, 4)),
+        "sva.lr_check": draw(st.booleans()),
+        "nna.line_buffer_rows": draw(st.integers(9 if descriptor == "cnn" else 3, 11)),
+        "nna.macs": draw(st.sampled_from([288, 500, 2592])),
+    }
+    parts = draw(st.sampled_from([1, 1, 2, 3]))
+    if parts > 1:
+        split = draw(st.sampled_from(["columns", "rows"]))
+        if split == "rows":
+            h = max(h, parts)
+        over.update({"nna.stereo_submodules": 2 * parts, "nna.split": split})
+    if draw(st.booleans()):
+        over.update({"source.kind": "camera",
+                     "clocks.camera_mhz": draw(st.sampled_from([4, 10, 25, 120])),
+                     "source.camera_hblank": draw(st.integers(0, 12)),
+                     "source.camera_vblank": draw(st.integers(0, 4))})
+    else:
+        over["source.memory_gbps"] = draw(st.sampled_from([0.05, 0.2, 4.0]))
+    stall = None
+    kind = draw(st.sampled_from(["none", "none", "periodic", "periodic", "never"]))
+    if kind == "periodic":
+        period = draw(st.integers(2, 4))
+        stall = (period, draw(st.integers(0, period - 1)))
+    elif kind == "never":
+        stall = NEVER
+    if kind == "never" or draw(st.integers(0, 9)) == 0:
+        over["sim.watchdog_cycles"] = draw(st.integers(10, 400))
+    p_sva = round(1e15 / (over["clocks.sva_mhz"] * 1e6))
+    start = draw(st.integers(0, 1500)) * p_sva
+    window = (start, start + draw(st.integers(1, 3000)) * p_sva)
+    return h, w, over, stall, draw(st.integers(0, 99)), window
+
+
+def _run(fn, *args, **kw):
+    try:
+        return fn(*args, **kw), None
+    except UserError as exc:
+        return None, exc
+
+
+@settings(max_examples=320, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+@given(configurations())
+def test_the_compiled_engine_equals_the_readable_kernel(case):
+    """Either both runs stop with the same error (type, message, the state of every FIFO and
+    block) or they give the same words, report, statistics, row instants and trace (the VCD of
+    the window, and the words pushed in it)."""
+    h, w, over, stall, seed, window = case
+    left, right = _pair(h, w, seed=seed)
+    plan = build_plan(load_config(overrides=over), (h, w))
+    slow, slow_err = _run(run_readable, plan, left, right, sink_stall=stall, window=window)
+    fast, fast_err = _run(run_compiled, plan, left, right, sink_stall=stall, window=window)
+    if slow_err is not None or fast_err is not None:
+        assert type(fast_err) is type(slow_err), (fast_err, slow_err)
+        assert str(fast_err) == str(slow_err)
+        for attr in ("blocks", "fifos", "cycles", "time_fs"):
+            assert getattr(fast_err, attr, None) == getattr(slow_err, attr, None)
+        return
+    np.testing.assert_array_equal(fast.words, slow.words)
+    assert fast.stats == slow.stats
+    assert fast.report == slow.report
+    np.testing.assert_array_equal(fast.row_times, slow.row_times)
+    assert (fast.trace is None) == (slow.trace is None)
+    if slow.trace is not None:
+        assert vcd_bytes(fast.trace, version="t") == vcd_bytes(slow.trace, version="t")
+        assert fast.outputs_in_window == slow.outputs_in_window
+
+
+@pytest.mark.parametrize(
+    "shape, over, stall",
+    [
+        ((40, 150), {"nna.descriptor": "cnn", "sva.disparities": 64}, None),
+        ((33, 140), {"nna.descriptor": "census", "sva.disparities": 48,
+                     "fifo.nna_to_sva_depth": 3, "sva.cycles_per_pixel": 3}, (3, 1)),
+        ((30, 120), {"nna.descriptor": "cnn", "sva.disparities": 32, "source.kind": "camera",
+                     "clocks.camera_mhz": 30, "fifo.sva_to_sink_depth": 2}, None),
+        ((30, 120), {"nna.descriptor": "cnn", "sva.disparities": 32,
+                     "nna.stereo_submodules": 4, "fifo.nna_to_merge_depth": 8}, None),
+        ((30, 120), {"nna.descriptor": "census", "sva.disparities": 32,
+                     "nna.stereo_submodules": 6, "nna.split": "rows", "source.kind": "camera",
+                     "clocks.camera_mhz": 40}, None),
+    ],
+)
+def test_larger_frames_are_equal_too(shape, over, stall):
+    """Frames of a few thousand pixels (tens of thousands of edges), where the rings of the
+    compiled engine wrap many times."""
+    left, right = _pair(*shape, seed=shape[0])
+    plan = build_plan(load_config(overrides=over), shape)
+    slow = run_readable(plan, left, right, sink_stall=stall)
+    fast = run_compiled(plan, left, right, sink_stall=stall)
+    np.testing.assert_array_equal(fast.words, slow.words)
+    assert fast.stats == slow.stats
+    assert fast.report == slow.report
+
+
+def test_a_tiny_watchdog_fires_in_the_middle_of_a_frame():
+    """With a watchdog of 10 slowest periods and 41 MAC cycles per descriptor the MAC array's
+    counting keeps the chip busy; a sink stalled for long enough lets it fire mid-frame."""
+    left, right = _pair(5, 21, seed=14)
+    over = {"sva.disparities": 16, "nna.descriptor": "cnn", "nna.macs": 64,
+            "sim.watchdog_cycles": 10}
+    plan = build_plan(load_config(overrides=over), (5, 21))
+    fast = run_compiled(plan, left, right)
+    slow = run_readable(plan, left, right)
+    assert fast.report == slow.report and fast.stats == slow.stats
+    plan = build_plan(load_config(overrides={**over, "sim.watchdog_cycles": 60}), (5, 21))
+    _, slow_err = _run(run_readable, plan, left, right, sink_stall=(200, 199))
+    _, fast_err = _run(run_compiled, plan, left, right, sink_stall=(200, 199))
+    assert slow_err is not None and str(fast_err) == str(slow_err)
+
+
+# ---- helper kernels against naive references -----------------------------------------------
+
+
+@settings(max_examples=200, deadline=None, derandomize=True)
+@given(st.lists(st.integers(0, 60), min_size=1, max_size=40, unique=True), st.integers(-5, 70))
+def test_count_le_is_a_search(values, c):
+    """count_le over a ring that has wrapped: the events it still holds, searched."""
+    values = sorted(values)
+    plan = build_plan(load_config(overrides={"sva.disparities": 16}), (2, 20))
+    net, _ = serialise(plan, capacity=16)
+    st_ = net.streams[0]
+    size = st_["mask"] + 1
+    for i, v in enumerate(values):
+        net.ring[st_["off"] + (i & st_["mask"])] = v
+    net.streams[0]["count"] = len(values)
+    held = values[max(0, len(values) - size):]
+    want = len(values) - len(held) + int(np.searchsorted(held, c, side="right"))
+    if held[0] > c:
+        want = len(values) - len(held)
+    assert count_le(net, 0, c) == want
+
+
+@st.composite
+def busy_patterns(draw):
+    """Per block, sorted busy instants (clock edges: a block is busy at its domain's edges);
+    the watchdog's time and the clock periods."""
+    periods = draw(st.sampled_from([(3,), (3, 5), (4, 7, 9)]))
+    n_blocks = draw(st.integers(1, 4))
+    blocks = []
+    for _ in range(n_blocks):
+        per = draw(st.sampled_from(periods))
+        blocks.append(sorted({per * k for k in draw(st.lists(st.integers(0, 300 // per),
+                                                             min_size=1, max_size=12))}))
+    return blocks, draw(st.integers(5, 60)), periods
+
+
+@settings(max_examples=300, deadline=None, derandomize=True)
+@given(busy_patterns())
+def test_first_quiet_is_the_watchdogs_first_firing(case):
+    """The intersection of every block's long gaps gives the instant at which a kernel that
+    checks after every step without progress would declare a deadlock: the first clock edge at
+    least g after the last busy instant (of any block), before the next one."""
+    blocks, g, periods = case
+    plan = build_plan(load_config(overrides={"sva.disparities": 16}), (2, 20))
+    net, _ = serialise(plan)
+    p_max = max(periods)
+    net.prm[0]["watchdog_fs"] = g
+    nb = net.gaps.shape[0]
+    for b in range(nb):  # blocks beyond the drawn ones are busy at every drawn instant
+        net.acc[b]["last_busy"] = -p_max
+        instants = blocks[b] if b < len(blocks) else sorted(set(itertools.chain(*blocks)))
+        for u in instants:
+            if u - net.acc[b]["last_busy"] > g:
+                net.gaps[b, net.acc[b]["gaps"]] = net.acc[b]["last_busy"], u
+                net.acc[b]["gaps"] += 1
+            net.acc[b]["last_busy"] = u
+    end = 400
+    got, _ = first_quiet(net, np.array(periods, np.int64), end)
+    busy = sorted(set(itertools.chain(*blocks)))
+    edges = sorted({k * p for p in periods for k in range(end // p + 1) if k * p < end})
+    want = INF
+    last = -p_max
+    for t in edges:
+        if t in busy:
+            last = t
+        elif t - last >= g:
+            want = t
+            break
+    assert got == want

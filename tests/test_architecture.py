@@ -1,0 +1,134 @@
+"""The shape of the code (docs/architecture.md, "Layers"): imports go one way, checked by
+import-linter's contracts in pyproject.toml; every module belongs to a layer; no import hides in
+a function to dodge a cycle; no private name crosses a package."""
+
+import ast
+import shutil
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = ("sim", "nna", "sva", "quant", "traces")
+
+
+def _modules() -> dict[str, Path]:
+    """Every module of the project's packages, dotted name -> file."""
+    out = {}
+    for pkg in PACKAGES:
+        for path in sorted((ROOT / pkg).rglob("*.py")):
+            parts = list(path.relative_to(ROOT).with_suffix("").parts)
+            if parts[-1] == "__init__":
+                parts = parts[:-1]
+            out[".".join(parts)] = path
+    return out
+
+
+def _contracts() -> list[dict]:
+    return tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["importlinter"][
+        "contracts"]
+
+
+def _layer_members() -> list[set[str]]:
+    (layers,) = [c["layers"] for c in _contracts() if c["type"] == "layers"]
+    return [{m.strip() for m in layer.replace("|", ":").split(":")} for layer in layers]
+
+
+def _covered(module: str, members: set[str]) -> bool:
+    return any(module == m or module.startswith(m + ".") for m in members)
+
+
+def test_the_import_contracts_hold():
+    """lint-imports (import-linter) over the five packages: the layers, no circles between
+    siblings of any package, the two accelerators apart."""
+    exe = shutil.which("lint-imports") or str(Path(sys.executable).with_name("lint-imports"))
+    out = subprocess.run([exe, "--config", str(ROOT / "pyproject.toml")], cwd=ROOT,
+                         capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-2000:]
+    assert "BROKEN" not in out.stdout and "broken" in out.stdout  # "N kept, 0 broken"
+
+
+def test_the_contracts_forbid_the_circles_the_old_code_had():
+    """The contracts name the directions that the old circles broke: the cycle model and the
+    application above the stages (nna.blocks -> sim.clock, sva.blocks -> sim.clock), the traces
+    writers above the cycle model and the trace log (the format both engines fill) in the core
+    (sim <-> traces), the quantizer tool above the NNA's weights (nna.weights <->
+    quant.quantizer), and no circle among any package's modules (chip <-> fast <-> schedule,
+    clock <-> fifo)."""
+    layers = _layer_members()
+
+    def level(module):
+        (i,) = [i for i, members in enumerate(layers) if _covered(module, members)]
+        return i
+
+    assert level("sim.api") < level("sim.cycle.chip") < level("nna.census") < level("sim.config")
+    assert level("sim.tracing") < level("traces.vcd") < level("sim.cycle") < level("traces.log")
+    assert level("quant.quantizer") < level("nna.weights") < level("quant.artifact")
+    assert level("sim.cycle.chip") < level("sva.pipeline")
+    (acyclic,) = [c for c in _contracts() if c["type"] == "acyclic_siblings"]
+    assert set(acyclic["ancestors"]) == set(PACKAGES)
+
+
+def test_every_module_is_in_exactly_one_layer():
+    """A new module cannot slip past the contract: each one belongs to one layer (package
+    roots hold only docstrings and the core's names)."""
+    layers = _layer_members()
+    for name, path in _modules().items():
+        hits = [i for i, members in enumerate(layers) if _covered(name, members)]
+        if name in PACKAGES:
+            continue
+        assert len(hits) == 1, f"{name} ({path.relative_to(ROOT)}) is in layers {hits}"
+
+
+def _imports_in_functions(tree):
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            for sub in ast.walk(node):
+                if isinstance(sub, ast.ImportFrom) and sub.module:
+                    yield node.name, sub.module, sub.lineno
+                elif isinstance(sub, ast.Import):
+                    for alias in sub.names:
+                        yield node.name, alias.name, sub.lineno
+
+
+# Python runs a package's __init__ before any module in it, and the core the stages import
+# (sim.config, sim.errors, sim.io) lives in the sim package: importing the API eagerly there
+# would load the whole application on every `import nna.census`. So the public names sim.run
+# and sim.Result resolve on first use (PEP 562) -- the one deferred import of the project.
+DEFERRED = {("sim", "__getattr__", "sim.api")}
+
+
+def test_no_private_name_crosses_a_package():
+    """``from x import _name`` only inside the package that defines ``_name``."""
+    found = []
+    for name, path in _modules().items():
+        here = name if path.name == "__init__.py" else name.rpartition(".")[0]
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and node.module:
+                there = node.module.rpartition(".")[0]
+                for alias in node.names:
+                    if alias.name.startswith("_") and not alias.name.startswith("__") \
+                            and there != here:
+                        found.append(f"{path.relative_to(ROOT)}:{node.lineno} imports "
+                                     f"{node.module}.{alias.name}")
+    assert not found, "\n".join(found)
+
+
+@pytest.mark.parametrize("pkg", PACKAGES)
+def test_package_roots_import_only_the_core(pkg):
+    tree = ast.parse((ROOT / pkg / "__init__.py").read_text())
+    top = [n for n in tree.body if isinstance(n, (ast.Import, ast.ImportFrom))]
+    for node in top:
+        modules = [node.module] if isinstance(node, ast.ImportFrom) else [a.name for a in
+                                                                            node.names]
+        for module in modules:
+            assert module in ("__future__", "sim.config", "sim.errors"), module
+
+
+def test_no_module_is_over_800_lines():
+    long = {str(p.relative_to(ROOT)): n for p in _modules().values()
+            if (n := len(p.read_text().splitlines())) > 800}
+    assert not long, long
