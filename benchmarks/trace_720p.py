@@ -21,30 +21,32 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from speed_cycle import CONFIG, frame  # noqa: E402
 
 from sim.config import load_config  # noqa: E402
-from sim.cycle.fast import run_cycle_fast  # noqa: E402
+from sim.cycle.plan import build_plan  # noqa: E402
+from sim.cycle.simulate import simulate  # noqa: E402
 from sim.tracing import TraceRequest, run_traced, write_traces  # noqa: E402
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=3)
-    ap.add_argument("--start", type=int, default=2_000_000, help="first SVA cycle of the window")
+    ap.add_argument("--start", type=int, default=2_000_000,
+                    help="first SVA cycle of the window")
     ap.add_argument("--cycles", type=int, default=100_000)
     args = ap.parse_args(argv)
     left, right = frame()
-    cfg = load_config(overrides=CONFIG)
-    run_cycle_fast(left[:48, :256], right[:48, :256],
-                   load_config(overrides=dict(CONFIG, **{"sva.disparities": 64})))
+    plan = build_plan(load_config(overrides=CONFIG), left.shape)
+    small = build_plan(load_config(overrides=dict(CONFIG, **{"sva.disparities": 64})), (48, 256))
+    simulate(small, left[:48, :256], right[:48, :256], window=(0, 10**9))  # compile
     plain, traced, writing = [], [], []
     with tempfile.TemporaryDirectory() as tmp:
         req = TraceRequest(window=f"sva:{args.start}:{args.start + args.cycles}",
                            vcd=os.path.join(tmp, "t.vcd"))
         for _ in range(args.repeat):
             t0 = time.perf_counter()
-            run_cycle_fast(left, right, cfg)
+            simulate(plan, left, right)
             plain.append(time.perf_counter() - t0)
             t0 = time.perf_counter()
-            _, _, log = run_traced(left, right, cfg, req)
+            _, log = run_traced(plan, left, right, req)
             t1 = time.perf_counter()
             write_traces(log, req)
             t2 = time.perf_counter()

@@ -29,6 +29,8 @@ from quant.quantizer import QuantizerConfig, quantize
 from sim import whatif_cli
 from sim.api import run
 from sim.config import config_diff, config_to_toml, load_config, parse_set_options
+from sim.cycle.estimate import parse_size
+from sim.cycle.plan import build_plan
 from sim.datasets import (
     default_scene,
     find_scene,
@@ -37,6 +39,7 @@ from sim.datasets import (
     load_scene,
     shared_data_dir,
 )
+from sim.diagram import plan_text, write_plan_png
 from sim.errors import ConfigError, InputError, UserError
 from sim.io import (
     atomic_write_bytes,
@@ -290,6 +293,14 @@ def cmd_config_show(args) -> int:
     return 0
 
 
+def cmd_config_plan(args) -> int:
+    plan = build_plan(load_config(args.config, _overrides(args)), parse_size(args.size))
+    if args.png:
+        write_plan_png(plan, args.png)
+    sys.stdout.write(plan_text(plan))
+    return 0
+
+
 def cmd_config_diff(args) -> int:
     diff = config_diff(load_config(args.a), load_config(args.b))
     if not diff:
@@ -467,6 +478,12 @@ def build_parser() -> argparse.ArgumentParser:
     cs.add_argument("--plain", action="store_true", help="without the help comments")
     _add_config_options(cs)
     cs.set_defaults(func=cmd_config_show)
+    cp = csub.add_parser("plan", help="the chip plan: clock domains, blocks, FIFOs, SRAM")
+    cp.add_argument("--size", default="1280x720", metavar="WxH",
+                    help="frame size (default 1280x720)")
+    cp.add_argument("--png", metavar="PATH", help="also draw the plan into this PNG")
+    _add_config_options(cp)
+    cp.set_defaults(func=cmd_config_plan)
     cd = csub.add_parser("diff", help="keys that differ between two TOML configurations")
     cd.add_argument("a")
     cd.add_argument("b")

@@ -187,6 +187,22 @@ class ChipPlan:
     def camera(self) -> bool:
         return self.cfg.source.kind == "camera"
 
+    @cached_property
+    def symmetric(self) -> bool:
+        """Do the two cameras' sides time alike -- the same blocks and FIFOs but for their
+        names? (Then every event of the right side is the left side's: nothing in the chip's
+        timing tells them apart, and the compiled engine computes one side for both.)"""
+
+        def side(s):
+            blocks = [(b.kind, b.domain, b.items, b.cycles, b.tile, b.half, b.rows,
+                       b.bytes_per_s, b.line_clocks, b.frame_clocks)
+                      for b in self.blocks if b.side == s]
+            fifos = [(f.depth, f.width_bits, f.src, f.dst, f.latency_cycles, f.sync_cycles,
+                      f.beats) for f in self.fifos if self.block(f.producer).side == s]
+            return blocks, fifos
+
+        return side(0) == side(1)
+
     @property
     def source_domain(self) -> str:
         return "camera" if self.camera else "nna"

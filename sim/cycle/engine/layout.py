@@ -42,6 +42,7 @@ ERR_NONE, ERR_RING, ERR_GAPS = 0, 1, 2
 
 PARAMS = np.dtype([
     ("h", np.int64), ("w", np.int64), ("n", np.int64), ("parts", np.int64),
+    ("sides", np.int64),  # sides computed: 1 when the right side's events are the left's
     ("merge", np.int64), ("camera", np.int64), ("line_clocks", np.int64),
     ("mem_hz", np.int64), ("mem_bps", np.int64), ("half", np.int64), ("rows", np.int64),
     ("cpd", np.int64), ("lookahead", np.int64), ("pipe_latency", np.int64), ("cpp", np.int64),
@@ -64,8 +65,8 @@ TILE = np.dtype([
     ("side", np.int64), ("t", np.int64), ("x0", np.int64), ("x1", np.int64), ("y0", np.int64),
     ("y1", np.int64), ("ix0", np.int64), ("ix1", np.int64), ("iy0", np.int64), ("iy1", np.int64),
     ("iw", np.int64), ("ow", np.int64), ("n_in", np.int64), ("n_out", np.int64),
-    ("top_halo", np.int64), ("b", np.int64), ("e", np.int64), ("src_fifo", np.int64),
-    ("out_fifo", np.int64), ("block", np.int64),
+    ("top_halo", np.int64), ("a", np.int64), ("b", np.int64), ("e", np.int64),
+    ("src_fifo", np.int64), ("out_fifo", np.int64), ("block", np.int64),
 ])
 
 FIFO = np.dtype([
@@ -77,6 +78,7 @@ FIFO = np.dtype([
 
 BLOCK = np.dtype([
     ("kind", np.int64), ("side", np.int64), ("tile", np.int64), ("period", np.int64),
+    ("stream", np.int64),  # a source's pushes (the other blocks find theirs via tiles, FIFOs)
     ("fifo_in", np.int64), ("fifo_in2", np.int64), ("fifo_out", np.int64),
 ])
 
@@ -114,6 +116,7 @@ class Net(NamedTuple):
     # busy instants, per block; ACC.gaps counts them
     rows: np.ndarray  # int64 (2, H + 1): row instants (sim.cycle.chip.Chip.row_times)
     scratch: np.ndarray  # int64 (tiles per camera, 14): per-tile tables of a kernel call
+    cursors: np.ndarray  # int64 (streams,): events up to an instant (the replay's)
 
 
 class TraceData(NamedTuple):
@@ -154,15 +157,18 @@ def serialise(plan: ChipPlan, *, sink_stall=None, cap_fs: int = INF, stats: bool
     fifo_index = {f.name: i for i, f in enumerate(plan.fifos)}
     cap = capacity or ring_capacity(plan)
     parts = plan.parts
-    # streams
+    sides = 1 if plan.symmetric else 2
+    # streams (of the left side only when the right side's events are the same)
     specs = []  # (kind, side, tile, n, period, block)
     a_id, b_id, e_id, m_id = {}, {}, {}, {}
-    for s in range(2):
+    for s in range(sides):
         src = next(b for b in plan.blocks if b.kind in ("memory", "camera") and b.side == s)
         a_id[s] = len(specs)
         specs.append((S_A, s, -1, n, doms[src.domain].period_fs, block_index[src.name]))
     nna = [b for b in plan.blocks if b.kind == "nna"]
     for b in nna:
+        if b.side >= sides:
+            continue
         t = plan.tiles.index(b.tile) if parts > 1 else 0
         tile = b.tile
         b_id[b.side, t] = len(specs)
@@ -172,10 +178,15 @@ def serialise(plan: ChipPlan, *, sink_stall=None, cap_fs: int = INF, stats: bool
         specs.append((S_E, b.side, t, tile.shape[0] * tile.shape[1], doms["nna"].period_fs,
                       block_index[b.name]))
     if parts > 1:
-        for s in range(2):
+        for s in range(sides):
             m_id[s] = len(specs)
             specs.append((S_M, s, -1, n, doms["nna"].period_fs,
                           block_index[f"merge_{('left', 'right')[s]}"]))
+    if sides == 1:
+        a_id[1] = a_id[0]
+        m_id.update({1: m_id[0]} if parts > 1 else {})
+        for t in range(parts):
+            b_id[1, t], e_id[1, t] = b_id[0, t], e_id[0, t]
     p_id = len(specs)
     specs.append((S_P, -1, -1, n, doms["sva"].period_fs, block_index["sva"]))
     specs.append((S_O, -1, -1, n, doms["sva"].period_fs, block_index["sva"]))
@@ -196,8 +207,8 @@ def serialise(plan: ChipPlan, *, sink_stall=None, cap_fs: int = INF, stats: bool
         tiles[b.side * parts + t] = (
             b.side, t, tl.x0, tl.x1, tl.y0, tl.y1, tl.in_x0, tl.in_x1, tl.in_y0, tl.in_y1,
             tl.in_x1 - tl.in_x0, tl.x1 - tl.x0, tl.in_shape[0] * tl.in_shape[1],
-            tl.shape[0] * tl.shape[1], tl.top_halo, b_id[b.side, t], e_id[b.side, t], fi, fo,
-            block_index[b.name])
+            tl.shape[0] * tl.shape[1], tl.top_halo, a_id[b.side], b_id[b.side, t],
+            e_id[b.side, t], fi, fo, block_index[b.name])
     # FIFOs
     fifos = np.zeros(len(plan.fifos), FIFO)
     for i, f in enumerate(plan.fifos):
@@ -224,12 +235,14 @@ def serialise(plan: ChipPlan, *, sink_stall=None, cap_fs: int = INF, stats: bool
             0 if b.kind == "nna" else -1)
         blocks[i] = (KIND_CODES[b.kind], -1 if b.side is None else b.side, t,
                      doms[b.domain].period_fs,
+                     a_id[b.side] if b.kind in ("memory", "camera") else -1,
                      fifo_index[b.inputs[0]] if b.inputs else -1,
                      fifo_index[b.inputs[1]] if len(b.inputs) > 1 and b.kind == "sva" else -1,
                      fifo_index[b.outputs[0]] if b.outputs else -1)
     prm = np.zeros(1, PARAMS)
     p = prm[0]
     p["h"], p["w"], p["n"], p["parts"] = h, w, n, parts
+    p["sides"] = sides
     p["merge"] = 1 if parts > 1 else 0
     p["camera"] = 1 if plan.camera else 0
     src = plan.blocks_of("camera" if plan.camera else "memory")[0]
@@ -266,8 +279,9 @@ def serialise(plan: ChipPlan, *, sink_stall=None, cap_fs: int = INF, stats: bool
     names = {"streams": specs, "a": a_id, "b": b_id, "e": e_id, "m": m_id, "p": p_id,
              "block_index": block_index, "fifo_index": fifo_index}
     scratch = np.zeros((parts, 14), np.int64)
+    cursors = np.zeros(len(specs), np.int64)
     return Net(prm, streams, ring, tiles, fifos, blocks, acc, walks, hist, gaps, rows,
-               scratch), names
+               scratch, cursors), names
 
 
 def seconds(fs: int) -> float:

@@ -13,6 +13,8 @@ and :func:`.replay.record_window` samples every signal at every clock edge in it
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 from numba import njit
 
@@ -40,7 +42,14 @@ from sim.cycle.engine.layout import (
     ring_capacity,
     serialise,
 )
-from sim.cycle.engine.replay import block_status, count_le, next_instant, record_window, sample
+from sim.cycle.engine.replay import (
+    block_status,
+    count_le,
+    cursors_at,
+    next_instant,
+    record_window,
+    sample,
+)
 from sim.cycle.engine.replay import fifo_counts as fifo_state
 from sim.cycle.engine.streams import run_pass
 from sim.cycle.engine.walkers import finish_fifos, note_camera, pop_cycle
@@ -114,6 +123,10 @@ def _pass(plan: ChipPlan, sink_stall, cap_fs: int, stats: bool, capacity: int | 
             return net, names
         if error == ERR_GAPS:
             gap_cap *= 16
+        elif cap > plan.shape[0] * plan.shape[1]:
+            # every ring already holds its whole stream: nothing was overwritten
+            raise RuntimeError("compiled engine: an event stream lost an event it still "
+                               "needed although its ring holds the whole frame (a bug)")
         else:
             cap *= 4
 
@@ -121,6 +134,11 @@ def _pass(plan: ChipPlan, sink_stall, cap_fs: int, stats: bool, capacity: int | 
 def _last(net: Net, s: int) -> int:
     st = net.streams[s]
     return int(net.ring[st["off"] + ((st["count"] - 1) & st["mask"])])
+
+
+def _left(name: str) -> str:
+    """The left side's counterpart of a right-side block or FIFO."""
+    return name.replace("right", "left")
 
 
 def _budget_instant(plan: ChipPlan) -> int:
@@ -143,11 +161,14 @@ def _stats(plan: ChipPlan, net: Net, names: dict, t_end: int) -> dict:
     fcyc = np.array([[cycles[f.dst], cycles[f.src]] for f in plan.fifos], np.int64)
     finish_fifos(net, fcyc)
     prm = net.prm[0]
+    mirrored = int(prm["sides"]) == 1  # the right side's events are the left side's
     blocks = {}
     for i, b in enumerate(plan.blocks):
         acc = net.acc[i]
         c_d = cycles[b.domain]
-        if b.kind == "memory":
+        if mirrored and b.side == 1:
+            blocks[b.name] = blocks[_left(b.name)]
+        elif b.kind == "memory":
             active = _last(net, names["a"][b.side]) + 1
             blocks[b.name] = activity_counts(active - acc["blocked"], 0, acc["blocked"],
                                              c_d - active)
@@ -172,6 +193,9 @@ def _stats(plan: ChipPlan, net: Net, names: dict, t_end: int) -> dict:
             blocks[b.name] = activity_counts(n, allowed - n, 0, c_d - allowed)
     fifos = {}
     for k, f in enumerate(plan.fifos):
+        if mirrored and plan.block(f.producer).side == 1:
+            fifos[f.name] = fifos[_left(f.name)]
+            continue
         wk = net.walks[nf + k] if f.crossing else net.walks[k]
         hist = net.hist[net.walks[k]["hoff"]:net.walks[k]["hoff"] + f.depth + 1]
         last_pop = int(pop_cycle(net, k, f.beats - 1))
@@ -198,6 +222,7 @@ def _stop(plan: ChipPlan, sink_stall, cls, now_fs: int, executed: int, tail: str
     ``now_fs + 1``), with the state of every FIFO and block."""
     net, _ = _pass(plan, sink_stall, executed, False)
     cycles = {name: (executed - 1) // d.period_fs + 1 for name, d in plan.domains.items()}
+    cursors_at(net, now_fs, True)
     fifos = {}
     for k, f in enumerate(plan.fifos):
         pushes, pops, _, _, _ = fifo_state(net, k, now_fs)
@@ -224,14 +249,18 @@ def _raise_stop(plan: ChipPlan, net: Net, names: dict, sink_stall, t_end: int) -
     t_over = INF
     over = []
     if net.prm[0]["end"] == END_OVERFLOW:
-        for i, b in enumerate(plan.blocks):
-            acc = net.acc[i]
-            if b.kind == "camera" and acc["over_cycle"] < INF:
+        index = {b.name: i for i, b in enumerate(plan.blocks)}
+        mirrored = int(net.prm[0]["sides"]) == 1
+        for b in plan.blocks:
+            if b.kind != "camera":
+                continue
+            acc = net.acc[index[_left(b.name)] if mirrored else index[b.name]]
+            if acc["over_cycle"] < INF:
+                tile = int(acc["over_tile"]) + (plan.parts if mirrored and b.side == 1 else 0)
                 t = int(acc["over_cycle"]) * plan.domains[b.domain].period_fs
                 k = int(acc["over_k"])
-                entry = (t, b.name, plan.fifos[int(net.tiles[acc["over_tile"]]["src_fifo"])].name,
-                         k % plan.shape[1], k // plan.shape[1], int(acc["over_cycle"]))
-                over.append(entry)
+                over.append((t, b.name, plan.fifos[int(net.tiles[tile]["src_fifo"])].name,
+                             k % plan.shape[1], k // plan.shape[1], int(acc["over_cycle"])))
         t_over = min(e[0] for e in over)
     limit = min(t_end, t_budget, t_over)
     t_dog, quiet_from = first_quiet(net, _periods(plan), limit)
@@ -262,17 +291,20 @@ def _trace(plan: ChipPlan, sink_stall, window: tuple[int, int], t_end: int, data
     net, names = _pass(plan, sink_stall, end, False, capacity=1 << int(cap - 1).bit_length())
     n_sig = len(plan.signals)
     initial = np.zeros(n_sig, np.uint64)
+    done = np.full((len(plan.blocks) + len(plan.fifos), 2), -1)
     if start > 0:
         t0 = max(((start - 1) // int(p)) * int(p) for p in periods)
-        sample(net, data, t0, initial)
+        cursors_at(net, t0, True)
+        sample(net, data, t0, initial, done)
     size = max(1 << 16, 4 * n_sig)
     ctl = np.array([0, next_instant(periods, start - 1)], np.int64)
     last = initial.copy()
-    scratch = np.zeros(n_sig, np.uint64)
+    scratch = initial.copy()  # the signals as ``done`` says they were sampled
     times = np.zeros(size, np.int64)
     ids = np.zeros(size, np.int32)
     values = np.zeros(size, np.uint64)
-    while not record_window(net, data, periods, end, (ctl, last, times, ids, values, scratch)):
+    while not record_window(net, data, periods, end,
+                            (ctl, last, times, ids, values, scratch, done)):
         times = np.concatenate([times, np.zeros_like(times)])
         ids = np.concatenate([ids, np.zeros_like(ids)])
         values = np.concatenate([values, np.zeros_like(values)])
@@ -292,11 +324,15 @@ def _trace(plan: ChipPlan, sink_stall, window: tuple[int, int], t_end: int, data
 
 
 def run_compiled(plan: ChipPlan, left: np.ndarray, right: np.ndarray, *, sink_stall=None,
-                 window: tuple[int, int] | None = None) -> FrameResult:
+                 window: tuple[int, int] | None = None,
+                 timings: dict | None = None) -> FrameResult:
     """One frame on the compiled engine: the readable kernel's words, report and statistics,
     or its exception; ``window`` = (start_fs, end_fs) records the trace of that window.
     ``sink_stall``: ``(period, allowed_phase)``, the sink pops only in cycles ``c`` with
-    ``c % period == allowed_phase``."""
+    ``c % period == allowed_phase``. ``timings`` (a dict) receives the CPU seconds of the
+    event streams and statistics (``engine_s``), the NNA's descriptors (``nna_kernels_s``) and
+    the SVA's stream (``sva_kernels_s``)."""
+    t0 = time.process_time()
     net, names = _pass(plan, sink_stall, _budget_instant(plan), True)
     t_end = INF
     if net.prm[0]["end"] == END_DONE:
@@ -305,11 +341,16 @@ def run_compiled(plan: ChipPlan, left: np.ndarray, right: np.ndarray, *, sink_st
     stats = _stats(plan, net, names, t_end)
     report = cycle_report(plan, int(net.prm[0]["first_pop"]), _last(net, names["p"] + 2),
                           stats)
-    desc = np.stack([compute_descriptor(left, plan.cfg.nna), compute_descriptor(right,
-                                                                                plan.cfg.nna)])
+    t1 = time.process_time()
+    desc = (compute_descriptor(left, plan.cfg.nna), compute_descriptor(right, plan.cfg.nna))
+    t2 = time.process_time()
     words = sva_stream(desc[0], desc[1], left, plan.cfg.sva, plan.descriptor_bits)
+    if timings is not None:
+        timings.update(engine_s=t1 - t0, nna_kernels_s=t2 - t1,
+                       sva_kernels_s=time.process_time() - t2)
     result = FrameResult(words, report, stats, net.rows.copy())
     if window is not None:
-        data = TraceData(desc.astype(np.uint64), words, np.int64((1 << plan.word_bits) - 1))
+        data = TraceData(np.stack(desc).astype(np.uint64), words,
+                         np.int64((1 << plan.word_bits) - 1))
         result.trace, result.outputs_in_window = _trace(plan, sink_stall, window, t_end, data)
     return result

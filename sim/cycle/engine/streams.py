@@ -117,8 +117,9 @@ def advance_source(net, side):
     """Source pushes of camera ``side`` (a joint push to every tile that takes the pixel)."""
     prm = net.prm[0]
     ring, streams, gaps = net.ring, net.streams, net.gaps
-    a_off, a_mask, k, _ = view(streams, side)
-    st = streams[side]
+    a_s = net.tiles[side * prm.parts].a
+    a_off, a_mask, k, _ = view(streams, a_s)
+    st = streams[a_s]
     n, w, per, cap = st.n, prm.w, st.period, prm.cap_fs
     parts, camera, stats, g = prm.parts, prm.camera, prm.stats, prm.watchdog_fs
     line_clocks, mem_hz, mem_bps = prm.line_clocks, prm.mem_hz, prm.mem_bps
@@ -169,12 +170,13 @@ def advance_source(net, side):
             if a * per >= cap:
                 break
             if stats == 1:
-                blocked += a - lo
-                # busy: waiting for the bucket (a_prev + 1 .. lo - 1) and the push
-                if lo > a_prev + 1:
-                    n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy, (a_prev + 1) * per,
-                                             (lo - 1) * per, g)
-                n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy, a * per, a * per, g)
+                # busy in every cycle but the blocked ones, lo .. a - 1
+                if a > lo:
+                    blocked += a - lo
+                    n_gaps, last_busy = busy(gaps, blk, n_gaps,
+                                             (lo - 1) * per if lo > 0 else last_busy, a * per,
+                                             a * per, g)
+                last_busy = a * per
         ring[a_off + (k & a_mask)] = a
         a_prev = a
         k += 1
@@ -205,10 +207,10 @@ def advance_whole_side(net, side):
     prm = net.prm[0]
     ring, streams, gaps = net.ring, net.streams, net.gaps
     tl = net.tiles[side]
-    a_off, a_mask, ka, _ = view(streams, side)
+    a_off, a_mask, ka, _ = view(streams, tl.a)
     b_off, b_mask, kb, _ = view(streams, tl.b)
     e_off, e_mask, ne, e_lo = view(streams, tl.e)
-    sa, sb = streams[side], streams[tl.b]
+    sa, sb = streams[tl.a], streams[tl.b]
     f = net.fifos[tl.src_fifo]
     depth, de, se = f.depth, f.data_edges, f.space_edges
     p_src, p_nna = f.per_src, f.per_dst
@@ -286,12 +288,13 @@ def advance_whole_side(net, side):
                 if a * p_src >= cap:
                     break
                 if stats == 1:
-                    blocked += a - lo
-                    if lo > a_prev + 1:
-                        n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy,
-                                                 (a_prev + 1) * p_src, (lo - 1) * p_src, g)
-                    n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy, a * p_src,
-                                             a * p_src, g)
+                    # busy in every cycle but the blocked ones, lo .. a - 1
+                    if a > lo:
+                        blocked += a - lo
+                        n_gaps, last_busy = busy(gaps, blk, n_gaps,
+                                                 (lo - 1) * p_src if lo > 0 else last_busy,
+                                                 a * p_src, a * p_src, g)
+                    last_busy = a * p_src
             ring[a_off + (ka & a_mask)] = a
             a_prev = a
             ka += 1
@@ -322,7 +325,7 @@ def pending_overflow(net, side):
     frees only beyond the cap) overflows when that pixel arrives, if before the cap."""
     prm = net.prm[0]
     ring, streams = net.ring, net.streams
-    st = streams[side]
+    st = streams[net.tiles[side * prm.parts].a]
     k = st.count
     if prm.camera == 0 or k >= st.n:
         return
@@ -360,7 +363,7 @@ def advance_pops(net, ti):
     tl = net.tiles[ti]
     b_off, b_mask, i, _ = view(streams, tl.b)
     e_off, e_mask, ne, e_lo = view(streams, tl.e)
-    a_off, a_mask, na, a_lo = view(streams, tl.side)
+    a_off, a_mask, na, a_lo = view(streams, tl.a)
     st = streams[tl.b]
     f = net.fifos[tl.src_fifo]
     per_src, per_dst, de = f.per_src, f.per_dst, f.data_edges
@@ -626,95 +629,81 @@ def advance_sva_pops(net, p_s, f_left, f_right):
     return j > start
 
 
-@njit(cache=True, inline="always")
-def advance_sva_out(net, p_s, f_sink):
-    """The SVA's word pushes, as far as its ready rows and the sink's free slots allow."""
-    prm = net.prm[0]
-    ring, streams = net.ring, net.streams
-    p_off, p_mask, npop, p_lo = view(streams, p_s)
-    o_off, o_mask, j, _ = view(streams, p_s + 1)
-    q_off, q_mask, nq, q_lo = view(streams, p_s + 2)
-    st = streams[p_s + 1]
-    depth = net.fifos[f_sink].depth
-    n, w, h, per, cap, la = st.n, prm.w, prm.h, st.period, prm.cap_fs, prm.lookahead
-    lat, cpp = prm.pipe_latency, prm.cpp
-    err = False
-    start = j
-    o_prev = rd(ring, o_off, o_mask, j - 1) if j > 0 else -(1 << 40)
-    ready_row = -1
-    ready = 0
-    y = j // w
-    x = j - y * w
-    while j < n:
-        if y != ready_row:
-            need = (sva_last_input_row(y, la, h) + 1) * w
-            if need > npop:
-                break
-            err |= need - 1 <= p_lo
-            ready = rd(ring, p_off, p_mask, need - 1) + 1
-            ready_row = y
-        free = 0
-        if j >= depth:
-            if j - depth >= nq:
-                break
-            err |= j - depth <= q_lo
-            free = rd(ring, q_off, q_mask, j - depth) + 1
-        o = max(sva_word_due(ready, lat, o_prev, cpp), free)
-        if o * per >= cap:
-            break
-        ring[o_off + (j & o_mask)] = o
-        o_prev = o
-        j += 1
-        x += 1
-        if x == w:
-            x = 0
-            y += 1
-    st.count = j
-    if err:
-        prm.error = ERR_RING
-    return j > start
-
-
-@njit(cache=True, inline="always")
-def advance_sink(net, q_s, f_sink):
-    """The sink's pops: the first allowed cycle from the word's visibility."""
+@njit(cache=True)
+def advance_sva_out_and_sink(net, p_s, f_sink):
+    """The SVA's pushes and the sink's pops taken in turn in one loop (a push needs the pop of
+    the word a FIFO depth before, a pop the push of its word)."""
     prm = net.prm[0]
     ring, streams, gaps = net.ring, net.streams, net.gaps
-    o_off, o_mask, no, o_lo = view(streams, q_s - 1)
-    q_off, q_mask, j, _ = view(streams, q_s)
-    st = streams[q_s]
-    n, w, per, cap = st.n, prm.w, st.period, prm.cap_fs
-    de = net.fifos[f_sink].data_edges
+    p_off, p_mask, npop, p_lo = view(streams, p_s)
+    o_off, o_mask, ko, _ = view(streams, p_s + 1)
+    q_off, q_mask, kq, _ = view(streams, p_s + 2)
+    so, sq = streams[p_s + 1], streams[p_s + 2]
+    fi = net.fifos[f_sink]
+    depth, de = fi.depth, fi.data_edges
+    n, w, h, per, cap, la = so.n, prm.w, prm.h, so.period, prm.cap_fs, prm.lookahead
+    lat, cpp = prm.pipe_latency, prm.cpp
     period, phase, stats, g = prm.stall_period, prm.stall_phase, prm.stats, prm.watchdog_fs
-    blk = st.block
+    blk = sq.block
     acc = net.acc[blk]
     row_fs = net.rows[1]
     last_busy, n_gaps = acc.last_busy, acc.gaps
     err = False
-    start = j
-    q_prev = rd(ring, q_off, q_mask, j - 1) if j > 0 else -1
+    start_o, start_q = ko, kq
+    o_prev = rd(ring, o_off, o_mask, ko - 1) if ko > 0 else -(1 << 40)
+    q_prev = rd(ring, q_off, q_mask, kq - 1) if kq > 0 else -1
+    yo = ko // w
+    xo = ko - yo * w
+    xq = kq % w
+    ready_row = -1
+    ready = 0
     first = -1
     empty = 0
-    x = j % w
-    while j < min(n, no):
-        err |= j <= o_lo
-        vis = rd(ring, o_off, o_mask, j) + de
-        q = sink_next_allowed(max(q_prev + 1, vis), period, phase)
-        if q * per >= cap:
+    while True:
+        moved = False
+        # pushes, while the word's row is ready and the slot a FIFO depth back is free
+        while ko < n and ko - depth < kq:
+            if yo != ready_row:
+                need = (sva_last_input_row(yo, la, h) + 1) * w
+                if need > npop:
+                    break
+                err |= need - 1 <= p_lo
+                ready = rd(ring, p_off, p_mask, need - 1) + 1
+                ready_row = yo
+            free = rd(ring, q_off, q_mask, ko - depth) + 1 if ko >= depth else 0
+            o = max(sva_word_due(ready, lat, o_prev, cpp), free)
+            if o * per >= cap:
+                break
+            ring[o_off + (ko & o_mask)] = o
+            o_prev = o
+            ko += 1
+            moved = True
+            xo += 1
+            if xo == w:
+                xo = 0
+                yo += 1
+        # pops: the first allowed cycle from the word's visibility
+        while kq < ko:
+            vis = rd(ring, o_off, o_mask, kq) + de
+            q = sink_next_allowed(max(q_prev + 1, vis), period, phase)
+            if q * per >= cap:
+                break
+            empty += max(0, vis - q_prev - 1)
+            ring[q_off + (kq & q_mask)] = q
+            if kq == 0:
+                first = q
+            if stats == 1:
+                n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy, q * per, q * per, g)
+            q_prev = q
+            kq += 1
+            moved = True
+            xq += 1
+            if xq == w:
+                xq = 0
+                row_fs[kq // w] = q * per
+        if not moved:
             break
-        empty += max(0, vis - q_prev - 1)
-        ring[q_off + (j & q_mask)] = q
-        if j == 0:
-            first = q
-        if stats == 1:
-            n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy, q * per, q * per, g)
-        q_prev = q
-        j += 1
-        x += 1
-        if x == w:
-            x = 0
-            row_fs[j // w] = q * per
-    st.count = j
+    so.count, sq.count = ko, kq
     if first >= 0:
         prm.first_pop = first
     acc.last_busy, acc.gaps = last_busy, n_gaps
@@ -723,7 +712,7 @@ def advance_sink(net, q_s, f_sink):
         prm.error = ERR_RING
     if n_gaps > gaps.shape[1]:
         prm.error = ERR_GAPS
-    return j > start
+    return ko > start_o or kq > start_q
 
 
 # ---- the pass -----------------------------------------------------------------------------------
@@ -739,34 +728,29 @@ def run_pass(net, ids):
     streams = net.streams
     p_s, f_left, f_right, f_sink = ids[0], ids[1], ids[2], ids[3]
     q_s = p_s + 2
-    n_tiles = net.tiles.shape[0]
+    sides = prm.sides  # 1: the right side's events are the left's
+    n_tiles = sides * prm.parts
     n_streams = streams.shape[0]
     walked = np.zeros(n_streams, np.int64)
     while True:
         prm.iterations += 1
         moved = False
         if prm.parts == 1:
-            for side in range(2):
+            for side in range(sides):
                 moved |= advance_whole_side(net, side)
         else:
-            for side in range(2):
+            for side in range(sides):
                 moved |= advance_source(net, side)
             for ti in range(n_tiles):
                 moved |= advance_pops(net, ti)
         for ti in range(n_tiles):
             moved |= advance_pushes(net, ti)
         if prm.merge == 1:
-            for side in range(2):
+            for side in range(sides):
                 m_s = net.fifos[net.tiles[side * prm.parts].out_fifo].pop
                 moved |= advance_merge(net, side, m_s)
         moved |= advance_sva_pops(net, p_s, f_left, f_right)
-        while True:  # the SVA's pushes and the sink's pops, likewise
-            step = advance_sva_out(net, p_s, f_sink)
-            if advance_sink(net, q_s, f_sink):
-                step = True
-            if not step:
-                break
-            moved = True
+        moved |= advance_sva_out_and_sink(net, p_s, f_sink)
         if prm.error != 0:
             return
         if prm.stats == 1:
@@ -783,7 +767,7 @@ def run_pass(net, ids):
             break
         if not moved:
             if prm.end != END_OVERFLOW:
-                for side in range(2):
+                for side in range(sides):
                     pending_overflow(net, side)
             if prm.end != END_OVERFLOW:
                 prm.end = END_STUCK if prm.cap_fs >= INF else END_CAP

@@ -320,8 +320,10 @@ def tile_output_before(tl, w, k):
 def item_index(kind, x0, y0, row_w, w, i):
     """The stream index of FIFO item i: the same, or for a tile's FIFO (``kind`` F_SRC: its
     pushes, F_MERGE: its pops) the raster index of the i-th pixel of its region, whose origin
-    is (x0, y0) and whose rows are ``row_w`` wide."""
+    is (x0, y0) and whose rows are ``row_w`` wide (whole rows: an offset)."""
     if kind == F_SRC or kind == F_MERGE:
+        if row_w == w:
+            return y0 * w + i
         r = i // row_w
         return (y0 + r) * w + x0 + i - r * row_w
     return i
@@ -383,8 +385,9 @@ def walk_fifo(net, f, producer, c_end):
     npush, npop = fifo_known(net.fifos, net.tiles, net.streams, prm.parts, w, f)
     x0, y0, row_w = fifo_region(net.fifos, net.tiles, prm.parts, f)
     kind = fi.kind
-    push_kind = F_SRC if kind == F_SRC else -1
-    pop_kind = F_MERGE if kind == F_MERGE else -1
+    whole = row_w == w and y0 == 0  # the region is the frame: item i is stream event i
+    push_kind = F_SRC if kind == F_SRC and not whole else -1
+    pop_kind = F_MERGE if kind == F_MERGE and not whole else -1
     u_off, u_mask, _, u_lo = _view(net.streams, fi.push)
     o_off, o_mask, _, o_lo = _view(net.streams, fi.pop)
     per_p, per_c, se, depth = fi.per_src, fi.per_dst, fi.space_edges, fi.depth
@@ -433,6 +436,12 @@ def walk_fifo(net, f, producer, c_end):
         if t >= limit:
             break
         if t > cycle:
+            if level < 0 or level > depth:
+                # (cannot happen -- a pop follows its push, a push waits for a slot -- unless
+                # the ring lost an event; the level held between events at one instant may
+                # pass the depth: pushes count first)
+                err = True
+                break
             if keep:
                 hist[hoff + level] += t - cycle
             if level >= depth:
@@ -456,7 +465,7 @@ def walk_fifo(net, f, producer, c_end):
                 idx = item_index(pop_kind, x0, y0, row_w, w, dec)
                 cc = _rd(ring, o_off, o_mask, idx)
                 td = seen_from_scaled(cc, per_c, per_p, rat_c, se) if producer else cc + 1
-    if final and c_end > cycle:
+    if final and c_end > cycle and 0 <= level <= depth:
         if keep:
             hist[hoff + level] += c_end - cycle
         if level >= depth:
@@ -485,16 +494,17 @@ def walk_all(net, final):
             if t > horizon:
                 horizon = t
     prm.horizon_fs = horizon
-    for ti in range(net.tiles.shape[0]):
+    for ti in range(prm.sides * prm.parts):
         walk_nna(net, ti, final)
     for blk in range(net.blocks.shape[0]):
         if net.blocks[blk].kind == K_SVA:
             walk_sva(net, blk, net.fifos[net.blocks[blk].fifo_in].pop, final)
     if not final:
         for f in range(net.fifos.shape[0]):
-            walk_fifo(net, f, False, -1)
-            if net.fifos[f].crossing == 1:
-                walk_fifo(net, f, True, -1)
+            if net.fifos[f].side < prm.sides:
+                walk_fifo(net, f, False, -1)
+                if net.fifos[f].crossing == 1:
+                    walk_fifo(net, f, True, -1)
 
 
 @njit(cache=True)
@@ -502,9 +512,10 @@ def finish_fifos(net, cycles):
     """Settle every FIFO walk up to the end of a completed run: ``cycles[f]`` = (edges of its
     consumer's domain, edges of its producer's)."""
     for f in range(net.fifos.shape[0]):
-        walk_fifo(net, f, False, cycles[f, 0])
-        if net.fifos[f].crossing == 1:
-            walk_fifo(net, f, True, cycles[f, 1])
+        if net.fifos[f].side < net.prm[0].sides:
+            walk_fifo(net, f, False, cycles[f, 0])
+            if net.fifos[f].crossing == 1:
+                walk_fifo(net, f, True, cycles[f, 1])
 
 
 @njit(cache=True)

@@ -1,0 +1,67 @@
+"""Peak resident memory of one cycle-model frame (CNN descriptor, D = 128) at 1280x720,
+1920x1080 and 3840x2160, each in a fresh process, with the sizes of what it must hold.
+
+    python benchmarks/memory_cycle.py [--sizes 1280x720,1920x1080,3840x2160]
+
+The frame is the default scene resized. What the run keeps besides the two images, their
+descriptors and the output: the compiled engine's event rings (a few rows of every stream,
+not the frame), the SVA's streaming buffers (W x D), the report. The baseline is the same
+process after importing stereosim and compiling nothing new (numba, numpy, OpenCV loaded).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import subprocess
+import sys
+
+import cv2
+
+from sim.api import run
+from sim.config import load_config
+from sim.cycle.engine.layout import ring_capacity
+from sim.cycle.plan import build_plan
+from sim.datasets import default_scene
+from sim.io import to_grey
+
+CONFIG = {"nna.descriptor": "cnn", "sva.disparities": 128}
+
+
+def child(size: str) -> None:
+    w, h = (int(v) for v in size.split("x"))
+    scene = default_scene()
+    left = cv2.resize(to_grey(scene["left"]), (w, h), interpolation=cv2.INTER_LINEAR)
+    right = cv2.resize(to_grey(scene["right"]), (w, h), interpolation=cv2.INTER_LINEAR)
+    base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    res = run(left, right, mode="cycle", overrides=CONFIG)
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    plan = build_plan(load_config(overrides=CONFIG), (h, w))
+    print(json.dumps({"size": size, "peak_mib": peak, "before_run_mib": base,
+                      "pixels": h * w, "ring_events": ring_capacity(plan),
+                      "engine": res.report["engine"],
+                      "frame_ms": res.report["latency"]["frame_ns"] / 1e6}))
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--sizes", default="1280x720,1920x1080,3840x2160")
+    ap.add_argument("--child", help=argparse.SUPPRESS)
+    args = ap.parse_args(argv)
+    if args.child:
+        child(args.child)
+        return
+    print("peak RSS of one cycle-model frame (CNN, D=128), each in a fresh process:")
+    for size in args.sizes.split(","):
+        out = subprocess.run([sys.executable, __file__, "--child", size], capture_output=True,
+                             text=True, check=True)
+        r = json.loads(out.stdout.strip().splitlines()[-1])
+        extra = (r["peak_mib"] - r["before_run_mib"]) * 2**20 / r["pixels"]
+        print(f"  {size:>10}: peak {r['peak_mib']:.0f} MiB ({r['before_run_mib']:.0f} MiB before "
+              f"the run: images loaded, packages imported), {extra:.1f} bytes per pixel for the "
+              f"run; rings of {r['ring_events']} events; engine {r['engine']}")
+
+
+if __name__ == "__main__":
+    main()
