@@ -36,7 +36,7 @@ from sva.lr_check import (
     right_disparity_ref,
 )
 from sva.median import median, median_ref
-from sva.sgm import new_path_buffers, sgm_params, sgm_pixel, sgm_ref
+from sva.sgm import new_path_buffers, sgm_params, sgm_pixel, sgm_ref, sgm_row_start
 from sva.wta import disparity_index, subpixel_mode_code, wta_pixel, wta_ref
 
 
@@ -89,7 +89,7 @@ def _stream(desc_l, desc_r, img, box, sgm_args, select, q_out, colsum, y_start, 
     ``box`` = (k, bits, agg_cap): the box size, the descriptor width and the cap of the
     aggregated cost fed to SGM, min(2^cost_bits, 2^path_bits) - 1 (clamping A to the path cap
     first is exact: min(A + x, cap) = min(min(A, cap) + x, cap) for x >= 0).
-    ``sgm_args`` = (state, params, sum_cap) of :func:`sva.sgm.sgm_pixel`.
+    ``sgm_args`` = (state, params) of :func:`sva.sgm.sgm_pixel`.
     ``select`` = (uniqueness, mode, frac_bits, lr, max_diff, diag).
 
     Rows ``y_start`` .. ``y_stop - 1`` are processed; ``colsum`` (W, D) uint16 and the buffers in
@@ -103,17 +103,15 @@ def _stream(desc_l, desc_r, img, box, sgm_args, select, q_out, colsum, y_start, 
     the diagonal search of the right disparity. Per row again: the LR check.
     """
     k, bits, agg_cap = box
-    state, params, sum_cap = sgm_args
+    state, params = sgm_args
     uniqueness, mode, frac_bits, lr, max_diff, diag = select
     h, w = desc_l.shape
     dn = state[0].shape[1] - 2
     r = k // 2
-    scap = np.uint16(sum_cap)
     rev_in = np.empty(w, desc_r.dtype)
     rev_out = np.empty(w, desc_r.dtype)
     hacc = np.empty(dn, np.uint16)
     agg = np.empty(dn, np.uint16)
-    acc = np.empty(dn, np.uint16)
     s = np.empty(dn, np.uint16)
     idx = disparity_index(dn)
     dint = np.empty(w, np.int32)
@@ -136,15 +134,11 @@ def _stream(desc_l, desc_r, img, box, sgm_args, select, q_out, colsum, y_start, 
         img_prev = img[y - 1] if y > 0 else img[0]
         q_row = q_out[y]
         diagonal_start(diag)
+        sgm_row_start(y, state)
         for x in range(w):
             box_step(hacc, colsum[min(x + r + 1, w - 1)], colsum[max(x - r, 0)], agg_cap, agg)
-            for d in range(dn):
-                acc[d] = 0
-            sgm_pixel(agg, x, y, img_row, img_prev, state, params, acc)
-            for d in range(dn):
-                v = acc[d]
-                s[d] = min(v, scap)
-            q_row[x], dint[x] = wta_pixel(s, idx, uniqueness, mode, frac_bits)
+            s1 = sgm_pixel(agg, x, y, img_row, img_prev, state, params, s)
+            q_row[x], dint[x] = wta_pixel(s, s1, idx, uniqueness, mode, frac_bits)
             # unconditional even without the LR check: a branch around array code in this
             # loop would cost numba reference counting on every pixel
             diagonal_update(s, x, diag)
@@ -171,9 +165,11 @@ class SvaStream:
         self.height = h
         self.desc_l, self.desc_r, self.img_l = desc_l, desc_r, img_l
         agg_cap = min((1 << cfg.cost_bits) - 1, (1 << cfg.path_bits) - 1)
-        params = sgm_params(cfg.paths, cfg.p1, cfg.p2, cfg.p2_adaptive, cfg.p2_slope, cfg.path_bits)
+        params = sgm_params(
+            cfg.paths, cfg.p1, cfg.p2, cfg.p2_adaptive, cfg.p2_slope, cfg.path_bits, cfg.sum_bits
+        )
         self._box = (np.int64(cfg.box_size), np.uint16(bits), np.uint16(agg_cap))
-        self._sgm = (new_path_buffers(w, dn), params, np.uint16((1 << cfg.sum_bits) - 1))
+        self._sgm = (new_path_buffers(w, dn), params)
         self._select = (
             np.int64(cfg.uniqueness),
             np.int64(subpixel_mode_code(cfg.subpixel)),

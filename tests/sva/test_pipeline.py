@@ -172,6 +172,14 @@ def test_largest_disparity_range_for_the_width(height, width, disparities):
     check(dl, dr, img, cfg, 31)
 
 
+@pytest.mark.parametrize("paths", [1, 2, 3, 4])
+def test_tall_frame_wraps_the_path_rings(paths):
+    # H > W + 2: the top paths' rings of W + 1 and W + 2 path rows wrap around twice
+    cfg = sva_config(disparities=16, box_size=3, paths=paths, lr_check=True, p2_adaptive=True)
+    dl, dr, img = descriptor_pair(41, 17, 31, seed=paths)
+    check(dl, dr, img, cfg, 31)
+
+
 def test_largest_disparity_range():
     cfg = sva_config(disparities=256, box_size=1, paths=4, lr_check=True, median=3)
     dl, dr, img = descriptor_pair(2, 257, 31, seed=256)
