@@ -181,10 +181,28 @@ def _channel_rows4_f32(xp, w_pad, c, y, acc):
             q0, q1, q2 = w_pad[c + 3, ky, kx], w_pad[c + 3, ky, kx + 1], w_pad[c + 3, ky, kx + 2]
             for x in range(width):
                 x0, x1, x2 = s0[x], s1[x], s2[x]
-                a0[x] += u0 * x0 + u1 * x1 + u2 * x2
-                a1[x] += v0 * x0 + v1 * x1 + v2 * x2
-                a2[x] += p0 * x0 + p1 * x1 + p2 * x2
-                a3[x] += q0 * x0 + q1 * x1 + q2 * x2
+                # one accumulation per tap, so that every tap is one fused multiply-add
+                # (``acc + (u0 x0 + u1 x1 + u2 x2)`` would cost a multiply and an add more)
+                a = a0[x]
+                a += u0 * x0
+                a += u1 * x1
+                a += u2 * x2
+                a0[x] = a
+                b = a1[x]
+                b += v0 * x0
+                b += v1 * x1
+                b += v2 * x2
+                a1[x] = b
+                e = a2[x]
+                e += p0 * x0
+                e += p1 * x1
+                e += p2 * x2
+                a2[x] = e
+                f = a3[x]
+                f += q0 * x0
+                f += q1 * x1
+                f += q2 * x2
+                a3[x] = f
 
 
 @njit(cache=True)
