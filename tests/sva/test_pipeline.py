@@ -271,6 +271,50 @@ def test_stream_fed_row_by_row_equals_whole_frame(box, median, paths):
     assert final == 13
 
 
+@pytest.mark.parametrize("median", [0, 3, 5])
+def test_frame_taller_than_the_median_ring(median):
+    """The words before the median live in a ring of 2 m + 32 rows: a taller frame, whole or
+    fed in uneven steps, must give the reference's words."""
+    from sva.pipeline import SvaStream
+
+    cfg = sva_config(disparities=16, box_size=3, median=median, paths=4, lr_check=True)
+    desc_l, desc_r, img = descriptor_pair(83, 17, 31, seed=median)
+    whole = check(desc_l, desc_r, img, cfg, 31)
+    stream = SvaStream(desc_l, desc_r, img, cfg, 31)
+    rng = np.random.default_rng(median)
+    rows_in = 0
+    while rows_in < 83:
+        rows_in = min(83, rows_in + int(rng.integers(0, 40)))
+        final = stream.advance(rows_in)
+        assert_array_equal(stream.q[:final], whole[:final])
+    assert final == 83
+
+
+@pytest.mark.parametrize("median", [0, 3, 5])
+def test_stream_keeps_no_second_frame(median):
+    """Besides its inputs and the output words, the stream's buffers grow with W x D, never
+    with H x W: the words before the median are a ring of rows."""
+    from sva.pipeline import SvaStream
+
+    h, w, dn = 200, 40, 16
+    desc_l, desc_r, img = descriptor_pair(h, w, 31, seed=1)
+    stream = SvaStream(desc_l, desc_r, img, sva_config(disparities=dn, median=median), 31)
+    stream.advance(h)
+
+    def arrays(obj):
+        if isinstance(obj, np.ndarray):
+            yield obj
+        elif isinstance(obj, tuple):
+            for item in obj:
+                yield from arrays(item)
+
+    inputs = {id(stream.desc_l), id(stream.desc_r), id(stream.img_l), id(stream.q)}
+    state = [a for v in vars(stream).values() for a in arrays(v) if id(a) not in inputs]
+    assert state, "the stream's state was not found"
+    for a in state:
+        assert a.nbytes <= 4 * (w + dn) * (dn + 2) * 2 + 4 * w * (2 * (median // 2) + 32)
+
+
 @pytest.mark.parametrize(
     "overrides",
     [
