@@ -100,8 +100,9 @@ def _stream(desc_l, desc_r, img, box, sgm_args, select, q_out, colsum, y_start, 
 
     Per row: the vertical box sums slide down one row (the cost row entering the window added,
     the one leaving it subtracted, both recomputed from the descriptors: no ring of cost rows).
-    Per pixel: the horizontal box sum, the SGM paths (top paths updated in place), S, WTA and
-    the diagonal search of the right disparity. Per row again: the LR check.
+    Per pixel: the horizontal box sum, every SGM path and S in one d-loop (the top paths in
+    row rings), WTA and the diagonal search of the right disparity. Per row again: the LR
+    check.
     """
     k, bits, agg_cap = box
     state, params = sgm_args

@@ -109,8 +109,8 @@ def new_path_buffers(width: int, disparities: int):
 
     ``mins`` (3 W + 7,) uint16: the minimum over d of each row, and a last entry nobody
     reads (see :func:`_paths4`). Costs live at [1, D]; entries 0 and D + 1 stay ABSENT so
-    the d-loop has no branches. ``phase`` (2,) int64: the ring
-    offsets of the row in progress, y mod (W + 1) and 2 y mod (W + 2) (:func:`sgm_row_start`).
+    the d-loop has no branches. ``phase`` (2,) int64: the ring offsets of the row in
+    progress, y mod (W + 1) and 2 y mod (W + 2) (:func:`sgm_row_start`).
     """
     buf = np.full((3 * width + 6, disparities + 2), ABSENT, np.uint16)
     buf[3 * width + 5, 1:-1] = 0
@@ -174,8 +174,8 @@ def sgm_pixel(c, x, y, img_row, img_prev, state, params, s_out):
     predecessor row is read and each output row written once, in uint16 lanes (LLVM
     vectorises it across d; the rows are distinct, so its runtime overlap checks pass).
     """
-    buf, mins, phase = state
-    paths, p1, p2, adaptive, slope, cap, scap = params
+    _, mins, phase = state
+    paths, p1, p2, adaptive, slope, _, _ = params
     w = img_row.shape[0]
     top_left = w + 1
     top_right = 2 * w + 3
@@ -199,29 +199,35 @@ def sgm_pixel(c, x, y, img_row, img_prev, state, params, s_out):
     out3 = top_right + x
     pred3 = top_right + x + 1 if y > 0 and x < w - 1 else zero
     pen3 = _p2_at(p1, p2, adaptive, slope, i_p, img_prev[min(x + 1, w - 1)])
-    pred = (pred0, pred1, pred2, pred3)
-    out = (out0, out1, out2, out3)
-    jump = (
-        np.uint16(mins[pred0] + pen0),
-        np.uint16(mins[pred1] + pen1),
-        np.uint16(mins[pred2] + pen2),
-        np.uint16(mins[pred3] + pen3),
+    # (predecessor rows, output rows, m + P2 per path)
+    step = (
+        (pred0, pred1, pred2, pred3),
+        (out0, out1, out2, out3),
+        (
+            np.uint16(mins[pred0] + pen0),
+            np.uint16(mins[pred1] + pen1),
+            np.uint16(mins[pred2] + pen2),
+            np.uint16(mins[pred3] + pen3),
+        ),
     )
     # one d-loop per path count, each run over D or 0 disparities: a loop cannot skip a path
     # without a branch per d, and a branch around array code here would cost numba
     # reference counting on every pixel
     dn = c.shape[0]
-    s1 = _paths4(c, buf, mins, pred, out, jump, params, s_out, dn if paths == 4 else 0)
-    s1 = min(s1, _paths3(c, buf, mins, pred, out, jump, params, s_out, dn if paths == 3 else 0))
-    s1 = min(s1, _paths2(c, buf, mins, pred, out, jump, params, s_out, dn if paths == 2 else 0))
-    s1 = min(s1, _paths1(c, buf, mins, pred, out, jump, params, s_out, dn if paths == 1 else 0))
+    s1 = _paths4(c, state, step, params, s_out, dn if paths == 4 else 0)
+    s1 = min(s1, _paths3(c, state, step, params, s_out, dn if paths == 3 else 0))
+    s1 = min(s1, _paths2(c, state, step, params, s_out, dn if paths == 2 else 0))
+    s1 = min(s1, _paths1(c, state, step, params, s_out, dn if paths == 1 else 0))
     return s1
 
 
 @njit(cache=True, inline="always")
-def _paths4(c, buf, mins, pred, out, jump, params, s_out, n):
+def _paths4(c, state, step, params, s_out, n):
     """The d-loop of :func:`sgm_pixel` with all four paths over d < n (n = D, or 0 when
-    another path count is configured); returns min S (0xFFFF if n = 0)."""
+    another path count is configured); returns min S (0xFFFF if n = 0). ``step`` =
+    (predecessor rows, output rows, m + P2) per path."""
+    buf, mins = state[0], state[1]
+    pred, out, jump = step
     p1, cap, scap = params[1], params[5], params[6]
     unused = mins.shape[0] - 1  # where a loop that did not run writes its minima
     l0, l1, l2, l3 = buf[pred[0]], buf[pred[1]], buf[pred[2]], buf[pred[3]]
@@ -255,8 +261,10 @@ def _paths4(c, buf, mins, pred, out, jump, params, s_out, n):
 
 
 @njit(cache=True, inline="always")
-def _paths3(c, buf, mins, pred, out, jump, params, s_out, n):
+def _paths3(c, state, step, params, s_out, n):
     """:func:`_paths4` with paths 0..2."""
+    buf, mins = state[0], state[1]
+    pred, out, jump = step
     p1, cap, scap = params[1], params[5], params[6]
     unused = mins.shape[0] - 1  # where a loop that did not run writes its minima
     l0, l1, l2 = buf[pred[0]], buf[pred[1]], buf[pred[2]]
@@ -285,8 +293,10 @@ def _paths3(c, buf, mins, pred, out, jump, params, s_out, n):
 
 
 @njit(cache=True, inline="always")
-def _paths2(c, buf, mins, pred, out, jump, params, s_out, n):
+def _paths2(c, state, step, params, s_out, n):
     """:func:`_paths4` with paths 0 and 1."""
+    buf, mins = state[0], state[1]
+    pred, out, jump = step
     p1, cap, scap = params[1], params[5], params[6]
     unused = mins.shape[0] - 1  # where a loop that did not run writes its minima
     l0, l1 = buf[pred[0]], buf[pred[1]]
@@ -311,8 +321,10 @@ def _paths2(c, buf, mins, pred, out, jump, params, s_out, n):
 
 
 @njit(cache=True, inline="always")
-def _paths1(c, buf, mins, pred, out, jump, params, s_out, n):
+def _paths1(c, state, step, params, s_out, n):
     """:func:`_paths4` with the left path only."""
+    buf, mins = state[0], state[1]
+    pred, out, jump = step
     p1, cap, scap = params[1], params[5], params[6]
     unused = mins.shape[0] - 1  # where a loop that did not run writes its minima
     l0 = buf[pred[0]]
