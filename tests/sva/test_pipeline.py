@@ -180,6 +180,25 @@ def test_tall_frame_wraps_the_path_rings(paths):
     check(dl, dr, img, cfg, 31)
 
 
+@pytest.mark.parametrize(
+    "overrides",
+    [
+        {"paths": 1, "subpixel": "off", "median": 0, "lr_check": False, "uniqueness": 0},
+        {"paths": 2, "subpixel": "parabola", "median": 3, "lr_check": True, "uniqueness": 10},
+        {"paths": 3, "subpixel": "equiangular", "median": 5, "lr_check": True,
+         "p2_adaptive": True},
+        {"paths": 4, "subpixel": "parabola", "median": 3, "lr_check": False, "uniqueness": 5,
+         "p2_adaptive": True},
+    ],
+    ids=lambda o: f"paths{o['paths']}",
+)
+def test_largest_disparity_range_every_path_count(overrides):
+    # D = 256, the largest: a d-loop of 256 uint16 lanes per path, on an odd width
+    cfg = sva_config(disparities=256, box_size=1, **overrides)
+    dl, dr, img = descriptor_pair(3, 259, 31, seed=overrides["paths"])
+    check(dl, dr, img, cfg, 31)
+
+
 def test_largest_disparity_range():
     cfg = sva_config(disparities=256, box_size=1, paths=4, lr_check=True, median=3)
     dl, dr, img = descriptor_pair(2, 257, 31, seed=256)
