@@ -96,7 +96,7 @@ def test_largest_costs_tie_to_the_smallest_disparity(disparities):
     # (sum_bits = 16 saturated) must still give d = 0, and a single smaller cost must win
     h, w = 2, disparities + 3
     s = np.full((h, w, disparities), 0xFFFF, np.uint16)
-    got, dr, dint = run_both(s, 1)
+    _, dr, dint = run_both(s, 1)
     assert (dr == 0).all() and (dint == 0).all()
     s[1, w - 1, disparities - 1] = 0xFFFE  # right pixel w - disparities sees it at d = D - 1
     _, dr, _ = run_both(s, 1)
