@@ -82,7 +82,7 @@ def sva_ref(desc_l, desc_r, img_l, cfg: SvaConfig, bits: int) -> np.ndarray:
 
 
 @njit(cache=True)
-def _stream(desc_l, desc_r, img, box, sgm_args, select, q_out, colsum, y_start, y_stop):
+def stream_rows(desc_l, desc_r, img, box, sgm_args, select, q_out, colsum, y_start, y_stop):
     """The fused SVA, row by row and, inside a row, pixel by pixel with every stage's D-vector
     in the L1 cache.
 
@@ -149,6 +149,9 @@ def _stream(desc_l, desc_r, img, box, sgm_args, select, q_out, colsum, y_start, 
             lr_check_row(q_row, dint, dr, max_diff)
 
 
+# the name the compiled cycle engine (sim/fast.py) imports; stream_rows is the public one
+_stream = stream_rows
+
 # checked rows the median ring takes beyond the 2 m rows the median itself needs: the compiled
 # loop runs this many rows per call at most when the median is on
 _RING_EXTRA_ROWS = 32
@@ -201,8 +204,8 @@ class SvaStream:
     @property
     def checked(self) -> np.ndarray:
         """A full-frame (H, W) int32 buffer for the words before the median, for an engine
-        that runs ``_stream`` and the median kernels from its own compiled loop (the compiled
-        cycle engine); with the median off it is ``q`` itself. The stream does not keep it:
+        that runs :func:`stream_rows` and the median kernels from its own compiled loop (the
+        compiled cycle engine); with the median off it is ``q`` itself. The stream does not keep it:
         every call with the median on returns a new buffer."""
         if self._m == 0:
             return self.q
@@ -210,7 +213,7 @@ class SvaStream:
 
     def kernel_state(self) -> tuple:
         """``(box, sgm_args, select, colsum)``: the state arguments of the compiled row loop
-        ``_stream`` (for engines that call it from their own compiled code)."""
+        :func:`stream_rows` (for engines that call it from their own compiled code)."""
         return self._box, self._sgm, self._select, self._colsum
 
     def advance(self, rows_in: int) -> int:
@@ -224,7 +227,7 @@ class SvaStream:
             # the ring must keep checked rows rows_final - m .. for the median of the rows
             # that are not final yet: fill it at most that far, then run the median
             chunk_stop = stop if m == 0 else min(stop, max(0, self.rows_final - m) + len(ring))
-            _stream(self.desc_l, self.desc_r, self.img_l, self._box, self._sgm, self._select,
+            stream_rows(self.desc_l, self.desc_r, self.img_l, self._box, self._sgm, self._select,
                     ring, self._colsum, self.rows_checked, chunk_stop)
             self.rows_checked = chunk_stop
             final = h if chunk_stop >= h else max(0, chunk_stop - m)
