@@ -30,7 +30,7 @@ from sva.aggregation import box_filter, box_start, box_step
 from sva.cost import cost_row_update, hamming_cost, reverse_row
 from sva.lr_check import lr_check_row, new_diagonal_buffers, right_disparity_row
 from sva.pipeline import sva_stream
-from sva.sgm import new_path_buffers, sgm, sgm_params, sgm_pixel
+from sva.sgm import new_path_buffers, sgm, sgm_params, sgm_pixel, sgm_row_start
 from sva.wta import disparity_index, subpixel_mode_code, wta, wta_pixel
 
 WIDTH, HEIGHT = 1280, 720
@@ -96,16 +96,14 @@ def _bench_box_horizontal(colsum, k, cap, rows):
 @njit(cache=True)
 def _bench_sgm(agg_row, img, state, params, rows):
     w, dn = agg_row.shape
-    acc = np.empty(dn, np.uint16)
+    s = np.empty(dn, np.uint16)
     total = 0
     for y in range(rows):
         img_row = img[y]
         img_prev = img[y - 1] if y > 0 else img[0]
+        sgm_row_start(y, state)
         for x in range(w):
-            for d in range(dn):
-                acc[d] = 0
-            sgm_pixel(agg_row[x], x, y, img_row, img_prev, state, params, acc)
-            total += acc[0]
+            total += sgm_pixel(agg_row[x], x, y, img_row, img_prev, state, params, s)
     return total
 
 
@@ -113,10 +111,13 @@ def _bench_sgm(agg_row, img, state, params, rows):
 def _bench_wta(s_row, uniqueness, mode, frac_bits, rows):
     w, dn = s_row.shape
     idx = disparity_index(dn)
+    s1 = np.empty(w, np.uint16)
+    for x in range(w):
+        s1[x] = s_row[x].min()  # the SGM step hands WTA the minimum
     total = 0
     for _ in range(rows):
         for x in range(w):
-            q, d = wta_pixel(s_row[x], idx, uniqueness, mode, frac_bits)
+            q, d = wta_pixel(s_row[x], s1[x], idx, uniqueness, mode, frac_bits)
             total += q + d
     return total
 
@@ -171,7 +172,9 @@ def main() -> None:
     agg_row = np.minimum(agg[mid], (1 << cfg.path_bits) - 1)
     colsum = _bench_cost_vertical(desc_l[strip], desc_r[strip], dn, k)
     mode = subpixel_mode_code(cfg.subpixel)
-    params = sgm_params(cfg.paths, cfg.p1, cfg.p2, cfg.p2_adaptive, cfg.p2_slope, cfg.path_bits)
+    params = sgm_params(
+        cfg.paths, cfg.p1, cfg.p2, cfg.p2_adaptive, cfg.p2_slope, cfg.path_bits, cfg.sum_bits
+    )
 
     stages = {
         "cost + vertical box (per row)": lambda: _bench_cost_vertical(desc_l, desc_r, dn, k),

@@ -31,7 +31,7 @@ MAX_CHANNELS = 64
 # Largest |weight * (pixel - offset)|: -128 * -255.
 MAX_PRODUCT = 128 * 255
 INT32_MAX = 2**31 - 1
-# Taps per pass of the innermost loop of _channel_row (which hard-codes 3); kernel columns are
+# Taps per pass of the innermost loop of channel_row (which hard-codes 3); kernel columns are
 # zero-padded to a multiple of it.
 _TAPS_PER_STEP = 3
 
@@ -122,7 +122,7 @@ def cnn_descriptor_ref(img, weights, bias, input_offset) -> np.ndarray:
 
 
 @njit(cache=True, fastmath={"contract"})
-def _channel_row(xp, w_pad, bias_c, c, y, acc):
+def channel_row(xp, w_pad, bias_c, c, y, acc):
     """acc[x] = bias_c + sum over (ky, kx) of w_pad[c, ky, kx] * xp[y + ky, x + kx].
 
     ``w_pad`` is (C, K, Kp) with Kp a multiple of 3 and zeros beyond column K, so the innermost
@@ -156,13 +156,13 @@ F32_EXACT = 1 << 24
 
 
 def f32_exact(k_size: int) -> bool:
-    """True if the K x K tap sums of :func:`_channel_row` are exact in float32."""
+    """True if the K x K tap sums of :func:`channel_row` are exact in float32."""
     return k_size * k_size * MAX_PRODUCT < F32_EXACT
 
 
 @njit(cache=True, fastmath={"contract"})
 def _channel_rows4_f32(xp, w_pad, c, y, acc):
-    """The float32 :func:`_channel_row` (no bias) for channels c .. c + 3 at once into ``acc`` (4, W): each input
+    """The float32 :func:`channel_row` (no bias) for channels c .. c + 3 at once into ``acc`` (4, W): each input
     sample loaded feeds four channels' multiply-adds, which keeps the loop bound by arithmetic
     rather than by loads (about 1.6x faster than one channel per pass)."""
     width = acc.shape[1]
@@ -181,14 +181,32 @@ def _channel_rows4_f32(xp, w_pad, c, y, acc):
             q0, q1, q2 = w_pad[c + 3, ky, kx], w_pad[c + 3, ky, kx + 1], w_pad[c + 3, ky, kx + 2]
             for x in range(width):
                 x0, x1, x2 = s0[x], s1[x], s2[x]
-                a0[x] += u0 * x0 + u1 * x1 + u2 * x2
-                a1[x] += v0 * x0 + v1 * x1 + v2 * x2
-                a2[x] += p0 * x0 + p1 * x1 + p2 * x2
-                a3[x] += q0 * x0 + q1 * x1 + q2 * x2
+                # one accumulation per tap, so that every tap is one fused multiply-add
+                # (``acc + (u0 x0 + u1 x1 + u2 x2)`` would cost a multiply and an add more)
+                a = a0[x]
+                a += u0 * x0
+                a += u1 * x1
+                a += u2 * x2
+                a0[x] = a
+                b = a1[x]
+                b += v0 * x0
+                b += v1 * x1
+                b += v2 * x2
+                a1[x] = b
+                e = a2[x]
+                e += p0 * x0
+                e += p1 * x1
+                e += p2 * x2
+                a2[x] = e
+                f = a3[x]
+                f += q0 * x0
+                f += q1 * x1
+                f += q2 * x2
+                a3[x] = f
 
 
 @njit(cache=True)
-def _sign_bits_rows_f32(xp, w_pad, bias, masks, y, acc4, acc, bits):
+def sign_bits_rows_f32(xp, w_pad, bias, masks, y, acc4, acc, bits):
     """bits[x] |= masks[c] where bias[c] + (tap sum of channel c at row y, column x) > 0, for
     every channel: four at a time (:func:`_channel_rows4_f32`), the rest one by one. ``acc4``
     (4, W) and ``acc`` (W,) float32 scratch; ``bits`` (W,) and ``masks`` (C,) of one unsigned
@@ -201,7 +219,7 @@ def _sign_bits_rows_f32(xp, w_pad, bias, masks, y, acc4, acc, bits):
             _sign_bits_f32(acc4[j], bias[c + j], masks[c + j], bits)
         c += 4
     while c < n_channels:
-        _channel_row(xp, w_pad, np.float32(0), c, y, acc)
+        channel_row(xp, w_pad, np.float32(0), c, y, acc)
         _sign_bits_f32(acc, bias[c], masks[c], bits)
         c += 1
 
@@ -225,7 +243,7 @@ def _descriptor_kernel(xp, w_pad, bias, masks, out):
     for y in range(height):
         bits[:] = zero
         for c in range(n_channels):
-            _channel_row(xp, w_pad, bias[c], c, y, acc)
+            channel_row(xp, w_pad, bias[c], c, y, acc)
             mask = masks[c]
             for x in range(width):
                 bits[x] |= mask if acc[x] > 0 else zero
@@ -244,7 +262,7 @@ def _descriptor_kernel_f32(xp, w_pad, bias, masks, out):
     zero = bits[0]
     for y in range(height):
         bits[:] = zero
-        _sign_bits_rows_f32(xp, w_pad, bias, masks, y, acc4, acc, bits)
+        sign_bits_rows_f32(xp, w_pad, bias, masks, y, acc4, acc, bits)
         out[y, :] = bits
 
 
@@ -255,7 +273,7 @@ def _accumulator_kernel(xp, w_pad, bias, out):
     acc = np.empty(width, dtype=np.int32)
     for y in range(height):
         for c in range(n_channels):
-            _channel_row(xp, w_pad, bias[c], c, y, acc)
+            channel_row(xp, w_pad, bias[c], c, y, acc)
             for x in range(width):
                 out[y, x, c] = acc[x]
 
@@ -274,6 +292,11 @@ def _prepare(img, weights, bias, input_offset):
     w_pad = np.zeros((n_channels, k_size, k_cols), dtype=np.int32)
     w_pad[:, :, :k_size] = weights
     return img, xp, w_pad, bias
+
+
+# the names the compiled cycle engine (sim/fast.py) imports; the public ones are above
+_channel_row = channel_row
+_sign_bits_rows_f32 = sign_bits_rows_f32
 
 
 def cnn_descriptor(img, weights, bias, input_offset) -> np.ndarray:

@@ -15,7 +15,7 @@ import numpy as np
 from numba import njit
 
 from sim.errors import InputError
-from sva.wta import INVALID
+from sva.wta import INVALID, disparity_index
 
 
 def right_disparity_ref(s) -> np.ndarray:
@@ -48,19 +48,22 @@ def lr_check_ref(q, dint, dr, max_diff: int) -> np.ndarray:
 
 
 def new_diagonal_buffers(width: int, disparities: int):
-    """Scratch of :func:`diagonal_update`: (best cost, its d) per right pixel, int32, stored
-    reversed (x_r at index W - 1 - x_r) with room for the D - 1 pixels x_r < 0 that the
-    d-loop also touches. Reset by :func:`diagonal_start`."""
+    """Scratch of :func:`diagonal_update`: (best cost, its d, the d of each lane) per right
+    pixel, uint16 like S, stored reversed (x_r at index W - 1 - x_r) with room for the D - 1
+    pixels x_r < 0 that the d-loop also touches; the third array is 0 .. D - 1. Reset by
+    :func:`diagonal_start`."""
     n = width + disparities - 1
-    return np.empty(n, np.int32), np.empty(n, np.int32)
+    return np.empty(n, np.uint16), np.empty(n, np.uint16), disparity_index(disparities)
 
 
 @njit(cache=True)
 def diagonal_start(diag):
-    """Open every right pixel of a new row: cost above any S (S < 2^16), d = 0."""
-    best, best_d = diag
+    """Open every right pixel of a new row: cost 0xFFFF, d = 0. The first candidate of a
+    right pixel is d = 0, so starting from (0xFFFF, 0) is the same as starting above every S
+    (an S of 0xFFFF at d = 0 leaves (0xFFFF, 0))."""
+    best, best_d, _ = diag
     for i in range(best.shape[0]):
-        best[i] = 0x7FFFFFFF
+        best[i] = 0xFFFF
         best_d[i] = 0
 
 
@@ -70,20 +73,23 @@ def diagonal_update(sx, x, diag):
 
     With x_r stored at index W - 1 - x_r, the right pixels of d = 0, 1, ... are contiguous
     and ascending from index W - 1 - x, so the d-loop is one fixed-length vectorisable pass
-    of compares and selects (int32 lanes; uint16 lanes with selects do not vectorise). d > x
-    lands on x_r < 0, which is never read. Pixels come in order x = 0, 1, ...: for a fixed
-    x_r, d grows with x, so strict < keeps the smallest d among equal costs, as defined.
+    of compares, minima and selects in uint16 lanes. d > x lands on x_r < 0, which is never
+    read. Pixels come in order x = 0, 1, ...: for a fixed x_r, d grows with x, so strict <
+    keeps the smallest d among equal costs, as defined.
     """
-    best, best_d = diag
+    best, best_d, idx = diag
     dn = sx.shape[0]
     base = best.shape[0] - dn - x  # index of x_r = x: W - 1 - x
     b = best[base:]
     i = best_d[base:]
     for d in range(dn):
-        v = np.int32(sx[d])
-        lt = v < b[d]
-        b[d] = v if lt else b[d]
-        i[d] = np.int32(d) if lt else i[d]
+        v = sx[d]
+        old = b[d]
+        # 0xFFFF where this d wins, else 0: a select written as bit operations, which LLVM
+        # vectorises in uint16 lanes
+        take = np.uint16(0) - np.uint16(v < old)
+        i[d] = (i[d] & ~take) | (idx[d] & take)
+        b[d] = min(v, old)
 
 
 @njit(cache=True)

@@ -65,29 +65,39 @@ def selection_network(k: int) -> np.ndarray:
 _BLOCK = 128
 
 
+@njit(cache=True, inline="always")
+def _frame_row(src, height, i):
+    """Row clamp(i) of a frame of ``height`` rows kept in ``src``: all of it (src has
+    ``height`` rows) or the ring of its most recent rows (row i in slot i mod len(src))."""
+    return src[min(max(i, 0), height - 1) % src.shape[0]]
+
+
 @njit(cache=True)
-def _median_network(q, k, network, out):
-    """Any odd k: the window values of a block of pixels, one row per window position, then
-    the selection network as branch-free min/max over the block (vectorised over x)."""
-    h, w = q.shape
+def median_network_rows(src, height, k, network, y0, y1, out):
+    """Median rows y0 .. y1 - 1 of a frame of ``height`` rows into ``out[y - y0]``, any odd k:
+    the window values of a block of pixels, one row per window position, then the selection
+    network as branch-free min/max over the block (vectorised over x). ``src`` holds the
+    frame or a ring of its rows (:func:`_frame_row`) that includes rows y0 - k // 2 ..
+    y1 - 1 + k // 2 (clamped)."""
+    w = src.shape[1]
     r = k // 2
     padded = np.empty((k, w + 2 * r), np.int32)
     win = np.empty((k * k, _BLOCK), np.int32)
-    for y in range(h):
+    for y in range(y0, y1):
         for j in range(k):
-            src = q[min(max(y + j - r, 0), h - 1)]
+            row = _frame_row(src, height, y + j - r)
             dst = padded[j]
             for x in range(w + 2 * r):
-                dst[x] = src[min(max(x - r, 0), w - 1)]
-        o = out[y]
+                dst[x] = row[min(max(x - r, 0), w - 1)]
+        o = out[y - y0]
         for x0 in range(0, w, _BLOCK):
             n = min(_BLOCK, w - x0)
             for j in range(k):
                 for i in range(k):
-                    src = padded[j, x0 + i :]
+                    srow = padded[j, x0 + i :]
                     dst = win[j * k + i]
                     for t in range(n):
-                        dst[t] = src[t]
+                        dst[t] = srow[t]
             for c in range(network.shape[0]):
                 a = win[network[c, 0]]
                 b = win[network[c, 1]]
@@ -102,19 +112,20 @@ def _median_network(q, k, network, out):
 
 
 @njit(cache=True)
-def _median3(q, out):
-    """k = 3 without sorting windows: sort each column of three once (lo <= mid <= hi), then
-    the median of the 3 x 3 window is med3(max of the lows, med3 of the mids, min of the
-    highs) -- exact for nine values (the median has at least five values <= and >= it, and
-    the three candidates bracket it). Branch-free min/max over rows, vectorised over x."""
-    h, w = q.shape
+def median3_rows(src, height, y0, y1, out):
+    """:func:`median_network_rows` for k = 3 without sorting windows: sort each column of
+    three once (lo <= mid <= hi), then the median of the 3 x 3 window is med3(max of the lows,
+    med3 of the mids, min of the highs) -- exact for nine values (the median has at least
+    five values <= and >= it, and the three candidates bracket it). Branch-free min/max over
+    rows, vectorised over x."""
+    w = src.shape[1]
     lo = np.empty(w + 2, np.int32)
     mid = np.empty(w + 2, np.int32)
     hi = np.empty(w + 2, np.int32)
-    for y in range(h):
-        r0 = q[max(y - 1, 0)]
-        r1 = q[y]
-        r2 = q[min(y + 1, h - 1)]
+    for y in range(y0, y1):
+        r0 = _frame_row(src, height, y - 1)
+        r1 = _frame_row(src, height, y)
+        r2 = _frame_row(src, height, y + 1)
         for x in range(w):
             a = min(r0[x], r1[x])
             b = max(r0[x], r1[x])
@@ -125,7 +136,7 @@ def _median3(q, out):
         # replicate borders: columns -1 and W are columns 0 and W - 1
         lo[0], mid[0], hi[0] = lo[1], mid[1], hi[1]
         lo[w + 1], mid[w + 1], hi[w + 1] = lo[w], mid[w], hi[w]
-        o = out[y]
+        o = out[y - y0]
         for x in range(w):
             top = max(max(lo[x], lo[x + 1]), lo[x + 2])
             a = min(mid[x], mid[x + 1])
@@ -135,6 +146,29 @@ def _median3(q, out):
             a = min(top, centre)
             b = max(top, centre)
             o[x] = max(max(a, min(b, bottom)), -1)  # a median < 0 is invalid (-1)
+
+
+def median_rows(src, height: int, k: int, y0: int, y1: int, out) -> None:
+    """Median rows y0 .. y1 - 1 (k odd, >= 3) of a frame of ``height`` rows held in ``src``,
+    all of it or a ring of its rows (row i in slot i mod len(src)), into ``out[y - y0]``."""
+    if k == 3:
+        median3_rows(src, height, y0, y1, out)
+    else:
+        median_network_rows(src, height, k, selection_network(k), y0, y1, out)
+
+
+# _median_network and _median3: the whole-frame names the compiled cycle engine (sim/fast.py)
+# imports; median_network_rows and median3_rows are the public ones
+@njit(cache=True)
+def _median_network(q, k, network, out):
+    """The whole frame ``q`` (H, W) through :func:`median_network_rows`."""
+    median_network_rows(q, q.shape[0], k, network, 0, q.shape[0], out)
+
+
+@njit(cache=True)
+def _median3(q, out):
+    """The whole frame ``q`` (H, W) through :func:`median3_rows`."""
+    median3_rows(q, q.shape[0], 0, q.shape[0], out)
 
 
 def median(q, k: int) -> np.ndarray:

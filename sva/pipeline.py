@@ -35,8 +35,8 @@ from sva.lr_check import (
     new_diagonal_buffers,
     right_disparity_ref,
 )
-from sva.median import median, median_ref
-from sva.sgm import new_path_buffers, sgm_params, sgm_pixel, sgm_ref
+from sva.median import median, median_ref, median_rows
+from sva.sgm import new_path_buffers, sgm_params, sgm_pixel, sgm_ref, sgm_row_start
 from sva.wta import disparity_index, subpixel_mode_code, wta_pixel, wta_ref
 
 
@@ -82,38 +82,38 @@ def sva_ref(desc_l, desc_r, img_l, cfg: SvaConfig, bits: int) -> np.ndarray:
 
 
 @njit(cache=True)
-def _stream(desc_l, desc_r, img, box, sgm_args, select, q_out, colsum, y_start, y_stop):
+def stream_rows(desc_l, desc_r, img, box, sgm_args, select, q_out, colsum, y_start, y_stop):
     """The fused SVA, row by row and, inside a row, pixel by pixel with every stage's D-vector
     in the L1 cache.
 
     ``box`` = (k, bits, agg_cap): the box size, the descriptor width and the cap of the
     aggregated cost fed to SGM, min(2^cost_bits, 2^path_bits) - 1 (clamping A to the path cap
     first is exact: min(A + x, cap) = min(min(A, cap) + x, cap) for x >= 0).
-    ``sgm_args`` = (state, params, sum_cap) of :func:`sva.sgm.sgm_pixel`.
+    ``sgm_args`` = (state, params) of :func:`sva.sgm.sgm_pixel`.
     ``select`` = (uniqueness, mode, frac_bits, lr, max_diff, diag).
 
     Rows ``y_start`` .. ``y_stop - 1`` are processed; ``colsum`` (W, D) uint16 and the buffers in
     ``sgm_args``/``select`` carry the stream's state from one call to the next, so a caller may
     feed the rows as they arrive (the cycle model does). Row y reads descriptor rows up to
-    clamp(y + r) only.
+    clamp(y + r) only and writes its words to ``q_out[y % len(q_out)]``: ``q_out`` is the
+    whole (H, W) frame or a ring of its most recent rows.
 
     Per row: the vertical box sums slide down one row (the cost row entering the window added,
     the one leaving it subtracted, both recomputed from the descriptors: no ring of cost rows).
-    Per pixel: the horizontal box sum, the SGM paths (top paths updated in place), S, WTA and
-    the diagonal search of the right disparity. Per row again: the LR check.
+    Per pixel: the horizontal box sum, every SGM path and S in one d-loop (the top paths in
+    row rings), WTA and the diagonal search of the right disparity. Per row again: the LR
+    check.
     """
     k, bits, agg_cap = box
-    state, params, sum_cap = sgm_args
+    state, params = sgm_args
     uniqueness, mode, frac_bits, lr, max_diff, diag = select
     h, w = desc_l.shape
     dn = state[0].shape[1] - 2
     r = k // 2
-    scap = np.uint16(sum_cap)
     rev_in = np.empty(w, desc_r.dtype)
     rev_out = np.empty(w, desc_r.dtype)
     hacc = np.empty(dn, np.uint16)
     agg = np.empty(dn, np.uint16)
-    acc = np.empty(dn, np.uint16)
     s = np.empty(dn, np.uint16)
     idx = disparity_index(dn)
     dint = np.empty(w, np.int32)
@@ -134,23 +134,27 @@ def _stream(desc_l, desc_r, img, box, sgm_args, select, q_out, colsum, y_start, 
         box_start(colsum, k, hacc)
         img_row = img[y]
         img_prev = img[y - 1] if y > 0 else img[0]
-        q_row = q_out[y]
+        q_row = q_out[y % q_out.shape[0]]
         diagonal_start(diag)
+        sgm_row_start(y, state)
         for x in range(w):
             box_step(hacc, colsum[min(x + r + 1, w - 1)], colsum[max(x - r, 0)], agg_cap, agg)
-            for d in range(dn):
-                acc[d] = 0
-            sgm_pixel(agg, x, y, img_row, img_prev, state, params, acc)
-            for d in range(dn):
-                v = acc[d]
-                s[d] = min(v, scap)
-            q_row[x], dint[x] = wta_pixel(s, idx, uniqueness, mode, frac_bits)
+            s1 = sgm_pixel(agg, x, y, img_row, img_prev, state, params, s)
+            q_row[x], dint[x] = wta_pixel(s, s1, idx, uniqueness, mode, frac_bits)
             # unconditional even without the LR check: a branch around array code in this
             # loop would cost numba reference counting on every pixel
             diagonal_update(s, x, diag)
         diagonal_finish(diag, dr)
         if lr:
             lr_check_row(q_row, dint, dr, max_diff)
+
+
+# the name the compiled cycle engine (sim/fast.py) imports; stream_rows is the public one
+_stream = stream_rows
+
+# checked rows the median ring takes beyond the 2 m rows the median itself needs: the compiled
+# loop runs this many rows per call at most when the median is on
+_RING_EXTRA_ROWS = 32
 
 
 class SvaStream:
@@ -161,6 +165,9 @@ class SvaStream:
     output rows are final -- after the median, which needs m = median // 2 checked rows below.
     ``q`` holds the output words; rows below the returned count are final. The arrays
     ``desc_l``/``desc_r``/``img_l`` are read in place, so a caller may fill them row by row.
+
+    Memory: the compiled loop's W x D buffers, the output words ``q`` and, with the median on,
+    a ring of 2 m + 32 rows of words before the median (not a second frame).
     """
 
     def __init__(self, desc_l, desc_r, img_l, cfg: SvaConfig, bits: int):
@@ -171,9 +178,11 @@ class SvaStream:
         self.height = h
         self.desc_l, self.desc_r, self.img_l = desc_l, desc_r, img_l
         agg_cap = min((1 << cfg.cost_bits) - 1, (1 << cfg.path_bits) - 1)
-        params = sgm_params(cfg.paths, cfg.p1, cfg.p2, cfg.p2_adaptive, cfg.p2_slope, cfg.path_bits)
+        params = sgm_params(
+            cfg.paths, cfg.p1, cfg.p2, cfg.p2_adaptive, cfg.p2_slope, cfg.path_bits, cfg.sum_bits
+        )
         self._box = (np.int64(cfg.box_size), np.uint16(bits), np.uint16(agg_cap))
-        self._sgm = (new_path_buffers(w, dn), params, np.uint16((1 << cfg.sum_bits) - 1))
+        self._sgm = (new_path_buffers(w, dn), params)
         self._select = (
             np.int64(cfg.uniqueness),
             np.int64(subpixel_mode_code(cfg.subpixel)),
@@ -183,34 +192,49 @@ class SvaStream:
             new_diagonal_buffers(w, dn),
         )
         self._colsum = np.zeros((w, dn), np.uint16)
-        self.checked = np.empty((h, w), np.int32)  # after WTA, sub-pixel and the LR check
-        self.q = self.checked if cfg.median <= 1 else np.empty((h, w), np.int32)
+        self._m = cfg.median // 2 if cfg.median > 1 else 0
+        self.q = np.empty((h, w), np.int32)
+        # the words after WTA, sub-pixel and the LR check: with the median off they are final
+        # and go to q; with it on, to a ring that keeps the rows the median still needs
+        ring_rows = min(h, 2 * self._m + _RING_EXTRA_ROWS)
+        self._checked = self.q if self._m == 0 else np.empty((ring_rows, w), np.int32)
         self.rows_checked = 0
         self.rows_final = 0
 
+    @property
+    def checked(self) -> np.ndarray:
+        """A full-frame (H, W) int32 buffer for the words before the median, for an engine
+        that runs :func:`stream_rows` and the median kernels from its own compiled loop (the
+        compiled cycle engine); with the median off it is ``q`` itself. The stream does not keep it:
+        every call with the median on returns a new buffer."""
+        if self._m == 0:
+            return self.q
+        return np.empty(self.q.shape, np.int32)
+
     def kernel_state(self) -> tuple:
         """``(box, sgm_args, select, colsum)``: the state arguments of the compiled row loop
-        ``_stream`` (for engines that call it from their own compiled code)."""
+        :func:`stream_rows` (for engines that call it from their own compiled code)."""
         return self._box, self._sgm, self._select, self._colsum
 
     def advance(self, rows_in: int) -> int:
         h = self.height
         r = self.cfg.box_size // 2
+        m = self._m
         # output row y is computable once rows up to min(y + r, h - 1) are in
         stop = h if rows_in >= h else max(0, rows_in - r)
-        if stop > self.rows_checked:
-            _stream(self.desc_l, self.desc_r, self.img_l, self._box, self._sgm, self._select,
-                    self.checked, self._colsum, self.rows_checked, stop)
-            self.rows_checked = stop
-        m = self.cfg.median // 2 if self.cfg.median > 1 else 0
-        final = h if self.rows_checked >= h else max(0, self.rows_checked - m)
-        if final > self.rows_final:
-            if m:
-                lo = max(0, self.rows_final - m)
-                hi = min(h, final + m)
-                block = median(self.checked[lo:hi], self.cfg.median)
-                self.q[self.rows_final:final] = block[self.rows_final - lo:final - lo]
-            self.rows_final = final
+        ring = self._checked
+        while stop > self.rows_checked:
+            # the ring must keep checked rows rows_final - m .. for the median of the rows
+            # that are not final yet: fill it at most that far, then run the median
+            chunk_stop = stop if m == 0 else min(stop, max(0, self.rows_final - m) + len(ring))
+            stream_rows(self.desc_l, self.desc_r, self.img_l, self._box, self._sgm, self._select,
+                    ring, self._colsum, self.rows_checked, chunk_stop)
+            self.rows_checked = chunk_stop
+            final = h if chunk_stop >= h else max(0, chunk_stop - m)
+            if m and final > self.rows_final:
+                median_rows(ring, h, self.cfg.median, self.rows_final, final,
+                            self.q[self.rows_final:final])
+            self.rows_final = max(self.rows_final, final)
         return self.rows_final
 
 

@@ -83,70 +83,38 @@ def sgm_ref(
 
 # Sentinel for the absent neighbours d - 1 < 0 and d + 1 >= D: above every legal path cost
 # (path_bits <= 14), and sentinel + P1 still fits in uint16 (P1 <= 2^15 - 1). With
-# path_bits <= 14 the sum of four paths also fits the uint16 accumulator before saturation.
+# path_bits <= 14 the sum of four paths also fits uint16 before the sum saturates.
 ABSENT = 0x7FFF
 
 
 def new_path_buffers(width: int, disparities: int):
-    """State of the streaming SGM: ``(buf, mins)``.
+    """State of the streaming SGM: ``(buf, mins, phase)``.
 
-    ``buf`` (3 W + 7, D + 2) uint16 holds every path row the kernel reads or writes, so that
-    a path step is always "row ``pred`` of buf -> row ``out`` of buf" and the choice between
-    rows is scalar arithmetic, never a branch around array code (a branch there would cost
-    per-pixel reference counting in numba):
+    ``buf`` (3 W + 6, D + 2) uint16 holds every path row the kernel reads or writes, laid out
+    so that a pixel's predecessor rows and output rows are always different rows: the d-loop
+    of :func:`sgm_pixel` then reads every predecessor and writes every output in one pass
+    (no copies, no in-place hazard), and the choice of rows is scalar arithmetic:
 
-    - rows k W + x, k = 0, 1, 2: the most recent row of the top, top-left and top-right paths,
-      overwritten in place pixel by pixel -- one row per path, not two: the top path copies
-      its predecessor aside first, the top-left path keeps the overwritten value one pixel
-      longer, the top-right path reads x + 1, not yet overwritten;
-    - 3 W, 3 W + 1: the left path's ping-pong; 3 W + 2: the top path's copy; 3 W + 3, 3 W + 4:
-      the top-left delay pair; 3 W + 5: a scratch row for copies nobody reads;
-    - 3 W + 6: all-zero costs, the predecessor of a path start: from a zero predecessor
+    - rows 0 .. W: the top path, a ring of W + 1 slots, entry (y, x) in slot (x - y) mod
+      (W + 1): pixel (y, x) reads (y - 1, x) one slot ahead and overwrites (y - 1, x - 1),
+      which pixel x - 1 has consumed;
+    - rows W + 1 .. 2 W + 2: the top-left path, a ring of W + 2 slots, (y, x) in slot
+      (x - 2 y) mod (W + 2): it reads (y - 1, x - 1) one slot ahead and overwrites
+      (y - 1, x - 2), consumed by pixel x - 1;
+    - rows 2 W + 3 .. 3 W + 2: the top-right path, (y, x) in slot x: it reads (y - 1, x + 1)
+      and overwrites (y - 1, x), consumed by pixel x - 1;
+    - 3 W + 3, 3 W + 4: the left path's ping-pong;
+    - 3 W + 5: all-zero costs, the predecessor of a path start: from a zero predecessor
       (minimum 0) the step gives min(A + min(0, ABSENT + P1, P2), cap) = min(A, cap).
 
-    ``mins`` (3 W + 7,) uint16: the minimum over d of each row. Costs live at [1, D]; entries
-    0 and D + 1 stay ABSENT so the d-loop has no branches.
+    ``mins`` (3 W + 7,) uint16: the minimum over d of each row, and a last entry nobody
+    reads (see :func:`_paths4`). Costs live at [1, D]; entries 0 and D + 1 stay ABSENT so
+    the d-loop has no branches. ``phase`` (2,) int64: the ring offsets of the row in
+    progress, y mod (W + 1) and 2 y mod (W + 2) (:func:`sgm_row_start`).
     """
-    buf = np.full((3 * width + 7, disparities + 2), ABSENT, np.uint16)
-    buf[3 * width + 6, 1:-1] = 0
-    return buf, np.zeros(3 * width + 7, np.uint16)
-
-
-@njit(cache=True, inline="always")
-def _path_step(c, lp, mp, p1, p2, cap, lout, acc):
-    """One pixel of one path: lout[d + 1] from the predecessor's costs lp[d + 1]; acc += lout.
-
-    ``lp``/``lout`` are padded (D + 2) with ABSENT at both ends, so the d-loop has no branches
-    and LLVM vectorises it across d in uint16 lanes. Returns min_d lout (for the successor).
-    ``c`` <= cap (the callers clamp it), so c + (best - mp) <= 2 * cap fits uint16.
-    """
-    dn = c.shape[0]
-    jump = np.uint16(mp + p2)
-    mpu = np.uint16(mp)
-    m = np.uint16(0xFFFF)
-    for d in range(dn):
-        a = lp[d]
-        b = lp[d + 2]
-        nb = np.uint16(min(a, b) + p1)
-        best = lp[d + 1]
-        best = min(best, nb)
-        best = min(best, jump)
-        v = np.uint16(c[d] + np.uint16(best - mpu))
-        v = min(v, cap)
-        lout[d + 1] = v
-        m = min(m, v)
-        acc[d] = np.uint16(acc[d] + v)
-    return m
-
-
-@njit(cache=True, inline="always")
-def _copy_row(buf, mins, src, dst, n):
-    """Costs 1..n of row ``src`` to row ``dst`` (n = D or 0: a copy without a branch)."""
-    a = buf[src]
-    b = buf[dst]
-    for d in range(1, n + 1):
-        b[d] = a[d]
-    mins[dst] = mins[src]
+    buf = np.full((3 * width + 6, disparities + 2), ABSENT, np.uint16)
+    buf[3 * width + 5, 1:-1] = 0
+    return buf, np.zeros(3 * width + 7, np.uint16), np.zeros(2, np.int64)
 
 
 @njit(cache=True, inline="always")
@@ -161,74 +129,234 @@ def _p2_at(p1, p2, adaptive, slope, i_p, i_prev):
 
 
 @njit(cache=True, inline="always")
-def sgm_pixel(c, x, y, img_row, img_prev, state, params, acc):
-    """Every enabled path at pixel (x, y) of a raster scan; acc[d] += L_r(p, d) for each.
+def _lane(c, below, here, above, p1, jump, mp, cap):
+    """One d of one path step: min(c + min(L(d), min(L(d-1), L(d+1)) + P1, m + P2) - m, cap).
 
-    ``c`` (D,) uint16: the aggregated cost, already clamped to the path cap. ``state`` is
-    :func:`new_path_buffers`, ``params`` = (paths, p1, p2, adaptive, slope, path_cap) with
-    p1, p2, path_cap as uint16. Pixels must come in raster order (x = 0..W-1 per row).
-    """
-    buf, mins = state
-    paths, p1, p2, adaptive, slope, cap = params
-    w = img_row.shape[0]
-    dn = c.shape[0]
-    left = 3 * w
-    zero = 3 * w + 6
-    i_p = img_row[x]
-    # path 0: left to right, predecessor (x - 1, y)
-    pred = zero if x == 0 else left + 1 - (x & 1)
-    out = left + (x & 1)
-    pen2 = _p2_at(p1, p2, adaptive, slope, i_p, img_row[max(x - 1, 0)])
-    mins[out] = _path_step(c, buf[pred], mins[pred], p1, pen2, cap, buf[out], acc)
-    # paths 1..3: predecessors (x, y-1), (x-1, y-1), (x+1, y-1) in the previous row
-    for k in range(1, paths):
-        here = (k - 1) * w + x
-        n = dn
-        if k == 1:
-            # the predecessor is the very entry this pixel overwrites: step from a copy
-            save = 3 * w + 2
-            pred = save
-            px = x
-        elif k == 2:
-            # the predecessor was overwritten by pixel x - 1, which saved it in the delay
-            # pair; save this entry for pixel x + 1
-            save = 3 * w + 3 + (x & 1)
-            pred = 3 * w + 4 - (x & 1)
-            px = x - 1
-        else:
-            # the predecessor x + 1 is not overwritten yet: nothing to save
-            save = 3 * w + 5
-            pred = here + 1
-            px = x + 1
-            n = 0
-        if y == 0 or px < 0 or px >= w:
-            pred = zero
-            px = x
-        _copy_row(buf, mins, here, save, n)
-        pen2 = _p2_at(p1, p2, adaptive, slope, i_p, img_prev[px])
-        mins[here] = _path_step(c, buf[pred], mins[pred], p1, pen2, cap, buf[here], acc)
+    Exact in uint16: L(d +- 1) + P1 <= ABSENT + P1 < 2^16; the inner minimum ``best`` lies
+    in m .. m + P2, and c <= cap < 2^14 (the callers clamp it), so c + (best - m) < 2^16."""
+    best = min(here, np.uint16(min(below, above) + p1))
+    best = min(best, jump)
+    return min(np.uint16(c + np.uint16(best - mp)), cap)
 
 
 @njit(cache=True)
-def sgm_row(agg_row, img_row, img_prev, y, state, params, sum_cap, s_row):
+def sgm_row_start(y, state):
+    """Set the ring offsets of row ``y`` (call before its first :func:`sgm_pixel`)."""
+    buf = state[0]
+    phase = state[2]
+    w = (buf.shape[0] - 6) // 3
+    phase[0] = y % (w + 1)
+    phase[1] = (2 * y) % (w + 2)
+
+
+@njit(cache=True, inline="always")
+def _ring_slots(x, offset, n):
+    """(slot of the entry written at x, slot of its predecessor one ahead) in a ring of n:
+    (x - offset) mod n and (x - offset + 1) mod n, 0 <= offset < n, without a division."""
+    out = x - offset
+    out += n if out < 0 else 0
+    pred = out + 1
+    pred -= n if pred >= n else 0
+    return out, pred
+
+
+@njit(cache=True, inline="always")
+def sgm_pixel(c, x, y, img_row, img_prev, state, params, s_out):
+    """Every enabled path at pixel (x, y) of a raster scan; S into ``s_out``, returns min S.
+
+    ``c`` (D,) uint16: the aggregated cost, already clamped to the path cap. ``state`` is
+    :func:`new_path_buffers` (ring offsets set by :func:`sgm_row_start` for row y),
+    ``params`` = (paths, p1, p2, adaptive, slope, path_cap, sum_cap) with p1, p2 and the caps
+    as uint16 (:func:`sgm_params`). Pixels must come in raster order (x = 0..W-1 per row).
+    ``s_out[d]`` = min(sum of the enabled paths' L_r(p, d), sum_cap).
+
+    One d-loop computes every enabled path, their minima, S and its minimum, so each
+    predecessor row is read and each output row written once, in uint16 lanes (LLVM
+    vectorises it across d; the rows are distinct, so its runtime overlap checks pass).
+    """
+    _, mins, phase = state
+    paths, p1, p2, adaptive, slope, _, _ = params
+    w = img_row.shape[0]
+    top_left = w + 1
+    top_right = 2 * w + 3
+    left = 3 * w + 3
+    zero = 3 * w + 5
+    i_p = img_row[x]
+    # path 0: left to right, predecessor (x - 1, y)
+    pred0 = zero if x == 0 else left + 1 - (x & 1)
+    out0 = left + (x & 1)
+    pen0 = _p2_at(p1, p2, adaptive, slope, i_p, img_row[max(x - 1, 0)])
+    # path 1: top to bottom, predecessor (x, y - 1)
+    out1, pred1 = _ring_slots(x, phase[0], w + 1)
+    pred1 = pred1 if y > 0 else zero
+    pen1 = _p2_at(p1, p2, adaptive, slope, i_p, img_prev[x])
+    # path 2: top-left to bottom-right, predecessor (x - 1, y - 1)
+    out2, pred2 = _ring_slots(x, phase[1], w + 2)
+    out2 += top_left
+    pred2 = top_left + pred2 if y > 0 and x > 0 else zero
+    pen2 = _p2_at(p1, p2, adaptive, slope, i_p, img_prev[max(x - 1, 0)])
+    # path 3: top-right to bottom-left, predecessor (x + 1, y - 1)
+    out3 = top_right + x
+    pred3 = top_right + x + 1 if y > 0 and x < w - 1 else zero
+    pen3 = _p2_at(p1, p2, adaptive, slope, i_p, img_prev[min(x + 1, w - 1)])
+    # (predecessor rows, output rows, m + P2 per path)
+    step = (
+        (pred0, pred1, pred2, pred3),
+        (out0, out1, out2, out3),
+        (
+            np.uint16(mins[pred0] + pen0),
+            np.uint16(mins[pred1] + pen1),
+            np.uint16(mins[pred2] + pen2),
+            np.uint16(mins[pred3] + pen3),
+        ),
+    )
+    # one d-loop per path count, each run over D or 0 disparities: a loop cannot skip a path
+    # without a branch per d, and a branch around array code here would cost numba
+    # reference counting on every pixel
+    dn = c.shape[0]
+    s1 = _paths4(c, state, step, params, s_out, dn if paths == 4 else 0)
+    s1 = min(s1, _paths3(c, state, step, params, s_out, dn if paths == 3 else 0))
+    s1 = min(s1, _paths2(c, state, step, params, s_out, dn if paths == 2 else 0))
+    s1 = min(s1, _paths1(c, state, step, params, s_out, dn if paths == 1 else 0))
+    return s1
+
+
+@njit(cache=True, inline="always")
+def _paths4(c, state, step, params, s_out, n):
+    """The d-loop of :func:`sgm_pixel` with all four paths over d < n (n = D, or 0 when
+    another path count is configured); returns min S (0xFFFF if n = 0). ``step`` =
+    (predecessor rows, output rows, m + P2) per path."""
+    buf, mins = state[0], state[1]
+    pred, out, jump = step
+    p1, cap, scap = params[1], params[5], params[6]
+    unused = mins.shape[0] - 1  # where a loop that did not run writes its minima
+    l0, l1, l2, l3 = buf[pred[0]], buf[pred[1]], buf[pred[2]], buf[pred[3]]
+    o0, o1, o2, o3 = buf[out[0]], buf[out[1]], buf[out[2]], buf[out[3]]
+    m0, m1, m2, m3 = mins[pred[0]], mins[pred[1]], mins[pred[2]], mins[pred[3]]
+    j0, j1, j2, j3 = jump
+    n0 = n1 = n2 = n3 = s1 = np.uint16(0xFFFF)
+    for d in range(n):
+        cd = c[d]
+        v0 = _lane(cd, l0[d], l0[d + 1], l0[d + 2], p1, j0, m0, cap)
+        v1 = _lane(cd, l1[d], l1[d + 1], l1[d + 2], p1, j1, m1, cap)
+        v2 = _lane(cd, l2[d], l2[d + 1], l2[d + 2], p1, j2, m2, cap)
+        v3 = _lane(cd, l3[d], l3[d + 1], l3[d + 2], p1, j3, m3, cap)
+        o0[d + 1] = v0
+        o1[d + 1] = v1
+        o2[d + 1] = v2
+        o3[d + 1] = v3
+        n0 = min(n0, v0)
+        n1 = min(n1, v1)
+        n2 = min(n2, v2)
+        n3 = min(n3, v3)
+        # at most 4 * (2^14 - 1) < 2^16: no wrap before the sum saturates
+        sv = min(np.uint16(v0 + v1 + v2 + v3), scap)
+        s_out[d] = sv
+        s1 = min(s1, sv)
+    mins[out[0] if n else unused] = n0
+    mins[out[1] if n else unused] = n1
+    mins[out[2] if n else unused] = n2
+    mins[out[3] if n else unused] = n3
+    return s1
+
+
+@njit(cache=True, inline="always")
+def _paths3(c, state, step, params, s_out, n):
+    """:func:`_paths4` with paths 0..2."""
+    buf, mins = state[0], state[1]
+    pred, out, jump = step
+    p1, cap, scap = params[1], params[5], params[6]
+    unused = mins.shape[0] - 1  # where a loop that did not run writes its minima
+    l0, l1, l2 = buf[pred[0]], buf[pred[1]], buf[pred[2]]
+    o0, o1, o2 = buf[out[0]], buf[out[1]], buf[out[2]]
+    m0, m1, m2 = mins[pred[0]], mins[pred[1]], mins[pred[2]]
+    j0, j1, j2 = jump[0], jump[1], jump[2]
+    n0 = n1 = n2 = s1 = np.uint16(0xFFFF)
+    for d in range(n):
+        cd = c[d]
+        v0 = _lane(cd, l0[d], l0[d + 1], l0[d + 2], p1, j0, m0, cap)
+        v1 = _lane(cd, l1[d], l1[d + 1], l1[d + 2], p1, j1, m1, cap)
+        v2 = _lane(cd, l2[d], l2[d + 1], l2[d + 2], p1, j2, m2, cap)
+        o0[d + 1] = v0
+        o1[d + 1] = v1
+        o2[d + 1] = v2
+        n0 = min(n0, v0)
+        n1 = min(n1, v1)
+        n2 = min(n2, v2)
+        sv = min(np.uint16(v0 + v1 + v2), scap)
+        s_out[d] = sv
+        s1 = min(s1, sv)
+    mins[out[0] if n else unused] = n0
+    mins[out[1] if n else unused] = n1
+    mins[out[2] if n else unused] = n2
+    return s1
+
+
+@njit(cache=True, inline="always")
+def _paths2(c, state, step, params, s_out, n):
+    """:func:`_paths4` with paths 0 and 1."""
+    buf, mins = state[0], state[1]
+    pred, out, jump = step
+    p1, cap, scap = params[1], params[5], params[6]
+    unused = mins.shape[0] - 1  # where a loop that did not run writes its minima
+    l0, l1 = buf[pred[0]], buf[pred[1]]
+    o0, o1 = buf[out[0]], buf[out[1]]
+    m0, m1 = mins[pred[0]], mins[pred[1]]
+    j0, j1 = jump[0], jump[1]
+    n0 = n1 = s1 = np.uint16(0xFFFF)
+    for d in range(n):
+        cd = c[d]
+        v0 = _lane(cd, l0[d], l0[d + 1], l0[d + 2], p1, j0, m0, cap)
+        v1 = _lane(cd, l1[d], l1[d + 1], l1[d + 2], p1, j1, m1, cap)
+        o0[d + 1] = v0
+        o1[d + 1] = v1
+        n0 = min(n0, v0)
+        n1 = min(n1, v1)
+        sv = min(np.uint16(v0 + v1), scap)
+        s_out[d] = sv
+        s1 = min(s1, sv)
+    mins[out[0] if n else unused] = n0
+    mins[out[1] if n else unused] = n1
+    return s1
+
+
+@njit(cache=True, inline="always")
+def _paths1(c, state, step, params, s_out, n):
+    """:func:`_paths4` with the left path only."""
+    buf, mins = state[0], state[1]
+    pred, out, jump = step
+    p1, cap, scap = params[1], params[5], params[6]
+    unused = mins.shape[0] - 1  # where a loop that did not run writes its minima
+    l0 = buf[pred[0]]
+    o0 = buf[out[0]]
+    m0 = mins[pred[0]]
+    j0 = jump[0]
+    n0 = s1 = np.uint16(0xFFFF)
+    for d in range(n):
+        v0 = _lane(c[d], l0[d], l0[d + 1], l0[d + 2], p1, j0, m0, cap)
+        o0[d + 1] = v0
+        n0 = min(n0, v0)
+        sv = min(v0, scap)
+        s_out[d] = sv
+        s1 = min(s1, sv)
+    mins[out[0] if n else unused] = n0
+    return s1
+
+
+@njit(cache=True)
+def sgm_row(agg_row, img_row, img_prev, y, state, params, s_row):
     """One image row of every enabled path; S of the row into ``s_row`` (W, D) uint16.
 
     ``agg_row`` is clamped to the path cap; ``state``/``params`` as for :func:`sgm_pixel`.
     """
-    dn = agg_row.shape[1]
-    acc = np.empty(dn, np.uint16)
-    scap = np.uint16(sum_cap)
+    sgm_row_start(y, state)
     for x in range(agg_row.shape[0]):
-        for d in range(dn):
-            acc[d] = 0
-        sgm_pixel(agg_row[x], x, y, img_row, img_prev, state, params, acc)
-        srow = s_row[x]
-        for d in range(dn):
-            v = acc[d]
-            srow[d] = min(v, scap)
+        sgm_pixel(agg_row[x], x, y, img_row, img_prev, state, params, s_row[x])
 
 
-def sgm_params(paths: int, p1: int, p2: int, adaptive: bool, slope: int, path_bits: int):
+def sgm_params(
+    paths: int, p1: int, p2: int, adaptive: bool, slope: int, path_bits: int, sum_bits: int
+):
     """The ``params`` tuple of :func:`sgm_pixel` with the kernel's dtypes."""
     return (
         np.int64(paths),
@@ -237,14 +365,15 @@ def sgm_params(paths: int, p1: int, p2: int, adaptive: bool, slope: int, path_bi
         bool(adaptive),
         np.int64(slope),
         np.uint16((1 << path_bits) - 1),
+        np.uint16((1 << sum_bits) - 1),
     )
 
 
 @njit(cache=True)
-def _sgm_volume(agg, img, state, params, sum_cap, out):
+def _sgm_volume(agg, img, state, params, out):
     for y in range(agg.shape[0]):
         img_prev = img[y - 1] if y > 0 else img[0]
-        sgm_row(agg[y], img[y], img_prev, y, state, params, sum_cap, out[y])
+        sgm_row(agg[y], img[y], img_prev, y, state, params, out[y])
 
 
 def sgm(agg, *, p1, p2, paths, path_bits, sum_bits, img=None, p2_adaptive=False, p2_slope=16):
@@ -277,8 +406,6 @@ def sgm(agg, *, p1, p2, paths, path_bits, sum_bits, img=None, p2_adaptive=False,
     # every intermediate of the kernel inside uint16 for any input.
     agg = np.minimum(agg, path_cap).astype(np.uint16)
     out = np.empty((h, w, dn), np.uint16)
-    params = sgm_params(paths, p1, p2, p2_adaptive, p2_slope, path_bits)
-    _sgm_volume(
-        agg, np.ascontiguousarray(img), new_path_buffers(w, dn), params, (1 << sum_bits) - 1, out
-    )
+    params = sgm_params(paths, p1, p2, p2_adaptive, p2_slope, path_bits, sum_bits)
+    _sgm_volume(agg, np.ascontiguousarray(img), new_path_buffers(w, dn), params, out)
     return out

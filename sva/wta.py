@@ -87,25 +87,21 @@ def disparity_index(disparities):
 
 
 @njit(cache=True, inline="always")
-def wta_pixel(sx, idx, uniqueness, mode, frac_bits):
-    """One pixel of :func:`wta_ref` from its costs ``sx`` (D,) uint16: (q, d*).
+def wta_pixel(sx, s1, idx, uniqueness, mode, frac_bits):
+    """One pixel of :func:`wta_ref` from its costs ``sx`` (D,) uint16 and their minimum
+    ``s1`` (which the SGM step computes on the way): (q, d*).
 
-    ``idx`` is :func:`disparity_index`. Three branch-free passes over d in uint16 lanes: the
-    minimum S1; the first index holding it, a minimum over ``d if S(d) == S1 else 0xFFFF``;
-    the runner-up over |d - d*| >= 2, a minimum over ``S(d) if d - (d* - 1) > 2 (modulo
-    2^16) else 0xFFFF`` (0xFFFF is a legal S too, so whether such a d exists is decided
-    apart). ``mode``: 0 off, 1 parabola, 2 equiangular.
+    ``idx`` is :func:`disparity_index`. Branch-free passes over d in uint16 lanes: the first
+    index holding S1, a minimum over ``d if S(d) == S1 else 0xFFFF``; with the uniqueness
+    check on, the runner-up over |d - d*| >= 2, a minimum over ``S(d) if d - (d* - 1) > 2
+    (modulo 2^16) else 0xFFFF`` (0xFFFF is a legal S too, so whether such a d exists is
+    decided apart). ``mode``: 0 off, 1 parabola, 2 equiangular.
     """
     dn = sx.shape[0]
-    s1 = _min_u16(sx)
     first = np.uint16(0xFFFF)
     for d in range(dn):
         first = min(first, idx[d] if sx[d] == s1 else np.uint16(0xFFFF))
     best = np.int64(first)
-    b1 = np.uint16(best - 1)
-    far = np.uint16(0xFFFF)
-    for d in range(dn):
-        far = min(far, sx[d] if np.uint16(idx[d] - b1) > np.uint16(2) else np.uint16(0xFFFF))
     # the neighbours are read (clamped) before any branch: in numba an array last used inside
     # a branch costs reference counting on every call, and this runs once per pixel
     a = np.int64(sx[max(best - 1, 0)])
@@ -120,6 +116,13 @@ def wta_pixel(sx, idx, uniqueness, mode, frac_bits):
         if den > 0:
             o = div_round_half_up((a - b) << frac_bits, den)
     q = (best << frac_bits) + o
+    # the runner-up only with the check on: a loop of 0 iterations otherwise, not a branch
+    # around array code (which would cost reference counting on every pixel)
+    n_far = dn if uniqueness > 0 else 0
+    b1 = np.uint16(best - 1)
+    far = np.uint16(0xFFFF)
+    for d in range(n_far):
+        far = min(far, sx[d] if np.uint16(idx[d] - b1) > np.uint16(2) else np.uint16(0xFFFF))
     has_far = best >= 2 or best + 2 < dn
     if uniqueness > 0 and has_far and np.int64(far) * 100 < np.int64(s1) * (100 + uniqueness):
         q = np.int64(INVALID)
@@ -130,7 +133,8 @@ def wta_pixel(sx, idx, uniqueness, mode, frac_bits):
 def wta_row(s_row, idx, uniqueness, mode, frac_bits, q_row, dint_row):
     """One row of :func:`wta_ref`. ``mode``: 0 off, 1 parabola, 2 equiangular."""
     for x in range(s_row.shape[0]):
-        q_row[x], dint_row[x] = wta_pixel(s_row[x], idx, uniqueness, mode, frac_bits)
+        sx = s_row[x]
+        q_row[x], dint_row[x] = wta_pixel(sx, _min_u16(sx), idx, uniqueness, mode, frac_bits)
 
 
 def subpixel_mode_code(mode: str) -> int:

@@ -88,3 +88,16 @@ def test_kernel_equals_ref_hypothesis(h, w, disparities, max_diff, spread, seed)
     rng = np.random.default_rng(seed)
     s = rng.integers(0, spread, size=(h, w, disparities)).astype(np.uint16)
     run_both(s, max_diff)
+
+
+@pytest.mark.parametrize("disparities", [16, 256])
+def test_largest_costs_tie_to_the_smallest_disparity(disparities):
+    # the diagonal search starts every right pixel at (0xFFFF, d = 0): S = 0xFFFF everywhere
+    # (sum_bits = 16 saturated) must still give d = 0, and a single smaller cost must win
+    h, w = 2, disparities + 3
+    s = np.full((h, w, disparities), 0xFFFF, np.uint16)
+    _, dr, dint = run_both(s, 1)
+    assert (dr == 0).all() and (dint == 0).all()
+    s[1, w - 1, disparities - 1] = 0xFFFE  # right pixel w - disparities sees it at d = D - 1
+    _, dr, _ = run_both(s, 1)
+    assert dr[1, w - disparities] == disparities - 1

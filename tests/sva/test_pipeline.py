@@ -172,6 +172,33 @@ def test_largest_disparity_range_for_the_width(height, width, disparities):
     check(dl, dr, img, cfg, 31)
 
 
+@pytest.mark.parametrize("paths", [1, 2, 3, 4])
+def test_tall_frame_wraps_the_path_rings(paths):
+    # H > W + 2: the top paths' rings of W + 1 and W + 2 path rows wrap around twice
+    cfg = sva_config(disparities=16, box_size=3, paths=paths, lr_check=True, p2_adaptive=True)
+    dl, dr, img = descriptor_pair(41, 17, 31, seed=paths)
+    check(dl, dr, img, cfg, 31)
+
+
+@pytest.mark.parametrize(
+    "overrides",
+    [
+        {"paths": 1, "subpixel": "off", "median": 0, "lr_check": False, "uniqueness": 0},
+        {"paths": 2, "subpixel": "parabola", "median": 3, "lr_check": True, "uniqueness": 10},
+        {"paths": 3, "subpixel": "equiangular", "median": 5, "lr_check": True,
+         "p2_adaptive": True},
+        {"paths": 4, "subpixel": "parabola", "median": 3, "lr_check": False, "uniqueness": 5,
+         "p2_adaptive": True},
+    ],
+    ids=lambda o: f"paths{o['paths']}",
+)
+def test_largest_disparity_range_every_path_count(overrides):
+    # D = 256, the largest: a d-loop of 256 uint16 lanes per path, on an odd width
+    cfg = sva_config(disparities=256, box_size=1, **overrides)
+    dl, dr, img = descriptor_pair(3, 259, 31, seed=overrides["paths"])
+    check(dl, dr, img, cfg, 31)
+
+
 def test_largest_disparity_range():
     cfg = sva_config(disparities=256, box_size=1, paths=4, lr_check=True, median=3)
     dl, dr, img = descriptor_pair(2, 257, 31, seed=256)
@@ -261,6 +288,50 @@ def test_stream_fed_row_by_row_equals_whole_frame(box, median, paths):
         assert_array_equal(stream.q[:new_final], whole[:new_final])
         final = new_final
     assert final == 13
+
+
+@pytest.mark.parametrize("median", [0, 3, 5])
+def test_frame_taller_than_the_median_ring(median):
+    """The words before the median live in a ring of 2 m + 32 rows: a taller frame, whole or
+    fed in uneven steps, must give the reference's words."""
+    from sva.pipeline import SvaStream
+
+    cfg = sva_config(disparities=16, box_size=3, median=median, paths=4, lr_check=True)
+    desc_l, desc_r, img = descriptor_pair(83, 17, 31, seed=median)
+    whole = check(desc_l, desc_r, img, cfg, 31)
+    stream = SvaStream(desc_l, desc_r, img, cfg, 31)
+    rng = np.random.default_rng(median)
+    rows_in = 0
+    while rows_in < 83:
+        rows_in = min(83, rows_in + int(rng.integers(0, 40)))
+        final = stream.advance(rows_in)
+        assert_array_equal(stream.q[:final], whole[:final])
+    assert final == 83
+
+
+@pytest.mark.parametrize("median", [0, 3, 5])
+def test_stream_keeps_no_second_frame(median):
+    """Besides its inputs and the output words, the stream's buffers grow with W x D, never
+    with H x W: the words before the median are a ring of rows."""
+    from sva.pipeline import SvaStream
+
+    h, w, dn = 200, 40, 16
+    desc_l, desc_r, img = descriptor_pair(h, w, 31, seed=1)
+    stream = SvaStream(desc_l, desc_r, img, sva_config(disparities=dn, median=median), 31)
+    stream.advance(h)
+
+    def arrays(obj):
+        if isinstance(obj, np.ndarray):
+            yield obj
+        elif isinstance(obj, tuple):
+            for item in obj:
+                yield from arrays(item)
+
+    inputs = {id(stream.desc_l), id(stream.desc_r), id(stream.img_l), id(stream.q)}
+    state = [a for v in vars(stream).values() for a in arrays(v) if id(a) not in inputs]
+    assert state, "the stream's state was not found"
+    for a in state:
+        assert a.nbytes <= 4 * (w + dn) * (dn + 2) * 2 + 4 * w * (2 * (median // 2) + 32)
 
 
 @pytest.mark.parametrize(

@@ -9,7 +9,8 @@ from numpy.testing import assert_array_equal
 from sim.errors import InputError
 from sva.sgm import effective_p2, sgm, sgm_ref
 
-SHAPES = [(1, 1), (1, 17), (19, 1), (7, 13), (9, 21)]
+# (19, 1), (23, 2), (40, 3): taller than W + 2, so the top paths' row rings wrap many times
+SHAPES = [(1, 1), (1, 17), (19, 1), (23, 2), (40, 3), (7, 13), (9, 21)]
 
 # 1 x 3 image, D = 3: agg[0, x, d]
 AGG_1X3 = np.array([[[5, 1, 7], [2, 6, 3], [4, 4, 0]]], np.uint16)
@@ -95,8 +96,8 @@ def test_kernel_equals_ref_textured(shape, paths, adaptive):
     )
 
 
-@pytest.mark.parametrize("disparities", [1, 2, 16, 33])
-@pytest.mark.parametrize("paths", [1, 4])
+@pytest.mark.parametrize("disparities", [1, 2, 16, 33, 256])
+@pytest.mark.parametrize("paths", [1, 2, 3, 4])
 def test_disparity_limits(disparities, paths):
     agg = random_agg((5, 11, disparities), seed=disparities)
     run_both(agg, p1=7, p2=50, paths=paths, path_bits=13, sum_bits=16)
