@@ -3,7 +3,9 @@
 stereosim: `sim.run(mode="cycle")` with the CNN int8 descriptor, D = 128, 4 SGM paths, LR check
 (the issue's benchmark configuration); it prints the wall time, the simulated cycles per second
 (all clock domains together) and the peak resident memory of a fresh process that runs one
-frame. OpenCV: StereoSGBM MODE_SGBM, D = 128, blockSize 5, single-threaded, on the same pair.
+frame. OpenCV: StereoSGBM MODE_SGBM, D = 128, blockSize 5, single-threaded, on the same pair,
+timed in this process right after each stereosim frame (the two alternate, so a change in the
+machine's load shows in both).
 
     python benchmarks/speed_cycle.py [--repeat 3] [--engine fast|readable] [--split]
 
@@ -17,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import resource
 import subprocess
 import sys
@@ -82,19 +85,19 @@ def main(argv=None):
     if args.child:
         one_frame_child(args.engine, args.split)
         return
-    runs = []
-    for _ in range(args.repeat):
-        out = subprocess.run([sys.executable, __file__, "--child", "--engine", args.engine]
-                             + (["--split"] if args.split else []),
-                             capture_output=True, text=True, check=True)
-        runs.append(json.loads(out.stdout.strip().splitlines()[-1]))
     left, right = frame()
     cv2.setNumThreads(1)
     sgbm = cv2.StereoSGBM_create(0, 128, 5, P1=8 * 25, P2=32 * 25, disp12MaxDiff=1,
                                  uniquenessRatio=10, mode=cv2.STEREO_SGBM_MODE_SGBM)
     sgbm.compute(left, right)
-    cv_times = []
+    # stereosim (a fresh process per frame) and OpenCV alternate, so both see the same machine
+    env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
+    runs, cv_times = [], []
     for _ in range(args.repeat):
+        out = subprocess.run([sys.executable, __file__, "--child", "--engine", args.engine]
+                             + (["--split"] if args.split else []),
+                             capture_output=True, text=True, check=True, env=env)
+        runs.append(json.loads(out.stdout.strip().splitlines()[-1]))
         t0 = time.perf_counter()
         sgbm.compute(left, right)
         cv_times.append(time.perf_counter() - t0)
@@ -106,7 +109,9 @@ def main(argv=None):
           f"peak RSS {max(r['peak_mib'] for r in runs):.0f} MiB; "
           f"chip: {best['fps']} fps, bottleneck {best['bottleneck']}")
     print(f"  OpenCV SGBM, 1 thread : {cv_best:.3f} s")
-    print(f"  ratio stereosim / OpenCV: {best['wall_s'] / cv_best:.2f}  (target <= 1.3)")
+    pairs = sorted(r["wall_s"] / c for r, c in zip(runs, cv_times))
+    print(f"  ratio stereosim / OpenCV: {best['wall_s'] / cv_best:.2f}  (target <= 1.3; "
+          f"run by run {pairs[0]:.2f} .. {pairs[-1]:.2f}, median {pairs[len(pairs) // 2]:.2f})")
     if args.split:
         sp = min((r["split"] for r in runs), key=lambda x: x["total_s"])
         kernels = sp["nna_kernels_s"] + sp["sva_kernels_s"]

@@ -162,9 +162,9 @@ def f32_exact(k_size: int) -> bool:
 
 @njit(cache=True, fastmath={"contract"})
 def _channel_rows4_f32(xp, w_pad, c, y, acc):
-    """The float32 :func:`channel_row` (no bias) for channels c .. c + 3 at once into ``acc`` (4, W): each input
-    sample loaded feeds four channels' multiply-adds, which keeps the loop bound by arithmetic
-    rather than by loads (about 1.6x faster than one channel per pass)."""
+    """The float32 :func:`channel_row` (no bias) for channels c .. c + 3 at once into ``acc``
+    (4, W): each input sample loaded feeds four channels' multiply-adds, which keeps the loop
+    bound by arithmetic rather than by loads (about 1.6x faster than one channel per pass)."""
     width = acc.shape[1]
     k_rows, k_cols = w_pad.shape[1], w_pad.shape[2]
     a0, a1, a2, a3 = acc[0], acc[1], acc[2], acc[3]
@@ -255,7 +255,6 @@ def _descriptor_kernel_f32(xp, w_pad, bias, masks, out):
     """:func:`_descriptor_kernel` on float32 lanes (``xp``, ``w_pad`` float32; exact, see
     :func:`f32_exact`)."""
     height, width = out.shape
-    n_channels = w_pad.shape[0]
     acc = np.empty(width, dtype=np.float32)
     acc4 = np.empty((4, width), dtype=np.float32)
     bits = np.zeros(width, dtype=out.dtype)
@@ -294,9 +293,6 @@ def _prepare(img, weights, bias, input_offset):
     return img, xp, w_pad, bias
 
 
-# the names the compiled cycle engine (sim/fast.py) imports; the public ones are above
-_channel_row = channel_row
-_sign_bits_rows_f32 = sign_bits_rows_f32
 
 
 def cnn_descriptor(img, weights, bias, input_offset) -> np.ndarray:

@@ -174,8 +174,10 @@ class FifoConfig:
 @dataclass(frozen=True, slots=True, kw_only=True)
 class SimConfig:
     engine: str = param(
-        "auto", "cycle-model engine: fast (compiled), readable (the reference kernel, slow), or "
-        "auto (fast where it models the configuration, else readable)",
+        "auto", "cycle-model engine: fast (compiled: every configuration, traces and runs that "
+        "stop), readable (the reference kernel, slow), or auto (fast, unless a run asks for "
+        "what only the readable kernel does: a shuffled evaluation order or a sink stall given "
+        "as a function)",
         choices=("auto", "fast", "readable"),
     )
     watchdog_cycles: int = param(

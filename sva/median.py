@@ -157,8 +157,6 @@ def median_rows(src, height: int, k: int, y0: int, y1: int, out) -> None:
         median_network_rows(src, height, k, selection_network(k), y0, y1, out)
 
 
-# _median_network and _median3: the whole-frame names the compiled cycle engine (sim/fast.py)
-# imports; median_network_rows and median3_rows are the public ones
 @njit(cache=True)
 def _median_network(q, k, network, out):
     """The whole frame ``q`` (H, W) through :func:`median_network_rows`."""

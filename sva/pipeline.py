@@ -18,7 +18,7 @@ from numba import njit
 
 from sim.config import SvaConfig
 from sim.errors import InputError
-from sva.aggregation import box_filter_ref, box_start, box_step
+from sva.aggregation import box_filter, box_filter_ref, box_start, box_step
 from sva.cost import (
     check_descriptor_pair,
     cost_row_add,
@@ -30,14 +30,15 @@ from sva.lr_check import (
     diagonal_finish,
     diagonal_start,
     diagonal_update,
+    lr_check,
     lr_check_ref,
     lr_check_row,
     new_diagonal_buffers,
     right_disparity_ref,
 )
 from sva.median import median, median_ref, median_rows
-from sva.sgm import new_path_buffers, sgm_params, sgm_pixel, sgm_ref, sgm_row_start
-from sva.wta import disparity_index, subpixel_mode_code, wta_pixel, wta_ref
+from sva.sgm import new_path_buffers, sgm, sgm_params, sgm_pixel, sgm_ref, sgm_row_start
+from sva.wta import disparity_index, subpixel_mode_code, wta, wta_pixel, wta_ref
 
 
 def check_inputs(desc_l, desc_r, img_l, cfg: SvaConfig, bits: int) -> None:
@@ -82,7 +83,7 @@ def sva_ref(desc_l, desc_r, img_l, cfg: SvaConfig, bits: int) -> np.ndarray:
 
 
 @njit(cache=True)
-def stream_rows(desc_l, desc_r, img, box, sgm_args, select, q_out, colsum, y_start, y_stop):
+def stream_rows(views, img, box, sgm_args, select, out, rows):
     """The fused SVA, row by row and, inside a row, pixel by pixel with every stage's D-vector
     in the L1 cache.
 
@@ -91,6 +92,8 @@ def stream_rows(desc_l, desc_r, img, box, sgm_args, select, q_out, colsum, y_sta
     first is exact: min(A + x, cap) = min(min(A, cap) + x, cap) for x >= 0).
     ``sgm_args`` = (state, params) of :func:`sva.sgm.sgm_pixel`.
     ``select`` = (uniqueness, mode, frac_bits, lr, max_diff, diag).
+    ``views`` = (desc_l, desc_r): both views' descriptors; ``img`` the left grey image.
+    ``out`` = (q_out, colsum); ``rows`` = (y_start, y_stop).
 
     Rows ``y_start`` .. ``y_stop - 1`` are processed; ``colsum`` (W, D) uint16 and the buffers in
     ``sgm_args``/``select`` carry the stream's state from one call to the next, so a caller may
@@ -104,6 +107,9 @@ def stream_rows(desc_l, desc_r, img, box, sgm_args, select, q_out, colsum, y_sta
     row rings), WTA and the diagonal search of the right disparity. Per row again: the LR
     check.
     """
+    desc_l, desc_r = views
+    q_out, colsum = out
+    y_start, y_stop = rows
     k, bits, agg_cap = box
     state, params = sgm_args
     uniqueness, mode, frac_bits, lr, max_diff, diag = select
@@ -148,9 +154,6 @@ def stream_rows(desc_l, desc_r, img, box, sgm_args, select, q_out, colsum, y_sta
         if lr:
             lr_check_row(q_row, dint, dr, max_diff)
 
-
-# the name the compiled cycle engine (sim/fast.py) imports; stream_rows is the public one
-_stream = stream_rows
 
 # checked rows the median ring takes beyond the 2 m rows the median itself needs: the compiled
 # loop runs this many rows per call at most when the median is on
@@ -201,21 +204,6 @@ class SvaStream:
         self.rows_checked = 0
         self.rows_final = 0
 
-    @property
-    def checked(self) -> np.ndarray:
-        """A full-frame (H, W) int32 buffer for the words before the median, for an engine
-        that runs :func:`stream_rows` and the median kernels from its own compiled loop (the
-        compiled cycle engine); with the median off it is ``q`` itself. The stream does not keep it:
-        every call with the median on returns a new buffer."""
-        if self._m == 0:
-            return self.q
-        return np.empty(self.q.shape, np.int32)
-
-    def kernel_state(self) -> tuple:
-        """``(box, sgm_args, select, colsum)``: the state arguments of the compiled row loop
-        :func:`stream_rows` (for engines that call it from their own compiled code)."""
-        return self._box, self._sgm, self._select, self._colsum
-
     def advance(self, rows_in: int) -> int:
         h = self.height
         r = self.cfg.box_size // 2
@@ -227,8 +215,8 @@ class SvaStream:
             # the ring must keep checked rows rows_final - m .. for the median of the rows
             # that are not final yet: fill it at most that far, then run the median
             chunk_stop = stop if m == 0 else min(stop, max(0, self.rows_final - m) + len(ring))
-            stream_rows(self.desc_l, self.desc_r, self.img_l, self._box, self._sgm, self._select,
-                    ring, self._colsum, self.rows_checked, chunk_stop)
+            stream_rows((self.desc_l, self.desc_r), self.img_l, self._box, self._sgm,
+                        self._select, (ring, self._colsum), (self.rows_checked, chunk_stop))
             self.rows_checked = chunk_stop
             final = h if chunk_stop >= h else max(0, chunk_stop - m)
             if m and final > self.rows_final:
@@ -257,11 +245,6 @@ def sva_cost_volume(cost, img_l, cfg: SvaConfig) -> np.ndarray:
     ``benchmarks/ablation.py``). Given the Hamming volume of two descriptors it equals
     :func:`sva_stream` bit for bit (tested).
     """
-    from sva.aggregation import box_filter
-    from sva.lr_check import lr_check
-    from sva.sgm import sgm
-    from sva.wta import wta
-
     if not isinstance(cost, np.ndarray) or cost.ndim != 3 or cost.dtype != np.uint8:
         raise InputError("the cost volume must be a uint8 array (H, W, D)")
     h, w, dn = cost.shape

@@ -101,6 +101,17 @@ def _imports_in_functions(tree):
 DEFERRED = {("sim", "__getattr__", "sim.api")}
 
 
+def test_no_project_import_hides_in_a_function():
+    """Imports of the project's own modules sit at the top of the module (optional heavy
+    third-party packages -- torch, matplotlib, dask -- may be imported where they are used)."""
+    found = []
+    for name, path in _modules().items():
+        for func, module, line in _imports_in_functions(ast.parse(path.read_text())):
+            if module.split(".")[0] in PACKAGES and (name, func, module) not in DEFERRED:
+                found.append(f"{path.relative_to(ROOT)}:{line} {func}() imports {module}")
+    assert not found, "\n".join(found)
+
+
 def test_no_private_name_crosses_a_package():
     """``from x import _name`` only inside the package that defines ``_name``."""
     found = []
@@ -132,3 +143,25 @@ def test_no_module_is_over_800_lines():
     long = {str(p.relative_to(ROOT)): n for p in _modules().values()
             if (n := len(p.read_text().splitlines())) > 800}
     assert not long, long
+
+
+def _jitted(node) -> bool:
+    for dec in node.decorator_list:
+        target = dec.func if isinstance(dec, ast.Call) else dec
+        name = target.attr if isinstance(target, ast.Attribute) else getattr(target, "id", "")
+        if name in ("njit", "jit", "register_jitable"):
+            return True
+    return False
+
+
+def test_no_kernel_takes_more_than_8_parameters():
+    """Numba kernels take named structures (the chip plan serialised into record arrays and
+    NamedTuples: sim.cycle.engine.layout), not long positional lists."""
+    found = []
+    for path in _modules().values():
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.FunctionDef) and _jitted(node):
+                n = len(node.args.args) + len(node.args.kwonlyargs)
+                if n > 8:
+                    found.append(f"{path.relative_to(ROOT)}:{node.lineno} {node.name}: {n}")
+    assert not found, "\n".join(found)

@@ -1,4 +1,4 @@
-"""The analytic model (sim/estimate.py) against the cycle model, over a grid of configurations.
+"""The analytic model (sim/cycle/estimate.py) against the cycle model, over a grid of configurations.
 
 Throughput (the work-based frame rate and bottleneck), FIFO traffic and SRAM must agree exactly;
 first-output and frame latency to the cycle where the row model is exact (no FIFO or line

@@ -47,6 +47,7 @@ from sim.cycle.engine.layout import (
     ERR_RING,
     INF,
 )
+from sim.cycle.engine.ring import busy, rd, view
 from sim.cycle.engine.walkers import walk_all
 from sim.cycle.rules import (
     camera_cycle,
@@ -61,32 +62,6 @@ from sim.cycle.rules import (
 )
 
 # ---- rings --------------------------------------------------------------------------------------
-
-
-@njit(cache=True, inline="always")
-def view(streams, s):
-    """(ring offset, mask, known events, the highest index the ring no longer holds) of stream
-    s."""
-    st = streams[s]
-    return st.off, st.mask, st.count, st.count - 1 - st.mask
-
-
-@njit(cache=True, inline="always")
-def rd(ring, off, mask, i):
-    return ring[off + (i & mask)]
-
-
-@njit(cache=True, inline="always")
-def busy(gaps, blk, n_gaps, last_busy, u, v, g):
-    """Block ``blk`` is busy over the instants u .. v (fs, in time order) after ``last_busy``: a
-    gap longer than the watchdog's time ``g`` is kept in ``gaps[blk]`` (``n_gaps`` kept so far;
-    counted on beyond its room, which the caller reports). Returns (n_gaps, last busy)."""
-    if u - last_busy > g:
-        if n_gaps < gaps.shape[1]:
-            gaps[blk, n_gaps, 0] = last_busy
-            gaps[blk, n_gaps, 1] = u
-        n_gaps += 1
-    return n_gaps, (v if v > last_busy else last_busy)
 
 
 @njit(cache=True, inline="always")

@@ -23,6 +23,7 @@ from __future__ import annotations
 from numba import njit
 
 from sim.cycle.engine.layout import ERR_GAPS, ERR_RING, F_MERGE, F_SRC, INF, K_CAMERA, K_SVA
+from sim.cycle.engine.ring import busy, rd, view
 from sim.cycle.rules import (
     nna_last_input_row,
     seen_from,
@@ -32,28 +33,6 @@ from sim.cycle.rules import (
 )
 
 NEVER = -(1 << 40)
-
-
-@njit(cache=True, inline="always")
-def _view(streams, s):
-    st = streams[s]
-    return st.off, st.mask, st.count, st.count - 1 - st.mask
-
-
-@njit(cache=True, inline="always")
-def _rd(ring, off, mask, i):
-    return ring[off + (i & mask)]
-
-
-@njit(cache=True, inline="always")
-def _busy(gaps, blk, n_gaps, last_busy, u, v, g):
-    """(n_gaps, last busy) after the block is busy over the instants u .. v (in time order)."""
-    if u - last_busy > g:
-        if n_gaps < gaps.shape[1]:
-            gaps[blk, n_gaps, 0] = last_busy
-            gaps[blk, n_gaps, 1] = u
-        n_gaps += 1
-    return n_gaps, (v if v > last_busy else last_busy)
 
 
 @njit(cache=True, inline="always")
@@ -91,10 +70,14 @@ def _catch_up(ring, off, mask, ptr, lowest, lo):
 
 
 @njit(cache=True, inline="always")
-def _pops_in(ring, off, mask, ptr, limit, lo, hi, long, gaps, blk, n_gaps, last_busy, per, g):
+def _pops_in(ring, pops, ptr, lo, hi, long, gaps, state):
     """Count the pops in cycles [lo, hi) (skipping those before lo); inside an interval longer
-    than the watchdog's time (``long``) each is a busy instant to note. Returns (pointer past
-    them, count, n_gaps, last busy)."""
+    than the watchdog's time (``long``) each is a busy instant to note. ``pops`` = (ring offset,
+    mask, known events) of the pop stream; ``state`` = (block, n_gaps, last busy, period,
+    watchdog) of :func:`~sim.cycle.engine.ring.busy`. Returns (pointer past them, count,
+    n_gaps, last busy)."""
+    off, mask, limit = pops
+    blk, n_gaps, last_busy, per, g = state
     ptr = _skip(ring, off, mask, ptr, limit, lo)
     first = ptr
     if long:
@@ -102,7 +85,7 @@ def _pops_in(ring, off, mask, ptr, limit, lo, hi, long, gaps, blk, n_gaps, last_
             c = ring[off + (ptr & mask)]
             if c >= hi:
                 break
-            n_gaps, last_busy = _busy(gaps, blk, n_gaps, last_busy, c * per, c * per, g)
+            n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy, c * per, c * per, g)
             ptr += 1
     else:
         ptr = _skip(ring, off, mask, ptr, limit, hi)
@@ -124,15 +107,16 @@ def walk_nna(net, ti, final):
     tl = net.tiles[ti]
     blk = tl.block
     a = net.acc[blk]
-    b_off, b_mask, nb, b_lo = _view(net.streams, tl.b)
-    e_off, e_mask, ne, e_lo = _view(net.streams, tl.e)
+    b_off, b_mask, nb, b_lo = view(net.streams, tl.b)
+    b_pops = (b_off, b_mask, nb)
+    e_off, e_mask, ne, e_lo = view(net.streams, tl.e)
     cpd, half, h, g = prm.cpd, prm.half, prm.h, prm.watchdog_fs
     per = net.blocks[blk].period
     ow, iw, y0, iy0, n_out, n_in = tl.ow, tl.iw, tl.y0, tl.iy0, tl.n_out, tl.n_in
     j, ptr, prev = a.walk, a.ptr, a.prev
     last_busy, n_gaps = a.last_busy, a.gaps
     # every pop before cycle `known_until` is known
-    known_until = INF if nb >= n_in else (_rd(ring, b_off, b_mask, nb - 1) + 1 if nb > 0 else 0)
+    known_until = INF if nb >= n_in else (rd(ring, b_off, b_mask, nb - 1) + 1 if nb > 0 else 0)
     err = j < ne and j <= e_lo
     starved = 0
     blocked = 0
@@ -143,7 +127,7 @@ def walk_nna(net, ti, final):
     while j < n_out:
         if r != rows_row:
             need = (nna_last_input_row(y0 + r, half, h) - iy0 + 1) * iw
-            rows_in = _rd(ring, b_off, b_mask, need - 1) + 1 if need <= nb else INF
+            rows_in = rd(ring, b_off, b_mask, need - 1) + 1 if need <= nb else INF
             rows_row = r
         s_j = max(prev + 1, rows_in)
         done = s_j + cpd - 1
@@ -152,36 +136,33 @@ def walk_nna(net, ti, final):
                 ptr, lost = _catch_up(ring, b_off, b_mask, ptr, b_lo + 1, prev + 1)
                 err |= lost
                 long = s_j == INF or (s_j - prev) * per > g
-                ptr, _, n_gaps, last_busy = _pops_in(ring, b_off, b_mask, ptr, nb, prev + 1,
-                                                     s_j, long, gaps, blk, n_gaps, last_busy,
-                                                     per, g)
+                ptr, _, n_gaps, last_busy = _pops_in(ring, b_pops, ptr, prev + 1, s_j, long, gaps,
+                                                     (blk, n_gaps, last_busy, per, g))
                 if s_j < INF:
-                    n_gaps, last_busy = _busy(gaps, blk, n_gaps, last_busy, s_j * per,
+                    n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy, s_j * per,
                                               done * per, g)
-                    _, _, n_gaps, last_busy = _pops_in(ring, b_off, b_mask, ptr, nb, done + 1,
-                                                       INF, True, gaps, blk, n_gaps,
-                                                       last_busy, per, g)
+                    _, _, n_gaps, last_busy = _pops_in(ring, b_pops, ptr, done + 1, INF, True, gaps,
+                                                       (blk, n_gaps, last_busy, per, g))
             break
-        e = _rd(ring, e_off, e_mask, j)
+        e = rd(ring, e_off, e_mask, j)
         if e > known_until:
             break  # a pop before e may still come
         if s_j > prev + 1:  # waiting for the row's input (phase 0)
             ptr, lost = _catch_up(ring, b_off, b_mask, ptr, b_lo + 1, prev + 1)
             err |= lost
             long = (s_j - prev) * per > g
-            ptr, cnt, n_gaps, last_busy = _pops_in(ring, b_off, b_mask, ptr, nb, prev + 1,
-                                                   s_j, long, gaps, blk, n_gaps, last_busy,
-                                                   per, g)
+            ptr, cnt, n_gaps, last_busy = _pops_in(ring, b_pops, ptr, prev + 1, s_j, long, gaps,
+                                                   (blk, n_gaps, last_busy, per, g))
             starved += s_j - prev - 1 - cnt
-            n_gaps, last_busy = _busy(gaps, blk, n_gaps, last_busy, s_j * per, done * per, g)
+            n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy, s_j * per, done * per, g)
         if e > done + 1:  # the finished descriptor held for a free slot
             ptr, lost = _catch_up(ring, b_off, b_mask, ptr, b_lo + 1, done + 1)
             err |= lost
             long = (e - done) * per > g
-            ptr, cnt, n_gaps, last_busy = _pops_in(ring, b_off, b_mask, ptr, nb, done + 1, e,
-                                                   long, gaps, blk, n_gaps, last_busy, per, g)
+            ptr, cnt, n_gaps, last_busy = _pops_in(ring, b_pops, ptr, done + 1, e, long, gaps,
+                                                   (blk, n_gaps, last_busy, per, g))
             blocked += e - done - 1 - cnt
-            n_gaps, last_busy = _busy(gaps, blk, n_gaps, last_busy, e * per, e * per, g)
+            n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy, e * per, e * per, g)
         last_busy = e * per  # busy through its MAC cycles and its push
         prev = e
         j += 1
@@ -211,8 +192,9 @@ def walk_sva(net, blk, p_s, final):
     ring = net.ring
     gaps = net.gaps
     a = net.acc[blk]
-    p_off, p_mask, npop, p_lo = _view(net.streams, p_s)
-    o_off, o_mask, no, o_lo = _view(net.streams, p_s + 1)
+    p_off, p_mask, npop, p_lo = view(net.streams, p_s)
+    p_pops = (p_off, p_mask, npop)
+    o_off, o_mask, no, o_lo = view(net.streams, p_s + 1)
     n, w, h, la = net.streams[p_s].n, prm.w, prm.h, prm.lookahead
     lat, cpp, g = prm.pipe_latency, prm.cpp, prm.watchdog_fs
     per = net.blocks[blk].period
@@ -220,7 +202,7 @@ def walk_sva(net, blk, p_s, final):
     if j == 0:
         prev = NEVER
     last_busy, n_gaps = a.last_busy, a.gaps
-    known_until = INF if npop >= n else (_rd(ring, p_off, p_mask, npop - 1) + 1
+    known_until = INF if npop >= n else (rd(ring, p_off, p_mask, npop - 1) + 1
                                          if npop > 0 else 0)
     err = j < no and j <= o_lo
     starved = 0
@@ -232,7 +214,7 @@ def walk_sva(net, blk, p_s, final):
     while j < n:
         if y != ready_row:
             need = (sva_last_input_row(y, la, h) + 1) * w
-            ready = _rd(ring, p_off, p_mask, need - 1) + 1 if need <= npop else INF
+            ready = rd(ring, p_off, p_mask, need - 1) + 1 if need <= npop else INF
             ready_row = y
         lo = max(prev + 1, 0)
         due = sva_word_due(ready, lat, prev, cpp) if ready < INF else INF
@@ -241,37 +223,36 @@ def walk_sva(net, blk, p_s, final):
                 ptr, lost = _catch_up(ring, p_off, p_mask, ptr, p_lo + 1, lo)
                 err |= lost
                 long = ready == INF or (ready - lo) * per > g
-                ptr, _, n_gaps, last_busy = _pops_in(ring, p_off, p_mask, ptr, npop, lo, ready,
-                                                     long, gaps, blk, n_gaps, last_busy, per, g)
+                ptr, _, n_gaps, last_busy = _pops_in(ring, p_pops, ptr, lo, ready, long, gaps,
+                                                     (blk, n_gaps, last_busy, per, g))
                 if ready < INF:
                     if due > max(lo, ready):
-                        n_gaps, last_busy = _busy(gaps, blk, n_gaps, last_busy,
+                        n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy,
                                                   max(lo, ready) * per, (due - 1) * per, g)
-                    _, _, n_gaps, last_busy = _pops_in(ring, p_off, p_mask, ptr, npop, due, INF,
-                                                       True, gaps, blk, n_gaps, last_busy, per,
-                                                       g)
+                    _, _, n_gaps, last_busy = _pops_in(ring, p_pops, ptr, due, INF, True, gaps,
+                                                       (blk, n_gaps, last_busy, per, g))
             break
-        o = _rd(ring, o_off, o_mask, j)
+        o = rd(ring, o_off, o_mask, j)
         if o > known_until:
             break  # a pop before o may still come
         if ready > lo:  # waiting for the word's row
             ptr, lost = _catch_up(ring, p_off, p_mask, ptr, p_lo + 1, lo)
             err |= lost
             long = (ready - lo) * per > g
-            ptr, cnt, n_gaps, last_busy = _pops_in(ring, p_off, p_mask, ptr, npop, lo, ready,
-                                                   long, gaps, blk, n_gaps, last_busy, per, g)
+            ptr, cnt, n_gaps, last_busy = _pops_in(ring, p_pops, ptr, lo, ready, long, gaps,
+                                                   (blk, n_gaps, last_busy, per, g))
             starved += ready - lo - cnt
             if due > ready:
-                n_gaps, last_busy = _busy(gaps, blk, n_gaps, last_busy, ready * per,
+                n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy, ready * per,
                                           (due - 1) * per, g)
         if o > due:  # the word held for a free slot
             ptr, lost = _catch_up(ring, p_off, p_mask, ptr, p_lo + 1, due)
             err |= lost
             long = (o - due) * per > g
-            ptr, cnt, n_gaps, last_busy = _pops_in(ring, p_off, p_mask, ptr, npop, due, o, long,
-                                                   gaps, blk, n_gaps, last_busy, per, g)
+            ptr, cnt, n_gaps, last_busy = _pops_in(ring, p_pops, ptr, due, o, long, gaps,
+                                                   (blk, n_gaps, last_busy, per, g))
             blocked += o - due - cnt
-            n_gaps, last_busy = _busy(gaps, blk, n_gaps, last_busy, o * per, o * per, g)
+            n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy, o * per, o * per, g)
         last_busy = o * per
         prev = o
         j += 1
@@ -362,8 +343,8 @@ def pop_cycle(net, f, i):
     fi = net.fifos[f]
     x0, y0, row_w = fifo_region(net.fifos, net.tiles, net.prm[0].parts, f)
     idx = item_index(fi.kind if fi.kind == F_MERGE else -1, x0, y0, row_w, net.prm[0].w, i)
-    off, mask, _, _ = _view(net.streams, fi.pop)
-    return _rd(net.ring, off, mask, idx)
+    off, mask, _, _ = view(net.streams, fi.pop)
+    return rd(net.ring, off, mask, idx)
 
 
 @njit(cache=True)
@@ -388,8 +369,8 @@ def walk_fifo(net, f, producer, c_end):
     whole = row_w == w and y0 == 0  # the region is the frame: item i is stream event i
     push_kind = F_SRC if kind == F_SRC and not whole else -1
     pop_kind = F_MERGE if kind == F_MERGE and not whole else -1
-    u_off, u_mask, _, u_lo = _view(net.streams, fi.push)
-    o_off, o_mask, _, o_lo = _view(net.streams, fi.pop)
+    u_off, u_mask, _, u_lo = view(net.streams, fi.push)
+    o_off, o_mask, _, o_lo = view(net.streams, fi.pop)
     per_p, per_c, se, depth = fi.per_src, fi.per_dst, fi.space_edges, fi.depth
     final = c_end >= 0
     limit = c_end if final else INF
@@ -402,7 +383,7 @@ def walk_fifo(net, f, producer, c_end):
     # the latest known push's time: no unknown push comes before it
     last_inc = INF
     if npush > 0 and npush < n:
-        pc = _rd(ring, u_off, u_mask, item_index(push_kind, x0, y0, row_w, w, npush - 1))
+        pc = rd(ring, u_off, u_mask, item_index(push_kind, x0, y0, row_w, w, npush - 1))
         last_inc = pc + 1 if producer else seen_from(pc, per_p, per_c, 1)
     # no unknown pop counts before an unknown push (a pop follows its push), so a push is
     # settled once as many pops as pushes before it are known; a pop once no unknown push can
@@ -416,13 +397,13 @@ def walk_fifo(net, f, producer, c_end):
     if inc < npush:
         idx = item_index(push_kind, x0, y0, row_w, w, inc)
         err |= idx <= u_lo
-        pc = _rd(ring, u_off, u_mask, idx)
+        pc = rd(ring, u_off, u_mask, idx)
         ti = pc + 1 if producer else seen_from_scaled(pc, per_p, per_c, rat_p, 1)
     td = INF
     if dec < npop:
         idx = item_index(pop_kind, x0, y0, row_w, w, dec)
         err |= idx <= o_lo
-        cc = _rd(ring, o_off, o_mask, idx)
+        cc = rd(ring, o_off, o_mask, idx)
         td = seen_from_scaled(cc, per_c, per_p, rat_c, se) if producer else cc + 1
     while True:
         if ti <= td:
@@ -455,7 +436,7 @@ def walk_fifo(net, f, producer, c_end):
             ti = INF
             if inc < npush:
                 idx = item_index(push_kind, x0, y0, row_w, w, inc)
-                pc = _rd(ring, u_off, u_mask, idx)
+                pc = rd(ring, u_off, u_mask, idx)
                 ti = pc + 1 if producer else seen_from_scaled(pc, per_p, per_c, rat_p, 1)
         else:
             level -= 1
@@ -463,7 +444,7 @@ def walk_fifo(net, f, producer, c_end):
             td = INF
             if dec < npop:
                 idx = item_index(pop_kind, x0, y0, row_w, w, dec)
-                cc = _rd(ring, o_off, o_mask, idx)
+                cc = rd(ring, o_off, o_mask, idx)
                 td = seen_from_scaled(cc, per_c, per_p, rat_c, se) if producer else cc + 1
     if final and c_end > cycle and 0 <= level <= depth:
         if keep:
@@ -488,9 +469,9 @@ def walk_all(net, final):
     horizon = 0
     streams, ring = net.streams, net.ring
     for s in range(streams.shape[0]):
-        off, mask, count, _ = _view(streams, s)
+        off, mask, count, _ = view(streams, s)
         if count > 0:
-            t = _rd(ring, off, mask, count - 1) * streams[s].period
+            t = rd(ring, off, mask, count - 1) * streams[s].period
             if t > horizon:
                 horizon = t
     prm.horizon_fs = horizon
@@ -524,5 +505,5 @@ def note_camera(net, blk, lines, line_clocks):
     if net.blocks[blk].kind == K_CAMERA:
         a = net.acc[blk]
         per = net.blocks[blk].period
-        a.gaps, a.last_busy = _busy(net.gaps, blk, a.gaps, a.last_busy, 0,
+        a.gaps, a.last_busy = busy(net.gaps, blk, a.gaps, a.last_busy, 0,
                                     (lines * line_clocks - 1) * per, net.prm[0].watchdog_fs)
