@@ -42,7 +42,8 @@ from quant.quantizer import float_forward
 from sim.config import load_config
 from sim.datasets import find_scenes, legal_disparities, load_scene, shared_data_dir
 from sim.errors import UserError
-from sim.io import atomic_write_bytes, to_grey
+from sim.io import to_grey
+from sim.outputs import atomic_write_bytes
 from sim.metrics import evaluate
 from sva.cost import cosine_cost
 from sva.pipeline import sva_cost_volume, sva_stream

@@ -61,7 +61,8 @@ import numpy as np
 from quant.quantizer import FloatModel
 from sim.datasets import find_scene, find_scenes, load_scene, occluded_by_cross_check
 from sim.errors import ConfigError, InputError
-from sim.io import atomic_write_bytes, open_npz, read_gt, read_image, to_grey
+from sim.io import open_npz, read_gt, read_image, to_grey
+from sim.outputs import atomic_write_bytes
 
 # (C_in, C_out, K) per layer
 VARIANTS = {

@@ -20,7 +20,8 @@ import numpy as np
 from quant.distances import DISTANCES
 from quant.intconv import INT32_MAX, check_network
 from sim.errors import ConfigError
-from sim.io import atomic_write_bytes, open_npz
+from sim.io import open_npz
+from sim.outputs import atomic_write_bytes
 
 FORMAT = "stereosim-quant-v1"
 

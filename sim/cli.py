@@ -41,8 +41,8 @@ from sim.datasets import (
 )
 from sim.diagram import plan_text, write_plan_png
 from sim.errors import ConfigError, InputError, UserError
+from sim.outputs import atomic_write_bytes
 from sim.io import (
-    atomic_write_bytes,
     disparity_to_colour,
     encode_png,
     pfm_bytes,

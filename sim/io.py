@@ -10,14 +10,13 @@ Everything here works on plain numpy arrays with fixed dtypes:
 
 Anything wrong with a file the user handed in (missing, corrupt, wrong bit depth or format) raises
 :class:`sim.errors.InputError` with one line naming the file and saying how to fix it. Files are
-written atomically (temporary file in the same folder, then ``os.replace``) so a reader never sees
-half a file, and PNG output is byte-identical for identical input.
+written atomically (:func:`sim.outputs.atomic_write_bytes`) so a reader never sees half a file,
+and PNG output is byte-identical for identical input.
 """
 
 from __future__ import annotations
 
 import os
-import tempfile
 import zipfile
 from pathlib import Path
 
@@ -25,9 +24,15 @@ import cv2
 import numpy as np
 
 from sim.errors import ConfigError, InputError
+from sim.outputs import atomic_write_bytes
 
 # Integer BT.601 luma weights in 1/256: 77 + 150 + 29 == 256, so white stays 255.
 _LUMA_R, _LUMA_G, _LUMA_B = 77, 150, 29
+
+# The largest image (in pixels) `stereosim run`/`eval` and `sim.run` accept unless told otherwise
+# (--max-pixels / max_pixels=): 4096 x 4096, about twice 4K UHD. A cycle-model frame of 4K UHD
+# peaks at ~354 MiB; the cap keeps a small file that claims a huge image from taking gigabytes.
+MAX_PIXELS = 1 << 24
 
 # zlib level for PNG output; fixed so that output does not depend on OpenCV's default.
 _PNG_COMPRESSION = 3
@@ -186,40 +191,6 @@ def read_pfm(path: str | os.PathLike) -> np.ndarray:
     rows_bottom_up = np.frombuffer(data, dtype=dtype, count=width * height, offset=pos)
     # Always a fresh, writable, native-endian array (frombuffer's view is read-only).
     return np.array(rows_bottom_up.reshape(height, width)[::-1], dtype=np.float32, order="C")
-
-
-def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
-    """Write ``data`` to ``path`` so that readers see either the old file or the whole new one.
-
-    The bytes go to a temporary file in the same folder, which is flushed to disk and then renamed
-    over ``path`` with ``os.replace``; on any error the temporary file is removed. The new file
-    gets the usual permissions (0666 minus the umask), not the 0600 of a temporary file.
-    """
-    p = Path(path)
-    folder = p.parent
-    if not folder.is_dir():
-        raise InputError(f"output folder {folder} does not exist: create it first")
-    fd, tmp_name = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=folder)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-        os.chmod(tmp_name, 0o666 & ~_current_umask())
-        os.replace(tmp_name, p)
-    except BaseException:
-        try:
-            os.unlink(tmp_name)
-        except FileNotFoundError:
-            pass
-        raise
-
-
-def _current_umask() -> int:
-    """The process umask (reading it means setting it, so it is set straight back)."""
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
 
 
 def pfm_bytes(arr: np.ndarray) -> bytes:

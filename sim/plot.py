@@ -16,7 +16,7 @@ from collections import defaultdict
 from pathlib import Path
 
 from sim.errors import InputError
-from sim.io import atomic_write_bytes
+from sim.outputs import atomic_write_bytes
 
 FIGSIZE = (6.4, 4.2)
 DPI = 100

@@ -59,7 +59,7 @@ from sim.datasets import (
     shared_data_dir,
 )
 from sim.errors import ConfigError, InputError, UserError
-from sim.io import atomic_write_bytes
+from sim.outputs import atomic_write_bytes
 
 MODES = ("cycle", "functional", "estimate")
 SWEEP_KEYS = ("mode", "scenes", "config", "set", "grid", "zip")

@@ -11,7 +11,7 @@ import argparse
 from pathlib import Path
 
 from sim.errors import ConfigError
-from sim.io import atomic_write_bytes
+from sim.outputs import atomic_write_bytes
 from traces.vcdread import read_vcd
 from traces.wave import match_vars, parse_window, wave_png
 

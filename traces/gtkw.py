@@ -18,7 +18,7 @@ from __future__ import annotations
 import os
 
 from sim.errors import ConfigError
-from sim.io import atomic_write_bytes
+from sim.outputs import atomic_write_bytes
 from traces.log import CLOCK_SCOPE, TraceLog, validate
 
 GROUP_OPEN, GROUP_CLOSE = "@800200", "@1000200"

@@ -40,7 +40,7 @@ import os
 import numpy as np
 
 from sim.errors import ConfigError
-from sim.io import atomic_write_bytes
+from sim.outputs import atomic_write_bytes
 from traces.gtkw import unit_of
 from traces.log import TraceLog, changes_of, validate
 

@@ -38,7 +38,7 @@ import numpy as np
 from numba import njit
 
 from sim.errors import ConfigError
-from sim.io import atomic_write_bytes
+from sim.outputs import atomic_write_bytes
 from traces.log import CLOCK_SCOPE, Clock, Signal, TraceLog, validate
 
 TIMESCALE = "1 fs"

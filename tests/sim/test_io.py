@@ -9,7 +9,6 @@ import pytest
 from sim.datasets import shared_data_dir
 from sim.errors import InputError
 from sim.io import (
-    atomic_write_bytes,
     disparity_to_colour,
     encode_png,
     read_gt,
@@ -187,31 +186,6 @@ def test_to_grey_rejects_wrong_dtype_and_channels():
 
 
 # ---------------------------------------------------------------- writing
-
-
-def test_atomic_write_replaces_and_leaves_no_temp_files(tmp_path):
-    target = tmp_path / "out.bin"
-    atomic_write_bytes(target, b"first")
-    atomic_write_bytes(target, b"second")
-    assert target.read_bytes() == b"second"
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["out.bin"]
-    umask = os.umask(0o022)
-    os.umask(umask)
-    assert target.stat().st_mode & 0o777 == 0o666 & ~umask
-
-
-def test_atomic_write_removes_temp_file_on_error(tmp_path):
-    target = tmp_path / "x.bin"
-    target.write_bytes(b"old")
-    with pytest.raises(TypeError):
-        atomic_write_bytes(target, "not bytes")  # type: ignore[arg-type]
-    assert target.read_bytes() == b"old"
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["x.bin"]
-
-
-def test_atomic_write_needs_existing_folder(tmp_path):
-    with pytest.raises(InputError, match="does not exist"):
-        atomic_write_bytes(tmp_path / "no" / "f.bin", b"x")
 
 
 def test_png_is_deterministic_and_round_trips(tmp_path):
