@@ -9,7 +9,7 @@ import numpy as np
 from nna.census import census, census_bits
 from nna.conv import cnn_descriptor
 from nna.weights import default_weights, load_layer
-from sim.config import NnaConfig
+from sim.config import NnaConfig, check_section
 
 
 @lru_cache(maxsize=8)
@@ -32,6 +32,7 @@ def descriptor_bits(cfg: NnaConfig) -> int:
 
 def compute_descriptor(img: np.ndarray, cfg: NnaConfig) -> np.ndarray:
     """Descriptor image (H, W) uint32/uint64 of a grey uint8 image."""
+    check_section(cfg, "nna.")  # every value in its declared range, however cfg was built
     if cfg.descriptor == "census":
         c = cfg.census
         return census(img, c.window, c.kind, c.stride)

@@ -120,7 +120,7 @@ class QuantizerConfig:
             raise ConfigError(f"z_bits must be in 1..{MAX_Z_BITS}, got {self.z_bits}")
         if self.n_samples < 1 or self.chunk < 1:
             raise ConfigError("n_samples and chunk must be positive")
-        if not 0.0 < self.act_quantile <= 1.0:
+        if not 0.0 < self.act_quantile <= 1.0:  # also refuses NaN
             raise ConfigError(f"act_quantile must be in (0, 1], got {self.act_quantile}")
 
 

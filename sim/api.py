@@ -2,18 +2,20 @@
 
 from __future__ import annotations
 
+import os
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from nna.descriptor import compute_descriptor
-from sim.config import ChipConfig, config_to_dict, load_config
+from sim.config import ChipConfig, check_config, config_to_dict, load_config
 from sim.cycle.plan import ChipPlan, architecture_report, build_plan
 from sim.cycle.simulate import simulate
 from sim.errors import ConfigError, InputError
-from sim.io import to_grey
-from sim.metrics import evaluate
+from sim.io import MAX_PIXELS, to_grey
+from sim.metrics import check_gt_values, check_truth, evaluate, undefined_metrics
 from sim.tracing import run_traced
 from sva.pipeline import sva_stream
 from sva.wta import to_float
@@ -39,10 +41,11 @@ class Result:
     trace: Any = None
 
 
-def prepare_pair(left, right) -> tuple[np.ndarray, np.ndarray]:
+def prepare_pair(left, right, max_pixels: int | None = MAX_PIXELS) -> tuple[np.ndarray, np.ndarray]:
     """Validate a stereo pair and return both views as grey uint8 (H, W).
 
     RGB (H, W, 3) views are converted with the integer BT.601 formula of :func:`sim.io.to_grey`.
+    A pair of more than ``max_pixels`` pixels per view is refused (None: no cap).
     """
     for name, img in (("left", left), ("right", right)):
         if not isinstance(img, np.ndarray):
@@ -56,14 +59,32 @@ def prepare_pair(left, right) -> tuple[np.ndarray, np.ndarray]:
     h, w = gl.shape
     if h < 1 or w < 2:
         raise InputError(f"the images are {w}x{h}: a stereo pair needs at least 2 columns and 1 row")
+    if max_pixels is not None and h * w > max_pixels:
+        raise InputError(
+            f"the images are {w}x{h} ({h * w / 1e6:.1f} M pixels), above the cap of "
+            f"{max_pixels / 1e6:.1f} M pixels: downsample them or raise the cap (--max-pixels, "
+            "max_pixels=)"
+        )
     return gl, gr
 
 
 def resolve_config(config: ChipConfig | str | None, overrides: dict[str, Any] | None) -> ChipConfig:
+    """The checked configuration of ``run``'s ``config``/``overrides``: a :class:`ChipConfig`
+    (however built, it passes :func:`sim.config.check_config`), a TOML path or None."""
     if isinstance(config, ChipConfig):
-        if not overrides:
-            return config
-        raise ConfigError("give either a ChipConfig object or overrides, not both")
+        if overrides:
+            raise ConfigError("give either a ChipConfig object or overrides, not both")
+        return check_config(config)
+    if config is not None and not isinstance(config, (str, os.PathLike)):
+        raise ConfigError(
+            f"config must be a ChipConfig, the path of a TOML file or None; got "
+            f"{type(config).__name__}"
+        )
+    if overrides is not None and not isinstance(overrides, Mapping):
+        raise ConfigError(
+            f"overrides must be a dict of dotted keys, e.g. {{'sva.p1': 10}}; got "
+            f"{type(overrides).__name__}"
+        )
     return load_config(config, overrides)
 
 
@@ -77,6 +98,7 @@ def run(
     gt: np.ndarray | None = None,
     masks: dict[str, np.ndarray] | None = None,
     trace=None,
+    max_pixels: int | None = MAX_PIXELS,
 ) -> Result:
     """Simulate one stereo frame.
 
@@ -90,12 +112,20 @@ def run(
     ``{"sva.disparities": 128, "nna.descriptor": "census"}``. With ``gt`` (float32, inf unknown)
     the report gains ``metrics`` over ``masks`` (default: every pixel with known GT).
     ``trace``: a :class:`sim.tracing.TraceRequest` (cycle mode only): the result carries the
-    recorded :class:`traces.log.TraceLog` (files are written by :func:`sim.tracing.write_traces`).
+    recorded :class:`traces.log.TraceLog` (files are written by :func:`sim.tracing.trace_files`).
+    ``max_pixels``: refuse larger views (default :data:`sim.io.MAX_PIXELS`; None = no cap).
+    Every mistake raises a :class:`sim.errors.UserError` before any kernel runs.
     """
     if mode not in MODES:
         raise ConfigError(f"mode must be one of {', '.join(MODES)}; got {mode!r}")
     cfg = resolve_config(config, overrides)
-    gl, gr = prepare_pair(left, right)
+    gl, gr = prepare_pair(left, right, max_pixels)
+    if gt is None and masks:
+        raise InputError("masks need ground truth: give gt= too")
+    if gt is not None:  # checked before the run, not after it
+        masks = check_truth(gt, {} if masks is None else masks, gl.shape)[1]
+        check_gt_values(gt, gl.shape[1])
+        masks = masks or {"all": np.isfinite(gt)}
     plan = build_plan(cfg, gl.shape)  # refuses a chip that cannot be built, in every mode
     log = None
     if trace is not None and mode != "cycle":
@@ -115,7 +145,10 @@ def run(
     if mode == "cycle":
         report.update(cycle_report)
     if gt is not None:
-        report["metrics"] = evaluate(disp, gt, masks if masks else {"all": np.isfinite(gt)})
+        report["metrics"] = evaluate(disp, gt, masks)
+        notes = undefined_metrics(report["metrics"])
+        if notes:
+            report["metrics_undefined"] = notes
     return Result(disparity=disp, disparity_fixed=fixed, report=report, config=cfg, trace=log)
 
 

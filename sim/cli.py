@@ -8,7 +8,12 @@ atomically, so a failed run leaves nothing half-written.
 from __future__ import annotations
 
 import argparse
-import json
+import contextlib
+import errno
+import hashlib
+import math
+import os
+import signal
 import sys
 import time
 from pathlib import Path
@@ -41,8 +46,8 @@ from sim.datasets import (
 )
 from sim.diagram import plan_text, write_plan_png
 from sim.errors import ConfigError, InputError, UserError
-from sim.outputs import atomic_write_bytes
 from sim.io import (
+    MAX_PIXELS,
     disparity_to_colour,
     encode_png,
     pfm_bytes,
@@ -51,10 +56,53 @@ from sim.io import (
     read_mask,
 )
 from sim.metrics import format_table, mean_metrics
-from sim.tracing import TraceRequest, check_size, parse_window, write_traces
+from sim.outputs import (
+    atomic_write_bytes,
+    check_outputs,
+    describe_os_error,
+    json_text,
+    publish,
+    shown,
+)
+from sim.tracing import TraceRequest, parse_window, trace_files, trace_paths
 from traces.cli import add_wave_parser
 
 EVAL_KEYS = ("bad0.5", "bad1", "bad2", "bad4", "invalid", "totbad", "avgerr", "rms")
+RUN_FILES = ("disparity.pfm", "disparity.png", "report.json")
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised in the main thread so that clean-up (staging folders) runs."""
+
+
+def finite_float(text: str) -> float:
+    """argparse type: a finite number (``nan`` and ``inf`` are refused by name)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"{text!r} is not a finite number")
+    return value
+
+
+def positive_int(text: str) -> int:
+    """argparse type: a whole number >= 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{text!r} must be at least 1")
+    return value
+
+
+def nonnegative_int(text: str) -> int:
+    """argparse type: a whole number >= 0."""
+    value = int(text) if text.lstrip("-").isdigit() else None
+    if value is None or value < 0:
+        raise argparse.ArgumentTypeError(f"{text!r} must be a whole number >= 0")
+    return value
 
 
 class _Parser(argparse.ArgumentParser):
@@ -160,19 +208,19 @@ def _load_run_inputs(args) -> dict:
     return data
 
 
-def _write_outputs(out_dir: Path, result, dmax: float) -> None:
-    # Encode everything first, then write: a failure leaves no partial set of outputs.
+def _output_blobs(out_dir: Path, result, dmax: float, traces: dict[str, bytes]) -> dict:
+    """Every file of a run by path: the disparity maps, the report (which lists the SHA-256 of
+    every other file of the set, so a reader can tell the files belong together) and traces."""
     blobs = {
-        "disparity.pfm": pfm_bytes(result.disparity),
-        "disparity.png": encode_png(disparity_to_colour(result.disparity, dmax)),
-        "report.json": (json.dumps(result.report, indent=2, sort_keys=True) + "\n").encode(),
+        out_dir / "disparity.pfm": pfm_bytes(result.disparity),
+        out_dir / "disparity.png": encode_png(disparity_to_colour(result.disparity, dmax)),
     }
-    try:
-        out_dir.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise InputError(f"cannot create the output folder {out_dir}: {exc.strerror}") from None
-    for name, data in blobs.items():
-        atomic_write_bytes(out_dir / name, data)
+    blobs.update((Path(p), data) for p, data in traces.items())
+    result.report["files"] = {
+        os.path.relpath(p, out_dir): hashlib.sha256(data).hexdigest() for p, data in blobs.items()
+    }
+    blobs[out_dir / "report.json"] = json_text(result.report).encode()
+    return blobs
 
 
 def _summary(report: dict, seconds: float) -> str:
@@ -206,27 +254,29 @@ def _summary(report: dict, seconds: float) -> str:
 
 def cmd_run(args) -> int:
     request = _trace_request(args)
+    out_dir = Path(args.out)
+    planned = [(out_dir / name, f"--out {name}") for name in RUN_FILES]
+    if request is not None:
+        planned += trace_paths(request)
+    check_outputs(planned)  # before any work: writable, not folders, no two on one path
     data = _load_run_inputs(args)
     cfg = _scene_config(args, data.get("ndisp"))
     t0 = time.perf_counter()
     result = run(data["left"], data["right"], mode=args.mode, config=cfg,
-                 gt=data.get("gt"), masks=data.get("masks"), trace=request)
+                 gt=data.get("gt"), masks=data.get("masks"), trace=request,
+                 max_pixels=args.max_pixels or None)
     seconds = time.perf_counter() - t0
     result.report["scene"] = {"name": data["name"], "source": data["source"]}
-    traced = []
-    if request is not None:
-        check_size(result.trace, request)  # refuse before anything is written
-    out_dir = Path(args.out)
-    _write_outputs(out_dir, result, float(cfg.sva.disparities))
-    if request is not None:
-        traced = write_traces(result.trace, request, size_checked=True)
+    traces = trace_files(result.trace, request) if request is not None else {}
+    blobs = _output_blobs(out_dir, result, float(cfg.sva.disparities), traces)
+    publish(blobs)  # the whole set, or (on any error or signal) the old set left as it was
     if args.json:
-        print(json.dumps(result.report, indent=2, sort_keys=True))
+        sys.stdout.write(json_text(result.report))
     else:
         print(_summary(result.report, seconds))
         print(f"wrote {out_dir}/disparity.pfm, disparity.png, report.json")
-        if traced:
-            print(f"wrote {', '.join(traced)} ({result.trace.n_changes} value changes)")
+        if traces:
+            print(f"wrote {', '.join(traces)} ({result.trace.n_changes} value changes)")
     return 0
 
 
@@ -241,7 +291,7 @@ def _trace_request(args):
     if args.mode != "cycle":
         raise ConfigError("traces need the cycle model: drop --mode functional")
     parse_window(args.trace_window)  # bad windows fail before the run
-    if args.trace_limit <= 0:
+    if not args.trace_limit > 0:
         raise ConfigError(f"--trace-limit must be > 0 MB, got {args.trace_limit:g}")
     patterns = tuple(p for item in args.trace for p in item.split(",") if p)
     return TraceRequest(window=args.trace_window, patterns=patterns, vcd=args.vcd,
@@ -255,32 +305,68 @@ def _trace_request(args):
 def cmd_eval(args) -> int:
     from tqdm import tqdm
 
-
     scenes = find_scenes(args.dataset, gt_scale=args.gt_scale)
-    rows = []
-    results = []
-    for scene in tqdm(scenes, desc="eval", unit="scene", disable=args.json or None, file=sys.stderr):
-        data = load_scene(scene)
-        cfg = _scene_config(args, data.get("ndisp"))
-        res = run(data["left"], data["right"], mode=args.mode, config=cfg,
-                  gt=data["gt"], masks=data["masks"])
-        results.append(res.report["metrics"])
-        rows.append((scene.name, res.report["metrics"], cfg.sva.disparities))
-    mean = mean_metrics(results)
+    _scene_config(args, None)  # a bad --set or --config fails once, before any scene
+    if args.out:
+        check_outputs({Path(args.out): "--out"})
+    rows: list[tuple[str, dict, int]] = []
+    failed: dict[str, str] = {}
+    bar = tqdm(scenes, desc="eval", unit="scene", disable=args.json or None, file=sys.stderr)
+    for scene in bar:
+        try:
+            metrics, disparities = _eval_scene(args, scene)
+        except UserError as exc:
+            failed[scene.name] = " ".join(str(exc).split())
+            if not args.json:
+                bar.write(f"{scene.name}: failed: {failed[scene.name]}", file=sys.stdout)
+        else:
+            rows.append((scene.name, metrics, disparities))
+            if not args.json:
+                bar.write(_eval_line(scene.name, metrics), file=sys.stdout)
+        if args.out:  # what is done so far survives an interrupt
+            atomic_write_bytes(args.out, json_text(_eval_document(args, rows, failed)).encode())
+    bar.close()
     if args.json:
-        out = {
-            "dataset": str(args.dataset),
-            "scenes": {name: {"disparities": d, "metrics": m} for name, m, d in rows},
-            "mean": mean,
-        }
-        print(json.dumps(out, indent=2, sort_keys=True))
-        return 0
-    for mask in ("nonocc", "all"):
-        table_rows = [(name, m[mask]) for name, m, _ in rows if mask in m]
-        if table_rows:
-            print(f"\n[{mask}]  (thresholds in pixels of the GT's resolution)")
-            print(format_table(table_rows, EVAL_KEYS))
+        sys.stdout.write(json_text(_eval_document(args, rows, failed)))
+    else:
+        for mask in ("nonocc", "all"):
+            table_rows = [(name, m[mask]) for name, m, _ in rows if mask in m]
+            if table_rows:
+                print(f"\n[{mask}]  (thresholds in pixels of the GT's resolution)")
+                print(format_table(table_rows, EVAL_KEYS))
+        for name, reason in failed.items():
+            print(f"FAILED {name}: {reason}")
+    if failed:
+        first = next(iter(failed))
+        raise UserError(
+            f"{len(failed)} of {len(scenes)} scenes failed ({first}: {failed[first]}); the others "
+            "were scored"
+        )
     return 0
+
+
+def _eval_scene(args, scene) -> tuple[dict, int]:
+    """One scene's metrics and D; a scene that cannot be scored raises a UserError."""
+    data = load_scene(scene)
+    if data["gt"] is None:
+        raise InputError(f"scene {scene.name} has no ground truth: nothing to score")
+    cfg = _scene_config(args, data.get("ndisp"))
+    res = run(data["left"], data["right"], mode=args.mode, config=cfg, gt=data["gt"],
+              masks=data["masks"], max_pixels=args.max_pixels or None)
+    return res.report["metrics"], cfg.sva.disparities
+
+
+def _eval_line(name: str, metrics: dict) -> str:
+    parts = [f"{mask} totbad {m['totbad']:.2f} bad2 {m['bad2']:.2f}" for mask, m in
+             metrics.items()]
+    return f"{name}: " + "; ".join(parts)
+
+
+def _eval_document(args, rows, failed) -> dict:
+    scenes = {name: {"disparities": d, "metrics": m} for name, m, d in rows}
+    scenes.update({name: {"error": reason, "metrics": None} for name, reason in failed.items()})
+    return {"dataset": str(args.dataset), "scenes": scenes,
+            "mean": mean_metrics([m for _, m, _ in rows]), "failed": len(failed)}
 
 
 # ----------------------------------------------------------------------------------------------
@@ -393,13 +479,15 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--left", help="left image (PNG etc.; RGB is converted to grey)")
     r.add_argument("--right", help="right image")
     r.add_argument("--gt", help="ground-truth disparity (.pfm, or .png with --gt-scale)")
-    r.add_argument("--gt-scale", type=float, help="GT PNG value per pixel of disparity")
+    r.add_argument("--gt-scale", type=finite_float, help="GT PNG value per pixel of disparity")
     r.add_argument("--mask", help="evaluation mask PNG (255 = non-occluded)")
     r.add_argument("--mode", default="cycle", choices=("functional", "cycle"),
                    help="cycle (default: the clocked chip, same disparities plus cycle counts) or "
                    "functional (the bit-exact model alone, faster)")
     r.add_argument("--out", default="out", help="output folder (default: out)")
     r.add_argument("--json", action="store_true", help="print the report as JSON")
+    r.add_argument("--max-pixels", type=nonnegative_int, default=MAX_PIXELS, metavar="N",
+                   help=f"refuse larger images (default {MAX_PIXELS}, 4096x4096; 0 = no cap)")
     t = r.add_argument_group("traces (cycle model; see docs/traces.md)")
     t.add_argument("--vcd", help="write a VCD waveform of the trace window (and a .gtkw next to it)")
     t.add_argument("--timeline", help="write a Chrome/Perfetto trace-event JSON of the window")
@@ -409,7 +497,7 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--trace", action="append", default=[], metavar="PATTERNS",
                    help="keep signals matching these glob patterns (comma-separated, "
                    "repeatable), e.g. 'top.sva.*,top.fifo.*.occupancy'")
-    t.add_argument("--trace-limit", type=float, default=500.0, metavar="MB",
+    t.add_argument("--trace-limit", type=finite_float, default=500.0, metavar="MB",
                    help="refuse a VCD larger than this (default 500 MB) unless --force")
     t.add_argument("--force", action="store_true", help="write the VCD whatever its size")
     _add_config_options(r)
@@ -417,9 +505,13 @@ def build_parser() -> argparse.ArgumentParser:
 
     e = sub.add_parser("eval", help="run and score every scene of a Middlebury-layout folder")
     e.add_argument("dataset", help="folder of scenes (e.g. ../shared/data/middlebury2014_trainingQ)")
-    e.add_argument("--gt-scale", type=float, help="GT PNG scale for non-standard sizes")
+    e.add_argument("--gt-scale", type=finite_float, help="GT PNG scale for non-standard sizes")
     e.add_argument("--mode", default="functional", choices=("functional", "cycle"))
     e.add_argument("--json", action="store_true", help="print per-scene and mean metrics as JSON")
+    e.add_argument("--out", metavar="FILE.json", help="also write the per-scene and mean metrics "
+                   "here, rewritten (atomically) after every scene")
+    e.add_argument("--max-pixels", type=nonnegative_int, default=MAX_PIXELS, metavar="N",
+                   help=f"refuse larger images (default {MAX_PIXELS}; 0 = no cap)")
     _add_config_options(e)
     e.set_defaults(func=cmd_eval)
 
@@ -430,22 +522,22 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--objective", choices=("curve", "triplet"), help="curve (default): "
                    "softmax over the box-filtered cost of every candidate disparity of strips of "
                    "pixels; triplet: MC-CNN's hinge on one positive and one negative patch")
-    t.add_argument("--epochs", type=int, metavar="N", help="default 20")
-    t.add_argument("--steps", type=int, metavar="N", help="batches per epoch (default 1000)")
-    t.add_argument("--strips", type=int, metavar="N", help="strips per batch, curve (default 32)")
-    t.add_argument("--batch", type=int, metavar="N", help="triplets per batch, triplet "
+    t.add_argument("--epochs", type=positive_int, metavar="N", help="default 20")
+    t.add_argument("--steps", type=positive_int, metavar="N", help="batches per epoch (default 1000)")
+    t.add_argument("--strips", type=positive_int, metavar="N", help="strips per batch, curve (default 32)")
+    t.add_argument("--batch", type=positive_int, metavar="N", help="triplets per batch, triplet "
                    "(default 256)")
-    t.add_argument("--lr", type=float, help="Adam learning rate, decaying linearly to 0 "
+    t.add_argument("--lr", type=finite_float, help="Adam learning rate, decaying linearly to 0 "
                    "(default 0.004)")
-    t.add_argument("--seed", type=int, default=0, metavar="S")
+    t.add_argument("--seed", type=nonnegative_int, default=0, metavar="S")
     t.add_argument("--similarity", choices=("cosine", "tanh", "both"), help="triplet: hinge on "
                    "cosine (MC-CNN), on the tanh relaxation of the Hamming comparison (default), "
                    "or both")
-    t.add_argument("--noise-max", type=float, metavar="SIGMA",
+    t.add_argument("--noise-max", type=finite_float, metavar="SIGMA",
                    help="augmentation noise: sigma ~ U(0, SIGMA) grey levels per view (default 2)")
-    t.add_argument("--aggregate", type=int, metavar="A", help="triplet: average the "
+    t.add_argument("--aggregate", type=positive_int, metavar="A", help="triplet: average the "
                    "similarity over A x A neighbouring descriptors, as the box filter does (odd)")
-    t.add_argument("--threads", type=int, default=2, metavar="N", help="torch CPU threads")
+    t.add_argument("--threads", type=positive_int, default=2, metavar="N", help="torch CPU threads")
     t.add_argument("--out", metavar="FILE", help="float model .npz (default: VARIANT.npz)")
     t.add_argument("--quiet", action="store_true", help="no progress bar")
     t.set_defaults(func=cmd_train)
@@ -455,21 +547,21 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--calib", required=True, metavar="DIR", help="calibration scenes: the "
                    "shared data folder (its training scenes), a collection or one scene")
     q.add_argument("--out", required=True, metavar="WEIGHTS", help="quantized artifact .npz")
-    q.add_argument("--calib-scenes", type=int, default=8, metavar="N",
+    q.add_argument("--calib-scenes", type=positive_int, default=8, metavar="N",
                    help="use the views of at most N scenes, spread evenly (default 8)")
     q.add_argument("--distance", default="hamming", choices=("hamming", "rms", "l1", "kl",
                    "hist_rms"), help="distance that picks the last layer's scales")
     q.add_argument("--hidden-distance", default="rms", choices=("hamming", "rms", "l1", "kl",
                    "hist_rms"), help="distance that picks the other layers' scales (default rms)")
-    q.add_argument("--act-quantile", type=float, default=0.9999, metavar="Q", help="multi-layer: "
+    q.add_argument("--act-quantile", type=finite_float, default=0.9999, metavar="Q", help="multi-layer: "
                    "each hidden layer's int8 activations map this quantile of its ReLU outputs "
                    "to 127 (default 0.9999; lower clips more and rounds finer)")
     q.add_argument("--steps", type=int, default=1000, metavar="N",
                    help="scale candidates per channel (>= 1000)")
     q.add_argument("--z-bits", type=int, default=8, metavar="Z", help="m, h in [0, 2^Z - 1]")
-    q.add_argument("--samples", type=int, default=20000, metavar="N",
+    q.add_argument("--samples", type=positive_int, default=20000, metavar="N",
                    help="sampled pixels for the search")
-    q.add_argument("--seed", type=int, default=0, metavar="S")
+    q.add_argument("--seed", type=nonnegative_int, default=0, metavar="S")
     q.set_defaults(func=cmd_quantize)
 
     c = sub.add_parser("config", help="show or compare configurations")
@@ -495,16 +587,74 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _on_sigterm(signum, frame):
+    raise Terminated
+
+
 def main(argv: list[str] | None = None) -> int:
+    """Run one command: 0 on success; 2 with one line on stderr for every user mistake or file
+    system problem; 130 on SIGINT and 143 on SIGTERM (after clean-up: nothing half-written)."""
+    previous = None
+    with contextlib.suppress(ValueError):  # signals can only be set in the main thread
+        previous = signal.signal(signal.SIGTERM, _on_sigterm)
     try:
         args = build_parser().parse_args(argv)
-        return args.func(args)
+        status = args.func(args)
+        if not _stdout_works():
+            return _fail("cannot write to standard output: check the device or pipe it writes to")
+        return status
     except UserError as exc:
-        print(f"stereosim: error: {exc}", file=sys.stderr)
-        return 2
+        return _fail(str(exc))
+    except OSError as exc:  # a file-system problem no command anticipated
+        if not _stdout_works() or (exc.filename is None and exc.errno in _STREAM_ERRNOS):
+            _silence_stdout()
+            return _fail(f"cannot write to standard output ({describe_os_error(exc)}): check the "
+                         "device or pipe it writes to")
+        where = f" ({shown(exc.filename)})" if exc.filename else ""
+        return _fail(f"{describe_os_error(exc)}{where}: check the path, its permissions and the "
+                     "free space")
+    except MemoryError:
+        return _fail("out of memory: use smaller images (--max-pixels) or a smaller disparity "
+                     "range")
+    except Terminated:
+        print("stereosim: terminated", file=sys.stderr)
+        return 143
     except KeyboardInterrupt:
         print("stereosim: interrupted", file=sys.stderr)
         return 130
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+# errnos of a write to a stream that cannot take more (an OSError without a file name)
+_STREAM_ERRNOS = {errno.ENOSPC, errno.EPIPE, errno.EDQUOT, errno.EIO}
+
+
+def _stdout_works() -> bool:
+    """Flush stdout; if it is broken (a full device, a closed pipe), silence it and say so."""
+    try:
+        sys.stdout.flush()
+        return True
+    except OSError:
+        _silence_stdout()
+        return False
+
+
+def _silence_stdout() -> None:
+    """Point stdout at /dev/null so the interpreter's last flush cannot print a traceback."""
+    with contextlib.suppress(OSError, ValueError, AttributeError):
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+
+
+def _fail(message: str) -> int:
+    """The one-line error on stderr; exit status 2."""
+    if not _stdout_works():
+        message = f"{message} (and standard output cannot be written)"
+    print(f"stereosim: error: {' '.join(message.split())}", file=sys.stderr)
+    return 2
 
 
 if __name__ == "__main__":

@@ -9,11 +9,15 @@ with the key's dotted name. ``stereosim config show`` prints the result as TOML.
 from __future__ import annotations
 
 import dataclasses
+import math
+import numbers
 import tomllib
 import typing
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from sim.errors import ConfigError
 
@@ -220,16 +224,21 @@ def _coerce(dotted: str, value, tp, meta) -> Any:
             )
         return tuple(_coerce(dotted, v, a, meta) for v, a in zip(value, args))
     if tp is bool:
+        if isinstance(value, np.bool_):
+            value = bool(value)
         if not isinstance(value, bool):
             raise ConfigError(f"config key '{dotted}' must be true or false; got {value!r}")
         return value
     if tp is int:
-        if isinstance(value, bool) or not isinstance(value, int):
+        if isinstance(value, bool) or not isinstance(value, numbers.Integral):
             raise ConfigError(f"config key '{dotted}' must be an integer; got {value!r}")
+        value = int(value)
     elif tp is float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
+        if isinstance(value, bool) or not isinstance(value, numbers.Real):
             raise ConfigError(f"config key '{dotted}' must be a number; got {value!r}")
         value = float(value)
+        if not math.isfinite(value):
+            raise ConfigError(f"config key '{dotted}' must be a finite number; got {value!r}")
     elif tp is str:
         if not isinstance(value, str):
             raise ConfigError(f"config key '{dotted}' must be a string; got {value!r}")
@@ -313,6 +322,46 @@ def load_config(
         _insert(tree, key, value)
     _descriptor_defaults(tree)
     return _check_combinations(_build(ChipConfig, tree, ""))
+
+
+def check_config(cfg) -> ChipConfig:
+    """The same checks as :func:`load_config` for a configuration built any other way (by hand,
+    with ``dataclasses.replace``): every section of the right class, every value of its declared
+    type and in range, every combination legal. Returns the checked configuration (values
+    normalised: numpy scalars become Python numbers, lists become tuples); raises
+    :class:`ConfigError` naming the first bad key."""
+    if not isinstance(cfg, ChipConfig):
+        raise ConfigError(f"a chip configuration must be a sim.ChipConfig; got {type(cfg).__name__}")
+    return _check_combinations(_build(ChipConfig, _tree_of(cfg, ChipConfig, ""), ""))
+
+
+SECTIONS = {"nna.": NnaConfig, "sva.": SvaConfig, "clocks.": ClockConfig,
+            "source.": SourceConfig, "fifo.": FifoConfig, "sim.": SimConfig}
+
+
+def check_section(section, prefix: str):
+    """:func:`check_config` for one section (``prefix`` ``"sva."``, ``"nna."``, ...): the check a
+    stage's entry point runs before any kernel sees the values. Returns the checked section."""
+    cls = SECTIONS[prefix]
+    return _build(cls, _tree_of(section, cls, prefix), prefix)
+
+
+def _tree_of(obj, cls, prefix: str) -> dict:
+    """The nested dict of a config object, checking that every section has its class."""
+    if type(obj) is not cls:
+        raise ConfigError(
+            f"config section '{prefix.rstrip('.') or 'chip'}' must be a {cls.__name__}; got "
+            f"{type(obj).__name__}"
+        )
+    hints = _field_types(cls)
+    tree = {}
+    for f in dataclasses.fields(cls):
+        value = getattr(obj, f.name)
+        if _is_config_class(hints[f.name]):
+            tree[f.name] = _tree_of(value, hints[f.name], f"{prefix}{f.name}.")
+        else:
+            tree[f.name] = value
+    return tree
 
 
 def _descriptor_defaults(tree: dict) -> None:

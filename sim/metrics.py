@@ -100,29 +100,69 @@ def evaluate(
     empty denominator is NaN. Keys: see :data:`METRIC_KEYS` and ``docs/metrics.md``.
     """
     d = np.asarray(disp)
-    g = np.asarray(gt)
     if d.ndim != 2:
         raise InputError(f"disparity map has shape {d.shape}: a 2-D (H, W) map is needed")
-    if g.shape != d.shape:
-        raise InputError(
-            f"disparity map is {d.shape} but GT is {g.shape}: evaluate at the GT's size"
-        )
-    for arr, what in ((d, "disparity map"), (g, "GT")):
-        if not (np.issubdtype(arr.dtype, np.floating) or np.issubdtype(arr.dtype, np.integer)):
-            raise InputError(f"{what} has dtype {arr.dtype}: give a float32 array")
+    if not (np.issubdtype(d.dtype, np.floating) or np.issubdtype(d.dtype, np.integer)):
+        raise InputError(f"disparity map has dtype {d.dtype}: give a float32 array")
+    g, masks = check_truth(gt, masks, d.shape)
     d = d.astype(np.float64)
     g = g.astype(np.float64)
     known = np.isfinite(g)
-    results: dict[str, dict[str, float]] = {}
+    return {name: _evaluate_mask(d, g, m & known) for name, m in masks.items()}
+
+
+def check_truth(gt, masks, shape: tuple[int, int]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Check ground truth and masks for maps of ``shape``: ``(gt, {name: boolean mask})``."""
+    if not isinstance(gt, np.ndarray):
+        raise InputError(f"the GT must be a numpy array (H, W), got {type(gt).__name__}")
+    if not (np.issubdtype(gt.dtype, np.floating) or np.issubdtype(gt.dtype, np.integer)):
+        raise InputError(f"GT has dtype {gt.dtype}: give a float32 array")
+    if gt.shape != tuple(shape):
+        raise InputError(
+            f"disparity map is {tuple(shape)} but GT is {gt.shape}: evaluate at the GT's size"
+        )
+    if not isinstance(masks, Mapping):
+        raise InputError(
+            f"masks must be a dict of name -> boolean (H, W) array, got {type(masks).__name__}"
+        )
+    checked = {}
     for name, mask in masks.items():
         m = np.asarray(mask)
-        if m.shape != d.shape:
+        if m.shape != tuple(shape):
             raise InputError(
-                f"mask '{name}' is {m.shape} but the disparity map is {d.shape}: "
+                f"mask '{name}' is {m.shape} but the disparity map is {tuple(shape)}: "
                 "use the masks of the same scene and size"
             )
-        results[name] = _evaluate_mask(d, g, (m != 0) & known)
-    return results
+        if not (m.dtype == bool or np.issubdtype(m.dtype, np.integer)):
+            raise InputError(f"mask '{name}' has dtype {m.dtype}: give a boolean array")
+        checked[str(name)] = m != 0
+    return gt, checked
+
+
+def check_gt_values(gt: np.ndarray, width: int) -> None:
+    """The GT of an image ``width`` px wide holds disparities: every known (finite) value is at
+    least 0 and below the width (no pixel can move further)."""
+    known = gt[np.isfinite(gt)]
+    if known.size and (known.min() < 0 or known.max() >= width):
+        raise InputError(
+            f"the GT holds disparities from {float(known.min()):g} to {float(known.max()):g} but "
+            f"a disparity lies in [0, {width}) for an image {width} px wide: check the GT file "
+            "and its scale (--gt-scale)"
+        )
+
+
+def undefined_metrics(results: Mapping[str, Mapping[str, float]]) -> dict[str, str]:
+    """Why a mask's metrics are undefined (NaN in Python, null in JSON), per mask that has any:
+    no evaluated pixel, or no valid disparity among them."""
+    notes = {}
+    for mask, m in results.items():
+        if not m.get("n"):
+            notes[mask] = ("the mask selects no pixel with known ground truth: every metric is "
+                           "undefined (null)")
+        elif math.isnan(m.get("avgerr", 0.0)):
+            notes[mask] = ("no valid disparity among the evaluated pixels: the error metrics "
+                           "are undefined (null)")
+    return notes
 
 
 def mean_metrics(

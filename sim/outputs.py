@@ -34,7 +34,7 @@ import shutil
 import signal
 import tempfile
 import time
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
 
 import numpy as np
@@ -51,8 +51,16 @@ def describe_os_error(exc: OSError) -> str:
     return exc.strerror or str(exc) or type(exc).__name__
 
 
+def shown(path, limit: int = 100) -> str:
+    """A path as an error message shows it: whole, or its start and end when very long."""
+    text = os.fspath(path) if not isinstance(path, str) else path
+    text = text if isinstance(text, str) else os.fsdecode(text)
+    return text if len(text) <= limit else f"{text[:limit // 2]}...{text[-limit // 2:]}"
+
+
 def _fail(action: str, path, exc: OSError) -> InputError:
     reason = describe_os_error(exc)
+    path = shown(path)
     hint = {
         errno.ENOSPC: "free some space or write elsewhere",
         errno.EDQUOT: "free some space or write elsewhere",
@@ -141,16 +149,18 @@ def _nearest_existing(folder: Path) -> Path:
             raise _fail("use the folder", folder, exc) from None
 
 
-def check_outputs(paths: Mapping[str | os.PathLike, str]) -> None:
+def check_outputs(paths: Mapping[str | os.PathLike, str] | Iterable[tuple]) -> None:
     """Refuse, before anything is computed, a set of output files that cannot all be written.
 
-    ``paths`` maps each output path to what the user knows it as (e.g. ``"--vcd"``). Checks: no
+    ``paths``: ``(path, label)`` pairs (or a mapping path -> label), the label being what the user
+    knows the file as (e.g. ``"--vcd"``). Checks: no
     two outputs on one path; none is an existing folder; the nearest existing ancestor of each
     folder is a folder we may write into (missing folders are created at publish time); every
     name fits the file system's limits.
     """
     seen: dict[str, str] = {}
-    for raw, label in paths.items():
+    pairs = paths.items() if isinstance(paths, Mapping) else paths
+    for raw, label in pairs:
         p = Path(raw)
         if not p.name or p.name in (".", ".."):
             raise InputError(f"{label} path {raw!s} names no file: give a file name")
@@ -168,7 +178,7 @@ def check_outputs(paths: Mapping[str | os.PathLike, str]) -> None:
             name_max = 255
         long = [part for part in p.parts if len(os.fsencode(part)) > name_max]
         if long or len(os.fsencode(real)) >= 4096:
-            raise InputError(f"{label} path {str(p)[:80]}... is too long for the file system: "
+            raise InputError(f"{label} path {shown(p)} is too long for the file system: "
                              "use a shorter path")
         try:
             if p.is_dir():

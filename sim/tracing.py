@@ -26,10 +26,11 @@ import numpy as np
 from sim.cycle.plan import ChipPlan
 from sim.cycle.simulate import simulate
 from sim.errors import ConfigError
-from traces.gtkw import write_gtkw
+from sim.outputs import publish
+from traces.gtkw import gtkw_text
 from traces.log import select
-from traces.timeline import write_timeline
-from traces.vcd import estimate_vcd_bytes, write_vcd
+from traces.timeline import timeline_bytes
+from traces.vcd import estimate_vcd_bytes, vcd_bytes
 
 DEFAULT_LIMIT_MB = 500
 
@@ -125,20 +126,35 @@ def check_size(log, request: TraceRequest) -> int:
     return size
 
 
-def write_traces(log, request: TraceRequest, *, size_checked: bool = False) -> list[str]:
-    """Write the VCD (and its .gtkw next to it) and the timeline the request names (each file
-    atomically, after :func:`check_size` unless the caller ran it: ``size_checked``); returns
-    the paths written."""
-
-    if not size_checked:
-        check_size(log, request)
-    written = []
+def trace_paths(request: TraceRequest) -> list[tuple[str, str]]:
+    """``(path, what the user knows it as)`` of every file a request writes (checked before the
+    run): the VCD, the .gtkw beside it, the timeline."""
+    paths = []
     if request.vcd:
-        write_vcd(request.vcd, log)
-        gtkw = os.path.splitext(request.vcd)[0] + ".gtkw"
-        write_gtkw(gtkw, log, os.path.basename(request.vcd))
-        written += [request.vcd, gtkw]
+        paths += [(request.vcd, "--vcd"), (gtkw_path(request.vcd), "the .gtkw beside --vcd")]
     if request.timeline:
-        write_timeline(request.timeline, log)
-        written.append(request.timeline)
-    return written
+        paths.append((request.timeline, "--timeline"))
+    return paths
+
+
+def gtkw_path(vcd: str) -> str:
+    """The GTKWave save file written beside a VCD."""
+    return os.path.splitext(vcd)[0] + ".gtkw"
+
+
+def trace_files(log, request: TraceRequest) -> dict[str, bytes]:
+    """The bytes of every file the request names (after :func:`check_size`), by path."""
+    check_size(log, request)
+    files = {}
+    if request.vcd:
+        files[request.vcd] = vcd_bytes(log)
+        files[gtkw_path(request.vcd)] = gtkw_text(log, os.path.basename(request.vcd)).encode()
+    if request.timeline:
+        files[request.timeline] = timeline_bytes(log)
+    return files
+
+
+def write_traces(log, request: TraceRequest) -> list[str]:
+    """Write the VCD (and its .gtkw next to it) and the timeline the request names, as one set
+    (:func:`sim.outputs.publish`); returns the paths written."""
+    return publish(trace_files(log, request))

@@ -6,13 +6,13 @@ Registered by :func:`register` from :func:`sim.cli.build_parser`; errors follow 
 
 from __future__ import annotations
 
-import json
 import os
 import sys
 from pathlib import Path
 
 from sim.cycle.estimate import estimate, format_estimate, parse_size
 from sim.errors import InputError
+from sim.outputs import json_text
 from sim.plot import plot_xy, sweep_plots
 from sim.sweep import CSV_NAME, load_scene_spec, load_sweep, read_rows, run_sweep
 
@@ -37,7 +37,7 @@ def register(sub, add_config_options, scene_config) -> None:
             )
         est = estimate(cfg, shape)
         if args.json:
-            print(json.dumps(est, indent=2, sort_keys=True))
+            sys.stdout.write(json_text(est))
         else:
             print(format_estimate(est))
         return 0

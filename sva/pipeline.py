@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from sim.config import SvaConfig
+from sim.config import SvaConfig, check_section
 from sim.errors import InputError
 from sva.aggregation import box_filter, box_filter_ref, box_start, box_step
 from sva.cost import (
@@ -53,14 +53,7 @@ def check_inputs(desc_l, desc_r, img_l, cfg: SvaConfig, bits: int) -> None:
         )
     if not 1 <= bits <= 64:
         raise InputError(f"descriptor width must be 1..64 bits, got {bits}")
-    # the uint16 lanes of the kernels (a config built without load_config skips its checks)
-    if cfg.path_bits > 14 or cfg.cost_bits > 15 or cfg.sum_bits > 16 or cfg.box_size > 15:
-        raise InputError(
-            "register widths too large for the kernels: path_bits <= 14, cost_bits <= 15, "
-            "sum_bits <= 16 and box_size <= 15"
-        )
-    if not (0 <= cfg.p1 <= 32767 and 0 <= cfg.p2 <= 32767 and cfg.p2_slope >= 0):
-        raise InputError("P1 and P2 must be in 0..32767 and the P2 slope >= 0")
+    check_section(cfg, "sva.")  # every value in its declared range, however cfg was built
 
 
 def sva_ref(desc_l, desc_r, img_l, cfg: SvaConfig, bits: int) -> np.ndarray:
@@ -245,6 +238,7 @@ def sva_cost_volume(cost, img_l, cfg: SvaConfig) -> np.ndarray:
     ``benchmarks/ablation.py``). Given the Hamming volume of two descriptors it equals
     :func:`sva_stream` bit for bit (tested).
     """
+    check_section(cfg, "sva.")
     if not isinstance(cost, np.ndarray) or cost.ndim != 3 or cost.dtype != np.uint8:
         raise InputError("the cost volume must be a uint8 array (H, W, D)")
     h, w, dn = cost.shape

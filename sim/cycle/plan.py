@@ -35,7 +35,7 @@ from nna.geometry import (
     split_frame,
     window_rows,
 )
-from sim.config import ChipConfig
+from sim.config import ChipConfig, check_config
 from sim.cycle.clock import ClockDomain
 from sim.cycle.rules import fifo_edges, period_fs
 from sim.errors import ConfigError
@@ -293,6 +293,7 @@ def build_plan(cfg: ChipConfig, shape: tuple[int, int]) -> ChipPlan:
     """The plan of ``cfg`` for frames of ``shape`` = (H, W). Raises ConfigError for a chip that
     cannot be built (a line buffer smaller than the descriptor window, more tiles than rows or
     columns, D not below the width)."""
+    cfg = check_config(cfg)  # however it was built, the same checks as load_config
     h, w = shape
     n = h * w
     check_line_buffer(cfg.nna)

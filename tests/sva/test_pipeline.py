@@ -11,7 +11,7 @@ from numpy.testing import assert_array_equal
 
 from nna.census import census
 from sim.config import load_config
-from sim.errors import InputError
+from sim.errors import ConfigError, InputError
 from sva.aggregation import box_filter_ref
 from sva.cost import hamming_cost_ref
 from sva.pipeline import sva_ref, sva_stream
@@ -259,10 +259,13 @@ def test_bad_inputs_raise():
     dl, dr, img = descriptor_pair(3, 20, 31, seed=0)
     with pytest.raises(InputError, match="grey image"):
         sva_stream(dl, dr, img[:, :5], sva_config(disparities=16), 31)
-    # a config built without load_config skips its range checks; the kernels' limits hold
+    # a config built without load_config passes the same checks before any kernel runs
     too_wide = dataclasses.replace(sva_config(disparities=16), path_bits=15)
-    with pytest.raises(InputError, match="path_bits <= 14"):
+    with pytest.raises(ConfigError, match=r"'sva.path_bits' must be in \[8, 14\]; got 15"):
         sva_stream(dl, dr, img, too_wide, 31)
+    too_many = dataclasses.replace(sva_config(disparities=16), paths=5)
+    with pytest.raises(ConfigError, match=r"'sva.paths' must be in \[1, 4\]; got 5"):
+        sva_stream(dl, dr, img, too_many, 31)
 
 
 @pytest.mark.parametrize("box, median, paths", [(1, 0, 4), (3, 3, 2), (5, 5, 4), (7, 3, 1)])

@@ -188,6 +188,10 @@ def test_cli_traces_are_deterministic_and_do_not_change_the_outputs(tmp_path, ca
     rep0 = json.loads((plain / "report.json").read_text())
     rep1 = json.loads((files[0] / "report.json").read_text())
     rep1.pop("trace")
+    listed0, listed1 = rep0.pop("files"), rep1.pop("files")  # the set's SHA-256 manifest
+    assert sorted(listed1) == ["../a.gtkw", "../a.json", "../a.vcd", "disparity.pfm",
+                               "disparity.png"]
+    assert {k: listed1[k] for k in listed0} == listed0
     assert rep0 == rep1
 
 
