@@ -33,7 +33,7 @@ from quant.artifact import save_quantized
 from quant.quantizer import QuantizerConfig, quantize
 from sim import whatif_cli
 from sim.api import run
-from sim.config import config_diff, config_to_toml, load_config, parse_set_options
+from sim.config import config_diff, config_to_toml, load_config, parse_set_options, read_toml
 from sim.cycle.estimate import parse_size
 from sim.cycle.plan import build_plan
 from sim.datasets import (
@@ -138,13 +138,8 @@ def _user_set_disparities(args, over: dict) -> bool:
     if "sva.disparities" in over:
         return True
     if args.config:
-        import tomllib
-
-        try:
-            tree = tomllib.loads(Path(args.config).read_text())
-        except (OSError, ValueError):
-            return False  # load_config reports the problem
-        return "disparities" in tree.get("sva", {})
+        sva = read_toml(args.config, "config file").get("sva", {})
+        return isinstance(sva, dict) and "disparities" in sva
     return False
 
 
@@ -380,6 +375,8 @@ def cmd_config_show(args) -> int:
 
 
 def cmd_config_plan(args) -> int:
+    if args.png:
+        _check_single_output(Path(args.png), "--png")
     plan = build_plan(load_config(args.config, _overrides(args)), parse_size(args.size))
     if args.png:
         write_plan_png(plan, args.png)
@@ -409,6 +406,13 @@ def _import_torch():
         ) from None
 
 
+def _check_single_output(out: Path, label: str) -> None:
+    """Before a long job: its one output file can be written (its folder must exist)."""
+    check_outputs([(out, label)])
+    if not out.parent.is_dir():
+        raise InputError(f"output folder {out.parent} does not exist: create it first")
+
+
 def cmd_train(args) -> int:
     # options left unset keep TrainConfig's defaults (the shipped recipe)
     given = {
@@ -418,13 +422,12 @@ def cmd_train(args) -> int:
         "noise_max": args.noise_max, "aggregate": args.aggregate, "threads": args.threads,
     }
     cfg = TrainConfig(**{k: v for k, v in given.items() if v is not None})
+    out = Path(args.out or f"{args.variant}.npz")
+    _check_single_output(out, "--out")
     data = args.data or shared_data_dir()
     if data is None:
         raise InputError("no training data found: give --data DIR (the shared Middlebury folder)")
     dirs = training_scene_dirs(data)
-    out = Path(args.out or f"{args.variant}.npz")
-    if not out.parent.is_dir():
-        raise InputError(f"output folder {out.parent} does not exist: create it first")
     _import_torch()
     t0 = time.perf_counter()
     result = train(cfg, dirs, progress=not args.quiet)
@@ -438,6 +441,7 @@ def cmd_train(args) -> int:
 
 
 def cmd_quantize(args) -> int:
+    _check_single_output(Path(args.out), "--out")
     model, variant, _ = load_float_model(args.model)
     qcfg = QuantizerConfig(
         n_steps=args.steps, z_bits=args.z_bits, n_samples=args.samples, seed=args.seed,
@@ -445,8 +449,6 @@ def cmd_quantize(args) -> int:
         act_quantile=args.act_quantile,
     )
     out = Path(args.out)
-    if not out.parent.is_dir():
-        raise InputError(f"output folder {out.parent} does not exist: create it first")
     images, names = calibration_images(calibration_scene_dirs(args.calib), args.calib_scenes)
     calibration = (
         f"{len(images)} views (left+right) of {', '.join(names)}; {qcfg.n_samples} sampled "

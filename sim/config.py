@@ -297,6 +297,25 @@ def _insert(tree: dict, dotted: str, value) -> None:
     node[parts[-1]] = value
 
 
+def read_toml(path, what: str) -> dict:
+    """The parsed TOML file at ``path``; a missing, unreadable or malformed file raises
+    ConfigError naming ``what`` and the file."""
+    p = Path(path)
+    try:
+        if not p.is_file():
+            raise ConfigError(f"{what} {p} not found: give the path of a TOML file")
+        text = p.read_text()
+    except OSError as exc:
+        reason = exc.strerror or type(exc).__name__
+        raise ConfigError(f"cannot read {what} {str(p)[:100]} ({reason}): check the path") from None
+    except UnicodeDecodeError:
+        raise ConfigError(f"{what} {p} is not a UTF-8 text file: give a TOML file") from None
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{what} {p} is not valid TOML: {exc}") from None
+
+
 def load_config(
     path: str | Path | None = None, overrides: dict[str, Any] | None = None
 ) -> ChipConfig:
@@ -307,13 +326,7 @@ def load_config(
     """
     tree: dict = {}
     if path is not None:
-        p = Path(path)
-        if not p.is_file():
-            raise ConfigError(f"config file {p} not found: give the path of a TOML file")
-        try:
-            tree = tomllib.loads(p.read_text())
-        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-            raise ConfigError(f"config file {p} is not valid TOML: {exc}") from None
+        tree = read_toml(path, "config file")
     for key, value in (overrides or {}).items():
         if not isinstance(key, str) or not key:
             raise ConfigError(f"override key {key!r} must be a dotted name such as sva.p1")

@@ -1,0 +1,336 @@
+"""Issue 14's hostile-user cases, one test each: every way in is checked (exit 2 and one line
+from the CLI, a UserError from the API), every way out is whole (old outputs intact, nothing
+half-written, no traceback, no death by signal)."""
+
+from __future__ import annotations
+
+import dataclasses
+import errno
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from sim import outputs
+from sim.api import run
+from sim.cli import main
+from sim.config import ChipConfig, load_config
+from sim.errors import ConfigError, InputError, UserError
+from sim.io import encode_png
+
+RUN_FILES = ("disparity.pfm", "disparity.png", "report.json")
+
+
+def _pair(h=20, w=48, shift=3, seed=1):
+    rng = np.random.default_rng(seed)
+    base = rng.integers(0, 256, (h, w + shift), dtype=np.uint8)
+    return np.ascontiguousarray(base[:, shift:]), np.ascontiguousarray(base[:, :w])
+
+
+def _write_pair(folder, h=20, w=48, seed=1):
+    left, right = _pair(h, w, seed=seed)
+    folder.mkdir(parents=True, exist_ok=True)
+    lp, rp = folder / "l.png", folder / "r.png"
+    lp.write_bytes(encode_png(left))
+    rp.write_bytes(encode_png(right))
+    return lp, rp
+
+
+def _cli(argv, capfd):
+    code = main([str(a) for a in argv])
+    out, err = capfd.readouterr()
+    return code, out, err
+
+
+def _one_line_error(code, err):
+    assert code == 2, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("stereosim: error: "), err
+    assert "Traceback" not in err
+    return lines[0]
+
+
+def _snapshot(folder):
+    return {p.name: p.read_bytes() for p in sorted(folder.iterdir())} if folder.is_dir() else {}
+
+
+@pytest.fixture
+def old_run(tmp_path, capfd):
+    """A folder with a complete output set from an earlier run, and the pair it came from."""
+    left, right = _write_pair(tmp_path / "in")
+    out = tmp_path / "out"
+    code, _, err = _cli(["run", "--mode", "functional", "--left", left, "--right", right,
+                         "--disparities", "16", "--out", out], capfd)
+    assert code == 0, err
+    return left, right, out, _snapshot(out)
+
+
+# ---------------------------------------------------------------- the API takes no unchecked config
+
+
+def _replace(cfg, section, **values):
+    return dataclasses.replace(cfg, **{section: dataclasses.replace(getattr(cfg, section),
+                                                                    **values)})
+
+
+@pytest.mark.parametrize("mode", ["functional", "cycle"])
+@pytest.mark.parametrize("section, values, message", [
+    ("sva", {"paths": 5}, r"'sva.paths' must be in \[1, 4\]; got 5"),
+    ("sva", {"paths": 64}, r"'sva.paths' must be in \[1, 4\]"),
+    ("sva", {"disparities": 17}, r"'sva.disparities' must be one of 16, 32"),
+    ("sva", {"box_size": 0}, r"'sva.box_size' must be in \[1, 15\]"),
+    ("sva", {"box_size": 4}, r"'sva.box_size' must be odd"),
+    ("sim", {"watchdog_cycles": 0}, r"'sim.watchdog_cycles' must be in \[10, "),
+    ("fifo", {"nna_to_sva_depth": 0}, r"'fifo.nna_to_sva_depth' must be in \[1, "),
+    ("clocks", {"sva_mhz": 0.0}, r"'clocks.sva_mhz' must be in \[0.001, "),
+    ("clocks", {"nna_mhz": float("nan")}, r"'clocks.nna_mhz' must be a finite number"),
+    ("source", {"memory_gbps": float("inf")}, r"'source.memory_gbps' must be a finite number"),
+    ("sva", {"p1": "80"}, r"'sva.p1' must be an integer"),
+    ("nna", {"stereo_submodules": 3}, r"nna.stereo_submodules=3 must be even"),
+])
+def test_a_hand_built_config_gets_load_configs_checks(mode, section, values, message):
+    left, right = _pair()
+    cfg = _replace(load_config(overrides={"sva.disparities": 16}), section, **values)
+    with pytest.raises(ConfigError, match=message):
+        run(left, right, mode=mode, config=cfg)
+
+
+def test_a_config_with_a_section_of_the_wrong_class_is_refused():
+    left, right = _pair()
+    cfg = dataclasses.replace(ChipConfig(), sva=load_config().nna)
+    with pytest.raises(ConfigError, match="config section 'sva' must be a SvaConfig"):
+        run(left, right, config=cfg)
+
+
+def test_numpy_scalars_are_accepted_as_overrides():
+    cfg = load_config(overrides={"sva.disparities": np.int64(32), "sva.lr_check": np.bool_(False),
+                                 "clocks.nna_mhz": np.float32(400.0)})
+    assert (cfg.sva.disparities, cfg.sva.lr_check, cfg.clocks.nna_mhz) == (32, False, 400.0)
+    assert type(cfg.sva.disparities) is int
+
+
+def test_masks_must_be_a_mapping():
+    left, right = _pair()
+    gt = np.full(left.shape, 3.0, np.float32)
+    with pytest.raises(InputError, match="masks must be a dict"):
+        run(left, right, overrides={"sva.disparities": 16}, gt=gt, masks=[gt > 0])
+
+
+@pytest.mark.parametrize("value, message", [(-1.0, "from -1 to"), (1e30, "to 1e\\+30")])
+def test_impossible_gt_values_are_refused(value, message):
+    left, right = _pair()
+    gt = np.full(left.shape, 3.0, np.float32)
+    gt[2, 5] = value
+    with pytest.raises(InputError, match=message):
+        run(left, right, overrides={"sva.disparities": 16}, gt=gt)
+
+
+def test_the_api_caps_the_image_size():
+    left, right = _pair(h=40, w=64)
+    with pytest.raises(InputError, match=r"64x40 \(0.0 M pixels\), above the cap"):
+        run(left, right, overrides={"sva.disparities": 16}, max_pixels=1000)
+    assert run(left, right, overrides={"sva.disparities": 16}, max_pixels=None).disparity.shape \
+        == (40, 64)
+
+
+# ---------------------------------------------------------------- strict JSON
+
+
+def test_report_json_is_strict_when_a_metric_is_undefined(tmp_path, capfd):
+    left, right = _write_pair(tmp_path / "in")
+    gt = np.full((20, 48), np.inf, np.float32)  # no known pixel: every metric undefined
+    from sim.io import pfm_bytes
+
+    (tmp_path / "gt.pfm").write_bytes(pfm_bytes(gt))
+    code, _, err = _cli(["run", "--mode", "functional", "--left", left, "--right", right, "--gt",
+                         tmp_path / "gt.pfm", "--disparities", "16", "--out", tmp_path / "o"],
+                        capfd)
+    assert code == 0, err
+
+    def refuse(name):
+        raise ValueError(f"bare {name} in report.json")
+
+    report = json.loads((tmp_path / "o" / "report.json").read_text(), parse_constant=refuse)
+    assert report["metrics"]["all"]["bad2"] is None
+    assert "no pixel with known ground truth" in report["metrics_undefined"]["all"]
+
+
+# ---------------------------------------------------------------- the output set
+
+
+def test_outputs_are_checked_before_the_run(old_run, tmp_path, capfd, monkeypatch):
+    left, right, out, before = old_run
+
+    def no_run(*a, **k):
+        raise AssertionError("the simulation ran before the outputs were checked")
+
+    monkeypatch.setattr("sim.cli.run", no_run)
+    (tmp_path / "adir").mkdir()
+    cases = [
+        (["--vcd", tmp_path / "adir"], "--vcd path .* is a folder"),
+        (["--vcd", out / "report.json"], "would both write"),
+        (["--vcd", tmp_path / "t.vcd", "--timeline", tmp_path / "t.vcd"], "would both write"),
+        (["--vcd", tmp_path / "t.vcd", "--timeline", tmp_path / "t.gtkw"], "would both write"),
+        (["--vcd", tmp_path / ("v" * 300 + ".vcd")], "too long"),
+    ]
+    for extra, message in cases:
+        code, _, err = _cli(["run", "--left", left, "--right", right, "--disparities", "16",
+                             "--out", out, *extra], capfd)
+        line = _one_line_error(code, err)
+        assert __import__("re").search(message, line), line
+        assert _snapshot(out) == before
+
+
+def test_a_full_disk_leaves_the_old_set(old_run, capfd, monkeypatch):
+    left, right, out, before = old_run
+    real = outputs._write_fd
+    written = []
+
+    def full(fd, data):
+        written.append(1)
+        if len(written) == 3:  # the report, after both disparity maps
+            raise OSError(errno.ENOSPC, "No space left on device")
+        real(fd, data)
+
+    monkeypatch.setattr(outputs, "_write_fd", full)
+    code, _, err = _cli(["run", "--mode", "functional", "--left", left, "--right", right,
+                         "--disparities", "32", "--out", out], capfd)
+    assert "No space left on device" in _one_line_error(code, err)
+    assert _snapshot(out) == before
+
+
+def test_a_read_only_folder_is_refused_before_the_run(tmp_path, capfd, monkeypatch):
+    left, right = _write_pair(tmp_path / "in")
+    real = os.access
+    monkeypatch.setattr(outputs.os, "access",
+                        lambda p, mode: False if str(p).endswith("ro") else real(p, mode))
+    (tmp_path / "ro").mkdir()
+    code, _, err = _cli(["run", "--left", left, "--right", right, "--disparities", "16", "--out",
+                         tmp_path / "ro" / "out"], capfd)
+    assert "cannot write --out disparity.pfm into" in _one_line_error(code, err)
+    assert list((tmp_path / "ro").iterdir()) == []
+
+
+def test_sigterm_during_a_run_leaves_the_old_set_and_no_temporary_files(old_run):
+    left, right, out, before = old_run
+    cmd = [sys.executable, "-m", "sim.cli", "run", "--left", str(left), "--right", str(right),
+           "--disparities", "16", "--out", str(out), "--vcd", str(out / "t.vcd")]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    time.sleep(1.0)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    if proc.returncode == 0:  # it finished first: then the new set is whole
+        assert sorted(p.name for p in out.iterdir()) == sorted([*RUN_FILES, "t.vcd", "t.gtkw"])
+    else:
+        assert proc.returncode == 143 and err.decode() == "stereosim: terminated\n"
+        assert _snapshot(out) == before
+
+
+def test_stdout_on_a_full_device_is_one_line(tmp_path):
+    with open("/dev/full", "w") as full:
+        proc = subprocess.run([sys.executable, "-m", "sim.cli", "config", "show"], stdout=full,
+                              stderr=subprocess.PIPE, timeout=120)
+    assert proc.returncode == 2
+    assert proc.stderr.decode().splitlines() == [
+        "stereosim: error: cannot write to standard output (No space left on device): check "
+        "the device or pipe it writes to"]
+
+
+# ---------------------------------------------------------------- eval keeps going
+
+
+def _dataset(tmp_path):
+    """Three 2014-layout scenes: a good one, one without GT, one with a corrupt image."""
+    root = tmp_path / "ds"
+    for name in ("a_good", "b_nogt", "c_corrupt"):
+        lp, rp = _write_pair(root / name, h=20, w=48)
+        lp.rename(root / name / "im0.png")
+        rp.rename(root / name / "im1.png")
+    from sim.io import pfm_bytes
+
+    (root / "a_good" / "disp0GT.pfm").write_bytes(pfm_bytes(np.full((20, 48), 3.0, np.float32)))
+    (root / "c_corrupt" / "disp0GT.pfm").write_bytes(pfm_bytes(np.full((20, 48), 3.0,
+                                                                       np.float32)))
+    (root / "c_corrupt" / "im1.png").write_bytes(b"\x89PNG\r\n\x1a\n" + b"\0" * 40)
+    return root
+
+
+def test_eval_scores_the_good_scenes_and_reports_the_others(tmp_path, capfd):
+    root = _dataset(tmp_path)
+    code, out, err = _cli(["eval", root, "--disparities", "16", "--json", "--out",
+                           tmp_path / "ev.json"], capfd)
+    line = _one_line_error(code, err)
+    assert "2 of 3 scenes failed" in line
+    doc = json.loads(out)
+    assert doc == json.loads((tmp_path / "ev.json").read_text())
+    assert doc["scenes"]["a_good"]["metrics"]["all"]["n"] == 20 * 48
+    assert "no ground truth" in doc["scenes"]["b_nogt"]["error"]
+    assert "corrupt" in doc["scenes"]["c_corrupt"]["error"]
+    assert doc["failed"] == 2
+
+
+def test_eval_table_shows_failed_scenes(tmp_path, capfd):
+    root = _dataset(tmp_path)
+    code, out, err = _cli(["eval", root, "--disparities", "16"], capfd)
+    _one_line_error(code, err)
+    assert "a_good: all totbad" in out
+    assert "FAILED b_nogt: scene b_nogt has no ground truth" in out
+
+
+def test_eval_refuses_a_bad_override_once(tmp_path, capfd):
+    root = _dataset(tmp_path)
+    code, out, err = _cli(["eval", root, "--set", "sva.pathz=2"], capfd)
+    assert "unknown config key 'sva.pathz'" in _one_line_error(code, err)
+    assert out == ""
+
+
+# ---------------------------------------------------------------- numbers and files
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["run", "--set", "clocks.nna_mhz=nan"], "'clocks.nna_mhz' must be a finite number"),
+    (["run", "--set", "clocks.camera_mhz=inf"], "'clocks.camera_mhz' must be a finite number"),
+    (["run", "--set", "source.memory_gbps=nan"], "'source.memory_gbps' must be a finite"),
+    (["run", "--vcd", "x.vcd", "--trace-limit", "nan"], "'nan' is not a finite number"),
+    (["run", "--gt-scale", "nan"], "'nan' is not a finite number"),
+    (["train", "--lr", "nan"], "'nan' is not a finite number"),
+    (["train", "--noise-max", "inf"], "'inf' is not a finite number"),
+    (["train", "--epochs", "0"], "'0' must be at least 1"),
+    (["quantize", "m.npz", "--calib", ".", "--out", "q.npz", "--act-quantile", "nan"],
+     "'nan' is not a finite number"),
+    (["run", "--max-pixels", "-1"], "must be a whole number >= 0"),
+])
+def test_non_finite_and_impossible_numbers_are_refused_by_name(argv, message, capfd, tmp_path,
+                                                               monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    code, _, err = _cli(argv, capfd)
+    assert message in _one_line_error(code, err)
+
+
+def test_outputs_of_long_jobs_are_checked_first(tmp_path, capfd):
+    (tmp_path / "d").mkdir()
+    for argv in (["quantize", tmp_path / "m.npz", "--calib", tmp_path, "--out", tmp_path / "d"],
+                 ["train", "--data", tmp_path, "--out", tmp_path / "d"],
+                 ["config", "plan", "--png", tmp_path / "d"]):
+        code, _, err = _cli(argv, capfd)
+        assert "--" in _one_line_error(code, err) and "is a folder" in err
+
+
+def test_an_unreadable_or_too_long_config_is_one_line(tmp_path, capfd):
+    (tmp_path / "c.toml").mkdir()
+    for path, message in ((tmp_path / "c.toml", "not found"),
+                          (tmp_path / ("c" * 5000 + ".toml"), "cannot read config file"),
+                          (tmp_path / "bin.toml", "not a UTF-8 text file")):
+        if path.name == "bin.toml":
+            path.write_bytes(b"\xff\xfe\x00")
+        code, _, err = _cli(["config", "show", "--config", path], capfd)
+        assert message in _one_line_error(code, err)
+
+
+def test_every_user_error_is_a_value_error_subclass():
+    assert issubclass(ConfigError, UserError) and issubclass(InputError, UserError)

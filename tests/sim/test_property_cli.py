@@ -1,0 +1,246 @@
+"""Property: whatever the command line, stereosim ends in exactly one of two ways.
+
+Hypothesis builds argv from a grammar of real and broken options and files (good and corrupt
+images, ground truth, masks, configurations, scene folders; output folders that are fresh, hold
+an earlier run, are files, or have names too long; trace paths that collide or are folders;
+non-finite numbers). The outcome must be either
+
+* exit 0 with a complete output set (the three files, the report's SHA-256 manifest matching
+  them, every requested trace file) and nothing on stderr, or
+* exit 2 with exactly one line on stderr and every earlier output left byte for byte as it was,
+
+never anything else (another status, a traceback, an exception out of ``main``, a stray
+temporary file). STEREOSIM_PROPERTY_EXAMPLES sets the number of examples.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from sim.cli import main
+from sim.io import encode_png, pfm_bytes
+
+EXAMPLES = int(os.environ.get("STEREOSIM_PROPERTY_EXAMPLES", "40"))
+RUN_FILES = ("disparity.pfm", "disparity.png", "report.json")
+H, W = 16, 44
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    """Every input file the grammar may name, made once."""
+    root = tmp_path_factory.mktemp("inputs")
+    rng = np.random.default_rng(4)
+    base = rng.integers(0, 256, (H, W + 4), dtype=np.uint8)
+    left, right = base[:, 4:].copy(), base[:, :-4].copy()
+    put = {
+        "l.png": encode_png(left), "r.png": encode_png(right),
+        "rgb.png": encode_png(np.dstack([left] * 3)),
+        "narrow.png": encode_png(right[:, :-6].copy()),
+        "wide16.png": encode_png(left.astype(np.uint16) * 257),
+        "corrupt.png": encode_png(left)[:40], "empty.png": b"",
+        "text.png": b"not an image\n",
+        "gt.pfm": pfm_bytes(np.full((H, W), 4.0, np.float32)),
+        "gt_nan.pfm": pfm_bytes(np.full((H, W), np.inf, np.float32)),
+        "gt_neg.pfm": pfm_bytes(np.full((H, W), -2.0, np.float32)),
+        "gt_small.pfm": pfm_bytes(np.full((H - 1, W), 4.0, np.float32)),
+        "gt_bad.pfm": b"Pf\n44 16\nxx\n",
+        "mask.png": encode_png(np.full((H, W), 255, np.uint8)),
+        "mask_small.png": encode_png(np.full((H, W - 1), 255, np.uint8)),
+        "good.toml": b"[sva]\npaths = 2\n", "bad.toml": b"[sva]\npathz = 2\n",
+        "broken.toml": b"[sva\n", "binary.toml": b"\xff\xfe\x00\x01",
+    }
+    for name, data in put.items():
+        (root / name).write_bytes(data)
+    (root / "adir").mkdir()
+    scene = root / "scene"
+    scene.mkdir()
+    shutil.copy(root / "l.png", scene / "im0.png")
+    shutil.copy(root / "r.png", scene / "im1.png")
+    shutil.copy(root / "gt.pfm", scene / "disp0GT.pfm")
+    (scene / "calib.txt").write_text("ndisp=20\n")
+    (root / "notscene").mkdir()
+    old = root / "old"
+    assert main(["run", "--mode", "functional", "--left", str(root / "l.png"), "--right",
+                 str(root / "r.png"), "--disparities", "16", "--out", str(old)]) == 0
+    return root
+
+
+IMAGES = st.sampled_from(["l.png", "r.png", "rgb.png", "narrow.png", "wide16.png", "corrupt.png",
+                          "empty.png", "text.png", "missing.png", "adir"])
+
+
+@st.composite
+def run_argv(draw):
+    """(argv template with {in} / {out} / {work} placeholders, which trace files it names)."""
+    argv = ["run"]
+    inputs = draw(st.sampled_from(["pair", "pair", "pair", "scene", "notscene", "left-only",
+                                   "scene+left"]))
+    if inputs in ("pair", "left-only", "scene+left"):
+        left = draw(st.one_of(st.sampled_from(["l.png", "rgb.png"]), IMAGES))
+        argv += ["--left", "{in}/" + left]
+    if inputs == "pair":
+        argv += ["--right", "{in}/" + draw(st.one_of(st.just("r.png"), IMAGES))]
+    if inputs in ("scene", "scene+left"):
+        argv += ["{in}/scene"]
+    if inputs == "notscene":
+        argv += ["{in}/notscene"]
+    argv += ["--mode", draw(st.sampled_from(["functional", "functional", "cycle"]))]
+    d = draw(st.sampled_from([None, "16", "16", "32", "17", "0", "-16", "256", "x"]))
+    if d is not None:
+        argv += ["--disparities", d]
+    for item in draw(st.lists(st.sampled_from(
+            ["sva.paths=2", "sva.median=0", "nna.descriptor=census", "sva.lr_check=false",
+             "fifo.nna_to_sva_depth=1", "sva.subpixel=off", "nna.stereo_submodules=4",
+             "sva.paths=9", "sva.nope=1", "clocks.nna_mhz=nan", "novalue", "sva.box_size=4",
+             "fifo.nna_to_sva_depth=0", "sim.watchdog_cycles=0", "nna.cnn.weights=x.npz"]),
+            max_size=2)):
+        argv += ["--set", item]
+    config = draw(st.sampled_from([None, None, "good.toml", "bad.toml", "broken.toml",
+                                   "binary.toml", "adir", "missing.toml"]))
+    if config:
+        argv += ["--config", "{in}/" + config]
+    gt = draw(st.sampled_from([None, None, "gt.pfm", "gt_nan.pfm", "gt_neg.pfm",
+                               "gt_small.pfm", "gt_bad.pfm", "missing.pfm"]))
+    if gt:
+        argv += ["--gt", "{in}/" + gt]
+    scale = draw(st.sampled_from([None, None, "1", "nan", "-1", "0"]))
+    if scale:
+        argv += ["--gt-scale", scale]
+    mask = draw(st.sampled_from([None, None, "mask.png", "mask_small.png"]))
+    if mask:
+        argv += ["--mask", "{in}/" + mask]
+    argv += ["--out", draw(st.sampled_from(["{out}", "{out}", "{work}/fresh", "{in}/l.png",
+                                            "{work}/" + "n" * 300]))]
+    traces = []
+    if draw(st.booleans()):
+        vcd = draw(st.sampled_from(["{work}/t.vcd", "{out}/t.vcd", "{in}/adir",
+                                    "{out}/report.json", "{work}/t.json"]))
+        argv += ["--vcd", vcd]
+        traces += [vcd, vcd[:-4] + ".gtkw" if vcd.endswith(".vcd") else None]
+        if draw(st.booleans()):
+            argv += ["--timeline", draw(st.sampled_from(["{work}/t.json", "{work}/t.vcd",
+                                                         "{work}/t.gtkw"]))]
+            traces.append(argv[-1])
+        window = draw(st.sampled_from([None, "0:500", "rows:0:2", "nna:0:300", "x", "5:1",
+                                       "camera:0:10", "rows:0:99"]))
+        if window:
+            argv += ["--trace-window", window]
+        limit = draw(st.sampled_from([None, "0", "nan", "0.0001", "inf"]))
+        if limit:
+            argv += ["--trace-limit", limit]
+        if draw(st.booleans()):
+            argv += ["--force"]
+    elif draw(st.booleans()):
+        argv += [draw(st.sampled_from(["--force", "--trace-window"])), "0:10"][:1]
+    if draw(st.booleans()):
+        argv += ["--json"]
+    pixels = draw(st.sampled_from([None, None, "100", "0", "-1", "many"]))
+    if pixels:
+        argv += ["--max-pixels", pixels]
+    return argv, [t for t in traces if t]
+
+
+def _snapshot(folder: Path) -> dict:
+    if not folder.exists():
+        return {}
+    return {str(p.relative_to(folder)): p.read_bytes() if p.is_file() else None
+            for p in sorted(folder.rglob("*"))}
+
+
+@settings(max_examples=EXAMPLES, deadline=None, derandomize=EXAMPLES <= 100,
+          suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+@given(case=run_argv())
+def test_run_ends_whole_or_in_one_line(case, files, capfd):
+    template, traces = case
+    work = Path(tempfile.mkdtemp(dir=files.parent))
+    out = work / "out"
+    shutil.copytree(files / "old", out)
+    subst = {"{in}": str(files), "{out}": str(out), "{work}": str(work)}
+
+    def fill(text):
+        for key, value in subst.items():
+            text = text.replace(key, value)
+        return text
+
+    argv = [fill(a) for a in template]
+    before_work = _snapshot(work)
+    before_inputs = _snapshot(files)
+    code = main(argv)
+    stdout, stderr = capfd.readouterr()
+    assert _snapshot(files) == before_inputs, "an input file changed"
+    assert not [p for p in work.rglob("*") if ".stereosim-stage-" in str(p) or
+                str(p).endswith(".tmp")], "a temporary file was left"
+    if code == 2:
+        lines = stderr.splitlines()
+        assert len(lines) == 1 and lines[0].startswith("stereosim: error: "), stderr
+        assert _snapshot(work) == before_work, f"a failed run changed the outputs: {argv}"
+        return
+    assert code == 0, (code, stderr)
+    assert stderr == ""
+    dest = Path(argv[argv.index("--out") + 1])
+    report = json.loads((dest / "report.json").read_text(), parse_constant=_strict)
+    for name, digest in report["files"].items():
+        assert hashlib.sha256((dest / name).read_bytes()).hexdigest() == digest, name
+    for name in RUN_FILES:
+        assert (dest / name).is_file()
+    for t in traces:
+        assert Path(fill(t)).is_file(), t
+    if "--json" in argv:
+        assert json.loads(stdout, parse_constant=_strict) == report
+
+
+def _strict(name):
+    raise AssertionError(f"bare {name} in JSON")
+
+
+@st.composite
+def other_argv(draw):
+    """config show / config plan / estimate / eval with real and broken options."""
+    command = draw(st.sampled_from([["config", "show"], ["config", "plan"], ["estimate"],
+                                    ["eval", "{in}"], ["eval", "{in}/scene"], ["eval", "{work}"],
+                                    ["config", "diff", "{in}/good.toml", "{in}/bad.toml"]]))
+    argv = list(command)
+    if command[0] != "config" or command[1] != "diff":
+        for item in draw(st.lists(st.sampled_from(["sva.paths=2", "sva.paths=0",
+                                                   "clocks.sva_mhz=inf", "x=1", "sva=1"]),
+                                  max_size=2)):
+            argv += ["--set", item]
+        config = draw(st.sampled_from([None, "good.toml", "bad.toml", "broken.toml", "adir"]))
+        if config:
+            argv += ["--config", "{in}/" + config]
+    if command[0] == "eval" and draw(st.booleans()):
+        argv += ["--out", draw(st.sampled_from(["{work}/ev.json", "{in}/adir"]))]
+    if command[:2] == ["config", "plan"] and draw(st.booleans()):
+        argv += ["--png", draw(st.sampled_from(["{work}/p.png", "{in}/adir"]))]
+    if command[0] in ("estimate", "config") and draw(st.booleans()) and command[1:2] != ["diff"]:
+        if command[0] == "estimate" or command[1] == "plan":
+            argv += ["--size", draw(st.sampled_from(["640x480", "0x0", "axb", "64x8"]))]
+    return argv
+
+
+@settings(max_examples=EXAMPLES, deadline=None, derandomize=EXAMPLES <= 100,
+          suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+@given(template=other_argv())
+def test_other_commands_end_in_zero_or_one_line(template, files, capfd):
+    work = Path(tempfile.mkdtemp(dir=files.parent))
+    argv = [a.replace("{in}", str(files)).replace("{work}", str(work)) for a in template]
+    before = _snapshot(files)
+    code = main(argv)
+    _, stderr = capfd.readouterr()
+    assert _snapshot(files) == before
+    if code == 2:
+        lines = [ln for ln in stderr.splitlines() if ln.startswith("stereosim: error: ")]
+        assert len(lines) == 1, stderr
+        assert lines == [ln for ln in stderr.splitlines() if "eval:" not in ln], stderr
+        return
+    assert code == 0, (code, stderr)
