@@ -103,7 +103,7 @@ def atomic_write_bytes(path: str | os.PathLike, data) -> None:
     """Write ``data`` (bytes-like) to ``path`` so that readers see either the old file or the
     whole new one; on any error nothing is left behind and an InputError names the path."""
     p = Path(path)
-    check_outputs({p: str(p)})
+    check_outputs([(p, "output")])
     folder = p.parent
     if not folder.is_dir():
         raise InputError(f"output folder {folder} does not exist: create it first")
@@ -275,7 +275,7 @@ def publish(files: Mapping[str | os.PathLike, object]) -> list[str]:
     old file is left as it was and no temporary file remains. Missing destination folders are
     created (and removed again if the publish fails before anything is in them).
     """
-    check_outputs({p: str(p) for p in files})
+    check_outputs([(p, "output") for p in files])
     targets = [Path(p) for p in files]
     blobs = list(files.values())
     folders = sorted({t.parent for t in targets}, key=lambda f: os.path.realpath(f))

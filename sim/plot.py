@@ -36,7 +36,8 @@ def _ok_rows(rows: list[dict]) -> list[dict]:
 
 
 def check_columns(rows: list[dict], columns, source: str) -> None:
-    known = set().union(*(r.keys() for r in rows)) if rows else set()
+    # a row with more cells than the header has a None key (not a CSV a sweep wrote)
+    known = {k for r in rows for k in r if isinstance(k, str)}
     for col in columns:
         if col is not None and col not in known:
             shown = ", ".join(sorted(known)[:12])
