@@ -18,7 +18,7 @@ import os
 import typing
 
 import numpy as np
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 from sim.api import run
@@ -117,12 +117,16 @@ def test_sim_run_takes_a_hand_built_config_exactly_as_load_config_would(values, 
     try:
         result = run(LEFT, RIGHT, mode=mode, config=cfg)
     except ConfigError as err:
+        event("refused by load_config's rules" if refused is not None else
+              "accepted by load_config, refused by the plan")
         if refused is not None:
             assert str(err) == refused
         return
     except UserError:
+        event("accepted, then a UserError")
         assert refused is None
         return
+    event(f"ran ({mode})")
     assert refused is None, f"sim.run accepted what load_config refuses: {refused}"
     assert result.disparity_fixed.shape == LEFT.shape
     assert result.report["config"] == config_to_dict(expected)

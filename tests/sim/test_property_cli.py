@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 from sim.cli import main
@@ -75,76 +75,91 @@ def files(tmp_path_factory):
     return root
 
 
-IMAGES = st.sampled_from(["l.png", "r.png", "rgb.png", "narrow.png", "wide16.png", "corrupt.png",
-                          "empty.png", "text.png", "missing.png", "adir"])
+IMAGE_NAMES = ["l.png", "r.png", "rgb.png", "narrow.png", "wide16.png", "corrupt.png", "empty.png",
+               "text.png", "missing.png", "adir"]
+
+
+FAULTS = ("inputs", "left", "right", "disparities", "set", "config", "gt", "scale", "mask",
+          "out", "vcd", "timeline", "window", "limit", "trace-alone", "mode", "pixels")
 
 
 @st.composite
 def run_argv(draw):
-    """(argv template with {in} / {out} / {work} placeholders, which trace files it names)."""
+    """(argv template with {in} / {out} / {work} placeholders, which trace files it names).
+
+    Each example picks up to two faults; every other option is drawn from its good values
+    (which include leaving it out), so about a third of the examples are runs that work."""
+    faults = draw(st.sets(st.sampled_from(FAULTS), max_size=2))
+
+    def opt(name, good, bad):
+        return draw(st.sampled_from(bad if name in faults else good))
+
     argv = ["run"]
-    inputs = draw(st.sampled_from(["pair", "pair", "pair", "scene", "notscene", "left-only",
-                                   "scene+left"]))
+    inputs = opt("inputs", ["pair"], ["scene", "notscene", "left-only", "scene+left"])
     if inputs in ("pair", "left-only", "scene+left"):
-        left = draw(st.one_of(st.sampled_from(["l.png", "rgb.png"]), IMAGES))
-        argv += ["--left", "{in}/" + left]
+        argv += ["--left", "{in}/" + opt("left", ["l.png", "rgb.png"], IMAGE_NAMES)]
     if inputs == "pair":
-        argv += ["--right", "{in}/" + draw(st.one_of(st.just("r.png"), IMAGES))]
+        argv += ["--right", "{in}/" + opt("right", ["r.png"], IMAGE_NAMES)]
     if inputs in ("scene", "scene+left"):
         argv += ["{in}/scene"]
     if inputs == "notscene":
         argv += ["{in}/notscene"]
-    argv += ["--mode", draw(st.sampled_from(["functional", "functional", "cycle"]))]
-    d = draw(st.sampled_from([None, "16", "16", "32", "17", "0", "-16", "256", "x"]))
+    tracing = draw(st.booleans())
+    mode = opt("mode", ["cycle"] if tracing else ["functional", "cycle"],
+               ["functional" if tracing else "cycle", "fast", ""])
+    argv += ["--mode", mode]
+    d = opt("disparities", ["16", "32"], [None, "17", "0", "-16", "256", "x"])  # None: 128
     if d is not None:
         argv += ["--disparities", d]
-    for item in draw(st.lists(st.sampled_from(
-            ["sva.paths=2", "sva.median=0", "nna.descriptor=census", "sva.lr_check=false",
-             "fifo.nna_to_sva_depth=1", "sva.subpixel=off", "nna.stereo_submodules=4",
-             "sva.paths=9", "sva.nope=1", "clocks.nna_mhz=nan", "novalue", "sva.box_size=4",
-             "fifo.nna_to_sva_depth=0", "sim.watchdog_cycles=0", "nna.cnn.weights=x.npz"]),
-            max_size=2)):
+    good_sets = [[], ["sva.paths=2"], ["sva.median=0"], ["nna.descriptor=census"],
+                 ["sva.lr_check=false", "sva.subpixel=off"], ["fifo.nna_to_sva_depth=1"],
+                 ["nna.stereo_submodules=4"], ["source.kind=camera"],
+                 ["nna.stereo_submodules=4", "nna.split=rows"]]
+    bad_sets = [["sva.paths=9"], ["sva.nope=1"], ["clocks.nna_mhz=nan"], ["novalue"],
+                ["sva.box_size=4"], ["fifo.nna_to_sva_depth=0"], ["sim.watchdog_cycles=0"],
+                ["nna.cnn.weights=x.npz"], ["sva=1"], ["clocks.sva_mhz=-inf"]]
+    for item in opt("set", good_sets, bad_sets):
         argv += ["--set", item]
-    config = draw(st.sampled_from([None, None, "good.toml", "bad.toml", "broken.toml",
-                                   "binary.toml", "adir", "missing.toml"]))
+    config = opt("config", [None, "good.toml"], ["bad.toml", "broken.toml", "binary.toml",
+                                                 "adir", "missing.toml"])
     if config:
         argv += ["--config", "{in}/" + config]
-    gt = draw(st.sampled_from([None, None, "gt.pfm", "gt_nan.pfm", "gt_neg.pfm",
-                               "gt_small.pfm", "gt_bad.pfm", "missing.pfm"]))
+    gt = opt("gt", [None, "gt.pfm", "gt_nan.pfm"], ["gt_neg.pfm", "gt_small.pfm", "gt_bad.pfm",
+                                                    "missing.pfm", "l.png"])
     if gt:
         argv += ["--gt", "{in}/" + gt]
-    scale = draw(st.sampled_from([None, None, "1", "nan", "-1", "0"]))
+    scale = opt("scale", [None, "1"] if gt else [None], ["nan", "-1", "0", "inf"])
     if scale:
         argv += ["--gt-scale", scale]
-    mask = draw(st.sampled_from([None, None, "mask.png", "mask_small.png"]))
+    mask = opt("mask", [None], ["mask.png", "mask_small.png", "corrupt.png"])
     if mask:
         argv += ["--mask", "{in}/" + mask]
-    argv += ["--out", draw(st.sampled_from(["{out}", "{out}", "{work}/fresh", "{in}/l.png",
-                                            "{work}/" + "n" * 300]))]
+    argv += ["--out", opt("out", ["{out}", "{work}/fresh", "{work}/new/deeper"],
+                          ["{in}/l.png", "{work}/" + "n" * 300, "{in}/l.png/sub", ""])]
     traces = []
-    if draw(st.booleans()):
-        vcd = draw(st.sampled_from(["{work}/t.vcd", "{out}/t.vcd", "{in}/adir",
-                                    "{out}/report.json", "{work}/t.json"]))
+    if tracing:
+        vcd = opt("vcd", ["{work}/t.vcd", "{out}/t.vcd"],
+                  ["{in}/adir", "{out}/report.json", "{work}/t.json", "{out}/disparity.png"])
         argv += ["--vcd", vcd]
         traces += [vcd, vcd[:-4] + ".gtkw" if vcd.endswith(".vcd") else None]
-        if draw(st.booleans()):
-            argv += ["--timeline", draw(st.sampled_from(["{work}/t.json", "{work}/t.vcd",
-                                                         "{work}/t.gtkw"]))]
-            traces.append(argv[-1])
-        window = draw(st.sampled_from([None, "0:500", "rows:0:2", "nna:0:300", "x", "5:1",
-                                       "camera:0:10", "rows:0:99"]))
-        if window:
-            argv += ["--trace-window", window]
-        limit = draw(st.sampled_from([None, "0", "nan", "0.0001", "inf"]))
+        timeline = opt("timeline", [None, "{work}/t.json"], ["{work}/t.vcd", "{work}/t.gtkw",
+                                                             "{in}/adir"])
+        if timeline:
+            argv += ["--timeline", timeline]
+            traces.append(timeline)
+        window = opt("window", ["0:500", "rows:0:2", "nna:0:300"],
+                     ["x", "5:1", "camera:0:10", "rows:0:99", "0:1", "99999999:"])
+        argv += ["--trace-window", window]
+        limit = opt("limit", [None, "50"], ["0", "nan", "0.0001", "inf", "-3"])
         if limit:
             argv += ["--trace-limit", limit]
         if draw(st.booleans()):
             argv += ["--force"]
-    elif draw(st.booleans()):
-        argv += [draw(st.sampled_from(["--force", "--trace-window"])), "0:10"][:1]
+    elif "trace-alone" in faults:
+        argv += [draw(st.sampled_from(["--force", "--trace-window", "--trace"]))]
     if draw(st.booleans()):
         argv += ["--json"]
-    pixels = draw(st.sampled_from([None, None, "100", "0", "-1", "many"]))
+    pixels = opt("pixels", [None, "0"], ["100", "-1", "many"])
     if pixels:
         argv += ["--max-pixels", pixels]
     return argv, [t for t in traces if t]
@@ -183,9 +198,11 @@ def test_run_ends_whole_or_in_one_line(case, files, capfd):
     if code == 2:
         lines = stderr.splitlines()
         assert len(lines) == 1 and lines[0].startswith("stereosim: error: "), stderr
+        event("exit 2: " + " ".join(lines[0].split()[2:5]))
         assert _snapshot(work) == before_work, f"a failed run changed the outputs: {argv}"
         return
     assert code == 0, (code, stderr)
+    event("exit 0")
     assert stderr == ""
     dest = Path(argv[argv.index("--out") + 1])
     report = json.loads((dest / "report.json").read_text(), parse_constant=_strict)
