@@ -17,9 +17,15 @@ A sweep file (TOML) names the points and the scenes::
 Scenes: ``default`` (the embedded Motorcycle pair, with GT), ``WxH`` (a synthetic pair for
 timing only: deterministic random texture, the right view the left shifted by min(8, W // 8)
 pixels, no GT), a Middlebury scene folder, or a folder of scenes (every scene in it, sorted);
-``data:NAME`` is NAME inside the shared data folder (:func:`sim.datasets.shared_data_dir`).
-Relative paths are relative to the sweep file. A Middlebury scene's D comes from its
-``calib.txt`` unless the sweep sets ``sva.disparities``.
+``data:NAME`` is NAME inside the shared data folder (:func:`sim.datasets.shared_data_dir`), and a
+NAME that resolves outside that folder (``data:../..``, an absolute path, a symbolic link out of
+it) is refused. Relative paths are relative to the sweep file. A Middlebury scene's D comes from
+its ``calib.txt`` unless the sweep sets ``sva.disparities``.
+
+A sweep has at most :data:`MAX_POINTS` points (the product of the [grid] list lengths times the
+[zip] length, counted before anything is expanded); ``max_points`` (``--max-points N``) raises
+the cap. Every key and value is checked before anything runs; an unreadable sweep or config file
+and a point given twice (the same overrides on the same scene) are one-line errors.
 
 Every point x scene is one task on a Dask cluster: a ``LocalCluster`` of worker processes on the
 loopback interface by default, or an existing cluster (``scheduler="tcp://host:8786"``) -- the
@@ -59,12 +65,13 @@ from sim.datasets import (
     shared_data_dir,
 )
 from sim.errors import ConfigError, InputError, UserError
-from sim.outputs import atomic_write_bytes
+from sim.outputs import atomic_write_bytes, describe_os_error
 
 MODES = ("cycle", "functional", "estimate")
 SWEEP_KEYS = ("mode", "scenes", "config", "set", "grid", "zip")
 LEAD_COLUMNS = ("point", "scene", "status", "error", "point_id")
 CSV_NAME = "results.csv"
+MAX_POINTS = 10_000  # default cap on a sweep's points (grid x zip); max_points / --max-points
 
 
 @dataclass(frozen=True)
@@ -78,6 +85,7 @@ class Task:
     overrides: dict[str, Any]
     config_path: str | None
     mode: str
+    config_sets_d: bool = False  # the config file sets sva.disparities (a calib.txt does not)
 
     @property
     def point_id(self) -> str:
@@ -111,6 +119,23 @@ def _synthetic_size(text: str) -> tuple[int, int] | None:
     return None
 
 
+def _data_folder(entry: str) -> Path:
+    """The folder of a ``data:NAME`` scene, refused unless it lies inside the shared data
+    folder once every ``..`` and symbolic link is resolved."""
+    root = shared_data_dir()
+    if root is None:
+        raise InputError(
+            f"scene {entry!r} needs the shared data folder, which is absent (set STEREOSIM_DATA)"
+        )
+    folder = (root / entry[5:]).resolve()
+    if not folder.is_relative_to(root):
+        raise InputError(
+            f"scene {entry!r} resolves to {folder}, outside the shared data folder {root}: "
+            "name a folder inside it"
+        )
+    return folder
+
+
 def _expand_scene(entry, base: Path) -> list[tuple[str, str]]:
     """A scenes entry -> [(label, spec)]."""
 
@@ -119,24 +144,17 @@ def _expand_scene(entry, base: Path) -> list[tuple[str, str]]:
     if entry == "default" or _synthetic_size(entry):
         return [(entry, entry)]
     if entry.startswith("data:"):
-        root = shared_data_dir()
-        if root is None:
-            raise InputError(
-                f"scene {entry!r} needs the shared data folder, which is absent (set STEREOSIM_DATA)"
-            )
-        folder = root / entry[5:]
-        label_root = entry
+        folder = _data_folder(entry)
     else:
         folder = Path(entry) if Path(entry).is_absolute() else base / entry
-        label_root = entry
     if not folder.is_dir():
         raise InputError(f"sweep scene {entry!r}: folder {folder} not found")
     try:
-        scene = find_scene(folder)
-        return [(label_root, str(folder))]
+        find_scene(folder)
+        return [(entry, str(folder))]
     except InputError:
         scenes = find_scenes(folder)
-    return [(f"{label_root}/{s.left.parent.name}", str(s.left.parent)) for s in scenes]
+    return [(f"{entry}/{s.left.parent.name}", str(s.left.parent)) for s in scenes]
 
 
 def _check_lists(table: dict, name: str) -> None:
@@ -147,15 +165,39 @@ def _check_lists(table: dict, name: str) -> None:
             )
 
 
-def load_sweep(path: str | Path) -> Sweep:
-    """Parse and check a sweep file; every key and value is validated before anything runs."""
-    p = Path(path)
+def _read_toml(p: Path, what: str, error: type[UserError]) -> dict:
+    """A TOML file as a tree; every way it cannot be read is one ``error`` line."""
+    if p.is_dir():
+        raise error(f"{what} {p} is a folder: give the path of a TOML file")
     if not p.is_file():
-        raise InputError(f"sweep file {p} not found: give the path of a TOML file")
+        raise error(f"{what} {p} not found: give the path of a TOML file")
     try:
-        tree = tomllib.loads(p.read_text())
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"sweep file {p} is not valid TOML: {exc}") from None
+        text = p.read_text()
+    except OSError as exc:
+        raise error(f"cannot read {what} {p} ({describe_os_error(exc)}): check the file and "
+                    "its permissions") from None
+    except UnicodeDecodeError:
+        raise error(f"{what} {p} is not UTF-8 text: give a TOML file") from None
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise error(f"{what} {p} is not valid TOML: {exc}") from None
+
+
+def count_points(grid: dict[str, list], zipped: dict[str, list]) -> int:
+    """The number of points of a sweep: the product of the [grid] lengths times the [zip]
+    length (computed, not expanded)."""
+    zip_len = len(next(iter(zipped.values()))) if zipped else 1
+    return math.prod(len(v) for v in grid.values()) * zip_len
+
+
+def load_sweep(path: str | Path, *, max_points: int = MAX_POINTS) -> Sweep:
+    """Parse and check a sweep file; every key and value is validated before anything runs.
+
+    A sweep of more than ``max_points`` points is refused before its grid is expanded.
+    """
+    p = Path(path)
+    tree = _read_toml(p, "sweep file", InputError)
     unknown = sorted(set(tree) - set(SWEEP_KEYS))
     if unknown:
         raise ConfigError(
@@ -167,10 +209,13 @@ def load_sweep(path: str | Path) -> Sweep:
         raise ConfigError(f"sweep mode must be one of {', '.join(MODES)}; got {mode!r}")
     base = p.resolve().parent
     config_path = tree.get("config")
+    config_sets_d = False
     if config_path is not None:
         if not isinstance(config_path, str):
             raise ConfigError(f"sweep 'config' must be a path string; got {config_path!r}")
         config_path = str(base / config_path)
+        sva = _read_toml(Path(config_path), "config file", ConfigError).get("sva", {})
+        config_sets_d = isinstance(sva, dict) and "disparities" in sva
     fixed = tree.get("set", {})
     grid = tree.get("grid", {})
     zipped = tree.get("zip", {})
@@ -185,6 +230,15 @@ def load_sweep(path: str | Path) -> Sweep:
     if len(set(lengths.values())) > 1:
         shown = ", ".join(f"{k}: {n}" for k, n in lengths.items())
         raise ConfigError(f"sweep [zip] lists must have equal lengths ({shown})")
+    n_points = count_points(grid, zipped)
+    if n_points > max_points:
+        sizes = [str(len(v)) for v in grid.values()]
+        sizes += [f"{len(next(iter(zipped.values())))} [zip]"] if zipped else []
+        shape = " x ".join(sizes)
+        raise ConfigError(
+            f"sweep file {p} has {n_points:,} points ({shape}), more than the cap of "
+            f"{max_points:,}: split it, or raise the cap with --max-points {n_points}"
+        )
     both = sorted((set(grid) | set(zipped)) & set(fixed)) or sorted(set(grid) & set(zipped))
     if both:
         raise ConfigError(f"sweep key '{both[0]}' is given twice ([set], [grid], [zip])")
@@ -195,20 +249,30 @@ def load_sweep(path: str | Path) -> Sweep:
             load_config(config_path, {**fixed, key: v})
     axes = list(grid) + list(zipped)
     zip_rows = [dict(zip(zipped, row)) for row in zip(*zipped.values())] or [{}]
-    points = []
-    for combo in itertools.product(*grid.values()):
-        for zrow in zip_rows:
-            points.append({**dict(zip(grid, combo)), **zrow})
+    points = [
+        {**dict(zip(grid, combo)), **zrow}
+        for combo in itertools.product(*grid.values())
+        for zrow in zip_rows
+    ]
     scene_entries = tree.get("scenes", ["default"])
     if not isinstance(scene_entries, list) or not scene_entries:
         raise ConfigError("sweep 'scenes' must be a non-empty list, e.g. scenes = [\"default\"]")
     scenes = [s for entry in scene_entries for s in _expand_scene(entry, base)]
     sweep = Sweep(p, mode, config_path, fixed, axes, points, scenes)
     sweep.tasks = [
-        Task(i * len(scenes) + j, i, label, spec, {**fixed, **pt}, config_path, mode)
+        Task(i * len(scenes) + j, i, label, spec, {**fixed, **pt}, config_path, mode,
+             config_sets_d)
         for i, pt in enumerate(points)
         for j, (label, spec) in enumerate(scenes)
     ]
+    first: dict[str, Task] = {}
+    for task in sweep.tasks:
+        earlier = first.setdefault(task.point_id, task)
+        if earlier is not task:
+            raise ConfigError(
+                f"sweep file {p}: point {task.point} on scene {task.scene!r} repeats point "
+                f"{earlier.point} on scene {earlier.scene!r}: give each value and scene once"
+            )
     return sweep
 
 
@@ -253,6 +317,16 @@ def flatten(tree, prefix: str = "", out: dict | None = None) -> dict[str, Any]:
     return out
 
 
+def _one_line(exc: BaseException) -> str:
+    message = " ".join(str(exc).split()) or type(exc).__name__
+    return message if isinstance(exc, UserError) else f"{type(exc).__name__}: {message}"
+
+
+def _error_row(task: Task, message: str) -> dict[str, Any]:
+    return {"point": task.point, "scene": task.scene, "point_id": task.point_id,
+            **task.overrides, "status": "error", "error": message}
+
+
 def run_task(task: Task) -> dict[str, Any]:
     """Run one point x scene; never raises: a failure becomes a row with its error."""
     row: dict[str, Any] = {"point": task.point, "scene": task.scene, "point_id": task.point_id}
@@ -261,24 +335,14 @@ def run_task(task: Task) -> dict[str, Any]:
         row.update(_run(task))
         row["status"], row["error"] = "ok", ""
     except Exception as exc:  # noqa: BLE001 -- recorded, the sweep goes on
-        message = " ".join(str(exc).split()) or type(exc).__name__
-        if not isinstance(exc, UserError):
-            message = f"{type(exc).__name__}: {message}"
-        row["status"], row["error"] = "error", message
+        return _error_row(task, _one_line(exc))
     return row
-
-
-def _file_sets_d(config_path: str | None) -> bool:
-    if config_path is None:
-        return False
-    tree = tomllib.loads(Path(config_path).read_text())
-    return "disparities" in tree.get("sva", {})
 
 
 def _run(task: Task) -> dict[str, Any]:
     data = load_scene_spec(task.scene_spec)
     over = dict(task.overrides)
-    if data.get("ndisp") and "sva.disparities" not in over and not _file_sets_d(task.config_path):
+    if data.get("ndisp") and "sva.disparities" not in over and not task.config_sets_d:
         over["sva.disparities"] = legal_disparities(data["ndisp"])
     cfg = load_config(task.config_path, over)
     left, right = prepare_pair(data["left"], data["right"])

@@ -14,7 +14,14 @@ from pathlib import Path
 from sim.cycle.estimate import estimate, format_estimate, parse_size
 from sim.errors import InputError
 from sim.plot import plot_xy, sweep_plots
-from sim.sweep import CSV_NAME, load_scene_spec, load_sweep, read_rows, run_sweep
+from sim.sweep import (
+    CSV_NAME,
+    MAX_POINTS,
+    load_scene_spec,
+    load_sweep,
+    read_rows,
+    run_sweep,
+)
 
 
 def register(sub, add_config_options, scene_config) -> None:
@@ -50,9 +57,11 @@ def register(sub, add_config_options, scene_config) -> None:
     e.set_defaults(func=cmd_estimate)
 
     def cmd_sweep(args) -> int:
-        sweep = load_sweep(args.sweep_file)
         if args.workers is not None and args.workers < 1:
             raise InputError(f"--workers must be at least 1; got {args.workers}")
+        if args.max_points is not None and args.max_points < 1:
+            raise InputError(f"--max-points must be at least 1; got {args.max_points}")
+        sweep = load_sweep(args.sweep_file, max_points=args.max_points or MAX_POINTS)
         workers = args.workers or min(2, os.cpu_count() or 1)
         out = Path(args.out)
         counts = run_sweep(sweep, out, scheduler=args.scheduler, workers=workers,
@@ -75,6 +84,9 @@ def register(sub, add_config_options, scene_config) -> None:
     s.add_argument("--workers", type=int, metavar="N",
                    help="local worker processes (default: min(2, CPUs))")
     s.add_argument("--out", default="sweep", help="output folder (default: sweep)")
+    s.add_argument("--max-points", type=int, metavar="N",
+                   help=f"refuse a sweep of more than N points (grid x zip; default "
+                   f"{MAX_POINTS:,})")
     s.add_argument("--quiet", action="store_true", help="no progress bar")
     s.set_defaults(func=cmd_sweep)
 

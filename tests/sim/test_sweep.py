@@ -2,12 +2,23 @@
 
 import csv
 import logging
+import time
+from pathlib import Path
 
 import pytest
 
 from sim.cli import main
 from sim.datasets import shared_data_dir
-from sim.sweep import CSV_NAME, load_sweep, read_rows, run_sweep, run_task, synthetic_pair
+from sim.errors import ConfigError
+from sim.sweep import (
+    CSV_NAME,
+    MAX_POINTS,
+    load_sweep,
+    read_rows,
+    run_sweep,
+    run_task,
+    synthetic_pair,
+)
 
 FOUR_POINTS = """
 mode = "cycle"
@@ -199,3 +210,148 @@ def test_built_in_plots(tmp_path):
     written = sweep_plots(read_rows(csv_path), sweep.axes, tmp_path)
     assert [p.name for p in written] == ["fps_vs_submodules.png", "pareto_sram_fps.png"]
     assert all(p.stat().st_size > 1000 for p in written)
+
+
+def _estimate(disparities, scene="64x24", extra=""):
+    return (f'mode = "estimate"\nscenes = ["{scene}"]\n[grid]\n'
+            f'"sva.disparities" = {list(disparities)}\n{extra}')
+
+
+# ----------------------------------------------------------------------------------------------
+# 2. the point cap
+
+
+def test_a_billion_point_grid_is_refused_before_it_is_expanded(tmp_path, capsys):
+    values = list(range(1, 1001))
+    path = _write(tmp_path, 'mode = "estimate"\n[grid]\n'
+                  f'"fifo.nna_to_sva_depth" = {values}\n"fifo.source_to_nna_depth" = {values}\n'
+                  f'[zip]\n"fifo.sva_to_sink_depth" = {values}\n"sva.paths" = {[2] * 1000}\n')
+    out = tmp_path / "out"
+    t0 = time.perf_counter()
+    assert main(["sweep", str(path), "--out", str(out)]) == 2
+    assert time.perf_counter() - t0 < 5  # 10^9 points were counted, never listed
+    err = capsys.readouterr().err
+    assert err == (f"stereosim: error: sweep file {path} has 1,000,000,000 points (1000 x 1000 x "
+                   "1000 [zip]), more than the cap of 10,000: split it, or raise the cap with "
+                   "--max-points 1000000000\n")
+    assert main(["sweep", str(path), "--out", str(out), "--max-points", "999999999"]) == 2
+    assert "more than the cap of 999,999,999" in capsys.readouterr().err
+    assert main(["sweep", str(path), "--out", str(out), "--max-points", "0"]) == 2
+    assert capsys.readouterr().err == "stereosim: error: --max-points must be at least 1; got 0\n"
+    assert not out.exists()
+
+
+def test_the_cap_is_max_points_by_default_and_max_points_raises_it(tmp_path, capsys):
+    assert MAX_POINTS == 10_000
+    path = _write(tmp_path, 'mode = "estimate"\nscenes = ["64x24"]\n[grid]\n'
+                  f'"fifo.nna_to_sva_depth" = {list(range(1, 101))}\n'
+                  f'"fifo.source_to_nna_depth" = {list(range(1, 102))}\n')
+    with pytest.raises(ConfigError, match=r"has 10,100 points \(100 x 101\), more than the cap"):
+        load_sweep(path)
+    assert len(load_sweep(path, max_points=10_100).tasks) == 10_100
+    two = _write(tmp_path, _estimate([16, 32]), "two.toml")
+    out = tmp_path / "out"
+    assert main(["sweep", str(two), "--out", str(out), "--max-points", "1"]) == 2
+    assert "has 2 points (2), more than the cap of 1" in capsys.readouterr().err
+    assert main(["sweep", str(two), "--out", str(out), "--max-points", "2", "--quiet",
+                 "--workers", "1"]) == 0
+    assert [r["status"] for r in read_rows(out / CSV_NAME)] == ["ok", "ok"]
+
+
+# ----------------------------------------------------------------------------------------------
+# 6. data: names stay in the shared data folder
+
+
+def _fake_scene(folder: Path) -> Path:
+    folder.mkdir(parents=True)
+    for name in ("im0.png", "im1.png"):  # enough for find_scene; nothing is loaded here
+        (folder / name).write_bytes(b"")
+    return folder
+
+
+def test_data_names_that_leave_the_shared_data_folder_are_refused(tmp_path, monkeypatch, capsys):
+    data = tmp_path / "data"
+    inside = _fake_scene(data / "set" / "A")
+    outside = _fake_scene(tmp_path / "secret")
+    (data / "link").symlink_to(outside)
+    monkeypatch.setenv("STEREOSIM_DATA", str(data))
+    sweep = load_sweep(_write(tmp_path, 'scenes = ["data:set/A"]\n[grid]\n"sva.paths" = [2]\n'))
+    assert sweep.scenes == [("data:set/A", str(inside))]
+    for name in ("data:..", "data:../secret", "data:set/../../secret", f"data:{outside}",
+                 "data:link", "data:set/A/../../../secret"):
+        path = _write(tmp_path, f'scenes = ["{name}"]\n[grid]\n"sva.paths" = [2]\n')
+        assert main(["sweep", str(path), "--out", str(tmp_path / "out")]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith(f"stereosim: error: scene '{name}' resolves to ") and (
+            f"outside the shared data folder {data}" in err), err
+        assert err.count("\n") == 1
+    assert not (tmp_path / "out").exists()
+
+
+# ----------------------------------------------------------------------------------------------
+# 7. files that cannot be read or written: one line, exit 2
+
+
+def _unreadable(path: Path) -> Path:
+    """A file that cannot be read, even by root: reading /proc/self/mem at 0 fails (EIO)."""
+    path.symlink_to("/proc/self/mem")
+    return path
+
+
+GOOD = _estimate([16])
+
+
+def _bad_sweep_folder(tmp):
+    (tmp / "sweep.toml").mkdir()
+
+
+def _bad_sweep_unreadable(tmp):
+    _unreadable(tmp / "sweep.toml")
+
+
+def _bad_config(kind):
+    def make(tmp):
+        (tmp / "sweep.toml").write_text('config = "base.toml"\n' + GOOD)
+        if kind == "folder":
+            (tmp / "base.toml").mkdir()
+        elif kind == "unreadable":
+            _unreadable(tmp / "base.toml")
+        elif kind == "binary":
+            (tmp / "base.toml").write_bytes(b"\xff\xfe\x00")
+    return make
+
+
+def _out_is_a_file(tmp):
+    (tmp / "sweep.toml").write_text(GOOD)
+    (tmp / "out").write_text("not a folder")
+
+
+UNUSABLE = {
+    "sweep file is a folder": (_bad_sweep_folder, "sweep file sweep.toml is a folder"),
+    "sweep file unreadable": (_bad_sweep_unreadable, "cannot read sweep file sweep.toml ("),
+    "config missing": (_bad_config("missing"), "config file {tmp}/base.toml not found"),
+    "config is a folder": (_bad_config("folder"), "config file {tmp}/base.toml is a folder"),
+    "config unreadable": (_bad_config("unreadable"), "cannot read config file {tmp}/base.toml"),
+    "config not text": (_bad_config("binary"), "config file {tmp}/base.toml is not UTF-8 text"),
+    "out is a file": (_out_is_a_file, "cannot create the output folder out"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(UNUSABLE))
+def test_files_that_cannot_be_used_are_one_line_exit_2(case, tmp_path, monkeypatch, capsys):
+    make, expected = UNUSABLE[case]
+    make(tmp_path)
+    monkeypatch.chdir(tmp_path)
+    before = sorted(p.name for p in tmp_path.rglob("*"))
+    assert main(["sweep", "sweep.toml", "--out", "out", "--quiet", "--workers", "1"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("stereosim: error: ") and err.count("\n") == 1, err
+    assert expected.format(tmp=tmp_path.resolve()) in err, err
+    assert sorted(p.name for p in tmp_path.rglob("*")) == before  # nothing written
+
+
+def test_a_repeated_point_is_refused(tmp_path):
+    with pytest.raises(ConfigError, match="point 2 on scene '64x24' repeats point 0"):
+        load_sweep(_write(tmp_path, _estimate([16, 32, 16])))
+
+
