@@ -665,41 +665,42 @@ def save_float_model(path, result: dict) -> None:
 def load_float_model(path):
     """Read a file written by :func:`save_float_model`: ``(FloatModel, variant, training dict)``.
 
-    Problems (missing file or field, wrong shapes for the variant) raise :class:`ConfigError`.
+    Problems (missing, unreadable or unbounded file -- :func:`sim.io.open_npz` --, a missing
+    field, a field of the wrong kind, wrong shapes for the variant) raise :class:`ConfigError`.
     """
 
     name = os.fspath(path)
-    archive = open_npz(name, "float model", "write it with 'stereosim train'")
-    with archive:
-        def get(key):
-            if key not in archive.files:
-                raise ConfigError(f"float model {name!r} lacks the field {key!r}")
-            return archive[key]
-
-        fmt = str(get("format")[()])
+    with open_npz(name, "float model", "write it with 'stereosim train'") as archive:
+        fmt = archive.scalar("format", "U")
         if fmt != FORMAT:
             raise ConfigError(f"float model {name!r} has format {fmt!r}, expected {FORMAT!r}")
-        variant = str(get("variant")[()])
+        variant = archive.scalar("variant", "U")
         if variant not in VARIANTS:
             raise ConfigError(f"float model {name!r}: unknown variant {variant!r}")
-        spec = VARIANTS[variant]
         weights, biases = [], []
-        for i, (c_in, c_out, k) in enumerate(spec):
-            w, b = get(f"weights_{i}"), get(f"bias_{i}")
-            if w.shape != (c_out, c_in, k, k) or b.shape != (c_out,):
+        for i, (c_in, c_out, k) in enumerate(VARIANTS[variant]):
+            w, b = archive.field(f"weights_{i}"), archive.field(f"bias_{i}")
+            floats = w.dtype.kind == "f" and b.dtype.kind == "f"
+            if not floats or w.shape != (c_out, c_in, k, k) or b.shape != (c_out,):
                 raise ConfigError(
-                    f"float model {name!r}: layer {i} of {variant} must be "
-                    f"({c_out}, {c_in}, {k}, {k}) + ({c_out},), got {w.shape} + {b.shape}"
+                    f"float model {name!r}: layer {i} of {variant} must be float "
+                    f"({c_out}, {c_in}, {k}, {k}) + ({c_out},), got {w.dtype} {w.shape} + "
+                    f"{b.dtype} {b.shape}"
                 )
             weights.append(w.astype(np.float64))
             biases.append(b.astype(np.float64))
-        training = json.loads(str(get("training")[()]))
+        text = archive.scalar("training", "U")
+        offset, scale = archive.scalar("input_offset", "iu"), archive.scalar("input_scale", "f")
+    try:
+        training = json.loads(text)
+    except (json.JSONDecodeError, RecursionError) as err:
+        raise ConfigError(f"float model {name!r}: its training record is not JSON ({err})") from None
+    try:
         model = FloatModel(
-            weights=tuple(weights),
-            biases=tuple(biases),
-            input_offset=int(get("input_offset")[()]),
-            input_scale=float(get("input_scale")[()]),
+            weights=tuple(weights), biases=tuple(biases), input_offset=offset, input_scale=scale
         )
+    except ConfigError as err:
+        raise ConfigError(f"float model {name!r}: {err}") from None
     return model, variant, training
 
 

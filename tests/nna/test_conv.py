@@ -1,6 +1,9 @@
 """NNA descriptor layer: kernel == naive reference, accumulators == an independent numpy sum,
 and the weight files."""
 
+import io
+import zipfile
+
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -9,7 +12,7 @@ from numpy.lib.stride_tricks import sliding_window_view
 from numpy.testing import assert_array_equal
 
 from nna.conv import check_layer, cnn_accumulators, cnn_descriptor, cnn_descriptor_ref
-from nna.weights import load_weights, placeholder_weights, save_weights
+from nna.weights import load_layer, load_weights, placeholder_weights, save_weights
 from sim.errors import ConfigError, InputError
 
 
@@ -308,3 +311,22 @@ def test_missing_or_garbage_weight_file(tmp_path):
     np.save(single, np.zeros((4, 3, 3), np.int8))
     with pytest.raises(ConfigError, match="single array"):
         load_weights(single)
+
+
+def test_a_weight_file_is_read_within_bounds(tmp_path):
+    # A member whose .npy header claims 10**13 weights: refused from the header, naming the file.
+    header = io.BytesIO()
+    np.lib.format.write_array_header_1_0(
+        header, {"descr": "|i1", "fortran_order": False, "shape": (10**13,)}
+    )
+    path = tmp_path / "lying.npz"
+    with zipfile.ZipFile(path, "w") as archive:
+        archive.writestr("weights.npy", header.getvalue() + bytes(64))
+        archive.writestr("bias.npy", b"")
+    for load in (load_weights, load_layer):
+        with pytest.raises(ConfigError, match=r"weight file '.*lying.npz' .*claims \(10000000000000,\)"):
+            load(path)
+    empty = tmp_path / "empty.npz"
+    empty.write_bytes(b"")
+    with pytest.raises(ConfigError, match=r"empty.npz' is empty; write it with nna.save_weights"):
+        load_layer(empty)

@@ -1,5 +1,8 @@
 """The quantizer: the searches really minimise, the whole model agrees, the artifact round-trips."""
 
+import io
+import zipfile
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -374,3 +377,22 @@ def test_nna_keys_must_match(single, tmp_path):
     _rewrite(good, bad, bias=np.zeros(4, dtype=np.int32))
     with pytest.raises(ConfigError, match="disagree"):
         load_quantized(bad)
+
+
+def test_artifacts_are_read_within_bounds(single, tmp_path):
+    good = tmp_path / "good.npz"
+    save_quantized(good, single)
+    # A member that would unpickle objects is refused from its header, before anything loads.
+    bad = tmp_path / "objects.npz"
+    _rewrite(good, bad)
+    with zipfile.ZipFile(bad, "a") as archive:
+        buf = io.BytesIO()
+        np.lib.format.write_array(buf, np.array([print], dtype=object), allow_pickle=True)
+        archive.writestr("extra.npy", buf.getvalue())
+    with pytest.raises(ConfigError, match=r"objects.npz' member 'extra.npy' holds Python objects"):
+        load_quantized(bad)
+    # A field of the wrong kind is a ConfigError, not numpy's ValueError.
+    _rewrite(good, bad, act_scales=np.array(["a"]))
+    with pytest.raises(ConfigError, match=r"act_scales must be numbers, got <U1"):
+        load_quantized(bad)
+

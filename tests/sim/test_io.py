@@ -1,6 +1,9 @@
 import errno
+import io
 import os
 import struct
+import tracemalloc
+import zipfile
 import zlib
 from pathlib import Path
 
@@ -8,11 +11,14 @@ import cv2
 import numpy as np
 import pytest
 
+import sim.io
 from sim.datasets import shared_data_dir
-from sim.errors import InputError
+from sim.errors import ConfigError, InputError
 from sim.io import (
+    NpzArrays,
     disparity_to_colour,
     encode_png,
+    open_npz,
     read_gt,
     read_image,
     read_mask,
@@ -524,3 +530,153 @@ def test_ground_truth_must_be_a_possible_disparity(tmp_path):
     with pytest.raises(InputError, match=r"65535 .*\(--gt-scale\)"):
         read_gt(tmp_path / "k.png", 1.0)
     assert read_gt(tmp_path / "k.png", 65535 / 80).max() == pytest.approx(80.0)
+
+
+# ---------------------------------------------------------------- bounded .npz archives
+
+
+def _npz(path: Path, members: dict[str, bytes], compression=zipfile.ZIP_STORED) -> Path:
+    with zipfile.ZipFile(path, "w", compression) as archive:
+        for name, data in members.items():
+            archive.writestr(name, data)
+    return path
+
+
+def _npy(arr: np.ndarray, **kwargs) -> bytes:
+    buf = io.BytesIO()
+    np.lib.format.write_array(buf, arr, **kwargs)
+    return buf.getvalue()
+
+
+def _npy_header(shape: tuple, descr: str = "<f8", tail: bytes = bytes(16)) -> bytes:
+    """An .npy header that claims ``shape``, followed by ``tail`` instead of the data."""
+    buf = io.BytesIO()
+    np.lib.format.write_array_header_1_0(
+        buf, {"descr": descr, "fortran_order": False, "shape": shape}
+    )
+    return buf.getvalue() + tail
+
+
+def _open(path) -> NpzArrays:
+    return open_npz(str(path), "weight file", "write it with nna.save_weights")
+
+
+def _peak_bytes(fn) -> int:
+    """Peak Python/numpy allocation while ``fn`` runs (numpy reports its buffers to tracemalloc)."""
+    tracemalloc.start()
+    try:
+        fn()
+    finally:
+        peak = tracemalloc.get_traced_memory()[1]
+        tracemalloc.stop()
+    return peak
+
+
+def _refused(path, match: str) -> str:
+    with pytest.raises(ConfigError, match=match) as info:
+        _open(path)
+    message = str(info.value)
+    assert "weight file " in message and f" '{path}' " in message and "\n" not in message
+    return message
+
+
+def test_npz_round_trip_stored_and_deflated(tmp_path):
+    arrays = {
+        "w": np.arange(12, dtype=np.int8).reshape(3, 4),
+        "s": np.float64(0.5),
+        "t": np.array("x"),
+    }
+    for save in (np.savez, np.savez_compressed):
+        path = tmp_path / f"{save.__name__}.npz"
+        save(path, **arrays)
+        with _open(path) as got:
+            assert got.files == ["w", "s", "t"]
+            np.testing.assert_array_equal(got["w"], arrays["w"])
+            assert got.scalar("s", "f") == 0.5 and got.scalar("t", "U") == "x"
+            with pytest.raises(ConfigError, match=r"lacks the field 'nope'"):
+                got.field("nope")
+            with pytest.raises(ConfigError, match=r"w must be a scalar, got int8 \(3, 4\)"):
+                got.scalar("w", "iu")
+
+
+def test_npz_empty_single_array_and_not_a_zip(tmp_path):
+    (tmp_path / "empty.npz").write_bytes(b"")
+    _refused(tmp_path / "empty.npz", "is empty; write it with nna.save_weights$")
+    np.save(tmp_path / "one.npy", np.zeros(3))
+    _refused(tmp_path / "one.npy", "holds a single array, not an .npz archive")
+    (tmp_path / "text.npz").write_bytes(b"PK but not really a zip file")
+    _refused(tmp_path / "text.npz", "is not a readable .npz archive")
+    (tmp_path / "cut.npz").write_bytes(b"PK\x03\x04 and then no zip at all")
+    _refused(tmp_path / "cut.npz", "is not a readable .npz archive")
+
+
+def test_npz_members_must_be_npy_arrays(tmp_path):
+    _refused(_npz(tmp_path / "a.npz", {"notes.txt": b"hello"}), r"holds 'notes.txt', which is not")
+    _refused(_npz(tmp_path / "b.npz", {"w.npy": b"hello, not an array"}), "not a readable .npz")
+    objects = _npy(np.array([{"x": 1}], dtype=object), allow_pickle=True)
+    _refused(_npz(tmp_path / "c.npz", {"w.npy": objects}), r"holds Python objects \(object\)")
+    v3 = _npy(np.zeros(2), version=(3, 0))
+    _refused(_npz(tmp_path / "d.npz", {"w.npy": v3}), r"format version 3.0 is not read here")
+    twice = _npz(tmp_path / "e.npz", {"w.npy": _npy(np.zeros(2))})
+    with zipfile.ZipFile(twice, "a") as archive, pytest.warns(UserWarning, match="Duplicate"):
+        archive.writestr("w.npy", _npy(np.ones(2)))
+    _refused(twice, "holds 'w.npy', which is not an .npy array of its own name")
+
+
+def test_npz_header_claiming_ten_trillion_elements(tmp_path):
+    path = _npz(tmp_path / "huge.npz", {"weights.npy": _npy_header((10**13,))})
+    peak = _peak_bytes(lambda: _refused(path, r"claims \(10000000000000,\) float64 = 76293945"))
+    assert peak < 4 << 20
+    # The same lie in a member the zip directory says is large enough: the cap refuses it.
+    fits = _npz(tmp_path / "fits.npz", {"w.npy": _npy_header((2, 3), tail=bytes(48))})
+    assert _open(fits)["w"].shape == (2, 3)
+    wrong = _npz(tmp_path / "wrong.npz", {"w.npy": _npy_header((2, 3), tail=bytes(40))})
+    _refused(wrong, r"claims \(2, 3\) float64 = 48 bytes but the zip directory gives it 40 bytes")
+
+
+def test_npz_directory_claiming_1_5_gb_is_refused_before_unpacking(tmp_path):
+    path = _npz(tmp_path / "bomb.npz", {"w.npy": _npy_header((375_000_000,), "<f4")})
+    data = bytearray(path.read_bytes())
+    central = data.index(b"PK\x01\x02")
+    data[central + 24 : central + 28] = struct.pack("<I", 1_500_000_128)  # uncompressed size
+    path.write_bytes(bytes(data))
+    assert zipfile.ZipFile(path).infolist()[0].file_size == 1_500_000_128
+    peak = _peak_bytes(
+        lambda: _refused(path, r"of 1430.5 MiB unpacked, more than the 1024 members")
+    )
+    assert peak < 4 << 20
+
+
+def test_npz_zip_bomb_by_ratio_and_by_size(tmp_path, monkeypatch):
+    zeros = _npy(np.zeros(1 << 18))  # 2 MiB that deflates to about 2 KB
+    bomb = _npz(tmp_path / "bomb.npz", {"w.npy": zeros}, zipfile.ZIP_DEFLATED)
+    assert bomb.stat().st_size < 10_000
+    _refused(bomb, r"unpacks \d+x \(2.0 MiB from \d+ bytes\), beyond the 100x of real arrays")
+    # Under a lower cap (and no ratio limit), a deflated member larger than the cap is refused
+    # from the directory, without inflating it.
+    monkeypatch.setattr(sim.io, "MAX_NPZ_BYTES", 1 << 20)
+    monkeypatch.setattr(sim.io, "MAX_NPZ_RATIO", 10**9)
+    peak = _peak_bytes(lambda: _refused(bomb, r"2.0 MiB unpacked, more than .* 1.0 MiB allowed"))
+    assert peak < 1 << 20
+    monkeypatch.setattr(sim.io, "MAX_NPZ_BYTES", 4 << 20)
+    assert _open(bomb)["w"].shape == (1 << 18,)  # under the cap, the same file loads
+
+
+def test_npz_file_system_errors_are_config_errors(tmp_path, monkeypatch):
+    _refused(tmp_path / "none.npz", "not found: check the path")
+    (tmp_path / "dir.npz").mkdir()
+    _refused(tmp_path / "dir.npz", "is a folder: give the path of a file")
+    long = tmp_path / ("x" * 5000 + ".npz")
+    with pytest.raises(ConfigError, match=r"\(File name too long\): use a shorter path"):
+        _open(long)
+    locked = tmp_path / "locked.npz"
+    np.savez(locked, w=np.zeros(2))
+    real_open = os.open
+
+    def locked_open(name, *args, **kwargs):
+        if os.fspath(name) == str(locked):
+            raise PermissionError(errno.EACCES, "Permission denied", str(name))
+        return real_open(name, *args, **kwargs)
+
+    monkeypatch.setattr(os, "open", locked_open)
+    _refused(locked, r"\(Permission denied\): check its permissions")
