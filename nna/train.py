@@ -61,7 +61,16 @@ import numpy as np
 from quant.quantizer import FloatModel
 from sim.datasets import find_scene, find_scenes, load_scene, occluded_by_cross_check
 from sim.errors import ConfigError, InputError
-from sim.io import open_npz, read_gt, read_image, to_grey
+from sim.io import (
+    is_folder,
+    open_npz,
+    path_kind,
+    path_text,
+    read_gt,
+    read_image,
+    sub_folders,
+    to_grey,
+)
 from sim.outputs import atomic_write_bytes
 
 # (C_in, C_out, K) per layer
@@ -181,17 +190,17 @@ class TrainingSet:
 def training_scene_dirs(data_dir) -> list[Path]:
     """The scene folders to train on under ``data_dir`` (the shared data folder)."""
     root = Path(data_dir)
-    if not root.is_dir():
-        raise InputError(f"training data folder {root} not found: give --data DIR")
-    if root.name == EVALUATION_COLLECTION or (root / "mask0nocc.png").exists():
-        raise InputError(f"{root} is MiddEval3, the evaluation set: never train on it")
+    if not is_folder(root, "training data folder"):
+        raise InputError(f"training data folder {path_text(root)} not found: give --data DIR")
+    if root.name == EVALUATION_COLLECTION or path_kind(root / "mask0nocc.png", "mask"):
+        raise InputError(f"{path_text(root)} is MiddEval3, the evaluation set: never train on it")
     dirs = []
     for coll in TRAIN_COLLECTIONS:
         folder = root / coll
-        if not folder.is_dir():
+        if not is_folder(folder, "training collection"):
             continue
         skip = EXCLUDED_SCENES.get(coll, ())
-        dirs.extend(p for p in sorted(folder.iterdir()) if p.is_dir() and p.name not in skip)
+        dirs.extend(p for p in sub_folders(folder, "training collection") if p.name not in skip)
     if not dirs:
         raise InputError(
             f"{root} holds no training scenes: expected {' and '.join(TRAIN_COLLECTIONS)} "
@@ -710,14 +719,14 @@ def calibration_scene_dirs(path) -> list[Path]:
     evaluation set and must not tune anything."""
 
     root = Path(path)
-    if not root.is_dir():
-        raise InputError(f"calibration folder {root} not found: give --calib DIR")
-    if any((root / coll).is_dir() for coll in TRAIN_COLLECTIONS):
+    if not is_folder(root, "calibration folder"):
+        raise InputError(f"calibration folder {path_text(root)} not found: give --calib DIR")
+    if any(is_folder(root / coll, "training collection") for coll in TRAIN_COLLECTIONS):
         return training_scene_dirs(root)
     if root.name == EVALUATION_COLLECTION or root.parent.name == EVALUATION_COLLECTION:
         raise InputError(f"{root} is MiddEval3, the evaluation set: calibrate on training scenes")
     scenes = [Path(s.left).parent for s in find_scenes(root)]
-    if any((s / "mask0nocc.png").exists() for s in scenes):
+    if any(path_kind(s / "mask0nocc.png", "mask") for s in scenes):
         raise InputError(f"{root} is MiddEval3, the evaluation set: calibrate on training scenes")
     return scenes
 

@@ -4,8 +4,13 @@ The training tests run on a tiny synthetic Middlebury-2006-layout folder, so the
 the shared data nor more than a few seconds; the full training is never run here.
 """
 
+import errno
 import io
+import os
+import shutil
+import struct
 import zipfile
+import zlib
 from dataclasses import asdict
 from pathlib import Path
 
@@ -454,3 +459,34 @@ def test_a_float_model_is_read_within_bounds(tmp_path):
     with pytest.raises(ConfigError, match=r"float model '.*bomb.npz' member .* a zip bomb"):
         load_float_model(path)
 
+
+def test_training_scenes_go_through_the_bounded_readers(data_root, tmp_path, monkeypatch):
+    # A training view that claims 9000x8000 pixels is refused from its header.
+    root = tmp_path / "data"
+    shutil.copytree(data_root, root)
+    view = root / "middlebury2006_third" / "Aloe" / "view5.png"
+    ihdr = struct.pack(">IIBBBBB", 9000, 8000, 8, 0, 0, 0, 0)
+    view.write_bytes(b"\x89PNG\r\n\x1a\n" + struct.pack(">I", 13) + b"IHDR" + ihdr
+                     + struct.pack(">I", zlib.crc32(b"IHDR" + ihdr)))  # fmt: skip
+    dirs = training_scene_dirs(root)
+    cfg = TrainConfig()
+    for load in (load_training_set, load_strip_set):
+        with pytest.raises(InputError, match=r"view5.png is 9000x8000 \(72.0 M pixels\)"):
+            load(dirs, cfg)
+    # A collection that cannot be listed, a path too long: one line, not an OSError.
+    real_scandir = os.scandir
+
+    def denied(path):
+        if Path(path).name == "middlebury2005_third":
+            raise PermissionError(errno.EACCES, "Permission denied", str(path))
+        return real_scandir(path)
+
+    monkeypatch.setattr(os, "scandir", denied)
+    with pytest.raises(InputError, match=r"middlebury2005_third \(Permission denied\)"):
+        training_scene_dirs(root)
+    with pytest.raises(InputError, match=r"middlebury2005_third \(Permission denied\)"):
+        calibration_scene_dirs(root)
+    long = tmp_path / ("d" * 5000)
+    for find in (training_scene_dirs, calibration_scene_dirs):
+        with pytest.raises(InputError, match=r"File name too long"):
+            find(long)
