@@ -54,7 +54,7 @@ def load_layer(path) -> tuple[np.ndarray, np.ndarray, int]:
         return load_weights(name)
     qm = load_quantized(name)
     try:
-        return to_nna_weights(qm)
+        return check_layer(*to_nna_weights(qm))
     except ConfigError as err:
         raise ConfigError(f"weight file {name!r}: {err}") from None
 
