@@ -209,14 +209,17 @@ def _read_bytes(path: str | os.PathLike, what: str, max_bytes: int, too_big: str
     return data
 
 
-def read_text(path: str | os.PathLike, what: str, max_bytes: int = MAX_TEXT_FILE_BYTES) -> str:
-    """An ASCII text file (at most ``max_bytes``); InputError naming the file otherwise."""
+def read_text(
+    path: str | os.PathLike, what: str, max_bytes: int = MAX_TEXT_FILE_BYTES, encoding="ascii"
+) -> str:
+    """A text file of at most ``max_bytes`` in ``encoding``; InputError naming the file otherwise
+    (missing, unreadable, a folder, empty, too long, or not text in that encoding)."""
     data = _read_bytes(path, what, max_bytes, "it is not a text file of this kind")
     try:
-        return data.decode("ascii")
+        return data.decode(encoding)
     except UnicodeDecodeError as exc:
         raise InputError(
-            f"{what} file {path_text(path)} is not ASCII text (byte {exc.start} is "
+            f"{what} file {path_text(path)} is not {encoding} text (byte {exc.start} is "
             f"0x{data[exc.start]:02x}): replace it"
         ) from None
 
@@ -319,9 +322,9 @@ def _imdecode_quietly(data: bytes, flags: int) -> tuple[np.ndarray | None, str]:
                         os.dup2(saved, 2)
                         os.close(saved)
                 said = ""
-                if sink is not None:
-                    sink.seek(0)
-                    said = sink.read(4096).decode("utf-8", "replace")
+                if sink is not None:  # the last 4 KiB hold the last line
+                    sink.seek(max(0, sink.seek(0, os.SEEK_END) - 4096))
+                    said = sink.read().decode("utf-8", "replace")
         finally:
             cv2.utils.logging.setLogLevel(level)
     lines = [line.strip() for line in said.splitlines() if line.strip()]
@@ -734,9 +737,9 @@ def _checked_members(archive: zipfile.ZipFile, refuse) -> dict[str, zipfile.ZipI
         nbytes = math.prod(shape) * dtype.itemsize
         if min(shape, default=0) < 0 or nbytes > MAX_NPZ_BYTES or header_bytes + nbytes != size:
             raise refuse(
-                f"member {member}'s header claims {shape} {dtype} = {_mib(nbytes)} but the zip "
-                f"directory gives it {_mib(size - header_bytes)} (at most {_mib(MAX_NPZ_BYTES)}"
-                "): it is damaged"
+                f"member {member} claims {shape} {dtype} = {_mib(nbytes)} in its header, but the "
+                f"zip directory gives it {_mib(size - header_bytes)} (and at most "
+                f"{_mib(MAX_NPZ_BYTES)} is read): it is damaged"
             )
         out[key] = info
     return out

@@ -224,7 +224,7 @@ def test_scene_paths_too_long_or_unreadable(tmp_path, monkeypatch):
 def test_calib_files_that_are_not_short_ascii_text(tmp_path):
     calib = tmp_path / "calib.txt"
     calib.write_bytes("ndisp=70\ncam0=\u00e9\n".encode())
-    with pytest.raises(InputError, match=r"calib.txt is not ASCII text \(byte 14 is 0xc3"):
+    with pytest.raises(InputError, match=r"calib.txt is not ascii text \(byte 14 is 0xc3"):
         parse_calib(calib)
     calib.write_bytes(b"x" * ((1 << 20) + 1))
     with pytest.raises(InputError, match=r"is 1.0 MiB, more than the 1.0 MiB allowed"):
