@@ -559,9 +559,9 @@ def write_disparity_png(path: str | os.PathLike, disp: np.ndarray, dmax: float) 
     atomic_write_bytes(path, encode_png(disparity_to_colour(disp, dmax)))
 
 
-def _check_gt_values(gt: np.ndarray, path) -> None:
+def check_gt_values(gt: np.ndarray, source: str) -> None:
     """Refuse disparities no scene can have (:data:`GT_MAX_WIDTHS`); non-finite ones are
-    unknown and pass."""
+    unknown and pass. ``source`` names the GT in the message (``"GT file x.pfm"``)."""
     limit = GT_MAX_WIDTHS * gt.shape[1]
     finite = np.isfinite(gt)
     bad = finite & ((gt < 0) | (gt > limit))
@@ -572,11 +572,11 @@ def _check_gt_values(gt: np.ndarray, path) -> None:
     where = f"at row {y}, column {x}"
     if value < 0:
         raise InputError(
-            f"GT {path_text(path)} holds the negative disparity {value:g} {where}: "
+            f"{source} holds the negative disparity {value:g} {where}: "
             "disparities are >= 0 (unknown is inf in a PFM, 0 in a PNG); fix the file"
         )
     raise InputError(
-        f"GT {path_text(path)} holds the disparity {value:g} {where}, more than {GT_MAX_WIDTHS} "
+        f"{source} holds the disparity {value:g} {where}, more than {GT_MAX_WIDTHS} "
         f"x its width {gt.shape[1]} = {limit} px, which no scene can have: the file is corrupt "
         "or its scale is wrong (--gt-scale)"
     )
@@ -607,7 +607,7 @@ def read_gt(
         if scale is not None and scale != 1:
             gt = (gt / np.float32(scale)).astype(np.float32)
         gt[~np.isfinite(gt)] = np.inf
-        _check_gt_values(gt, p)
+        check_gt_values(gt, f"GT {path_text(p)}")
         return gt
     if ext == ".png":
         if scale is None:
@@ -629,7 +629,7 @@ def read_gt(
             )
         gt = raw.astype(np.float32) / np.float32(scale)
         gt[raw == 0] = np.inf
-        _check_gt_values(gt, p)
+        check_gt_values(gt, f"GT {path_text(p)}")
         return gt
     raise InputError(
         f"GT {path_text(p)} has extension '{p.suffix}': give a .pfm or .png ground-truth file"
