@@ -201,7 +201,14 @@ def _read_bytes(path: str | os.PathLike, what: str, max_bytes: int, too_big: str
                 f"{what} file {path_text(path)} is {_mib(size)}, more than the "
                 f"{_mib(max_bytes)} allowed: {too_big}"
             )
-        data = f.read(max_bytes + 1)
+        chunks, got = [], 0
+        while got <= max_bytes:  # in chunks: the cap may be far above what is there
+            chunk = f.read(min(1 << 20, max_bytes + 1 - got))
+            if not chunk:
+                break
+            chunks.append(chunk)
+            got += len(chunk)
+        data = b"".join(chunks)
     if len(data) > max_bytes:
         raise InputError(f"{what} file {path_text(path)} grew while it was read: read it again")
     if not data:

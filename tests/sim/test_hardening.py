@@ -131,6 +131,16 @@ def test_impossible_gt_values_are_refused(value, message):
         run(left, right, overrides={"sva.disparities": 16}, gt=gt)
 
 
+def test_no_cap_reads_the_file_it_has(tmp_path, capfd):
+    """--max-pixels 0 (no cap) once made the reader ask for a buffer of the cap's size (a
+    MemoryError on every image; found by the CLI property test's long run)."""
+    left, right = _write_pair(tmp_path / "in")
+    code, _, err = _cli(["run", "--mode", "functional", "--left", left, "--right", right,
+                         "--disparities", "16", "--max-pixels", "0", "--out", tmp_path / "o"],
+                        capfd)
+    assert code == 0, err
+
+
 def test_the_api_caps_the_image_size():
     left, right = _pair(h=40, w=64)
     with pytest.raises(InputError, match=r"64x40 \(0.0 M pixels\), above the cap"):

@@ -198,6 +198,7 @@ def test_run_ends_whole_or_in_one_line(case, files, capfd):
     if code == 2:
         lines = stderr.splitlines()
         assert len(lines) == 1 and lines[0].startswith("stereosim: error: "), stderr
+        assert "out of memory" not in lines[0], argv  # inputs of a few hundred pixels
         event("exit 2: " + " ".join(lines[0].split()[2:5]))
         assert _snapshot(work) == before_work, f"a failed run changed the outputs: {argv}"
         return
