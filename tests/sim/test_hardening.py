@@ -227,14 +227,32 @@ def test_a_read_only_folder_is_refused_before_the_run(tmp_path, capfd, monkeypat
     assert list((tmp_path / "ro").iterdir()) == []
 
 
-def test_sigterm_during_a_run_leaves_the_old_set_and_no_temporary_files(old_run):
-    left, right, out, before = old_run
+def _handles_sigterm(pid: int) -> bool:
+    """Has process ``pid`` installed a SIGTERM handler (Linux: SigCgt in /proc/PID/status)?"""
+    with open(f"/proc/{pid}/status") as f:
+        caught = next(line for line in f if line.startswith("SigCgt:")).split()[1]
+    return bool(int(caught, 16) >> (signal.SIGTERM - 1) & 1)
+
+
+@pytest.mark.parametrize("delay", [0.0, 0.4, 1.5])
+def test_sigterm_during_a_run_leaves_the_old_set_and_no_temporary_files(old_run, tmp_path,
+                                                                        delay):
+    """SIGTERM once stereosim's handler is in (before that the process holds nothing): at
+    the start of the work, during the simulation, or while the files are written."""
+    _, _, out, before = old_run
+    left, right = _write_pair(tmp_path / "big", h=120, w=300, seed=2)
     cmd = [sys.executable, "-m", "sim.cli", "run", "--left", str(left), "--right", str(right),
-           "--disparities", "16", "--out", str(out), "--vcd", str(out / "t.vcd")]
+           "--disparities", "32", "--out", str(out), "--vcd", str(out / "t.vcd"), "--force"]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-    time.sleep(1.0)
+    deadline = time.monotonic() + 60
+    while proc.poll() is None and not _handles_sigterm(proc.pid):
+        assert time.monotonic() < deadline, "stereosim never installed its SIGTERM handler"
+        time.sleep(0.01)
+    time.sleep(delay)
     proc.send_signal(signal.SIGTERM)
-    _, err = proc.communicate(timeout=60)
+    _, err = proc.communicate(timeout=120)
+    leftovers = [p.name for p in out.iterdir() if p.name.startswith(".")]
+    assert leftovers == []
     if proc.returncode == 0:  # it finished first: then the new set is whole
         assert sorted(p.name for p in out.iterdir()) == sorted([*RUN_FILES, "t.vcd", "t.gtkw"])
     else:
