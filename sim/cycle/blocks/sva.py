@@ -12,9 +12,9 @@ order), ``out`` (output words ``(x, y, word)`` in raster order).
   :func:`~sim.cycle.rules.sva_last_input_row` (min(y + r + m, H - 1)) is complete (the box
   filter needs r rows below, the median m more; the LR check's diagonal search and the SGM
   paths stay within rows already in). Word j (raster) is pushed at the first cycle from
-  :func:`~sim.cycle.rules.sva_word_due` (ready + pipeline latency, previous push + cycles per
-  pixel) with space in ``out``. Without stalls the initiation interval is cycles_per_pixel and
-  the first word leaves at ready(0) + pipeline_latency.
+  :func:`~sim.cycle.rules.sva_word_due` (ready + the latency L, previous push + the II) with
+  space in ``out``; L and II come from the SVA's stages (:mod:`sim.cycle.stages`). Without
+  stalls the words leave every II cycles and the first at ready(0) + L.
 - **Data**: the functional model's streaming kernels (:class:`sva.pipeline.SvaStream`) run over
   the descriptors this block actually received, row by row as rows complete.
 
@@ -49,7 +49,7 @@ class SvaBlock(Block):
         self.cfg = cfg
         self.lookahead = plan.lookahead
         self.latency = plan.latency
-        self.cycles_per_pixel = plan.cycles
+        self.ii = plan.cycles
         dtype = np.uint32 if bits <= 32 else np.uint64
         self.desc_l = np.zeros(shape, dtype)
         self.desc_r = np.zeros(shape, dtype)
@@ -74,7 +74,7 @@ class SvaBlock(Block):
         ready = int(self.ready_cycle[j // self.width])
         if ready < 0:
             return None
-        return sva_word_due(ready, self.latency, self.last_push, self.cycles_per_pixel)
+        return sva_word_due(ready, self.latency, self.last_push, self.ii)
 
     def evaluate(self, now_cycle: int) -> None:
         n = self.height * self.width
