@@ -28,6 +28,12 @@ from nna.census import as_image_u8
 from sim.errors import ConfigError
 
 MAX_CHANNELS = 64
+# The largest kernel size K: a K x K window needs K input rows in a submodule's line buffer
+# (nna.geometry.check_line_buffer refuses a plan whose buffer is shorter), and nna.line_buffer_rows
+# allows at most 64 rows, so the widest odd window is 63. Nothing in the paper (it tried 3x3 and
+# 9x9) or the kernels bounds K more tightly: they are exact for K*K*MAX_PRODUCT < 2**31, in
+# float32 up to K = 21 and in int32 beyond (tests/nna/test_conv.py runs K = 21 and 23).
+MAX_KERNEL_SIZE = 63
 # Largest |weight * (pixel - offset)|: -128 * -255.
 MAX_PRODUCT = 128 * 255
 INT32_MAX = 2**31 - 1
@@ -39,9 +45,10 @@ _TAPS_PER_STEP = 3
 def check_layer(weights, bias, input_offset) -> tuple[np.ndarray, np.ndarray, int]:
     """Validate one descriptor layer; return ``(weights, bias, input_offset)`` ready for use.
 
-    weights: int8 (C, K, K) with 1 <= C <= 64 and K odd; bias: int32 (C,) small enough that the
-    int32 accumulator cannot overflow; input_offset: int in 0..255. Raises :class:`ConfigError`
-    with a one-line message otherwise.
+    weights: int8 (C, K, K) with 1 <= C <= 64 and K odd, at most :data:`MAX_KERNEL_SIZE` (63:
+    the window must fit the largest line buffer, 64 rows); bias: int32 (C,) small enough that
+    the int32 accumulator cannot overflow; input_offset: int in 0..255. Raises
+    :class:`ConfigError` with a one-line message otherwise.
     """
     if not isinstance(weights, np.ndarray) or weights.dtype != np.int8:
         got = weights.dtype if isinstance(weights, np.ndarray) else type(weights).__name__
@@ -61,9 +68,13 @@ def check_layer(weights, bias, input_offset) -> tuple[np.ndarray, np.ndarray, in
         )
     if k_size % 2 == 0:
         raise ConfigError(f"weights kernel size K must be odd (centred window), got {k_size}")
-    max_sum = k_size * k_size * MAX_PRODUCT
-    if max_sum > INT32_MAX:
-        raise ConfigError(f"weights kernel size {k_size} is too large for an int32 accumulator")
+    if k_size > MAX_KERNEL_SIZE:
+        raise ConfigError(
+            f"weights kernel size {k_size}x{k_size} is larger than the {MAX_KERNEL_SIZE}x"
+            f"{MAX_KERNEL_SIZE} window the largest NNA line buffer can hold "
+            "(nna.line_buffer_rows <= 64): use a smaller kernel"
+        )
+    max_sum = k_size * k_size * MAX_PRODUCT  # < 2**31 for every K <= MAX_KERNEL_SIZE
     if not isinstance(bias, np.ndarray) or bias.dtype != np.int32:
         got = bias.dtype if isinstance(bias, np.ndarray) else type(bias).__name__
         raise ConfigError(f"bias must be an int32 numpy array (C,), got {got}")

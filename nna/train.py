@@ -63,7 +63,16 @@ import numpy as np
 from quant.quantizer import FloatModel
 from sim.datasets import find_scene, find_scenes, load_scene, occluded_by_cross_check
 from sim.errors import ConfigError, InputError
-from sim.io import open_npz, read_gt, read_image, to_grey
+from sim.io import (
+    is_folder,
+    open_npz,
+    path_kind,
+    path_text,
+    read_gt,
+    read_image,
+    sub_folders,
+    to_grey,
+)
 from sim.outputs import atomic_write_bytes
 
 # (C_in, C_out, K) per layer
@@ -191,17 +200,17 @@ class TrainingSet:
 def training_scene_dirs(data_dir) -> list[Path]:
     """The scene folders to train on under ``data_dir`` (the shared data folder)."""
     root = Path(data_dir)
-    if not root.is_dir():
-        raise InputError(f"training data folder {root} not found: give --data DIR")
-    if root.name == EVALUATION_COLLECTION or (root / "mask0nocc.png").exists():
-        raise InputError(f"{root} is MiddEval3, the evaluation set: never train on it")
+    if not is_folder(root, "training data folder"):
+        raise InputError(f"training data folder {path_text(root)} not found: give --data DIR")
+    if root.name == EVALUATION_COLLECTION or path_kind(root / "mask0nocc.png", "mask"):
+        raise InputError(f"{path_text(root)} is MiddEval3, the evaluation set: never train on it")
     dirs = []
     for coll in TRAIN_COLLECTIONS:
         folder = root / coll
-        if not folder.is_dir():
+        if not is_folder(folder, "training collection"):
             continue
         skip = EXCLUDED_SCENES.get(coll, ())
-        dirs.extend(p for p in sorted(folder.iterdir()) if p.is_dir() and p.name not in skip)
+        dirs.extend(p for p in sub_folders(folder, "training collection") if p.name not in skip)
     if not dirs:
         raise InputError(
             f"{root} holds no training scenes: expected {' and '.join(TRAIN_COLLECTIONS)} "
@@ -675,41 +684,42 @@ def save_float_model(path, result: dict) -> None:
 def load_float_model(path):
     """Read a file written by :func:`save_float_model`: ``(FloatModel, variant, training dict)``.
 
-    Problems (missing file or field, wrong shapes for the variant) raise :class:`ConfigError`.
+    Problems (missing, unreadable or unbounded file -- :func:`sim.io.open_npz` --, a missing
+    field, a field of the wrong kind, wrong shapes for the variant) raise :class:`ConfigError`.
     """
 
     name = os.fspath(path)
-    archive = open_npz(name, "float model", "write it with 'stereosim train'")
-    with archive:
-        def get(key):
-            if key not in archive.files:
-                raise ConfigError(f"float model {name!r} lacks the field {key!r}")
-            return archive[key]
-
-        fmt = str(get("format")[()])
+    with open_npz(name, "float model", "write it with 'stereosim train'") as archive:
+        fmt = archive.scalar("format", "U")
         if fmt != FORMAT:
             raise ConfigError(f"float model {name!r} has format {fmt!r}, expected {FORMAT!r}")
-        variant = str(get("variant")[()])
+        variant = archive.scalar("variant", "U")
         if variant not in VARIANTS:
             raise ConfigError(f"float model {name!r}: unknown variant {variant!r}")
-        spec = VARIANTS[variant]
         weights, biases = [], []
-        for i, (c_in, c_out, k) in enumerate(spec):
-            w, b = get(f"weights_{i}"), get(f"bias_{i}")
-            if w.shape != (c_out, c_in, k, k) or b.shape != (c_out,):
+        for i, (c_in, c_out, k) in enumerate(VARIANTS[variant]):
+            w, b = archive.field(f"weights_{i}"), archive.field(f"bias_{i}")
+            floats = w.dtype.kind == "f" and b.dtype.kind == "f"
+            if not floats or w.shape != (c_out, c_in, k, k) or b.shape != (c_out,):
                 raise ConfigError(
-                    f"float model {name!r}: layer {i} of {variant} must be "
-                    f"({c_out}, {c_in}, {k}, {k}) + ({c_out},), got {w.shape} + {b.shape}"
+                    f"float model {name!r}: layer {i} of {variant} must be float "
+                    f"({c_out}, {c_in}, {k}, {k}) + ({c_out},), got {w.dtype} {w.shape} + "
+                    f"{b.dtype} {b.shape}"
                 )
             weights.append(w.astype(np.float64))
             biases.append(b.astype(np.float64))
-        training = json.loads(str(get("training")[()]))
+        text = archive.scalar("training", "U")
+        offset, scale = archive.scalar("input_offset", "iu"), archive.scalar("input_scale", "f")
+    try:
+        training = json.loads(text)
+    except (json.JSONDecodeError, RecursionError) as err:
+        raise ConfigError(f"float model {name!r}: its training record is not JSON ({err})") from None
+    try:
         model = FloatModel(
-            weights=tuple(weights),
-            biases=tuple(biases),
-            input_offset=int(get("input_offset")[()]),
-            input_scale=float(get("input_scale")[()]),
+            weights=tuple(weights), biases=tuple(biases), input_offset=offset, input_scale=scale
         )
+    except ConfigError as err:
+        raise ConfigError(f"float model {name!r}: {err}") from None
     return model, variant, training
 
 
@@ -719,14 +729,14 @@ def calibration_scene_dirs(path) -> list[Path]:
     evaluation set and must not tune anything."""
 
     root = Path(path)
-    if not root.is_dir():
-        raise InputError(f"calibration folder {root} not found: give --calib DIR")
-    if any((root / coll).is_dir() for coll in TRAIN_COLLECTIONS):
+    if not is_folder(root, "calibration folder"):
+        raise InputError(f"calibration folder {path_text(root)} not found: give --calib DIR")
+    if any(is_folder(root / coll, "training collection") for coll in TRAIN_COLLECTIONS):
         return training_scene_dirs(root)
     if root.name == EVALUATION_COLLECTION or root.parent.name == EVALUATION_COLLECTION:
         raise InputError(f"{root} is MiddEval3, the evaluation set: calibrate on training scenes")
     scenes = [Path(s.left).parent for s in find_scenes(root)]
-    if any((s / "mask0nocc.png").exists() for s in scenes):
+    if any(path_kind(s / "mask0nocc.png", "mask") for s in scenes):
         raise InputError(f"{root} is MiddEval3, the evaluation set: calibrate on training scenes")
     return scenes
 

@@ -19,7 +19,6 @@ trained with ``stereosim train`` and quantised with ``stereosim quantize`` (docs
 from __future__ import annotations
 
 import os
-import zipfile
 
 import numpy as np
 
@@ -55,7 +54,7 @@ def load_layer(path) -> tuple[np.ndarray, np.ndarray, int]:
         return load_weights(name)
     qm = load_quantized(name)
     try:
-        return to_nna_weights(qm)
+        return check_layer(*to_nna_weights(qm))
     except ConfigError as err:
         raise ConfigError(f"weight file {name!r}: {err}") from None
 
@@ -91,8 +90,9 @@ def load_weights(path) -> tuple[np.ndarray, np.ndarray, int]:
     """Read and validate a layer saved by :func:`save_weights`.
 
     Returns ``(weights int8 (C, K, K), bias int32 (C,), input_offset int)``. Every problem (missing
-    file, not an .npz, missing key, wrong dtype, shape or range) raises :class:`ConfigError` with
-    the file name and a one-line reason.
+    or unreadable file, not an .npz, a member that fails :func:`sim.io.open_npz`'s bounds, missing
+    key, wrong dtype, shape or range) raises :class:`ConfigError` with the file name and a
+    one-line reason.
     """
     name = os.fspath(path)
     archive = open_npz(name, "weight file", f"write it with nna.save_weights (keys {', '.join(KEYS)})")
@@ -103,10 +103,7 @@ def load_weights(path) -> tuple[np.ndarray, np.ndarray, int]:
                 f"weight file {name!r} lacks {', '.join(missing)}; it has "
                 f"{', '.join(archive.files) or 'no arrays'} (needs {', '.join(KEYS)})"
             )
-        try:
-            weights, bias, offset = (archive[k] for k in KEYS)
-        except (OSError, ValueError, zipfile.BadZipFile) as err:
-            raise ConfigError(f"weight file {name!r} has a damaged array ({err})") from None
+        weights, bias, offset = (archive[k] for k in KEYS)
     if offset.shape != () or offset.dtype.kind not in "iu":
         raise ConfigError(
             f"weight file {name!r}: input_offset must be an integer scalar, "

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import io
 import os
-import zipfile
 from dataclasses import dataclass
 
 import numpy as np
@@ -134,12 +133,13 @@ def save_quantized(path, qm: QuantizedModel) -> None:
 
 
 def _get(archive, key, name):
-    if key not in archive.files:
-        raise ConfigError(f"quantized model {name!r} lacks the field {key!r}")
-    try:
-        return archive[key]
-    except (OSError, ValueError, zipfile.BadZipFile) as err:
-        raise ConfigError(f"quantized model {name!r} has a damaged array {key!r} ({err})") from None
+    return archive.field(key)
+
+
+def _floats(value, key, name):
+    if value.dtype.kind not in "iuf":
+        raise ConfigError(f"quantized model {name!r}: {key} must be numbers, got {value.dtype}")
+    return value.astype(np.float64)
 
 
 def _scalar(value, key, name, kind):
@@ -170,7 +170,8 @@ def _int32(value, key, name):
 
 
 def load_quantized(path) -> QuantizedModel:
-    """Read and validate a file written by :func:`save_quantized`; problems raise ConfigError."""
+    """Read and validate a file written by :func:`save_quantized`; problems (including those
+    :func:`sim.io.open_npz` checks before anything is unpacked) raise ConfigError."""
     name = os.fspath(path)
     archive = open_npz(name, "quantized model", "write it with quant.save_quantized")
     with archive:
@@ -202,7 +203,7 @@ def load_quantized(path) -> QuantizedModel:
                 _scalar(_get(archive, "input_scale", name), "input_scale", name, "f")
             ),
             z_bits=int(_scalar(_get(archive, "z_bits", name), "z_bits", name, "iu")),
-            act_scales=_get(archive, "act_scales", name).astype(np.float64),
+            act_scales=_floats(_get(archive, "act_scales", name), "act_scales", name),
             sign_agreement=float(
                 _scalar(_get(archive, "sign_agreement", name), "sign_agreement", name, "f")
             ),

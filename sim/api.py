@@ -14,8 +14,8 @@ from sim.config import ChipConfig, check_config, config_to_dict, load_config
 from sim.cycle.plan import ChipPlan, architecture_report, build_plan
 from sim.cycle.simulate import simulate
 from sim.errors import ConfigError, InputError
-from sim.io import MAX_PIXELS, to_grey
-from sim.metrics import check_gt_values, check_truth, evaluate, undefined_metrics
+from sim.io import MAX_PIXELS, check_gt_values, to_grey
+from sim.metrics import check_truth, evaluate, undefined_metrics
 from sim.tracing import run_traced
 from sva.pipeline import sva_stream
 from sva.wta import to_float
@@ -124,7 +124,7 @@ def run(
         raise InputError("masks need ground truth: give gt= too")
     if gt is not None:  # checked before the run, not after it
         masks = check_truth(gt, {} if masks is None else masks, gl.shape)[1]
-        check_gt_values(gt, gl.shape[1])
+        check_gt_values(np.asarray(gt, dtype=np.float64), "the gt= array")
         masks = masks or {"all": np.isfinite(gt)}
     plan = build_plan(cfg, gl.shape)  # refuses a chip that cannot be built, in every mode
     log = None

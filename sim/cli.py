@@ -154,21 +154,27 @@ def _scene_config(args, ndisp: int | None):
 # stereosim run
 
 
+def _pixel_cap(args) -> int:
+    """--max-pixels for the file readers (0: no cap)."""
+    return args.max_pixels if args.max_pixels > 0 else 1 << 40
+
+
 def _load_run_inputs(args) -> dict:
     """The stereo pair (+ GT and masks) from a scene folder, --left/--right, or the default."""
+    cap = _pixel_cap(args)
 
     if args.scene and (args.left or args.right):
         raise InputError("give either a scene folder or --left/--right, not both")
     if bool(args.left) != bool(args.right):
         raise InputError("give both --left and --right (or neither, for the default scene)")
     if args.scene:
-        data = load_scene(find_scene(args.scene, gt_scale=args.gt_scale))
+        data = load_scene(find_scene(args.scene, gt_scale=args.gt_scale), max_pixels=cap)
         data["source"] = str(args.scene)
     elif args.left:
         data = {
             "name": Path(args.left).parent.name or Path(args.left).stem,
-            "left": read_image(args.left),
-            "right": read_image(args.right),
+            "left": read_image(args.left, max_pixels=cap),
+            "right": read_image(args.right, max_pixels=cap),
             "gt": None,
             "masks": {},
             "ndisp": None,
@@ -178,12 +184,12 @@ def _load_run_inputs(args) -> dict:
         data = default_scene()
         data["source"] = "embedded default scene (scikit-image stereo_motorcycle)"
     if args.gt:
-        data["gt"] = read_gt(args.gt, args.gt_scale)
+        data["gt"] = read_gt(args.gt, args.gt_scale, max_pixels=cap)
         data["masks"] = {}
     if args.mask:
         if data.get("gt") is None:
             raise InputError("--mask needs ground truth: give --gt too")
-        mask = read_mask(args.mask)
+        mask = read_mask(args.mask, max_pixels=cap)
         if mask.shape != data["gt"].shape:
             raise InputError(
                 f"mask {args.mask} is {mask.shape[1]}x{mask.shape[0]} but the GT is "
@@ -342,7 +348,7 @@ def cmd_eval(args) -> int:
 
 def _eval_scene(args, scene) -> tuple[dict, int]:
     """One scene's metrics and D; a scene that cannot be scored raises a UserError."""
-    data = load_scene(scene)
+    data = load_scene(scene, max_pixels=_pixel_cap(args))
     if data["gt"] is None:
         raise InputError(f"scene {scene.name} has no ground truth: nothing to score")
     cfg = _scene_config(args, data.get("ndisp"))

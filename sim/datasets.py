@@ -24,14 +24,24 @@ from __future__ import annotations
 
 import math
 import os
-import struct
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from sim.errors import InputError
-from sim.io import read_gt, read_image, read_mask
+from sim.io import (
+    MAX_PIXELS,
+    is_file,
+    is_folder,
+    path_text,
+    png_size,
+    read_gt,
+    read_image,
+    read_mask,
+    read_text,
+    sub_folders,
+)
 
 LAYOUT_2014 = "2014"
 LAYOUT_2005 = "2005/2006"
@@ -85,21 +95,7 @@ def shared_data_dir() -> Path | None:
     else:
         candidate = Path(__file__).resolve().parents[1] / ".." / "shared" / "data"
     candidate = candidate.resolve()
-    return candidate if candidate.is_dir() else None
-
-
-def _png_width(path: Path) -> int:
-    """Width of a PNG from its IHDR chunk (no decoding)."""
-    try:
-        with path.open("rb") as f:
-            head = f.read(24)
-    except OSError as exc:
-        raise InputError(
-            f"cannot read image {path} ({exc.strerror}): check its permissions"
-        ) from exc
-    if len(head) < 24 or head[:8] != b"\x89PNG\r\n\x1a\n" or head[12:16] != b"IHDR":
-        raise InputError(f"image {path} is not a valid PNG file: replace it")
-    return struct.unpack(">I", head[16:20])[0]
+    return candidate if is_folder(candidate, "shared data folder ($STEREOSIM_DATA)") else None
 
 
 def find_scene(folder: str | os.PathLike, gt_scale: float | None = None) -> Scene:
@@ -109,32 +105,36 @@ def find_scene(folder: str | os.PathLike, gt_scale: float | None = None) -> Scen
     2005/2006 ThirdSize or 2003 quarter size).
     """
     folder = Path(folder)
-    if not folder.is_dir():
-        raise InputError(f"scene folder {folder} not found: give a folder holding a stereo pair")
+    if not is_folder(folder, "scene folder"):
+        raise InputError(
+            f"scene folder {path_text(folder)} not found: give a folder holding a stereo pair"
+        )
     if gt_scale is not None and not (math.isfinite(gt_scale) and gt_scale > 0):
         raise InputError(f"GT scale is {gt_scale}: give a positive number (--gt-scale)")
     for layout, left, right, gt, scale, mask, gt_right in _LAYOUTS:
-        if not ((folder / left).is_file() and (folder / right).is_file()):
+        if not (is_file(folder / left, "image") and is_file(folder / right, "image")):
             continue
-        gt_path = folder / gt if (folder / gt).is_file() else None
+        gt_path = folder / gt if is_file(folder / gt, "GT") else None
         if gt_scale is not None:
             scale = float(gt_scale)
         elif gt_path is not None and layout in _DEFAULT_SCALE_WIDTHS:
             lo, hi = _DEFAULT_SCALE_WIDTHS[layout]
-            width = _png_width(folder / left)
+            width = png_size(folder / left)[0]
             if not lo <= width <= hi:
                 raise InputError(
-                    f"scene {folder} ({layout} layout) is {width} px wide, not the "
+                    f"scene {path_text(folder)} ({layout} layout) is {width} px wide, not the "
                     f"{lo}..{hi} px of the size whose GT scale is {scale:g}: pass the scale of "
                     "its PNG GT with --gt-scale (e.g. 2 for HalfSize, 1 for full size)"
                 )
         ndisp = None
         calib = folder / "calib.txt"
-        if layout == LAYOUT_2014 and calib.is_file():
+        if layout == LAYOUT_2014 and is_file(calib, "calibration file"):
             value = parse_calib(calib).get("ndisp")
             if value is not None:
-                if not isinstance(value, int) and not float(value).is_integer():
-                    raise InputError(f"{calib} has ndisp={value}: it must be a whole number")
+                if isinstance(value, str) or not float(value).is_integer():
+                    raise InputError(
+                        f"{path_text(calib)} has ndisp={value}: it must be a whole number"
+                    )
                 ndisp = int(value)
         return Scene(
             name=folder.name,
@@ -143,15 +143,18 @@ def find_scene(folder: str | os.PathLike, gt_scale: float | None = None) -> Scen
             right=folder / right,
             gt=gt_path,
             gt_scale=float(scale),
-            mask=folder / mask if mask and (folder / mask).is_file() else None,
-            gt_right=folder / gt_right if (folder / gt_right).is_file() else None,
+            mask=folder / mask if mask and is_file(folder / mask, "mask") else None,
+            gt_right=folder / gt_right if is_file(folder / gt_right, "GT") else None,
             ndisp=ndisp,
         )
-    raise InputError(f"{folder} is not a scene folder: expected {_EXPECTED}")
+    raise InputError(f"{path_text(folder)} is not a scene folder: expected {_EXPECTED}")
 
 
 def _is_scene(folder: Path) -> bool:
-    return any((folder / lt).is_file() and (folder / rt).is_file() for _, lt, rt, *_ in _LAYOUTS)
+    return any(
+        is_file(folder / lt, "image") and is_file(folder / rt, "image")
+        for _, lt, rt, *_ in _LAYOUTS
+    )
 
 
 def find_scenes(dataset_dir: str | os.PathLike, gt_scale: float | None = None) -> list[Scene]:
@@ -160,17 +163,16 @@ def find_scenes(dataset_dir: str | os.PathLike, gt_scale: float | None = None) -
     A folder that is itself a scene gives a list of that one scene.
     """
     root = Path(dataset_dir)
-    if not root.is_dir():
-        raise InputError(f"dataset folder {root} not found: check the path")
+    if not is_folder(root, "dataset folder"):
+        raise InputError(f"dataset folder {path_text(root)} not found: check the path")
     if _is_scene(root):
         return [find_scene(root, gt_scale)]
-    subs = sorted(
-        (d for d in root.iterdir() if d.is_dir() and not d.name.startswith(".")),
-        key=lambda d: d.name,
-    )
+    subs = sub_folders(root, "dataset folder")
     scenes = [find_scene(d, gt_scale) for d in subs if _is_scene(d)]
     if not scenes:
-        raise InputError(f"no scene folders found in {root}: each scene needs {_EXPECTED}")
+        raise InputError(
+            f"no scene folders found in {path_text(root)}: each scene needs {_EXPECTED}"
+        )
     return scenes
 
 
@@ -188,15 +190,11 @@ def parse_calib(path: str | os.PathLike) -> dict[str, int | float | str]:
 
     Numbers become ``int`` or ``float``; anything else (the ``cam0``/``cam1`` matrices such as
     ``[999.421 0 294.182; 0 999.421 252.932; 0 0 1]``) stays a string. Spaces around the key and
-    the value are ignored; blank lines are skipped.
+    the value are ignored; blank lines are skipped. The file is ASCII and at most
+    :data:`sim.io.MAX_TEXT_FILE_BYTES` long.
     """
     p = Path(path)
-    if not p.is_file():
-        raise InputError(f"calibration file {p} not found: check the scene folder")
-    try:
-        text = p.read_text(encoding="ascii")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"cannot read calibration file {p} ({exc}): replace it") from exc
+    text = read_text(p, "calibration")
     result: dict[str, int | float | str] = {}
     for lineno, line in enumerate(text.splitlines(), start=1):
         line = line.strip()
@@ -205,7 +203,9 @@ def parse_calib(path: str | os.PathLike) -> dict[str, int | float | str]:
         key, sep, value = line.partition("=")
         key = key.strip()
         if not sep or not key:
-            raise InputError(f"{p} line {lineno} is not 'key=value': {line[:40]!r}; fix the file")
+            raise InputError(
+                f"{path_text(p)} line {lineno} is not 'key=value': {line[:40]!r}; fix the file"
+            )
         value = value.strip()
         result[key] = value if key in ("cam0", "cam1") else _number(value)
     return result
@@ -253,25 +253,25 @@ def occluded_by_cross_check(
 def _check_shape(what: str, arr: np.ndarray, shape: tuple[int, int], path: Path) -> None:
     if arr.shape[:2] != shape:
         raise InputError(
-            f"{what} {path} is {arr.shape[1]}x{arr.shape[0]} but the left image is "
+            f"{what} {path_text(path)} is {arr.shape[1]}x{arr.shape[0]} but the left image is "
             f"{shape[1]}x{shape[0]}: use files of the same scene and size"
         )
 
 
-def load_scene(scene: Scene) -> dict:
-    """Read a scene's images, GT and masks.
+def load_scene(scene: Scene, *, max_pixels: int = MAX_PIXELS) -> dict:
+    """Read a scene's images, GT and masks (each at most ``max_pixels`` pixels).
 
     Returns a dict with ``name``, ``layout``, ``left`` and ``right`` (``uint8`` grey or RGB),
     ``gt`` (``float32``, pixels, ``inf`` = unknown; None without GT), ``masks`` (name -> boolean
     array; ``nonocc`` and/or ``all``), ``ndisp`` (from calib.txt, or None) and ``note`` (how the
     masks were made when that is not obvious, else None).
     """
-    left = read_image(scene.left)
-    right = read_image(scene.right)
+    left = read_image(scene.left, max_pixels=max_pixels)
+    right = read_image(scene.right, max_pixels=max_pixels)
     shape = left.shape[:2]
     if right.shape != left.shape:
         raise InputError(
-            f"right image {scene.right} has shape {right.shape} but the left image has "
+            f"right image {path_text(scene.right)} has shape {right.shape} but the left image has "
             f"{left.shape}: use a rectified pair of the same size and colour format"
         )
     result = {
@@ -287,14 +287,14 @@ def load_scene(scene: Scene) -> dict:
     if scene.gt is None:
         result["note"] = "no ground truth in the scene folder: nothing to evaluate"
         return result
-    gt = read_gt(scene.gt, scene.gt_scale)
+    gt = read_gt(scene.gt, scene.gt_scale, max_pixels=max_pixels)
     _check_shape("GT", gt, shape, scene.gt)
     finite = np.isfinite(gt)
     result["gt"] = gt
     masks: dict[str, np.ndarray] = {}
     mask = None
     if scene.mask is not None:
-        mask = read_mask(scene.mask)
+        mask = read_mask(scene.mask, max_pixels=max_pixels)
         _check_shape("mask", mask, shape, scene.mask)
     if scene.layout == LAYOUT_2014 and mask is not None:
         masks["nonocc"] = mask == 255
@@ -302,8 +302,8 @@ def load_scene(scene: Scene) -> dict:
     elif scene.layout == LAYOUT_2003 and mask is not None:
         masks["nonocc"] = mask == 255
         all_path = scene.mask.parent / "all.png"
-        if all_path.is_file():
-            all_mask = read_mask(all_path)
+        if is_file(all_path, "mask"):
+            all_mask = read_mask(all_path, max_pixels=max_pixels)
             _check_shape("mask", all_mask, shape, all_path)
             masks["all"] = all_mask == 255
         else:
@@ -311,7 +311,7 @@ def load_scene(scene: Scene) -> dict:
     else:
         masks["all"] = finite
         if scene.gt_right is not None:
-            gt_right = read_gt(scene.gt_right, scene.gt_scale)
+            gt_right = read_gt(scene.gt_right, scene.gt_scale, max_pixels=max_pixels)
             _check_shape("right-view GT", gt_right, shape, scene.gt_right)
             masks["nonocc"] = finite & ~occluded_by_cross_check(gt, gt_right)
             result["note"] = (

@@ -1,4 +1,4 @@
-"""Reading and writing images, disparity maps, ground truth and masks.
+"""Reading and writing images, disparity maps, ground truth, masks and ``.npz`` archives.
 
 Everything here works on plain numpy arrays with fixed dtypes:
 
@@ -8,23 +8,39 @@ Everything here works on plain numpy arrays with fixed dtypes:
   (``inf`` in ground truth) meaning "unknown" or "invalid";
 - masks are ``uint8`` ``(H, W)`` grey levels.
 
-Anything wrong with a file the user handed in (missing, corrupt, wrong bit depth or format) raises
-:class:`sim.errors.InputError` with one line naming the file and saying how to fix it. Files are
-written atomically (:func:`sim.outputs.atomic_write_bytes`) so a reader never sees half a file,
-and PNG output is byte-identical for identical input.
+Anything wrong with a file the user handed in (missing, unreadable, a folder, a path too long,
+corrupt, too large, wrong bit depth or format) raises :class:`sim.errors.InputError` (for the
+``.npz`` files the configuration names, :class:`sim.errors.ConfigError`) with one line naming the
+file and saying how to fix it: no ``OSError`` gets out, and what OpenCV, libpng and libjpeg print
+on stderr is caught (:func:`_imdecode_quietly`). Every read is bounded before memory is committed:
+an image, GT or mask holds at most ``max_pixels`` pixels (:data:`MAX_PIXELS`), read from the PNG
+or JPEG header before decoding (other formats: after); a PFM's declared size is checked the same
+way; an ``.npz`` archive's members are checked from the zip directory and their ``.npy`` headers
+before any array is allocated (:func:`open_npz`).
+
+Files are written atomically (:func:`sim.outputs.atomic_write_bytes`) so a reader never sees half
+a file, and PNG output is byte-identical for identical input.
 """
 
 from __future__ import annotations
 
+import contextlib
+import errno
+import math
 import os
+import stat
+import sys
+import tempfile
+import threading
 import zipfile
+import zlib
 from pathlib import Path
 
 import cv2
 import numpy as np
 
 from sim.errors import ConfigError, InputError
-from sim.outputs import atomic_write_bytes
+from sim.outputs import atomic_write_bytes, describe_os_error
 
 # Integer BT.601 luma weights in 1/256: 77 + 150 + 29 == 256, so white stays 255.
 _LUMA_R, _LUMA_G, _LUMA_B = 77, 150, 29
@@ -34,66 +50,338 @@ _LUMA_R, _LUMA_G, _LUMA_B = 77, 150, 29
 # peaks at ~354 MiB; the cap keeps a small file that claims a huge image from taking gigabytes.
 MAX_PIXELS = 1 << 24
 
+# Room for metadata (ICC profiles, EXIF, text chunks) in an image file beyond its pixel data.
+_IMAGE_FILE_SLACK_BYTES = 16 << 20
+# A PFM header is three short lines; anything longer is not a PFM.
+_PFM_HEADER_BYTES = 4096
+# A known ground-truth disparity is at most this many times the map's width. A pixel whose match
+# lies in the other view has |d| < W; the factor leaves room for crops of a wider scene, and
+# still refuses what a corrupt file or a wrong --gt-scale gives (1e30, 65535 / 1 on a 450 px map).
+GT_MAX_WIDTHS = 4
+# A calib.txt is a dozen short lines.
+MAX_TEXT_FILE_BYTES = 1 << 20
+
+# The largest total of array bytes an .npz archive may hold: 256 MiB, over 2000 times the
+# largest file the project writes (the shipped layer is 11 KB, a float mccnn4 model 112 KB).
+MAX_NPZ_BYTES = 256 << 20
+# The most members an .npz archive may have (a 4-layer quantized artifact has 29).
+MAX_NPZ_MEMBERS = 1024
+# Deflate shrinks real weights 1-3x and at most ~1032x (long runs of one byte): a member larger
+# than _NPZ_RATIO_FLOOR_BYTES that is more than MAX_NPZ_RATIO times smaller in the archive is
+# refused as a zip bomb, even when it is under MAX_NPZ_BYTES.
+MAX_NPZ_RATIO = 100
+_NPZ_RATIO_FLOOR_BYTES = 1 << 20
+
 # zlib level for PNG output; fixed so that output does not depend on OpenCV's default.
 _PNG_COMPRESSION = 3
 
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+# JPEG frame headers: SOF0..SOF15 except DHT (C4), JPG (C8) and DAC (CC).
+_JPEG_SOF = frozenset(range(0xC0, 0xD0)) - {0xC4, 0xC8, 0xCC}
+# JPEG markers without a length field: TEM and RST0..RST7 (SOI is handled before the loop).
+_JPEG_STANDALONE = frozenset([0x01, *range(0xD0, 0xD8)])
 
-def _read_bytes(path: str | os.PathLike, what: str) -> bytes:
-    """The bytes of ``path``, or an InputError naming the file if it is missing or unreadable."""
-    p = Path(path)
-    if not p.exists():
-        raise InputError(f"{what} file {p} not found: check the path (and the scene folder)")
-    if not p.is_file():
-        raise InputError(f"{what} path {p} is not a file: give the path of a file")
+_READ_HINTS = {
+    errno.EACCES: "check its permissions",
+    errno.EPERM: "check its permissions",
+    errno.ENAMETOOLONG: "use a shorter path",
+    errno.EISDIR: "give the path of a file, not a folder",
+    errno.ENOTDIR: "a part of the path is a file, not a folder",
+    errno.ELOOP: "the path runs in a loop of symbolic links",
+}
+
+# cv2.imdecode's stderr is silenced by pointing file descriptor 2 elsewhere, which is process
+# wide: one decode at a time.
+_DECODE_LOCK = threading.Lock()
+
+
+# ---------------------------------------------------------------------------------------------
+# paths and files
+
+
+def path_text(path: str | bytes | os.PathLike) -> str:
+    """A path as it goes into a one-line message: control characters escaped and the middle of
+    a very long path (a 5000-character name, say) elided."""
+    text = os.fsdecode(os.fspath(path))
+    text = "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+    if len(text) > 200:
+        text = f"{text[:120]}...{text[-60:]} ({len(text)} characters)"
+    return text
+
+
+def _mib(n_bytes: int) -> str:
+    return f"{n_bytes} bytes" if n_bytes < 1 << 20 else f"{n_bytes / 2**20:.1f} MiB"
+
+
+def _os_failure(noun: str, shown: str, exc: OSError) -> str:
+    """``cannot read <noun> <path> (<reason>): <hint>``."""
+    hint = _READ_HINTS.get(exc.errno, "check the path")
+    return f"cannot read {noun} {shown} ({describe_os_error(exc)}): {hint}"
+
+
+def path_kind(path: str | os.PathLike, what: str) -> str | None:
+    """``"file"``, ``"folder"`` or ``"other"`` for what ``path`` is, ``None`` when nothing is
+    there; any other failure of ``stat`` (permission denied, a path too long, a loop of links)
+    raises InputError naming ``what`` and the path, where ``Path.is_file`` would raise OSError."""
     try:
-        data = p.read_bytes()
+        mode = os.stat(path).st_mode
+    except (FileNotFoundError, NotADirectoryError):
+        return None
     except OSError as exc:
-        raise InputError(
-            f"cannot read {what} file {p} ({exc.strerror}): check its permissions"
-        ) from exc
+        raise InputError(_os_failure(what, path_text(path), exc)) from None
+    except ValueError:  # an embedded NUL byte
+        raise InputError(f"{what} {path_text(path)} is not a valid path: check it") from None
+    if stat.S_ISDIR(mode):
+        return "folder"
+    return "file" if stat.S_ISREG(mode) else "other"
+
+
+def is_file(path: str | os.PathLike, what: str) -> bool:
+    """``Path.is_file`` that turns a failing ``stat`` into an InputError (:func:`path_kind`)."""
+    return path_kind(path, what) == "file"
+
+
+def is_folder(path: str | os.PathLike, what: str) -> bool:
+    """``Path.is_dir`` that turns a failing ``stat`` into an InputError (:func:`path_kind`)."""
+    return path_kind(path, what) == "folder"
+
+
+def sub_folders(path: str | os.PathLike, what: str) -> list[Path]:
+    """The sub-folders of a folder, sorted by name, hidden ones (``.name``) left out; a folder
+    that cannot be listed raises InputError naming ``what`` and the path."""
+    root = Path(path)
+    try:
+        names = sorted(entry.name for entry in os.scandir(root))
+    except OSError as exc:
+        raise InputError(_os_failure(what, path_text(root), exc)) from None
+    return [root / n for n in names if not n.startswith(".") and is_folder(root / n, what)]
+
+
+@contextlib.contextmanager
+def _open_file(path, noun: str, error: type = InputError, shown: str | None = None):
+    """Open a regular file for reading and yield ``(file, size in bytes)``; a missing file, a
+    folder, a device or pipe (opened non-blocking: a FIFO cannot hang the open) and every
+    ``OSError``, here or while the caller reads, raise ``error`` with one line naming ``noun`` and
+    the path (``shown``, by default :func:`path_text`)."""
+    shown = path_text(path) if shown is None else shown
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
+    except FileNotFoundError:
+        raise error(f"{noun} {shown} not found: check the path") from None
+    except OSError as exc:
+        raise error(_os_failure(noun, shown, exc)) from None
+    except ValueError:  # an embedded NUL byte
+        raise error(f"{noun} path {shown} is not a valid path: check it") from None
+    try:
+        st = os.fstat(fd)
+        if stat.S_ISDIR(st.st_mode):
+            raise error(f"{noun} path {shown} is a folder: give the path of a file")
+        if not stat.S_ISREG(st.st_mode):
+            raise error(
+                f"{noun} path {shown} is not a regular file (a device, pipe or socket): "
+                "give the path of a file"
+            )
+        f = os.fdopen(fd, "rb")
+    except BaseException:
+        os.close(fd)
+        raise
+    with f:
+        try:
+            yield f, st.st_size
+        except OSError as exc:
+            raise error(_os_failure(noun, shown, exc)) from None
+
+
+def _read_bytes(path: str | os.PathLike, what: str, max_bytes: int, too_big: str) -> bytes:
+    """The bytes of ``path`` (at most ``max_bytes``; ``too_big`` is the fix printed beyond),
+    or an InputError naming the file if it is missing, unreadable, empty or too large."""
+    with _open_file(path, f"{what} file") as (f, size):
+        if size > max_bytes:
+            raise InputError(
+                f"{what} file {path_text(path)} is {_mib(size)}, more than the "
+                f"{_mib(max_bytes)} allowed: {too_big}"
+            )
+        data = f.read(max_bytes + 1)
+    if len(data) > max_bytes:
+        raise InputError(f"{what} file {path_text(path)} grew while it was read: read it again")
     if not data:
-        raise InputError(f"{what} file {p} is empty: replace it with a valid file")
+        raise InputError(f"{what} file {path_text(path)} is empty: replace it with a valid file")
     return data
 
 
-def _decode(data: bytes, flags: int, path: str | os.PathLike, what: str) -> np.ndarray:
-    """Decode an encoded image with OpenCV; InputError naming the file if it cannot be decoded."""
+def read_text(
+    path: str | os.PathLike, what: str, max_bytes: int = MAX_TEXT_FILE_BYTES, encoding="ascii"
+) -> str:
+    """A text file of at most ``max_bytes`` in ``encoding``; InputError naming the file otherwise
+    (missing, unreadable, a folder, empty, too long, or not text in that encoding)."""
+    data = _read_bytes(path, what, max_bytes, "it is not a text file of this kind")
     try:
-        img = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), flags)
-    except cv2.error:
-        img = None
-    if img is None:
+        return data.decode(encoding)
+    except UnicodeDecodeError as exc:
         raise InputError(
-            f"{what} file {Path(path)} is corrupt or not an image format OpenCV can read: "
-            "replace it with a valid PNG"
+            f"{what} file {path_text(path)} is not {encoding} text (byte {exc.start} is "
+            f"0x{data[exc.start]:02x}): replace it"
+        ) from None
+
+
+# ---------------------------------------------------------------------------------------------
+# image sizes from headers
+
+
+def max_image_file_bytes(max_pixels: int) -> int:
+    """The longest image file read for a pixel cap: 8 bytes a pixel (16-bit RGBA stored
+    uncompressed, the largest PNG) plus 16 MiB of metadata."""
+    return 8 * max_pixels + _IMAGE_FILE_SLACK_BYTES
+
+
+def _png_size(data: bytes) -> tuple[int, int] | None:
+    """(width, height) from a PNG's IHDR chunk, or None if ``data`` does not start like a PNG."""
+    if len(data) < 24 or data[:8] != _PNG_SIGNATURE or data[12:16] != b"IHDR":
+        return None
+    return int.from_bytes(data[16:20], "big"), int.from_bytes(data[20:24], "big")
+
+
+def _jpeg_size(data: bytes) -> tuple[int, int] | None:
+    """(width, height) from a JPEG's frame header (SOFn), or None if it is not found before the
+    scan data (then the decoder decides; a height of 0, defined later by a DNL marker, too)."""
+    if data[:2] != b"\xff\xd8":
+        return None
+    pos, n = 2, len(data)
+    while pos + 4 <= n:
+        if data[pos] != 0xFF:
+            return None
+        marker = data[pos + 1]
+        if marker == 0xFF:  # fill byte
+            pos += 1
+            continue
+        if marker in _JPEG_STANDALONE:
+            pos += 2
+            continue
+        if marker in (0xD9, 0xDA):  # end of image, start of scan: no frame header before
+            return None
+        length = int.from_bytes(data[pos + 2 : pos + 4], "big")
+        if marker in _JPEG_SOF:
+            if length < 8 or pos + 9 > n:
+                return None
+            height = int.from_bytes(data[pos + 5 : pos + 7], "big")
+            width = int.from_bytes(data[pos + 7 : pos + 9], "big")
+            return (width, height) if height else None
+        if length < 2:
+            return None
+        pos += 2 + length
+    return None
+
+
+def png_size(path: str | os.PathLike, what: str = "image") -> tuple[int, int]:
+    """(width, height) of a PNG from its IHDR chunk, reading 24 bytes (no decoding)."""
+    with _open_file(path, f"{what} file") as (f, _):
+        head = f.read(24)
+    size = _png_size(head)
+    if size is None:
+        raise InputError(f"{what} {path_text(path)} is not a valid PNG file: replace it")
+    return size
+
+
+def _check_pixels(width: int, height: int, max_pixels: int, what: str, path) -> None:
+    if width * height > max_pixels:
+        raise InputError(
+            f"{what} {path_text(path)} is {width}x{height} ({width * height / 1e6:.1f} M "
+            f"pixels), above the {max_pixels / 1e6:.1f} M-pixel cap: downsample it or raise "
+            "the cap with --max-pixels"
         )
+
+
+# ---------------------------------------------------------------------------------------------
+# decoding
+
+
+def _imdecode_quietly(data: bytes, flags: int) -> tuple[np.ndarray | None, str]:
+    """``cv2.imdecode`` returning ``(image or None, the last line printed on stderr)``: OpenCV's
+    log is switched off and file descriptor 2, where libpng and libjpeg write, points at a
+    temporary file for the call (put back in a ``finally``; without one, nothing is caught)."""
+    buf = np.frombuffer(data, dtype=np.uint8)
+    with _DECODE_LOCK:
+        level = cv2.utils.logging.getLogLevel()
+        cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
+        try:
+            with contextlib.ExitStack() as stack:
+                sink = saved = None
+                with contextlib.suppress(OSError):
+                    sink = stack.enter_context(tempfile.TemporaryFile())
+                    saved = os.dup(2)
+                try:
+                    if saved is not None:
+                        with contextlib.suppress(Exception):
+                            sys.stderr.flush()  # Python's buffered text goes out first
+                        os.dup2(sink.fileno(), 2)
+                    img = cv2.imdecode(buf, flags)
+                except cv2.error:
+                    img = None
+                finally:
+                    if saved is not None:
+                        os.dup2(saved, 2)
+                        os.close(saved)
+                said = ""
+                if sink is not None:  # the last 4 KiB hold the last line
+                    sink.seek(max(0, sink.seek(0, os.SEEK_END) - 4096))
+                    said = sink.read().decode("utf-8", "replace")
+        finally:
+            cv2.utils.logging.setLogLevel(level)
+    lines = [line.strip() for line in said.splitlines() if line.strip()]
+    return img, (path_text(lines[-1])[:120] if lines else "")
+
+
+def _decode(data: bytes, flags: int, path, what: str, max_pixels: int) -> np.ndarray:
+    """Decode an encoded image with OpenCV, refusing one above ``max_pixels`` -- before decoding
+    when its PNG or JPEG header gives the size; InputError naming the file if it cannot be
+    decoded."""
+    size = _png_size(data) or _jpeg_size(data)
+    if size is not None:
+        _check_pixels(*size, max_pixels, what, path)
+    img, said = _imdecode_quietly(data, flags)
+    if img is None:
+        reason = f" ({said})" if said else ""
+        raise InputError(
+            f"{what} file {path_text(path)} is corrupt or not an image format OpenCV can "
+            f"read{reason}: replace it with a valid PNG"
+        )
+    _check_pixels(img.shape[1], img.shape[0], max_pixels, what, path)
     return img
 
 
-def read_image(path: str | os.PathLike) -> np.ndarray:
+def _read_encoded(path, what: str, max_pixels: int) -> bytes:
+    return _read_bytes(
+        path,
+        what,
+        max_image_file_bytes(max_pixels),
+        "no image of the pixel cap is that long; downsample it or raise the cap with --max-pixels",
+    )
+
+
+def read_image(path: str | os.PathLike, *, max_pixels: int = MAX_PIXELS) -> np.ndarray:
     """Read an 8-bit image as ``uint8`` ``(H, W)`` grey or ``(H, W, 3)`` RGB.
 
     An alpha channel is dropped; palette images come out as RGB. 16-bit (or floating-point)
-    images are refused because the chip's input is 8 bits per sample.
+    images are refused because the chip's input is 8 bits per sample. An image of more than
+    ``max_pixels`` pixels is refused (before decoding for PNG and JPEG).
     """
-    img = _decode(_read_bytes(path, "image"), cv2.IMREAD_UNCHANGED, path, "image")
+    data = _read_encoded(path, "image", max_pixels)
+    img = _decode(data, cv2.IMREAD_UNCHANGED, path, "image", max_pixels)
     if img.dtype != np.uint8:
         raise InputError(
-            f"image {Path(path)} has {img.dtype} samples but 8-bit is needed: "
+            f"image {path_text(path)} has {img.dtype} samples but 8-bit is needed: "
             "convert it to an 8-bit PNG"
         )
     if img.ndim == 2:
         return img
     channels = img.shape[2]
-    if channels == 1:
-        return np.ascontiguousarray(img[:, :, 0])
-    if channels == 2:  # grey + alpha
+    if channels in (1, 2):  # grey (+ alpha)
         return np.ascontiguousarray(img[:, :, 0])
     if channels == 3:
         return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
     if channels == 4:
         return cv2.cvtColor(img, cv2.COLOR_BGRA2RGB)
-    raise InputError(f"image {Path(path)} has {channels} channels: use a grey or RGB image")
+    raise InputError(f"image {path_text(path)} has {channels} channels: use a grey or RGB image")
 
 
 def to_grey(img: np.ndarray) -> np.ndarray:
@@ -127,7 +415,7 @@ def to_grey(img: np.ndarray) -> np.ndarray:
     raise InputError(f"image has shape {img.shape}: give a grey (H, W) or RGB (H, W, 3) image")
 
 
-def _pfm_token(data: bytes, pos: int, path: Path) -> tuple[bytes, int]:
+def _pfm_token(data: bytes, pos: int, path) -> tuple[bytes, int]:
     """Skip whitespace from ``pos`` and return the next header token and the position after it."""
     n = len(data)
     while pos < n and data[pos : pos + 1].isspace():
@@ -136,27 +424,38 @@ def _pfm_token(data: bytes, pos: int, path: Path) -> tuple[bytes, int]:
     while pos < n and not data[pos : pos + 1].isspace():
         pos += 1
     if start == pos or pos - start > 64:
-        raise InputError(f"PFM file {path} has a truncated or corrupt header: replace the file")
+        raise InputError(
+            f"PFM file {path_text(path)} has a truncated or corrupt header: replace the file"
+        )
     return data[start:pos], pos
 
 
-def read_pfm(path: str | os.PathLike) -> np.ndarray:
+def read_pfm(path: str | os.PathLike, *, max_pixels: int = MAX_PIXELS) -> np.ndarray:
     """Read a grey PFM (``Pf``) as ``float32`` ``(H, W)`` with row 0 at the top.
 
     Follows the Middlebury / netpbm convention: header ``Pf``, ``W H``, then a scale whose sign
     gives the byte order (negative = little-endian, positive = big-endian) and whose magnitude is
     **ignored** (OpenCV divides the data by it; Middlebury's files say -0.003922, which would make
     every disparity 255x too large). Rows are stored bottom-to-top. ``inf`` and ``nan`` are kept.
+    A map of more than ``max_pixels`` pixels is refused (the file is at most 4 bytes a pixel and
+    a short header long, so nothing larger is read).
     """
     p = Path(path)
-    data = _read_bytes(p, "PFM")
+    shown = path_text(p)
+    data = _read_bytes(
+        p,
+        "PFM",
+        4 * max_pixels + _PFM_HEADER_BYTES,
+        "no float32 map of the pixel cap is that long; downsample it or raise the cap with "
+        "--max-pixels",
+    )
     if data[:2] == b"PF":
         raise InputError(
-            f"PFM file {p} is a colour (PF) image: a grey (Pf) disparity map is needed"
+            f"PFM file {shown} is a colour (PF) image: a grey (Pf) disparity map is needed"
         )
     if data[:2] != b"Pf" or len(data) < 3 or not data[2:3].isspace():
         raise InputError(
-            f"file {p} is not a grey PFM (it does not start with 'Pf'): check the path"
+            f"file {shown} is not a grey PFM (it does not start with 'Pf'): check the path"
         )
     pos = 2
     try:
@@ -166,14 +465,15 @@ def read_pfm(path: str | os.PathLike) -> np.ndarray:
         width, height, scale = int(width_tok), int(height_tok), float(scale_tok)
     except ValueError:
         raise InputError(
-            f"PFM file {p} has a corrupt header (size or scale): replace the file"
+            f"PFM file {shown} has a corrupt header (size or scale): replace the file"
         ) from None
     if width <= 0 or height <= 0:
-        raise InputError(f"PFM file {p} declares a size of {width}x{height}: replace the file")
+        raise InputError(f"PFM file {shown} declares a size of {width}x{height}: replace the file")
+    _check_pixels(width, height, max_pixels, "PFM file", p)
     if scale == 0 or not np.isfinite(scale):
         raise InputError(
-            f"PFM file {p} has scale {scale_tok.decode(errors='replace')}, which gives no byte "
-            "order (negative = little-endian, positive = big-endian): fix its header"
+            f"PFM file {shown} has scale {scale_tok.decode(errors='replace')}, which gives no "
+            "byte order (negative = little-endian, positive = big-endian): fix its header"
         )
     # Exactly one whitespace byte ends the header; accept a CRLF pair written on Windows.
     if data[pos : pos + 2] == b"\r\n":
@@ -184,8 +484,8 @@ def read_pfm(path: str | os.PathLike) -> np.ndarray:
     got = len(data) - pos
     if got != expected:
         raise InputError(
-            f"PFM file {p} holds {max(got, 0)} data bytes but {width}x{height} float32 needs "
-            f"{expected}: the file is truncated or corrupt, replace it"
+            f"PFM file {shown} holds {max(got, 0)} data bytes but {width}x{height} float32 "
+            f"needs {expected}: the file is truncated or corrupt, replace it"
         )
     dtype = "<f4" if scale < 0 else ">f4"
     rows_bottom_up = np.frombuffer(data, dtype=dtype, count=width * height, offset=pos)
@@ -259,7 +559,32 @@ def write_disparity_png(path: str | os.PathLike, disp: np.ndarray, dmax: float) 
     atomic_write_bytes(path, encode_png(disparity_to_colour(disp, dmax)))
 
 
-def read_gt(path: str | os.PathLike, scale: float | None = None) -> np.ndarray:
+def check_gt_values(gt: np.ndarray, source: str) -> None:
+    """Refuse disparities no scene can have (:data:`GT_MAX_WIDTHS`); non-finite ones are
+    unknown and pass. ``source`` names the GT in the message (``"GT file x.pfm"``)."""
+    limit = GT_MAX_WIDTHS * gt.shape[1]
+    finite = np.isfinite(gt)
+    bad = finite & ((gt < 0) | (gt > limit))
+    if not bad.any():
+        return
+    y, x = divmod(int(np.argmax(bad.ravel())), gt.shape[1])
+    value = float(gt[y, x])
+    where = f"at row {y}, column {x}"
+    if value < 0:
+        raise InputError(
+            f"{source} holds the negative disparity {value:g} {where}: "
+            "disparities are >= 0 (unknown is inf in a PFM, 0 in a PNG); fix the file"
+        )
+    raise InputError(
+        f"{source} holds the disparity {value:g} {where}, more than {GT_MAX_WIDTHS} "
+        f"x its width {gt.shape[1]} = {limit} px, which no scene can have: the file is corrupt "
+        "or its scale is wrong (--gt-scale)"
+    )
+
+
+def read_gt(
+    path: str | os.PathLike, scale: float | None = None, *, max_pixels: int = MAX_PIXELS
+) -> np.ndarray:
     """Read ground-truth disparity as ``float32`` ``(H, W)`` in pixels, ``inf`` where unknown.
 
     - ``.pfm``: :func:`read_pfm`, divided by ``scale`` if given (Middlebury 2014 PFMs are in
@@ -267,50 +592,197 @@ def read_gt(path: str | os.PathLike, scale: float | None = None) -> np.ndarray:
     - ``.png``: 8- or 16-bit grey; 0 means unknown (becomes ``inf``), any other value ``v``
       becomes ``v / scale``. The scale depends on the dataset (Middlebury 2005/2006 ThirdSize 3,
       2003 quarter size 4, KITTI 256), so it must be given.
+
+    A known disparity must be in ``0 .. GT_MAX_WIDTHS * W`` (:data:`GT_MAX_WIDTHS`); a map of
+    more than ``max_pixels`` pixels is refused before it is decoded.
     """
     p = Path(path)
     if scale is not None and not (np.isfinite(scale) and scale > 0):
-        raise InputError(f"GT scale for {p} is {scale}: give a positive number (--gt-scale)")
+        raise InputError(
+            f"GT scale for {path_text(p)} is {scale}: give a positive number (--gt-scale)"
+        )
     ext = p.suffix.lower()
     if ext == ".pfm":
-        gt = read_pfm(p)
+        gt = read_pfm(p, max_pixels=max_pixels)
         if scale is not None and scale != 1:
             gt = (gt / np.float32(scale)).astype(np.float32)
         gt[~np.isfinite(gt)] = np.inf
+        check_gt_values(gt, f"GT {path_text(p)}")
         return gt
     if ext == ".png":
         if scale is None:
             raise InputError(
-                f"GT {p} is a PNG whose disparity scale is unknown: pass --gt-scale "
+                f"GT {path_text(p)} is a PNG whose disparity scale is unknown: pass --gt-scale "
                 "(Middlebury 2005/2006 ThirdSize 3, 2003 quarter 4, KITTI 256)"
             )
-        raw = _decode(_read_bytes(p, "GT"), cv2.IMREAD_UNCHANGED, p, "GT")
+        data = _read_encoded(p, "GT", max_pixels)
+        raw = _decode(data, cv2.IMREAD_UNCHANGED, p, "GT", max_pixels)
         if raw.ndim == 3:
             if not all(np.array_equal(raw[:, :, 0], raw[:, :, c]) for c in range(raw.shape[2])):
-                raise InputError(f"GT {p} is a colour PNG: a grey 8- or 16-bit PNG is needed")
+                raise InputError(
+                    f"GT {path_text(p)} is a colour PNG: a grey 8- or 16-bit PNG is needed"
+                )
             raw = raw[:, :, 0]
         if raw.dtype not in (np.uint8, np.uint16):
-            raise InputError(f"GT {p} has {raw.dtype} samples: an 8- or 16-bit PNG is needed")
+            raise InputError(
+                f"GT {path_text(p)} has {raw.dtype} samples: an 8- or 16-bit PNG is needed"
+            )
         gt = raw.astype(np.float32) / np.float32(scale)
         gt[raw == 0] = np.inf
+        check_gt_values(gt, f"GT {path_text(p)}")
         return gt
-    raise InputError(f"GT {p} has extension '{p.suffix}': give a .pfm or .png ground-truth file")
+    raise InputError(
+        f"GT {path_text(p)} has extension '{p.suffix}': give a .pfm or .png ground-truth file"
+    )
 
 
-def read_mask(path: str | os.PathLike) -> np.ndarray:
-    """Read a mask as ``uint8`` ``(H, W)`` grey levels (palette PNGs are expanded to grey)."""
-    return _decode(_read_bytes(path, "mask"), cv2.IMREAD_GRAYSCALE, path, "mask")
+def read_mask(path: str | os.PathLike, *, max_pixels: int = MAX_PIXELS) -> np.ndarray:
+    """Read a mask as ``uint8`` ``(H, W)`` grey levels (palette PNGs are expanded to grey); a
+    mask of more than ``max_pixels`` pixels is refused before it is decoded."""
+    data = _read_encoded(path, "mask", max_pixels)
+    return _decode(data, cv2.IMREAD_GRAYSCALE, path, "mask", max_pixels)
 
 
-def open_npz(name: str, what: str, fix: str):
-    """Open an .npz archive for reading; a missing, unreadable or single-array file raises
-    :class:`ConfigError` naming ``what`` and the file, ending with ``fix``."""
-    if not os.path.isfile(name):
-        raise ConfigError(f"{what} {name!r} not found; give the path of an .npz file")
-    try:
-        archive = np.load(name, allow_pickle=False)
-    except (OSError, ValueError, zipfile.BadZipFile) as err:
-        raise ConfigError(f"{what} {name!r} is not a readable .npz archive ({err}); {fix}") from None
-    if not isinstance(archive, np.lib.npyio.NpzFile):
-        raise ConfigError(f"{what} {name!r} holds a single array, not an .npz archive; {fix}")
-    return archive
+# ---------------------------------------------------------------------------------------------
+# .npz archives
+
+
+class NpzArrays(dict):
+    """The arrays of an ``.npz`` archive, name -> array, read in full by :func:`open_npz`.
+
+    Shaped like numpy's ``NpzFile``: :attr:`files` lists the names and ``with open_npz(...) as
+    archive:`` works (the file is closed already). :meth:`field` and :meth:`scalar` fetch a
+    value or raise a one-line ConfigError naming the file.
+    """
+
+    def __init__(self, name: str, what: str, arrays: dict[str, np.ndarray]):
+        super().__init__(arrays)
+        self.name, self.what, self.files = name, what, list(arrays)
+
+    def __enter__(self) -> NpzArrays:  # noqa: PYI034 (not subclassed)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        return None
+
+    def field(self, key: str) -> np.ndarray:
+        """The array ``key``; ConfigError ``<what> <file> lacks the field <key>`` if absent."""
+        if key not in self:
+            raise ConfigError(f"{self.what} {path_text(self.name)!r} lacks the field {key!r}")
+        return self[key]
+
+    def scalar(self, key: str, kinds: str):
+        """The 0-d array ``key`` of a dtype kind in ``kinds`` (``"iu"``, ``"f"``, ``"U"``...)
+        as a Python value; ConfigError if it is missing, not 0-d or of another kind."""
+        value = self.field(key)
+        if value.shape != () or value.dtype.kind not in kinds:
+            raise ConfigError(
+                f"{self.what} {path_text(self.name)!r}: {key} must be a scalar, got "
+                f"{value.dtype} {value.shape}"
+            )
+        return value.item()
+
+
+# What a damaged zip or .npy header can raise from zipfile, zlib and numpy's header parser.
+_NPZ_ERRORS = (OSError, ValueError, EOFError, OverflowError, RuntimeError, zlib.error)
+_NPZ_ERRORS += (zipfile.BadZipFile,)
+# Room for the zip's own headers on disk beyond MAX_NPZ_BYTES of members.
+_NPZ_FILE_SLACK_BYTES = 64 << 20
+
+
+def _npy_header(member) -> tuple[tuple, np.dtype, int]:
+    """(shape, dtype, header length in bytes) of an ``.npy`` stream, from its header only."""
+    version = np.lib.format.read_magic(member)
+    if version == (1, 0):
+        shape, _, dtype = np.lib.format.read_array_header_1_0(member)
+    elif version == (2, 0):
+        shape, _, dtype = np.lib.format.read_array_header_2_0(member)
+    else:
+        raise ValueError(f".npy format version {version[0]}.{version[1]} is not read here")
+    return shape, dtype, member.tell()
+
+
+def _checked_members(archive: zipfile.ZipFile, refuse) -> dict[str, zipfile.ZipInfo]:
+    """Array name -> member of a zip, each member checked from the zip directory and its
+    ``.npy`` header before anything is unpacked (:func:`open_npz`)."""
+    infos = archive.infolist()
+    total = sum(info.file_size for info in infos)
+    if len(infos) > MAX_NPZ_MEMBERS or total > MAX_NPZ_BYTES:
+        raise refuse(
+            f"holds {len(infos)} members of {_mib(total)} unpacked, more than the "
+            f"{MAX_NPZ_MEMBERS} members and {_mib(MAX_NPZ_BYTES)} allowed"
+        )
+    out: dict[str, zipfile.ZipInfo] = {}
+    for info in infos:
+        member, size, packed = repr(path_text(info.filename)), info.file_size, info.compress_size
+        key = info.filename.removesuffix(".npy")
+        if info.is_dir() or key == info.filename or key in out:
+            raise refuse(f"holds {member}, which is not an .npy array of its own name")
+        if info.flag_bits & 0x1 or info.compress_type not in (
+            zipfile.ZIP_STORED,
+            zipfile.ZIP_DEFLATED,
+        ):
+            raise refuse(f"member {member} is encrypted or packed otherwise than numpy does")
+        if info.compress_type == zipfile.ZIP_STORED and packed != size:
+            raise refuse(f"member {member} is stored with two different sizes: it is damaged")
+        if size > _NPZ_RATIO_FLOOR_BYTES and size > MAX_NPZ_RATIO * packed:
+            raise refuse(
+                f"member {member} unpacks {size / max(packed, 1):.0f}x ({_mib(size)} from "
+                f"{_mib(packed)}), beyond the {MAX_NPZ_RATIO}x of real arrays: a zip bomb?"
+            )
+        with archive.open(info) as stream:
+            shape, dtype, header_bytes = _npy_header(stream)
+        if dtype.hasobject:
+            raise refuse(f"member {member} holds Python objects ({dtype}), which are never loaded")
+        nbytes = math.prod(shape) * dtype.itemsize
+        if min(shape, default=0) < 0 or nbytes > MAX_NPZ_BYTES or header_bytes + nbytes != size:
+            raise refuse(
+                f"member {member} claims {shape} {dtype} = {_mib(nbytes)} in its header, but the "
+                f"zip directory gives it {_mib(size - header_bytes)} (and at most "
+                f"{_mib(MAX_NPZ_BYTES)} is read): it is damaged"
+            )
+        out[key] = info
+    return out
+
+
+def open_npz(name: str, what: str, fix: str) -> NpzArrays:
+    """Read an ``.npz`` archive in full, each array checked before it is allocated.
+
+    Checked first, from the zip directory: every member an ``.npy`` (stored or deflated, not
+    encrypted), at most :data:`MAX_NPZ_MEMBERS` of them and :data:`MAX_NPZ_BYTES` unpacked in
+    all, none over 1 MiB unpacking more than :data:`MAX_NPZ_RATIO` times; then from each
+    member's ``.npy`` header (format 1.0 or 2.0): no object dtype, and shape x itemsize is what
+    the directory says the member holds. Only then are the arrays read (``allow_pickle=False``);
+    zipfile never inflates a member past its stated size and checks its CRC.
+
+    Every problem (missing, unreadable, a folder, empty, a single ``.npy``, not a zip, a member
+    that fails a check) raises :class:`ConfigError` naming ``what`` and the file, ending ``fix``.
+    """
+    shown = repr(path_text(name))
+
+    def refuse(reason: str) -> ConfigError:
+        return ConfigError(f"{what} {shown} {reason}; {fix}")
+
+    with _open_file(name, what, ConfigError, shown) as (f, size):
+        head = f.read(6)
+        if not head:
+            raise refuse("is empty")
+        if head == b"\x93NUMPY":
+            raise refuse("holds a single array, not an .npz archive")
+        if head[:4] not in (b"PK\x03\x04", b"PK\x05\x06"):
+            raise refuse("is not a readable .npz archive (it is not a zip file)")
+        if size > MAX_NPZ_BYTES + _NPZ_FILE_SLACK_BYTES:
+            raise refuse(f"is {_mib(size)}, more than an archive of {_mib(MAX_NPZ_BYTES)} can be")
+        try:
+            f.seek(0)
+            with zipfile.ZipFile(f) as archive:
+                arrays = {}
+                for key, info in _checked_members(archive, refuse).items():
+                    with archive.open(info) as stream:
+                        arrays[key] = np.lib.format.read_array(stream, allow_pickle=False)
+        except ConfigError:
+            raise
+        except _NPZ_ERRORS as err:
+            text = " ".join(str(err).split())[:160] or type(err).__name__
+            raise refuse(f"is not a readable .npz archive ({text})") from None
+    return NpzArrays(os.fsdecode(os.fspath(name)), what, arrays)

@@ -139,18 +139,6 @@ def check_truth(gt, masks, shape: tuple[int, int]) -> tuple[np.ndarray, dict[str
     return gt, checked
 
 
-def check_gt_values(gt: np.ndarray, width: int) -> None:
-    """The GT of an image ``width`` px wide holds disparities: every known (finite) value is at
-    least 0 and below the width (no pixel can move further)."""
-    known = gt[np.isfinite(gt)]
-    if known.size and (known.min() < 0 or known.max() >= width):
-        raise InputError(
-            f"the GT holds disparities from {float(known.min()):g} to {float(known.max()):g} but "
-            f"a disparity lies in [0, {width}) for an image {width} px wide: check the GT file "
-            "and its scale (--gt-scale)"
-        )
-
-
 def undefined_metrics(results: Mapping[str, Mapping[str, float]]) -> dict[str, str]:
     """Why a mask's metrics are undefined (NaN in Python, null in JSON), per mask that has any:
     no evaluated pixel, or no valid disparity among them."""

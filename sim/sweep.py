@@ -17,30 +17,61 @@ A sweep file (TOML) names the points and the scenes::
 Scenes: ``default`` (the embedded Motorcycle pair, with GT), ``WxH`` (a synthetic pair for
 timing only: deterministic random texture, the right view the left shifted by min(8, W // 8)
 pixels, no GT), a Middlebury scene folder, or a folder of scenes (every scene in it, sorted);
-``data:NAME`` is NAME inside the shared data folder (:func:`sim.datasets.shared_data_dir`).
-Relative paths are relative to the sweep file. A Middlebury scene's D comes from its
-``calib.txt`` unless the sweep sets ``sva.disparities``.
+``data:NAME`` is NAME inside the shared data folder (:func:`sim.datasets.shared_data_dir`), and a
+NAME that resolves outside that folder (``data:../..``, an absolute path, a symbolic link out of
+it) is refused. Relative paths are relative to the sweep file. A Middlebury scene's D comes from
+its ``calib.txt`` unless the sweep sets ``sva.disparities``.
+
+A sweep has at most :data:`MAX_POINTS` points (the product of the [grid] list lengths times the
+[zip] length, counted before anything is expanded); ``max_points`` (``--max-points N``) raises
+the cap. Every key and value is checked before anything runs; an unreadable sweep or config file
+and a point given twice (the same overrides on the same scene) are one-line errors.
 
 Every point x scene is one task on a Dask cluster: a ``LocalCluster`` of worker processes on the
 loopback interface by default, or an existing cluster (``scheduler="tcp://host:8786"``) -- the
-same code path. The results go to ``results.csv`` in the output folder: one row per point x
-scene, in plan order whatever the completion order, with every override, every report figure
-(nested keys flattened with dots; FIFO occupancy histograms left out), the analytic estimate
-(``estimate.*``) and, when the scene has GT, the accuracy (``metrics.<mask>.<metric>``). The file
-is rewritten atomically after every finished task, so an interrupted sweep leaves a valid CSV,
-and a rerun skips every row already there with ``status`` ok (failed rows are retried). A failing
-task is recorded with ``status`` error and a one-line ``error`` without stopping the others.
+same code path. The local cluster has no dashboard, and its worker processes start with SIGINT
+ignored, so a Ctrl-C at the terminal reaches only the sweep, which shuts them down (one pressed
+during the second the cluster takes to start is not seen). At most
+:data:`IN_FLIGHT_PER_WORKER` tasks per worker thread are submitted and not yet written, so memory
+stays bounded however long the sweep. Dask's own log and warnings are kept off stderr unless
+``verbose``.
+
+The results go to ``results.csv`` in the output folder: one row per point x scene with every
+override, every report figure (nested keys flattened with dots; FIFO occupancy histograms left
+out), the analytic estimate (``estimate.*``) and, when the scene has GT, the accuracy
+(``metrics.<mask>.<metric>``); no wall-clock figures, so a sweep run twice gives the same bytes.
+Columns: ``point, scene, status, error, point_id``, the swept keys, then every other column
+sorted. Each finished task's row is *appended* (one ``write`` of the whole line) while holding
+the output folder's lock (:func:`sim.outputs.folder_lock`), so sweeps sharing an ``--out`` keep
+each other's rows; a row with a column the header lacks makes the file be rewritten once,
+atomically, from a fresh read under the lock. A write that fails (disk full) is cut back to the
+last whole row and ends the sweep with a one-line error. Readers ignore a torn last line (no
+final newline), and the next append removes it. Appends are not flushed to disk one by one (a
+crash of stereosim loses no row; a power cut may lose the last ones, which a rerun redoes). At the
+end, under the lock, the file is rewritten once, flushed to disk, in a fixed order: this sweep's rows in plan order, then the other rows in file order, one
+row per ``point_id`` (its last ok row, else its last row). An interrupted sweep (Ctrl-C) cancels
+its tasks, closes the cluster within seconds and leaves every finished row; a rerun skips every
+row with ``status`` ok and retries the failed ones. A failing task is recorded with ``status``
+error and a one-line ``error`` without stopping the others; the command then exits with status 2.
 """
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import hashlib
 import io
 import itertools
 import json
+import logging
 import math
+import os
+import signal
+import stat
+import threading
 import tomllib
+import warnings
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -59,12 +90,17 @@ from sim.datasets import (
     shared_data_dir,
 )
 from sim.errors import ConfigError, InputError, UserError
-from sim.outputs import atomic_write_bytes
+from sim.outputs import atomic_write_bytes, describe_os_error, folder_lock
 
 MODES = ("cycle", "functional", "estimate")
 SWEEP_KEYS = ("mode", "scenes", "config", "set", "grid", "zip")
 LEAD_COLUMNS = ("point", "scene", "status", "error", "point_id")
 CSV_NAME = "results.csv"
+MAX_POINTS = 10_000  # default cap on a sweep's points (grid x zip); max_points / --max-points
+IN_FLIGHT_PER_WORKER = 4  # tasks submitted and not yet written, per worker thread
+CLOSE_TIMEOUT_S = 3.0  # closing the client and the local cluster, also after Ctrl-C
+DASK_LOGGERS = ("distributed", "tornado", "asyncio", "bokeh")
+_SILENT = logging.CRITICAL + 10  # above every level Dask logs at
 
 
 @dataclass(frozen=True)
@@ -78,6 +114,7 @@ class Task:
     overrides: dict[str, Any]
     config_path: str | None
     mode: str
+    config_sets_d: bool = False  # the config file sets sva.disparities (a calib.txt does not)
 
     @property
     def point_id(self) -> str:
@@ -111,6 +148,23 @@ def _synthetic_size(text: str) -> tuple[int, int] | None:
     return None
 
 
+def _data_folder(entry: str) -> Path:
+    """The folder of a ``data:NAME`` scene, refused unless it lies inside the shared data
+    folder once every ``..`` and symbolic link is resolved."""
+    root = shared_data_dir()
+    if root is None:
+        raise InputError(
+            f"scene {entry!r} needs the shared data folder, which is absent (set STEREOSIM_DATA)"
+        )
+    folder = (root / entry[5:]).resolve()
+    if not folder.is_relative_to(root):
+        raise InputError(
+            f"scene {entry!r} resolves to {folder}, outside the shared data folder {root}: "
+            "name a folder inside it"
+        )
+    return folder
+
+
 def _expand_scene(entry, base: Path) -> list[tuple[str, str]]:
     """A scenes entry -> [(label, spec)]."""
 
@@ -119,24 +173,17 @@ def _expand_scene(entry, base: Path) -> list[tuple[str, str]]:
     if entry == "default" or _synthetic_size(entry):
         return [(entry, entry)]
     if entry.startswith("data:"):
-        root = shared_data_dir()
-        if root is None:
-            raise InputError(
-                f"scene {entry!r} needs the shared data folder, which is absent (set STEREOSIM_DATA)"
-            )
-        folder = root / entry[5:]
-        label_root = entry
+        folder = _data_folder(entry)
     else:
         folder = Path(entry) if Path(entry).is_absolute() else base / entry
-        label_root = entry
     if not folder.is_dir():
         raise InputError(f"sweep scene {entry!r}: folder {folder} not found")
     try:
-        scene = find_scene(folder)
-        return [(label_root, str(folder))]
+        find_scene(folder)
+        return [(entry, str(folder))]
     except InputError:
         scenes = find_scenes(folder)
-    return [(f"{label_root}/{s.left.parent.name}", str(s.left.parent)) for s in scenes]
+    return [(f"{entry}/{s.left.parent.name}", str(s.left.parent)) for s in scenes]
 
 
 def _check_lists(table: dict, name: str) -> None:
@@ -147,15 +194,39 @@ def _check_lists(table: dict, name: str) -> None:
             )
 
 
-def load_sweep(path: str | Path) -> Sweep:
-    """Parse and check a sweep file; every key and value is validated before anything runs."""
-    p = Path(path)
+def _read_toml(p: Path, what: str, error: type[UserError]) -> dict:
+    """A TOML file as a tree; every way it cannot be read is one ``error`` line."""
+    if p.is_dir():
+        raise error(f"{what} {p} is a folder: give the path of a TOML file")
     if not p.is_file():
-        raise InputError(f"sweep file {p} not found: give the path of a TOML file")
+        raise error(f"{what} {p} not found: give the path of a TOML file")
     try:
-        tree = tomllib.loads(p.read_text())
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"sweep file {p} is not valid TOML: {exc}") from None
+        text = p.read_text()
+    except OSError as exc:
+        raise error(f"cannot read {what} {p} ({describe_os_error(exc)}): check the file and "
+                    "its permissions") from None
+    except UnicodeDecodeError:
+        raise error(f"{what} {p} is not UTF-8 text: give a TOML file") from None
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise error(f"{what} {p} is not valid TOML: {exc}") from None
+
+
+def count_points(grid: dict[str, list], zipped: dict[str, list]) -> int:
+    """The number of points of a sweep: the product of the [grid] lengths times the [zip]
+    length (computed, not expanded)."""
+    zip_len = len(next(iter(zipped.values()))) if zipped else 1
+    return math.prod(len(v) for v in grid.values()) * zip_len
+
+
+def load_sweep(path: str | Path, *, max_points: int = MAX_POINTS) -> Sweep:
+    """Parse and check a sweep file; every key and value is validated before anything runs.
+
+    A sweep of more than ``max_points`` points is refused before its grid is expanded.
+    """
+    p = Path(path)
+    tree = _read_toml(p, "sweep file", InputError)
     unknown = sorted(set(tree) - set(SWEEP_KEYS))
     if unknown:
         raise ConfigError(
@@ -167,10 +238,13 @@ def load_sweep(path: str | Path) -> Sweep:
         raise ConfigError(f"sweep mode must be one of {', '.join(MODES)}; got {mode!r}")
     base = p.resolve().parent
     config_path = tree.get("config")
+    config_sets_d = False
     if config_path is not None:
         if not isinstance(config_path, str):
             raise ConfigError(f"sweep 'config' must be a path string; got {config_path!r}")
         config_path = str(base / config_path)
+        sva = _read_toml(Path(config_path), "config file", ConfigError).get("sva", {})
+        config_sets_d = isinstance(sva, dict) and "disparities" in sva
     fixed = tree.get("set", {})
     grid = tree.get("grid", {})
     zipped = tree.get("zip", {})
@@ -185,6 +259,15 @@ def load_sweep(path: str | Path) -> Sweep:
     if len(set(lengths.values())) > 1:
         shown = ", ".join(f"{k}: {n}" for k, n in lengths.items())
         raise ConfigError(f"sweep [zip] lists must have equal lengths ({shown})")
+    n_points = count_points(grid, zipped)
+    if n_points > max_points:
+        sizes = [str(len(v)) for v in grid.values()]
+        sizes += [f"{len(next(iter(zipped.values())))} [zip]"] if zipped else []
+        shape = " x ".join(sizes)
+        raise ConfigError(
+            f"sweep file {p} has {n_points:,} points ({shape}), more than the cap of "
+            f"{max_points:,}: split it, or raise the cap with --max-points {n_points}"
+        )
     both = sorted((set(grid) | set(zipped)) & set(fixed)) or sorted(set(grid) & set(zipped))
     if both:
         raise ConfigError(f"sweep key '{both[0]}' is given twice ([set], [grid], [zip])")
@@ -195,20 +278,30 @@ def load_sweep(path: str | Path) -> Sweep:
             load_config(config_path, {**fixed, key: v})
     axes = list(grid) + list(zipped)
     zip_rows = [dict(zip(zipped, row)) for row in zip(*zipped.values())] or [{}]
-    points = []
-    for combo in itertools.product(*grid.values()):
-        for zrow in zip_rows:
-            points.append({**dict(zip(grid, combo)), **zrow})
+    points = [
+        {**dict(zip(grid, combo)), **zrow}
+        for combo in itertools.product(*grid.values())
+        for zrow in zip_rows
+    ]
     scene_entries = tree.get("scenes", ["default"])
     if not isinstance(scene_entries, list) or not scene_entries:
         raise ConfigError("sweep 'scenes' must be a non-empty list, e.g. scenes = [\"default\"]")
     scenes = [s for entry in scene_entries for s in _expand_scene(entry, base)]
     sweep = Sweep(p, mode, config_path, fixed, axes, points, scenes)
     sweep.tasks = [
-        Task(i * len(scenes) + j, i, label, spec, {**fixed, **pt}, config_path, mode)
+        Task(i * len(scenes) + j, i, label, spec, {**fixed, **pt}, config_path, mode,
+             config_sets_d)
         for i, pt in enumerate(points)
         for j, (label, spec) in enumerate(scenes)
     ]
+    first: dict[str, Task] = {}
+    for task in sweep.tasks:
+        earlier = first.setdefault(task.point_id, task)
+        if earlier is not task:
+            raise ConfigError(
+                f"sweep file {p}: point {task.point} on scene {task.scene!r} repeats point "
+                f"{earlier.point} on scene {earlier.scene!r}: give each value and scene once"
+            )
     return sweep
 
 
@@ -253,6 +346,16 @@ def flatten(tree, prefix: str = "", out: dict | None = None) -> dict[str, Any]:
     return out
 
 
+def _one_line(exc: BaseException) -> str:
+    message = " ".join(str(exc).split()) or type(exc).__name__
+    return message if isinstance(exc, UserError) else f"{type(exc).__name__}: {message}"
+
+
+def _error_row(task: Task, message: str) -> dict[str, Any]:
+    return {"point": task.point, "scene": task.scene, "point_id": task.point_id,
+            **task.overrides, "status": "error", "error": message}
+
+
 def run_task(task: Task) -> dict[str, Any]:
     """Run one point x scene; never raises: a failure becomes a row with its error."""
     row: dict[str, Any] = {"point": task.point, "scene": task.scene, "point_id": task.point_id}
@@ -261,24 +364,14 @@ def run_task(task: Task) -> dict[str, Any]:
         row.update(_run(task))
         row["status"], row["error"] = "ok", ""
     except Exception as exc:  # noqa: BLE001 -- recorded, the sweep goes on
-        message = " ".join(str(exc).split()) or type(exc).__name__
-        if not isinstance(exc, UserError):
-            message = f"{type(exc).__name__}: {message}"
-        row["status"], row["error"] = "error", message
+        return _error_row(task, _one_line(exc))
     return row
-
-
-def _file_sets_d(config_path: str | None) -> bool:
-    if config_path is None:
-        return False
-    tree = tomllib.loads(Path(config_path).read_text())
-    return "disparities" in tree.get("sva", {})
 
 
 def _run(task: Task) -> dict[str, Any]:
     data = load_scene_spec(task.scene_spec)
     over = dict(task.overrides)
-    if data.get("ndisp") and "sva.disparities" not in over and not _file_sets_d(task.config_path):
+    if data.get("ndisp") and "sva.disparities" not in over and not task.config_sets_d:
         over["sva.disparities"] = legal_disparities(data["ndisp"])
     cfg = load_config(task.config_path, over)
     left, right = prepare_pair(data["left"], data["right"])
@@ -303,126 +396,394 @@ def _run(task: Task) -> dict[str, Any]:
 
 
 # ----------------------------------------------------------------------------------------------
-# the CSV
-
-
-def read_rows(path: Path) -> list[dict[str, str]]:
-    if not path.is_file():
-        return []
-    try:
-        with path.open(newline="") as f:
-            return list(csv.DictReader(f))
-    except (OSError, csv.Error, UnicodeDecodeError) as exc:
-        raise InputError(f"cannot read {path}: {exc}") from None
+# the CSV: rows appended under the output folder's lock, put in order once at the end
 
 
 def _cell(value) -> str:
+    if isinstance(value, np.generic):
+        value = value.item()
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, float):
         return repr(value) if math.isfinite(value) else str(value)
-    return str(value)
+    text = str(value)
+    # one row per line: the torn-line rule of the reader and the appender rely on it
+    return " ".join(text.splitlines()) if "\n" in text or "\r" in text else text
+
+
+def column_order(keys, axes: list[str]) -> list[str]:
+    """The lead columns, the swept keys, then every other key sorted."""
+    lead = list(LEAD_COLUMNS) + [a for a in axes if a not in LEAD_COLUMNS]
+    return lead + sorted(set(keys) - set(lead))
+
+
+def _csv_bytes(columns: list[str], rows: list[dict], *, header: bool = True) -> bytes:
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    if header:
+        writer.writerow(columns)
+    for row in rows:
+        writer.writerow([_cell(row[c]) if row.get(c) is not None else "" for c in columns])
+    return buf.getvalue().encode()
+
+
+def _results_error(path: Path, exc: OSError) -> InputError:
+    if isinstance(exc, IsADirectoryError):
+        return InputError(f"results file {path} is a folder: move it away or give another --out")
+    return InputError(f"cannot use the results file {path} ({describe_os_error(exc)}): check it "
+                      "and its folder's permissions, or give another --out")
+
+
+def _check_regular(fd: int, path: Path) -> None:
+    mode = os.fstat(fd).st_mode
+    if stat.S_ISDIR(mode):
+        raise _results_error(path, IsADirectoryError())
+    if not stat.S_ISREG(mode):
+        raise InputError(f"results file {path} is not a regular file: give another --out")
+
+
+def _read_results(path: Path) -> bytes | None:
+    """The bytes of a results file, None when there is none; a folder, a device or a file that
+    cannot be read is a one-line InputError (never a wait: FIFOs are opened non-blocking)."""
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
+    except FileNotFoundError:
+        return None
+    except OSError as exc:
+        raise _results_error(path, exc) from None
+    try:
+        _check_regular(fd, path)
+        chunks = []
+        while chunk := os.read(fd, 1 << 20):
+            chunks.append(chunk)
+        return b"".join(chunks)
+    except OSError as exc:
+        raise _results_error(path, exc) from None
+    finally:
+        os.close(fd)
+
+
+def _parse(data: bytes, path: Path) -> tuple[list[str], list[dict[str, str]]]:
+    """(header, rows) of a results file's bytes; a torn last line (a write cut short, no final
+    newline) is ignored, and so are blank lines."""
+    whole = data[: data.rfind(b"\n") + 1]
+    try:
+        records = [r for r in csv.reader(io.StringIO(whole.decode(), newline="")) if r]
+    except UnicodeDecodeError:
+        raise InputError(f"results file {path} is not UTF-8 text: give another --out") from None
+    except csv.Error as exc:
+        raise InputError(f"results file {path} is not a valid CSV ({exc}): give another --out"
+                         ) from None
+    if not records:
+        return [], []
+    header = records[0]
+    return header, [dict(zip(header, r)) for r in records[1:]]
+
+
+def _check_header(header: list[str], path: Path) -> None:
+    if header and tuple(header[: len(LEAD_COLUMNS)]) != LEAD_COLUMNS:
+        raise InputError(
+            f"{path} is not a stereosim results file (its header does not begin with "
+            f"{','.join(LEAD_COLUMNS)}): move it away or give another --out"
+        )
+
+
+def read_rows(path: str | Path) -> list[dict[str, str]]:
+    """The rows of a results file ([] when there is none), ignoring a torn last line."""
+    p = Path(path)
+    data = _read_results(p)
+    return [] if data is None else _parse(data, p)[1]
 
 
 def write_rows(path: Path, rows: list[dict], axes: list[str]) -> None:
     """All rows, atomically, with a deterministic column order: the lead columns, the swept
     keys, then every other column sorted."""
+    keys = set().union(*rows) if rows else set()
+    atomic_write_bytes(path, _csv_bytes(column_order(keys, axes), rows))
 
-    seen = set()
-    for row in rows:
-        seen.update(row)
-    lead = [c for c in LEAD_COLUMNS] + [a for a in axes if a not in LEAD_COLUMNS]
-    columns = lead + sorted(seen - set(lead))
-    buf = io.StringIO()
-    writer = csv.DictWriter(buf, fieldnames=columns, lineterminator="\n")
-    writer.writeheader()
-    for row in rows:
-        writer.writerow({c: _cell(row[c]) if c in row else "" for c in columns})
-    atomic_write_bytes(path, buf.getvalue().encode())
+
+def _open_for_append(path: Path) -> int:
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_APPEND | os.O_CLOEXEC, 0o666)
+    except OSError as exc:
+        raise _results_error(path, exc) from None
+    try:
+        _check_regular(fd, path)
+    except BaseException:
+        os.close(fd)
+        raise
+    return fd
+
+
+def _drop_torn_tail(fd: int, size: int) -> int:
+    """Cut a torn last line (no final newline) off the file; returns the new size."""
+    end = size
+    while end > 0:
+        start = max(0, end - (1 << 16))
+        block = os.pread(fd, end - start, start)
+        cut = block.rfind(b"\n")
+        if cut >= 0:
+            end = start + cut + 1
+            break
+        end = start
+    if end != size:
+        os.ftruncate(fd, end)
+    return end
+
+
+def _read_header(fd: int, path: Path) -> list[str] | None:
+    """The header of the (torn-free) file open at ``fd``, None when it is empty."""
+    head, offset = b"", 0
+    while b"\n" not in head:
+        block = os.pread(fd, 1 << 16, offset)
+        if not block:
+            break
+        head += block
+        offset += len(block)
+    header, _ = _parse(head, path)
+    _check_header(header, path)
+    return header or None
+
+
+def _write_whole(fd: int, data: bytes, size: int, path: Path) -> None:
+    """One ``write`` of ``data`` at the end of the file, which is ``size`` bytes long; if it
+    fails or falls short, the file is cut back to ``size`` (its last whole row)."""
+    try:
+        written = os.write(fd, data)
+        if written != len(data):
+            raise OSError(0, f"only {written} of {len(data)} bytes could be written")
+    except BaseException as exc:
+        with contextlib.suppress(OSError):
+            if os.fstat(fd).st_size != size + len(data):
+                os.ftruncate(fd, size)
+        if isinstance(exc, OSError):
+            raise InputError(
+                f"cannot append to {path} ({describe_os_error(exc)}): free some space or write "
+                "elsewhere (the rows written so far are kept)"
+            ) from None
+        raise
+
+
+def append_rows(path: Path, rows: list[dict], axes: list[str]) -> None:
+    """Append ``rows`` to the results file ``path`` while holding its folder's lock: one write
+    of the whole lines in the header's column order; when the header lacks a column of the
+    rows, the file (re-read under the lock, so other sweeps' rows stay) is rewritten atomically
+    with the wider header."""
+    with folder_lock(path.parent):
+        fd = _open_for_append(path)
+        try:
+            size = _drop_torn_tail(fd, os.fstat(fd).st_size)
+            header = _read_header(fd, path)
+            keys = set().union(*rows)
+            if header is None:
+                _write_whole(fd, _csv_bytes(column_order(keys, axes), rows), size, path)
+            elif keys <= set(header):
+                _write_whole(fd, _csv_bytes(header, rows, header=False), size, path)
+            else:
+                old_header, old_rows = _parse(os.pread(fd, size, 0), path)
+                columns = column_order(set(old_header) | keys, axes)
+                atomic_write_bytes(path, _csv_bytes(columns, old_rows + rows))
+        except OSError as exc:
+            raise _results_error(path, exc) from None
+        finally:
+            os.close(fd)
+
+
+def _in_order(rows: list[dict], tasks: list[Task]) -> list[dict]:
+    """This sweep's rows in plan order, then the other rows in file order; one row per
+    point_id: its last ok row, else its last row."""
+    planned = {t.point_id for t in tasks}
+    mine: dict[str, dict] = {}
+    others: dict[str, dict] = {}
+    for n, row in enumerate(rows):
+        pid = row.get("point_id", "")
+        table = mine if pid in planned else others
+        key = pid or f"#{n}"  # a row without a point_id is kept as it is
+        old = table.get(key)
+        if old is None or row.get("status") == "ok" or old.get("status") != "ok":
+            table[key] = row
+    return [mine[t.point_id] for t in tasks if t.point_id in mine] + list(others.values())
+
+
+def finish_results(path: Path, tasks: list[Task], axes: list[str]) -> None:
+    """Under the folder's lock, rewrite the results file once in its final order (see
+    :func:`_in_order`), so the same sweep gives the same bytes however its tasks finished."""
+    with folder_lock(path.parent):
+        data = _read_results(path)
+        if data is None:
+            return
+        header, rows = _parse(data, path)
+        _check_header(header, path)
+        # flushed to disk, then renamed over the appended file
+        atomic_write_bytes(path, _csv_bytes(column_order(header, axes), _in_order(rows, tasks)))
 
 
 # ----------------------------------------------------------------------------------------------
 # running
 
 
-def _cluster(scheduler: str | None, workers: int):
-    import logging
+@contextlib.contextmanager
+def _sigint_ignored() -> Iterator[None]:
+    """SIGINT ignored (in the main thread only): worker processes started meanwhile inherit
+    the ignore, so a Ctrl-C at the terminal reaches only this process, which shuts them down;
+    also keeps a second Ctrl-C from cutting the shutdown short."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)
 
+
+@contextlib.contextmanager
+def _dask_quiet(verbose: bool) -> Iterator[None]:
+    """Dask's log (and tornado's, asyncio's, bokeh's) and warnings kept off stderr while the
+    sweep runs, unless ``verbose``."""
+    if verbose:
+        yield
+        return
+    names = set(DASK_LOGGERS) | {
+        name for name in logging.root.manager.loggerDict if name.split(".")[0] in DASK_LOGGERS
+    }
+    saved = [(lg, lg.level) for lg in map(logging.getLogger, sorted(names))]
+    try:
+        for lg, _ in saved:
+            lg.setLevel(_SILENT)
+        with warnings.catch_warnings():
+            warnings.filterwarnings("ignore", module=r"(distributed|tornado|bokeh)(\.|$)")
+            yield
+    finally:
+        for lg, level in saved:
+            lg.setLevel(level)
+
+
+@contextlib.contextmanager
+def _dask_client(scheduler: str | None, workers: int, verbose: bool) -> Iterator[Any]:
+    """A client of ``scheduler``, else of a new local cluster; both closed with short
+    timeouts at the end (also after Ctrl-C)."""
     from distributed import Client, LocalCluster
 
-    if scheduler:
-        try:
-            return Client(scheduler, timeout="15s"), None
-        except (OSError, TimeoutError, ValueError) as exc:
-            raise InputError(f"cannot reach the Dask scheduler {scheduler}: {exc}") from None
-    cluster = LocalCluster(
-        n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
-        dashboard_address=None, silence_logs=logging.ERROR,
-    )
-    return Client(cluster), cluster
+    client = cluster = None
+    try:
+        if scheduler:
+            try:
+                client = Client(scheduler, timeout="15s")
+            except (OSError, TimeoutError, ValueError) as exc:
+                raise InputError(
+                    f"cannot reach the Dask scheduler {scheduler}: {_one_line(exc)}"
+                ) from None
+        else:
+            with _sigint_ignored():
+                try:
+                    cluster = LocalCluster(
+                        n_workers=workers, threads_per_worker=1, processes=True,
+                        host="127.0.0.1", dashboard_address=None,
+                        # the scheduler's HTTP routes on a free loopback port: no dashboard, and
+                        # no "port 8787 is already in use" when another cluster has it
+                        scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
+                        silence_logs=logging.INFO if verbose else _SILENT,
+                    )
+                    client = Client(cluster)
+                except (OSError, TimeoutError) as exc:
+                    raise InputError(
+                        f"cannot start a local Dask cluster: {_one_line(exc)}"
+                    ) from None
+        yield client
+    finally:
+        with _sigint_ignored():
+            for closing in (client, cluster):
+                if closing is not None:
+                    with contextlib.suppress(Exception):
+                        closing.close(timeout=CLOSE_TIMEOUT_S)
+
+
+def _worker_threads(client, workers: int) -> int:
+    try:
+        return max(1, sum(client.nthreads().values()))
+    except Exception:  # noqa: BLE001 -- a client without nthreads(): the requested count
+        return max(1, workers)
+
+
+def _run_bounded(client, todo: list[Task], in_flight: int, on_row) -> None:
+    """Submit ``todo`` with at most ``in_flight`` tasks submitted and not yet handed to
+    ``on_row(task, row)`` (called in completion order); if anything stops the loop (Ctrl-C, a
+    write error), the outstanding tasks are cancelled."""
+    from distributed import as_completed
+
+    queue = iter(todo)
+    outstanding: dict[str, tuple[Any, Task]] = {}
+    finished = as_completed()
+
+    def submit_next() -> None:
+        task = next(queue, None)
+        if task is not None:
+            fut = client.submit(run_task, task, pure=False,
+                                key=f"stereosim-{task.point_id}-{task.index}")
+            outstanding[fut.key] = (fut, task)
+            finished.add(fut)
+
+    try:
+        for _ in range(in_flight):
+            submit_next()
+        for fut in finished:
+            _, task = outstanding.pop(fut.key)
+            try:
+                row = fut.result()
+            except Exception as exc:  # noqa: BLE001 -- a worker died or the task was cancelled
+                row = _error_row(task, _one_line(exc))
+            fut.release()
+            on_row(task, row)
+            submit_next()
+    finally:
+        if outstanding:
+            with contextlib.suppress(Exception):
+                client.cancel([fut for fut, _ in outstanding.values()], force=True)
 
 
 def run_sweep(sweep: Sweep, out_dir: str | Path, *, scheduler: str | None = None,
-              workers: int = 2, progress: bool = True, client=None) -> dict[str, int]:
+              workers: int = 2, progress: bool = True, client=None, verbose: bool = False,
+              in_flight: int | None = None) -> dict[str, int]:
     """Run every task not already finished in ``out_dir/results.csv``; returns counts.
 
     ``client``: an existing ``distributed.Client`` to use (else one is made from
-    ``scheduler``/``workers`` and closed at the end).
+    ``scheduler``/``workers`` and closed at the end). ``in_flight``: the most tasks submitted
+    and not yet written (default :data:`IN_FLIGHT_PER_WORKER` per worker thread). A Ctrl-C
+    (KeyboardInterrupt) cancels the outstanding tasks, closes the cluster and propagates; the
+    CSV then holds every row finished so far.
     """
-    from distributed import as_completed
     from tqdm import tqdm
 
     out = Path(out_dir)
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise InputError(f"cannot create the output folder {out}: {exc.strerror}") from None
+        raise InputError(f"cannot create the output folder {out}: {describe_os_error(exc)}"
+                         ) from None
     csv_path = out / CSV_NAME
-    previous = read_rows(csv_path)
-    done = {r.get("point_id"): r for r in previous if r.get("status") == "ok"}
-    planned = {t.point_id for t in sweep.tasks}
-    extra = [r for r in previous if r.get("point_id") not in planned]
-    results: dict[int, dict] = {}
-    todo = []
-    for task in sweep.tasks:
-        if task.point_id in done:
-            results[task.index] = done[task.point_id]
-        else:
-            todo.append(task)
-
-    def save():
-        rows = [results[i] for i in sorted(results)] + extra
-        write_rows(csv_path, rows, sweep.axes)
-
+    with folder_lock(out):
+        data = _read_results(csv_path)
+    header, previous = _parse(data, csv_path) if data is not None else ([], [])
+    _check_header(header, csv_path)
+    done = {r.get("point_id") for r in previous if r.get("status") == "ok"}
+    todo = [t for t in sweep.tasks if t.point_id not in done]
     counts = {"tasks": len(sweep.tasks), "skipped": len(sweep.tasks) - len(todo), "ok": 0,
               "error": 0}
-    if not todo:
-        save()
-        return counts
-    own = client is None
-    cluster = None
-    if own:
-        client, cluster = _cluster(scheduler, workers)
-    try:
-        futures = {client.submit(run_task, t, pure=False, key=f"stereosim-{t.point_id}-{t.index}"):
-                   t for t in todo}
-        bar = tqdm(total=len(todo), desc="sweep", unit="run", disable=not progress or None)
-        for fut in as_completed(futures):
-            task = futures[fut]
-            try:
-                row = fut.result()
-            except Exception as exc:  # noqa: BLE001 -- a worker died: record it
-                row = {"point": task.point, "scene": task.scene, "point_id": task.point_id,
-                       **task.overrides, "status": "error",
-                       "error": f"{type(exc).__name__}: {' '.join(str(exc).split())}"}
-            results[task.index] = row
-            counts[row["status"]] += 1
-            save()
-            bar.update(1)
-        bar.close()
-    finally:
-        if own:
-            client.close()
-            if cluster is not None:
-                cluster.close()
+    if todo:
+        with contextlib.ExitStack() as stack:
+            stack.enter_context(_dask_quiet(verbose))
+            if client is None:
+                client = stack.enter_context(_dask_client(scheduler, workers, verbose))
+            limit = in_flight or IN_FLIGHT_PER_WORKER * _worker_threads(client, workers)
+            bar = stack.enter_context(tqdm(total=len(todo), desc="sweep", unit="run",
+                                           disable=not progress or None))
+
+            def on_row(task: Task, row: dict) -> None:
+                append_rows(csv_path, [row], sweep.axes)
+                counts[row["status"]] += 1
+                bar.update(1)
+
+            _run_bounded(client, todo, max(1, limit), on_row)
+    finish_results(csv_path, sweep.tasks, sweep.axes)
     return counts

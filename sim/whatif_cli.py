@@ -11,10 +11,17 @@ import sys
 from pathlib import Path
 
 from sim.cycle.estimate import estimate, format_estimate, parse_size
-from sim.errors import InputError
+from sim.errors import InputError, UserError
 from sim.outputs import json_text
 from sim.plot import plot_xy, sweep_plots
-from sim.sweep import CSV_NAME, load_scene_spec, load_sweep, read_rows, run_sweep
+from sim.sweep import (
+    CSV_NAME,
+    MAX_POINTS,
+    load_scene_spec,
+    load_sweep,
+    read_rows,
+    run_sweep,
+)
 
 
 def register(sub, add_config_options, scene_config) -> None:
@@ -50,21 +57,29 @@ def register(sub, add_config_options, scene_config) -> None:
     e.set_defaults(func=cmd_estimate)
 
     def cmd_sweep(args) -> int:
-        sweep = load_sweep(args.sweep_file)
         if args.workers is not None and args.workers < 1:
             raise InputError(f"--workers must be at least 1; got {args.workers}")
+        if args.max_points is not None and args.max_points < 1:
+            raise InputError(f"--max-points must be at least 1; got {args.max_points}")
+        sweep = load_sweep(args.sweep_file, max_points=args.max_points or MAX_POINTS)
         workers = args.workers or min(2, os.cpu_count() or 1)
         out = Path(args.out)
         counts = run_sweep(sweep, out, scheduler=args.scheduler, workers=workers,
-                           progress=not args.quiet)
+                           progress=not args.quiet, verbose=args.verbose)
         rows = read_rows(out / CSV_NAME)
         plots = sweep_plots(rows, sweep.axes, out)
         print(f"{counts['tasks']} runs ({len(sweep.points)} points x {len(sweep.scenes)} scenes): "
               f"{counts['skipped']} already done, {counts['ok']} ok, {counts['error']} failed")
         print(f"wrote {out / CSV_NAME}" + "".join(f", {p.name}" for p in plots))
-        failed = [r for r in rows if r.get("status") == "error"]
+        planned = {t.point_id for t in sweep.tasks}
+        failed = [r for r in rows if r.get("point_id") in planned and r.get("status") != "ok"]
         for r in failed[:5]:
-            print(f"  point {r['point']} {r['scene']}: {r['error']}", file=sys.stderr)
+            print(f"  point {r['point']} {r['scene']}: {r['error']}")
+        if failed:
+            raise UserError(
+                f"{len(failed)} of {counts['tasks']} runs failed: read why in the 'error' column "
+                f"of {out / CSV_NAME}"
+            )
         return 0
 
     s = sub.add_parser("sweep", help="run a grid of configurations x scenes in parallel (Dask)")
@@ -75,7 +90,12 @@ def register(sub, add_config_options, scene_config) -> None:
     s.add_argument("--workers", type=int, metavar="N",
                    help="local worker processes (default: min(2, CPUs))")
     s.add_argument("--out", default="sweep", help="output folder (default: sweep)")
+    s.add_argument("--max-points", type=int, metavar="N",
+                   help=f"refuse a sweep of more than N points (grid x zip; default "
+                   f"{MAX_POINTS:,})")
     s.add_argument("--quiet", action="store_true", help="no progress bar")
+    s.add_argument("--verbose", action="store_true",
+                   help="let Dask's own log and warnings through to stderr")
     s.set_defaults(func=cmd_sweep)
 
     def cmd_plot(args) -> int:

@@ -1,6 +1,10 @@
 """NNA descriptor layer: kernel == naive reference, accumulators == an independent numpy sum,
 and the weight files."""
 
+import dataclasses
+import io
+import zipfile
+
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -8,8 +12,15 @@ from hypothesis import strategies as st
 from numpy.lib.stride_tricks import sliding_window_view
 from numpy.testing import assert_array_equal
 
-from nna.conv import check_layer, cnn_accumulators, cnn_descriptor, cnn_descriptor_ref
-from nna.weights import load_weights, placeholder_weights, save_weights
+from nna.conv import (
+    MAX_KERNEL_SIZE,
+    check_layer,
+    cnn_accumulators,
+    cnn_descriptor,
+    cnn_descriptor_ref,
+)
+from nna.weights import load_layer, load_weights, placeholder_weights, save_weights
+from sim.config import NnaConfig
 from sim.errors import ConfigError, InputError
 
 
@@ -308,3 +319,49 @@ def test_missing_or_garbage_weight_file(tmp_path):
     np.save(single, np.zeros((4, 3, 3), np.int8))
     with pytest.raises(ConfigError, match="single array"):
         load_weights(single)
+
+
+# ---------------------------------------------------------------- the largest kernel
+
+
+def test_kernel_size_is_capped_by_the_largest_line_buffer():
+    # The window's rows must fit nna.line_buffer_rows, at most 64: the widest odd window is 63.
+    (rows,) = [f for f in dataclasses.fields(NnaConfig) if f.name == "line_buffer_rows"]
+    assert MAX_KERNEL_SIZE == 63 == rows.metadata["hi"] - 1
+    bias = np.zeros(2, np.int32)
+    weights, bias, _ = check_layer(np.ones((2, 63, 63), np.int8), bias, 0)
+    assert weights.shape == (2, 63, 63)
+    for k_size in (65, 99):
+        with pytest.raises(ConfigError) as info:
+            check_layer(np.ones((2, k_size, k_size), np.int8), bias, 0)
+        assert str(info.value) == (
+            f"weights kernel size {k_size}x{k_size} is larger than the 63x63 window the largest "
+            "NNA line buffer can hold (nna.line_buffer_rows <= 64): use a smaller kernel"
+        )
+
+
+def test_a_99x99_weight_file_is_refused(tmp_path):
+    path = _write(tmp_path / "k99.npz", weights=np.ones((32, 99, 99), np.int8),
+                  bias=np.zeros(32, np.int32), input_offset=np.int32(128))  # fmt: skip
+    for load in (load_weights, load_layer):
+        with pytest.raises(ConfigError, match=r"k99.npz'?: weights kernel size 99x99 is larger"):
+            load(path)
+
+
+def test_a_weight_file_is_read_within_bounds(tmp_path):
+    # A member whose .npy header claims 10**13 weights: refused from the header, naming the file.
+    header = io.BytesIO()
+    np.lib.format.write_array_header_1_0(
+        header, {"descr": "|i1", "fortran_order": False, "shape": (10**13,)}
+    )
+    path = tmp_path / "lying.npz"
+    with zipfile.ZipFile(path, "w") as archive:
+        archive.writestr("weights.npy", header.getvalue() + bytes(64))
+        archive.writestr("bias.npy", b"")
+    for load in (load_weights, load_layer):
+        with pytest.raises(ConfigError, match=r"weight file '.*lying.npz' .*claims \(10000000000000,\)"):
+            load(path)
+    empty = tmp_path / "empty.npz"
+    empty.write_bytes(b"")
+    with pytest.raises(ConfigError, match=r"empty.npz' is empty; write it with nna.save_weights"):
+        load_layer(empty)

@@ -4,6 +4,14 @@ The training tests run on a tiny synthetic Middlebury-2006-layout folder, so the
 the shared data nor more than a few seconds; the full training is never run here.
 """
 
+import errno
+import io
+import os
+import shutil
+import struct
+import zipfile
+import zlib
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
@@ -387,3 +395,98 @@ def test_straight_through_bits_are_signs_with_the_tanh_gradient():
     assert_array_equal(b.detach().numpy(), [-1.0, -1.0, 1.0, 1.0])
     b.sum().backward()
     np.testing.assert_allclose(f.grad.numpy(), 2.0 / np.cosh(2.0 * f.detach().numpy()) ** 2)
+
+
+# --- files read safely ----------------------------------------------------------------------------
+
+
+def _float_model_file(path: Path, **changes) -> Path:
+    """A valid single9x9 float model file, with some of its arrays replaced (None removes)."""
+    cfg = TrainConfig()
+    rng = np.random.default_rng(0)
+    save_float_model(path, {
+        "weights": [rng.normal(size=(32, 1, 9, 9)).astype(np.float32)],
+        "biases": [np.zeros(32, np.float32)],
+        "config": asdict(cfg), "scenes": [], "loss_per_epoch": [], "samples": 0,
+    })  # fmt: skip
+    with np.load(path) as archive:
+        arrays = {k: archive[k] for k in archive.files}
+    for key, value in changes.items():
+        if value is None:
+            del arrays[key]
+        else:
+            arrays[key] = value
+    np.savez(path, **arrays)  # np.savez keeps a name that ends in .npz
+    return path
+
+
+@pytest.mark.parametrize(
+    "changes, message",
+    [
+        ({}, None),
+        ({"training": np.array("{not json")}, "its training record is not JSON"),
+        ({"training": None}, "lacks the field 'training'"),
+        ({"input_offset": np.zeros(3, np.int32)}, r"input_offset must be a scalar, got int32 \(3,\)"),
+        ({"input_scale": np.array("big")}, "input_scale must be a scalar, got <U3"),
+        ({"format": np.zeros(2)}, "format must be a scalar"),
+        ({"weights_0": np.full((32, 1, 9, 9), "w")}, r"layer 0 of single9x9 must be float"),
+        ({"weights_0": np.full((32, 1, 9, 9), np.inf)}, "non-finite weights"),
+        ({"input_offset": np.int32(300)}, "input_offset must be in 0..255"),
+    ],
+    ids=[
+        "good", "json", "no-training", "offset-array", "scale-text", "format-array",
+        "text-weights", "inf-weights", "offset-range",
+    ],
+)
+def test_float_model_fields_are_checked(tmp_path, changes, message):
+    path = _float_model_file(tmp_path / "m.npz", **changes)
+    if message is None:
+        model, variant, training = load_float_model(path)
+        assert variant == "single9x9" and model.weights[0].shape == (32, 1, 9, 9)
+        assert training["samples"] == 0
+        return
+    with pytest.raises(ConfigError, match=message) as info:
+        load_float_model(path)
+    assert f"float model '{path}'" in str(info.value) and "\n" not in str(info.value)
+
+
+def test_a_float_model_is_read_within_bounds(tmp_path):
+    path = tmp_path / "bomb.npz"
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as archive:
+        buf = io.BytesIO()
+        np.save(buf, np.zeros(1 << 18))  # 2 MiB of zeros: about 2 KB deflated
+        archive.writestr("weights_0.npy", buf.getvalue())
+    with pytest.raises(ConfigError, match=r"float model '.*bomb.npz' member .* a zip bomb"):
+        load_float_model(path)
+
+
+def test_training_scenes_go_through_the_bounded_readers(data_root, tmp_path, monkeypatch):
+    # A training view that claims 9000x8000 pixels is refused from its header.
+    root = tmp_path / "data"
+    shutil.copytree(data_root, root)
+    view = root / "middlebury2006_third" / "Aloe" / "view5.png"
+    ihdr = struct.pack(">IIBBBBB", 9000, 8000, 8, 0, 0, 0, 0)
+    view.write_bytes(b"\x89PNG\r\n\x1a\n" + struct.pack(">I", 13) + b"IHDR" + ihdr
+                     + struct.pack(">I", zlib.crc32(b"IHDR" + ihdr)))  # fmt: skip
+    dirs = training_scene_dirs(root)
+    cfg = TrainConfig()
+    for load in (load_training_set, load_strip_set):
+        with pytest.raises(InputError, match=r"view5.png is 9000x8000 \(72.0 M pixels\)"):
+            load(dirs, cfg)
+    # A collection that cannot be listed, a path too long: one line, not an OSError.
+    real_scandir = os.scandir
+
+    def denied(path):
+        if Path(path).name == "middlebury2005_third":
+            raise PermissionError(errno.EACCES, "Permission denied", str(path))
+        return real_scandir(path)
+
+    monkeypatch.setattr(os, "scandir", denied)
+    with pytest.raises(InputError, match=r"middlebury2005_third \(Permission denied\)"):
+        training_scene_dirs(root)
+    with pytest.raises(InputError, match=r"middlebury2005_third \(Permission denied\)"):
+        calibration_scene_dirs(root)
+    long = tmp_path / ("d" * 5000)
+    for find in (training_scene_dirs, calibration_scene_dirs):
+        with pytest.raises(InputError, match=r"File name too long"):
+            find(long)

@@ -1,5 +1,9 @@
 """The quantizer: the searches really minimise, the whole model agrees, the artifact round-trips."""
 
+import dataclasses
+import io
+import zipfile
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -7,7 +11,7 @@ from hypothesis import strategies as st
 from numpy.testing import assert_allclose, assert_array_equal
 
 from nna.conv import cnn_accumulators
-from nna.weights import load_weights
+from nna.weights import load_layer, load_weights
 from quant.artifact import load_quantized, save_quantized, to_nna_weights
 from quant.distances import DISTANCES, l1
 from quant.intconv import int_forward, mul_shift_ref
@@ -374,3 +378,32 @@ def test_nna_keys_must_match(single, tmp_path):
     _rewrite(good, bad, bias=np.zeros(4, dtype=np.int32))
     with pytest.raises(ConfigError, match="disagree"):
         load_quantized(bad)
+
+
+def test_artifacts_are_read_within_bounds(single, tmp_path):
+    good = tmp_path / "good.npz"
+    save_quantized(good, single)
+    # A member that would unpickle objects is refused from its header, before anything loads.
+    bad = tmp_path / "objects.npz"
+    _rewrite(good, bad)
+    with zipfile.ZipFile(bad, "a") as archive:
+        buf = io.BytesIO()
+        np.lib.format.write_array(buf, np.array([print], dtype=object), allow_pickle=True)
+        archive.writestr("extra.npy", buf.getvalue())
+    with pytest.raises(ConfigError, match=r"objects.npz' member 'extra.npy' holds Python objects"):
+        load_quantized(bad)
+    # A field of the wrong kind is a ConfigError, not numpy's ValueError.
+    _rewrite(good, bad, act_scales=np.array(["a"]))
+    with pytest.raises(ConfigError, match=r"act_scales must be numbers, got <U1"):
+        load_quantized(bad)
+
+
+def test_a_single_layer_artifact_with_a_kernel_too_large_for_the_nna(single, tmp_path):
+    w = np.zeros((4, 1, 65, 65), np.int8)
+    w[:, 0, 32, 32] = 1
+    wide = dataclasses.replace(single, weights=(w,))
+    path = tmp_path / "wide.npz"
+    save_quantized(path, wide)  # a valid integer network ...
+    assert load_quantized(path).weights[0].shape == (4, 1, 65, 65)
+    with pytest.raises(ConfigError, match=r"wide.npz': weights kernel size 65x65 is larger"):
+        load_layer(path)  # ... but not a layer the NNA can run

@@ -1,3 +1,5 @@
+import errno
+import os
 from pathlib import Path
 
 import cv2
@@ -140,6 +142,97 @@ def test_2005_layout_of_another_size_needs_explicit_scale(tmp_path):
     with pytest.raises(InputError, match="--gt-scale"):
         find_scene(scene)
     assert find_scene(scene, gt_scale=2).gt_scale == 2.0
+
+
+def test_load_scene_takes_the_pixel_cap(tmp_path):
+    _scene_2014(tmp_path / "S")
+    scene = find_scene(tmp_path / "S")
+    assert load_scene(scene, max_pixels=24)["left"].shape == (4, 6, 3)
+    with pytest.raises(InputError, match=r"im0.png is 6x4 .* above the 0.0 M-pixel cap"):
+        load_scene(scene, max_pixels=23)
+
+
+def test_scene_folders_with_impossible_ground_truth(tmp_path):
+    _scene_2014(tmp_path / "S")
+    gt = np.full((4, 6), 3.0, np.float32)
+    gt[2, 1] = -1.0
+    write_pfm(tmp_path / "S" / "disp0GT.pfm", gt)
+    with pytest.raises(InputError, match=r"disp0GT.pfm holds the negative disparity -1"):
+        load_scene(find_scene(tmp_path / "S"))
+
+
+def test_scene_files_that_are_folders(tmp_path):
+    _scene_2014(tmp_path / "S")
+    (tmp_path / "S" / "mask0nocc.png").unlink()
+    (tmp_path / "S" / "mask0nocc.png").mkdir()  # not a file: the scene has no mask
+    assert find_scene(tmp_path / "S").mask is None
+    (tmp_path / "S" / "calib.txt").unlink()
+    (tmp_path / "S" / "calib.txt").mkdir()
+    assert find_scene(tmp_path / "S").ndisp is None
+    with pytest.raises(InputError, match="calib.txt is a folder: give the path of a file"):
+        parse_calib(tmp_path / "S" / "calib.txt")
+    (tmp_path / "S" / "im1.png").unlink()
+    (tmp_path / "S" / "im1.png").mkdir()
+    with pytest.raises(InputError, match="is not a scene folder"):
+        find_scene(tmp_path / "S")
+
+
+def test_scene_paths_too_long_or_unreadable(tmp_path, monkeypatch):
+    long = tmp_path / ("s" * 5000)
+    for find in (find_scene, find_scenes):
+        with pytest.raises(InputError, match=r"\(File name too long\): use a shorter path"):
+            find(long)
+    with pytest.raises(InputError, match=r"File name too long"):
+        parse_calib(long / "calib.txt")
+    _scene_2014(tmp_path / "S")
+    scene = find_scene(tmp_path / "S")
+    locked = tmp_path / "S" / "disp0GT.pfm"
+    real_stat, real_open, real_scandir = os.stat, os.open, os.scandir
+
+    def denied(path):
+        return PermissionError(errno.EACCES, "Permission denied", os.fspath(path))
+
+    def stat(path, *args, **kwargs):
+        if os.fspath(path) == str(locked):
+            raise denied(path)
+        return real_stat(path, *args, **kwargs)
+
+    def open_(path, *args, **kwargs):
+        if os.fspath(path) == str(locked):
+            raise denied(path)
+        return real_open(path, *args, **kwargs)
+
+    def scandir(path):
+        if os.fspath(path) == str(tmp_path):
+            raise denied(path)
+        return real_scandir(path)
+
+    with monkeypatch.context() as m:
+        m.setattr(os, "open", open_)
+        with pytest.raises(InputError, match=r"disp0GT.pfm \(Permission denied\): check its"):
+            load_scene(scene)
+    with monkeypatch.context() as m:
+        m.setattr(os, "stat", stat)
+        with pytest.raises(InputError, match=r"GT .*disp0GT.pfm \(Permission denied\)"):
+            find_scene(tmp_path / "S")
+    with monkeypatch.context() as m:
+        m.setattr(os, "scandir", scandir)
+        with pytest.raises(InputError, match=r"cannot read dataset folder .* \(Permission denied"):
+            find_scenes(tmp_path)
+
+
+def test_calib_files_that_are_not_short_ascii_text(tmp_path):
+    calib = tmp_path / "calib.txt"
+    calib.write_bytes("ndisp=70\ncam0=\u00e9\n".encode())
+    with pytest.raises(InputError, match=r"calib.txt is not ascii text \(byte 14 is 0xc3"):
+        parse_calib(calib)
+    calib.write_bytes(b"x" * ((1 << 20) + 1))
+    with pytest.raises(InputError, match=r"is 1.0 MiB, more than the 1.0 MiB allowed"):
+        parse_calib(calib)
+    _scene_2014(tmp_path / "S")
+    (tmp_path / "S" / "calib.txt").write_text("ndisp=many\n")
+    with pytest.raises(InputError, match="has ndisp=many: it must be a whole number"):
+        find_scene(tmp_path / "S")
 
 
 def test_default_scene():

@@ -1,13 +1,40 @@
-"""Sweeps (sim/sweep.py) on a real Dask LocalCluster, the sweep file checks, and the plots."""
+"""Sweeps (sim/sweep.py) on a real Dask LocalCluster, the sweep file checks, the results file
+(appended under the folder lock, torn lines, full disks, the final order), the point cap, Ctrl-C,
+exit statuses, Dask's chatter and the plots."""
 
-import csv
 import logging
+import os
+import resource
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
 
+import distributed
 import pytest
 
 from sim.cli import main
 from sim.datasets import shared_data_dir
-from sim.sweep import CSV_NAME, load_sweep, read_rows, run_sweep, run_task, synthetic_pair
+from sim.errors import ConfigError
+from sim.plot import sweep_plots
+from sim.sweep import (
+    CSV_NAME,
+    LEAD_COLUMNS,
+    MAX_POINTS,
+    Task,
+    append_rows,
+    finish_results,
+    load_sweep,
+    read_rows,
+    run_sweep,
+    run_task,
+    synthetic_pair,
+    write_rows,
+)
+
+ROOT = Path(__file__).resolve().parents[2]
 
 FOUR_POINTS = """
 mode = "cycle"
@@ -27,10 +54,10 @@ def _write(tmp_path, text, name="sweep.toml"):
 
 @pytest.fixture(scope="module")
 def client():
-    distributed = pytest.importorskip("distributed")
     cluster = distributed.LocalCluster(
         n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
-        dashboard_address=None, silence_logs=logging.ERROR,
+        dashboard_address=None, scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
+        silence_logs=logging.CRITICAL + 10,
     )
     with distributed.Client(cluster) as c:
         yield c
@@ -38,15 +65,23 @@ def client():
 
 
 class _CountingClient:
-    """The real client, counting the tasks submitted to it."""
+    """The real client, counting the tasks submitted to it and, when given the results file,
+    how many rows it held at each submission."""
 
-    def __init__(self, client):
+    def __init__(self, client, results: Path | None = None):
         self.client = client
         self.submitted = []
+        self.rows_at_submit = []
+        self.results = results
 
     def submit(self, fn, task, **kw):
         self.submitted.append(task)
+        if self.results is not None:
+            self.rows_at_submit.append(len(read_rows(self.results)))
         return self.client.submit(fn, task, **kw)
+
+    def __getattr__(self, name):
+        return getattr(self.client, name)
 
 
 def test_four_point_sweep_on_two_workers_survives_a_failure_and_resumes(tmp_path, client):
@@ -76,19 +111,48 @@ def test_four_point_sweep_on_two_workers_survives_a_failure_and_resumes(tmp_path
     assert counts == {"tasks": 4, "skipped": 3, "ok": 0, "error": 1}
     assert [t.point for t in counting.submitted] == [3]
     assert (out / CSV_NAME).read_bytes() == before
+    # the same sweep into a fresh folder, one task at a time (another completion order): the
+    # same bytes (no wall-clock figure in a row, one fixed column and row order)
+    run_sweep(sweep, tmp_path / "again", client=client, progress=False, in_flight=1)
+    assert (tmp_path / "again" / CSV_NAME).read_bytes() == before
 
 
-def test_rows_do_not_depend_on_completion_order(tmp_path):
-    sweep = load_sweep(_write(tmp_path, FOUR_POINTS.replace('"64x24"', '"64x24", "80x16"')))
+def _failed(task):
+    """The row a failed run of ``task`` gives."""
+    return {"point": task.point, "scene": task.scene, "point_id": task.point_id,
+            **task.overrides, "status": "error", "error": "boom"}
+
+
+def test_rows_appended_in_any_order_end_in_plan_order_byte_for_byte(tmp_path):
+    sweep = load_sweep(_write(tmp_path, FOUR_POINTS.replace('"64x24"', '"64x24", "80x16"')
+                              .replace('"cycle"', '"estimate"')))
     assert [(t.point, t.scene) for t in sweep.tasks][:3] == [(0, "64x24"), (0, "80x16"),
                                                              (1, "64x24")]
-    from sim.sweep import write_rows
-
-    rows = [run_task(t) for t in sweep.tasks[:4]]
-    write_rows(tmp_path / "a.csv", rows, sweep.axes)
-    write_rows(tmp_path / "b.csv", sorted(rows, key=lambda r: -r["point"]), sweep.axes)
-    a = list(csv.DictReader((tmp_path / "a.csv").open()))
-    assert [r["scene"] for r in a] == ["64x24", "80x16", "64x24", "80x16"]
+    rows = [run_task(t) for t in sweep.tasks]
+    assert [r["status"] for r in rows] == ["ok"] * 6 + ["error"] * 2
+    write_rows(tmp_path / "plan.csv", rows, sweep.axes)
+    expected = (tmp_path / "plan.csv").read_bytes()
+    orders = {"reversed": rows[::-1], "shuffled": [rows[i] for i in (5, 0, 7, 2, 6, 1, 3, 4)]}
+    for name, order in orders.items():
+        path = tmp_path / name / CSV_NAME
+        path.parent.mkdir()
+        for row in order:
+            append_rows(path, [row], sweep.axes)
+        assert read_rows(path) != read_rows(tmp_path / "plan.csv")
+        finish_results(path, sweep.tasks, sweep.axes)
+        assert path.read_bytes() == expected, name
+    # a point that failed, then succeeded on a rerun (or the other way round) keeps one row,
+    # the ok one; a point that failed twice keeps its last error
+    path = tmp_path / "retried" / CSV_NAME
+    path.parent.mkdir()
+    append_rows(path, [_failed(sweep.tasks[0])] + rows[:3], sweep.axes)
+    append_rows(path, rows[3:] + [_failed(sweep.tasks[1]), {**rows[7], "error": "again"}],
+                sweep.axes)
+    finish_results(path, sweep.tasks, sweep.axes)
+    got = read_rows(path)
+    assert [r["point_id"] for r in got] == [t.point_id for t in sweep.tasks]
+    assert [r["status"] for r in got] == ["ok"] * 6 + ["error"] * 2
+    assert got[7]["error"] == "again"
 
 
 def test_grid_and_zip_make_the_cartesian_product(tmp_path):
@@ -116,7 +180,6 @@ def test_a_scene_with_gt_gets_accuracy_columns():
     data = shared_data_dir()
     if data is None or not (data / "middlebury2014_trainingQ" / "Teddy").is_dir():
         pytest.skip("needs ../shared/data/middlebury2014_trainingQ/Teddy (absent)")
-    from sim.sweep import Task
 
     task = Task(0, 0, "Teddy", str(data / "middlebury2014_trainingQ" / "Teddy"),
                 {"sva.paths": 2}, None, "functional")
@@ -165,7 +228,6 @@ scenes = ["256x64"]
 "nna.descriptor" = ["census", "cnn"]
 """))
     rows = [run_task(t) for t in sweep.tasks]
-    from sim.sweep import write_rows
 
     write_rows(tmp_path / CSV_NAME, rows, sweep.axes)
     return tmp_path / CSV_NAME, sweep
@@ -193,9 +255,461 @@ def test_plot_of_a_missing_column_is_one_line_exit_2(tmp_path, capsys):
 
 
 def test_built_in_plots(tmp_path):
-    from sim.plot import sweep_plots
 
     csv_path, sweep = _results(tmp_path)
     written = sweep_plots(read_rows(csv_path), sweep.axes, tmp_path)
     assert [p.name for p in written] == ["fps_vs_submodules.png", "pareto_sram_fps.png"]
     assert all(p.stat().st_size > 1000 for p in written)
+
+
+# ----------------------------------------------------------------------------------------------
+# helpers for the command in a subprocess (this checkout's sim, whatever is installed)
+
+
+def _env() -> dict:
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (str(ROOT), env.get("PYTHONPATH")) if p)
+    return env
+
+
+def _stereosim(args, cwd, **kw) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "sim.cli", *map(str, args)], check=False,
+                          cwd=cwd,
+                          env=_env(), capture_output=True, text=True, timeout=180, **kw)
+
+
+def _estimate(disparities, scene="64x24", extra=""):
+    return (f'mode = "estimate"\nscenes = ["{scene}"]\n[grid]\n'
+            f'"sva.disparities" = {list(disparities)}\n{extra}')
+
+
+# ----------------------------------------------------------------------------------------------
+# 1. sweeps sharing an --out keep each other's rows
+
+
+SWEEP_A = _estimate([16, 32], extra='"sva.paths" = [2, 4]\n')
+SWEEP_B = ('mode = "estimate"\nscenes = ["160x16"]\n[grid]\n'
+           '"fifo.nna_to_sva_depth" = [8, 16, 32]\n')
+
+
+def test_a_sweep_that_runs_meanwhile_keeps_its_rows_in_a_shared_out(tmp_path, client):
+    """Sweep B runs from start to end after A has read results.csv and before A's first row:
+    A appends after B's rows instead of writing its own view, and B's rows survive A's final
+    rewrite (after A's, in file order)."""
+    a = load_sweep(_write(tmp_path, SWEEP_A, "a.toml"))
+    b = load_sweep(_write(tmp_path, SWEEP_B, "b.toml"))
+    out = tmp_path / "out"
+
+    class _BFirst(_CountingClient):
+        def submit(self, fn, task, **kw):
+            if not self.submitted:
+                assert run_sweep(b, out, client=client, progress=False)["ok"] == 3
+            return super().submit(fn, task, **kw)
+
+    assert run_sweep(a, out, client=_BFirst(client), progress=False)["ok"] == 4
+    ids_a, ids_b = [t.point_id for t in a.tasks], [t.point_id for t in b.tasks]
+    rows = read_rows(out / CSV_NAME)
+    assert [r["point_id"] for r in rows] == ids_a + ids_b
+    assert {r["status"] for r in rows} == {"ok"}
+    assert [r["fifo.nna_to_sva_depth"] for r in rows[4:]] == ["8", "16", "32"]
+    header = (out / CSV_NAME).read_text().split("\n", 1)[0].split(",")
+    assert header[:7] == [*LEAD_COLUMNS, "sva.disparities", "sva.paths"]
+    assert header[7:] == sorted(header[7:])
+    # B again: nothing to run, its rows now first
+    assert run_sweep(b, out, client=client, progress=False)["skipped"] == 3
+    assert [r["point_id"] for r in read_rows(out / CSV_NAME)] == ids_b + ids_a
+
+
+def test_two_sweep_processes_into_one_out_lose_no_row(tmp_path):
+    """Two `stereosim sweep` processes at once on one --out (the folder lock across processes):
+    every row of both is there, once."""
+    depths = list(range(8, 48))
+    files = [_write(tmp_path, _estimate([16], extra=f'"fifo.nna_to_sva_depth" = {depths}\n'),
+                    "a.toml"),
+             _write(tmp_path, _estimate([32], extra=f'"fifo.nna_to_sva_depth" = {depths}\n'),
+                    "b.toml")]
+    procs = [subprocess.Popen([sys.executable, "-m", "sim.cli", "sweep", str(f), "--out", "out",
+                               "--quiet", "--workers", "1"], cwd=tmp_path, env=_env(),
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+             for f in files]
+    for proc in procs:
+        _, err = proc.communicate(timeout=180)
+        assert proc.returncode == 0 and err == "", err
+    rows = read_rows(tmp_path / "out" / CSV_NAME)
+    expected = [t.point_id for f in files for t in load_sweep(f).tasks]
+    assert sorted(r["point_id"] for r in rows) == sorted(expected)
+    assert len(rows) == 80 and {r["status"] for r in rows} == {"ok"}
+
+
+# ----------------------------------------------------------------------------------------------
+# 2. the point cap
+
+
+def test_a_billion_point_grid_is_refused_before_it_is_expanded(tmp_path, capsys):
+    values = list(range(1, 1001))
+    path = _write(tmp_path, 'mode = "estimate"\n[grid]\n'
+                  f'"fifo.nna_to_sva_depth" = {values}\n"fifo.source_to_nna_depth" = {values}\n'
+                  f'[zip]\n"fifo.sva_to_sink_depth" = {values}\n"sva.paths" = {[2] * 1000}\n')
+    out = tmp_path / "out"
+    t0 = time.perf_counter()
+    assert main(["sweep", str(path), "--out", str(out)]) == 2
+    assert time.perf_counter() - t0 < 5  # 10^9 points were counted, never listed
+    err = capsys.readouterr().err
+    assert err == (f"stereosim: error: sweep file {path} has 1,000,000,000 points (1000 x 1000 x "
+                   "1000 [zip]), more than the cap of 10,000: split it, or raise the cap with "
+                   "--max-points 1000000000\n")
+    assert main(["sweep", str(path), "--out", str(out), "--max-points", "999999999"]) == 2
+    assert "more than the cap of 999,999,999" in capsys.readouterr().err
+    assert main(["sweep", str(path), "--out", str(out), "--max-points", "0"]) == 2
+    assert capsys.readouterr().err == "stereosim: error: --max-points must be at least 1; got 0\n"
+    assert not out.exists()
+
+
+def test_the_cap_is_max_points_by_default_and_max_points_raises_it(tmp_path, capsys):
+    assert MAX_POINTS == 10_000
+    path = _write(tmp_path, 'mode = "estimate"\nscenes = ["64x24"]\n[grid]\n'
+                  f'"fifo.nna_to_sva_depth" = {list(range(1, 101))}\n'
+                  f'"fifo.source_to_nna_depth" = {list(range(1, 102))}\n')
+    with pytest.raises(ConfigError, match=r"has 10,100 points \(100 x 101\), more than the cap"):
+        load_sweep(path)
+    assert len(load_sweep(path, max_points=10_100).tasks) == 10_100
+    two = _write(tmp_path, _estimate([16, 32]), "two.toml")
+    out = tmp_path / "out"
+    assert main(["sweep", str(two), "--out", str(out), "--max-points", "1"]) == 2
+    assert "has 2 points (2), more than the cap of 1" in capsys.readouterr().err
+    assert main(["sweep", str(two), "--out", str(out), "--max-points", "2", "--quiet",
+                 "--workers", "1"]) == 0
+    assert [r["status"] for r in read_rows(out / CSV_NAME)] == ["ok", "ok"]
+
+
+# ----------------------------------------------------------------------------------------------
+# 3. rows appended, bounded submission
+
+
+def test_rows_are_appended_as_tasks_finish_and_submission_is_bounded(tmp_path, client):
+    """One task in flight: each submission after the first comes after one more row, appended
+    to the same file (same inode, growing by a row), never a rewrite of the whole file."""
+    path = _write(tmp_path, _estimate([16, 32, 48], extra='"sva.paths" = [2, 4]\n'))
+    sweep = load_sweep(path)
+    out = tmp_path / "out"
+    seen = []
+
+    class _Watching(_CountingClient):
+        def submit(self, fn, task, **kw):
+            if (out / CSV_NAME).exists():
+                st = (out / CSV_NAME).stat()
+                seen.append((st.st_ino, st.st_size))
+            return super().submit(fn, task, **kw)
+
+    watching = _Watching(client, out / CSV_NAME)
+    run_sweep(sweep, out, client=watching, progress=False, in_flight=1)
+    assert watching.rows_at_submit == [0, 1, 2, 3, 4, 5]
+    assert len(seen) == 5 and len({ino for ino, _ in seen}) == 1
+    sizes = [size for _, size in seen]
+    assert sizes == sorted(set(sizes))
+    assert (out / CSV_NAME).read_bytes().count(b"\n") == 7
+
+
+@pytest.mark.parametrize("in_flight, most", [(3, 3), (None, 8)])
+def test_at_most_in_flight_tasks_are_outstanding(tmp_path, client, in_flight, most):
+    """In flight = submitted and not yet written; by default 4 per worker thread (2 here)."""
+    sweep = load_sweep(_write(tmp_path, _estimate([16], extra='"fifo.nna_to_sva_depth" = '
+                                                  f'{list(range(8, 20))}\n')))
+    out = tmp_path / "out"
+    counting = _CountingClient(client, out / CSV_NAME)
+    assert run_sweep(sweep, out, client=counting, progress=False, in_flight=in_flight)["ok"] == 12
+    outstanding = [k + 1 - rows for k, rows in enumerate(counting.rows_at_submit)]
+    assert len(outstanding) == 12 and max(outstanding) == most, outstanding
+
+
+# ----------------------------------------------------------------------------------------------
+# the results file itself
+
+
+def test_a_torn_last_line_is_ignored_and_cut_by_the_next_append(tmp_path):
+    sweep = load_sweep(_write(tmp_path, _estimate([16, 32, 48])))
+    rows = [run_task(t) for t in sweep.tasks]
+    path = tmp_path / CSV_NAME
+    append_rows(path, rows[:1], sweep.axes)
+    whole = path.read_bytes()
+    with path.open("ab") as f:
+        f.write(b"1,64x24,ok,,0e7166461db8bf35,32,398")  # a write cut short
+    assert [r["point"] for r in read_rows(path)] == ["0"]
+    append_rows(path, rows[1:], sweep.axes)
+    data = path.read_bytes()
+    assert data.startswith(whole) and data.endswith(b"\n") and data.count(b"\n") == 4
+    assert [r["point"] for r in read_rows(path)] == ["0", "1", "2"]
+    assert read_rows(path)[1]["point_id"] == sweep.tasks[1].point_id
+    # a torn header: the file counts as empty, and the next append starts it again
+    path.write_bytes(whole[:40])
+    assert read_rows(path) == []
+    append_rows(path, rows[:1], sweep.axes)
+    assert path.read_bytes() == whole
+
+
+def test_a_row_with_new_columns_rewrites_the_file_from_a_fresh_read(tmp_path):
+    sweep = load_sweep(_write(tmp_path, _estimate([16, 128])))
+    ok, failed = (run_task(t) for t in sweep.tasks)
+    assert (ok["status"], failed["status"]) == ("ok", "error")
+    path = tmp_path / CSV_NAME
+    append_rows(path, [failed], sweep.axes)  # few columns
+    other = {"point": 7, "scene": "elsewhere", "status": "ok", "error": "", "point_id": "x",
+             "zz.other": 1.5}
+    append_rows(path, [other], ["zz.other"])  # another sweep's row, its own column
+    inode = path.stat().st_ino
+    append_rows(path, [ok], sweep.axes)  # every report column: the one rewrite
+    assert path.stat().st_ino != inode
+    got = read_rows(path)
+    assert [r["point_id"] for r in got] == [failed["point_id"], "x", ok["point_id"]]
+    assert got[1]["zz.other"] == "1.5" and got[1]["throughput.fps"] == ""
+    assert float(got[2]["throughput.fps"]) > 0 and got[0]["error"] == failed["error"]
+    header = path.read_text().split("\n", 1)[0].split(",")
+    assert header[:6] == [*LEAD_COLUMNS, "sva.disparities"] and header[6:] == sorted(header[6:])
+    inode = path.stat().st_ino
+    append_rows(path, [ok], sweep.axes)  # the header has every column now: an append
+    assert path.stat().st_ino == inode and len(read_rows(path)) == 4
+
+
+def test_a_full_disk_cuts_the_file_back_to_its_last_whole_row(tmp_path):
+    """The file-size limit (RLIMIT_FSIZE) makes the 4th row's write fall short, as a full disk
+    does: the write is undone, the command ends with one line, the 3 rows before stay whole."""
+    path = _write(tmp_path, _estimate([16, 32, 48], extra='"sva.paths" = [2, 4]\n'))
+    sweep = load_sweep(path)
+    write_rows(tmp_path / "ref.csv", [run_task(t) for t in sweep.tasks], sweep.axes)
+    lines = (tmp_path / "ref.csv").read_bytes().split(b"\n")
+    limit = sum(len(line) + 1 for line in lines[:4]) + len(lines[4]) // 2
+
+    def small_files():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+    done = _stereosim(["sweep", path, "--out", "out", "--quiet", "--workers", "1"], tmp_path,
+                      preexec_fn=small_files)
+    csv_path = tmp_path / "out" / CSV_NAME
+    assert done.returncode == 2 and done.stdout == ""
+    assert done.stderr.startswith(f"stereosim: error: cannot append to {Path('out') / CSV_NAME}"
+                                  " (only ") and done.stderr.count("\n") == 1, done.stderr
+    assert "free some space or write elsewhere" in done.stderr
+    data = csv_path.read_bytes()
+    rows = read_rows(csv_path)
+    assert data.endswith(b"\n") and data.count(b"\n") == 4 and len(rows) == 3
+    assert all(r["status"] == "ok" and float(r["throughput.fps"]) > 0 for r in rows)
+
+
+# ----------------------------------------------------------------------------------------------
+# 4-5. exit status, and nothing from Dask on stderr
+
+
+@pytest.fixture
+def port_8787_taken():
+    """Dask's default HTTP port held, so Dask warns if it tries to use it."""
+    sock = socket.socket()
+    try:
+        sock.bind(("0.0.0.0", 8787))
+        sock.listen()
+    except OSError:
+        pass  # someone else holds it already: just as good
+    yield
+    sock.close()
+
+
+def test_a_quiet_sweep_writes_nothing_on_stderr_and_failures_exit_2(tmp_path, port_8787_taken):
+    good = _write(tmp_path, _estimate([16, 32]), "good.toml")
+    done = _stereosim(["sweep", good, "--out", "good", "--quiet", "--workers", "2"], tmp_path)
+    assert (done.returncode, done.stderr) == (0, "")
+    assert done.stdout.startswith("2 runs (2 points x 1 scenes): 0 already done, 2 ok, 0 failed")
+    bad = _write(tmp_path, _estimate([128, 256]), "bad.toml")  # neither D is below 64
+    done = _stereosim(["sweep", bad, "--out", "bad", "--quiet", "--workers", "1"], tmp_path)
+    assert done.returncode == 2
+    assert done.stderr == ("stereosim: error: 2 of 2 runs failed: read why in the 'error' "
+                           f"column of {Path('bad') / CSV_NAME}\n")
+    assert done.stdout.startswith("2 runs (2 points x 1 scenes): 0 already done, 0 ok, 2 failed")
+    assert "point 0 64x24: sva.disparities=128 is not smaller than the image width 64" in (
+        done.stdout)
+    assert [r["status"] for r in read_rows(tmp_path / "bad" / CSV_NAME)] == ["error", "error"]
+
+
+def test_verbose_lets_dask_speak(tmp_path):
+    good = _write(tmp_path, _estimate([16]), "good.toml")
+    done = _stereosim(["sweep", good, "--out", "out", "--quiet", "--verbose", "--workers", "1"],
+                      tmp_path)
+    assert done.returncode == 0
+    assert "distributed.scheduler - INFO" in done.stderr
+
+
+# ----------------------------------------------------------------------------------------------
+# 6. data: names stay in the shared data folder
+
+
+def _fake_scene(folder: Path) -> Path:
+    folder.mkdir(parents=True)
+    for name in ("im0.png", "im1.png"):  # enough for find_scene; nothing is loaded here
+        (folder / name).write_bytes(b"")
+    return folder
+
+
+def test_data_names_that_leave_the_shared_data_folder_are_refused(tmp_path, monkeypatch, capsys):
+    data = tmp_path / "data"
+    inside = _fake_scene(data / "set" / "A")
+    outside = _fake_scene(tmp_path / "secret")
+    (data / "link").symlink_to(outside)
+    monkeypatch.setenv("STEREOSIM_DATA", str(data))
+    sweep = load_sweep(_write(tmp_path, 'scenes = ["data:set/A"]\n[grid]\n"sva.paths" = [2]\n'))
+    assert sweep.scenes == [("data:set/A", str(inside))]
+    for name in ("data:..", "data:../secret", "data:set/../../secret", f"data:{outside}",
+                 "data:link", "data:set/A/../../../secret"):
+        path = _write(tmp_path, f'scenes = ["{name}"]\n[grid]\n"sva.paths" = [2]\n')
+        assert main(["sweep", str(path), "--out", str(tmp_path / "out")]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith(f"stereosim: error: scene '{name}' resolves to ") and (
+            f"outside the shared data folder {data}" in err), err
+        assert err.count("\n") == 1
+    assert not (tmp_path / "out").exists()
+
+
+# ----------------------------------------------------------------------------------------------
+# 7. files that cannot be read or written: one line, exit 2
+
+
+def _unreadable(path: Path) -> Path:
+    """A file that cannot be read, even by root: reading /proc/self/mem at 0 fails (EIO)."""
+    path.symlink_to("/proc/self/mem")
+    return path
+
+
+GOOD = _estimate([16])
+
+
+def _bad_sweep_folder(tmp):
+    (tmp / "sweep.toml").mkdir()
+
+
+def _bad_sweep_unreadable(tmp):
+    _unreadable(tmp / "sweep.toml")
+
+
+def _bad_config(kind):
+    def make(tmp):
+        (tmp / "sweep.toml").write_text('config = "base.toml"\n' + GOOD)
+        if kind == "folder":
+            (tmp / "base.toml").mkdir()
+        elif kind == "unreadable":
+            _unreadable(tmp / "base.toml")
+        elif kind == "binary":
+            (tmp / "base.toml").write_bytes(b"\xff\xfe\x00")
+    return make
+
+
+def _bad_results(kind):
+    def make(tmp):
+        (tmp / "sweep.toml").write_text(GOOD)
+        (tmp / "out").mkdir()
+        target = tmp / "out" / CSV_NAME
+        if kind == "folder":
+            target.mkdir()
+        elif kind == "unreadable":
+            _unreadable(target)
+        elif kind == "fifo":
+            os.mkfifo(target)
+        elif kind == "foreign":
+            target.write_text("name,value\na,1\n")
+        elif kind == "binary":
+            target.write_bytes(b"point,scene,status,error,point_id\n\xff\xfe\n")
+    return make
+
+
+def _out_is_a_file(tmp):
+    (tmp / "sweep.toml").write_text(GOOD)
+    (tmp / "out").write_text("not a folder")
+
+
+UNUSABLE = {
+    "sweep file is a folder": (_bad_sweep_folder, "sweep file sweep.toml is a folder"),
+    "sweep file unreadable": (_bad_sweep_unreadable, "cannot read sweep file sweep.toml ("),
+    "config missing": (_bad_config("missing"), "config file {tmp}/base.toml not found"),
+    "config is a folder": (_bad_config("folder"), "config file {tmp}/base.toml is a folder"),
+    "config unreadable": (_bad_config("unreadable"), "cannot read config file {tmp}/base.toml"),
+    "config not text": (_bad_config("binary"), "config file {tmp}/base.toml is not UTF-8 text"),
+    "results is a folder": (_bad_results("folder"), "results file out/results.csv is a folder"),
+    "results unreadable": (_bad_results("unreadable"),
+                           "cannot use the results file out/results.csv ("),
+    "results is a fifo": (_bad_results("fifo"), "out/results.csv is not a regular file"),
+    "results not ours": (_bad_results("foreign"),
+                         "out/results.csv is not a stereosim results file"),
+    "results not text": (_bad_results("binary"), "results file out/results.csv is not UTF-8"),
+    "out is a file": (_out_is_a_file, "cannot create the output folder out"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(UNUSABLE))
+def test_files_that_cannot_be_used_are_one_line_exit_2(case, tmp_path, monkeypatch, capsys):
+    make, expected = UNUSABLE[case]
+    make(tmp_path)
+    monkeypatch.chdir(tmp_path)
+    before = sorted(p.name for p in tmp_path.rglob("*"))
+    assert main(["sweep", "sweep.toml", "--out", "out", "--quiet", "--workers", "1"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("stereosim: error: ") and err.count("\n") == 1, err
+    assert expected.format(tmp=tmp_path.resolve()) in err, err
+    assert sorted(p.name for p in tmp_path.rglob("*")) == before  # nothing written
+
+
+def test_a_repeated_point_is_refused(tmp_path):
+    with pytest.raises(ConfigError, match="point 2 on scene '64x24' repeats point 0"):
+        load_sweep(_write(tmp_path, _estimate([16, 32, 16])))
+
+
+# ----------------------------------------------------------------------------------------------
+# Ctrl-C
+
+
+def _live_processes_of_session(sid: int) -> list[str]:
+    found = []
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[3]) == sid and fields[0] != "Z":
+            found.append(entry.name)
+    return found
+
+
+def test_ctrl_c_stops_a_sweep_within_seconds_and_leaves_a_valid_csv(tmp_path):
+    """SIGINT to the whole process group, as Ctrl-C at a terminal sends it (the Dask workers
+    get it too), while both workers are busy: exit 130 within seconds, only our line on stderr,
+    every finished row whole, no process left behind."""
+    depths = list(range(8, 108))
+    path = _write(tmp_path, 'mode = "cycle"\nscenes = ["640x200"]\n[set]\n'
+                  f'"sva.disparities" = 32\n[grid]\n"fifo.nna_to_sva_depth" = {depths}\n')
+    csv_path = tmp_path / "out" / CSV_NAME
+    proc = subprocess.Popen([sys.executable, "-m", "sim.cli", "sweep", str(path), "--out", "out",
+                             "--quiet", "--workers", "2"], cwd=tmp_path, env=_env(),
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    try:
+        deadline = time.monotonic() + 120
+        while len(read_rows(csv_path)) < 2:
+            assert proc.poll() is None, proc.communicate()
+            assert time.monotonic() < deadline, "no row in 120 s"
+            time.sleep(0.1)
+        t0 = time.monotonic()
+        os.killpg(proc.pid, signal.SIGINT)
+        out, err = proc.communicate(timeout=60)
+        seconds = time.monotonic() - t0
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    assert (proc.returncode, err, out) == (130, "stereosim: interrupted\n", "")
+    assert seconds < 10, seconds
+    data = csv_path.read_bytes()
+    rows = read_rows(csv_path)
+    assert data.endswith(b"\n") and data.count(b"\n") == len(rows) + 1
+    assert 2 <= len(rows) < len(depths)
+    assert all(r["status"] == "ok" and float(r["throughput.fps"]) > 0 for r in rows)
+    deadline = time.monotonic() + 5
+    while _live_processes_of_session(proc.pid) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert _live_processes_of_session(proc.pid) == []
