@@ -247,7 +247,8 @@ def frame_budget(cfg: ChipConfig, shape: tuple[int, int], freqs: dict[str, float
 def nna_buffers(cfg: ChipConfig, width: int) -> tuple[BufferPlan, ...]:
     """SRAM of one NNA submodule serving input rows ``width`` pixels wide."""
     out = [BufferPlan("nna.line_buffer", cfg.nna.line_buffer_rows * width * 8,
-                      f"{cfg.nna.line_buffer_rows} input rows x {width} pixels x 8 bits")]
+                      f"{cfg.nna.line_buffer_rows} input rows x {width} pixels x 8 bits",
+                      rows=cfg.nna.line_buffer_rows)]
     if cfg.nna.descriptor == "cnn":
         c, k, _ = layer(cfg.nna)[0].shape
         out.append(BufferPlan("nna.weights", k * k * c * 8 + c * 32,

@@ -51,11 +51,13 @@ from sva.geometry import bits_for, disparity_bits
 
 @dataclass(frozen=True)
 class BufferPlan:
-    """A storage of a block or stage: ``bits`` of SRAM, what it holds."""
+    """A storage of a block or stage: ``bits`` of SRAM, what it holds; ``rows`` > 0: a window
+    of that many image rows whose fill both engines track (:mod:`sim.cycle.buffers`)."""
 
     name: str
     bits: int
     holds: str
+    rows: int = 0
 
 
 @dataclass(frozen=True)
@@ -116,7 +118,8 @@ def sva_stages(cfg: ChipConfig, width: int, bits: int, word_bits: int) -> tuple[
             f"II = G = ceil({d}/{lanes}) = {g}; latency = G + tree(lg({bits})) = "
             f"{g} + {tree_cycles(lg(bits), v)}",
             (BufferPlan("sva.descriptor_rows", 2 * (s.box_size + 1) * width * bits,
-                         "both views' descriptor rows the box filter slides over (k + 1 each)"),
+                        "both views' descriptor rows the box filter slides over (k + 1 each)",
+                        rows=s.box_size + 1),
              BufferPlan("sva.right_window", d * bits, "the right descriptors x - D + 1 .. x")),
         ),
         StagePlan(

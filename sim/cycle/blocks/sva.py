@@ -60,6 +60,10 @@ class SvaBlock(Block):
         self.emitted = 0
         self.rows_ready = 0
         self.ready_cycle = np.full(self.height, -1, np.int64)  # cycle each output row got ready
+        # the descriptor rows' window (sim.cycle.buffers): the cycle each input row started to
+        # enter, the cycle each output row's last word was pushed
+        self.rows_entered = np.full(self.height + 1, -1, np.int64)
+        self.rows_done = np.full(self.height + 1, -1, np.int64)
         self.last_push = NEVER
         self.pushed = False
         self.last_word = 0
@@ -87,6 +91,8 @@ class SvaBlock(Block):
         if self.received < n and y_out >= sva_rows_done_before_input(y_in, self.lookahead):
             if self.in_left.can_pop() and self.in_right.can_pop():
                 self._pair = (self.in_left.pop(), self.in_right.pop())
+                if self.received % self.width == 0:
+                    self.rows_entered[y_in] = now_cycle
                 moved = True
             else:
                 wait_fifo = self.in_left if not self.in_left.can_pop() else self.in_right
@@ -136,6 +142,8 @@ class SvaBlock(Block):
             self.last_push = self._cycle
             self.last_word = self._word
             self.emitted += 1
+            if self.emitted % self.width == 0:
+                self.rows_done[self.emitted // self.width - 1] = self._cycle
             self._word = None
 
     def signal_values(self):
