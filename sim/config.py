@@ -132,12 +132,14 @@ class SvaConfig:
     lr_check: bool = param(True, "left-right consistency check from the same aggregated volume")
     lr_max_diff: int = param(2, "largest |dL - dR| (integer disparities) accepted by the LR check", lo=0, hi=255)
     median: int = param(3, "median filter on the output: 0 (off), 3 or 5", choices=(0, 3, 5))
-    cycles_per_pixel: int = param(
-        2, "SVA clock cycles per output disparity in steady state (initiation interval)", lo=1,
-        hi=64,
+    lanes: int = param(
+        128, "disparities each SVA stage evaluates per cycle: a pixel takes ceil(D / lanes) "
+        "cycles per stage, and the left SGM path adds its minimum tree (docs/architecture.md)",
+        lo=1, hi=256,
     )
-    pipeline_latency: int = param(
-        16, "SVA cycles from the start of an output row to its first disparity", lo=1, hi=4096
+    compare_levels: int = param(
+        8, "levels of two-input compare/add operators that settle in one SVA cycle (the depth "
+        "of a reduction tree per cycle)", lo=1, hi=64,
     )
 
 

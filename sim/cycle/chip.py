@@ -16,6 +16,7 @@ import numpy as np
 
 from sim.config import ChipConfig
 from sim.cycle.blocks.nna import Merge, NnaSubmodule
+from sim.cycle.buffers import buffer_report
 from sim.cycle.blocks.sources import CameraSource, MemorySource, Sink
 from sim.cycle.blocks.sva import SvaBlock
 from sim.cycle.fifo import Fifo
@@ -24,6 +25,7 @@ from sim.cycle.plan import ChipPlan, build_plan
 from sim.cycle.report import cycle_report
 from sim.cycle.rules import sink_may_pop
 from sim.cycle.stops import CameraOverflow, overflow_message
+from sim.errors import UserError
 from traces.log import Clock, Signal, TraceLog, TraceRecorder
 
 
@@ -47,6 +49,18 @@ class Chip:
         if over:
             raise CameraOverflow(overflow_message(over))
         return self.sink.done
+
+    def window_rows(self) -> np.ndarray:
+        """The row windows' instants in the compiled engine's layout (``Net.occ``): per NNA
+        submodule (plan order) the cycle each input row started to enter and each output row
+        was done, then the same for the SVA."""
+        nna = [b for b in self.plan.blocks if b.kind == "nna"]
+        occ = np.full((2 * len(nna) + 2, self.plan.shape[0] + 1), -1, np.int64)
+        for t, b in enumerate([*nna, self.plan.block("sva")]):
+            blk = self.blocks[b.name]
+            occ[2 * t, :len(blk.rows_entered)] = blk.rows_entered
+            occ[2 * t + 1, :len(blk.rows_done)] = blk.rows_done
+        return occ
 
     def row_times(self) -> np.ndarray:
         """(2, H + 1) instants (fs): row r of [0] is when the left NNA's line buffers have
@@ -122,10 +136,23 @@ def run_cycle(left: np.ndarray, right: np.ndarray, cfg: ChipConfig | ChipPlan, *
     """Simulate one frame; returns (output words (H, W) int32, cycle report, the chip)."""
     chip = build_chip(left, right, cfg, order_seed=order_seed, sink_stall=sink_stall,
                       trace=trace)
-    stats = chip.sim.run(chip.done, budget_cycles=chip.plan.budget,
-                         watchdog_cycles=chip.plan.cfg.sim.watchdog_cycles)
-    report = cycle_report(chip.plan, chip.sink.first_cycle, chip.sink.last_cycle, stats)
+    _, report = _run(chip)
     return chip.sink.words.copy(), report, chip
+
+
+def _run(chip: Chip) -> tuple[dict, dict]:
+    """Run the chip to the end of the frame: (statistics, cycle report). A row window that
+    overflowed raises BufferOverflow, before any stop the run ended in."""
+    plan = chip.plan
+    try:
+        stats = chip.sim.run(chip.done, budget_cycles=plan.budget,
+                             watchdog_cycles=plan.cfg.sim.watchdog_cycles)
+    except UserError:
+        buffer_report(plan, chip.window_rows())
+        raise
+    buffers = buffer_report(plan, chip.window_rows())
+    return stats, cycle_report(plan, chip.sink.first_cycle, chip.sink.last_cycle, stats,
+                               buffers)
 
 
 # ---- the dispatcher's entry: the same frame, optionally with a trace window ---------------------
@@ -188,9 +215,7 @@ def run_readable(plan: ChipPlan, left: np.ndarray, right: np.ndarray, *, sink_st
                       trace=hook)
     if hook is not None:
         hook.fifo = chip.fifos["sva_to_sink"]
-    stats = chip.sim.run(chip.done, budget_cycles=plan.budget,
-                         watchdog_cycles=plan.cfg.sim.watchdog_cycles)
-    report = cycle_report(plan, chip.sink.first_cycle, chip.sink.last_cycle, stats)
+    stats, report = _run(chip)
     result = FrameResult(chip.sink.words.copy(), report, stats, chip.row_times())
     if hook is not None and hook.started:
         end = min(window[1], stats["end_time_fs"] + 1)

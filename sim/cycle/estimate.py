@@ -9,7 +9,7 @@ work) and applies the timing rules of :mod:`sim.cycle.rules` per image row inste
 
 - **Throughput.** A block's *work* per frame is the cycles its critical resource is busy --
   the figure the cycle report ranks (:meth:`ChipPlan.work_cycles`): descriptors x ``ceil(K*K*C / macs)`` per NNA
-  submodule (census: 1 cycle), words x ``cycles_per_pixel`` for the SVA, one beat per pixel for a
+  submodule (census: 1 cycle), words x the SVA's II (:mod:`sim.cycle.stages`) for the SVA, one beat per pixel for a
   merge, ``max(N, ceil(N f / B))`` cycles for a memory source (N pixels, f its clock, B its
   bandwidth in bytes/s) and ``H (W + hblank)`` pixel clocks for a camera. The block with
   the largest work time sets the frame rate. Exact (the same integers the simulator counts),
@@ -223,14 +223,16 @@ def timeline(plan: ChipPlan) -> dict:
     for y in range(h):
         first, last = nna_rows[y]
         start = max(visible(link, first, plan), prev_end + 1)
-        ii_row = ii_link
+        span = (w - 1) * ii_link
         done = sva_rows_done_before_input(y, la)
         if done > 0 and out_rows[done - 1][1] + 1 > start:
-            # the look-ahead window held the row back: upstream was blocked and resumes at its
-            # own II (its row times above are those of an unobstructed producer)
+            # the look-ahead window held the row back: the FIFO filled meanwhile, so its first
+            # `depth` beats leave one per cycle and the rest at the upstream's own II (its row
+            # times above are those of an unobstructed producer)
             start = out_rows[done - 1][1] + 1
-            ii_row = ii_in
-        end = max(visible(link, last, plan), math.ceil(start + (w - 1) * ii_row))
+            held = min(link.depth, w)
+            span = (held - 1) * ii_link + (w - held) * ii_in
+        end = max(visible(link, last, plan), math.ceil(start + span))
         in_end[y] = end
         prev_end = end
         while next_out < h and sva_last_input_row(next_out, la, h) <= y:

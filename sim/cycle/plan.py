@@ -38,8 +38,9 @@ from nna.geometry import (
 from sim.config import ChipConfig, check_config
 from sim.cycle.clock import ClockDomain
 from sim.cycle.rules import fifo_edges, period_fs
+from sim.cycle.stages import BufferPlan, StagePlan, pipeline_ii, pipeline_latency, sva_stages
 from sim.errors import ConfigError
-from sva.geometry import bits_for, disparity_bits, output_word_bits, row_lookahead
+from sva.geometry import output_word_bits, row_lookahead
 
 SIDES = ("left", "right")
 STATUS_CODES = {"idle": 0, "busy": 1, "starved": 2, "blocked": 3}  # as traced
@@ -91,15 +92,6 @@ class FifoPlan:
 
 
 @dataclass(frozen=True)
-class BufferPlan:
-    """A storage of a block: ``bits`` of SRAM, what it holds."""
-
-    name: str
-    bits: int
-    holds: str
-
-
-@dataclass(frozen=True)
 class BlockPlan:
     """A block of the chip. ``kind``: memory, camera, nna, merge, sva or sink. Per kind:
 
@@ -108,8 +100,9 @@ class BlockPlan:
     - nna: ``tile``, ``half`` (window rows above/below), ``rows`` (line buffer), ``cycles`` per
       descriptor (the MAC array's initiation interval and latency);
     - merge: ``items`` descriptors moved, one per cycle;
-    - sva: ``lookahead`` rows (box + median radius), ``latency`` (row ready -> first word),
-      ``cycles`` per word (initiation interval);
+    - sva: ``lookahead`` rows (box + median radius), ``stages`` (its pipeline,
+      :mod:`sim.cycle.stages`), ``latency`` (row ready -> first word: the stages' latencies),
+      ``cycles`` per word (initiation interval: the slowest stage's);
     - sink: one word per cycle.
     """
 
@@ -131,6 +124,7 @@ class BlockPlan:
     line_clocks: int = 0
     frame_clocks: int = 0
     buffers: tuple[BufferPlan, ...] = ()
+    stages: tuple[StagePlan, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -234,12 +228,12 @@ def _nb(n: int) -> int:
 
 
 def frame_budget(cfg: ChipConfig, shape: tuple[int, int], freqs: dict[str, float],
-                 cpd: int) -> dict[str, int]:
+                 cpd: int, sva_ii: int) -> dict[str, int]:
     """A generous cycle budget: 20x a frame at the slowest block's rate, per domain."""
     h, w = shape
     per_pixel_s = max(
         cpd / (cfg.clocks.nna_mhz * 1e6),
-        cfg.sva.cycles_per_pixel / (cfg.clocks.sva_mhz * 1e6),
+        sva_ii / (cfg.clocks.sva_mhz * 1e6),
         (w + cfg.source.camera_hblank) / w / (cfg.clocks.camera_mhz * 1e6)
         if cfg.source.kind == "camera" else 0.0,
     )
@@ -253,36 +247,12 @@ def frame_budget(cfg: ChipConfig, shape: tuple[int, int], freqs: dict[str, float
 def nna_buffers(cfg: ChipConfig, width: int) -> tuple[BufferPlan, ...]:
     """SRAM of one NNA submodule serving input rows ``width`` pixels wide."""
     out = [BufferPlan("nna.line_buffer", cfg.nna.line_buffer_rows * width * 8,
-                      f"{cfg.nna.line_buffer_rows} input rows x {width} pixels x 8 bits")]
+                      f"{cfg.nna.line_buffer_rows} input rows x {width} pixels x 8 bits",
+                      rows=cfg.nna.line_buffer_rows)]
     if cfg.nna.descriptor == "cnn":
         c, k, _ = layer(cfg.nna)[0].shape
         out.append(BufferPlan("nna.weights", k * k * c * 8 + c * 32,
                               f"{k}x{k}x{c} int8 weights and {c} int32 biases"))
-    return tuple(out)
-
-
-def sva_buffers(cfg: ChipConfig, width: int, bits: int, word_bits: int) -> tuple[BufferPlan, ...]:
-    """SRAM of the SVA's streaming buffers (docs/architecture.md gives each formula)."""
-    s = cfg.sva
-    d_bits = disparity_bits(s)
-    out = [
-        BufferPlan("sva.descriptor_rows", 2 * (s.box_size + 1) * width * bits,
-                   "both views' descriptor rows the box filter slides over (k + 1 each)"),
-        BufferPlan("sva.column_sums", width * s.disparities * bits_for(s.box_size * bits),
-                   "the vertical box sums, W x D"),
-        BufferPlan("sva.right_window", s.disparities * bits,
-                   "the right descriptors x - D + 1 .. x"),
-        BufferPlan("sva.sgm_previous_row",
-                   (s.paths - 1) * width * s.disparities * s.path_bits
-                   + s.disparities * s.path_bits,
-                   "the top paths' previous row and the left path's previous pixel"),
-    ]
-    if s.lr_check:
-        out.append(BufferPlan("sva.lr_window", width * (s.sum_bits + d_bits) + width * d_bits,
-                              "the LR check's diagonal search and the row's d*"))
-    if s.median > 1:
-        out.append(BufferPlan("sva.median_rows", s.median * width * word_bits,
-                              "the median's output rows"))
     return tuple(out)
 
 
@@ -361,15 +331,18 @@ def build_plan(cfg: ChipConfig, shape: tuple[int, int]) -> ChipPlan:
                                     f"top.nna.{side}.merge", n))
     to_sink = fifo("sva_to_sink", "fifo.sva_to_sink_depth", f.sva_to_sink_depth, word_bits,
                    "sva", "sink", "sva", "sva", n)
+    stages = sva_stages(cfg, w, bits, word_bits)
+    sva_ii = pipeline_ii(stages)
     blocks.append(BlockPlan("sva", "sva", "sva", None, ("nna_left_to_sva", "nna_right_to_sva"),
-                            (to_sink,), "top.sva", n, cycles=cfg.sva.cycles_per_pixel,
-                            latency=cfg.sva.pipeline_latency,
+                            (to_sink,), "top.sva", n, cycles=sva_ii,
+                            latency=pipeline_latency(stages),
                             lookahead=row_lookahead(cfg.sva),
-                            buffers=sva_buffers(cfg, w, bits, word_bits)))
+                            buffers=tuple(b for st in stages for b in st.buffers),
+                            stages=stages))
     blocks.append(BlockPlan("sink", "sink", "sva", None, (to_sink,), (), "top.sink", n))
     plan = ChipPlan(cfg=cfg, shape=(h, w), domains=domains, fifos=tuple(fifos),
                     blocks=tuple(blocks), tiles=tiles,
-                    budget=frame_budget(cfg, shape, freqs, cpd), descriptor_bits=bits,
+                    budget=frame_budget(cfg, shape, freqs, cpd, sva_ii), descriptor_bits=bits,
                     beat_bits=beat_bits, word_bits=word_bits)
     object.__setattr__(plan, "signals", tuple(_signals(plan)))
     return plan
@@ -476,4 +449,17 @@ def architecture_report(plan: ChipPlan) -> dict:
         },
         "descriptor_bytes_per_frame_per_camera": h * w * plan.descriptor_bits // 8,
         "actions": action_counts(plan),
+        "sva_pipeline": sva_pipeline_report(plan),
+    }
+
+
+def sva_pipeline_report(plan: ChipPlan) -> dict:
+    """The SVA's stages: II and latency of each, with the arithmetic, and the pipeline's."""
+    sva = plan.block("sva")
+    return {
+        "lanes": min(plan.cfg.sva.lanes, plan.cfg.sva.disparities),
+        "initiation_interval": sva.cycles,
+        "latency": sva.latency,
+        "stages": [{"name": st.name, "ii": st.ii, "latency": st.latency, "formula": st.formula}
+                   for st in sva.stages],
     }

@@ -28,9 +28,11 @@ def throughput(plan: ChipPlan, work: dict[str, int]) -> dict:
     }
 
 
-def cycle_report(plan: ChipPlan, first_cycle: int, last_cycle: int, stats: dict) -> dict:
-    """The cycle report from the sink's first and last pop (SVA cycles) and the kernel
-    statistics (``Simulator.stats()`` or the compiled engine's equal dict).
+def cycle_report(plan: ChipPlan, first_cycle: int, last_cycle: int, stats: dict,
+                 buffers: dict) -> dict:
+    """The cycle report from the sink's first and last pop (SVA cycles), the kernel
+    statistics (``Simulator.stats()`` or the compiled engine's equal dict) and the row
+    windows' peaks (:func:`sim.cycle.buffers.buffer_report`).
 
     ``fps_frame`` is the rate of frames run one at a time (the first input pixel at t = 0 to
     the last output word): far below ``fps`` when blocks hold work they cannot hand on (column
@@ -58,4 +60,5 @@ def cycle_report(plan: ChipPlan, first_cycle: int, last_cycle: int, stats: dict)
         "fifos": {n: fifos[n] for n in sorted(fifos)},
         "fifo_bytes_per_frame": {n: fifos[n]["bits_transferred"] // 8 for n in sorted(fifos)},
         "fifo_sram_bits": {f.name: f.sram_bits for f in sorted(plan.fifos, key=lambda f: f.name)},
+        "buffers": {b: buffers[b] for b in sorted(buffers)},
     }

@@ -112,10 +112,10 @@ def sva_rows_done_before_input(y_in, lookahead):
 
 
 @register_jitable
-def sva_word_due(ready, pipeline_latency, last_push, cycles_per_pixel):
-    """The first cycle the SVA may push a word: its row has been ready for the pipeline latency
-    and the previous word left an initiation interval earlier."""
-    return max(ready + pipeline_latency, last_push + cycles_per_pixel)
+def sva_word_due(ready, latency, last_push, ii):
+    """The first cycle the SVA may push a word: its row has been ready for the pipeline's
+    latency and the previous word left an initiation interval earlier."""
+    return max(ready + latency, last_push + ii)
 
 
 @register_jitable

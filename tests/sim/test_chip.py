@@ -36,7 +36,7 @@ def _frame(engine, left, right, cfg):
 
 
 @pytest.mark.parametrize("engine", ["readable", "compiled"])
-@pytest.mark.parametrize("h, w", [(11, 37), (7, 41), (5, 33)])
+@pytest.mark.parametrize("h, w", [(11, 53), (7, 57), (5, 64)])
 def test_census_first_and_last_output_cycles(h, w, engine):
     """Census (1 cycle per descriptor, window half-height 1), memory at one pixel per cycle.
 
@@ -46,12 +46,13 @@ def test_census_first_and_last_output_cycles(h, w, engine):
     r + m = 2 + 1 = 3, whose last pair is popped in cycle 6W + 2: ready in 6W + 3, first word
     pushed L cycles later and popped by the sink one cycle after that: 6W + 4 + L. The SVA (2
     cycles per word) is slower than the census NNA (1), so the words follow at 2 cycles each:
-    the last is popped in 6W + 4 + L + 2(HW - 1).
+    the last is popped in 6W + 4 + L + 2(HW - 1). (That needs W > L: row y + 1 is ready W + 1
+    cycles after row y starts leaving, and its first word is due L later; L = 49 here.)
     """
     left, right = _pair(h, w)
     cfg = load_config(overrides=SAME_CLOCKS)
     words, report, first, last = _frame(engine, left, right, cfg)
-    lat = cfg.sva.pipeline_latency
+    lat = build_plan(cfg, (h, w)).block("sva").latency  # tests/sim/test_stages.py checks it
     assert first == 6 * w + 4 + lat
     assert last == 6 * w + 4 + lat + 2 * (h * w - 1)
     assert report["throughput"]["bottleneck"] == "sva"
@@ -73,7 +74,7 @@ def test_cnn_first_and_last_output_cycles(h, w, engine):
     left, right = _pair(h, w, seed=1)
     cfg = load_config(overrides={**SAME_CLOCKS, "nna.descriptor": "cnn"})
     words, report, first, last = _frame(engine, left, right, cfg)
-    lat = cfg.sva.pipeline_latency
+    lat = build_plan(cfg, (h, w)).block("sva").latency
     assert first == 41 * w + 4 + lat
     assert last == (9 * h + 5) * w + 3 + lat + 2 * (4 * w - 1) + 1
     assert report["throughput"]["bottleneck"] in ("nna_left", "nna_right")
@@ -90,7 +91,7 @@ def test_cnn_first_and_last_output_cycles(h, w, engine):
         {"sva.paths": 3, "sva.disparities": 32, "sva.subpixel": "parabola"},
         {"sva.paths": 4, "fifo.source_to_nna_depth": 1, "fifo.nna_to_sva_depth": 1,
          "fifo.sva_to_sink_depth": 1},
-        {"nna.descriptor": "cnn", "fifo.nna_to_sva_depth": 2, "sva.cycles_per_pixel": 1},
+        {"nna.descriptor": "cnn", "fifo.nna_to_sva_depth": 2, "clocks.sva_mhz": 930},
         {"source.kind": "camera", "clocks.camera_mhz": 20, "source.camera_hblank": 7},
         {"nna.line_buffer_rows": 9, "nna.descriptor": "cnn", "sva.uniqueness": 5},
         {"source.memory_gbps": 0.1, "clocks.nna_mhz": 300, "clocks.sva_mhz": 700},

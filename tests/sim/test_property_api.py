@@ -30,7 +30,7 @@ EXAMPLES = int(os.environ.get("STEREOSIM_PROPERTY_EXAMPLES", "60"))
 SLOW_LEGAL = {"source.camera_hblank", "source.camera_vblank", "fifo.source_to_nna_depth",
               "fifo.nna_to_sva_depth", "fifo.nna_to_merge_depth", "fifo.sva_to_sink_depth",
               "sim.watchdog_cycles", "nna.submodules", "nna.stereo_submodules",
-              "sva.pipeline_latency", "fifo.latency_cycles"}
+              "fifo.latency_cycles"}
 
 
 def _leaves(cls=ChipConfig, prefix=""):

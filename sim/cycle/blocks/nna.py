@@ -65,6 +65,10 @@ class NnaSubmodule(Block):
         self.emitted = 0  # descriptors pushed so far (raster order of the output region)
         self.phase = 0  # MAC cycles spent on the current descriptor
         self.row_cycles = np.full(self.in_rows, -1, np.int64)  # cycle each input row completed
+        # the line buffer's window (sim.cycle.buffers): the cycle each input row started to
+        # enter, the cycle each output row's last descriptor was pushed
+        self.rows_entered = np.full(self.image_height + 1, -1, np.int64)
+        self.rows_done = np.full(self.image_height + 1, -1, np.int64)
         self.pushed = False
         self.last_descriptor = 0
         self._desc_row: np.ndarray | None = None
@@ -108,6 +112,8 @@ class NnaSubmodule(Block):
         # line buffer: one pixel per cycle while there is room
         if self.received < n_in and self.inp.can_pop() and self._room_for_input():
             self._beat_in = self.inp.pop()
+            if self.received % self.in_width == 0:
+                self.rows_entered[self.received // self.in_width] = now_cycle
             moved = True
         # MAC array
         self._phase_next = self.phase
@@ -156,6 +162,8 @@ class NnaSubmodule(Block):
         self.pushed = self._push is not None
         if self._push is not None:
             self.emitted += 1
+            if self.emitted % self.width == 0:
+                self.rows_done[self.emitted // self.width - 1] = self._cycle
             self.last_descriptor = self._push
             self._push = None
         self.phase = self._phase_next

@@ -12,9 +12,9 @@ order), ``out`` (output words ``(x, y, word)`` in raster order).
   :func:`~sim.cycle.rules.sva_last_input_row` (min(y + r + m, H - 1)) is complete (the box
   filter needs r rows below, the median m more; the LR check's diagonal search and the SGM
   paths stay within rows already in). Word j (raster) is pushed at the first cycle from
-  :func:`~sim.cycle.rules.sva_word_due` (ready + pipeline latency, previous push + cycles per
-  pixel) with space in ``out``. Without stalls the initiation interval is cycles_per_pixel and
-  the first word leaves at ready(0) + pipeline_latency.
+  :func:`~sim.cycle.rules.sva_word_due` (ready + the latency L, previous push + the II) with
+  space in ``out``; L and II come from the SVA's stages (:mod:`sim.cycle.stages`). Without
+  stalls the words leave every II cycles and the first at ready(0) + L.
 - **Data**: the functional model's streaming kernels (:class:`sva.pipeline.SvaStream`) run over
   the descriptors this block actually received, row by row as rows complete.
 
@@ -49,7 +49,7 @@ class SvaBlock(Block):
         self.cfg = cfg
         self.lookahead = plan.lookahead
         self.latency = plan.latency
-        self.cycles_per_pixel = plan.cycles
+        self.ii = plan.cycles
         dtype = np.uint32 if bits <= 32 else np.uint64
         self.desc_l = np.zeros(shape, dtype)
         self.desc_r = np.zeros(shape, dtype)
@@ -60,6 +60,10 @@ class SvaBlock(Block):
         self.emitted = 0
         self.rows_ready = 0
         self.ready_cycle = np.full(self.height, -1, np.int64)  # cycle each output row got ready
+        # the descriptor rows' window (sim.cycle.buffers): the cycle each input row started to
+        # enter, the cycle each output row's last word was pushed
+        self.rows_entered = np.full(self.height + 1, -1, np.int64)
+        self.rows_done = np.full(self.height + 1, -1, np.int64)
         self.last_push = NEVER
         self.pushed = False
         self.last_word = 0
@@ -74,7 +78,7 @@ class SvaBlock(Block):
         ready = int(self.ready_cycle[j // self.width])
         if ready < 0:
             return None
-        return sva_word_due(ready, self.latency, self.last_push, self.cycles_per_pixel)
+        return sva_word_due(ready, self.latency, self.last_push, self.ii)
 
     def evaluate(self, now_cycle: int) -> None:
         n = self.height * self.width
@@ -87,6 +91,8 @@ class SvaBlock(Block):
         if self.received < n and y_out >= sva_rows_done_before_input(y_in, self.lookahead):
             if self.in_left.can_pop() and self.in_right.can_pop():
                 self._pair = (self.in_left.pop(), self.in_right.pop())
+                if self.received % self.width == 0:
+                    self.rows_entered[y_in] = now_cycle
                 moved = True
             else:
                 wait_fifo = self.in_left if not self.in_left.can_pop() else self.in_right
@@ -136,6 +142,8 @@ class SvaBlock(Block):
             self.last_push = self._cycle
             self.last_word = self._word
             self.emitted += 1
+            if self.emitted % self.width == 0:
+                self.rows_done[self.emitted // self.width - 1] = self._cycle
             self._word = None
 
     def signal_values(self):

@@ -115,6 +115,10 @@ class Net(NamedTuple):
     gaps: np.ndarray  # int64 (blocks, capacity, 2): long gaps (start_fs, end_fs) between
     # busy instants, per block; ACC.gaps counts them
     rows: np.ndarray  # int64 (2, H + 1): row instants (sim.cycle.chip.Chip.row_times)
+    occ: np.ndarray  # int64 (2 T + 2, H + 1): the tracked buffers' row instants, cycles of
+    # their block (sim.cycle.buffers): per tile t [2t] the cycle its line buffer took the first
+    # pixel of each input row, [2t + 1] the cycle it pushed the last descriptor of each output
+    # row; [2T], [2T + 1] the same for the SVA's descriptor rows; -1 where not reached
     scratch: np.ndarray  # int64 (tiles per camera, 14): per-tile tables of a kernel call
     cursors: np.ndarray  # int64 (streams,): events up to an instant (the replay's)
 
@@ -276,11 +280,12 @@ def serialise(plan: ChipPlan, *, sink_stall=None, cap_fs: int = INF, stats: bool
     gaps = np.zeros((len(plan.blocks), gap_capacity, 2), np.int64)
     rows = np.full((2, h + 1), -1, np.int64)
     rows[:, 0] = 0
+    occ = np.full((2 * len(tiles) + 2, h + 1), -1, np.int64)
     names = {"streams": specs, "a": a_id, "b": b_id, "e": e_id, "m": m_id, "p": p_id,
              "block_index": block_index, "fifo_index": fifo_index}
     scratch = np.zeros((parts, 14), np.int64)
     cursors = np.zeros(len(specs), np.int64)
-    return Net(prm, streams, ring, tiles, fifos, blocks, acc, walks, hist, gaps, rows,
+    return Net(prm, streams, ring, tiles, fifos, blocks, acc, walks, hist, gaps, rows, occ,
                scratch, cursors), names
 
 

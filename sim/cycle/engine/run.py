@@ -19,6 +19,7 @@ import numpy as np
 from numba import njit
 
 from nna.descriptor import compute_descriptor
+from sim.cycle.buffers import buffer_report
 from sim.cycle.chip import FrameResult, trace_clocks, trace_signals
 from sim.cycle.clock import (
     ACTIVITIES,
@@ -323,6 +324,15 @@ def _trace(plan: ChipPlan, sink_stall, window: tuple[int, int], t_end: int, data
 # ---- the frame ----------------------------------------------------------------------------------
 
 
+def _window_rows(plan: ChipPlan, net: Net) -> np.ndarray:
+    """The row windows' instants (``Net.occ``); a mirrored right side is the left side's."""
+    occ = net.occ.copy()
+    if int(net.prm[0]["sides"]) == 1:
+        parts = plan.parts
+        occ[2 * parts:4 * parts] = occ[:2 * parts]
+    return occ
+
+
 def run_compiled(plan: ChipPlan, left: np.ndarray, right: np.ndarray, *, sink_stall=None,
                  window: tuple[int, int] | None = None,
                  timings: dict | None = None) -> FrameResult:
@@ -337,10 +347,11 @@ def run_compiled(plan: ChipPlan, left: np.ndarray, right: np.ndarray, *, sink_st
     t_end = INF
     if net.prm[0]["end"] == END_DONE:
         t_end = _last(net, names["p"] + 2) * plan.domains["sva"].period_fs
+    buffers = buffer_report(plan, _window_rows(plan, net))  # an overflow before any stop
     _raise_stop(plan, net, names, sink_stall, t_end)
     stats = _stats(plan, net, names, t_end)
     report = cycle_report(plan, int(net.prm[0]["first_pop"]), _last(net, names["p"] + 2),
-                          stats)
+                          stats, buffers)
     t1 = time.process_time()
     desc = (compute_descriptor(left, plan.cfg.nna), compute_descriptor(right, plan.cfg.nna))
     t2 = time.process_time()

@@ -198,6 +198,7 @@ def advance_whole_side(net, side):
     acc = net.acc[blk]
     last_busy, n_gaps = acc.last_busy, acc.gaps
     row_fs = net.rows[0]
+    occ, occ_in = net.occ, 2 * side
     left = side == 0
     blocked = 0
     empty = 0
@@ -234,6 +235,8 @@ def advance_whole_side(net, side):
             if vis > b_prev + 1:
                 empty += vis - b_prev - 1
             ring[b_off + (kb & b_mask)] = b
+            if xb == 0:
+                occ[occ_in, yb] = b
             b_prev = b
             kb += 1
             moved = True
@@ -380,6 +383,8 @@ def advance_pops(net, ti):
         if vis > b_prev + 1:
             empty += vis - b_prev - 1
         ring[b_off + (i & b_mask)] = b
+        if c == 0:
+            net.occ[2 * ti, r] = b
         b_prev = b
         i += 1
         c += 1
@@ -450,6 +455,7 @@ def advance_pushes(net, ti):
         j += 1
         c += 1
         if c == ow:
+            net.occ[2 * ti + 1, r] = e
             c = 0
             r += 1
     st.count = j
@@ -566,6 +572,8 @@ def advance_sva_pops(net, p_s, f_left, f_right):
     window = 0
     empty_l = 0
     empty_r = 0
+    occ = net.occ
+    occ_in = occ.shape[0] - 2
     known = min(n, nl, nr)
     y = j // w
     x = j - y * w
@@ -589,6 +597,8 @@ def advance_sva_pops(net, p_s, f_left, f_right):
         empty_l += max(0, vl - p_prev - 1)
         empty_r += max(0, vr - p_prev - 1)
         ring[p_off + (j & p_mask)] = p
+        if x == 0:
+            occ[occ_in, y] = p
         p_prev = p
         j += 1
         x += 1
@@ -655,6 +665,7 @@ def advance_sva_out_and_sink(net, p_s, f_sink):
             moved = True
             xo += 1
             if xo == w:
+                net.occ[net.occ.shape[0] - 1, yo] = o
                 xo = 0
                 yo += 1
         # pops: the first allowed cycle from the word's visibility

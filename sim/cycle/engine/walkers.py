@@ -202,8 +202,9 @@ def walk_sva(net, blk, p_s, final):
     if j == 0:
         prev = NEVER
     last_busy, n_gaps = a.last_busy, a.gaps
-    known_until = INF if npop >= n else (rd(ring, p_off, p_mask, npop - 1) + 1
-                                         if npop > 0 else 0)
+    # after the last pop known no other comes (every pop is in, or the streams have stopped)
+    known_until = INF if npop >= n or final else (rd(ring, p_off, p_mask, npop - 1) + 1
+                                                  if npop > 0 else 0)
     err = j < no and j <= o_lo
     starved = 0
     blocked = 0
@@ -245,6 +246,8 @@ def walk_sva(net, blk, p_s, final):
             if due > ready:
                 n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy, ready * per,
                                           (due - 1) * per, g)
+        elif due > lo:  # the row is in: busy in the pipeline's latency or initiation interval
+            n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy, lo * per, (due - 1) * per, g)
         if o > due:  # the word held for a free slot
             ptr, lost = _catch_up(ring, p_off, p_mask, ptr, p_lo + 1, due)
             err |= lost

@@ -1,0 +1,86 @@
+"""The row windows of the chip -- buffers whose fill changes as rows come and go -- tracked from
+what an engine did, and checked against their capacity.
+
+Two buffers hold a sliding window of image rows:
+
+- an NNA submodule's **line buffer** (``nna.line_buffer``, ``nna.line_buffer_rows`` rows of its
+  tile's input width): when the MAC array's next output row is y (tile rows), it still reads
+  input rows from ``y + top_halo - half``; a row arriving is held with them;
+- the SVA's **descriptor rows** (``sva.descriptor_rows``, k + 1 rows of each view, k the box
+  size): the box filter runs m rows ahead of the output (the median needs m output rows below),
+  so with output row y next it still reads rows from ``y + m - r`` (r box and m median radius);
+  a row arriving is held with them.
+
+Both engines record, per buffer, the cycle each input row started to enter (its first beat)
+and the cycle each output row was done (its last beat pushed). From those alone
+:func:`window_peaks` computes the most rows the window ever held -- at the instant a row starts
+to enter, ``r - max(0, y + offset) + 1`` with y the output rows done before that cycle -- and
+:func:`buffer_report` refuses a run in which any window held more rows than its capacity
+(:class:`BufferOverflow`, naming the buffer). The room rules of :mod:`sim.cycle.rules` keep the
+windows within capacity; this check does not call them, so a room rule that is wrong, or a
+buffer sized below what the frame needs, stops the run instead of being absorbed (the words come
+from the functional kernels and would not show it).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sim.cycle.plan import ChipPlan
+
+
+class BufferOverflow(RuntimeError):
+    """A row window held more rows than its capacity: a room rule is broken (a model bug)."""
+
+
+def tracked(plan: ChipPlan) -> list[tuple[str, str, int, int, int, int]]:
+    """``(block, buffer, capacity rows, capacity bits, row slot in the engines' arrays,
+    offset)`` of every row window, in plan order (NNA submodules side-major, then the SVA)."""
+    out = []
+    nna = plan.blocks_of("nna")
+    for t, b in enumerate(nna):
+        buf = next(x for x in b.buffers if x.name == "nna.line_buffer")
+        out.append((b.name, buf.name, buf.rows, buf.bits, 2 * t, b.tile.top_halo - b.half))
+    sva = plan.block("sva")
+    buf = next(x for x in sva.buffers if x.name == "sva.descriptor_rows")
+    s = plan.cfg.sva
+    m = s.median // 2 if s.median > 1 else 0
+    out.append(("sva", buf.name, buf.rows, buf.bits, 2 * len(nna), m - s.box_size // 2))
+    return out
+
+
+def window_peaks(entered: np.ndarray, done: np.ndarray, offset: int) -> tuple[int, int]:
+    """(most rows held, the cycle it was reached) of a row window: ``entered[r]`` the cycle
+    input row r started to enter, ``done[y]`` the cycle output row y was done (-1: not
+    reached)."""
+    n_in = int(np.argmin(entered >= 0)) if (entered < 0).any() else len(entered)
+    if n_in == 0:
+        return 0, -1
+    rows = np.arange(n_in)
+    t = entered[:n_in]
+    out_done = done[done >= 0]
+    y = np.searchsorted(out_done, t, side="left")  # output rows done before each instant
+    oldest = np.minimum(np.maximum(0, y + offset), rows)
+    held = rows - oldest + 1
+    i = int(np.argmax(held))
+    return int(held[i]), int(t[i])
+
+
+def buffer_report(plan: ChipPlan, occ: np.ndarray) -> dict:
+    """``{block: {buffer: {capacity_rows, peak_rows, capacity_bits, peak_bits}}}`` from the
+    engines' row instants ``occ`` (see :mod:`sim.cycle.engine.layout`: per NNA submodule two
+    rows, then two for the SVA); raises BufferOverflow if a window exceeded its capacity."""
+    report: dict[str, dict] = {}
+    for block, name, cap_rows, cap_bits, slot, offset in tracked(plan):
+        peak, at = window_peaks(occ[slot], occ[slot + 1], offset)
+        if peak > cap_rows:
+            raise BufferOverflow(
+                f"buffer {block}.{name} held {peak} rows at {plan.block(block).domain} cycle "
+                f"{at}, above its capacity of {cap_rows}: a room rule lets rows in that the "
+                "buffer cannot hold (a bug in the model)"
+            )
+        report.setdefault(block, {})[name] = {
+            "capacity_rows": cap_rows, "peak_rows": peak, "capacity_bits": cap_bits,
+            "peak_bits": cap_bits * peak // cap_rows,
+        }
+    return report

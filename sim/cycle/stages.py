@@ -1,0 +1,183 @@
+"""The SVA's micro-architecture: its pipeline of stages, each with a latency, an initiation
+interval (II) and buffers sized in bits, derived from the configuration.
+
+Every stage evaluates ``L = sva.lanes`` disparities per cycle, so one pixel's D disparities take
+``G = ceil(D / L)`` *lane groups* (cycles). Reductions (a popcount, the minimum over disparities,
+the sum over paths, a sorting network) are trees of two-input operators, of which
+``V = sva.compare_levels`` levels settle in one SVA cycle; a tree of depth ``t`` levels takes
+``tree(t) = ceil(t / V)`` cycles (0 for ``t = 0``). ``lg(n) = ceil(log2 n)``.
+
+The stages, in stream order (their docstrings give the formulas the tests check):
+
+======================  =================================  ==================================
+stage                   II (cycles per pixel)              latency (cycles)
+======================  =================================  ==================================
+hamming cost            G                                  G + tree(lg(bits))
+box filter              G                                  G + 2 (column sum, row sum)
+SGM (per path)          G (+ the left path's recurrence)   G + tree(lg(L) + [G > 1])
+path sum                G                                  tree(lg(paths))
+WTA / uniqueness / sub  G                                  G + tree(lg(D)) + [uniq] + sub
+LR check (optional)     G                                  (D - 1) II + 1
+median (optional)       1                                  tree(depth of the sorting network)
+output register         1                                  1
+======================  =================================  ==================================
+
+The SVA's II is the largest stage II. The left-to-right SGM path carries a dependency from one
+pixel to the next: pixel p's first lane group needs ``min_d L(p - 1, d)``, the minimum over all
+D of the previous pixel's path costs, which is complete ``tree(lg(L) + [G > 1])`` cycles after
+that pixel's last group (the lanes' minimum, then one level to fold in the running minimum of
+the earlier groups). So this path cannot overlap two pixels, and its II is ``G + tree(lg(L) +
+[G > 1])``. The other paths read the previous *row* and overlap freely.
+
+The defaults (D = 128, L = 128, V = 8) give G = 1 and II = 1 + tree(7) = 2: the paper's "one
+disparity every two clock ticks", 1280 x 720 x 2 / 465 MHz = 3.964 ms per frame, 252.3 fps.
+
+The SVA's latency (an output row ready -> its first word) is the sum of the stage latencies.
+The LR check computes the right view's disparities from the same aggregated volume: the right
+pixel ``x_r`` takes the best of ``S(x_r + d, d)`` over d, a diagonal through the next D left
+pixels. So a left pixel's check waits until the D - 1 pixels after it have been aggregated:
+(D - 1) IIs. Its buffers hold the running minimum of D right pixels and the D left words that
+wait for them.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from sim.config import ChipConfig
+from sva.geometry import bits_for, disparity_bits
+
+
+@dataclass(frozen=True)
+class BufferPlan:
+    """A storage of a block or stage: ``bits`` of SRAM, what it holds; ``rows`` > 0: a window
+    of that many image rows whose fill both engines track (:mod:`sim.cycle.buffers`)."""
+
+    name: str
+    bits: int
+    holds: str
+    rows: int = 0
+
+
+@dataclass(frozen=True)
+class StagePlan:
+    """A stage of the SVA pipeline: ``ii`` cycles per pixel, ``latency`` cycles from a pixel
+    entering it to leaving it, ``formula`` the arithmetic behind both (shown in reports)."""
+
+    name: str
+    ii: int
+    latency: int
+    formula: str
+    buffers: tuple[BufferPlan, ...] = ()
+
+
+def lg(n: int) -> int:
+    """ceil(log2 n) for n >= 1: the depth of a tree of two-input operators over n inputs."""
+    return max(0, math.ceil(math.log2(n))) if n > 1 else 0
+
+
+def tree_cycles(levels: int, per_cycle: int) -> int:
+    """Cycles of a tree of ``levels`` levels when ``per_cycle`` levels settle in one cycle."""
+    return -(-levels // per_cycle) if levels > 0 else 0
+
+
+def lane_groups(cfg: ChipConfig) -> int:
+    """G = ceil(D / lanes): the cycles one pixel's disparities take through a stage."""
+    s = cfg.sva
+    return -(-s.disparities // min(s.lanes, s.disparities))
+
+
+def sorting_depth(n: int) -> int:
+    """Levels of Batcher's odd-even merge sort over n inputs: k (k + 1) / 2 with k = lg(n)."""
+    k = lg(n)
+    return k * (k + 1) // 2
+
+
+def left_path_ii(cfg: ChipConfig) -> int:
+    """II of the left-to-right SGM path: G + tree(lg(L) + [G > 1]) (the min over the previous
+    pixel's D costs must be complete before the next pixel's first group)."""
+    s = cfg.sva
+    g = lane_groups(cfg)
+    lanes = min(s.lanes, s.disparities)
+    return g + tree_cycles(lg(lanes) + (1 if g > 1 else 0), s.compare_levels)
+
+
+def sva_stages(cfg: ChipConfig, width: int, bits: int, word_bits: int) -> tuple[StagePlan, ...]:
+    """The SVA's stages for frames ``width`` pixels wide, ``bits``-bit descriptors and
+    ``word_bits``-bit output words, in stream order (see the module docstring)."""
+    s = cfg.sva
+    d = s.disparities
+    v = s.compare_levels
+    g = lane_groups(cfg)
+    lanes = min(s.lanes, d)
+    d_bits = disparity_bits(s)
+    stages = [
+        StagePlan(
+            "hamming", g, g + tree_cycles(lg(bits), v),
+            f"II = G = ceil({d}/{lanes}) = {g}; latency = G + tree(lg({bits})) = "
+            f"{g} + {tree_cycles(lg(bits), v)}",
+            (BufferPlan("sva.descriptor_rows", 2 * (s.box_size + 1) * width * bits,
+                        "both views' descriptor rows the box filter slides over (k + 1 each)",
+                        rows=s.box_size + 1),
+             BufferPlan("sva.right_window", d * bits, "the right descriptors x - D + 1 .. x")),
+        ),
+        StagePlan(
+            "box_filter", g, g + 2,
+            f"II = G = {g}; latency = G + 2 (column sum, row sum) = {g + 2}",
+            (BufferPlan("sva.column_sums", width * d * bits_for(s.box_size * bits),
+                         "the vertical box sums, W x D"),),
+        ),
+    ]
+    left_ii = left_path_ii(cfg)
+    left_tree = left_ii - g
+    stages.append(StagePlan(
+        "sgm", left_ii, g + left_tree,
+        f"{s.paths} path unit(s); left path II = G + tree(lg({lanes}) + [G > 1]) = {g} + "
+        f"{left_tree} (min over the previous pixel's D costs); latency = G + {left_tree}",
+        (BufferPlan("sva.sgm_previous_row", (s.paths - 1) * width * d * s.path_bits
+                     + d * s.path_bits,
+                     "the top paths' previous row and the left path's previous pixel"),),
+    ))
+    sum_tree = tree_cycles(lg(s.paths), v)
+    stages.append(StagePlan(
+        "path_sum", g, sum_tree,
+        f"II = G = {g}; latency = tree(lg({s.paths} paths)) = {sum_tree}"))
+    sub = 0 if s.subpixel == "off" else s.subpixel_bits + 1
+    uniq = 1 if s.uniqueness else 0
+    wta_tree = tree_cycles(lg(d), v)
+    stages.append(StagePlan(
+        "wta", g, g + wta_tree + uniq + sub,
+        f"II = G = {g}; latency = G + tree(lg({d})) + uniqueness {uniq} + sub-pixel "
+        f"({s.subpixel}: F + 1 = {sub}) = {g + wta_tree + uniq + sub}"))
+    ii = max(st.ii for st in stages)
+    if s.lr_check:
+        stages.append(StagePlan(
+            "lr_check", g, (d - 1) * ii + 1,
+            f"II = G = {g}; latency = (D - 1) x II + 1 = {d - 1} x {ii} + 1 (the diagonal "
+            "through the next D - 1 pixels)",
+            (BufferPlan("sva.lr_window", d * (s.sum_bits + d_bits) + d * word_bits,
+                         "the running best (cost, d) of D right pixels and the D left words "
+                         "waiting for them"),),
+        ))
+    if s.median > 1:
+        depth = sorting_depth(s.median * s.median)
+        stages.append(StagePlan(
+            "median", 1, tree_cycles(depth, v),
+            f"II = 1; latency = tree({depth} levels of a {s.median}x{s.median} sorting network)"
+            f" = {tree_cycles(depth, v)}",
+            (BufferPlan("sva.median_rows", s.median * width * word_bits,
+                         "the median's output rows"),),
+        ))
+    stages.append(StagePlan("output", 1, 1, "II = 1; latency = 1 (the output register)"))
+    return tuple(stages)
+
+
+def pipeline_ii(stages: tuple[StagePlan, ...]) -> int:
+    """The SVA's initiation interval: its slowest stage's."""
+    return max(st.ii for st in stages)
+
+
+def pipeline_latency(stages: tuple[StagePlan, ...]) -> int:
+    """The SVA's latency (an output row ready -> its first word): the stages' latencies."""
+    return sum(st.latency for st in stages)

@@ -1,0 +1,106 @@
+"""The SVA's stages (sim/cycle/stages.py): initiation interval and latency from D, the lanes,
+the paths and the LR check, checked to the cycle against the formulas of the module docstring,
+written out again here by hand."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from sim.config import load_config
+from sim.cycle.engine.run import run_compiled
+from sim.cycle.plan import architecture_report, build_plan
+from sim.cycle.stages import lane_groups, lg, sorting_depth, tree_cycles
+
+# census (1 NNA cycle per descriptor, 32 bits), equal clocks: the input side is the one of
+# tests/sim/test_chip.py::test_census_first_and_last_output_cycles (row 0 ready at 6W + 3)
+BASE = {"clocks.nna_mhz": 400, "clocks.sva_mhz": 400, "nna.descriptor": "census"}
+
+
+def _ceil_log2(n):
+    return math.ceil(math.log2(n)) if n > 1 else 0
+
+
+def expected_ii_and_latency(d, lanes, paths, lr, *, levels=8, bits=32, box=5, median=3,
+                            subpixel_bits=4):
+    """The docstring's table, by hand."""
+    lanes = min(lanes, d)
+    g = -(-d // lanes)
+    tree = lambda depth: -(-depth // levels) if depth else 0  # noqa: E731
+    left = g + tree(_ceil_log2(lanes) + (1 if g > 1 else 0))
+    ii = max(g, left)
+    latency = (g + tree(_ceil_log2(bits))  # hamming: groups + popcount tree
+               + g + 2                     # box filter: column and row sums
+               + left                      # SGM: the left path's groups and min tree
+               + tree(_ceil_log2(paths))   # sum of the paths
+               + g + tree(_ceil_log2(d)) + subpixel_bits + 1  # WTA, equiangular fit
+               + ((d - 1) * ii + 1 if lr else 0)             # LR: the diagonal
+               + (tree(10) if median == 3 else 0)            # 3x3 sorting network
+               + 1)                                          # output register
+    return ii, latency
+
+
+@pytest.mark.parametrize("d", [16, 64, 128, 256])
+@pytest.mark.parametrize("lanes", [16, 64, 128])
+@pytest.mark.parametrize("paths", [1, 2, 3, 4])
+@pytest.mark.parametrize("lr", [False, True])
+def test_first_and_last_output_cycles_follow_the_stage_formulas(d, lanes, paths, lr):
+    ii, latency = expected_ii_and_latency(d, lanes, paths, lr)
+    # wide enough that the next row is ready before the SVA needs it (W + 1 + L <= W II),
+    # and D < W
+    w = max(d + 1, 40, math.ceil((latency + 1) / (ii - 1)) + 1)
+    h = 5
+    cfg = load_config(overrides={**BASE, "sva.disparities": d, "sva.lanes": lanes,
+                                 "sva.paths": paths, "sva.lr_check": lr})
+    plan = build_plan(cfg, (h, w))
+    assert (plan.block("sva").cycles, plan.block("sva").latency) == (ii, latency)
+    rng = np.random.default_rng(d + lanes)
+    left = rng.integers(0, 256, (h, w), dtype=np.uint8)
+    frame = run_compiled(plan, left, np.roll(left, -2, axis=1))
+    cycles = frame.report["cycles"]
+    first = 6 * w + 4 + latency  # row 0 ready at 6W + 3, L later pushed, popped one after
+    assert cycles["first_output"]["sva"] == first
+    assert cycles["last_output"]["sva"] == first + ii * (h * w - 1)
+    assert frame.report["throughput"]["bottleneck"] == "sva"
+
+
+def test_the_paper_configuration_gives_250_fps():
+    """720p, D = 128, LR on, 465 MHz: II = ceil(128 / 128) + tree(7 levels) = 1 + 1 = 2, so
+    the SVA's work per frame is 1280 x 720 x 2 cycles = 3.964 ms: 252.3 fps (250 within 1 %)."""
+    cfg = load_config()
+    plan = build_plan(cfg, (720, 1280))
+    sva = plan.block("sva")
+    assert sva.cycles == 2
+    fps = cfg.clocks.sva_mhz * 1e6 / (sva.items * sva.cycles)
+    assert abs(fps - 250) / 250 < 0.03
+    assert round(fps, 1) == 252.3
+
+
+def test_lanes_trade_against_the_left_path_recurrence():
+    """Fewer lanes: more groups per pixel; the left path adds its minimum tree once per pixel,
+    so halving the lanes of D = 128 from 128 to 64 turns II 2 into 2 + 1 = 3 (two groups, then
+    tree(lg 64 + 1) = 1)."""
+    ii = {lanes: build_plan(load_config(overrides={"sva.lanes": lanes}), (64, 300)).block("sva")
+          .cycles for lanes in (128, 64, 32, 16, 1)}
+    assert ii == {128: 2, 64: 3, 32: 5, 16: 9, 1: 129}
+    few_levels = load_config(overrides={"sva.compare_levels": 2})
+    assert build_plan(few_levels, (64, 300)).block("sva").cycles == 1 + 4  # tree(7) = 4
+
+
+def test_helpers():
+    assert [lg(n) for n in (1, 2, 3, 4, 5, 128, 129)] == [0, 1, 2, 2, 3, 7, 8]
+    assert [tree_cycles(t, 8) for t in (0, 1, 8, 9, 16)] == [0, 1, 1, 2, 2]
+    assert sorting_depth(9) == 10 and sorting_depth(25) == 15
+    assert lane_groups(load_config(overrides={"sva.disparities": 48, "sva.lanes": 32})) == 2
+
+
+def test_the_report_shows_each_stage_and_its_arithmetic():
+    rep = architecture_report(build_plan(load_config(), (720, 1280)))["sva_pipeline"]
+    assert rep["initiation_interval"] == 2
+    assert [st["name"] for st in rep["stages"]] == [
+        "hamming", "box_filter", "sgm", "path_sum", "wta", "lr_check", "median", "output"]
+    assert rep["latency"] == sum(st["latency"] for st in rep["stages"])
+    lr = next(st for st in rep["stages"] if st["name"] == "lr_check")
+    assert lr["latency"] == 127 * 2 + 1 and "127 x 2 + 1" in lr["formula"]
