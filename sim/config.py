@@ -141,6 +141,11 @@ class SvaConfig:
         8, "levels of two-input compare/add operators that settle in one SVA cycle (the depth "
         "of a reduction tree per cycle)", lo=1, hi=64,
     )
+    sram_ports: str = param(
+        "1r1w", "ports of each SVA SRAM bank: 1r1w (a read and a write port per cycle) or 1rw "
+        "(one shared port: a stage that reads and writes a bank in one pixel takes both)",
+        choices=("1r1w", "1rw"),
+    )
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

@@ -12,13 +12,13 @@ The stages, in stream order (their docstrings give the formulas the tests check)
 ======================  =================================  ==================================
 stage                   II (cycles per pixel)              latency (cycles)
 ======================  =================================  ==================================
-hamming cost            G                                  G + tree(lg(bits))
-box filter              G                                  G + 2 (column sum, row sum)
-SGM (per path)          G (+ the left path's recurrence)   G + tree(lg(L) + [G > 1])
+hamming cost            max(G, ports)                      G + tree(lg(bits))
+box filter              max(G, ports)                      G + 2 (column sum, row sum)
+SGM (per path)          max(left path's recurrence, ports) G + tree(lg(L) + [G > 1])
 path sum                G                                  tree(lg(paths))
 WTA / uniqueness / sub  G                                  G + tree(lg(D)) + [uniq] + sub
 LR check (optional)     G                                  (D - 1) II + 1
-median (optional)       1                                  tree(depth of the sorting network)
+median (optional)       max(1, ports)                      tree(depth of the sorting network)
 output register         1                                  1
 ======================  =================================  ==================================
 
@@ -31,6 +31,15 @@ the earlier groups). So this path cannot overlap two pixels, and its II is ``G +
 
 The defaults (D = 128, L = 128, V = 8) give G = 1 and II = 1 + tree(7) = 2: the paper's "one
 disparity every two clock ticks", 1280 x 720 x 2 / 465 MHz = 3.964 ms per frame, 252.3 fps.
+
+SRAM ports (``sva.sram_ports``): every SRAM bank declares its reads and writes per pixel
+(:class:`BufferPlan`) -- a descriptor-row bank per view and a median-row bank per row 1 and 1,
+the column sums and each top SGM path's previous-row bank G and G (one lane group per access).
+With ``1r1w`` banks (a read and a write port) a stage needs max(reads, writes) cycles per pixel
+for them, with ``1rw`` (one shared port) reads + writes; a stage's II is the larger of its
+compute II and its banks' port cycles, so a single-port SRAM shows its cost: at the defaults
+none (the left path's recurrence already leaves the second cycle), with 64 lanes at D = 128 the
+SGM's II goes from 3 to 2 G = 4.
 
 The SVA's latency (an output row ready -> its first word) is the sum of the stage latencies.
 The LR check computes the right view's disparities from the same aggregated volume: the right
@@ -52,12 +61,29 @@ from sva.geometry import bits_for, disparity_bits
 @dataclass(frozen=True)
 class BufferPlan:
     """A storage of a block or stage: ``bits`` of SRAM, what it holds; ``rows`` > 0: a window
-    of that many image rows whose fill both engines track (:mod:`sim.cycle.buffers`)."""
+    of that many image rows whose fill both engines track (:mod:`sim.cycle.buffers`).
+
+    SRAM ports: ``reads`` and ``writes`` per pixel of each bank (one word per access: a lane
+    group of D-indexed buffers), through ``ports`` = ``"1r1w"`` (a read and a write port:
+    max(reads, writes) cycles per pixel) or ``"1rw"`` (one shared port: reads + writes); ``""``
+    for registers, which every cycle can read and write."""
 
     name: str
     bits: int
     holds: str
     rows: int = 0
+    reads: int = 0
+    writes: int = 0
+    ports: str = ""
+
+    @property
+    def port_cycles(self) -> int:
+        """Cycles per pixel this buffer's ports need (0: not port-limited)."""
+        if self.ports == "1rw":
+            return self.reads + self.writes
+        if self.ports == "1r1w":
+            return max(self.reads, self.writes)
+        return 0
 
 
 @dataclass(frozen=True)
@@ -112,32 +138,47 @@ def sva_stages(cfg: ChipConfig, width: int, bits: int, word_bits: int) -> tuple[
     g = lane_groups(cfg)
     lanes = min(s.lanes, d)
     d_bits = disparity_bits(s)
+    ports = s.sram_ports
+    rows_buf = BufferPlan("sva.descriptor_rows", 2 * (s.box_size + 1) * width * bits,
+                          "both views' descriptor rows the box filter slides over (k + 1 "
+                          "each; a bank per view: the arriving row written, the leaving read)",
+                          rows=s.box_size + 1, reads=1, writes=1, ports=ports)
+    sums_buf = BufferPlan("sva.column_sums", width * d * bits_for(s.box_size * bits),
+                          "the vertical box sums, W x D (a lane group read and written per "
+                          "group)", reads=g, writes=g, ports=ports)
+    top = 1 if s.paths > 1 else 0
+    sgm_buf = BufferPlan("sva.sgm_previous_row", (s.paths - 1) * width * d * s.path_bits
+                         + d * s.path_bits,
+                         "the top paths' previous row (a bank per path, a lane group read and "
+                         "written per group) and the left path's previous pixel",
+                         reads=g * top, writes=g * top, ports=ports if top else "")
+    ham_ii = max(g, rows_buf.port_cycles)
+    box_ii = max(g, sums_buf.port_cycles)
     stages = [
         StagePlan(
-            "hamming", g, g + tree_cycles(lg(bits), v),
-            f"II = G = ceil({d}/{lanes}) = {g}; latency = G + tree(lg({bits})) = "
+            "hamming", ham_ii, g + tree_cycles(lg(bits), v),
+            f"II = max(G = ceil({d}/{lanes}) = {g}, descriptor rows' ports {ports}: "
+            f"{rows_buf.port_cycles}) = {ham_ii}; latency = G + tree(lg({bits})) = "
             f"{g} + {tree_cycles(lg(bits), v)}",
-            (BufferPlan("sva.descriptor_rows", 2 * (s.box_size + 1) * width * bits,
-                        "both views' descriptor rows the box filter slides over (k + 1 each)",
-                        rows=s.box_size + 1),
-             BufferPlan("sva.right_window", d * bits, "the right descriptors x - D + 1 .. x")),
+            (rows_buf, BufferPlan("sva.right_window", d * bits,
+                                  "the right descriptors x - D + 1 .. x (registers)")),
         ),
         StagePlan(
-            "box_filter", g, g + 2,
-            f"II = G = {g}; latency = G + 2 (column sum, row sum) = {g + 2}",
-            (BufferPlan("sva.column_sums", width * d * bits_for(s.box_size * bits),
-                         "the vertical box sums, W x D"),),
+            "box_filter", box_ii, g + 2,
+            f"II = max(G = {g}, column sums' ports {ports}: {sums_buf.port_cycles}) = "
+            f"{box_ii}; latency = G + 2 (column sum, row sum) = {g + 2}",
+            (sums_buf,),
         ),
     ]
     left_ii = left_path_ii(cfg)
     left_tree = left_ii - g
+    sgm_ii = max(left_ii, sgm_buf.port_cycles)
     stages.append(StagePlan(
-        "sgm", left_ii, g + left_tree,
-        f"{s.paths} path unit(s); left path II = G + tree(lg({lanes}) + [G > 1]) = {g} + "
-        f"{left_tree} (min over the previous pixel's D costs); latency = G + {left_tree}",
-        (BufferPlan("sva.sgm_previous_row", (s.paths - 1) * width * d * s.path_bits
-                     + d * s.path_bits,
-                     "the top paths' previous row and the left path's previous pixel"),),
+        "sgm", sgm_ii, g + left_tree,
+        f"{s.paths} path unit(s); II = max(left path G + tree(lg({lanes}) + [G > 1]) = {g} + "
+        f"{left_tree} (min over the previous pixel's D costs), previous row's ports {ports}: "
+        f"{sgm_buf.port_cycles}) = {sgm_ii}; latency = G + {left_tree}",
+        (sgm_buf,),
     ))
     sum_tree = tree_cycles(lg(s.paths), v)
     stages.append(StagePlan(
@@ -150,24 +191,28 @@ def sva_stages(cfg: ChipConfig, width: int, bits: int, word_bits: int) -> tuple[
         "wta", g, g + wta_tree + uniq + sub,
         f"II = G = {g}; latency = G + tree(lg({d})) + uniqueness {uniq} + sub-pixel "
         f"({s.subpixel}: F + 1 = {sub}) = {g + wta_tree + uniq + sub}"))
-    ii = max(st.ii for st in stages)
+    med_buf = BufferPlan("sva.median_rows", s.median * width * word_bits,
+                         "the median's output rows (a bank per row: its column read, the new "
+                         "word written)", reads=1, writes=1, ports=ports)
+    med_ii = max(1, med_buf.port_cycles)
+    ii = max([st.ii for st in stages] + ([med_ii] if s.median > 1 else []))  # the pipeline's
     if s.lr_check:
         stages.append(StagePlan(
             "lr_check", g, (d - 1) * ii + 1,
             f"II = G = {g}; latency = (D - 1) x II + 1 = {d - 1} x {ii} + 1 (the diagonal "
             "through the next D - 1 pixels)",
             (BufferPlan("sva.lr_window", d * (s.sum_bits + d_bits) + d * word_bits,
-                         "the running best (cost, d) of D right pixels and the D left words "
-                         "waiting for them"),),
+                        "the running best (cost, d) of D right pixels and the D left words "
+                        "waiting for them (registers: shifted one pixel per II)"),),
         ))
     if s.median > 1:
         depth = sorting_depth(s.median * s.median)
         stages.append(StagePlan(
-            "median", 1, tree_cycles(depth, v),
-            f"II = 1; latency = tree({depth} levels of a {s.median}x{s.median} sorting network)"
-            f" = {tree_cycles(depth, v)}",
-            (BufferPlan("sva.median_rows", s.median * width * word_bits,
-                         "the median's output rows"),),
+            "median", med_ii, tree_cycles(depth, v),
+            f"II = max(1, median rows' ports {ports}: {med_buf.port_cycles}) = {med_ii}; "
+            f"latency = tree({depth} levels of a {s.median}x{s.median} sorting network) = "
+            f"{tree_cycles(depth, v)}",
+            (med_buf,),
         ))
     stages.append(StagePlan("output", 1, 1, "II = 1; latency = 1 (the output register)"))
     return tuple(stages)

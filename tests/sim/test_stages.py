@@ -104,3 +104,39 @@ def test_the_report_shows_each_stage_and_its_arithmetic():
     assert rep["latency"] == sum(st["latency"] for st in rep["stages"])
     lr = next(st for st in rep["stages"] if st["name"] == "lr_check")
     assert lr["latency"] == 127 * 2 + 1 and "127 x 2 + 1" in lr["formula"]
+
+
+@pytest.mark.parametrize("lanes, d, ii_dual, ii_single", [
+    (128, 128, 2, 2),  # the recurrence's second cycle leaves room for the second access
+    (64, 128, 3, 4),  # two groups: the banks take 2 G = 4 cycles through one port
+    (32, 128, 5, 8),
+    (16, 64, 5, 8),
+])
+def test_single_port_srams_cost_what_their_accesses_need(lanes, d, ii_dual, ii_single):
+    """Column sums and each top path's previous row: G reads and G writes per pixel. Two
+    ports: max(G, G) = G, under the left path's II; one port: 2 G."""
+    ii = {}
+    for ports in ("1r1w", "1rw"):
+        cfg = load_config(overrides={"sva.lanes": lanes, "sva.disparities": d,
+                                     "sva.sram_ports": ports})
+        ii[ports] = build_plan(cfg, (16, 300)).block("sva").cycles
+    assert (ii["1r1w"], ii["1rw"]) == (ii_dual, ii_single)
+    g = -(-d // lanes)
+    assert ii_single == max(ii_dual, 2 * g)
+
+
+def test_a_single_port_chip_runs_at_its_ii():
+    """The cycle model follows the plan's II: a census chip (SVA-bound) with 64 lanes and
+    single-port SRAM takes 4 cycles per word."""
+    cfg = load_config(overrides={**BASE, "sva.disparities": 128, "sva.lanes": 64,
+                                 "sva.sram_ports": "1rw"})
+    ii, latency = 4, None
+    plan = build_plan(cfg, (5, 400))
+    assert plan.block("sva").cycles == ii
+    latency = plan.block("sva").latency
+    rng = np.random.default_rng(3)
+    left = rng.integers(0, 256, (5, 400), dtype=np.uint8)
+    cycles = run_compiled(plan, left, np.roll(left, -2, axis=1)).report["cycles"]
+    first = 6 * 400 + 4 + latency
+    assert cycles["first_output"]["sva"] == first
+    assert cycles["last_output"]["sva"] == first + ii * (5 * 400 - 1)
