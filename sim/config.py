@@ -9,6 +9,7 @@ with the key's dotted name. ``stereosim config show`` prints the result as TOML.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import numbers
 import tomllib
@@ -215,8 +216,9 @@ def _is_config_class(tp) -> bool:
     return isinstance(tp, type) and dataclasses.is_dataclass(tp)
 
 
+@functools.lru_cache(maxsize=None)
 def _field_types(cls) -> dict[str, Any]:
-    return typing.get_type_hints(cls)
+    return typing.get_type_hints(cls)  # slow, and the same for every configuration
 
 
 def _coerce(dotted: str, value, tp, meta) -> Any:
