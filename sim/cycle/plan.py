@@ -22,6 +22,7 @@ stop messages)::
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from functools import cached_property
 
@@ -38,7 +39,14 @@ from nna.geometry import (
 from sim.config import ChipConfig, check_config
 from sim.cycle.clock import ClockDomain
 from sim.cycle.rules import fifo_edges, period_fs
-from sim.cycle.stages import BufferPlan, StagePlan, pipeline_ii, pipeline_latency, sva_stages
+from sim.cycle.stages import (
+    BufferPlan,
+    StagePlan,
+    nna_stages,
+    pipeline_ii,
+    pipeline_latency,
+    sva_stages,
+)
 from sim.errors import ConfigError
 from sva.geometry import output_word_bits, row_lookahead
 
@@ -325,7 +333,8 @@ def build_plan(cfg: ChipConfig, shape: tuple[int, int]) -> ChipPlan:
                 subs[t], "nna", "nna", s, (src_fifos[t],), (sub_outs[t],),
                 f"top.nna.{side}.sub{t}", tile.shape[0] * tile.shape[1], cycles=cpd,
                 tile=tile, half=half, rows=cfg.nna.line_buffer_rows,
-                buffers=nna_buffers(cfg, widest_in)))
+                buffers=nna_buffers(cfg, widest_in),
+                stages=nna_stages(cfg, 2 * half + 1, cpd, macs_per_descriptor(cfg.nna))))
         if parts > 1:
             blocks.append(BlockPlan(merge, "merge", "nna", s, tuple(sub_outs), (to_sva,),
                                     f"top.nna.{side}.merge", n))
@@ -450,7 +459,33 @@ def architecture_report(plan: ChipPlan) -> dict:
         "descriptor_bytes_per_frame_per_camera": h * w * plan.descriptor_bits // 8,
         "actions": action_counts(plan),
         "sva_pipeline": sva_pipeline_report(plan),
+        "nna_pipeline": [{"name": st.name, "ii": st.ii, "latency": st.latency,
+                          "formula": st.formula} for st in plan.blocks_of("nna")[0].stages],
+        "nna_submodules": submodule_report(plan),
     }
+
+
+def submodule_report(plan: ChipPlan) -> dict:
+    """How many NNA submodules the stereo pair uses, and what the idle ones could give: the
+    NNA's frame rate (its work bound) with every submodule on the pair (the largest even
+    count; None when the frame cannot be split that far)."""
+    n = plan.cfg.nna
+    most = n.submodules - n.submodules % 2
+
+    def nna_fps(p: ChipPlan) -> float:
+        sub = max(p.blocks_of("nna"), key=lambda b: b.items)
+        return round(p.domains["nna"].freq_hz / p.work_cycles(sub, 0), 3)
+
+    out = {"on_chip": n.submodules, "stereo": n.stereo_submodules,
+           "idle": n.submodules - n.stereo_submodules, "nna_fps": nna_fps(plan)}
+    if most > n.stereo_submodules:
+        cfg = dataclasses.replace(plan.cfg, nna=dataclasses.replace(n, stereo_submodules=most))
+        try:
+            out["with_all"] = {"stereo_submodules": most,
+                               "nna_fps": nna_fps(build_plan(cfg, plan.shape))}
+        except ConfigError:
+            out["with_all"] = None  # more tiles than the frame has columns or rows
+    return out
 
 
 def sva_pipeline_report(plan: ChipPlan) -> dict:

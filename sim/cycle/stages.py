@@ -218,6 +218,33 @@ def sva_stages(cfg: ChipConfig, width: int, bits: int, word_bits: int) -> tuple[
     return tuple(stages)
 
 
+def nna_stages(cfg: ChipConfig, window: int, cpd: int, macs: int) -> tuple[StagePlan, ...]:
+    """An NNA submodule's stages: its line buffer (a bank per row: each descriptor takes the
+    next column of the ``window``-row window, one pixel from each of ``window`` banks, while
+    the arriving pixel is written), the MAC array (``macs`` multiply-accumulates per
+    descriptor, ``cpd`` = ceil(macs / MACs in the array) cycles; the census unit: 1 cycle) and
+    the requantise/sign stage (per channel a multiply-shift and the sign bit, in the MAC
+    array's last cycle). The engines time the submodule by ``cpd`` (II and latency)."""
+    n = cfg.nna
+    if n.descriptor == "census":
+        mac = StagePlan("census_unit", 1, 1, "II = latency = 1 (one comparison per window "
+                        "sample, all in one cycle)")
+    else:
+        per_cycle = macs / cpd
+        mac = StagePlan(
+            "mac_array", cpd, cpd,
+            f"II = latency = ceil({macs} MACs / {n.macs}) = {cpd}; {per_cycle:g} MACs per "
+            f"cycle, {100 * macs / (cpd * n.macs):.1f} % of the array busy")
+    return (
+        StagePlan("line_buffer", 1, 0,
+                  f"a bank per row: per descriptor {window} reads (one per bank: the window's "
+                  "next column) and per pixel 1 write"),
+        mac,
+        StagePlan("requantise_sign", 1, 0, "per channel a multiply-shift and the sign bit, in "
+                  "the MAC array's last cycle"),
+    )
+
+
 def pipeline_ii(stages: tuple[StagePlan, ...]) -> int:
     """The SVA's initiation interval: its slowest stage's."""
     return max(st.ii for st in stages)

@@ -52,6 +52,7 @@ def configurations(draw):
         "fifo.sync_cycles": draw(st.integers(1, 3)),
         "sva.lanes": draw(st.sampled_from([1, 2, 3, 4, 8, 16, 128])),
         "sva.compare_levels": draw(st.sampled_from([1, 2, 8])),
+        "sva.sram_ports": draw(st.sampled_from(["1r1w", "1rw"])),
         "sva.box_size": draw(st.sampled_from([1, 3, 5])),
         "sva.median": draw(st.sampled_from([0, 3, 5])),
         "sva.paths": draw(st.integers(1, 4)),

@@ -140,3 +140,35 @@ def test_a_single_port_chip_runs_at_its_ii():
     first = 6 * 400 + 4 + latency
     assert cycles["first_output"]["sva"] == first
     assert cycles["last_output"]["sva"] == first + ii * (5 * 400 - 1)
+
+
+def test_the_nna_submodules_report_says_what_the_idle_ones_could_give():
+    """The pair uses 2 of the 10 submodules; all 10 (5 column tiles per camera) would give the
+    NNA 5x the work rate (tile 256 columns instead of 1280: 55.459 -> 277.3 fps)."""
+    rep = architecture_report(build_plan(load_config(), (720, 1280)))
+    subs = rep["nna_submodules"]
+    assert (subs["on_chip"], subs["stereo"], subs["idle"]) == (10, 2, 8)
+    assert subs["nna_fps"] == round(460e6 / (9 * 1280 * 720), 3)
+    assert subs["with_all"] == {"stereo_submodules": 10,
+                                "nna_fps": round(460e6 / (9 * 256 * 720), 3)}
+    mac = rep["nna_pipeline"][1]
+    assert (mac["name"], mac["ii"], mac["latency"]) == ("mac_array", 9, 9)
+    assert "288 MACs per cycle, 100.0 % of the array busy" in mac["formula"]
+    bands = load_config(overrides={"sva.disparities": 16, "nna.split": "rows"})
+    short = architecture_report(build_plan(bands, (4, 40)))["nna_submodules"]
+    assert short["with_all"] is None  # 5 row bands per camera: more than the frame's 4 rows
+
+
+def test_stage_activity_adds_up_and_names_the_bottleneck_stage():
+    """SVA-bound census chip: the SGM (II 2) is busy every cycle of a pixel, the Hamming and
+    box stages (II 1) half of them."""
+    cfg = load_config(overrides={**BASE, "sva.disparities": 16})
+    rng = np.random.default_rng(1)
+    left = rng.integers(0, 256, (8, 80), dtype=np.uint8)
+    rep = run_compiled(build_plan(cfg, (8, 80)), left, np.roll(left, -2, axis=1)).report
+    stages, sva = rep["sva_stages"], rep["blocks"]["sva"]
+    for name, st in stages.items():
+        assert st["busy"] + st["starved"] + st["blocked"] + st["idle"] == sum(sva.values()), name
+    assert stages["sgm"]["busy"] == 2 * 8 * 80
+    assert stages["hamming"]["busy"] == 8 * 80
+    assert stages["sgm"]["utilization_percent"] > 2 * stages["hamming"]["utilization_percent"] - 1
