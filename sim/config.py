@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from sim.errors import ConfigError
+from sim.errors import ConfigError, UserError
 
 LEGAL_DISPARITIES = tuple(range(16, 257, 16))
 
@@ -306,23 +306,27 @@ def _insert(tree: dict, dotted: str, value) -> None:
     node[parts[-1]] = value
 
 
-def read_toml(path, what: str) -> dict:
-    """The parsed TOML file at ``path``; a missing, unreadable or malformed file raises
-    ConfigError naming ``what`` and the file."""
+def read_toml(path, what: str, error: type[UserError] = ConfigError) -> dict:
+    """The parsed TOML file at ``path``; a missing, unreadable, binary or malformed file (or a
+    folder) raises ``error`` with one line naming ``what`` and the file."""
     p = Path(path)
+    shown = str(p) if len(str(p)) <= 100 else f"{str(p)[:50]}...{str(p)[-50:]}"
     try:
+        if p.is_dir():
+            raise error(f"{what} {shown} is a folder: give the path of a TOML file")
         if not p.is_file():
-            raise ConfigError(f"{what} {p} not found: give the path of a TOML file")
+            raise error(f"{what} {shown} not found: give the path of a TOML file")
         text = p.read_text()
     except OSError as exc:
         reason = exc.strerror or type(exc).__name__
-        raise ConfigError(f"cannot read {what} {str(p)[:100]} ({reason}): check the path") from None
+        raise error(f"cannot read {what} {shown} ({reason}): check the file and its "
+                    "permissions") from None
     except UnicodeDecodeError:
-        raise ConfigError(f"{what} {p} is not a UTF-8 text file: give a TOML file") from None
+        raise error(f"{what} {shown} is not UTF-8 text: give a TOML file") from None
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{what} {p} is not valid TOML: {exc}") from None
+        raise error(f"{what} {shown} is not valid TOML: {exc}") from None
 
 
 def load_config(

@@ -69,7 +69,6 @@ import os
 import signal
 import stat
 import threading
-import tomllib
 import warnings
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -79,7 +78,7 @@ from typing import Any
 import numpy as np
 
 from sim.api import prepare_pair, run
-from sim.config import load_config
+from sim.config import load_config, read_toml
 from sim.cycle.estimate import estimate
 from sim.datasets import (
     default_scene,
@@ -194,25 +193,6 @@ def _check_lists(table: dict, name: str) -> None:
             )
 
 
-def _read_toml(p: Path, what: str, error: type[UserError]) -> dict:
-    """A TOML file as a tree; every way it cannot be read is one ``error`` line."""
-    if p.is_dir():
-        raise error(f"{what} {p} is a folder: give the path of a TOML file")
-    if not p.is_file():
-        raise error(f"{what} {p} not found: give the path of a TOML file")
-    try:
-        text = p.read_text()
-    except OSError as exc:
-        raise error(f"cannot read {what} {p} ({describe_os_error(exc)}): check the file and "
-                    "its permissions") from None
-    except UnicodeDecodeError:
-        raise error(f"{what} {p} is not UTF-8 text: give a TOML file") from None
-    try:
-        return tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise error(f"{what} {p} is not valid TOML: {exc}") from None
-
-
 def count_points(grid: dict[str, list], zipped: dict[str, list]) -> int:
     """The number of points of a sweep: the product of the [grid] lengths times the [zip]
     length (computed, not expanded)."""
@@ -226,7 +206,7 @@ def load_sweep(path: str | Path, *, max_points: int = MAX_POINTS) -> Sweep:
     A sweep of more than ``max_points`` points is refused before its grid is expanded.
     """
     p = Path(path)
-    tree = _read_toml(p, "sweep file", InputError)
+    tree = read_toml(p, "sweep file", InputError)
     unknown = sorted(set(tree) - set(SWEEP_KEYS))
     if unknown:
         raise ConfigError(
@@ -243,7 +223,7 @@ def load_sweep(path: str | Path, *, max_points: int = MAX_POINTS) -> Sweep:
         if not isinstance(config_path, str):
             raise ConfigError(f"sweep 'config' must be a path string; got {config_path!r}")
         config_path = str(base / config_path)
-        sva = _read_toml(Path(config_path), "config file", ConfigError).get("sva", {})
+        sva = read_toml(config_path, "config file").get("sva", {})
         config_sets_d = isinstance(sva, dict) and "disparities" in sva
     fixed = tree.get("set", {})
     grid = tree.get("grid", {})

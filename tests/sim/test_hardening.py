@@ -352,9 +352,9 @@ def test_outputs_of_long_jobs_are_checked_first(tmp_path, capfd):
 
 def test_an_unreadable_or_too_long_config_is_one_line(tmp_path, capfd):
     (tmp_path / "c.toml").mkdir()
-    for path, message in ((tmp_path / "c.toml", "not found"),
+    for path, message in ((tmp_path / "c.toml", "is a folder"),
                           (tmp_path / ("c" * 5000 + ".toml"), "cannot read config file"),
-                          (tmp_path / "bin.toml", "not a UTF-8 text file")):
+                          (tmp_path / "bin.toml", "is not UTF-8 text")):
         if path.name == "bin.toml":
             path.write_bytes(b"\xff\xfe\x00")
         code, _, err = _cli(["config", "show", "--config", path], capfd)
