@@ -246,8 +246,12 @@ def walk_sva(net, blk, p_s, final):
             if due > ready:
                 n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy, ready * per,
                                           (due - 1) * per, g)
-        elif due > lo:  # the row is in: busy in the pipeline's latency or initiation interval
-            n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy, lo * per, (due - 1) * per, g)
+        elif due > lo:  # the row is in: busy in the pipeline's latency or II, lo .. due - 1
+            if (due - lo) * per > g:
+                n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy, lo * per,
+                                          (due - 1) * per, g)
+            elif (due - 1) * per > last_busy:  # too short to hide a gap: just move on
+                last_busy = (due - 1) * per
         if o > due:  # the word held for a free slot
             ptr, lost = _catch_up(ring, p_off, p_mask, ptr, p_lo + 1, due)
             err |= lost
