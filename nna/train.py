@@ -65,7 +65,6 @@ from sim.datasets import find_scene, find_scenes, load_scene, occluded_by_cross_
 from sim.errors import ConfigError, InputError
 from sim.io import (
     is_folder,
-    open_npz,
     path_kind,
     path_text,
     read_gt,
@@ -73,6 +72,7 @@ from sim.io import (
     sub_folders,
     to_grey,
 )
+from sim.npz import open_npz
 from sim.outputs import atomic_write_bytes
 
 # (C_in, C_out, K) per layer
@@ -684,7 +684,7 @@ def save_float_model(path, result: dict) -> None:
 def load_float_model(path):
     """Read a file written by :func:`save_float_model`: ``(FloatModel, variant, training dict)``.
 
-    Problems (missing, unreadable or unbounded file -- :func:`sim.io.open_npz` --, a missing
+    Problems (missing, unreadable or unbounded file -- :func:`sim.npz.open_npz` --, a missing
     field, a field of the wrong kind, wrong shapes for the variant) raise :class:`ConfigError`.
     """
 

@@ -25,7 +25,7 @@ import numpy as np
 from nna.conv import check_layer
 from quant.artifact import load_quantized, to_nna_weights
 from sim.errors import ConfigError
-from sim.io import open_npz
+from sim.npz import open_npz
 
 DEFAULT_SEED = 20261122
 DEFAULT_SHAPE = (32, 9, 9)
@@ -90,7 +90,7 @@ def load_weights(path) -> tuple[np.ndarray, np.ndarray, int]:
     """Read and validate a layer saved by :func:`save_weights`.
 
     Returns ``(weights int8 (C, K, K), bias int32 (C,), input_offset int)``. Every problem (missing
-    or unreadable file, not an .npz, a member that fails :func:`sim.io.open_npz`'s bounds, missing
+    or unreadable file, not an .npz, a member that fails :func:`sim.npz.open_npz`'s bounds, missing
     key, wrong dtype, shape or range) raises :class:`ConfigError` with the file name and a
     one-line reason.
     """

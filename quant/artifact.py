@@ -19,7 +19,7 @@ import numpy as np
 from quant.distances import DISTANCES
 from quant.intconv import INT32_MAX, check_network
 from sim.errors import ConfigError
-from sim.io import open_npz
+from sim.npz import open_npz
 from sim.outputs import atomic_write_bytes
 
 FORMAT = "stereosim-quant-v1"
@@ -171,7 +171,7 @@ def _int32(value, key, name):
 
 def load_quantized(path) -> QuantizedModel:
     """Read and validate a file written by :func:`save_quantized`; problems (including those
-    :func:`sim.io.open_npz` checks before anything is unpacked) raise ConfigError."""
+    :func:`sim.npz.open_npz` checks before anything is unpacked) raise ConfigError."""
     name = os.fspath(path)
     archive = open_npz(name, "quantized model", "write it with quant.save_quantized")
     with archive:
