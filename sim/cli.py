@@ -255,6 +255,8 @@ def _summary(report: dict, seconds: float) -> str:
 
 def cmd_run(args) -> int:
     request = _trace_request(args)
+    if not args.out.strip():
+        raise InputError("--out is empty: give the output folder, e.g. --out out")
     out_dir = Path(args.out)
     planned = [(out_dir / name, f"--out {name}") for name in RUN_FILES]
     if request is not None:

@@ -197,6 +197,17 @@ def test_outputs_are_checked_before_the_run(old_run, tmp_path, capfd, monkeypatc
         assert _snapshot(out) == before
 
 
+def test_an_empty_out_is_refused(tmp_path, capfd, monkeypatch):
+    """--out '' once wrote the set into the working directory (found when a property-test run
+    left disparity.pfm, disparity.png and report.json in the repository)."""
+    left, right = _write_pair(tmp_path / "in")
+    monkeypatch.chdir(tmp_path)
+    code, _, err = _cli(["run", "--mode", "functional", "--left", left, "--right", right,
+                         "--disparities", "16", "--out", ""], capfd)
+    assert "--out is empty" in _one_line_error(code, err)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["in"]
+
+
 def test_a_full_disk_leaves_the_old_set(old_run, capfd, monkeypatch):
     left, right, out, before = old_run
     real = outputs._write_fd

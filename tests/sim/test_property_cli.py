@@ -15,6 +15,7 @@ temporary file). STEREOSIM_PROPERTY_EXAMPLES sets the number of examples.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import os
@@ -165,6 +166,18 @@ def run_argv(draw):
     return argv, [t for t in traces if t]
 
 
+@contextlib.contextmanager
+def _inside(folder: Path):
+    """Run with ``folder`` as the working directory (hypothesis examples cannot use
+    monkeypatch.chdir)."""
+    old = os.getcwd()
+    os.chdir(folder)
+    try:
+        yield
+    finally:
+        os.chdir(old)
+
+
 def _snapshot(folder: Path) -> dict:
     if not folder.exists():
         return {}
@@ -190,7 +203,8 @@ def test_run_ends_whole_or_in_one_line(case, files, capfd):
     argv = [fill(a) for a in template]
     before_work = _snapshot(work)
     before_inputs = _snapshot(files)
-    code = main(argv)
+    with _inside(work):  # a relative path never writes into the repository
+        code = main(argv)
     stdout, stderr = capfd.readouterr()
     assert _snapshot(files) == before_inputs, "an input file changed"
     assert not [p for p in work.rglob("*") if ".stereosim-stage-" in str(p) or
@@ -253,7 +267,8 @@ def test_other_commands_end_in_zero_or_one_line(template, files, capfd):
     work = Path(tempfile.mkdtemp(dir=files.parent))
     argv = [a.replace("{in}", str(files)).replace("{work}", str(work)) for a in template]
     before = _snapshot(files)
-    code = main(argv)
+    with _inside(work):
+        code = main(argv)
     _, stderr = capfd.readouterr()
     assert _snapshot(files) == before
     if code == 2:
