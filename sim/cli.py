@@ -61,8 +61,8 @@ from sim.outputs import (
     check_outputs,
     describe_os_error,
     json_text,
+    path_text,
     publish,
-    shown,
 )
 from sim.tracing import TraceRequest, parse_window, trace_files, trace_paths
 from traces.cli import add_wave_parser
@@ -620,7 +620,7 @@ def main(argv: list[str] | None = None) -> int:
             _silence_stdout()
             return _fail(f"cannot write to standard output ({describe_os_error(exc)}): check the "
                          "device or pipe it writes to")
-        where = f" ({shown(exc.filename)})" if exc.filename else ""
+        where = f" ({path_text(exc.filename)})" if exc.filename else ""
         return _fail(f"{describe_os_error(exc)}{where}: check the path, its permissions and the "
                      "free space")
     except MemoryError:

@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from sim.errors import ConfigError, UserError
+from sim.outputs import path_text
 
 LEGAL_DISPARITIES = tuple(range(16, 257, 16))
 
@@ -310,7 +311,7 @@ def read_toml(path, what: str, error: type[UserError] = ConfigError) -> dict:
     """The parsed TOML file at ``path``; a missing, unreadable, binary or malformed file (or a
     folder) raises ``error`` with one line naming ``what`` and the file."""
     p = Path(path)
-    shown = str(p) if len(str(p)) <= 100 else f"{str(p)[:50]}...{str(p)[-50:]}"
+    shown = path_text(p)
     try:
         if p.is_dir():
             raise error(f"{what} {shown} is a folder: give the path of a TOML file")

@@ -36,7 +36,7 @@ import cv2
 import numpy as np
 
 from sim.errors import InputError
-from sim.outputs import atomic_write_bytes, describe_os_error
+from sim.outputs import atomic_write_bytes, describe_os_error, path_text
 
 # Integer BT.601 luma weights in 1/256: 77 + 150 + 29 == 256, so white stays 255.
 _LUMA_R, _LUMA_G, _LUMA_B = 77, 150, 29
@@ -82,16 +82,6 @@ _DECODE_LOCK = threading.Lock()
 
 # ---------------------------------------------------------------------------------------------
 # paths and files
-
-
-def path_text(path: str | bytes | os.PathLike) -> str:
-    """A path as it goes into a one-line message: control characters escaped and the middle of
-    a very long path (a 5000-character name, say) elided."""
-    text = os.fsdecode(os.fspath(path))
-    text = "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
-    if len(text) > 200:
-        text = f"{text[:120]}...{text[-60:]} ({len(text)} characters)"
-    return text
 
 
 def mib(n_bytes: int) -> str:

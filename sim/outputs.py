@@ -51,16 +51,19 @@ def describe_os_error(exc: OSError) -> str:
     return exc.strerror or str(exc) or type(exc).__name__
 
 
-def shown(path, limit: int = 100) -> str:
-    """A path as an error message shows it: whole, or its start and end when very long."""
-    text = os.fspath(path) if not isinstance(path, str) else path
-    text = text if isinstance(text, str) else os.fsdecode(text)
-    return text if len(text) <= limit else f"{text[:limit // 2]}...{text[-limit // 2:]}"
+def path_text(path: str | bytes | os.PathLike) -> str:
+    """A path as it goes into a one-line message: control characters escaped and the middle of
+    a very long path (a 5000-character name, say) elided."""
+    text = os.fsdecode(os.fspath(path))
+    text = "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+    if len(text) > 200:
+        text = f"{text[:120]}...{text[-60:]} ({len(text)} characters)"
+    return text
 
 
 def _fail(action: str, path, exc: OSError) -> InputError:
     reason = describe_os_error(exc)
-    path = shown(path)
+    path = path_text(path)
     hint = {
         errno.ENOSPC: "free some space or write elsewhere",
         errno.EDQUOT: "free some space or write elsewhere",
@@ -178,7 +181,7 @@ def check_outputs(paths: Mapping[str | os.PathLike, str] | Iterable[tuple]) -> N
             name_max = 255
         long = [part for part in p.parts if len(os.fsencode(part)) > name_max]
         if long or len(os.fsencode(real)) >= 4096:
-            raise InputError(f"{label} path {shown(p)} is too long for the file system: "
+            raise InputError(f"{label} path {path_text(p)} is too long for the file system: "
                              "use a shorter path")
         try:
             if p.is_dir():
