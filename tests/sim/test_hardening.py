@@ -20,7 +20,7 @@ from sim import outputs
 from sim.api import run
 from sim.cli import main
 from sim.config import ChipConfig, load_config
-from sim.errors import ConfigError, InputError, UserError
+from sim.errors import ConfigError, InputError
 from sim.io import encode_png
 
 RUN_FILES = ("disparity.pfm", "disparity.png", "report.json")
@@ -371,6 +371,3 @@ def test_an_unreadable_or_too_long_config_is_one_line(tmp_path, capfd):
         code, _, err = _cli(["config", "show", "--config", path], capfd)
         assert message in _one_line_error(code, err)
 
-
-def test_every_user_error_is_a_value_error_subclass():
-    assert issubclass(ConfigError, UserError) and issubclass(InputError, UserError)

@@ -115,8 +115,9 @@ def walk_nna(net, ti, final):
     ow, iw, y0, iy0, n_out, n_in = tl.ow, tl.iw, tl.y0, tl.iy0, tl.n_out, tl.n_in
     j, ptr, prev = a.walk, a.ptr, a.prev
     last_busy, n_gaps = a.last_busy, a.gaps
-    # every pop before cycle `known_until` is known
-    known_until = INF if nb >= n_in else (rd(ring, b_off, b_mask, nb - 1) + 1 if nb > 0 else 0)
+    # every pop before cycle `known_until` is known (all of them once the streams have stopped)
+    known_until = INF if nb >= n_in or final else (rd(ring, b_off, b_mask, nb - 1) + 1
+                                                   if nb > 0 else 0)
     err = j < ne and j <= e_lo
     starved = 0
     blocked = 0
