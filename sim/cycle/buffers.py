@@ -20,6 +20,13 @@ to enter, ``r - max(0, y + offset) + 1`` with y the output rows done before that
 windows within capacity; this check does not call them, so a room rule that is wrong, or a
 buffer sized below what the frame needs, stops the run instead of being absorbed (the words come
 from the functional kernels and would not show it).
+
+The SVA's pipeline stages hold words in flight in their registers (their delay lines,
+:class:`~sim.cycle.stages.StagePlan`: ``slots`` words). Both engines count the words each
+stage holds (a stage's words are those issued at a tick t with offset < tick - t <= offset +
+latency); :func:`buffer_report` reports the most each held beside its capacity and refuses a run
+in which a stage held more (an issue rule that lets words in faster than the stages can hold
+them).
 """
 
 from __future__ import annotations
@@ -30,7 +37,8 @@ from sim.cycle.plan import ChipPlan
 
 
 class BufferOverflow(RuntimeError):
-    """A row window held more rows than its capacity: a room rule is broken (a model bug)."""
+    """A row window held more rows than its capacity, or a pipeline stage more words: a room
+    rule is broken (a model bug)."""
 
 
 def tracked(plan: ChipPlan) -> list[tuple[str, str, int, int, int, int]]:
@@ -66,10 +74,12 @@ def window_peaks(entered: np.ndarray, done: np.ndarray, offset: int) -> tuple[in
     return int(held[i]), int(t[i])
 
 
-def buffer_report(plan: ChipPlan, occ: np.ndarray) -> dict:
+def buffer_report(plan: ChipPlan, occ: np.ndarray, stage_peaks: dict[str, int]) -> dict:
     """``{block: {buffer: {capacity_rows, peak_rows, capacity_bits, peak_bits}}}`` from the
     engines' row instants ``occ`` (see :mod:`sim.cycle.engine.layout`: per NNA submodule two
-    rows, then two for the SVA); raises BufferOverflow if a window exceeded its capacity."""
+    rows, then two for the SVA), and for every SVA stage ``{"pipeline.<stage>":
+    {capacity_words, peak_words, capacity_bits, peak_bits}}`` from the most words each held
+    (``stage_peaks``); raises BufferOverflow if a window or a stage exceeded its capacity."""
     report: dict[str, dict] = {}
     for block, name, cap_rows, cap_bits, slot, offset in tracked(plan):
         peak, at = window_peaks(occ[slot], occ[slot + 1], offset)
@@ -82,5 +92,17 @@ def buffer_report(plan: ChipPlan, occ: np.ndarray) -> dict:
         report.setdefault(block, {})[name] = {
             "capacity_rows": cap_rows, "peak_rows": peak, "capacity_bits": cap_bits,
             "peak_bits": cap_bits * peak // cap_rows,
+        }
+    for st in plan.block("sva").stages:
+        peak = stage_peaks[st.name]
+        if peak > st.slots:
+            raise BufferOverflow(
+                f"buffer sva.pipeline.{st.name} held {peak} words, above the {st.slots} its "
+                "registers hold: the issue rule lets words in faster than the stage can hold "
+                "them (a bug in the model)"
+            )
+        report["sva"][f"pipeline.{st.name}"] = {
+            "capacity_words": st.slots, "peak_words": peak,
+            "capacity_bits": st.register_bits, "peak_bits": peak * st.slot_bits,
         }
     return report

@@ -53,7 +53,8 @@ class Chip:
     def window_rows(self) -> np.ndarray:
         """The row windows' instants in the compiled engine's layout (``Net.occ``): per NNA
         submodule (plan order) the cycle each input row started to enter and each output row
-        was done, then the same for the SVA."""
+        was done, then the same for the SVA (an output row is done with its rows when its last
+        word is issued)."""
         nna = [b for b in self.plan.blocks if b.kind == "nna"]
         occ = np.full((2 * len(nna) + 2, self.plan.shape[0] + 1), -1, np.int64)
         for t, b in enumerate([*nna, self.plan.block("sva")]):
@@ -144,13 +145,14 @@ def _run(chip: Chip) -> tuple[dict, dict]:
     """Run the chip to the end of the frame: (statistics, cycle report). A row window that
     overflowed raises BufferOverflow, before any stop the run ended in."""
     plan = chip.plan
+    sva = chip.blocks["sva"]
     try:
         stats = chip.sim.run(chip.done, budget_cycles=plan.budget,
                              watchdog_cycles=plan.cfg.sim.watchdog_cycles)
     except UserError:
-        buffer_report(plan, chip.window_rows())
+        buffer_report(plan, chip.window_rows(), sva.stage_peaks())
         raise
-    buffers = buffer_report(plan, chip.window_rows())
+    buffers = buffer_report(plan, chip.window_rows(), sva.stage_peaks())
     return stats, cycle_report(plan, chip.sink.first_cycle, chip.sink.last_cycle, stats,
                                buffers)
 

@@ -302,6 +302,11 @@ class Block:
         """Waiting for space in the output ``fifo`` (a Fifo or its name)."""
         self._report("blocked", (getattr(fifo, "name", fifo), "full"))
 
+    def stage_stats(self) -> dict:
+        """Per internal stage of a pipelined block: its activity counts and what it held
+        (``{}``: the block has no stages of its own)."""
+        return {}
+
     @property
     def activity(self) -> dict[str, int]:
         """Cycles spent busy / starved / blocked / idle so far (sorted keys)."""

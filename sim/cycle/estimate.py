@@ -22,8 +22,8 @@ work) and applies the timing rules of :mod:`sim.cycle.rules` per image row inste
   word + II)`` and the rest of the row follows at the II. FIFOs add their visibility delay,
   ``first_edge_after(push instant) + latency + (sync - 1 if crossing) - 1`` consumer cycles,
   computed on the same femtosecond grid as :class:`sim.cycle.clock.ClockDomain`. The line buffer's
-  room rule and the SVA's look-ahead window (row y_in enters once output row y_in - r - m - 2
-  is complete) are applied. Exact (to the cycle) when no FIFO fills; see docs/whatif.md for
+  room rule and the SVA's look-ahead window (row y_in enters once the last word of output row
+  y_in - r - m - 2 has entered the SVA's pipeline) are applied. Exact (to the cycle) when no FIFO fills; see docs/whatif.md for
   what is approximated when one does.
 - **FIFO rate.** A FIFO of depth d moves at most d items per round trip (push -> visible -> pop
   -> free seen by the producer): ``(latency + 1)`` cycles in one domain, about
@@ -225,11 +225,14 @@ def timeline(plan: ChipPlan) -> dict:
         start = max(visible(link, first, plan), prev_end + 1)
         span = (w - 1) * ii_link
         done = sva_rows_done_before_input(y, la)
-        if done > 0 and out_rows[done - 1][1] + 1 > start:
+        # the row window is released when the last word of output row done - 1 enters the
+        # pipeline: L cycles before it leaves (the estimate has no stalls)
+        released = out_rows[done - 1][1] - sva.latency + 1 if done > 0 else 0
+        if released > start:
             # the look-ahead window held the row back: the FIFO filled meanwhile, so its first
             # `depth` beats leave one per cycle and the rest at the upstream's own II (its row
             # times above are those of an unobstructed producer)
-            start = out_rows[done - 1][1] + 1
+            start = released
             held = min(link.depth, w)
             span = (held - 1) * ii_link + (w - held) * ii_in
         end = max(visible(link, last, plan), math.ceil(start + span))

@@ -130,13 +130,16 @@ class Simulator:
         ]
 
     def stats(self) -> dict:
-        """Cycles per domain, end time, per-block activity and per-FIFO statistics (plain ints,
-        sorted keys, so two equal runs give equal dicts)."""
+        """Cycles per domain, end time, per-block activity, per-FIFO statistics and the
+        activity of the stages of blocks that have them (plain ints, sorted keys, so two equal
+        runs give equal dicts)."""
         return {
             "blocks": {n: self._blocks[n].activity for n in sorted(self._blocks)},
             "cycles": self.cycles,
             "end_time_fs": self.now_fs,
             "fifos": {n: self._fifos[n].stats() for n in sorted(self._fifos)},
+            "stages": {n: self._blocks[n].stage_stats() for n in sorted(self._blocks)
+                       if self._blocks[n].stage_stats()},
             "steps": self.steps,
         }
 

@@ -386,8 +386,13 @@ def _signals(plan: ChipPlan) -> list[SignalPlan]:
             for key, width in (("input.row", _nb(h)), ("input.col", _nb(w)),
                                ("input.rows_ready", _nb(h)), ("output.row", _nb(h)),
                                ("output.col", _nb(w)), ("output.valid", 1),
-                               ("output.disparity", plan.word_bits), ("lr_check.reject", 1)):
+                               ("output.disparity", plan.word_bits), ("lr_check.reject", 1),
+                               ("pipeline.issue", 1), ("pipeline.stall", 1),
+                               ("pipeline.words", _nb(-(-b.latency // b.cycles)))):
                 sig(b.name, b.scope, key, width, d)
+            for st in b.stages:
+                sig(b.name, b.scope, f"stage.{st.name}.status", 2, d)
+                sig(b.name, b.scope, f"stage.{st.name}.words", _nb(st.slots), d)
         elif b.kind == "sink":
             sig(b.name, b.scope, "count", _nb(h * w), d)
             sig(b.name, b.scope, "valid", 1, d)

@@ -61,21 +61,23 @@ def cycle_report(plan: ChipPlan, first_cycle: int, last_cycle: int, stats: dict,
         "fifo_bytes_per_frame": {n: fifos[n]["bits_transferred"] // 8 for n in sorted(fifos)},
         "fifo_sram_bits": {f.name: f.sram_bits for f in sorted(plan.fifos, key=lambda f: f.name)},
         "buffers": {b: buffers[b] for b in sorted(buffers)},
-        "sva_stages": sva_stage_activity(plan, stats["blocks"]["sva"]),
+        "sva_stages": sva_stage_activity(plan, stats["stages"]["sva"]),
     }
 
 
-def sva_stage_activity(plan: ChipPlan, sva: dict) -> dict:
-    """Each SVA stage's cycles over the run, from the SVA's: the pipeline moves in lock-step,
-    so a stage works ``ii`` of every pixel's cycles (busy = words x its II), stalls with the
-    whole pipeline when the output is blocked, and waits otherwise (starved: for input, or
-    for the slower stages -- the II's other cycles); idle once the frame is through."""
-    block = plan.block("sva")
-    active = sva["busy"] + sva["starved"] + sva["blocked"]
+def sva_stage_activity(plan: ChipPlan, stages: dict) -> dict:
+    """Each SVA stage's cycles over the run as the engine counted them (``stats["stages"]``):
+    busy while it holds a word and the pipeline advances, blocked while it holds one and the
+    pipeline stalls, starved while it holds none, idle once the frame's last word has left it;
+    the most words it held beside what its registers hold; utilisation = busy / (busy +
+    starved + blocked)."""
     out = {}
-    for st in block.stages:
-        busy = min(block.items * st.ii, active - sva["blocked"])
-        out[st.name] = {"busy": busy, "starved": active - sva["blocked"] - busy,
-                        "blocked": sva["blocked"], "idle": sva["idle"],
-                        "utilization_percent": round(100 * busy / active, 2) if active else 0.0}
+    for st in plan.block("sva").stages:
+        c = stages[st.name]
+        active = c["busy"] + c["starved"] + c["blocked"]
+        out[st.name] = {"busy": c["busy"], "starved": c["starved"], "blocked": c["blocked"],
+                        "idle": c["idle"], "peak_words": c["peak_words"],
+                        "capacity_words": st.slots,
+                        "utilization_percent": round(100 * c["busy"] / active, 2)
+                        if active else 0.0}
     return out

@@ -105,17 +105,49 @@ def sva_last_input_row(y, lookahead, image_rows):
 
 @register_jitable
 def sva_rows_done_before_input(y_in, lookahead):
-    """Output rows the SVA must have finished before it takes input row ``y_in``: its row
-    buffers hold the rows of the next output row plus one row arriving, y_in <= y_out + r + m +
-    1."""
+    """Output rows the SVA must have *issued* into its pipeline (every word of the row read
+    from the row buffers) before it takes input row ``y_in``: its row buffers hold the rows of
+    the next output row to issue plus one row arriving, y_in <= y_issued + r + m + 1."""
     return max(0, y_in - lookahead - 1)
 
 
+# ---- the SVA's pipeline ------------------------------------------------------------------------
+# The SVA is a lock-step pipeline (sim.cycle.stages): a word enters it (is *issued*) and moves one
+# position per *advancing* cycle; when the word in the output register cannot be pushed (the
+# output FIFO is full) the whole pipeline stalls -- no position moves, nothing is issued. Its
+# *tick* counts the advancing cycles so far (a stalled cycle does not count), so word j issued
+# at tick t_j is in stage s while t_j + offset_s < tick <= t_j + offset_s + latency_s and
+# reaches the output register at its exit tick x_j = t_j + L. The readable kernel applies the
+# issue rule below cycle by cycle; the compiled engine finds the same cycles in closed form with
+# the other two.
+
+
 @register_jitable
-def sva_word_due(ready, latency, last_push, ii):
-    """The first cycle the SVA may push a word: its row has been ready for the pipeline's
-    latency and the previous word left an initiation interval earlier."""
-    return max(ready + latency, last_push + ii)
+def sva_issue_tick(ready_tick, last_tick, ii):
+    """The tick at which the SVA issues a word: once its row is ready (``ready_tick``: the
+    pipeline's tick when the row became ready) and an initiation interval of *ticks* after the
+    previous word (a stalled pipeline's II counter stalls with it)."""
+    return max(ready_tick, last_tick + ii)
+
+
+@register_jitable
+def sva_tick_at(cycle, last_push, last_exit, next_exit):
+    """The pipeline's tick at the start of ``cycle`` (advancing cycles before it): the last
+    word pushed before ``cycle`` left at cycle ``last_push`` with exit tick ``last_exit``
+    (none yet: 0, 0), and the next word's exit tick is ``next_exit`` (never: a huge number);
+    after a push the tick advances with every cycle until the next word reaches the output
+    register, where it stays while that word waits for a free slot."""
+    return min(last_exit + cycle - last_push, next_exit)
+
+
+@register_jitable
+def sva_cycle_of_tick(tick, last_push, last_exit):
+    """The cycle in which the pipeline reaches ``tick`` when no word reaches the output
+    register between the last push (cycle ``last_push``, exit tick ``last_exit``; none yet:
+    0, 0) and that tick: the push cycle plus the ticks in between. A word's arrival at the
+    output register is the cycle of its exit tick; the cycle it is issued, of its issue
+    tick."""
+    return last_push + tick - last_exit
 
 
 @register_jitable
@@ -131,3 +163,4 @@ def sink_next_allowed(cycle, stall_period, stall_phase):
     if stall_period == 0:
         return cycle
     return cycle + (stall_phase - cycle) % stall_period
+

@@ -51,6 +51,7 @@ wait for them.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -89,13 +90,25 @@ class BufferPlan:
 @dataclass(frozen=True)
 class StagePlan:
     """A stage of the SVA pipeline: ``ii`` cycles per pixel, ``latency`` cycles from a pixel
-    entering it to leaving it, ``formula`` the arithmetic behind both (shown in reports)."""
+    entering it to leaving it, ``formula`` the arithmetic behind both (shown in reports).
+
+    Its pipeline registers (its delay line) hold ``slots`` words of ``slot_bits`` bits each:
+    ceil(latency / ii) -- a stage fed at its own II holds no more words than that -- or, for
+    the LR check, the D words of its window. Both engines track how many words each stage holds
+    (:mod:`sim.cycle.buffers` checks the peak against ``slots``)."""
 
     name: str
     ii: int
     latency: int
     formula: str
     buffers: tuple[BufferPlan, ...] = ()
+    slots: int = 0
+    slot_bits: int = 0
+    holds: str = ""
+
+    @property
+    def register_bits(self) -> int:
+        return self.slots * self.slot_bits
 
 
 def lg(n: int) -> int:
@@ -215,7 +228,24 @@ def sva_stages(cfg: ChipConfig, width: int, bits: int, word_bits: int) -> tuple[
             (med_buf,),
         ))
     stages.append(StagePlan("output", 1, 1, "II = 1; latency = 1 (the output register)"))
-    return tuple(stages)
+    # each stage's pipeline registers: the words in flight in it, and what one of them carries
+    cost_bits = bits_for(bits)
+    box_bits = bits_for(s.box_size * s.box_size * bits)
+    carried = {
+        "hamming": (d * cost_bits, f"D = {d} Hamming costs of {cost_bits} bits"),
+        "box_filter": (d * box_bits, f"D = {d} box sums of {box_bits} bits"),
+        "sgm": (s.paths * d * s.path_bits,
+                f"{s.paths} path(s) x D = {d} path costs of {s.path_bits} bits"),
+        "path_sum": (d * s.sum_bits, f"D = {d} sums S of {s.sum_bits} bits"),
+        "wta": (word_bits + s.sum_bits, f"the {word_bits}-bit word and its {s.sum_bits}-bit "
+                "cost"),
+        "lr_check": (s.sum_bits + d_bits + word_bits, "per pixel of its window: a right "
+                     "pixel's running best (cost, d) and a left word waiting"),
+        "median": (word_bits, f"the {word_bits}-bit word"),
+        "output": (word_bits, f"the {word_bits}-bit word"),
+    }
+    return tuple(with_slots(st, *carried[st.name], slots=d if st.name == "lr_check" else -1)
+                 for st in stages)
 
 
 def nna_stages(cfg: ChipConfig, window: int, cpd: int, macs: int) -> tuple[StagePlan, ...]:
@@ -243,6 +273,25 @@ def nna_stages(cfg: ChipConfig, window: int, cpd: int, macs: int) -> tuple[Stage
         StagePlan("requantise_sign", 1, 0, "per channel a multiply-shift and the sign bit, in "
                   "the MAC array's last cycle"),
     )
+
+
+def with_slots(stage: StagePlan, slot_bits: int, holds: str, slots: int = -1) -> StagePlan:
+    """``stage`` with its pipeline registers: ``slots`` words (default ceil(latency / II))
+    of ``slot_bits`` bits."""
+    if slots < 0:
+        slots = -(-stage.latency // stage.ii) if stage.latency > 0 else 0
+    return dataclasses.replace(stage, slots=slots, slot_bits=slot_bits, holds=holds)
+
+
+def stage_offsets(stages: tuple[StagePlan, ...]) -> tuple[int, ...]:
+    """Each stage's offset in the pipeline: the latencies of the stages before it. Word j,
+    issued at tick t, is in stage s while offset_s < tick - t <= offset_s + latency_s."""
+    out = []
+    total = 0
+    for st in stages:
+        out.append(total)
+        total += st.latency
+    return tuple(out)
 
 
 def pipeline_ii(stages: tuple[StagePlan, ...]) -> int:

@@ -123,3 +123,45 @@ def test_a_buffer_smaller_than_the_frame_needs_is_caught(run, over, block, buffe
     plan = _shrunk(_plan(over), block, buffer)
     with pytest.raises(BufferOverflow, match=f"buffer {block}.{buffer} held"):
         run(plan, left, right)
+
+
+# ---- the SVA's pipeline stages: words in flight against their registers --------------------------
+
+
+def test_a_broken_issue_rule_overflows_a_stage(monkeypatch):
+    """Issuing a word every tick instead of every II (2) puts two words into the SGM stage,
+    whose registers hold one (latency 2, II 2), and 2 (D - 1) + 1 into the LR window of D."""
+    left, right = _pair(16, 40)
+    plan = _plan(CENSUS)
+    run_readable(plan, left, right)
+    monkeypatch.setattr(sva_block, "sva_issue_tick", lambda ready, last, ii: max(ready, last + 1))
+    with pytest.raises(BufferOverflow, match="buffer sva.pipeline.sgm held 2 words, above the 1"):
+        run_readable(plan, left, right)
+
+
+def _stage_shrunk(plan, stage, slots):
+    sva = plan.block("sva")
+    stages = tuple(dataclasses.replace(st, slots=slots) if st.name == stage else st
+                   for st in sva.stages)
+    blocks = tuple(dataclasses.replace(b, stages=stages) if b.name == "sva" else b
+                   for b in plan.blocks)
+    return dataclasses.replace(plan, blocks=blocks)
+
+
+@pytest.mark.parametrize("run", [run_readable, run_compiled])
+def test_every_stage_below_the_words_it_holds_is_caught(run):
+    """Each stage's registers one word short of the most it held (8 mutants per engine)."""
+    left, right = _pair(16, 40)
+    plan = _plan(CENSUS)
+    peaks = run(plan, left, right).report["buffers"]["sva"]
+    caught = []
+    for st in plan.block("sva").stages:
+        peak = peaks[f"pipeline.{st.name}"]["peak_words"]
+        if peak == 0:
+            assert st.latency == 0  # a stage without registers holds nothing
+            continue
+        with pytest.raises(BufferOverflow, match=f"buffer sva.pipeline.{st.name} held {peak}"):
+            run(_stage_shrunk(plan, st.name, peak - 1), left, right)
+        caught.append(st.name)
+    assert len(caught) == 8
+    assert peaks["pipeline.lr_check"]["peak_words"] == 16  # the LR window fills: D words

@@ -1,43 +1,61 @@
-"""The SVA as a clocked block of the readable kernel.
+"""The SVA as a clocked block of the readable kernel: row buffers in front of a lock-step
+pipeline of stages.
 
 Ports: ``in_left``, ``in_right`` (descriptor beats ``(x, y, descriptor, pixel)`` in raster
 order), ``out`` (output words ``(x, y, word)`` in raster order).
 
-- **Input**: pops one left/right pair per cycle when both are visible (a joint pop) and the row
-  being received fits the row buffers (:func:`~sim.cycle.rules.sva_rows_done_before_input`:
-  y_in <= y_out + r + m + 1, r the box radius, m the median radius): the SVA holds the rows its
-  next output row needs plus one row arriving (the streaming buffers; their sizes are in the
-  plan).
-- **Output**: output row y becomes *ready* in the cycle after input row
+- **Input** (the row buffers): pops one left/right pair per cycle when both are visible (a joint
+  pop) and the row being received fits the row buffers
+  (:func:`~sim.cycle.rules.sva_rows_done_before_input`: y_in <= y_issued + r + m + 1, r the box
+  radius, m the median radius, y_issued the output rows whose every word has entered the
+  pipeline): the buffers hold the rows the next output row reads plus one row arriving (their
+  sizes are in the plan). The input side does not stall with the pipeline.
+- **Ready**: output row y becomes ready in the cycle after input row
   :func:`~sim.cycle.rules.sva_last_input_row` (min(y + r + m, H - 1)) is complete (the box
-  filter needs r rows below, the median m more; the LR check's diagonal search and the SGM
-  paths stay within rows already in). Word j (raster) is pushed at the first cycle from
-  :func:`~sim.cycle.rules.sva_word_due` (ready + the latency L, previous push + the II) with
-  space in ``out``; L and II come from the SVA's stages (:mod:`sim.cycle.stages`). Without
-  stalls the words leave every II cycles and the first at ready(0) + L.
+  filter needs r rows below, the median m more; the LR check's diagonal and the SGM paths stay
+  within rows already in).
+- **Pipeline** (:mod:`sim.cycle.stages`): the stages in stream order, L cycles of latency in all,
+  move in lock-step. Its *tick* counts the cycles in which it advanced. In a cycle in which it
+  advances, word j (raster order) is *issued* -- read from the row buffers into the first stage
+  -- if its row is ready and the tick has reached :func:`~sim.cycle.rules.sva_issue_tick` (an
+  initiation interval II of ticks after the previous word). Word j issued at tick t_j is in
+  stage s while offset_s < tick - t_j <= offset_s + latency_s, and in the output register at
+  tick t_j + L: it is pushed then if ``out`` has room; if not, the whole pipeline *stalls*
+  (nothing moves, nothing is issued, the tick holds) until it has.
+  Without stalls, word j leaves at max(ready(row) + L, previous push + II).
 - **Data**: the functional model's streaming kernels (:class:`sva.pipeline.SvaStream`) run over
   the descriptors this block actually received, row by row as rows complete.
 
-Activity: busy when a pair is popped or a word pushed, or while a ready row waits out the
-pipeline latency or the initiation interval; blocked when a word is due and ``out`` is full;
-starved when the next row is not ready and an input FIFO has nothing to give; idle when done.
+Activity: busy when a pair is popped, a word issued or pushed, a word is in the pipeline, or
+a ready row waits out the II; blocked when the pipeline stalls; starved when no word is in the
+pipeline and the next row is not ready; idle when the frame is out. Each stage reports its
+own in every cycle: busy when it holds a word and the pipeline advances, blocked when it holds
+one and the pipeline stalls, starved when it holds none, idle once the frame's last word has
+left it; with the most words it held (``stage_stats``).
+
 Traced: ``status``, ``input.row`` / ``input.col`` (the next pair), ``input.rows_ready``
 (output rows ready), ``output.row`` / ``output.col`` (the next word), ``output.valid`` (pushed
-in its last cycle), ``output.disparity`` (the last word pushed) and ``lr_check.reject`` (that
-word is invalid).
+in its last cycle), ``output.disparity`` (the last word pushed), ``lr_check.reject`` (that word
+is invalid), ``pipeline.issue`` (a word entered this cycle), ``pipeline.stall``,
+``pipeline.words`` (words in the pipeline), and per stage ``stage.<name>.status`` and
+``stage.<name>.words``.
 """
 
 from __future__ import annotations
 
+from bisect import bisect_left
+from collections import deque
+
 import numpy as np
 
 from sim.config import SvaConfig
-from sim.cycle.clock import Block, ClockDomain
+from sim.cycle.clock import ACTIVITIES, Block, ClockDomain
 from sim.cycle.plan import STATUS_CODES, BlockPlan
-from sim.cycle.rules import sva_last_input_row, sva_rows_done_before_input, sva_word_due
+from sim.cycle.rules import sva_issue_tick, sva_last_input_row, sva_rows_done_before_input
+from sim.cycle.stages import stage_offsets
 from sva.pipeline import SvaStream
 
-NEVER = -(1 << 40)  # "the previous push" before the first one
+NEVER = -(1 << 40)  # "the previous issue tick" before the first word
 
 
 class SvaBlock(Block):
@@ -50,6 +68,8 @@ class SvaBlock(Block):
         self.lookahead = plan.lookahead
         self.latency = plan.latency
         self.ii = plan.cycles
+        self.stages = plan.stages
+        self.offsets = stage_offsets(plan.stages)
         dtype = np.uint32 if bits <= 32 else np.uint64
         self.desc_l = np.zeros(shape, dtype)
         self.desc_r = np.zeros(shape, dtype)
@@ -57,72 +77,127 @@ class SvaBlock(Block):
         self.stream = SvaStream(self.desc_l, self.desc_r, self.img_l, cfg, bits)
         self.word_mask = (1 << word_bits) - 1
         self.received = 0
+        self.issued = 0
         self.emitted = 0
         self.rows_ready = 0
         self.ready_cycle = np.full(self.height, -1, np.int64)  # cycle each output row got ready
+        self.ready_tick = np.full(self.height, -1, np.int64)  # the pipeline's tick then
         # the descriptor rows' window (sim.cycle.buffers): the cycle each input row started to
-        # enter, the cycle each output row's last word was pushed
+        # enter, the cycle the last word of each output row was issued (its rows are read)
         self.rows_entered = np.full(self.height + 1, -1, np.int64)
         self.rows_done = np.full(self.height + 1, -1, np.int64)
-        self.last_push = NEVER
+        # the pipeline: its tick, the issue ticks of the words in it (oldest first)
+        self.tick = 0
+        self.in_flight: deque[int] = deque()
+        self.last_tick = NEVER
         self.pushed = False
+        self.issued_now = False
+        self.stalled = False
         self.last_word = 0
+        self.stage_status = [0] * len(self.stages)
+        self.stage_counts = [dict.fromkeys(ACTIVITIES, 0) for _ in self.stages]
+        self.stage_peak = [0] * len(self.stages)
         self._pair = None
         self._word = None
+        self._issue = False
+        self._advance = False
         self._cycle = 0
 
     def _rows_complete(self) -> int:
         return self.received // self.width
 
-    def _due(self, j: int) -> int | None:
-        ready = int(self.ready_cycle[j // self.width])
-        if ready < 0:
-            return None
-        return sva_word_due(ready, self.latency, self.last_push, self.ii)
+    def stage_words(self, s: int, tick: int) -> int:
+        """Words in stage s at ``tick``: issued at t with offset < tick - t <= offset +
+        latency."""
+        ticks = self.in_flight
+        off, lat = self.offsets[s], self.stages[s].latency
+        lo = bisect_left(ticks, tick - off - lat)
+        hi = bisect_left(ticks, tick - off)
+        return hi - lo
 
     def evaluate(self, now_cycle: int) -> None:
         n = self.height * self.width
+        w = self.width
         self._cycle = now_cycle
         self._word = None
         moved = False
-        y_out = self.emitted // self.width
-        y_in = self.received // self.width
+        # the row buffers: a pair in while the arriving row fits
         wait_fifo = None
-        if self.received < n and y_out >= sva_rows_done_before_input(y_in, self.lookahead):
+        y_in = self.received // w
+        if self.received < n and self.issued // w >= sva_rows_done_before_input(
+                y_in, self.lookahead):
             if self.in_left.can_pop() and self.in_right.can_pop():
                 self._pair = (self.in_left.pop(), self.in_right.pop())
-                if self.received % self.width == 0:
+                if self.received % w == 0:
                     self.rows_entered[y_in] = now_cycle
                 moved = True
             else:
                 wait_fifo = self.in_left if not self.in_left.can_pop() else self.in_right
-        blocked = False
+        # the output register: the oldest word, at its exit tick, leaves if there is room
+        at_output = bool(self.in_flight) and self.in_flight[0] + self.latency == self.tick
+        stall = at_output and not self.out.can_push()
+        if at_output and not stall:
+            self.stream.advance(self._rows_complete())
+            y, x = divmod(self.emitted, w)
+            self._word = int(self.stream.q[y, x])
+            self.out.push((x, y, self._word))
+            moved = True
+        # issue: the next word enters when the pipeline advances, its row is ready, and the
+        # tick has reached the issue rule's
+        self._advance = not stall
+        self._issue = False
         pending = False
-        if self.emitted < n:
-            due = self._due(self.emitted)
-            if due is not None:
+        if self.issued < n:
+            y = self.issued // w
+            if 0 <= self.ready_cycle[y] <= now_cycle:
                 pending = True
-                if now_cycle >= due:
-                    if self.out.can_push():
-                        self.stream.advance(self._rows_complete())
-                        y, x = divmod(self.emitted, self.width)
-                        self._word = int(self.stream.q[y, x])
-                        self.out.push((x, y, self._word))
-                        moved = True
-                    else:
-                        blocked = True
-        if moved:
+                self._issue = self._advance and self.tick >= sva_issue_tick(
+                    int(self.ready_tick[y]), self.last_tick, self.ii)
+        self._stage_activity(stall, n)
+        if moved or self._issue:
             self.busy()
-        elif blocked:
+        elif stall:
             self.blocked(self.out)
-        elif pending:
-            self.busy()  # a ready row in the pipeline: latency or initiation interval
+        elif self.in_flight or pending:
+            self.busy()  # words in the pipeline, or a ready row waiting out the II
         elif self.emitted < n:
             self.starved(wait_fifo if wait_fifo is not None else self.in_left)
         else:
             self.idle()
 
+    def _stage_activity(self, stall: bool, n: int) -> None:
+        """Each stage's activity this cycle and the most words it has held."""
+        for s, st in enumerate(self.stages):
+            words = self.stage_words(s, self.tick)
+            if words:
+                status = "blocked" if stall else "busy"
+            elif self.issued == n and self.tick - self.last_tick > self.offsets[s] + st.latency:
+                status = "idle"
+            else:
+                status = "starved"
+            self.stage_counts[s][status] += 1
+            self.stage_status[s] = STATUS_CODES[status]
+            self.stage_peak[s] = max(self.stage_peak[s], words)
+
     def commit(self) -> None:
+        w = self.width
+        if self._word is not None:
+            self.in_flight.popleft()
+            self.last_word = self._word
+            self.emitted += 1
+        self.pushed = self._word is not None
+        self._word = None
+        self.issued_now = self._issue
+        if self._issue:
+            self.in_flight.append(self.tick)
+            self.last_tick = self.tick
+            self.issued += 1
+            if self.issued % w == 0:
+                self.rows_done[self.issued // w - 1] = self._cycle
+            self._issue = False
+        self.stalled = not self._advance
+        if self._advance:
+            self.tick += 1
         if self._pair is not None:
             (x, y, dl, pixel), (xr, yr, dr, _) = self._pair
             self.desc_l[y, x] = dl
@@ -130,25 +205,28 @@ class SvaBlock(Block):
             self.img_l[y, x] = pixel
             self.received += 1
             self._pair = None
-            if self.received % self.width == 0:
-                rows = self.received // self.width
-                # output rows whose last needed input row is rows - 1 are ready next cycle
+            if self.received % w == 0:
+                rows = self.received // w
+                # output rows whose last needed input row is rows - 1 are ready next cycle, at
+                # the tick the pipeline has then
                 while (self.rows_ready < self.height and sva_last_input_row(
                         self.rows_ready, self.lookahead, self.height) <= rows - 1):
                     self.ready_cycle[self.rows_ready] = self._cycle + 1
+                    self.ready_tick[self.rows_ready] = self.tick
                     self.rows_ready += 1
-        self.pushed = self._word is not None
-        if self._word is not None:
-            self.last_push = self._cycle
-            self.last_word = self._word
-            self.emitted += 1
-            if self.emitted % self.width == 0:
-                self.rows_done[self.emitted // self.width - 1] = self._cycle
-            self._word = None
+
+    def stage_stats(self) -> dict:
+        """Per stage (in stream order): busy / starved / blocked / idle cycles and the most
+        words it held."""
+        return {st.name: {**self.stage_counts[s], "peak_words": self.stage_peak[s]}
+                for s, st in enumerate(self.stages)}
+
+    def stage_peaks(self) -> dict[str, int]:
+        return {st.name: self.stage_peak[s] for s, st in enumerate(self.stages)}
 
     def signal_values(self):
         w = self.width
-        return {
+        out = {
             "status": STATUS_CODES.get(self.status, 0),
             "input.row": self.received // w,
             "input.col": self.received % w,
@@ -158,4 +236,11 @@ class SvaBlock(Block):
             "output.valid": int(self.pushed),
             "output.disparity": self.last_word & self.word_mask,
             "lr_check.reject": int(self.pushed and self.last_word < 0),
+            "pipeline.issue": int(self.issued_now),
+            "pipeline.stall": int(self.stalled),
+            "pipeline.words": len(self.in_flight),
         }
+        for s, st in enumerate(self.stages):
+            out[f"stage.{st.name}.status"] = self.stage_status[s]
+            out[f"stage.{st.name}.words"] = self.stage_words(s, self.tick)
+        return out

@@ -12,7 +12,13 @@ Event streams (the cycle of every beat of a FIFO's producer or consumer, in beat
 - ``B`` per tile: its line buffer pops input pixel i (raster order of the tile's input region);
 - ``E`` per tile: its MAC array pushes descriptor j (raster order of the tile's output region);
 - ``M`` per side, split frames only: the merge moves descriptor m (raster order);
-- ``P``: the SVA pops pair j; ``O``: it pushes word j; ``Q``: the sink pops word j.
+- ``P``: the SVA pops pair j; ``O``: it pushes word j; ``Q``: the sink pops word j;
+- ``T``: the SVA's pipeline *tick* at which word j is issued (:mod:`sim.cycle.rules`: advancing
+  cycles, not a cycle -- so the replay's cursors skip it).
+
+The SVA's stages (``stages``, in stream order): offset and latency in ticks, the words their
+registers hold, and what the walker counts (the most words held, busy and blocked cycles; the
+cycle after which the last word has left the stage).
 """
 
 from __future__ import annotations
@@ -23,11 +29,12 @@ import numpy as np
 
 from sim.cycle.plan import ChipPlan
 from sim.cycle.rules import FS_PER_S
+from sim.cycle.stages import stage_offsets
 
 INF = 1 << 62
 
 # stream kinds
-S_A, S_B, S_E, S_M, S_P, S_O, S_Q = range(7)
+S_A, S_B, S_E, S_M, S_P, S_O, S_Q, S_T = range(8)
 # FIFO kinds (how its items map onto streams)
 F_SRC, F_MERGE, F_TO_SVA, F_SINK = range(4)
 # block kinds
@@ -50,6 +57,7 @@ PARAMS = np.dtype([
     ("per_src", np.int64), ("per_nna", np.int64), ("per_sva", np.int64), ("p_max", np.int64),
     ("cap_fs", np.int64),  # events at instants >= cap_fs are not computed
     ("watchdog_fs", np.int64), ("stats", np.int64),  # 1: accumulate statistics and gaps
+    ("n_stages", np.int64),
     # outcome
     ("end", np.int64), ("error", np.int64), ("horizon_fs", np.int64), ("first_pop", np.int64),
     ("iterations", np.int64),
@@ -95,6 +103,14 @@ ACC = np.dtype([
     ("gaps", np.int64),  # long gaps kept (Net.gaps)
 ])
 
+# an SVA stage: its place in the pipeline, and what the walker counts
+STAGE = np.dtype([
+    ("off", np.int64), ("lat", np.int64), ("slots", np.int64),
+    ("ptr", np.int64),  # the oldest word that may still be in the stage (peak window)
+    ("peak", np.int64), ("busy", np.int64), ("blocked", np.int64),
+    ("done", np.int64),  # the cycle after which the frame's last word has left it (-1: not yet)
+])
+
 # a FIFO's occupancy walk: consumer timeline (histogram) and producer timeline (crossing)
 WALK = np.dtype([
     ("inc", np.int64), ("dec", np.int64), ("cycle", np.int64), ("level", np.int64),
@@ -118,9 +134,12 @@ class Net(NamedTuple):
     occ: np.ndarray  # int64 (2 T + 2, H + 1): the tracked buffers' row instants, cycles of
     # their block (sim.cycle.buffers): per tile t [2t] the cycle its line buffer took the first
     # pixel of each input row, [2t + 1] the cycle it pushed the last descriptor of each output
-    # row; [2T], [2T + 1] the same for the SVA's descriptor rows; -1 where not reached
+    # row; [2T] the cycle the SVA took the first pair of each input row, [2T + 1] the cycle it
+    # issued the last word of each output row (its rows read: the row window's release, which
+    # the SVA's pops wait on); -1 where not reached
     scratch: np.ndarray  # int64 (tiles per camera, 14): per-tile tables of a kernel call
     cursors: np.ndarray  # int64 (streams,): events up to an instant (the replay's)
+    stages: np.ndarray  # STAGE: the SVA's stages in stream order
 
 
 class TraceData(NamedTuple):
@@ -195,6 +214,7 @@ def serialise(plan: ChipPlan, *, sink_stall=None, cap_fs: int = INF, stats: bool
     specs.append((S_P, -1, -1, n, doms["sva"].period_fs, block_index["sva"]))
     specs.append((S_O, -1, -1, n, doms["sva"].period_fs, block_index["sva"]))
     specs.append((S_Q, -1, -1, n, doms["sva"].period_fs, block_index["sink"]))
+    specs.append((S_T, -1, -1, n, doms["sva"].period_fs, block_index["sva"]))
     streams = np.zeros(len(specs), STREAM)
     for i, (kind, side, tile, count, period, blk) in enumerate(specs):
         size = min(cap, _pow2(count + 1))
@@ -266,6 +286,7 @@ def serialise(plan: ChipPlan, *, sink_stall=None, cap_fs: int = INF, stats: bool
     p["cap_fs"] = cap_fs
     p["watchdog_fs"] = plan.watchdog_fs
     p["stats"] = 1 if stats else 0
+    p["n_stages"] = len(sva.stages)
     acc = np.zeros(len(plan.blocks) + len(plan.fifos), ACC)
     acc["last_pop"] = -1
     acc["over_cycle"] = INF
@@ -285,8 +306,11 @@ def serialise(plan: ChipPlan, *, sink_stall=None, cap_fs: int = INF, stats: bool
              "block_index": block_index, "fifo_index": fifo_index}
     scratch = np.zeros((parts, 14), np.int64)
     cursors = np.zeros(len(specs), np.int64)
+    stages = np.zeros(len(sva.stages), STAGE)
+    for i, (st, off) in enumerate(zip(sva.stages, stage_offsets(sva.stages))):
+        stages[i] = (off, st.latency, st.slots, 0, 0, 0, 0, -1)
     return Net(prm, streams, ring, tiles, fifos, blocks, acc, walks, hist, gaps, rows, occ,
-               scratch, cursors), names
+               scratch, cursors, stages), names
 
 
 def seconds(fs: int) -> float:

@@ -27,7 +27,10 @@ from sim.cycle.engine.layout import (
     K_NNA,
     K_SINK,
     K_SVA,
+    S_T,
 )
+from sim.cycle.engine.pipeline import arrival, issued_before, words_between
+from sim.cycle.engine.ring import rd
 from sim.cycle.engine.walkers import tile_input_before, tile_output_before
 from sim.cycle.rules import (
     memory_first_cycle,
@@ -36,7 +39,7 @@ from sim.cycle.rules import (
     sink_may_pop,
     sva_last_input_row,
     sva_rows_done_before_input,
-    sva_word_due,
+    sva_tick_at,
 )
 
 NEVER = -(1 << 40)
@@ -95,6 +98,8 @@ def cursors_at(net, t, init):
     streams = net.streams
     for s in range(streams.shape[0]):
         st = streams[s]
+        if st.kind == S_T:
+            continue  # ticks, not cycles: the SVA's replay reads them by tick
         c = t // st.period
         if init:
             cur[s] = count_le(net, s, c)
@@ -195,15 +200,36 @@ def _status_merge(ring, streams, cursors, prm, tiles, fifos, b, c):
     return A_BLOCKED, b.fifo_out
 
 
+@njit(cache=True, inline="always")
+def _pipeline(ring, streams, p_s):
+    """(O ring, T ring, issue ticks known) of the SVA whose pop stream is ``p_s``."""
+    so, st = streams[p_s + 1], streams[p_s + 3]
+    return ((so.off, so.mask, so.count - 1 - so.mask), (st.off, st.mask, st.count - 1 - st.mask),
+            st.count)
+
+
+@njit(cache=True, inline="always")
+def _tick(ring, o, t, kt, lat, k, c):
+    """The SVA pipeline's tick at the start of cycle c, k words pushed before it."""
+    if k == 0:
+        last_push, last_exit = 0, 0
+    else:
+        last_push, last_exit = rd(ring, o[0], o[1], k - 1), rd(ring, t[0], t[1], k - 1) + lat
+    nxt = rd(ring, t[0], t[1], k) + lat if k < kt else INF
+    return sva_tick_at(c, last_push, last_exit, nxt)
+
+
 @njit(cache=True)
 def _status_sva(ring, streams, cursors, prm, fifos, b, c):
     p_s = fifos[b.fifo_in].pop
     o_s = p_s + 1
     n, w = prm.n, prm.w
+    o, t, kt = _pipeline(ring, streams, p_s)
     received, pop_at = _lt_at(ring, streams[p_s], cursors[p_s], c)
     emitted, push_at = _lt_at(ring, streams[o_s], cursors[o_s], c)
+    issued = issued_before(ring, t, kt, _tick(ring, o, t, kt, prm.pipe_latency, emitted, c))
     wait = -1
-    if received < n and not pop_at and emitted // w >= sva_rows_done_before_input(
+    if received < n and not pop_at and issued // w >= sva_rows_done_before_input(
             received // w, prm.lookahead):
         for f in (b.fifo_in, b.fifo_in2):
             fi = fifos[f]
@@ -214,15 +240,13 @@ def _status_sva(ring, streams, cursors, prm, fifos, b, c):
     if pop_at or push_at:
         return A_BUSY, -1
     if emitted < n:
+        if emitted < kt and c >= arrival(ring, o, t, prm.pipe_latency, emitted):
+            return A_BLOCKED, b.fifo_out  # the pipeline stalls
         y = emitted // w
         ready = _event(ring, streams[p_s],
                        (sva_last_input_row(y, prm.lookahead, prm.h) + 1) * w - 1)
         if ready != INF and ready + 1 <= c:
-            prev = _event(ring, streams[o_s], emitted - 1) if emitted > 0 else NEVER
-            due = sva_word_due(ready + 1, prm.pipe_latency, prev, prm.cpp)
-            if c >= due:
-                return A_BLOCKED, b.fifo_out
-            return A_BUSY, -1
+            return A_BUSY, -1  # words in the pipeline, or a ready row waiting out the II
         return A_STARVED, wait if wait >= 0 else b.fifo_in
     return A_IDLE, -1
 
@@ -342,13 +366,21 @@ def _sample_nna(ring, streams, cursors, prm, tl, desc, c, out):
 
 
 @njit(cache=True)
-def _sample_sva(ring, streams, cursors, prm, p_s, data, c, out):
-    """The SVA's signals after its cycle c into out[0:8]; p_s: its pop stream."""
-    w = prm.w
+def _sample_sva(ring, streams, cursors, prm, sva, data, c, out):
+    """The SVA's signals after its cycle c into out[0:11 + 2 S]; ``sva`` = (its pop stream,
+    its stages)."""
+    p_s, stages = sva
+    w, n, lat = prm.w, prm.n, prm.pipe_latency
+    o, t, kt = _pipeline(ring, streams, p_s)
     received = cursors[p_s]
     emitted, push_at = _lt_at(ring, streams[p_s + 1], cursors[p_s + 1], c)
+    tick = _tick(ring, o, t, kt, lat, emitted, c)  # during cycle c
+    stall = (not push_at and emitted < n and emitted < kt
+             and c >= arrival(ring, o, t, lat, emitted))
     if push_at:
         emitted += 1
+    after = _tick(ring, o, t, kt, lat, emitted, c + 1)  # after it
+    issued = issued_before(ring, t, kt, tick)
     rows = received // w
     out[0] = rows
     out[1] = received - rows * w
@@ -361,17 +393,32 @@ def _sample_sva(ring, streams, cursors, prm, p_s, data, c, out):
         word = data.words[(emitted - 1) // w, (emitted - 1) % w]
     out[6] = word & data.word_mask
     out[7] = 1 if push_at and word < 0 else 0
+    out[8] = 1 if not stall and issued < kt and rd(ring, t[0], t[1], issued) == tick else 0
+    out[9] = 1 if stall else 0
+    out[10] = issued_before(ring, t, kt, after) - emitted
+    last = rd(ring, t[0], t[1], n - 1) if issued == n else 0
+    for s in range(stages.shape[0]):
+        st = stages[s]
+        held = words_between(ring, t, kt, tick - st.off - st.lat, tick - st.off)
+        if held > 0:
+            code = 3 if stall else 1  # blocked, busy
+        elif issued == n and tick - last > st.off + st.lat:
+            code = 0  # idle
+        else:
+            code = 2  # starved
+        out[11 + 2 * s] = code
+        out[12 + 2 * s] = words_between(ring, t, kt, after - st.off - st.lat, after - st.off)
 
 
 @njit(cache=True, inline="always")
-def _block_signals(kind):
+def _block_signals(kind, n_stages):
     """How many signals a block of this kind traces (its activity first)."""
     if kind == K_MEMORY or kind == K_CAMERA:
         return 2
     if kind == K_NNA:
         return 8
     if kind == K_SVA:
-        return 9
+        return 12 + 2 * n_stages
     return 3
 
 
@@ -391,7 +438,7 @@ def sample(net, data, t, out, done):
         b = blocks[blk]
         c = t // b.period
         if done[blk, 0] == c:
-            k += _block_signals(b.kind)
+            k += _block_signals(b.kind, prm.n_stages)
             continue
         done[blk, 0] = c
         st, _ = _block_status(ring, streams, cursors, prm, tiles, fifos, b, c)
@@ -411,9 +458,10 @@ def sample(net, data, t, out, done):
             out[k + 1] = 1 if at else 0
             k += 2
         elif b.kind == K_SVA:
-            _sample_sva(ring, streams, cursors, prm, fifos[b.fifo_in].pop, data, c,
-                        out[k:k + 8])
-            k += 8
+            m = _block_signals(b.kind, prm.n_stages) - 1
+            _sample_sva(ring, streams, cursors, prm, (fifos[b.fifo_in].pop, net.stages), data,
+                        c, out[k:k + m])
+            k += m
         elif b.kind == K_SINK:
             q_s = fifos[b.fifo_in].pop
             got, at = _lt_at(ring, streams[q_s], cursors[q_s], c)

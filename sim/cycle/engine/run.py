@@ -205,13 +205,27 @@ def _stats(plan: ChipPlan, net: Net, names: dict, t_end: int) -> dict:
             max_occupancy=int(np.flatnonzero(hist).max()), max_producer_occupancy=wk["top"],
             histogram=hist, cycles_full=wk["at_depth"],
             cycles_empty=net.acc[len(plan.blocks) + k]["empty"] + cycles[f.dst] - 1 - last_pop)
+    c_sva = cycles["sva"]
+    stages = {}
+    for st, rec in zip(plan.block("sva").stages, net.stages):
+        idle = c_sva - int(rec["done"]) - 1
+        stages[st.name] = {**activity_counts(int(rec["busy"]),
+                                             c_sva - int(rec["busy"]) - int(rec["blocked"]) - idle,
+                                             int(rec["blocked"]), idle),
+                           "peak_words": int(rec["peak"])}
     return {
         "blocks": {b: blocks[b] for b in sorted(blocks)},
         "cycles": {name: int(cycles[name]) for name in sorted(cycles)},
         "end_time_fs": int(t_end),
         "fifos": {name: fifos[name] for name in sorted(fifos)},
+        "stages": {"sva": stages},
         "steps": count_instants([(0, per[name], cycles[name]) for name in per]),
     }
+
+
+def _stage_peaks(plan: ChipPlan, net: Net) -> dict[str, int]:
+    """The most words each SVA stage held (as far as the walker got)."""
+    return {st.name: int(rec["peak"]) for st, rec in zip(plan.block("sva").stages, net.stages)}
 
 
 # ---- a run that stops ---------------------------------------------------------------------------
@@ -347,7 +361,8 @@ def run_compiled(plan: ChipPlan, left: np.ndarray, right: np.ndarray, *, sink_st
     t_end = INF
     if net.prm[0]["end"] == END_DONE:
         t_end = _last(net, names["p"] + 2) * plan.domains["sva"].period_fs
-    buffers = buffer_report(plan, _window_rows(plan, net))  # an overflow before any stop
+    # an overflow before any stop
+    buffers = buffer_report(plan, _window_rows(plan, net), _stage_peaks(plan, net))
     _raise_stop(plan, net, names, sink_stall, t_end)
     stats = _stats(plan, net, names, t_end)
     report = cycle_report(plan, int(net.prm[0]["first_pop"]), _last(net, names["p"] + 2),

@@ -11,9 +11,10 @@ lists the recurrences; the rules themselves are :mod:`sim.cycle.rules`):
 - MAC push ``e[j] = max(s + cycles - 1, free)``, started at ``s = max(e[j-1] + 1, b[last input]
   + 1)``;
 - merge move ``m = max(m_prev + 1, visible(e_owner[j]), free)``;
-- SVA pop ``p[j] = max(p[j-1] + 1, visible(left[j]), visible(right[j]), o[window] + 1)``, push
-  ``o[j] = max(due(ready(row), o[j-1]), q[j - depth] + 1)``, sink pop ``q[j]`` the first allowed
-  cycle from ``max(q[j-1] + 1, visible(o[j]))``.
+- SVA pop ``p[j] = max(p[j-1] + 1, visible(left[j]), visible(right[j]), issued(window) + 1)``;
+  its lock-step pipeline's issue ticks ``t[j]`` and pushes ``o[j] = max(arrival(j), q[j -
+  depth] + 1)`` (:mod:`sim.cycle.engine.pipeline`); sink pop ``q[j]`` the first allowed cycle
+  from ``max(q[j-1] + 1, visible(o[j]))``.
 
 Each event depends on earlier events of its own stream and on events of other streams that are
 strictly earlier in time, so :func:`run_pass` advances the streams in turn, each as far as what
@@ -47,6 +48,7 @@ from sim.cycle.engine.layout import (
     ERR_RING,
     INF,
 )
+from sim.cycle.engine.pipeline import advance_sva_out_and_sink
 from sim.cycle.engine.ring import busy, rd, view
 from sim.cycle.engine.walkers import walk_all
 from sim.cycle.rules import (
@@ -55,10 +57,7 @@ from sim.cycle.rules import (
     nna_last_input_row,
     nna_rows_started_before_input,
     seen_from_scaled,
-    sink_next_allowed,
-    sva_last_input_row,
     sva_rows_done_before_input,
-    sva_word_due,
 )
 
 # ---- rings --------------------------------------------------------------------------------------
@@ -552,14 +551,15 @@ def advance_merge(net, side, m_s):
 
 @njit(cache=True, inline="always")
 def advance_sva_pops(net, p_s, f_left, f_right):
-    """The SVA's joint pops, as far as both descriptor streams and its row window allow."""
+    """The SVA's joint pops, as far as both descriptor streams and its row window (released as
+    output rows are issued) allow."""
     prm = net.prm[0]
     ring, streams = net.ring, net.streams
     fl, fr = net.fifos[f_left], net.fifos[f_right]
     l_off, l_mask, nl, l_lo = view(streams, fl.push)
     r_off, r_mask, nr, r_lo = view(streams, fr.push)
     p_off, p_mask, j, _ = view(streams, p_s)
-    o_off, o_mask, no, o_lo = view(streams, p_s + 1)
+    n_issued = streams[p_s + 3].count
     st = streams[p_s]
     n, w, per, cap, la = st.n, prm.w, st.period, prm.cap_fs, prm.lookahead
     l_src, l_dst, l_de = fl.per_src, fl.per_dst, fl.data_edges
@@ -574,6 +574,7 @@ def advance_sva_pops(net, p_s, f_left, f_right):
     empty_r = 0
     occ = net.occ
     occ_in = occ.shape[0] - 2
+    occ_out = occ.shape[0] - 1
     known = min(n, nl, nr)
     y = j // w
     x = j - y * w
@@ -581,10 +582,9 @@ def advance_sva_pops(net, p_s, f_left, f_right):
         if y != window_row:
             done = sva_rows_done_before_input(y, la)
             if done > 0:
-                if done * w > no:
+                if done * w > n_issued:
                     break
-                err |= done * w - 1 <= o_lo
-                window = rd(ring, o_off, o_mask, done * w - 1) + 1
+                window = occ[occ_out, done - 1] + 1  # the cycle after its last issue
             else:
                 window = 0
             window_row = y
@@ -612,93 +612,6 @@ def advance_sva_pops(net, p_s, f_left, f_right):
     if err:
         prm.error = ERR_RING
     return j > start
-
-
-@njit(cache=True)
-def advance_sva_out_and_sink(net, p_s, f_sink):
-    """The SVA's pushes and the sink's pops taken in turn in one loop (a push needs the pop of
-    the word a FIFO depth before, a pop the push of its word)."""
-    prm = net.prm[0]
-    ring, streams, gaps = net.ring, net.streams, net.gaps
-    p_off, p_mask, npop, p_lo = view(streams, p_s)
-    o_off, o_mask, ko, _ = view(streams, p_s + 1)
-    q_off, q_mask, kq, _ = view(streams, p_s + 2)
-    so, sq = streams[p_s + 1], streams[p_s + 2]
-    fi = net.fifos[f_sink]
-    depth, de = fi.depth, fi.data_edges
-    n, w, h, per, cap, la = so.n, prm.w, prm.h, so.period, prm.cap_fs, prm.lookahead
-    lat, cpp = prm.pipe_latency, prm.cpp
-    period, phase, stats, g = prm.stall_period, prm.stall_phase, prm.stats, prm.watchdog_fs
-    blk = sq.block
-    acc = net.acc[blk]
-    row_fs = net.rows[1]
-    last_busy, n_gaps = acc.last_busy, acc.gaps
-    err = False
-    start_o, start_q = ko, kq
-    o_prev = rd(ring, o_off, o_mask, ko - 1) if ko > 0 else -(1 << 40)
-    q_prev = rd(ring, q_off, q_mask, kq - 1) if kq > 0 else -1
-    yo = ko // w
-    xo = ko - yo * w
-    xq = kq % w
-    ready_row = -1
-    ready = 0
-    first = -1
-    empty = 0
-    while True:
-        moved = False
-        # pushes, while the word's row is ready and the slot a FIFO depth back is free
-        while ko < n and ko - depth < kq:
-            if yo != ready_row:
-                need = (sva_last_input_row(yo, la, h) + 1) * w
-                if need > npop:
-                    break
-                err |= need - 1 <= p_lo
-                ready = rd(ring, p_off, p_mask, need - 1) + 1
-                ready_row = yo
-            free = rd(ring, q_off, q_mask, ko - depth) + 1 if ko >= depth else 0
-            o = max(sva_word_due(ready, lat, o_prev, cpp), free)
-            if o * per >= cap:
-                break
-            ring[o_off + (ko & o_mask)] = o
-            o_prev = o
-            ko += 1
-            moved = True
-            xo += 1
-            if xo == w:
-                net.occ[net.occ.shape[0] - 1, yo] = o
-                xo = 0
-                yo += 1
-        # pops: the first allowed cycle from the word's visibility
-        while kq < ko:
-            vis = rd(ring, o_off, o_mask, kq) + de
-            q = sink_next_allowed(max(q_prev + 1, vis), period, phase)
-            if q * per >= cap:
-                break
-            empty += max(0, vis - q_prev - 1)
-            ring[q_off + (kq & q_mask)] = q
-            if kq == 0:
-                first = q
-            if stats == 1:
-                n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy, q * per, q * per, g)
-            q_prev = q
-            kq += 1
-            moved = True
-            xq += 1
-            if xq == w:
-                xq = 0
-                row_fs[kq // w] = q * per
-        if not moved:
-            break
-    so.count, sq.count = ko, kq
-    if first >= 0:
-        prm.first_pop = first
-    acc.last_busy, acc.gaps = last_busy, n_gaps
-    net.acc[len(net.blocks) + f_sink].empty += empty
-    if err:
-        prm.error = ERR_RING
-    if n_gaps > gaps.shape[1]:
-        prm.error = ERR_GAPS
-    return ko > start_o or kq > start_q
 
 
 # ---- the pass -----------------------------------------------------------------------------------

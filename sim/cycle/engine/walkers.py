@@ -22,14 +22,23 @@ from __future__ import annotations
 
 from numba import njit
 
-from sim.cycle.engine.layout import ERR_GAPS, ERR_RING, F_MERGE, F_SRC, INF, K_CAMERA, K_SVA
+from sim.cycle.engine.layout import (
+    ERR_GAPS,
+    ERR_RING,
+    F_MERGE,
+    F_SRC,
+    INF,
+    K_CAMERA,
+    K_SVA,
+    S_T,
+)
+from sim.cycle.engine.pipeline import arrival, cycle_of, words_between
 from sim.cycle.engine.ring import busy, rd, view
 from sim.cycle.rules import (
     nna_last_input_row,
     seen_from,
     seen_from_scaled,
     sva_last_input_row,
-    sva_word_due,
 )
 
 NEVER = -(1 << 40)
@@ -187,8 +196,12 @@ def walk_nna(net, ti, final):
 @njit(cache=True)
 def walk_sva(net, blk, p_s, final):
     """Settle the SVA's activity for the words whose every event is known (``final``: the
-    streams have stopped; a pending word waits for its row, its latency, then a slot). Gaps in
-    its busy instants can only lie in a wait for a row or for a slot."""
+    streams have stopped; a pending word waits for its row, the pipeline, then a slot). Word j,
+    the next to leave, makes the block starved until its row is ready (unless a pair is popped),
+    busy until it reaches the output register (:func:`~sim.cycle.engine.pipeline.arrival`:
+    the pipeline is working or waiting out the II), then blocked -- the pipeline stalled --
+    until it is pushed. Gaps in its busy instants can only lie in a wait for a row or for a
+    slot. The stages' counts follow (:func:`_walk_stages`)."""
     prm = net.prm[0]
     ring = net.ring
     gaps = net.gaps
@@ -196,8 +209,10 @@ def walk_sva(net, blk, p_s, final):
     p_off, p_mask, npop, p_lo = view(net.streams, p_s)
     p_pops = (p_off, p_mask, npop)
     o_off, o_mask, no, o_lo = view(net.streams, p_s + 1)
+    t_off, t_mask, kt, t_lo = view(net.streams, p_s + 3)
+    o, t = (o_off, o_mask, o_lo), (t_off, t_mask, t_lo)
     n, w, h, la = net.streams[p_s].n, prm.w, prm.h, prm.lookahead
-    lat, cpp, g = prm.pipe_latency, prm.cpp, prm.watchdog_fs
+    lat, g = prm.pipe_latency, prm.watchdog_fs
     per = net.blocks[blk].period
     j, ptr, prev = a.walk, a.ptr, a.prev
     if j == 0:
@@ -206,20 +221,24 @@ def walk_sva(net, blk, p_s, final):
     # after the last pop known no other comes (every pop is in, or the streams have stopped)
     known_until = INF if npop >= n or final else (rd(ring, p_off, p_mask, npop - 1) + 1
                                                   if npop > 0 else 0)
-    err = j < no and j <= o_lo
+    # issues after the last one known come at ticks from t[kt - 1] + II on
+    next_tick = INF if kt >= n or final else (rd(ring, t_off, t_mask, kt - 1) + prm.cpp
+                                              if kt > 0 else 0)
+    err = (j < no and j <= o_lo) or (j < kt and j - 1 <= t_lo and j > 0)
     starved = 0
     blocked = 0
     y = j // w
     x = j - y * w
     ready_row = -1
     ready = INF
+    never = INF // per  # a cycle no run reaches (keeps instants in range)
     while j < n:
         if y != ready_row:
             need = (sva_last_input_row(y, la, h) + 1) * w
             ready = rd(ring, p_off, p_mask, need - 1) + 1 if need <= npop else INF
             ready_row = y
         lo = max(prev + 1, 0)
-        due = sva_word_due(ready, lat, prev, cpp) if ready < INF else INF
+        arrive = arrival(ring, o, t, lat, j) if j < kt else never
         if j >= no:
             if final:
                 ptr, lost = _catch_up(ring, p_off, p_mask, ptr, p_lo + 1, lo)
@@ -228,15 +247,17 @@ def walk_sva(net, blk, p_s, final):
                 ptr, _, n_gaps, last_busy = _pops_in(ring, p_pops, ptr, lo, ready, long, gaps,
                                                      (blk, n_gaps, last_busy, per, g))
                 if ready < INF:
-                    if due > max(lo, ready):
+                    if arrive > max(lo, ready):
                         n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy,
-                                                  max(lo, ready) * per, (due - 1) * per, g)
-                    _, _, n_gaps, last_busy = _pops_in(ring, p_pops, ptr, due, INF, True, gaps,
-                                                       (blk, n_gaps, last_busy, per, g))
+                                                  max(lo, ready) * per, (arrive - 1) * per, g)
+                    _, _, n_gaps, last_busy = _pops_in(ring, p_pops, ptr, arrive, INF, True,
+                                                       gaps, (blk, n_gaps, last_busy, per, g))
             break
-        o = rd(ring, o_off, o_mask, j)
-        if o > known_until:
-            break  # a pop before o may still come
+        out = rd(ring, o_off, o_mask, j)
+        if out > known_until:
+            break  # a pop before the push may still come
+        if out > arrive and next_tick < rd(ring, t_off, t_mask, j) + lat:
+            break  # a stall: the words in the stages then may not all be issued yet
         if ready > lo:  # waiting for the word's row
             ptr, lost = _catch_up(ring, p_off, p_mask, ptr, p_lo + 1, lo)
             err |= lost
@@ -244,30 +265,38 @@ def walk_sva(net, blk, p_s, final):
             ptr, cnt, n_gaps, last_busy = _pops_in(ring, p_pops, ptr, lo, ready, long, gaps,
                                                    (blk, n_gaps, last_busy, per, g))
             starved += ready - lo - cnt
-            if due > ready:
+            if arrive > ready:
                 n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy, ready * per,
-                                          (due - 1) * per, g)
-        elif due > lo:  # the row is in: busy in the pipeline's latency or II, lo .. due - 1
-            if (due - lo) * per > g:
+                                          (arrive - 1) * per, g)
+        elif arrive > lo:  # the pipeline works (or waits out the II), lo .. arrive - 1
+            if (arrive - lo) * per > g:
                 n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy, lo * per,
-                                          (due - 1) * per, g)
-            elif (due - 1) * per > last_busy:  # too short to hide a gap: just move on
-                last_busy = (due - 1) * per
-        if o > due:  # the word held for a free slot
-            ptr, lost = _catch_up(ring, p_off, p_mask, ptr, p_lo + 1, due)
+                                          (arrive - 1) * per, g)
+            elif (arrive - 1) * per > last_busy:  # too short to hide a gap: just move on
+                last_busy = (arrive - 1) * per
+        if out > arrive:  # the pipeline stalled: the word waits for a free slot
+            ptr, lost = _catch_up(ring, p_off, p_mask, ptr, p_lo + 1, arrive)
             err |= lost
-            long = (o - due) * per > g
-            ptr, cnt, n_gaps, last_busy = _pops_in(ring, p_pops, ptr, due, o, long, gaps,
+            long = (out - arrive) * per > g
+            ptr, cnt, n_gaps, last_busy = _pops_in(ring, p_pops, ptr, arrive, out, long, gaps,
                                                    (blk, n_gaps, last_busy, per, g))
-            blocked += o - due - cnt
-            n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy, o * per, o * per, g)
-        last_busy = o * per
-        prev = o
+            blocked += out - arrive - cnt
+            n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy, out * per, out * per, g)
+        err |= _walk_stages(net.stages, ring, t, kt, j, lat, out - arrive)
+        last_busy = out * per
+        prev = out
         j += 1
         x += 1
         if x == w:
             x = 0
             y += 1
+    if j == n and a.walk < n:  # every word settled: when the last one left each stage
+        for s in range(net.stages.shape[0]):
+            st = net.stages[s]
+            st.busy += st.lat
+            tick = rd(ring, t_off, t_mask, n - 1) + st.off + st.lat
+            st.done, _, bad = cycle_of(ring, o, t, lat, no, kt, tick)
+            err |= bad
     a.walk, a.ptr, a.prev = j, ptr, prev
     a.starved += starved
     a.blocked += blocked
@@ -276,6 +305,37 @@ def walk_sva(net, blk, p_s, final):
         prm.error = ERR_RING
     if n_gaps > gaps.shape[1]:
         prm.error = ERR_GAPS
+
+
+@njit(cache=True, inline="always")
+def _walk_stages(stages, ring, t, kt, j, lat, stall):
+    """Count word j into every stage: the ticks it adds to the stage's busy ones (up to the
+    next word's entry), the words the stage holds when j enters it (the most: its peak), and,
+    when the pipeline stalled ``stall`` cycles with j in the output register, those cycles as
+    blocked for every stage holding a word then. Returns a ring error."""
+    err = False
+    t_off, t_mask, t_lo = t
+    tj = rd(ring, t_off, t_mask, j)
+    for s in range(stages.shape[0]):
+        st = stages[s]
+        if st.lat == 0:
+            continue
+        if j > 0:
+            st.busy += min(st.lat, tj - rd(ring, t_off, t_mask, j - 1))
+        k = st.ptr
+        if k <= t_lo:
+            err = True
+            k = t_lo + 1
+        while rd(ring, t_off, t_mask, k) <= tj - st.lat:
+            k += 1
+        st.ptr = k
+        if j - k + 1 > st.peak:
+            st.peak = j - k + 1
+        if stall > 0:
+            x = tj + lat
+            if words_between(ring, t, kt, x - st.off - st.lat, x - st.off) > 0:
+                st.blocked += stall
+    return err
 
 
 # ---- the FIFOs ----------------------------------------------------------------------------------
@@ -478,7 +538,7 @@ def walk_all(net, final):
     streams, ring = net.streams, net.ring
     for s in range(streams.shape[0]):
         off, mask, count, _ = view(streams, s)
-        if count > 0:
+        if count > 0 and streams[s].kind != S_T:  # T holds ticks, not cycles
             t = rd(ring, off, mask, count - 1) * streams[s].period
             if t > horizon:
                 horizon = t

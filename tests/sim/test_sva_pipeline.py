@@ -1,0 +1,134 @@
+"""The SVA as a lock-step pipeline (sim/cycle/blocks/sva.py, sim/cycle/engine/pipeline.py):
+a stall freezes every word in flight and the next issue with them, its stages' words and status
+are traced, and a stage that needs more SRAM accesses than its ports allow shows in the trace.
+Cycles are checked against the rules written out by hand here."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sim.config import load_config
+from sim.cycle.chip import run_cycle, run_readable
+from sim.cycle.engine.run import run_compiled
+from sim.cycle.plan import build_plan
+from traces.log import changes_of
+
+SAME = {"clocks.nna_mhz": 400, "clocks.sva_mhz": 400, "nna.descriptor": "census",
+        "sva.disparities": 16}
+
+
+def _pair(h, w, seed=0):
+    rng = np.random.default_rng(seed)
+    base = rng.integers(0, 256, (h, w + 3), dtype=np.uint8)
+    return base[:, 3:].copy(), base[:, :w].copy()
+
+
+def test_a_stall_freezes_the_words_in_flight_and_the_next_rows_issue():
+    """Rows arrive slowly (the memory gives a pixel every 3 cycles), so row 1 becomes ready
+    while the last words of row 0 are still in the pipeline. The sink (FIFO depth 1) refuses
+    to pop while row 1 becomes ready: word W - k waits in the output register and the pipeline
+    stalls. When the sink pops again at s1, the FIFO's slot is seen free at s1 + 1: word W - k
+    leaves then, the k - 1 words behind it follow every II, and row 1 -- ready during the
+    stall, when the pipeline's tick stood at word W - k's exit tick -- is issued in the cycle
+    the pipeline resumes, s1 + 1, and leaves L cycles later. (A pipeline that did not freeze
+    would have sent it at ready + L.)"""
+    h, w = 6, 40
+    over = {**SAME, "source.memory_gbps": 0.4 / 3, "fifo.sva_to_sink_depth": 1}
+    cfg = load_config(overrides=over)
+    plan = build_plan(cfg, (h, w))
+    lat, ii = plan.block("sva").latency, plan.block("sva").cycles
+    assert (lat, ii) == (49, 2)
+    left, right = _pair(h, w)
+    _, rep, chip = run_cycle(left, right, cfg)
+    r0, r1 = (int(c) for c in chip.blocks["sva"].ready_cycle[:2])
+    push = [r0 + lat + ii * j for j in range(w)]  # row 0 without a stall
+    assert rep["cycles"]["first_output"]["sva"] == push[0] + 1
+    # the first word of row 0 that reaches the output register before row 1 is ready
+    k = next(k for k in range(1, w) if push[w - k] < r1 - 1)
+    assert 2 * k <= lat  # row 1's issue then waits for the stall, not for the II
+    s0, s1 = push[w - k - 1] + 1, r1 + 7  # the sink refuses to pop in [s0, s1)
+    _, rep, chip = run_cycle(left, right, cfg, sink_stall=lambda c: s0 <= c < s1)
+    last0 = (s1 + 1) + ii * (k - 1)  # word W - 1 leaves
+    first1 = (s1 + 1) + lat  # row 1's first word
+    assert chip.sink.row_cycles[0] == last0 + 1
+    assert chip.sink.row_cycles[1] == first1 + ii * (w - 1) + 1
+    assert first1 > r1 + lat  # what freezing costs row 1
+    # the stall: word W - k in the output register from its arrival to its push; the block
+    # counts those cycles blocked unless it took a pair of the next rows in them
+    stall = (s1 + 1) - push[w - k]
+    assert rep["sva_stages"]["output"]["blocked"] == stall
+    assert rep["blocks"]["sva"]["blocked"] <= stall
+
+
+def _trace(run, plan, left, right, window, **kw):
+    frame = run(plan, left, right, window=window, **kw)
+    log = frame.trace
+    paths = [s.path for s in log.signals]
+    return frame, log, paths
+
+
+def _values_at(log, sig_id, times):
+    """The signal's value after each instant of ``times`` (fs)."""
+    t, v = changes_of(log, sig_id)
+    out = []
+    for x in times:
+        i = np.searchsorted(t, x, side="right") - 1
+        out.append(int(v[i]) if i >= 0 else int(log.initial[sig_id]))
+    return np.array(out)
+
+
+@pytest.mark.parametrize("run", [run_readable, run_compiled])
+def test_the_stages_words_add_up_to_the_pipelines_and_the_lr_window_fills(run):
+    """In every cycle of a window the words held by the stages are the words in the pipeline
+    (the stages partition its positions), and in steady state the LR window holds D words."""
+    h, w = 6, 60
+    plan = build_plan(load_config(overrides=SAME), (h, w))
+    left, right = _pair(h, w, seed=2)
+    per = plan.domains["sva"].period_fs
+    first = run_compiled(plan, left, right).report["cycles"]["first_output"]["sva"]
+    start, end = (first - 60) * per, (first + 200) * per
+    _, log, paths = _trace(run, plan, left, right, (start, end))
+    times = np.arange(start, end, per)
+    total = _values_at(log, paths.index("top.sva.pipeline.words"), times)
+    stages = [s.name for s in plan.block("sva").stages]
+    held = sum(_values_at(log, paths.index(f"top.sva.stage.{s}.words"), times)
+               for s in stages)
+    np.testing.assert_array_equal(held, total)
+    assert total.max() == -(-plan.block("sva").latency // plan.block("sva").cycles)
+    lr = _values_at(log, paths.index("top.sva.stage.lr_check.words"), times[-50:])
+    assert lr.max() == 16 and lr.min() >= 15  # D = 16: a word leaves as the next enters
+    status = _values_at(log, paths.index("top.sva.stage.lr_check.status"), times[-50:])
+    assert set(status) == {1}  # busy
+
+
+@pytest.mark.parametrize("run", [run_readable, run_compiled])
+@pytest.mark.parametrize("ports, ii", [("1r1w", 3), ("1rw", 4)])
+def test_single_port_sram_spaces_the_issues_in_the_trace(run, ports, ii):
+    """64 lanes at D = 128: two lane groups per pixel. With a read and a write port per SGM
+    bank the left path's recurrence sets the II (2 + tree(6 + 1) = 3); with one shared port
+    each top path's bank needs 2 reads + 2 writes = 4 cycles per pixel. The trace's
+    ``pipeline.issue`` pulses every II cycles; the SGM stage holds each pixel for its latency
+    of G + tree(lg 64 + 1) = 3 cycles of every II (with one port its bank is busy in the
+    fourth, writing back)."""
+    over = {**SAME, "sva.disparities": 128, "sva.lanes": 64, "sva.sram_ports": ports}
+    h, w = 4, 140
+    plan = build_plan(load_config(overrides=over), (h, w))
+    assert plan.block("sva").cycles == ii
+    left, right = _pair(h, w, seed=3)
+    per = plan.domains["sva"].period_fs
+    first = run_compiled(plan, left, right).report["cycles"]["first_output"]["sva"]
+    lat = plan.block("sva").latency
+    start, end = (first - lat) * per, (first - lat + 40 * ii) * per
+    _, log, paths = _trace(run, plan, left, right, (start, end))
+    t, v = changes_of(log, paths.index("top.sva.pipeline.issue"))
+    rises = t[v == 1] // per
+    assert len(rises) >= 30
+    assert set(np.diff(rises)) == {ii}
+    sgm_lat = next(st.latency for st in plan.block("sva").stages if st.name == "sgm")
+    assert sgm_lat == 3
+    off = sum(st.latency for st in plan.block("sva").stages[:2])  # hamming, box filter
+    a, b = rises[1] + off + 1, rises[-5] + off + 1  # whole IIs, inside the window
+    sgm = _values_at(log, paths.index("top.sva.stage.sgm.status"), np.arange(a, b) * per)
+    assert (sgm == 1).sum() == sgm_lat * (b - a) // ii  # busy 3 of every II cycles
+    assert set(sgm) <= {1, 2}  # otherwise starved: never blocked, never idle
