@@ -42,6 +42,13 @@ PICTURES = [
         "top.fifo.nna_left_to_sva.*,top.sva.status,top.sva.output.valid",
         "",
     ),
+    (
+        "trace_sva_stages.png",
+        ["--descriptor", "census", "--trace-window", "sva:4490:4790"],
+        "top.sva.pipeline.*,top.sva.stage.*.words,top.sva.stage.sgm.status,"
+        "top.sva.output.valid",
+        "",
+    ),
 ]
 
 

@@ -494,12 +494,15 @@ def submodule_report(plan: ChipPlan) -> dict:
 
 
 def sva_pipeline_report(plan: ChipPlan) -> dict:
-    """The SVA's stages: II and latency of each, with the arithmetic, and the pipeline's."""
+    """The SVA's stages: II and latency of each, with the arithmetic, its registers (words in
+    flight and their bits), and the pipeline's."""
     sva = plan.block("sva")
     return {
         "lanes": min(plan.cfg.sva.lanes, plan.cfg.sva.disparities),
         "initiation_interval": sva.cycles,
         "latency": sva.latency,
-        "stages": [{"name": st.name, "ii": st.ii, "latency": st.latency, "formula": st.formula}
-                   for st in sva.stages],
+        "register_bits": sum(st.register_bits for st in sva.stages),
+        "stages": [{"name": st.name, "ii": st.ii, "latency": st.latency, "formula": st.formula,
+                    "register_words": st.slots, "register_bits": st.register_bits,
+                    "word_holds": st.holds} for st in sva.stages],
     }

@@ -40,8 +40,8 @@ GRID = [
     (SPLIT, {"nna.stereo_submodules": 4, "nna.descriptor": "cnn"}, True),
     (SPLIT, {"nna.stereo_submodules": 6, "nna.descriptor": "cnn"}, True),
     (SPLIT, {"nna.stereo_submodules": 4, "nna.split": "rows"}, True),
+    (SMALL, {"fifo.nna_to_sva_depth": 2}, True),
     # approximations (docs/whatif.md): a FIFO that fills, camera clock alignment, row bands
-    (SMALL, {"fifo.nna_to_sva_depth": 2}, False),
     (SMALL, {"fifo.source_to_nna_depth": 1}, False),
     (SMALL, {"source.kind": "camera", "source.camera_hblank": 20}, False),
     (SMALL, {"source.kind": "camera", "clocks.camera_mhz": 20.0, "nna.descriptor": "cnn"}, False),

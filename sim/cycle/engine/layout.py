@@ -58,6 +58,8 @@ PARAMS = np.dtype([
     ("cap_fs", np.int64),  # events at instants >= cap_fs are not computed
     ("watchdog_fs", np.int64), ("stats", np.int64),  # 1: accumulate statistics and gaps
     ("n_stages", np.int64),
+    ("sva_regular", np.int64),  # SVA words issued II ticks after the previous, without a stall
+    ("sva_peaks_full", np.int64),  # 1: every SVA stage has held ceil(latency / II) words
     # outcome
     ("end", np.int64), ("error", np.int64), ("horizon_fs", np.int64), ("first_pop", np.int64),
     ("iterations", np.int64),
@@ -106,7 +108,6 @@ ACC = np.dtype([
 # an SVA stage: its place in the pipeline, and what the walker counts
 STAGE = np.dtype([
     ("off", np.int64), ("lat", np.int64), ("slots", np.int64),
-    ("ptr", np.int64),  # the oldest word that may still be in the stage (peak window)
     ("peak", np.int64), ("busy", np.int64), ("blocked", np.int64),
     ("done", np.int64),  # the cycle after which the frame's last word has left it (-1: not yet)
 ])
@@ -308,7 +309,7 @@ def serialise(plan: ChipPlan, *, sink_stall=None, cap_fs: int = INF, stats: bool
     cursors = np.zeros(len(specs), np.int64)
     stages = np.zeros(len(sva.stages), STAGE)
     for i, (st, off) in enumerate(zip(sva.stages, stage_offsets(sva.stages))):
-        stages[i] = (off, st.latency, st.slots, 0, 0, 0, 0, -1)
+        stages[i] = (off, st.latency, st.slots, 0, 0, 0, -1)
     return Net(prm, streams, ring, tiles, fifos, blocks, acc, walks, hist, gaps, rows, occ,
                scratch, cursors, stages), names
 

@@ -85,28 +85,39 @@ def tick_at(ring, o, t, lat, ko, kt, c):
 
 
 @njit(cache=True, inline="always")
-def cycle_of(ring, o, t, lat, ko, kt, tick):
-    """(cycle, ok, ring error): the first advancing cycle whose tick is ``tick``, from the
-    ``ko`` pushes and ``kt`` issue ticks known; not ok while it depends on a push not yet
-    known."""
+def exiting_from(ring, t, lat, kt, tick):
+    """The first of the ``kt`` issued words whose exit tick is >= ``tick`` (``kt`` if none),
+    and a ring error."""
     if kt == 0 or rd(ring, t[0], t[1], kt - 1) + lat < tick:
-        k = kt
-        err = False
-    else:
-        lo = max(0, t[2] + 1)
-        k = _first_at_least(ring, t[0], t[1], lo, kt, tick - lat)
-        err = k == lo and lo > 0
+        return kt, False
+    lo = max(0, t[2] + 1)
+    k = _first_at_least(ring, t[0], t[1], lo, kt, tick - lat)
+    return k, k == lo and lo > 0  # the answer may lie in what the ring no longer holds
+
+
+@njit(cache=True, inline="always")
+def cycle_of_after(ring, o, t, lat, ko, kt, tick, k):
+    """(cycle, ok): the first advancing cycle whose tick is ``tick``, k being the first issued
+    word whose exit tick is >= ``tick`` (:func:`exiting_from`), from the ``ko`` pushes and
+    ``kt`` issue ticks known; not ok while it depends on a push not yet known."""
     if k < kt and rd(ring, t[0], t[1], k) + lat == tick:
         if k < ko:
-            return rd(ring, o[0], o[1], k), True, err  # the pipeline resumes with k's push
-        return 0, False, err
+            return rd(ring, o[0], o[1], k), True  # the pipeline resumes with k's push
+        return 0, False
     if k == 0:
-        return sva_cycle_of_tick(tick, 0, 0), True, err
+        return sva_cycle_of_tick(tick, 0, 0), True
     if k - 1 < ko:
-        err = err or k - 1 <= o[2] or k - 1 <= t[2]
         return sva_cycle_of_tick(tick, rd(ring, o[0], o[1], k - 1),
-                                 rd(ring, t[0], t[1], k - 1) + lat), True, err
-    return 0, False, err
+                                 rd(ring, t[0], t[1], k - 1) + lat), True
+    return 0, False
+
+
+@njit(cache=True, inline="always")
+def cycle_of(ring, o, t, lat, ko, kt, tick):
+    """(cycle, ok, ring error): :func:`cycle_of_after` with the word found by search."""
+    k, err = exiting_from(ring, t, lat, kt, tick)
+    e, ok = cycle_of_after(ring, o, t, lat, ko, kt, tick, k)
+    return e, ok, err or (k > 0 and (k - 1 <= o[2] or k - 1 <= t[2]))
 
 
 @njit(cache=True, inline="always")
@@ -153,6 +164,7 @@ def advance_sva_out_and_sink(net, p_s, f_sink):
     yt = kt // w
     xt = kt - yt * w
     xq = kq % w
+    kx = -1  # the first issued word exiting at or after the next issue's tick (-1: search)
     ready_row = -1
     ready = 0
     ready_tick = 0
@@ -183,8 +195,14 @@ def advance_sva_out_and_sink(net, p_s, f_sink):
                 tick = sva_issue_tick(ready_tick, t_prev, cpp)
             else:  # the row was ready when its first word was issued: T(ready) <= t_prev
                 tick = sva_issue_tick(NEVER, t_prev, cpp)
-            e, ok, bad = cycle_of(ring, o, t, lat, ko, kt, tick)
-            err |= bad
+            # the first issued word exiting at or after the tick: it only moves forward
+            if kx < 0:
+                kx, bad = exiting_from(ring, t, lat, kt, tick)
+                err |= bad
+            while kx < kt and rd(ring, t_off, t_mask, kx) + lat < tick:
+                kx += 1
+            err |= kx > 0 and (kx - 1 <= o[2] or kx - 1 <= t[2])
+            e, ok = cycle_of_after(ring, o, t, lat, ko, kt, tick, kx)
             if not ok or e * per >= cap:
                 break
             ring[t_off + (kt & t_mask)] = tick

@@ -32,7 +32,7 @@ from sim.cycle.engine.layout import (
     K_SVA,
     S_T,
 )
-from sim.cycle.engine.pipeline import arrival, cycle_of, words_between
+from sim.cycle.engine.pipeline import arrival, cycle_of, issued_before, words_between
 from sim.cycle.engine.ring import busy, rd, view
 from sim.cycle.rules import (
     nna_last_input_row,
@@ -282,7 +282,7 @@ def walk_sva(net, blk, p_s, final):
                                                    (blk, n_gaps, last_busy, per, g))
             blocked += out - arrive - cnt
             n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy, out * per, out * per, g)
-        err |= _walk_stages(net.stages, ring, t, kt, j, lat, out - arrive)
+        err |= _walk_stages(prm, net.stages, ring, t, kt, j, out - arrive)
         last_busy = out * per
         prev = out
         j += 1
@@ -293,7 +293,7 @@ def walk_sva(net, blk, p_s, final):
     if j == n and a.walk < n:  # every word settled: when the last one left each stage
         for s in range(net.stages.shape[0]):
             st = net.stages[s]
-            st.busy += st.lat
+            st.busy += prm.sva_regular * min(st.lat, prm.cpp) + st.lat
             tick = rd(ring, t_off, t_mask, n - 1) + st.off + st.lat
             st.done, _, bad = cycle_of(ring, o, t, lat, no, kt, tick)
             err |= bad
@@ -308,33 +308,45 @@ def walk_sva(net, blk, p_s, final):
 
 
 @njit(cache=True, inline="always")
-def _walk_stages(stages, ring, t, kt, j, lat, stall):
+def _walk_stages(prm, stages, ring, t, kt, j, stall):
     """Count word j into every stage: the ticks it adds to the stage's busy ones (up to the
     next word's entry), the words the stage holds when j enters it (the most: its peak), and,
     when the pipeline stalled ``stall`` cycles with j in the output register, those cycles as
-    blocked for every stage holding a word then. Returns a ring error."""
+    blocked for every stage holding a word then. A word issued II ticks after the previous one
+    without a stall (most of them) is only counted (``prm.sva_regular``: it adds min(l, II)
+    busy ticks to a stage of latency l, which holds at most ceil(l / II) words then); the
+    peaks are searched until a stage holds that many. Returns a ring error."""
     err = False
     t_off, t_mask, t_lo = t
     tj = rd(ring, t_off, t_mask, j)
+    lat, ii = prm.pipe_latency, prm.cpp
+    gap = tj - rd(ring, t_off, t_mask, j - 1) if j > 0 else -1
+    if j > 0 and j - 1 <= t_lo:
+        err = True
+    regular = gap == ii and stall == 0
+    if regular:
+        prm.sva_regular += 1
+        if prm.sva_peaks_full == 1:
+            return err
+    full = 1
     for s in range(stages.shape[0]):
         st = stages[s]
         if st.lat == 0:
             continue
-        if j > 0:
-            st.busy += min(st.lat, tj - rd(ring, t_off, t_mask, j - 1))
-        k = st.ptr
-        if k <= t_lo:
-            err = True
-            k = t_lo + 1
-        while rd(ring, t_off, t_mask, k) <= tj - st.lat:
-            k += 1
-        st.ptr = k
-        if j - k + 1 > st.peak:
-            st.peak = j - k + 1
+        if not regular and j > 0:
+            st.busy += min(st.lat, gap)
+        most = (st.lat + ii - 1) // ii
+        if st.peak < most or not regular:
+            held = j + 1 - issued_before(ring, t, kt, tj - st.lat + 1)
+            if held > st.peak:
+                st.peak = held
+        if st.peak < most:
+            full = 0
         if stall > 0:
             x = tj + lat
             if words_between(ring, t, kt, x - st.off - st.lat, x - st.off) > 0:
                 st.blocked += stall
+    prm.sva_peaks_full = full
     return err
 
 
