@@ -37,14 +37,15 @@ PICTURES = [
     ),
     (
         "trace_stall.png",
-        ["--set", "fifo.nna_to_sva_depth=4", "--trace-window", "sva:40066:40106"],
+        ["--descriptor", "census", "--set", "fifo.nna_to_sva_depth=4", "--trace-window",
+         "sva:31152:31192"],
         "clocks.*,top.nna.left.sub0.status,top.nna.left.sub0.out.valid,"
         "top.fifo.nna_left_to_sva.*,top.sva.status,top.sva.output.valid",
         "",
     ),
     (
         "trace_sva_stages.png",
-        ["--descriptor", "census", "--trace-window", "sva:4490:4790"],
+        ["--descriptor", "census", "--trace-window", "sva:4750:4790"],
         "top.sva.pipeline.*,top.sva.stage.*.words,top.sva.stage.sgm.status,"
         "top.sva.output.valid",
         "",
