@@ -1,26 +1,28 @@
 """stereosim: a simulator of an edge stereo-vision SoC (NNA descriptor + SGM stereo accelerator).
 
-``sim.run(left, right, mode=..., config=..., overrides=...)`` simulates one frame; see
-:mod:`sim.api`. The command line is ``stereosim`` (:mod:`sim.cli`).
+``sim.run(left, right, mode=..., config=..., overrides=...)`` simulates one frame and
+``sim.run_stream(pairs, ...)`` a stream of them; see :mod:`sim.api`. The command line is ``stereosim`` (:mod:`sim.cli`).
 
 The package holds three layers of the project (docs/architecture.md, "Layers"): the core every
 stage imports (:mod:`sim.errors`, :mod:`sim.config`, :mod:`sim.io`), the cycle model
 (:mod:`sim.cycle`: the chip plan, the readable kernel, the compiled engine, the estimate) and
 the application (:mod:`sim.api`, :mod:`sim.cli`, sweeps, traces, datasets, metrics). Python runs
 this file before any module of the package, so it imports only the core; ``run`` and
-``Result`` are resolved on first use (PEP 562) -- importing the API here would make every
+``Result`` (and the stream's names) are resolved on first use (PEP 562) -- importing the API here would make every
 ``import nna.census`` load the whole application.
 """
 
 from sim.config import ChipConfig, load_config
 from sim.errors import ConfigError, InputError, UserError
 
-__all__ = ["ChipConfig", "ConfigError", "InputError", "Result", "UserError", "load_config", "run"]
+__all__ = ["ChipConfig", "ConfigError", "FrameOutput", "InputError", "Result", "Stream",
+           "UserError", "load_config", "run", "run_stream"]
+_API = ("run", "Result", "run_stream", "Stream", "FrameOutput")
 
 
 def __getattr__(name):
-    if name in ("run", "Result"):
-        from sim.api import Result, run
+    if name in _API:
+        import sim.api
 
-        return run if name == "run" else Result
+        return getattr(sim.api, name)
     raise AttributeError(f"module 'sim' has no attribute {name!r}")

@@ -1,4 +1,5 @@
-"""Public Python interface: ``sim.run(left, right, ...) -> Result``."""
+"""Public Python interface: ``sim.run(left, right, ...) -> Result`` for one stereo frame,
+``sim.run_stream(pairs, ...) -> Stream`` for a stream of them."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ import numpy as np
 
 from nna.descriptor import compute_descriptor
 from sim.config import ChipConfig, check_config, config_to_dict, load_config
+from sim.cycle.frames import FrameSupply, functional_words
 from sim.cycle.plan import ChipPlan, architecture_report, build_plan
 from sim.cycle.simulate import simulate
 from sim.errors import ConfigError, InputError
@@ -170,3 +172,121 @@ def build_report(plan: ChipPlan, mode: str, fixed: np.ndarray) -> dict:
         },
         "config": config_to_dict(cfg),
     }
+
+
+# ---- streams of frames ---------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class FrameOutput:
+    """One frame of a stream: its index, ``disparity`` (float32, inf invalid) and
+    ``disparity_fixed`` (the chip's words)."""
+
+    index: int
+    disparity: np.ndarray
+    disparity_fixed: np.ndarray
+
+    @property
+    def invalid_percent(self) -> float:
+        valid = int(np.count_nonzero(self.disparity_fixed >= 0))
+        return round(100.0 * (self.disparity_fixed.size - valid) / self.disparity_fixed.size, 4)
+
+
+class Stream:
+    """A simulated stream of stereo pairs (:func:`run_stream`). ``report``: the stream's report
+    -- architecture, configuration and, in cycle mode, the cycle report of the whole stream
+    (``stream``: frames, sustained fps, per-frame latency; ``throughput``: the work bound) --
+    known before any frame's words. Iterating yields a :class:`FrameOutput` per frame, in
+    order, each computed when it is asked for: a stream of any length takes the memory of a
+    few frames."""
+
+    def __init__(self, report: dict, config: ChipConfig, plan: ChipPlan, supply: FrameSupply,
+                 words: dict | None = None):
+        self.report = report
+        self.config = config
+        self._plan = plan
+        self._supply = supply
+        self._words = words  # the readable kernel's words, when it ran
+
+    def __len__(self) -> int:
+        return self._supply.count
+
+    @property
+    def plan(self) -> ChipPlan:
+        """The chip plan of the stream (its frames and frame shape)."""
+        return self._plan
+
+    def __iter__(self):
+        plan = self._plan
+        for f in range(self._supply.count):
+            if self._words is not None:
+                fixed = self._words.pop(f)
+            else:
+                fixed = functional_words(plan.cfg, plan.descriptor_bits, *self._supply.pair(f))
+            yield FrameOutput(f, to_float(fixed, plan.cfg.sva.subpixel_bits), fixed)
+
+
+def stream_supply(pairs, max_pixels: int | None = MAX_PIXELS) -> FrameSupply:
+    """A :class:`FrameSupply` of grey pairs from a sequence of (left, right) images (anything
+    with ``len`` and indexing, read on demand) or an existing supply; every pair checked as
+    :func:`prepare_pair` checks one."""
+    if isinstance(pairs, FrameSupply):
+        count, read = pairs.count, pairs.pair
+    else:
+        if not hasattr(pairs, "__len__") or not hasattr(pairs, "__getitem__"):
+            raise InputError(
+                f"pairs must be a sequence of (left, right) images or a FrameSupply; got "
+                f"{type(pairs).__name__}")
+        count = len(pairs)
+
+        def read(f):
+            item = pairs[f]
+            if not isinstance(item, (tuple, list)) or len(item) != 2:
+                raise InputError(f"pair {f} of the stream is not a (left, right) pair")
+            return item
+    if count < 1:
+        raise InputError("the stream has no frames: give at least one (left, right) pair")
+    first = prepare_pair(*read(0), max_pixels)
+    return FrameSupply(count, first[0].shape,
+                       lambda f: first if f == 0 else prepare_pair(*read(f), max_pixels))
+
+
+def run_stream(pairs, *, mode: str = "cycle", config: ChipConfig | str | None = None,
+               overrides: dict[str, Any] | None = None, sink_stall=None,
+               max_pixels: int | None = MAX_PIXELS) -> Stream:
+    """Simulate a stream of stereo pairs of one size, back to back through the chip.
+
+    ``pairs``: a sequence of (left, right) images (a list, or any object with ``len`` and
+    indexing that reads frames on demand) or a :class:`~sim.cycle.frames.FrameSupply`.
+    ``mode="cycle"`` (default) times the whole stream first -- frames overlap in the pipeline
+    as the blocks allow -- and reports the measured sustained frame rate and each frame's
+    latency beside the work bound; the frames' words then come one by one as the returned
+    :class:`Stream` is iterated. ``mode="functional"``: the words alone. ``sink_stall``: a
+    periodic pattern ``(period, allowed_phase)`` for the sink. Mistakes raise a
+    :class:`sim.errors.UserError` before any kernel runs (a frame of another size, when it is
+    read)."""
+    if mode not in MODES:
+        raise ConfigError(f"mode must be one of {', '.join(MODES)}; got {mode!r}")
+    cfg = resolve_config(config, overrides)
+    supply = stream_supply(pairs, max_pixels)
+    plan = build_plan(cfg, supply.shape, supply.count)
+    h, w = supply.shape
+    report = {
+        "architecture": architecture_report(plan),
+        "stereosim": VERSION,
+        "mode": mode,
+        "image": {"width": w, "height": h},
+        "frames": supply.count,
+        "descriptor": {"kind": cfg.nna.descriptor, "bits": plan.descriptor_bits},
+        "config": config_to_dict(cfg),
+    }
+    words = None
+    if mode == "cycle":
+        if cfg.sim.engine == "readable":
+            words = {}
+            frame = simulate(plan, supply, sink_stall=sink_stall,
+                             on_frame=lambda f, fixed: words.__setitem__(f, fixed.copy()))
+        else:
+            frame = simulate(plan, supply, sink_stall=sink_stall, words=False)
+        report.update(frame.report)
+    return Stream(report, cfg, plan, supply, words)

@@ -64,6 +64,7 @@ from sim.outputs import (
     path_text,
     publish,
 )
+from sim.stream_cli import cmd_run_stream
 from sim.tracing import TraceRequest, parse_window, trace_files, trace_paths
 from traces.cli import add_wave_parser
 
@@ -261,6 +262,17 @@ def cmd_run(args) -> int:
     planned = [(out_dir / name, f"--out {name}") for name in RUN_FILES]
     if request is not None:
         planned += trace_paths(request)
+    if args.left_video or args.right_video or (args.frames or 1) > 1 or args.save_every:
+        video = bool(args.left_video or args.right_video)
+        if video and (args.scene or args.left or args.right or args.gt or args.mask):
+            raise InputError("give the videos or a pair (scene, --left/--right), not both")
+        if args.gt or args.mask:
+            raise InputError("a stream has no ground truth: drop --gt/--mask, or run one frame")
+        data = None if video else _load_run_inputs(args)
+        if not video and args.frames is None:
+            raise InputError("--save-every needs a stream: give --frames N or the videos")
+        cfg = _scene_config(args, None if data is None else data.get("ndisp"))
+        return cmd_run_stream(args, request, data, cfg)
     check_outputs(planned)  # before any work: writable, not folders, no two on one path
     data = _load_run_inputs(args)
     cfg = _scene_config(args, data.get("ndisp"))
@@ -498,6 +510,15 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--json", action="store_true", help="print the report as JSON")
     r.add_argument("--max-pixels", type=nonnegative_int, default=MAX_PIXELS, metavar="N",
                    help=f"refuse larger images (default {MAX_PIXELS}, 4096x4096; 0 = no cap)")
+    s = r.add_argument_group("streams of frames (see docs/streams.md)")
+    s.add_argument("--frames", type=positive_int, metavar="N",
+                   help="simulate N frames back to back: the pair repeated, or the first N of "
+                   "the videos (default 1, all of the videos)")
+    s.add_argument("--left-video", metavar="FILE", help="left camera's video (read with OpenCV)")
+    s.add_argument("--right-video", metavar="FILE", help="right camera's video")
+    s.add_argument("--save-every", type=nonnegative_int, default=0, metavar="K",
+                   help="also write every K-th frame's disparity into OUT/frames/ (default 0: "
+                   "only the last frame's)")
     t = r.add_argument_group("traces (cycle model; see docs/traces.md)")
     t.add_argument("--vcd", help="write a VCD waveform of the trace window (and a .gtkw next to it)")
     t.add_argument("--timeline", help="write a Chrome/Perfetto trace-event JSON of the window")

@@ -272,7 +272,9 @@ def _fsync_folder(folder: Path) -> None:
 
 
 def publish(files: Mapping[str | os.PathLike, object]) -> list[str]:
-    """Write a set of files (path -> bytes-like) as one transaction; returns the paths.
+    """Write a set of files (path -> bytes-like, or the :class:`~pathlib.Path` of a file
+    written already on the same file system, which is moved) as one transaction; returns the
+    paths.
 
     Either every file is replaced by its new content or (on any error, interrupt or signal) every
     old file is left as it was and no temporary file remains. Missing destination folders are
@@ -305,7 +307,10 @@ def publish(files: Mapping[str | os.PathLike, object]) -> list[str]:
         for target, blob in zip(targets, blobs, strict=True):
             tmp = stages[target.parent] / target.name
             try:
-                _write_file(str(tmp), blob)
+                if isinstance(blob, Path):  # written already (on this file system): moved
+                    os.replace(blob, tmp)
+                else:
+                    _write_file(str(tmp), blob)
             except OSError as exc:
                 raise _fail("write", target, exc) from None
             staged.append(tmp)

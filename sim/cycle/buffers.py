@@ -41,34 +41,44 @@ class BufferOverflow(RuntimeError):
     rule is broken (a model bug)."""
 
 
-def tracked(plan: ChipPlan) -> list[tuple[str, str, int, int, int, int]]:
+def tracked(plan: ChipPlan) -> list[tuple[str, str, int, int, int, int, int, int]]:
     """``(block, buffer, capacity rows, capacity bits, row slot in the engines' arrays,
-    offset)`` of every row window, in plan order (NNA submodules side-major, then the SVA)."""
+    offset, input rows per frame, output rows per frame)`` of every row window, in plan order
+    (NNA submodules side-major, then the SVA)."""
     out = []
     nna = plan.blocks_of("nna")
     for t, b in enumerate(nna):
         buf = next(x for x in b.buffers if x.name == "nna.line_buffer")
-        out.append((b.name, buf.name, buf.rows, buf.bits, 2 * t, b.tile.top_halo - b.half))
+        out.append((b.name, buf.name, buf.rows, buf.bits, 2 * t, b.tile.top_halo - b.half,
+                    b.tile.in_shape[0], b.tile.shape[0]))
     sva = plan.block("sva")
     buf = next(x for x in sva.buffers if x.name == "sva.descriptor_rows")
     s = plan.cfg.sva
     m = s.median // 2 if s.median > 1 else 0
-    out.append(("sva", buf.name, buf.rows, buf.bits, 2 * len(nna), m - s.box_size // 2))
+    h = plan.shape[0]
+    out.append(("sva", buf.name, buf.rows, buf.bits, 2 * len(nna), m - s.box_size // 2, h, h))
     return out
 
 
-def window_peaks(entered: np.ndarray, done: np.ndarray, offset: int) -> tuple[int, int]:
+def window_peaks(entered: np.ndarray, done: np.ndarray, offset: int, in_rows: int | None = None,
+                 out_rows: int | None = None) -> tuple[int, int]:
     """(most rows held, the cycle it was reached) of a row window: ``entered[r]`` the cycle
     input row r started to enter, ``done[y]`` the cycle output row y was done (-1: not
-    reached)."""
+    reached), rows counted over a stream of frames of ``in_rows`` input and ``out_rows`` output
+    rows (default: one frame). With y output rows done, the next output row is row y % out_rows
+    of frame y // out_rows, which still reads input rows from max(0, that row + offset) of its
+    frame."""
     n_in = int(np.argmin(entered >= 0)) if (entered < 0).any() else len(entered)
     if n_in == 0:
         return 0, -1
+    in_rows = in_rows or len(entered)
+    out_rows = out_rows or len(done)
     rows = np.arange(n_in)
     t = entered[:n_in]
     out_done = done[done >= 0]
     y = np.searchsorted(out_done, t, side="left")  # output rows done before each instant
-    oldest = np.minimum(np.maximum(0, y + offset), rows)
+    frame, local = np.divmod(y, out_rows)
+    oldest = np.minimum(frame * in_rows + np.maximum(0, local + offset), rows)
     held = rows - oldest + 1
     i = int(np.argmax(held))
     return int(held[i]), int(t[i])
@@ -81,8 +91,8 @@ def buffer_report(plan: ChipPlan, occ: np.ndarray, stage_peaks: dict[str, int]) 
     {capacity_words, peak_words, capacity_bits, peak_bits}}`` from the most words each held
     (``stage_peaks``); raises BufferOverflow if a window or a stage exceeded its capacity."""
     report: dict[str, dict] = {}
-    for block, name, cap_rows, cap_bits, slot, offset in tracked(plan):
-        peak, at = window_peaks(occ[slot], occ[slot + 1], offset)
+    for block, name, cap_rows, cap_bits, slot, offset, in_rows, out_rows in tracked(plan):
+        peak, at = window_peaks(occ[slot], occ[slot + 1], offset, in_rows, out_rows)
         if peak > cap_rows:
             raise BufferOverflow(
                 f"buffer {block}.{name} held {peak} rows at {plan.block(block).domain} cycle "

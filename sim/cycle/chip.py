@@ -20,12 +20,13 @@ from sim.cycle.buffers import buffer_report
 from sim.cycle.blocks.sources import CameraSource, MemorySource, Sink
 from sim.cycle.blocks.sva import SvaBlock
 from sim.cycle.fifo import Fifo
+from sim.cycle.frames import FrameSupply
 from sim.cycle.kernel import Simulator
 from sim.cycle.plan import ChipPlan, build_plan
 from sim.cycle.report import cycle_report
 from sim.cycle.rules import sink_may_pop
 from sim.cycle.stops import CameraOverflow, overflow_message
-from sim.errors import UserError
+from sim.errors import ConfigError, UserError
 from traces.log import Clock, Signal, TraceLog, TraceRecorder
 
 
@@ -47,16 +48,17 @@ class Chip:
         the step just run stops the run here, after the step, naming every camera that did."""
         over = [cam.overflow for cam in self.cameras if cam.overflow is not None]
         if over:
-            raise CameraOverflow(overflow_message(over))
+            raise CameraOverflow(overflow_message(over, self.plan.shape[0], self.plan.frames))
         return self.sink.done
 
     def window_rows(self) -> np.ndarray:
-        """The row windows' instants in the compiled engine's layout (``Net.occ``): per NNA
-        submodule (plan order) the cycle each input row started to enter and each output row
-        was done, then the same for the SVA (an output row is done with its rows when its last
-        word is issued)."""
+        """The row windows' instants (rows counted over the stream): per NNA submodule (plan
+        order) the cycle each input row started to enter and each output row was done, then
+        the same for the SVA (an output row is done with its rows when its last word is
+        issued)."""
         nna = [b for b in self.plan.blocks if b.kind == "nna"]
-        occ = np.full((2 * len(nna) + 2, self.plan.shape[0] + 1), -1, np.int64)
+        occ = np.full((2 * len(nna) + 2, self.plan.frames * self.plan.shape[0] + 1), -1,
+                      np.int64)
         for t, b in enumerate([*nna, self.plan.block("sva")]):
             blk = self.blocks[b.name]
             occ[2 * t, :len(blk.rows_entered)] = blk.rows_entered
@@ -83,6 +85,17 @@ class Chip:
         out[1, 1:][done] = sink[done] * self.plan.domains["sva"].period_fs
         return out
 
+    def frame_times(self) -> np.ndarray:
+        """(2, frames) instants (fs): [0] each frame's first pixel leaving the left source, [1]
+        its last word reaching the sink; -1 where not reached."""
+        src = next(b for b in self.plan.blocks if b.kind in ("memory", "camera") and b.side == 0)
+        out = np.full((2, self.plan.frames), -1, np.int64)
+        first = self.blocks[src.name].first_cycles
+        out[0][first >= 0] = first[first >= 0] * self.plan.domains[src.domain].period_fs
+        last = self.sink.frame_cycles
+        out[1][last >= 0] = last[last >= 0] * self.plan.domains["sva"].period_fs
+        return out
+
 
 def _stall_function(sink_stall) -> Callable | None:
     """The sink's stall: a function of the cycle (True: refuse to pop), or a periodic pattern
@@ -93,12 +106,21 @@ def _stall_function(sink_stall) -> Callable | None:
     return lambda c: not sink_may_pop(c, period, phase)
 
 
-def build_chip(left: np.ndarray, right: np.ndarray, cfg: ChipConfig | ChipPlan, *,
-               order_seed=None, sink_stall=None, trace=None) -> Chip:
-    """The readable chip of ``cfg`` (or of a plan) for this pair."""
-    plan = cfg if isinstance(cfg, ChipPlan) else build_plan(cfg, left.shape)
+def build_chip(left, right, cfg: ChipConfig | ChipPlan, *, order_seed=None, sink_stall=None,
+               trace=None, on_frame=None) -> Chip:
+    """The readable chip of ``cfg`` (or of a plan) for this pair -- or stream of pairs: (N, H,
+    W) stacks or a :class:`~sim.cycle.frames.FrameSupply`, whose count a plan must have.
+    ``on_frame(f, words)`` receives each frame's output words as the sink completes it."""
+    supply = FrameSupply.of(left, right)
+    plan = cfg if isinstance(cfg, ChipPlan) else build_plan(cfg, supply.shape, supply.count)
+    if (plan.frames, plan.shape) != (supply.count, supply.shape):
+        raise ConfigError(
+            f"the plan is for {plan.frames} frame(s) of {plan.shape[1]}x{plan.shape[0]}, the "
+            f"stream has {supply.count} of {supply.shape[1]}x{supply.shape[0]}: build the plan "
+            "for the frames you run")
     cfg = plan.cfg
     shape = plan.shape
+    frames = plan.frames
     sim = Simulator(order_seed=order_seed, trace=trace)
     domains = {name: sim.add_domain(d.clock()) for name, d in plan.domains.items()}
     fifos = {}
@@ -106,7 +128,6 @@ def build_chip(left: np.ndarray, right: np.ndarray, cfg: ChipConfig | ChipPlan, 
         fifos[f.name] = sim.add_fifo(Fifo(f.name, f.depth, f.width_bits, f.latency_cycles,
                                           src=domains[f.src], dst=domains[f.dst],
                                           sync_cycles=f.sync_cycles, handshake_signals=True))
-    images = (left, right)
     blocks = {}
     sink = None
     for b in plan.blocks:
@@ -114,29 +135,30 @@ def build_chip(left: np.ndarray, right: np.ndarray, cfg: ChipConfig | ChipPlan, 
         if b.kind in ("memory", "camera"):
             outs = [(fifos[name], tile) for name, tile in zip(b.outputs, plan.tiles)]
             cls = CameraSource if b.kind == "camera" else MemorySource
-            block = cls(b, dom, images[b.side], outs)
+            block = cls(b, dom, lambda f, s=b.side: supply.pair(f)[s], shape, frames, outs)
         elif b.kind == "nna":
             block = NnaSubmodule(b, dom, shape, fifos[b.inputs[0]], fifos[b.outputs[0]],
-                                 cfg.nna)
+                                 cfg.nna, frames)
         elif b.kind == "merge":
             block = Merge(b, dom, shape, [fifos[name] for name in b.inputs], plan.tiles,
-                          fifos[b.outputs[0]])
+                          fifos[b.outputs[0]], frames)
         elif b.kind == "sva":
             block = SvaBlock(b, dom, shape, fifos[b.inputs[0]], fifos[b.inputs[1]],
                              fifos[b.outputs[0]], cfg.sva, plan.descriptor_bits,
-                             plan.word_bits)
+                             plan.word_bits, frames)
         else:
-            block = sink = Sink(b.name, dom, fifos[b.inputs[0]], shape,
-                                stall=_stall_function(sink_stall))
+            block = sink = Sink(b.name, dom, fifos[b.inputs[0]], shape, frames,
+                                stall=_stall_function(sink_stall), on_frame=on_frame)
         blocks[b.name] = sim.add_block(block)
     return Chip(plan, sim, domains, fifos, blocks, sink)
 
 
-def run_cycle(left: np.ndarray, right: np.ndarray, cfg: ChipConfig | ChipPlan, *,
-              order_seed=None, sink_stall=None, trace=None) -> tuple[np.ndarray, dict, Chip]:
-    """Simulate one frame; returns (output words (H, W) int32, cycle report, the chip)."""
+def run_cycle(left, right, cfg: ChipConfig | ChipPlan, *, order_seed=None, sink_stall=None,
+              trace=None, on_frame=None) -> tuple[np.ndarray, dict, Chip]:
+    """Simulate one frame (or a stream: see :func:`build_chip`); returns (the last frame's output
+    words (H, W) int32, cycle report, the chip)."""
     chip = build_chip(left, right, cfg, order_seed=order_seed, sink_stall=sink_stall,
-                      trace=trace)
+                      trace=trace, on_frame=on_frame)
     _, report = _run(chip)
     return chip.sink.words.copy(), report, chip
 
@@ -154,7 +176,7 @@ def _run(chip: Chip) -> tuple[dict, dict]:
         raise
     buffers = buffer_report(plan, chip.window_rows(), sva.stage_peaks())
     return stats, cycle_report(plan, chip.sink.first_cycle, chip.sink.last_cycle, stats,
-                               buffers)
+                               buffers, chip.frame_times())
 
 
 # ---- the dispatcher's entry: the same frame, optionally with a trace window ---------------------
@@ -162,14 +184,17 @@ def _run(chip: Chip) -> tuple[dict, dict]:
 
 @dataclass
 class FrameResult:
-    """What a cycle engine returns for one frame: the output words, the cycle report, the
-    kernel statistics, the row instants (:meth:`Chip.row_times`) and, for a traced run, the
-    trace of the window with the words the SVA pushed in it."""
+    """What a cycle engine returns for one frame or a stream: the (last) frame's output words,
+    the cycle report, the kernel statistics, the first frame's row instants
+    (:meth:`Chip.row_times`), each frame's first-input and last-output instants
+    (:meth:`Chip.frame_times`) and, for a traced run, the trace of the window with the words
+    the SVA pushed in it."""
 
     words: np.ndarray
     report: dict
     stats: dict
     row_times: np.ndarray
+    frame_times: np.ndarray | None = None
     trace: TraceLog | None = None
     outputs_in_window: int = 0
 
@@ -202,11 +227,13 @@ class _WindowCounter:
         self.recorder(time_fs, cycles, changes)
 
 
-def run_readable(plan: ChipPlan, left: np.ndarray, right: np.ndarray, *, sink_stall=None,
-                 window: tuple[int, int] | None = None, order_seed=None) -> FrameResult:
-    """One frame on the readable kernel; ``window`` = (start_fs, end_fs) records every signal
-    of the plan in it (the trace ends one femtosecond after the run's last step at the
-    latest). ``trace`` is None when the window starts after the run ended."""
+def run_readable(plan: ChipPlan, left, right=None, *, sink_stall=None,
+                 window: tuple[int, int] | None = None, order_seed=None,
+                 on_frame=None) -> FrameResult:
+    """One frame or a stream (the plan's) on the readable kernel; ``window`` = (start_fs,
+    end_fs) records every signal of the plan in it (the trace ends one femtosecond after the
+    run's last step at the latest). ``trace`` is None when the window starts after the run
+    ended. ``on_frame(f, words)`` receives each frame's words as it completes."""
     hook = None
     if window is not None:
         names = [f"{s.owner}.{s.key}" for s in plan.signals]
@@ -214,11 +241,12 @@ def run_readable(plan: ChipPlan, left: np.ndarray, right: np.ndarray, *, sink_st
                                  start_fs=window[0], end_fs=window[1])
         hook = _WindowCounter(recorder, None, *window)
     chip = build_chip(left, right, plan, order_seed=order_seed, sink_stall=sink_stall,
-                      trace=hook)
+                      trace=hook, on_frame=on_frame)
     if hook is not None:
         hook.fifo = chip.fifos["sva_to_sink"]
     stats, report = _run(chip)
-    result = FrameResult(chip.sink.words.copy(), report, stats, chip.row_times())
+    result = FrameResult(chip.sink.words.copy(), report, stats, chip.row_times(),
+                         chip.frame_times())
     if hook is not None and hook.started:
         end = min(window[1], stats["end_time_fs"] + 1)
         result.trace = hook.recorder.log(end)

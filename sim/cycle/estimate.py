@@ -102,7 +102,7 @@ def _source_cycle(plan: ChipPlan, k: int) -> int:
     w = plan.shape[1]
     src = plan.blocks[0]
     if src.kind == "camera":
-        return camera_cycle(k % w, k // w, src.line_clocks)
+        return camera_cycle(0, k % w, k // w, src.line_clocks, src.frame_clocks)
     hz = round(plan.domains[src.domain].freq_hz)
     return max(k, memory_first_cycle(k, hz, src.bytes_per_s))
 
@@ -132,7 +132,7 @@ def _tile_rows(plan: ChipPlan, sub) -> dict[int, tuple[float, float]]:
         start = max(visible(src, _source_cycle(plan, k0), plan), prev_end + 1)
         # line-buffer room: the output rows that must have left before this row may enter
         started = nna_rows_started_before_input(y_in - tile.in_y0, rows, half, tile.top_halo,
-                                                tile.y1 - tile.y0)
+                                                tile.y1 - tile.y0, tile.in_y1 - tile.in_y0)
         if started > 0 and tile.y0 + started - 1 in out:
             start = max(start, out[tile.y0 + started - 1][1] + 1)
         end = max(visible(src, _source_cycle(plan, k1), plan),

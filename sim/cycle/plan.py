@@ -159,6 +159,7 @@ class ChipPlan:
     descriptor_bits: int
     beat_bits: int  # NNA -> SVA beat: the descriptor (+ 8 bits of intensity for adaptive P2)
     word_bits: int  # SVA output word
+    frames: int = 1  # frames of the stream, back to back (all of ``shape``)
     signals: tuple[SignalPlan, ...] = field(default=())
 
     # ---- lookups ----------------------------------------------------------------------------
@@ -222,10 +223,11 @@ class ChipPlan:
         """A block's work per frame, the cycles its critical resource is occupied: the MAC
         array's descriptors x cycles (NNA), the output pipeline's words x II (SVA), one beat per
         cycle (merge), the whole raster with blanking (camera: a camera delivers frames no
-        faster), and the cycles its port transferred (memory source: ``busy``, measured -- a
-        bandwidth-limited source that is back-pressured banks tokens while blocked)."""
+        faster), and the cycles its port transferred (memory source: ``busy``, measured over the
+        stream and shared out per frame -- a bandwidth-limited source that is back-pressured
+        banks tokens while blocked)."""
         if block.kind == "memory":
-            return busy
+            return busy // self.frames  # measured over the stream: its share of a frame
         if block.kind == "camera":
             return block.frame_clocks
         return block.items * block.cycles
@@ -236,17 +238,20 @@ def _nb(n: int) -> int:
 
 
 def frame_budget(cfg: ChipConfig, shape: tuple[int, int], freqs: dict[str, float],
-                 cpd: int, sva_ii: int) -> dict[str, int]:
-    """A generous cycle budget: 20x a frame at the slowest block's rate, per domain."""
+                 cpd: int, sva_ii: int, frames: int = 1) -> dict[str, int]:
+    """A generous cycle budget: 20x the frames at the slowest block's rate, per domain."""
     h, w = shape
+    camera = cfg.source.kind == "camera"
     per_pixel_s = max(
         cpd / (cfg.clocks.nna_mhz * 1e6),
         sva_ii / (cfg.clocks.sva_mhz * 1e6),
-        (w + cfg.source.camera_hblank) / w / (cfg.clocks.camera_mhz * 1e6)
-        if cfg.source.kind == "camera" else 0.0,
+        (w + cfg.source.camera_hblank) / w / (cfg.clocks.camera_mhz * 1e6) if camera else 0.0,
     )
     frame_s = (h + 16) * w * per_pixel_s + 1e-6
-    return {name: int(20 * frame_s * f) + 100_000 for name, f in freqs.items()}
+    if camera and frames > 1:  # the vertical blanking between frames
+        frame_s += (cfg.source.camera_vblank * (w + cfg.source.camera_hblank)
+                    / (cfg.clocks.camera_mhz * 1e6))
+    return {name: int(20 * frames * frame_s * f) + 100_000 for name, f in freqs.items()}
 
 
 # ---- buffers -----------------------------------------------------------------------------------
@@ -267,12 +272,15 @@ def nna_buffers(cfg: ChipConfig, width: int) -> tuple[BufferPlan, ...]:
 # ---- building ----------------------------------------------------------------------------------
 
 
-def build_plan(cfg: ChipConfig, shape: tuple[int, int]) -> ChipPlan:
-    """The plan of ``cfg`` for frames of ``shape`` = (H, W). Raises ConfigError for a chip that
-    cannot be built (a line buffer smaller than the descriptor window, more tiles than rows or
-    columns, D not below the width)."""
+def build_plan(cfg: ChipConfig, shape: tuple[int, int], frames: int = 1) -> ChipPlan:
+    """The plan of ``cfg`` for a stream of ``frames`` frames of ``shape`` = (H, W), back to back.
+    Raises ConfigError for a chip that cannot be built (a line buffer smaller than the
+    descriptor window, more tiles than rows or columns, D not below the width) or a stream
+    without frames."""
     cfg = check_config(cfg)  # however it was built, the same checks as load_config
     h, w = shape
+    if isinstance(frames, bool) or not isinstance(frames, int) or frames < 1:
+        raise ConfigError(f"a stream needs at least one frame, got frames={frames!r}")
     n = h * w
     check_line_buffer(cfg.nna)
     if cfg.sva.disparities >= w:
@@ -351,8 +359,9 @@ def build_plan(cfg: ChipConfig, shape: tuple[int, int]) -> ChipPlan:
     blocks.append(BlockPlan("sink", "sink", "sva", None, (to_sink,), (), "top.sink", n))
     plan = ChipPlan(cfg=cfg, shape=(h, w), domains=domains, fifos=tuple(fifos),
                     blocks=tuple(blocks), tiles=tiles,
-                    budget=frame_budget(cfg, shape, freqs, cpd, sva_ii), descriptor_bits=bits,
-                    beat_bits=beat_bits, word_bits=word_bits)
+                    budget=frame_budget(cfg, shape, freqs, cpd, sva_ii, frames),
+                    descriptor_bits=bits, beat_bits=beat_bits, word_bits=word_bits,
+                    frames=frames)
     object.__setattr__(plan, "signals", tuple(_signals(plan)))
     return plan
 
@@ -370,7 +379,7 @@ def _signals(plan: ChipPlan) -> list[SignalPlan]:
         d = b.domain
         sig(b.name, b.scope, "status", 2, d)
         if b.kind in ("memory", "camera"):
-            sig(b.name, b.scope, "sent", _nb(h * w), d)
+            sig(b.name, b.scope, "sent", _nb(plan.frames * h * w), d)
         elif b.kind == "nna":
             sig(b.name, b.scope, "line_buffer.row_in", _nb(h), d)
             sig(b.name, b.scope, "line_buffer.fill", _nb(b.rows), d)
@@ -380,7 +389,7 @@ def _signals(plan: ChipPlan) -> list[SignalPlan]:
             sig(b.name, b.scope, "out.valid", 1, d)
             sig(b.name, b.scope, "out.descriptor", plan.descriptor_bits, d)
         elif b.kind == "merge":
-            sig(b.name, b.scope, "count", _nb(h * w), d)
+            sig(b.name, b.scope, "count", _nb(plan.frames * h * w), d)
             sig(b.name, b.scope, "out.valid", 1, d)
         elif b.kind == "sva":
             for key, width in (("input.row", _nb(h)), ("input.col", _nb(w)),
@@ -394,7 +403,7 @@ def _signals(plan: ChipPlan) -> list[SignalPlan]:
                 sig(b.name, b.scope, f"stage.{st.name}.status", 2, d)
                 sig(b.name, b.scope, f"stage.{st.name}.words", _nb(st.slots), d)
         elif b.kind == "sink":
-            sig(b.name, b.scope, "count", _nb(h * w), d)
+            sig(b.name, b.scope, "count", _nb(plan.frames * h * w), d)
             sig(b.name, b.scope, "valid", 1, d)
     for f in plan.fifos:
         scope = f"top.fifo.{f.name}"

@@ -3,6 +3,8 @@ build it here, so the keys and the arithmetic are the same)."""
 
 from __future__ import annotations
 
+import numpy as np
+
 from sim.cycle.plan import ChipPlan
 from sim.cycle.rules import FS_PER_S
 
@@ -28,15 +30,43 @@ def throughput(plan: ChipPlan, work: dict[str, int]) -> dict:
     }
 
 
+def stream_report(plan: ChipPlan, frame_times) -> dict:
+    """The measured figures of a stream (``frame_times``: (2, frames) instants in fs of each
+    frame's first input pixel and last output word): frames completed; the **sustained** frame
+    rate -- frames completed per second of simulated time after the first, (N - 1) / (end of
+    frame N-1 - end of frame 0), None for a single frame -- and each frame's latency, first
+    pixel in to last disparity out (min, median, p99, max and every frame's, in ms)."""
+    first, last = np.asarray(frame_times[0]), np.asarray(frame_times[1])
+    done = last >= 0
+    n_done = int(done.sum())
+    lat_ms = (last[done] - first[done]) / 1e12
+    out: dict = {"frames": plan.frames, "frames_completed": n_done}
+    if n_done > 1:
+        span_s = (last[done][-1] - last[done][0]) / FS_PER_S
+        out["sustained_fps"] = round(float((n_done - 1) / span_s), 3)
+    else:
+        out["sustained_fps"] = None
+    if n_done:
+        out["latency_ms"] = {
+            "min": round(float(lat_ms.min()), 6),
+            "median": round(float(np.median(lat_ms)), 6),
+            "p99": round(float(np.percentile(lat_ms, 99, method="higher")), 6),
+            "max": round(float(lat_ms.max()), 6),
+        }
+        out["latency_ms_per_frame"] = [round(float(v), 6) for v in lat_ms]
+    return out
+
+
 def cycle_report(plan: ChipPlan, first_cycle: int, last_cycle: int, stats: dict,
-                 buffers: dict) -> dict:
+                 buffers: dict, frame_times) -> dict:
     """The cycle report from the sink's first and last pop (SVA cycles), the kernel
     statistics (``Simulator.stats()`` or the compiled engine's equal dict) and the row
     windows' peaks (:func:`sim.cycle.buffers.buffer_report`).
 
     ``fps_frame`` is the rate of frames run one at a time (the first input pixel at t = 0 to
-    the last output word): far below ``fps`` when blocks hold work they cannot hand on (column
-    tiles behind merge FIFOs shallower than a tile row, say).
+    the first frame's last output word): far below ``fps`` when blocks hold work they cannot
+    hand on (column tiles behind merge FIFOs shallower than a tile row, say). A stream's
+    measured rate is ``stream.sustained_fps`` (:func:`stream_report`).
     """
     period = plan.domains["sva"].period_fs
     first_fs = first_cycle * period
@@ -46,7 +76,8 @@ def cycle_report(plan: ChipPlan, first_cycle: int, last_cycle: int, stats: dict,
     thr = throughput(plan, work)
     # frames one at a time, first input pixel to last output word: a stream overlaps frames
     # and reaches `fps` unless blocks wait on each other (see blocks.*.blocked)
-    thr["fps_frame"] = round(FS_PER_S / last_fs, 3) if last_fs > 0 else None
+    frame0_fs = int(frame_times[1][0]) if frame_times[1][0] >= 0 else last_fs
+    thr["fps_frame"] = round(FS_PER_S / frame0_fs, 3) if frame0_fs > 0 else None
     fifos = stats["fifos"]
     return {
         "cycles": {
@@ -62,6 +93,7 @@ def cycle_report(plan: ChipPlan, first_cycle: int, last_cycle: int, stats: dict,
         "fifo_sram_bits": {f.name: f.sram_bits for f in sorted(plan.fifos, key=lambda f: f.name)},
         "buffers": {b: buffers[b] for b in sorted(buffers)},
         "sva_stages": sva_stage_activity(plan, stats["stages"]["sva"]),
+        "stream": stream_report(plan, frame_times),
     }
 
 

@@ -72,10 +72,11 @@ def memory_first_cycle(k, freq_hz, bytes_per_s):
 
 
 @register_jitable
-def camera_cycle(x, y, line_clocks):
-    """The pixel-clock cycle in which a camera delivers pixel (x, y): its raster of
-    ``line_clocks`` (W + hblank) clocks per line, from cycle 0."""
-    return y * line_clocks + x
+def camera_cycle(f, x, y, line_clocks, frame_clocks):
+    """The pixel-clock cycle in which a camera delivers pixel (x, y) of frame f: frames back to
+    back, each a raster of ``frame_clocks`` = (H + vblank)(W + hblank) clocks of ``line_clocks``
+    = W + hblank clocks per line, from cycle 0."""
+    return f * frame_clocks + y * line_clocks + x
 
 
 @register_jitable
@@ -86,14 +87,22 @@ def nna_last_input_row(y, half, image_rows):
 
 
 @register_jitable
-def nna_rows_started_before_input(r, rows, half, top_halo, out_rows):
-    """Output rows (of the tile) the MAC array must have started before input row r (of the
-    tile) may enter a line buffer of ``rows`` rows: the row arriving must fit beside the rows
-    the next output row still reads, r - max(0, y_out + top_halo - h) + 1 <= rows, unless every
-    output row has started. 0: no wait."""
-    if r < rows:
+def nna_rows_started_before_input(r, rows, half, top_halo, out_rows, in_rows):
+    """Output rows of a tile (counted over the stream of frames) its MAC array must have started
+    before the tile's input row r (counted over the stream: frame r // in_rows, row r % in_rows
+    of it) may enter a line buffer of ``rows`` rows: the row arriving must fit beside the rows
+    the next output row still reads -- from max(0, y_out + top_halo - h) of its own frame --
+    unless every output row of the frames before has started. In frame 0 a row below ``rows``
+    waits for nothing; in a later frame it may wait for the last output rows of the frame
+    before, which still read that frame's last rows. 0: no wait."""
+    f = r // in_rows
+    local = r - f * in_rows
+    if local >= rows:
+        return f * out_rows + max(0, min(local + 1 - rows + half - top_halo, out_rows))
+    if f == 0:
         return 0
-    return max(0, min(r + 1 - rows + half - top_halo, out_rows))
+    return (f - 1) * out_rows + max(0, min(in_rows + local + 1 - rows + half - top_halo,
+                                           out_rows))
 
 
 @register_jitable
@@ -107,8 +116,31 @@ def sva_last_input_row(y, lookahead, image_rows):
 def sva_rows_done_before_input(y_in, lookahead):
     """Output rows the SVA must have *issued* into its pipeline (every word of the row read
     from the row buffers) before it takes input row ``y_in``: its row buffers hold the rows of
-    the next output row to issue plus one row arriving, y_in <= y_issued + r + m + 1."""
+    the next output row to issue plus one row arriving, y_in <= y_issued + r + m + 1. Rows are
+    counted over the stream of frames (frame f's row y is f H + y): the last output rows of a
+    frame read that frame's last rows, so the next frame's first rows wait for them the same
+    way."""
     return max(0, y_in - lookahead - 1)
+
+
+@register_jitable
+def frame_row(row, rows, frames):
+    """(frame, row within it) of a row counted over a stream of ``frames`` frames of ``rows``
+    rows; past the end: the last frame and ``rows`` (one past its last row) -- how the traces
+    show a block's row counters."""
+    if row >= frames * rows:
+        return frames - 1, rows
+    return row // rows, row % rows
+
+
+@register_jitable
+def rows_ready_in_frame(rows_in, image_rows, lookahead, frames):
+    """The SVA's output rows ready in the frame whose input rows arrive, ``rows_in`` input rows
+    being complete over the stream: max(0, r - r_box - m) of r complete rows of that frame,
+    every row once the stream is in (:func:`sva_last_input_row`)."""
+    if rows_in >= frames * image_rows:
+        return image_rows
+    return max(0, rows_in % image_rows - lookahead)
 
 
 # ---- the SVA's pipeline ------------------------------------------------------------------------

@@ -13,8 +13,6 @@ decides which engine runs.
 
 from __future__ import annotations
 
-import numpy as np
-
 from sim.cycle.chip import FrameResult, run_readable
 from sim.cycle.engine.run import run_compiled
 from sim.cycle.plan import ChipPlan
@@ -32,23 +30,29 @@ def _needs_readable(sink_stall, order_seed) -> str | None:
     return None
 
 
-def simulate(plan: ChipPlan, left: np.ndarray, right: np.ndarray, *, sink_stall=None,
-             window: tuple[int, int] | None = None, order_seed=None) -> FrameResult:
-    """One frame of ``plan``: words, cycle report (with ``engine``), statistics, row instants
-    and, with ``window`` = (start_fs, end_fs), the trace of that window. ``sink_stall``:
-    ``(period, allowed_phase)`` (or, readable kernel only, a function of the cycle that
-    returns True when the sink refuses to pop)."""
+def simulate(plan: ChipPlan, left, right=None, *, sink_stall=None,
+             window: tuple[int, int] | None = None, order_seed=None,
+             on_frame=None, words: bool = True) -> FrameResult:
+    """One frame or a stream of frames of ``plan`` (``left``, ``right``: (H, W) arrays, (N, H,
+    W) stacks, or a :class:`~sim.cycle.frames.FrameSupply` as ``left``): the last frame's
+    words, cycle report (with ``engine``), statistics, row and frame instants and, with
+    ``window`` = (start_fs, end_fs), the trace of that window; ``on_frame(f, words)`` receives
+    every frame's words in order. ``sink_stall``: ``(period, allowed_phase)`` (or, readable
+    kernel only, a function of the cycle that returns True when the sink refuses to pop).
+    ``words=False``: the compiled engine computes no words (``words`` is None; the readable
+    kernel moves them anyway)."""
     engine = plan.cfg.sim.engine
     reason = _needs_readable(sink_stall, order_seed)
     if engine == "fast" and reason is not None:
         raise ConfigError(f"sim.engine=fast: {reason}; use sim.engine=auto or readable")
     if engine == "readable" or reason is not None:
         result = run_readable(plan, left, right, sink_stall=sink_stall, window=window,
-                              order_seed=order_seed)
+                              order_seed=order_seed, on_frame=on_frame)
         result.report["engine"] = "readable"
         if engine == "auto":
             result.report["engine_reason"] = reason
         return result
-    result = run_compiled(plan, left, right, sink_stall=sink_stall, window=window)
+    result = run_compiled(plan, left, right, sink_stall=sink_stall, window=window,
+                          on_frame=on_frame, words=words)
     result.report["engine"] = "fast"
     return result

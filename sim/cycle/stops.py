@@ -16,10 +16,18 @@ class CameraOverflow(UserError):
     """A camera cannot stall: its FIFO was full when a pixel arrived."""
 
 
-def overflow_message(overflows: list[tuple[str, str, int, int, int]]) -> str:
+def overflow_message(overflows: list[tuple[str, str, int, int, int]], height: int = 0,
+                     frames: int = 1) -> str:
     """The one-line message of a :class:`CameraOverflow`: ``overflows`` lists, in the chip's
-    block order, ``(camera, fifo, x, y, cycle)`` for every camera that overflowed in the step."""
-    what = "; ".join(f"camera '{cam}' overflowed FIFO {fifo} at pixel ({x}, {y}), cycle {cycle}"
+    block order, ``(camera, fifo, x, y, cycle)`` for every camera that overflowed in the step,
+    y the row over the stream of ``frames`` frames of ``height`` rows (the message names the
+    frame of a stream)."""
+    def pixel(x, y):
+        if frames > 1:
+            return f"pixel ({x}, {y % height}) of frame {y // height}"
+        return f"pixel ({x}, {y})"
+
+    what = "; ".join(f"camera '{cam}' overflowed FIFO {fifo} at {pixel(x, y)}, cycle {cycle}"
                      for cam, fifo, x, y, cycle in overflows)
     return (f"{what}: the NNA does not keep up with the camera; use a slower camera, more NNA "
             "throughput (clocks.nna_mhz, nna.macs) or a deeper fifo.source_to_nna_depth")

@@ -74,11 +74,12 @@ def _mutant_rule(monkeypatch, module, name, fake):
 
 MUTANTS = {
     "nna room rule removed": (CNN, nna_block, "nna_rows_started_before_input",
-                              lambda r, rows, half, top, out_rows: 0, "nna_left.nna.line_buffer"),
+                              lambda r, rows, half, top, out_rows, in_rows: 0,
+                              "nna_left.nna.line_buffer"),
     "nna room rule one row late": (
         CNN, nna_block, "nna_rows_started_before_input",
-        lambda r, rows, half, top, out_rows, f=nna_block.nna_rows_started_before_input:
-        f(r, rows + 1, half, top, out_rows), "nna_left.nna.line_buffer"),
+        lambda r, rows, half, top, out_rows, in_rows, f=nna_block.nna_rows_started_before_input:
+        f(r, rows + 1, half, top, out_rows, in_rows), "nna_left.nna.line_buffer"),
     "sva room rule removed": (CENSUS, sva_block, "sva_rows_done_before_input",
                               lambda y_in, la: 0, "sva.sva.descriptor_rows"),
     "sva room rule one row late": (

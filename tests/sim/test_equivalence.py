@@ -33,8 +33,8 @@ def configurations(draw):
     """A small frame and a configuration drawn over every timing parameter of the chip: sizes,
     D, paths, LR check, median, every FIFO depth (1 included), latency and synchroniser,
     clocks, memory or camera sources with blanking, frames split over two or three submodules
-    per camera (column tiles or row bands), periodic sink stalls and watchdogs that fire; and a
-    trace window."""
+    per camera (column tiles or row bands), periodic sink stalls and watchdogs that fire,
+    streams of one to three frames; and a trace window (which may span frames)."""
     d = draw(st.sampled_from([16, 16, 32]))
     h = draw(st.integers(2, 9))
     w = draw(st.integers(d + 1, d + 20))
@@ -82,10 +82,11 @@ def configurations(draw):
         stall = NEVER
     if kind == "never" or draw(st.integers(0, 9)) == 0:
         over["sim.watchdog_cycles"] = draw(st.integers(10, 400))
+    frames = draw(st.sampled_from([1, 1, 2, 3]))  # streams of frames back to back
     p_sva = round(1e15 / (over["clocks.sva_mhz"] * 1e6))
-    start = draw(st.integers(0, 1500)) * p_sva
+    start = draw(st.integers(0, 1500 * frames)) * p_sva
     window = (start, start + draw(st.integers(1, 3000)) * p_sva)
-    return h, w, over, stall, draw(st.integers(0, 99)), window
+    return h, w, over, stall, draw(st.integers(0, 99)), window, frames
 
 
 def _run(fn, *args, **kw):
@@ -102,11 +103,17 @@ def test_the_compiled_engine_equals_the_readable_kernel(case):
     """Either both runs stop with the same error (type, message, the state of every FIFO and
     block) or they give the same words, report, statistics, row instants and trace (the VCD of
     the window, and the words pushed in it)."""
-    h, w, over, stall, seed, window = case
-    left, right = _pair(h, w, seed=seed)
-    plan = build_plan(load_config(overrides=over), (h, w))
-    slow, slow_err = _run(run_readable, plan, left, right, sink_stall=stall, window=window)
-    fast, fast_err = _run(run_compiled, plan, left, right, sink_stall=stall, window=window)
+    h, w, over, stall, seed, window, frames = case
+    pairs = [_pair(h, w, seed=seed + f) for f in range(frames)]
+    left, right = np.stack([p[0] for p in pairs]), np.stack([p[1] for p in pairs])
+    if frames == 1:
+        left, right = left[0], right[0]
+    plan = build_plan(load_config(overrides=over), (h, w), frames)
+    got_slow, got_fast = [], []
+    slow, slow_err = _run(run_readable, plan, left, right, sink_stall=stall, window=window,
+                          on_frame=lambda f, words: got_slow.append((f, words.copy())))
+    fast, fast_err = _run(run_compiled, plan, left, right, sink_stall=stall, window=window,
+                          on_frame=lambda f, words: got_fast.append((f, words.copy())))
     if slow_err is not None or fast_err is not None:
         assert type(fast_err) is type(slow_err), (fast_err, slow_err)
         assert str(fast_err) == str(slow_err)
@@ -114,9 +121,13 @@ def test_the_compiled_engine_equals_the_readable_kernel(case):
             assert getattr(fast_err, attr, None) == getattr(slow_err, attr, None)
         return
     np.testing.assert_array_equal(fast.words, slow.words)
+    assert [f for f, _ in got_fast] == [f for f, _ in got_slow] == list(range(frames))
+    for (_, a), (_, b) in zip(got_fast, got_slow):
+        np.testing.assert_array_equal(a, b)  # every frame's words
     assert fast.stats == slow.stats
     assert fast.report == slow.report
     np.testing.assert_array_equal(fast.row_times, slow.row_times)
+    np.testing.assert_array_equal(fast.frame_times, slow.frame_times)
     assert (fast.trace is None) == (slow.trace is None)
     if slow.trace is not None:
         assert vcd_bytes(fast.trace, version="t") == vcd_bytes(slow.trace, version="t")

@@ -1,8 +1,9 @@
 """The SVA as a clocked block of the readable kernel: row buffers in front of a lock-step
 pipeline of stages.
 
-Ports: ``in_left``, ``in_right`` (descriptor beats ``(x, y, descriptor, pixel)`` in raster
-order), ``out`` (output words ``(x, y, word)`` in raster order).
+Ports: ``in_left``, ``in_right`` (descriptor beats ``(f, x, y, descriptor, pixel)`` in raster
+order, frame after frame), ``out`` (output words ``(f, x, y, word)`` in raster order). Rows,
+words and counters run over the stream of frames: output row r is row r % H of frame r // H.
 
 - **Input** (the row buffers): pops one left/right pair per cycle when both are visible (a joint
   pop) and the row being received fits the row buffers
@@ -51,7 +52,13 @@ import numpy as np
 from sim.config import SvaConfig
 from sim.cycle.clock import ACTIVITIES, Block, ClockDomain
 from sim.cycle.plan import STATUS_CODES, BlockPlan
-from sim.cycle.rules import sva_issue_tick, sva_last_input_row, sva_rows_done_before_input
+from sim.cycle.rules import (
+    frame_row,
+    rows_ready_in_frame,
+    sva_issue_tick,
+    sva_last_input_row,
+    sva_rows_done_before_input,
+)
 from sim.cycle.stages import stage_offsets
 from sva.pipeline import SvaStream
 
@@ -60,7 +67,7 @@ NEVER = -(1 << 40)  # "the previous issue tick" before the first word
 
 class SvaBlock(Block):
     def __init__(self, plan: BlockPlan, domain: ClockDomain, shape: tuple[int, int], in_left,
-                 in_right, out, cfg: SvaConfig, bits: int, word_bits: int):
+                 in_right, out, cfg: SvaConfig, bits: int, word_bits: int, frames: int = 1):
         super().__init__(plan.name, domain)
         self.height, self.width = shape
         self.in_left, self.in_right, self.out = in_left, in_right, out
@@ -70,22 +77,24 @@ class SvaBlock(Block):
         self.ii = plan.cycles
         self.stages = plan.stages
         self.offsets = stage_offsets(plan.stages)
-        dtype = np.uint32 if bits <= 32 else np.uint64
-        self.desc_l = np.zeros(shape, dtype)
-        self.desc_r = np.zeros(shape, dtype)
-        self.img_l = np.zeros(shape, np.uint8)
-        self.stream = SvaStream(self.desc_l, self.desc_r, self.img_l, cfg, bits)
+        self.frames = frames
+        self.n = self.height * self.width
+        self.bits = bits
+        # per frame in flight: the descriptors and pixels received, and the functional
+        # streaming kernels over them
+        self.data: dict[int, tuple] = {}
         self.word_mask = (1 << word_bits) - 1
         self.received = 0
         self.issued = 0
         self.emitted = 0
         self.rows_ready = 0
-        self.ready_cycle = np.full(self.height, -1, np.int64)  # cycle each output row got ready
-        self.ready_tick = np.full(self.height, -1, np.int64)  # the pipeline's tick then
+        rows = frames * self.height
+        self.ready_cycle = np.full(rows, -1, np.int64)  # cycle each output row got ready
+        self.ready_tick = np.full(rows, -1, np.int64)  # the pipeline's tick then
         # the descriptor rows' window (sim.cycle.buffers): the cycle each input row started to
         # enter, the cycle the last word of each output row was issued (its rows are read)
-        self.rows_entered = np.full(self.height + 1, -1, np.int64)
-        self.rows_done = np.full(self.height + 1, -1, np.int64)
+        self.rows_entered = np.full(rows + 1, -1, np.int64)
+        self.rows_done = np.full(rows + 1, -1, np.int64)
         # the pipeline: its tick, the issue ticks of the words in it (oldest first)
         self.tick = 0
         self.in_flight: deque[int] = deque()
@@ -103,8 +112,19 @@ class SvaBlock(Block):
         self._advance = False
         self._cycle = 0
 
-    def _rows_complete(self) -> int:
-        return self.received // self.width
+    def _frame(self, f: int) -> tuple:
+        """(left descriptors, right descriptors, left pixels, stream) of frame f."""
+        if f not in self.data:
+            dtype = np.uint32 if self.bits <= 32 else np.uint64
+            shape = (self.height, self.width)
+            d_l, d_r, img = np.zeros(shape, dtype), np.zeros(shape, dtype), np.zeros(shape,
+                                                                                   np.uint8)
+            self.data[f] = (d_l, d_r, img, SvaStream(d_l, d_r, img, self.cfg, self.bits))
+        return self.data[f]
+
+    def _rows_complete(self, f: int) -> int:
+        """Input rows of frame f received whole."""
+        return min(self.height, max(0, self.received - f * self.n) // self.width)
 
     def stage_words(self, s: int, tick: int) -> int:
         """Words in stage s at ``tick``: issued at t with offset < tick - t <= offset +
@@ -116,7 +136,7 @@ class SvaBlock(Block):
         return hi - lo
 
     def evaluate(self, now_cycle: int) -> None:
-        n = self.height * self.width
+        n = self.frames * self.n
         w = self.width
         self._cycle = now_cycle
         self._word = None
@@ -137,10 +157,12 @@ class SvaBlock(Block):
         at_output = bool(self.in_flight) and self.in_flight[0] + self.latency == self.tick
         stall = at_output and not self.out.can_push()
         if at_output and not stall:
-            self.stream.advance(self._rows_complete())
-            y, x = divmod(self.emitted, w)
-            self._word = int(self.stream.q[y, x])
-            self.out.push((x, y, self._word))
+            f, j = divmod(self.emitted, self.n)
+            stream = self._frame(f)[3]
+            stream.advance(self._rows_complete(f))
+            y, x = divmod(j, w)
+            self._word = int(stream.q[y, x])
+            self.out.push((f, x, y, self._word))
             moved = True
         # issue: the next word enters when the pipeline advances, its row is ready, and the
         # tick has reached the issue rule's
@@ -185,6 +207,8 @@ class SvaBlock(Block):
             self.in_flight.popleft()
             self.last_word = self._word
             self.emitted += 1
+            if self.emitted % self.n == 0:
+                self.data.pop(self.emitted // self.n - 1, None)  # the frame has left
         self.pushed = self._word is not None
         self._word = None
         self.issued_now = self._issue
@@ -199,18 +223,22 @@ class SvaBlock(Block):
         if self._advance:
             self.tick += 1
         if self._pair is not None:
-            (x, y, dl, pixel), (xr, yr, dr, _) = self._pair
-            self.desc_l[y, x] = dl
-            self.desc_r[yr, xr] = dr
-            self.img_l[y, x] = pixel
+            (f, x, y, dl, pixel), (fr, xr, yr, dr, _) = self._pair
+            d_l, d_r, img, _ = self._frame(f)
+            d_l[y, x] = dl
+            self._frame(fr)[1][yr, xr] = dr
+            img[y, x] = pixel
             self.received += 1
             self._pair = None
             if self.received % w == 0:
                 rows = self.received // w
-                # output rows whose last needed input row is rows - 1 are ready next cycle, at
-                # the tick the pipeline has then
-                while (self.rows_ready < self.height and sva_last_input_row(
-                        self.rows_ready, self.lookahead, self.height) <= rows - 1):
+                h = self.height
+                # output rows whose last needed input row (of their frame) is rows - 1 are
+                # ready next cycle, at the tick the pipeline has then
+                while self.rows_ready < self.frames * h:
+                    f_y, y_y = divmod(self.rows_ready, h)
+                    if f_y * h + sva_last_input_row(y_y, self.lookahead, h) > rows - 1:
+                        break
                     self.ready_cycle[self.rows_ready] = self._cycle + 1
                     self.ready_tick[self.rows_ready] = self.tick
                     self.rows_ready += 1
@@ -228,10 +256,11 @@ class SvaBlock(Block):
         w = self.width
         out = {
             "status": STATUS_CODES.get(self.status, 0),
-            "input.row": self.received // w,
+            "input.row": frame_row(self.received // w, self.height, self.frames)[1],
             "input.col": self.received % w,
-            "input.rows_ready": self.rows_ready,
-            "output.row": self.emitted // w,
+            "input.rows_ready": rows_ready_in_frame(self.received // w, self.height,
+                                                    self.lookahead, self.frames),
+            "output.row": frame_row(self.emitted // w, self.height, self.frames)[1],
             "output.col": self.emitted % w,
             "output.valid": int(self.pushed),
             "output.disparity": self.last_word & self.word_mask,

@@ -48,7 +48,8 @@ END_DONE, END_STUCK, END_CAP, END_OVERFLOW, END_WATCHDOG = range(5)
 ERR_NONE, ERR_RING, ERR_GAPS = 0, 1, 2
 
 PARAMS = np.dtype([
-    ("h", np.int64), ("w", np.int64), ("n", np.int64), ("parts", np.int64),
+    ("h", np.int64), ("w", np.int64), ("n", np.int64),  # one frame's rows, columns, pixels
+    ("frames", np.int64), ("frame_clocks", np.int64), ("parts", np.int64),
     ("sides", np.int64),  # sides computed: 1 when the right side's events are the left's
     ("merge", np.int64), ("camera", np.int64), ("line_clocks", np.int64),
     ("mem_hz", np.int64), ("mem_bps", np.int64), ("half", np.int64), ("rows", np.int64),
@@ -131,8 +132,8 @@ class Net(NamedTuple):
     hist: np.ndarray  # int64: the FIFOs' occupancy histograms (WALK.hoff)
     gaps: np.ndarray  # int64 (blocks, capacity, 2): long gaps (start_fs, end_fs) between
     # busy instants, per block; ACC.gaps counts them
-    rows: np.ndarray  # int64 (2, H + 1): row instants (sim.cycle.chip.Chip.row_times)
-    occ: np.ndarray  # int64 (2 T + 2, H + 1): the tracked buffers' row instants, cycles of
+    rows: np.ndarray  # int64 (2, H + 1): the first frame's row instants (Chip.row_times)
+    occ: np.ndarray  # int64 (2 T + 2, frames H + 1): the tracked buffers' row instants, cycles of
     # their block (sim.cycle.buffers): per tile t [2t] the cycle its line buffer took the first
     # pixel of each input row, [2t + 1] the cycle it pushed the last descriptor of each output
     # row; [2T] the cycle the SVA took the first pair of each input row, [2T + 1] the cycle it
@@ -141,15 +142,19 @@ class Net(NamedTuple):
     scratch: np.ndarray  # int64 (tiles per camera, 14): per-tile tables of a kernel call
     cursors: np.ndarray  # int64 (streams,): events up to an instant (the replay's)
     stages: np.ndarray  # STAGE: the SVA's stages in stream order
+    frame_fs: np.ndarray  # int64 (2, frames): each frame's first pixel pushed by the left
+    # source and last word popped by the sink (fs); -1 where not reached
 
 
 class TraceData(NamedTuple):
-    """What a traced window shows of the data: both views' descriptors (2, H, W) uint64, the
-    output words (H, W) int32 and the output word's mask."""
+    """What a traced window shows of the data, for the frames ``frame0`` .. ``frame0 + F - 1``
+    whose beats it sees: both views' descriptors (F, 2, H, W) uint64, the output words
+    (F, H, W) int32 and the output word's mask."""
 
     desc: np.ndarray
     words: np.ndarray
     word_mask: np.int64
+    frame0: np.int64
 
 
 def _pow2(n: int) -> int:
@@ -167,7 +172,7 @@ def ring_capacity(plan: ChipPlan, scale: int = 1) -> int:
     depths = sum(f.depth for f in plan.fifos)
     band = max(t.in_shape[0] for t in plan.tiles) if cfg.nna.split == "rows" else 0
     rows = cfg.nna.line_buffer_rows + half + la + 6 + band
-    return min(_pow2(scale * (2 * rows * w + 2 * depths + 4096)), _pow2(h * w + 1))
+    return min(_pow2(scale * (2 * rows * w + 2 * depths + 4096)), _pow2(plan.frames * h * w + 1))
 
 
 def serialise(plan: ChipPlan, *, sink_stall=None, cap_fs: int = INF, stats: bool = True,
@@ -176,6 +181,7 @@ def serialise(plan: ChipPlan, *, sink_stall=None, cap_fs: int = INF, stats: bool
     cfg = plan.cfg
     h, w = plan.shape
     n = h * w
+    nf = plan.frames
     doms = plan.domains
     block_index = {b.name: i for i, b in enumerate(plan.blocks)}
     fifo_index = {f.name: i for i, f in enumerate(plan.fifos)}
@@ -188,7 +194,7 @@ def serialise(plan: ChipPlan, *, sink_stall=None, cap_fs: int = INF, stats: bool
     for s in range(sides):
         src = next(b for b in plan.blocks if b.kind in ("memory", "camera") and b.side == s)
         a_id[s] = len(specs)
-        specs.append((S_A, s, -1, n, doms[src.domain].period_fs, block_index[src.name]))
+        specs.append((S_A, s, -1, nf * n, doms[src.domain].period_fs, block_index[src.name]))
     nna = [b for b in plan.blocks if b.kind == "nna"]
     for b in nna:
         if b.side >= sides:
@@ -196,15 +202,15 @@ def serialise(plan: ChipPlan, *, sink_stall=None, cap_fs: int = INF, stats: bool
         t = plan.tiles.index(b.tile) if parts > 1 else 0
         tile = b.tile
         b_id[b.side, t] = len(specs)
-        specs.append((S_B, b.side, t, tile.in_shape[0] * tile.in_shape[1],
+        specs.append((S_B, b.side, t, nf * tile.in_shape[0] * tile.in_shape[1],
                       doms["nna"].period_fs, block_index[b.name]))
         e_id[b.side, t] = len(specs)
-        specs.append((S_E, b.side, t, tile.shape[0] * tile.shape[1], doms["nna"].period_fs,
+        specs.append((S_E, b.side, t, nf * tile.shape[0] * tile.shape[1], doms["nna"].period_fs,
                       block_index[b.name]))
     if parts > 1:
         for s in range(sides):
             m_id[s] = len(specs)
-            specs.append((S_M, s, -1, n, doms["nna"].period_fs,
+            specs.append((S_M, s, -1, nf * n, doms["nna"].period_fs,
                           block_index[f"merge_{('left', 'right')[s]}"]))
     if sides == 1:
         a_id[1] = a_id[0]
@@ -212,10 +218,10 @@ def serialise(plan: ChipPlan, *, sink_stall=None, cap_fs: int = INF, stats: bool
         for t in range(parts):
             b_id[1, t], e_id[1, t] = b_id[0, t], e_id[0, t]
     p_id = len(specs)
-    specs.append((S_P, -1, -1, n, doms["sva"].period_fs, block_index["sva"]))
-    specs.append((S_O, -1, -1, n, doms["sva"].period_fs, block_index["sva"]))
-    specs.append((S_Q, -1, -1, n, doms["sva"].period_fs, block_index["sink"]))
-    specs.append((S_T, -1, -1, n, doms["sva"].period_fs, block_index["sva"]))
+    specs.append((S_P, -1, -1, nf * n, doms["sva"].period_fs, block_index["sva"]))
+    specs.append((S_O, -1, -1, nf * n, doms["sva"].period_fs, block_index["sva"]))
+    specs.append((S_Q, -1, -1, nf * n, doms["sva"].period_fs, block_index["sink"]))
+    specs.append((S_T, -1, -1, nf * n, doms["sva"].period_fs, block_index["sva"]))
     streams = np.zeros(len(specs), STREAM)
     for i, (kind, side, tile, count, period, blk) in enumerate(specs):
         size = min(cap, _pow2(count + 1))
@@ -253,7 +259,7 @@ def serialise(plan: ChipPlan, *, sink_stall=None, cap_fs: int = INF, stats: bool
             kind, side, t, push, pop = F_SINK, -1, -1, p_id + 1, p_id + 2
         fifos[i] = (kind, side, t, f.depth, f.data_edges, f.space_edges,
                     doms[f.src].period_fs, doms[f.dst].period_fs, push, pop, f.width_bits,
-                    1 if f.crossing else 0, f.beats)
+                    1 if f.crossing else 0, nf * f.beats)
     blocks = np.zeros(len(plan.blocks), BLOCK)
     for i, b in enumerate(plan.blocks):
         t = plan.tiles.index(b.tile) if b.kind == "nna" and parts > 1 else (
@@ -272,6 +278,8 @@ def serialise(plan: ChipPlan, *, sink_stall=None, cap_fs: int = INF, stats: bool
     p["camera"] = 1 if plan.camera else 0
     src = plan.blocks_of("camera" if plan.camera else "memory")[0]
     p["line_clocks"] = src.line_clocks
+    p["frame_clocks"] = src.frame_clocks
+    p["frames"] = nf
     p["mem_hz"] = round(doms[plan.source_domain].freq_hz)
     p["mem_bps"] = src.bytes_per_s
     sub = plan.blocks_of("nna")[0]
@@ -302,7 +310,8 @@ def serialise(plan: ChipPlan, *, sink_stall=None, cap_fs: int = INF, stats: bool
     gaps = np.zeros((len(plan.blocks), gap_capacity, 2), np.int64)
     rows = np.full((2, h + 1), -1, np.int64)
     rows[:, 0] = 0
-    occ = np.full((2 * len(tiles) + 2, h + 1), -1, np.int64)
+    occ = np.full((2 * len(tiles) + 2, nf * h + 1), -1, np.int64)
+    frame_fs = np.full((2, nf), -1, np.int64)
     names = {"streams": specs, "a": a_id, "b": b_id, "e": e_id, "m": m_id, "p": p_id,
              "block_index": block_index, "fifo_index": fifo_index}
     scratch = np.zeros((parts, 14), np.int64)
@@ -311,7 +320,7 @@ def serialise(plan: ChipPlan, *, sink_stall=None, cap_fs: int = INF, stats: bool
     for i, (st, off) in enumerate(zip(sva.stages, stage_offsets(sva.stages))):
         stages[i] = (off, st.latency, st.slots, 0, 0, 0, -1)
     return Net(prm, streams, ring, tiles, fifos, blocks, acc, walks, hist, gaps, rows, occ,
-               scratch, cursors, stages), names
+               scratch, cursors, stages, frame_fs), names
 
 
 def seconds(fs: int) -> float:

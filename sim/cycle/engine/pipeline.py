@@ -155,6 +155,7 @@ def advance_sva_out_and_sink(net, p_s, f_sink):
     blk = sq.block
     acc = net.acc[blk]
     row_fs = net.rows[1]
+    frame_out = net.frame_fs[1]
     issue_rows = net.occ[net.occ.shape[0] - 1]
     last_busy, n_gaps = acc.last_busy, acc.gaps
     err = False
@@ -178,7 +179,8 @@ def advance_sva_out_and_sink(net, p_s, f_sink):
         # issues: the next word once its row is ready and the pipeline reaches its tick
         while kt < n:
             if yt != ready_row:
-                need = (sva_last_input_row(yt, la, h) + 1) * w
+                ft = yt // h  # the frame of output row yt: its rows up to the look-ahead's
+                need = (ft * h + sva_last_input_row(yt - ft * h, la, h) + 1) * w
                 if need > npop:
                     break
                 err |= need - 1 <= p_lo
@@ -243,7 +245,10 @@ def advance_sva_out_and_sink(net, p_s, f_sink):
             xq += 1
             if xq == w:
                 xq = 0
-                row_fs[kq // w] = q * per
+                if kq <= prm.n:  # the first frame's rows
+                    row_fs[kq // w] = q * per
+                if kq % prm.n == 0:
+                    frame_out[kq // prm.n - 1] = q * per
         if not moved:
             break
     so.count, sq.count, st.count = ko, kq, kt

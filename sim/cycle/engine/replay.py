@@ -38,6 +38,8 @@ from sim.cycle.rules import (
     seen_from,
     sink_may_pop,
     sva_last_input_row,
+    frame_row,
+    rows_ready_in_frame,
     sva_rows_done_before_input,
     sva_tick_at,
 )
@@ -116,13 +118,17 @@ def cursors_at(net, t, init):
 
 
 @njit(cache=True)
-def _tile_full(ring, streams, w, tl, f, k, c):
-    """Is tile ``tl``'s source FIFO ``f`` full for pixel k (raster) at producer cycle c?"""
-    y = k // w
-    x = k - y * w
+def _tile_full(ring, streams, shape, tl, f, k, c):
+    """Is tile ``tl``'s source FIFO ``f`` full for pixel k (raster over the stream) at
+    producer cycle c?"""
+    h, w = shape
+    n = w * h
+    fr = k // n
+    y = (k - fr * n) // w
+    x = k - fr * n - y * w
     if not (tl.ix0 <= x < tl.ix1 and tl.iy0 <= y < tl.iy1):
         return False
-    i = (y - tl.iy0) * tl.iw + x - tl.ix0
+    i = fr * tl.n_in + (y - tl.iy0) * tl.iw + x - tl.ix0
     if i < f.depth:
         return False
     b = _event(ring, streams[tl.b], i - f.depth)
@@ -132,13 +138,13 @@ def _tile_full(ring, streams, w, tl, f, k, c):
 @njit(cache=True)
 def _status_memory(ring, streams, cursors, prm, tiles, fifos, b, c):
     k, at = _lt_at(ring, streams[b.stream], cursors[b.stream], c)
-    if k >= prm.n:
+    if k >= prm.frames * prm.n:
         return A_IDLE, -1
     if at or c < memory_first_cycle(k, prm.mem_hz, prm.mem_bps):
         return A_BUSY, -1
     for t in range(prm.parts):
         tl = tiles[b.side * prm.parts + t]
-        if _tile_full(ring, streams, prm.w, tl, fifos[tl.src_fifo], k, c):
+        if _tile_full(ring, streams, (prm.h, prm.w), tl, fifos[tl.src_fifo], k, c):
             return A_BLOCKED, tl.src_fifo
     return A_BUSY, -1  # (not reached: it would have pushed)
 
@@ -147,7 +153,10 @@ def _status_memory(ring, streams, cursors, prm, tiles, fifos, b, c):
 def _mac_start(ring, streams, prm, tl, j):
     """The cycle the MAC array starts descriptor j of tile ``tl`` (INF: its rows are not in)."""
     r = j // tl.ow
-    need = (nna_last_input_row(tl.y0 + r, prm.half, prm.h) - tl.iy0 + 1) * tl.iw
+    out_rows = tl.y1 - tl.y0
+    fr = r // out_rows
+    need = fr * tl.n_in + (nna_last_input_row(tl.y0 + r - fr * out_rows, prm.half, prm.h)
+                           - tl.iy0 + 1) * tl.iw
     rows_in = _event(ring, streams[tl.b], need - 1)
     if rows_in == INF:
         return INF
@@ -161,7 +170,8 @@ def _status_nna(ring, streams, cursors, prm, tl, c):
     emitted, push_at = _lt_at(ring, streams[tl.e], cursors[tl.e], c)
     moved = pop_at
     mac_blocked = False
-    if emitted < tl.n_out:
+    n_out, n_in = prm.frames * tl.n_out, prm.frames * tl.n_in
+    if emitted < n_out:
         s_j = _mac_start(ring, streams, prm, tl, emitted)
         if c >= s_j:
             if c <= s_j + prm.cpd - 1 or push_at:
@@ -172,7 +182,7 @@ def _status_nna(ring, streams, cursors, prm, tl, c):
         return A_BUSY, -1
     if mac_blocked:
         return A_BLOCKED, tl.out_fifo
-    if emitted < tl.n_out or received < tl.n_in:
+    if emitted < n_out or received < n_in:
         return A_STARVED, tl.src_fifo
     return A_IDLE, -1
 
@@ -181,19 +191,20 @@ def _status_nna(ring, streams, cursors, prm, tl, c):
 def _status_merge(ring, streams, cursors, prm, tiles, fifos, b, c):
     m_s = fifos[b.fifo_out].push
     m, at = _lt_at(ring, streams[m_s], cursors[m_s], c)
-    if m >= prm.n:
+    if m >= prm.frames * prm.n:
         return A_IDLE, -1
     if at:
         return A_BUSY, -1
-    y = m // prm.w
-    x = m - y * prm.w
+    fr = m // prm.n
+    y = (m - fr * prm.n) // prm.w
+    x = m - fr * prm.n - y * prm.w
     ti = -1
     for t in range(prm.parts):
         tl = tiles[b.side * prm.parts + t]
         if tl.x0 <= x < tl.x1 and tl.y0 <= y < tl.y1:
             ti = b.side * prm.parts + t
     tl = tiles[ti]
-    e = _event(ring, streams[tl.e], (y - tl.y0) * tl.ow + x - tl.x0)
+    e = _event(ring, streams[tl.e], fr * tl.n_out + (y - tl.y0) * tl.ow + x - tl.x0)
     fin = fifos[tl.out_fifo]
     if e == INF or seen_from(e, fin.per_src, fin.per_dst, fin.data_edges) > c:
         return A_STARVED, tl.out_fifo
@@ -223,7 +234,7 @@ def _tick(ring, o, t, kt, lat, k, c):
 def _status_sva(ring, streams, cursors, prm, fifos, b, c):
     p_s = fifos[b.fifo_in].pop
     o_s = p_s + 1
-    n, w = prm.n, prm.w
+    n, w, h = prm.frames * prm.n, prm.w, prm.h
     o, t, kt = _pipeline(ring, streams, p_s)
     received, pop_at = _lt_at(ring, streams[p_s], cursors[p_s], c)
     emitted, push_at = _lt_at(ring, streams[o_s], cursors[o_s], c)
@@ -243,8 +254,9 @@ def _status_sva(ring, streams, cursors, prm, fifos, b, c):
         if emitted < kt and c >= arrival(ring, o, t, prm.pipe_latency, emitted):
             return A_BLOCKED, b.fifo_out  # the pipeline stalls
         y = emitted // w
+        fr = y // h
         ready = _event(ring, streams[p_s],
-                       (sva_last_input_row(y, prm.lookahead, prm.h) + 1) * w - 1)
+                       (fr * h + sva_last_input_row(y - fr * h, prm.lookahead, h) + 1) * w - 1)
         if ready != INF and ready + 1 <= c:
             return A_BUSY, -1  # words in the pipeline, or a ready row waiting out the II
         return A_STARVED, wait if wait >= 0 else b.fifo_in
@@ -255,7 +267,7 @@ def _status_sva(ring, streams, cursors, prm, fifos, b, c):
 def _status_sink(ring, streams, cursors, prm, fifos, b, c):
     q_s = fifos[b.fifo_in].pop
     received, at = _lt_at(ring, streams[q_s], cursors[q_s], c)
-    if received >= prm.n:
+    if received >= prm.frames * prm.n:
         return A_IDLE, -1
     if not sink_may_pop(c, prm.stall_period, prm.stall_phase):
         return A_IDLE, -1
@@ -270,8 +282,10 @@ def _block_status(ring, streams, cursors, prm, tiles, fifos, b, c):
     kind = b.kind
     if kind == K_MEMORY:
         return _status_memory(ring, streams, cursors, prm, tiles, fifos, b, c)
-    if kind == K_CAMERA:
-        return (A_BUSY if c // prm.line_clocks < prm.h else A_IDLE), -1
+    if kind == K_CAMERA:  # busy in the lines of its frames
+        fr = c // prm.frame_clocks
+        busy = fr < prm.frames and (c - fr * prm.frame_clocks) // prm.line_clocks < prm.h
+        return (A_BUSY if busy else A_IDLE), -1
     if kind == K_NNA:
         return _status_nna(ring, streams, cursors, prm, tiles[b.side * prm.parts + b.tile], c)
     if kind == K_MERGE:
@@ -316,14 +330,14 @@ def _fifo_counts(ring, streams, cursors, prm, tiles, fi, t):
     popped = le_pop > 0 and _at(ring, pop, le_pop - 1) == c_dst
     if fi.kind == F_SRC:
         tl = tiles[fi.side * prm.parts + fi.tile]
-        pushes = tile_input_before(tl, prm.w, le_push)
-        pushed = pushed and tile_input_before(tl, prm.w, le_push - 1) < pushes
+        pushes = tile_input_before(tl, prm.w, prm.n, le_push)
+        pushed = pushed and tile_input_before(tl, prm.w, prm.n, le_push - 1) < pushes
         return pushes, le_pop, le_seen, pushed, popped
     if fi.kind == F_MERGE:
         tl = tiles[fi.side * prm.parts + fi.tile]
-        pops = tile_output_before(tl, prm.w, le_pop)
-        popped = popped and tile_output_before(tl, prm.w, le_pop - 1) < pops
-        return le_push, pops, tile_output_before(tl, prm.w, le_seen), pushed, popped
+        pops = tile_output_before(tl, prm.w, prm.n, le_pop)
+        popped = popped and tile_output_before(tl, prm.w, prm.n, le_pop - 1) < pops
+        return le_push, pops, tile_output_before(tl, prm.w, prm.n, le_seen), pushed, popped
     return le_push, le_pop, le_seen, pushed, popped
 
 
@@ -338,21 +352,25 @@ def fifo_counts(net, f, t):
 
 
 @njit(cache=True)
-def _sample_nna(ring, streams, cursors, prm, tl, desc, c, out):
-    """The NNA's signals after its cycle c into out[0:7]; ``desc``: its side's descriptors."""
+def _sample_nna(ring, streams, cursors, prm, tl, data, c, out):
+    """The NNA's signals after its cycle c into out[0:7]; ``data``: the traced frames'
+    descriptors."""
     received = cursors[tl.b]
     emitted, push_at = _lt_at(ring, streams[tl.e], cursors[tl.e], c)
     if push_at:
         emitted += 1
-    y_in = tl.iy0 + received // tl.iw
-    y_out = tl.y0 + emitted // tl.ow
+    in_rows, out_rows = tl.iy1 - tl.iy0, tl.y1 - tl.y0
+    f_in, r_in = frame_row(received // tl.iw, in_rows, prm.frames)
+    f_out, r_out = frame_row(emitted // tl.ow, out_rows, prm.frames)
+    y_out = tl.y0 + r_out
+    oldest = f_out * in_rows + max(0, y_out - prm.half - tl.iy0)
     phase = 0
-    if not push_at and emitted < tl.n_out:
+    if not push_at and emitted < prm.frames * tl.n_out:
         s_j = _mac_start(ring, streams, prm, tl, emitted)
         if c >= s_j:
             phase = c - s_j + 1 if c < s_j + prm.cpd - 1 else prm.cpd
-    out[0] = y_in
-    out[1] = max(0, y_in - max(tl.iy0, y_out - prm.half))
+    out[0] = tl.iy0 + r_in
+    out[1] = max(0, f_in * in_rows + r_in - oldest)
     out[2] = phase
     out[3] = y_out
     out[4] = tl.x0 + emitted % tl.ow
@@ -360,8 +378,10 @@ def _sample_nna(ring, streams, cursors, prm, tl, desc, c, out):
     value = 0
     if emitted > 0:
         j = emitted - 1
+        fr = j // tl.n_out
+        j -= fr * tl.n_out
         r = j // tl.ow
-        value = desc[tl.y0 + r, tl.x0 + j - r * tl.ow]
+        value = data.desc[fr - data.frame0, tl.side, tl.y0 + r, tl.x0 + j - r * tl.ow]
     out[6] = value
 
 
@@ -370,7 +390,7 @@ def _sample_sva(ring, streams, cursors, prm, sva, data, c, out):
     """The SVA's signals after its cycle c into out[0:11 + 2 S]; ``sva`` = (its pop stream,
     its stages)."""
     p_s, stages = sva
-    w, n, lat = prm.w, prm.n, prm.pipe_latency
+    w, h, n, lat = prm.w, prm.h, prm.frames * prm.n, prm.pipe_latency
     o, t, kt = _pipeline(ring, streams, p_s)
     received = cursors[p_s]
     emitted, push_at = _lt_at(ring, streams[p_s + 1], cursors[p_s + 1], c)
@@ -382,15 +402,17 @@ def _sample_sva(ring, streams, cursors, prm, sva, data, c, out):
     after = _tick(ring, o, t, kt, lat, emitted, c + 1)  # after it
     issued = issued_before(ring, t, kt, tick)
     rows = received // w
-    out[0] = rows
+    out[0] = frame_row(rows, h, prm.frames)[1]
     out[1] = received - rows * w
-    out[2] = prm.h if rows >= prm.h else max(0, rows - prm.lookahead)
-    out[3] = emitted // w
+    out[2] = rows_ready_in_frame(rows, h, prm.lookahead, prm.frames)
+    out[3] = frame_row(emitted // w, h, prm.frames)[1]
     out[4] = emitted % w
     out[5] = 1 if push_at else 0
     word = 0
     if emitted > 0:
-        word = data.words[(emitted - 1) // w, (emitted - 1) % w]
+        fr = (emitted - 1) // prm.n
+        j = emitted - 1 - fr * prm.n
+        word = data.words[fr - data.frame0, j // w, j % w]
     out[6] = word & data.word_mask
     out[7] = 1 if push_at and word < 0 else 0
     out[8] = 1 if not stall and issued < kt and rd(ring, t[0], t[1], issued) == tick else 0
@@ -449,7 +471,7 @@ def sample(net, data, t, out, done):
             k += 1
         elif b.kind == K_NNA:
             _sample_nna(ring, streams, cursors, prm, tiles[b.side * prm.parts + b.tile],
-                        data.desc[b.side], c, out[k:k + 7])
+                        data, c, out[k:k + 7])
             k += 7
         elif b.kind == K_MERGE:
             m_s = fifos[b.fifo_out].push

@@ -54,9 +54,11 @@ from sim.cycle.engine.replay import (
 from sim.cycle.engine.replay import fifo_counts as fifo_state
 from sim.cycle.engine.streams import run_pass
 from sim.cycle.engine.walkers import finish_fifos, note_camera, pop_cycle
+from sim.cycle.frames import FrameSupply
 from sim.cycle.plan import ChipPlan
 from sim.cycle.report import cycle_report
 from sim.cycle.stops import CameraOverflow, overflow_message
+from sim.errors import ConfigError
 from sva.pipeline import sva_stream
 from traces.log import TraceLog
 
@@ -124,7 +126,7 @@ def _pass(plan: ChipPlan, sink_stall, cap_fs: int, stats: bool, capacity: int | 
             return net, names
         if error == ERR_GAPS:
             gap_cap *= 16
-        elif cap > plan.shape[0] * plan.shape[1]:
+        elif cap > plan.frames * plan.shape[0] * plan.shape[1]:
             # every ring already holds its whole stream: nothing was overwritten
             raise RuntimeError("compiled engine: an event stream lost an event it still "
                                "needed although its ring holds the whole frame (a bug)")
@@ -155,7 +157,7 @@ def _periods(plan: ChipPlan) -> np.ndarray:
 
 def _stats(plan: ChipPlan, net: Net, names: dict, t_end: int) -> dict:
     h, w = plan.shape
-    n = h * w
+    n = plan.frames * h * w
     per = {name: d.period_fs for name, d in plan.domains.items()}
     cycles = {name: t_end // p + 1 for name, p in per.items()}
     nf = len(plan.fifos)
@@ -173,8 +175,9 @@ def _stats(plan: ChipPlan, net: Net, names: dict, t_end: int) -> dict:
             active = _last(net, names["a"][b.side]) + 1
             blocks[b.name] = activity_counts(active - acc["blocked"], 0, acc["blocked"],
                                              c_d - active)
-        elif b.kind == "camera":
-            busy = min(c_d, h * b.line_clocks)
+        elif b.kind == "camera":  # busy in the lines of its frames
+            busy = sum(min(max(0, c_d - f * b.frame_clocks), h * b.line_clocks)
+                       for f in range(plan.frames))
             blocks[b.name] = activity_counts(busy, 0, 0, c_d - busy)
         elif b.kind in ("nna", "sva"):
             s = net.blocks[i]
@@ -199,9 +202,10 @@ def _stats(plan: ChipPlan, net: Net, names: dict, t_end: int) -> dict:
             continue
         wk = net.walks[nf + k] if f.crossing else net.walks[k]
         hist = net.hist[net.walks[k]["hoff"]:net.walks[k]["hoff"] + f.depth + 1]
-        last_pop = int(pop_cycle(net, k, f.beats - 1))
+        beats = plan.frames * f.beats
+        last_pop = int(pop_cycle(net, k, beats - 1))
         fifos[f.name] = fifo_counts(
-            pushes=f.beats, pops=f.beats, depth=f.depth, width_bits=f.width_bits,
+            pushes=beats, pops=beats, depth=f.depth, width_bits=f.width_bits,
             max_occupancy=int(np.flatnonzero(hist).max()), max_producer_occupancy=wk["top"],
             histogram=hist, cycles_full=wk["at_depth"],
             cycles_empty=net.acc[len(plan.blocks) + k]["empty"] + cycles[f.dst] - 1 - last_pop)
@@ -286,7 +290,8 @@ def _raise_stop(plan: ChipPlan, net: Net, names: dict, sink_stall, t_end: int) -
         raise _stop(plan, sink_stall, BudgetExceeded, now, t_budget,
                     budget_message(limit_d, plan.budget[limit_d]))
     if t_over <= t_dog and t_over < INF:
-        raise CameraOverflow(overflow_message([e[1:] for e in over if e[0] == t_over]))
+        raise CameraOverflow(overflow_message([e[1:] for e in over if e[0] == t_over],
+                                              plan.shape[0], plan.frames))
     if t_dog < INF:
         raise _stop(plan, sink_stall, DeadlockError, t_dog, t_dog + 1,
                     watchdog_message(t_dog - quiet_from, plan.p_max_fs))
@@ -347,15 +352,38 @@ def _window_rows(plan: ChipPlan, net: Net) -> np.ndarray:
     return occ
 
 
-def run_compiled(plan: ChipPlan, left: np.ndarray, right: np.ndarray, *, sink_stall=None,
-                 window: tuple[int, int] | None = None,
-                 timings: dict | None = None) -> FrameResult:
-    """One frame on the compiled engine: the readable kernel's words, report and statistics,
-    or its exception; ``window`` = (start_fs, end_fs) records the trace of that window.
-    ``sink_stall``: ``(period, allowed_phase)``, the sink pops only in cycles ``c`` with
-    ``c % period == allowed_phase``. ``timings`` (a dict) receives the CPU seconds of the
-    event streams and statistics (``engine_s``), the NNA's descriptors (``nna_kernels_s``) and
-    the SVA's stream (``sva_kernels_s``)."""
+def _window_frames(plan: ChipPlan, frame_fs: np.ndarray, window: tuple[int, int]) -> range:
+    """The frames whose data a trace of ``window`` may show: from the one before the first
+    frame still in the chip at its start (the last word a block pushed may be that frame's) to
+    the last one whose first pixel entered before its end."""
+    start, end = window
+    out = frame_fs[1]
+    f_lo = max(0, int(((out >= 0) & (out < start)).sum()) - 1)
+    f_hi = max(f_lo, min(plan.frames - 1, int(((frame_fs[0] >= 0)
+                                                & (frame_fs[0] < end)).sum()) - 1))
+    return range(f_lo, f_hi + 1)
+
+
+def run_compiled(plan: ChipPlan, left, right=None, *, sink_stall=None,
+                 window: tuple[int, int] | None = None, timings: dict | None = None,
+                 on_frame=None, words: bool = True) -> FrameResult:
+    """One frame or a stream of frames (the plan's: (N, H, W) stacks or a
+    :class:`~sim.cycle.frames.FrameSupply`) on the compiled engine: the readable kernel's
+    words, report and statistics, or its exception; ``window`` = (start_fs, end_fs) records
+    the trace of that window. ``sink_stall``: ``(period, allowed_phase)``, the sink pops only
+    in cycles ``c`` with ``c % period == allowed_phase``. ``on_frame(f, words)`` receives each
+    frame's output words, in order, as they are computed (the timing does not depend on the
+    pixels: frame f is read only then); ``words=False`` computes none (the result's ``words``
+    is None: the caller takes them from :func:`~sim.cycle.frames.functional_words`, frame by
+    frame). ``timings`` (a dict) receives the CPU seconds of the event streams and statistics
+    (``engine_s``), the NNA's descriptors (``nna_kernels_s``) and the SVA's stream
+    (``sva_kernels_s``)."""
+    supply = FrameSupply.of(left, right)
+    if (plan.frames, plan.shape) != (supply.count, supply.shape):
+        raise ConfigError(
+            f"the plan is for {plan.frames} frame(s) of {plan.shape[1]}x{plan.shape[0]}, the "
+            f"stream has {supply.count} of {supply.shape[1]}x{supply.shape[0]}: build the plan "
+            "for the frames you run")
     t0 = time.process_time()
     net, names = _pass(plan, sink_stall, _budget_instant(plan), True)
     t_end = INF
@@ -365,18 +393,34 @@ def run_compiled(plan: ChipPlan, left: np.ndarray, right: np.ndarray, *, sink_st
     buffers = buffer_report(plan, _window_rows(plan, net), _stage_peaks(plan, net))
     _raise_stop(plan, net, names, sink_stall, t_end)
     stats = _stats(plan, net, names, t_end)
+    frame_fs = net.frame_fs.copy()
     report = cycle_report(plan, int(net.prm[0]["first_pop"]), _last(net, names["p"] + 2),
-                          stats, buffers)
+                          stats, buffers, frame_fs)
     t1 = time.process_time()
-    desc = (compute_descriptor(left, plan.cfg.nna), compute_descriptor(right, plan.cfg.nna))
-    t2 = time.process_time()
-    words = sva_stream(desc[0], desc[1], left, plan.cfg.sva, plan.descriptor_bits)
+    traced = _window_frames(plan, frame_fs, window) if window is not None else range(0)
+    kept_desc, kept_words = [], []
+    nna_s = sva_s = 0.0
+    last = None
+    for f in range(plan.frames):
+        if not words and f not in traced:
+            continue
+        left_f, right_f = supply.pair(f)
+        ta = time.process_time()
+        desc = (compute_descriptor(left_f, plan.cfg.nna), compute_descriptor(right_f, plan.cfg.nna))
+        tb = time.process_time()
+        last = sva_stream(desc[0], desc[1], left_f, plan.cfg.sva, plan.descriptor_bits)
+        nna_s += tb - ta
+        sva_s += time.process_time() - tb
+        if f in traced:
+            kept_desc.append(np.stack(desc).astype(np.uint64))
+            kept_words.append(last)
+        if on_frame is not None and words:
+            on_frame(f, last)
     if timings is not None:
-        timings.update(engine_s=t1 - t0, nna_kernels_s=t2 - t1,
-                       sva_kernels_s=time.process_time() - t2)
-    result = FrameResult(words, report, stats, net.rows.copy())
+        timings.update(engine_s=t1 - t0, nna_kernels_s=nna_s, sva_kernels_s=sva_s)
+    result = FrameResult(last if words else None, report, stats, net.rows.copy(), frame_fs)
     if window is not None:
-        data = TraceData(np.stack(desc).astype(np.uint64), words,
-                         np.int64((1 << plan.word_bits) - 1))
+        data = TraceData(np.stack(kept_desc), np.stack(kept_words),
+                         np.int64((1 << plan.word_bits) - 1), np.int64(traced.start))
         result.trace, result.outputs_in_window = _trace(plan, sink_stall, window, t_end, data)
     return result

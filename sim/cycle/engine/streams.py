@@ -74,7 +74,7 @@ def ratio(per_from, per_to):
 @njit(cache=True)
 def _source_tables(tiles, fifos, streams, side, parts, tab):
     """Per tile of ``side`` into ``tab`` (parts, 14): input region, ring of its pops, its
-    source FIFO."""
+    source FIFO, its input pixels per frame."""
     for t in range(parts):
         tl = tiles[side * parts + t]
         f = fifos[tl.src_fifo]
@@ -84,6 +84,7 @@ def _source_tables(tiles, fifos, streams, side, parts, tab):
         tab[t, 5], tab[t, 6], tab[t, 7], tab[t, 8] = b.off, b.mask, b.count, b.count - 1 - b.mask
         tab[t, 9], tab[t, 10], tab[t, 11], tab[t, 12] = f.depth, f.per_dst, f.per_src, \
             f.space_edges
+        tab[t, 13] = tl.n_in
 
 
 @njit(cache=True, inline="always")
@@ -94,9 +95,11 @@ def advance_source(net, side):
     a_s = net.tiles[side * prm.parts].a
     a_off, a_mask, k, _ = view(streams, a_s)
     st = streams[a_s]
-    n, w, per, cap = st.n, prm.w, st.period, prm.cap_fs
+    n, w, h, per, cap = st.n, prm.w, prm.h, st.period, prm.cap_fs
     parts, camera, stats, g = prm.parts, prm.camera, prm.stats, prm.watchdog_fs
-    line_clocks, mem_hz, mem_bps = prm.line_clocks, prm.mem_hz, prm.mem_bps
+    line_clocks, frame_clocks, mem_hz, mem_bps = (prm.line_clocks, prm.frame_clocks,
+                                                  prm.mem_hz, prm.mem_bps)
+    frame_in = net.frame_fs[0]
     blk = st.block
     acc = net.acc[blk]
     last_busy, n_gaps = acc.last_busy, acc.gaps
@@ -108,16 +111,18 @@ def advance_source(net, side):
     start = k
     a_prev = rd(ring, a_off, a_mask, k - 1) if k > 0 else -1
     full_tile = -1
-    y = k // w
+    y = k // w  # row of frame fno
     x = k - y * w
+    fno = y // h
+    y -= fno * h
     while k < n:
         free = 0
         ok = True
-        c = camera_cycle(x, y, line_clocks)
+        c = camera_cycle(fno, x, y, line_clocks, frame_clocks)
         for t in range(parts):
             if not (tab[t, 0] <= x < tab[t, 1] and tab[t, 2] <= y < tab[t, 3]):
                 continue
-            j = (y - tab[t, 2]) * tab[t, 4] + x - tab[t, 0] - tab[t, 9]
+            j = fno * tab[t, 13] + (y - tab[t, 2]) * tab[t, 4] + x - tab[t, 0] - tab[t, 9]
             if j >= 0:
                 if j >= tab[t, 7]:
                     ok = False
@@ -152,18 +157,23 @@ def advance_source(net, side):
                                              a * per, g)
                 last_busy = a * per
         ring[a_off + (k & a_mask)] = a
+        if side == 0 and x == 0 and y == 0:
+            frame_in[fno] = a * per
         a_prev = a
         k += 1
         x += 1
         if x == w:
             x = 0
             y += 1
+            if y == h:
+                y = 0
+                fno += 1
     st.count = k
     acc.blocked += blocked
     acc.last_busy, acc.gaps = last_busy, n_gaps
     if full_tile >= 0:
-        acc.over_cycle, acc.over_k, acc.over_tile = camera_cycle(x, y, line_clocks), k, \
-            side * parts + full_tile
+        acc.over_cycle, acc.over_k, acc.over_tile = (
+            camera_cycle(fno, x, y, line_clocks, frame_clocks), k, side * parts + full_tile)
         prm.end = END_OVERFLOW
     if err:
         prm.error = ERR_RING
@@ -189,9 +199,11 @@ def advance_whole_side(net, side):
     depth, de, se = f.depth, f.data_edges, f.space_edges
     p_src, p_nna = f.per_src, f.per_dst
     rat_in, rat_back = ratio(p_src, p_nna), ratio(p_nna, p_src)
-    n, w, cap = sa.n, prm.w, prm.cap_fs
+    n, w, h, cap = sa.n, prm.w, prm.h, prm.cap_fs
     camera, stats, g = prm.camera, prm.stats, prm.watchdog_fs
-    line_clocks, mem_hz, mem_bps = prm.line_clocks, prm.mem_hz, prm.mem_bps
+    line_clocks, frame_clocks, mem_hz, mem_bps = (prm.line_clocks, prm.frame_clocks,
+                                                  prm.mem_hz, prm.mem_bps)
+    frame_in = net.frame_fs[0]
     rows, half, oh = prm.rows, prm.half, tl.y1 - tl.y0
     blk = sa.block
     acc = net.acc[blk]
@@ -205,7 +217,8 @@ def advance_whole_side(net, side):
     a_prev = rd(ring, a_off, a_mask, ka - 1) if ka > 0 else -1
     b_prev = rd(ring, b_off, b_mask, kb - 1) if kb > 0 else -1
     xa = ka % w
-    ya = ka // w
+    ya = ka // w  # rows over the stream
+    fa = ya // h  # the frame of ya
     xb = kb % w
     yb = kb // w
     room_row = -1
@@ -217,7 +230,7 @@ def advance_whole_side(net, side):
         # pops: the line buffer takes what the source pushed, while its rows have room
         while kb < ka:
             if yb != room_row:
-                started = nna_rows_started_before_input(yb, rows, half, 0, oh)
+                started = nna_rows_started_before_input(yb, rows, half, 0, oh, h)
                 if started > 0:
                     j = started * w - 1
                     if j >= ne:
@@ -241,7 +254,7 @@ def advance_whole_side(net, side):
             moved = True
             xb += 1
             if xb == w:
-                if left and b * p_nna > row_fs[yb + 1]:
+                if left and yb < h and b * p_nna > row_fs[yb + 1]:
                     row_fs[yb + 1] = b * p_nna
                 xb = 0
                 yb += 1
@@ -251,7 +264,7 @@ def advance_whole_side(net, side):
             if ka >= depth:
                 free = seen_from_scaled(rd(ring, b_off, b_mask, ka - depth), p_nna, p_src,
                                         rat_back, se)
-            c = camera_cycle(xa, ya, line_clocks)
+            c = camera_cycle(fa, xa, ya - fa * h, line_clocks, frame_clocks)
             if camera == 1:
                 if c * p_src >= cap:
                     break
@@ -273,6 +286,8 @@ def advance_whole_side(net, side):
                                                  a * p_src, a * p_src, g)
                     last_busy = a * p_src
             ring[a_off + (ka & a_mask)] = a
+            if left and xa == 0 and ya == fa * h:
+                frame_in[fa] = a * p_src
             a_prev = a
             ka += 1
             moved = True
@@ -280,6 +295,8 @@ def advance_whole_side(net, side):
             if xa == w:
                 xa = 0
                 ya += 1
+                if ya == (fa + 1) * h:
+                    fa += 1
         if over or not moved:
             break
     sa.count, sb.count = ka, kb
@@ -287,7 +304,8 @@ def advance_whole_side(net, side):
     acc.last_busy, acc.gaps = last_busy, n_gaps
     net.acc[len(net.blocks) + tl.src_fifo].empty += empty
     if over:
-        acc.over_cycle, acc.over_k, acc.over_tile = camera_cycle(xa, ya, line_clocks), ka, side
+        acc.over_cycle, acc.over_k, acc.over_tile = (
+            camera_cycle(fa, xa, ya - fa * h, line_clocks, frame_clocks), ka, side)
         prm.end = END_OVERFLOW
     if err:
         prm.error = ERR_RING
@@ -309,7 +327,9 @@ def pending_overflow(net, side):
     w, parts = prm.w, prm.parts
     y = k // w
     x = k - y * w
-    a = camera_cycle(x, y, prm.line_clocks)
+    fr = y // prm.h
+    y -= fr * prm.h
+    a = camera_cycle(fr, x, y, prm.line_clocks, prm.frame_clocks)
     if a * st.period >= prm.cap_fs:
         return
     for t in range(parts):
@@ -318,7 +338,7 @@ def pending_overflow(net, side):
         if not (tl.ix0 <= x < tl.ix1 and tl.iy0 <= y < tl.iy1):
             continue
         f = net.fifos[tl.src_fifo]
-        j = (y - tl.iy0) * tl.iw + x - tl.ix0 - f.depth
+        j = fr * tl.n_in + (y - tl.iy0) * tl.iw + x - tl.ix0 - f.depth
         if j >= 0:
             b_off, b_mask, nb, _ = view(streams, tl.b)
             if j >= nb or seen_from_scaled(rd(ring, b_off, b_mask, j), f.per_dst, f.per_src,
@@ -345,9 +365,10 @@ def advance_pops(net, ti):
     f = net.fifos[tl.src_fifo]
     per_src, per_dst, de = f.per_src, f.per_dst, f.data_edges
     rat = ratio(per_src, per_dst)
-    per, cap, w = st.period, prm.cap_fs, prm.w
+    per, cap, w, n = st.period, prm.cap_fs, prm.w, prm.n
     rows, half, top_halo = prm.rows, prm.half, tl.top_halo
-    iw, ow, iy0, ix0, n_in, oh = tl.iw, tl.ow, tl.iy0, tl.ix0, tl.n_in, tl.y1 - tl.y0
+    iw, ow, iy0, ix0, oh = tl.iw, tl.ow, tl.iy0, tl.ix0, tl.y1 - tl.y0
+    in_rows = tl.iy1 - tl.iy0
     left = tl.side == 0
     row_fs = net.rows[0]
     per_nna = prm.per_nna
@@ -357,12 +378,14 @@ def advance_pops(net, ti):
     need_row = -1
     room = 0
     empty = 0
-    r = i // iw
+    r = i // iw  # the tile's input row over the stream: row rl of frame fr
     c = i - r * iw
-    k = (iy0 + r) * w + ix0 + c
-    while i < n_in:
+    fr = r // in_rows
+    rl = r - fr * in_rows
+    k = fr * n + (iy0 + rl) * w + ix0 + c  # the source's pixel
+    while i < st.n:
         if r != need_row:
-            started = nna_rows_started_before_input(r, rows, half, top_halo, oh)
+            started = nna_rows_started_before_input(r, rows, half, top_halo, oh, in_rows)
             if started > 0:
                 j = started * ow - 1
                 if j >= ne:
@@ -389,14 +412,19 @@ def advance_pops(net, ti):
         c += 1
         k += 1
         if c == iw:
-            if left:
+            if left and fr == 0:
                 # the frame's row y is in once every left tile that takes it has it
                 t_fs = b * per_nna
-                if t_fs > row_fs[iy0 + r + 1]:
-                    row_fs[iy0 + r + 1] = t_fs
+                if t_fs > row_fs[iy0 + rl + 1]:
+                    row_fs[iy0 + rl + 1] = t_fs
             c = 0
             r += 1
+            rl += 1
             k += w - iw
+            if rl == in_rows:
+                rl = 0
+                fr += 1
+                k = fr * n + iy0 * w + ix0
     st.count = i
     net.acc[len(net.blocks) + tl.src_fifo].empty += empty
     if err:
@@ -418,18 +446,21 @@ def advance_pushes(net, ti):
     depth, per_src, per_dst, se = f.depth, f.per_src, f.per_dst, f.space_edges
     rat = ratio(per_dst, per_src)
     per, cap, w, cpd, half, h = st.period, prm.cap_fs, prm.w, prm.cpd, prm.half, prm.h
-    ow, iw, y0, x0, iy0, n_out = tl.ow, tl.iw, tl.y0, tl.x0, tl.iy0, tl.n_out
+    ow, iw, y0, x0, iy0, n_out, n_in = tl.ow, tl.iw, tl.y0, tl.x0, tl.iy0, tl.n_out, tl.n_in
+    out_rows, n = tl.y1 - tl.y0, prm.n
     merge = prm.merge == 1
     err = False
     start = j
     e_prev = rd(ring, e_off, e_mask, j - 1) if j > 0 else -1
     rows_row = -1
     rows_in = 0
-    r = j // ow
+    r = j // ow  # the tile's output row over the stream: row rl of frame fr
     c = j - r * ow
-    while j < n_out:
+    fr = r // out_rows
+    rl = r - fr * out_rows
+    while j < st.n:
         if r != rows_row:
-            need = (nna_last_input_row(y0 + r, half, h) - iy0 + 1) * iw
+            need = fr * n_in + (nna_last_input_row(y0 + rl, half, h) - iy0 + 1) * iw
             if need > nb:
                 break
             err |= need - 1 <= b_lo
@@ -438,9 +469,11 @@ def advance_pushes(net, ti):
         free = 0
         if j >= depth:
             jj = j - depth
-            if merge:
-                rr = jj // ow
-                jj = (y0 + rr) * w + x0 + jj - rr * ow  # its raster index in the merge
+            if merge:  # its raster index in the merge
+                fj = jj // n_out
+                jl = jj - fj * n_out
+                rr = jl // ow
+                jj = fj * n + (y0 + rr) * w + x0 + jl - rr * ow
             if jj >= npop:
                 break
             err |= jj <= p_lo
@@ -457,6 +490,10 @@ def advance_pushes(net, ti):
             net.occ[2 * ti + 1, r] = e
             c = 0
             r += 1
+            rl += 1
+            if rl == out_rows:
+                rl = 0
+                fr += 1
     st.count = j
     if err:
         prm.error = ERR_RING
@@ -492,18 +529,21 @@ def advance_merge(net, side, m_s):
         tab[t, 9] = fin.data_edges
         tab[t, 10] = net.acc[nb + tl.out_fifo].empty
         tab[t, 11] = net.acc[nb + tl.out_fifo].last_pop
+        tab[t, 12] = tl.n_out
     err = False
     start = m
     mg_prev = rd(ring, m_off, m_mask, m - 1) if m > 0 else -1
     starved = 0
     blocked = 0
-    y = m // w
+    y = m // w  # row of frame fr
     x = m - y * w
+    fr = y // prm.h
+    y -= fr * prm.h
     while m < n:
         t = 0
         while not (tab[t, 0] <= x < tab[t, 1] and tab[t, 2] <= y < tab[t, 3]):
             t += 1
-        j = (y - tab[t, 2]) * tab[t, 4] + x - tab[t, 0]
+        j = fr * tab[t, 12] + (y - tab[t, 2]) * tab[t, 4] + x - tab[t, 0]
         if j >= tab[t, 7]:
             break
         free = 0
@@ -531,6 +571,9 @@ def advance_merge(net, side, m_s):
         if x == w:
             x = 0
             y += 1
+            if y == prm.h:
+                y = 0
+                fr += 1
     st.count = m
     for t in range(parts):
         f = net.tiles[side * parts + t].out_fifo

@@ -121,22 +121,26 @@ def walk_nna(net, ti, final):
     e_off, e_mask, ne, e_lo = view(net.streams, tl.e)
     cpd, half, h, g = prm.cpd, prm.half, prm.h, prm.watchdog_fs
     per = net.blocks[blk].period
-    ow, iw, y0, iy0, n_out, n_in = tl.ow, tl.iw, tl.y0, tl.iy0, tl.n_out, tl.n_in
+    ow, iw, y0, iy0, n_in = tl.ow, tl.iw, tl.y0, tl.iy0, tl.n_in
+    out_rows = tl.y1 - tl.y0
+    n_out, n_in_all = net.streams[tl.e].n, net.streams[tl.b].n  # over the stream
     j, ptr, prev = a.walk, a.ptr, a.prev
     last_busy, n_gaps = a.last_busy, a.gaps
     # every pop before cycle `known_until` is known (all of them once the streams have stopped)
-    known_until = INF if nb >= n_in or final else (rd(ring, b_off, b_mask, nb - 1) + 1
-                                                   if nb > 0 else 0)
+    known_until = INF if nb >= n_in_all or final else (rd(ring, b_off, b_mask, nb - 1) + 1
+                                                       if nb > 0 else 0)
     err = j < ne and j <= e_lo
     starved = 0
     blocked = 0
-    r = j // ow
+    r = j // ow  # the tile's output row over the stream
     c = j - r * ow
     rows_row = -1
     rows_in = INF
     while j < n_out:
         if r != rows_row:
-            need = (nna_last_input_row(y0 + r, half, h) - iy0 + 1) * iw
+            fr = r // out_rows
+            need = fr * n_in + (nna_last_input_row(y0 + r - fr * out_rows, half, h) - iy0
+                                + 1) * iw
             rows_in = rd(ring, b_off, b_mask, need - 1) + 1 if need <= nb else INF
             rows_row = r
         s_j = max(prev + 1, rows_in)
@@ -234,7 +238,8 @@ def walk_sva(net, blk, p_s, final):
     never = INF // per  # a cycle no run reaches (keeps instants in range)
     while j < n:
         if y != ready_row:
-            need = (sva_last_input_row(y, la, h) + 1) * w
+            fr = y // h
+            need = (fr * h + sva_last_input_row(y - fr * h, la, h) + 1) * w
             ready = rd(ring, p_off, p_mask, need - 1) + 1 if need <= npop else INF
             ready_row = y
         lo = max(prev + 1, 0)
@@ -354,75 +359,85 @@ def _walk_stages(prm, stages, ring, t, kt, j, stall):
 
 
 @njit(cache=True, inline="always")
-def tile_input_before(tl, w, k):
-    """Pixels of a tile's input region whose raster index is below k."""
+def tile_input_before(tl, w, n, k):
+    """Pixels of a tile's input regions whose raster index over the stream (``n`` pixels a
+    frame) is below k."""
+    f = k // n
+    k -= f * n
     y = k // w
     x = k - y * w
     if y < tl.iy0:
-        return 0
+        return f * tl.n_in
     if y >= tl.iy1:
-        return tl.n_in
-    return (y - tl.iy0) * tl.iw + min(max(x - tl.ix0, 0), tl.iw)
+        return (f + 1) * tl.n_in
+    return f * tl.n_in + (y - tl.iy0) * tl.iw + min(max(x - tl.ix0, 0), tl.iw)
 
 
 @njit(cache=True, inline="always")
-def tile_output_before(tl, w, k):
-    """Pixels of a tile's output region whose raster index is below k."""
+def tile_output_before(tl, w, n, k):
+    """Pixels of a tile's output regions whose raster index over the stream is below k."""
+    f = k // n
+    k -= f * n
     y = k // w
     x = k - y * w
     if y < tl.y0:
-        return 0
+        return f * tl.n_out
     if y >= tl.y1:
-        return tl.n_out
-    return (y - tl.y0) * tl.ow + min(max(x - tl.x0, 0), tl.ow)
+        return (f + 1) * tl.n_out
+    return f * tl.n_out + (y - tl.y0) * tl.ow + min(max(x - tl.x0, 0), tl.ow)
 
 
 @njit(cache=True, inline="always")
-def item_index(kind, x0, y0, row_w, w, i):
+def item_index(kind, region, w, n, i):
     """The stream index of FIFO item i: the same, or for a tile's FIFO (``kind`` F_SRC: its
-    pushes, F_MERGE: its pops) the raster index of the i-th pixel of its region, whose origin
-    is (x0, y0) and whose rows are ``row_w`` wide (whole rows: an offset)."""
+    pushes, F_MERGE: its pops) the raster index over the stream (``n`` pixels a frame) of the
+    i-th pixel of its regions; ``region`` = (x0, y0, row width, rows) of one frame's."""
     if kind == F_SRC or kind == F_MERGE:
+        x0, y0, row_w, rows = region
+        per = row_w * rows
+        f = i // per
+        i -= f * per
         if row_w == w:
-            return y0 * w + i
+            return f * n + y0 * w + i
         r = i // row_w
-        return (y0 + r) * w + x0 + i - r * row_w
+        return f * n + (y0 + r) * w + x0 + i - r * row_w
     return i
 
 
 @njit(cache=True, inline="always")
-def fifo_known(fifos, tiles, streams, parts, w, f):
+def fifo_known(fifos, tiles, streams, parts, w, n, f):
     """(items pushed, items popped) of FIFO f whose events are known."""
     fi = fifos[f]
     npush = streams[fi.push].count
     npop = streams[fi.pop].count
     if fi.kind == F_SRC:
-        npush = tile_input_before(tiles[fi.side * parts + fi.tile], w, npush)
+        npush = tile_input_before(tiles[fi.side * parts + fi.tile], w, n, npush)
     elif fi.kind == F_MERGE:
-        npop = tile_output_before(tiles[fi.side * parts + fi.tile], w, npop)
+        npop = tile_output_before(tiles[fi.side * parts + fi.tile], w, n, npop)
     return npush, npop
 
 
 @njit(cache=True, inline="always")
 def fifo_region(fifos, tiles, parts, f):
-    """(x0, y0, row width) of the tile region FIFO f's items map from (0s for whole-frame
-    FIFOs)."""
+    """(x0, y0, row width, rows) of the tile region FIFO f's items map from in each frame (0,
+    0, 1, 1 for whole-frame FIFOs)."""
     fi = fifos[f]
     if fi.kind == F_SRC:
         tl = tiles[fi.side * parts + fi.tile]
-        return tl.ix0, tl.iy0, tl.iw
+        return tl.ix0, tl.iy0, tl.iw, tl.iy1 - tl.iy0
     if fi.kind == F_MERGE:
         tl = tiles[fi.side * parts + fi.tile]
-        return tl.x0, tl.y0, tl.ow
-    return 0, 0, 1
+        return tl.x0, tl.y0, tl.ow, tl.y1 - tl.y0
+    return 0, 0, 1, 1
 
 
 @njit(cache=True)
 def pop_cycle(net, f, i):
     """The consumer cycle of item i's pop."""
     fi = net.fifos[f]
-    x0, y0, row_w = fifo_region(net.fifos, net.tiles, net.prm[0].parts, f)
-    idx = item_index(fi.kind if fi.kind == F_MERGE else -1, x0, y0, row_w, net.prm[0].w, i)
+    region = fifo_region(net.fifos, net.tiles, net.prm[0].parts, f)
+    idx = item_index(fi.kind if fi.kind == F_MERGE else -1, region, net.prm[0].w,
+                     net.prm[0].n, i)
     off, mask, _, _ = view(net.streams, fi.pop)
     return rd(net.ring, off, mask, idx)
 
@@ -443,10 +458,11 @@ def walk_fifo(net, f, producer, c_end):
     wk = net.walks[nf + f if producer else f]
     n = fi.items
     w = prm.w
-    npush, npop = fifo_known(net.fifos, net.tiles, net.streams, prm.parts, w, f)
-    x0, y0, row_w = fifo_region(net.fifos, net.tiles, prm.parts, f)
+    npush, npop = fifo_known(net.fifos, net.tiles, net.streams, prm.parts, w, prm.n, f)
+    region = fifo_region(net.fifos, net.tiles, prm.parts, f)
     kind = fi.kind
-    whole = row_w == w and y0 == 0  # the region is the frame: item i is stream event i
+    # the region is the frame: item i is stream event i
+    whole = region[2] == w and region[1] == 0 and region[3] == prm.h
     push_kind = F_SRC if kind == F_SRC and not whole else -1
     pop_kind = F_MERGE if kind == F_MERGE and not whole else -1
     u_off, u_mask, _, u_lo = view(net.streams, fi.push)
@@ -463,7 +479,7 @@ def walk_fifo(net, f, producer, c_end):
     # the latest known push's time: no unknown push comes before it
     last_inc = INF
     if npush > 0 and npush < n:
-        pc = rd(ring, u_off, u_mask, item_index(push_kind, x0, y0, row_w, w, npush - 1))
+        pc = rd(ring, u_off, u_mask, item_index(push_kind, region, w, prm.n, npush - 1))
         last_inc = pc + 1 if producer else seen_from(pc, per_p, per_c, 1)
     # no unknown pop counts before an unknown push (a pop follows its push), so a push is
     # settled once as many pops as pushes before it are known; a pop once no unknown push can
@@ -475,13 +491,13 @@ def walk_fifo(net, f, producer, c_end):
     err = False
     ti = INF
     if inc < npush:
-        idx = item_index(push_kind, x0, y0, row_w, w, inc)
+        idx = item_index(push_kind, region, w, prm.n, inc)
         err |= idx <= u_lo
         pc = rd(ring, u_off, u_mask, idx)
         ti = pc + 1 if producer else seen_from_scaled(pc, per_p, per_c, rat_p, 1)
     td = INF
     if dec < npop:
-        idx = item_index(pop_kind, x0, y0, row_w, w, dec)
+        idx = item_index(pop_kind, region, w, prm.n, dec)
         err |= idx <= o_lo
         cc = rd(ring, o_off, o_mask, idx)
         td = seen_from_scaled(cc, per_c, per_p, rat_c, se) if producer else cc + 1
@@ -515,7 +531,7 @@ def walk_fifo(net, f, producer, c_end):
             inc += 1
             ti = INF
             if inc < npush:
-                idx = item_index(push_kind, x0, y0, row_w, w, inc)
+                idx = item_index(push_kind, region, w, prm.n, inc)
                 pc = rd(ring, u_off, u_mask, idx)
                 ti = pc + 1 if producer else seen_from_scaled(pc, per_p, per_c, rat_p, 1)
         else:
@@ -523,7 +539,7 @@ def walk_fifo(net, f, producer, c_end):
             dec += 1
             td = INF
             if dec < npop:
-                idx = item_index(pop_kind, x0, y0, row_w, w, dec)
+                idx = item_index(pop_kind, region, w, prm.n, dec)
                 cc = rd(ring, o_off, o_mask, idx)
                 td = seen_from_scaled(cc, per_c, per_p, rat_c, se) if producer else cc + 1
     if final and c_end > cycle and 0 <= level <= depth:

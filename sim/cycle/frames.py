@@ -1,0 +1,66 @@
+"""The frames a cycle run simulates: a stream of stereo pairs of one shape, read on demand.
+
+Both engines take a :class:`FrameSupply`: its count, the shape of every frame and ``pair(f)``,
+frame f's (left, right) uint8 images. The timing of the chip does not depend on the pixels, so
+the compiled engine reads frame f only when it computes that frame's words, in order; a video
+or a folder of pairs is then never held whole in memory (the supply keeps the last two frames
+it read, so the two cameras of one frame share a read).
+"""
+
+from __future__ import annotations
+
+from collections import OrderedDict
+from collections.abc import Callable
+
+import numpy as np
+
+from nna.descriptor import compute_descriptor
+from sim.errors import InputError
+from sva.pipeline import sva_stream
+
+
+class FrameSupply:
+    """``count`` frames of ``shape`` = (H, W); ``read(f)`` returns frame f's (left, right)."""
+
+    def __init__(self, count: int, shape: tuple[int, int],
+                 read: Callable[[int], tuple[np.ndarray, np.ndarray]]):
+        self.count = int(count)
+        self.shape = (int(shape[0]), int(shape[1]))
+        self._read = read
+        self._cache: OrderedDict[int, tuple[np.ndarray, np.ndarray]] = OrderedDict()
+
+    def pair(self, f: int) -> tuple[np.ndarray, np.ndarray]:
+        """Frame f's (left, right), each (H, W) uint8; a frame of another shape is refused."""
+        if f in self._cache:
+            self._cache.move_to_end(f)
+            return self._cache[f]
+        left, right = self._read(f)
+        for side, img in (("left", left), ("right", right)):
+            if img.shape != self.shape:
+                raise InputError(
+                    f"frame {f}'s {side} image is {img.shape[1]}x{img.shape[0]}, the stream's "
+                    f"frames are {self.shape[1]}x{self.shape[0]}: every frame of a stream must "
+                    "have the same size")
+        self._cache[f] = (left, right)
+        while len(self._cache) > 2:
+            self._cache.popitem(last=False)
+        return left, right
+
+    @classmethod
+    def of(cls, left, right=None) -> FrameSupply:
+        """A supply from one pair of (H, W) arrays, from two (N, H, W) stacks, or an existing
+        supply."""
+        if isinstance(left, FrameSupply):
+            return left
+        left, right = np.asarray(left), np.asarray(right)
+        if left.ndim == 2:
+            return cls(1, left.shape, lambda f: (left, right))
+        return cls(left.shape[0], left.shape[1:], lambda f: (left[f], right[f]))
+
+
+def functional_words(cfg, bits: int, left: np.ndarray, right: np.ndarray) -> np.ndarray:
+    """One frame's output words by the functional model (the chip's words: every engine's
+    timing is independent of them, and the readable kernel computes the same from the beats
+    it moves)."""
+    desc_l, desc_r = compute_descriptor(left, cfg.nna), compute_descriptor(right, cfg.nna)
+    return sva_stream(desc_l, desc_r, left, cfg.sva, bits)

@@ -1,0 +1,137 @@
+"""``stereosim run`` on a stream of frames: ``--frames N`` (the pair repeated), or a pair of
+videos (``--left-video`` / ``--right-video``, at most ``--frames`` of them).
+
+The cycle model times the whole stream first -- frames overlap in the pipeline as the blocks
+allow -- and the summary gives the measured figures (sustained frame rate, every frame's
+latency) beside the work bound; then the frames' disparities are computed one after another
+and written as they come, every ``--save-every`` K-th into ``OUT/frames/``, so memory does not
+grow with the number of frames. The output set (the last frame's ``disparity.pfm`` and
+``.png``, the saved frames, ``report.json`` with the SHA-256 of every file) is published as
+one set at the end; until then the frames wait in a staging folder inside ``OUT``, removed if
+the run fails.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from sim.api import run_stream
+from sim.cycle.frames import FrameSupply
+from sim.errors import InputError
+from sim.io import disparity_to_colour, encode_png, pfm_bytes
+from sim.outputs import STAGE_PREFIX, check_outputs, json_text, publish
+from sim.tracing import run_traced, trace_files, trace_paths
+from sim.video import VideoPair
+
+
+def stream_pairs(args, data: dict | None):
+    """(pairs, name, source) of the run: a pair of videos, or ``data``'s pair repeated
+    ``--frames`` times."""
+    if args.left_video or args.right_video:
+        if not (args.left_video and args.right_video):
+            raise InputError("give both --left-video and --right-video")
+        pairs = VideoPair(args.left_video, args.right_video, limit=args.frames)
+        return pairs, Path(args.left_video).stem, f"{args.left_video} + {args.right_video}"
+    pair = (data["left"], data["right"])
+    return [pair] * args.frames, data["name"], data["source"]
+
+
+def _frame_files(folder: Path, f: int, disparity, dmax: float) -> dict[str, bytes]:
+    return {f"disparity_{f:05d}.pfm": pfm_bytes(disparity),
+            f"disparity_{f:05d}.png": encode_png(disparity_to_colour(disparity, dmax))}
+
+
+def summary(report: dict, seconds: float) -> str:
+    """The stream's figures: measured first, the bound named as a bound."""
+    img = report["image"]
+    lines = [f"stereosim {report['mode']} stream: {report['frames']} frames of "
+             f"{img['width']}x{img['height']}, D={report['config']['sva']['disparities']}, "
+             f"descriptor {report['descriptor']['kind']}, {seconds:.2f} s wall"]
+    if "stream" in report:
+        st, thr = report["stream"], report["throughput"]
+        lat = st.get("latency_ms", {})
+        sustained = st["sustained_fps"]
+        lines.append(
+            f"measured: {st['frames_completed']} of {st['frames']} frames completed, "
+            f"{'sustained ' + format(sustained, '.3f') + ' fps' if sustained else 'one frame'}"
+            f", 0 dropped; latency per frame (first pixel in -> last disparity out) min "
+            f"{lat.get('min', 0):.3f} / median {lat.get('median', 0):.3f} / p99 "
+            f"{lat.get('p99', 0):.3f} / max {lat.get('max', 0):.3f} ms")
+        lines.append(f"work bound: {thr['fps']} fps (the busiest block alone, "
+                     f"{thr['bottleneck']}; a bound, not a measurement)")
+    return "\n".join(lines)
+
+
+def cmd_run_stream(args, request, data: dict | None, cfg) -> int:
+    out_dir = Path(args.out)
+    save_every = args.save_every
+    planned = [(out_dir / name, f"--out {name}") for name in
+               ("disparity.pfm", "disparity.png", "report.json")]
+    pairs, name, source = stream_pairs(args, data)
+    n = len(pairs)
+    if save_every:
+        planned += [(out_dir / "frames" / nm, "--save-every")
+                    for f in range(0, n, save_every)
+                    for nm in (f"disparity_{f:05d}.pfm", f"disparity_{f:05d}.png")]
+    if request is not None:
+        planned += trace_paths(request)
+    check_outputs(planned)  # before any work
+    out_dir.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(prefix=f"{STAGE_PREFIX}frames-{os.getpid()}-",
+                                    dir=out_dir))
+    try:
+        t0 = time.perf_counter()
+        stream = run_stream(pairs, mode=args.mode, config=cfg,
+                            max_pixels=args.max_pixels or None)
+        dmax = float(cfg.sva.disparities)
+        files: dict[Path, object] = {}
+        digests: dict[str, str] = {}
+        last = None
+        for frame in stream:
+            last = frame
+            if save_every and frame.index % save_every == 0:
+                for nm, blob in _frame_files(staging, frame.index, frame.disparity,
+                                             dmax).items():
+                    tmp = staging / nm
+                    tmp.write_bytes(blob)
+                    files[out_dir / "frames" / nm] = tmp
+                    digests[os.path.join("frames", nm)] = hashlib.sha256(blob).hexdigest()
+        report = stream.report
+        report["scene"] = {"name": name, "source": source}
+        report["output"] = {"last_frame_invalid_percent": last.invalid_percent,
+                            "saved_every": save_every}
+        traces = {}
+        if request is not None:
+            supply = FrameSupply(len(pairs), (report["image"]["height"],
+                                              report["image"]["width"]),
+                                 lambda f: pairs[f])
+            _, log = run_traced(stream.plan, supply, None, request)
+            traces = trace_files(log, request)
+        seconds = time.perf_counter() - t0
+        last_files = {out_dir / "disparity.pfm": pfm_bytes(last.disparity),
+                      out_dir / "disparity.png": encode_png(disparity_to_colour(last.disparity,
+                                                                                dmax))}
+        last_files.update((Path(p), blob) for p, blob in traces.items())
+        for p, blob in last_files.items():
+            digests[os.path.relpath(p, out_dir)] = hashlib.sha256(blob).hexdigest()
+        report["files"] = dict(sorted(digests.items()))
+        blobs = {**last_files, **files, out_dir / "report.json": json_text(report).encode()}
+        publish(blobs)
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+        if hasattr(pairs, "close"):
+            pairs.close()
+    if args.json:
+        sys.stdout.write(json_text(report))
+    else:
+        print(summary(report, seconds))
+        saved = f", {len(files) // 2} frames in {out_dir}/frames" if files else ""
+        print(f"wrote {out_dir}/disparity.pfm, disparity.png (the last frame), "
+              f"report.json{saved}")
+    return 0

@@ -1,0 +1,150 @@
+"""Streams of frames (issue 16): frames back to back through the chip, overlapping in the
+pipeline as the blocks allow, in both engines -- every frame's words equal the functional
+model's for that frame, and the cycles follow the formulas written out here by hand."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from nna.descriptor import compute_descriptor
+from sim.config import load_config
+from sim.cycle.chip import run_readable
+from sim.cycle.engine.run import run_compiled
+from sim.cycle.frames import FrameSupply
+from sim.cycle.plan import build_plan
+from sim.errors import ConfigError, InputError
+from sva.pipeline import sva_stream
+
+# census (1 NNA cycle per descriptor), equal clocks: the worked example of docs/architecture.md
+# (row 0 of the first frame ready at 6W + 3, its first word popped at 6W + 4 + L)
+SAME = {"clocks.nna_mhz": 400, "clocks.sva_mhz": 400, "nna.descriptor": "census",
+        "sva.disparities": 16}
+ENGINES = [run_readable, run_compiled]
+
+
+def _stream(n, h, w, seed=0):
+    """n different pairs (the right view the left shifted by 2 plus noise)."""
+    rng = np.random.default_rng(seed)
+    left = rng.integers(0, 256, (n, h, w + 2), dtype=np.uint8)
+    right = np.clip(left[:, :, 2:].astype(int) + rng.integers(-3, 4, (n, h, w)), 0, 255)
+    return left[:, :, :w].copy(), right.astype(np.uint8)
+
+
+def _functional(left, right, plan):
+    cfg = plan.cfg
+    return sva_stream(compute_descriptor(left, cfg.nna), compute_descriptor(right, cfg.nna), left,
+                      cfg.sva, plan.descriptor_bits)
+
+
+@pytest.mark.parametrize("run", ENGINES)
+def test_every_frame_of_a_stream_is_the_functional_models(run):
+    cfg = load_config(overrides={**SAME, "nna.descriptor": "cnn"})
+    left, right = _stream(3, 12, 40, seed=1)
+    got = {}
+    plan = build_plan(cfg, (12, 40), 3)
+    frame = run(plan, left, right, on_frame=lambda f, words: got.__setitem__(f, words.copy()))
+    assert sorted(got) == [0, 1, 2]
+    for f in range(3):
+        np.testing.assert_array_equal(got[f], _functional(left[f], right[f], plan))
+    np.testing.assert_array_equal(frame.words, got[2])
+    assert not np.array_equal(got[0], got[1])  # the frames differ, and so do their words
+
+
+@pytest.mark.parametrize("run", ENGINES)
+def test_an_sva_bound_stream_leaves_a_word_every_ii_across_frames(run):
+    """The SVA (II 2) is the bottleneck and the rows of the next frame are ready before it
+    needs them (its row buffers take the next frame's first rows while the last row of this
+    one is issued), so the stream's words leave back to back: frame f's last word reaches the
+    sink at 6W + 4 + L + II ((f + 1) H W - 1), and the stream sustains clock / (II H W)
+    frames per second."""
+    h, w, frames = 7, 40, 3
+    plan = build_plan(load_config(overrides=SAME), (h, w), frames)
+    lat, ii = plan.block("sva").latency, plan.block("sva").cycles
+    left, right = _stream(frames, h, w, seed=2)
+    rep = run(plan, left, right).report
+    first = 6 * w + 4 + lat
+    assert rep["cycles"]["first_output"]["sva"] == first
+    assert rep["cycles"]["last_output"]["sva"] == first + ii * (frames * h * w - 1)
+    period = plan.domains["sva"].period_fs
+    ends = [(first + ii * ((f + 1) * h * w - 1)) * period for f in range(frames)]
+    stream = rep["stream"]
+    assert stream["frames_completed"] == frames
+    assert stream["sustained_fps"] == round((frames - 1) / ((ends[-1] - ends[0]) / 1e15), 3)
+    assert stream["sustained_fps"] == round(400e6 / (ii * h * w), 3)
+
+
+@pytest.mark.parametrize("run", ENGINES)
+def test_a_slow_source_paces_the_frames_and_every_frame_takes_as_long(run):
+    """A memory source at a quarter of a byte per cycle (0.1 GB/s at 400 MHz) sends pixel k in
+    cycle 4k + 3 (its token bucket), frame after frame: everything downstream keeps up, so every
+    event of frame f is frame 0's, 4 H W cycles later -- the same latency for every frame."""
+    h, w, frames = 6, 36, 3
+    over = {**SAME, "source.memory_gbps": 0.1}
+    plan = build_plan(load_config(overrides=over), (h, w), frames)
+    left, right = _stream(frames, h, w, seed=3)
+    res = run(plan, left, right)
+    first_in, last_out = res.frame_times
+    period = plan.domains["nna"].period_fs
+    for f in range(frames):
+        assert first_in[f] == (4 * f * h * w + 3) * period
+        assert last_out[f] - last_out[0] == 4 * f * h * w * period
+    lat = res.report["stream"]["latency_ms"]
+    assert lat["min"] == lat["max"] == lat["median"]
+    assert res.report["stream"]["sustained_fps"] == round(400e6 / (4 * h * w), 3)
+
+
+@pytest.mark.parametrize("run", ENGINES)
+def test_a_camera_stream_keeps_its_frame_period_with_blanking(run):
+    """A camera at the chip's clock with horizontal and vertical blanking delivers frame f's
+    pixel (x, y) in cycle f (H + vblank)(W + hblank) + y (W + hblank) + x; the census chip
+    keeps up, so frame f leaves exactly f frame periods after frame 0."""
+    h, w, frames = 6, 40, 3
+    over = {**SAME, "source.kind": "camera", "clocks.camera_mhz": 400,
+            "source.camera_hblank": 50, "source.camera_vblank": 3}
+    plan = build_plan(load_config(overrides=over), (h, w), frames)
+    cam = plan.block("camera_left")
+    assert cam.frame_clocks == (h + 3) * (w + 50)
+    left, right = _stream(frames, h, w, seed=4)
+    res = run(plan, left, right)
+    first_in, last_out = res.frame_times
+    per = plan.domains["camera"].period_fs
+    for f in range(frames):
+        assert first_in[f] == f * cam.frame_clocks * per
+        assert last_out[f] - last_out[0] == f * cam.frame_clocks * per
+    assert res.report["stream"]["sustained_fps"] == round(400e6 / cam.frame_clocks, 3)
+    assert res.report["blocks"]["camera_left"]["busy"] == frames * h * (w + 50)
+
+
+@pytest.mark.parametrize("over", [
+    {"nna.descriptor": "cnn", "fifo.nna_to_sva_depth": 3},
+    {"nna.stereo_submodules": 4, "fifo.nna_to_merge_depth": 5},
+    {"nna.stereo_submodules": 4, "nna.split": "rows", "nna.descriptor": "cnn"},
+    {"source.kind": "camera", "clocks.camera_mhz": 100, "source.camera_vblank": 2},
+    {"sva.lanes": 8, "fifo.sva_to_sink_depth": 1},
+])
+def test_the_engines_agree_on_streams(over):
+    """Words, report, statistics and frame instants of both engines over 3 frames (splits,
+    cameras, slow SVAs and a stalling sink included)."""
+    h, w, frames = 11, 40, 3
+    plan = build_plan(load_config(overrides={**SAME, **over}), (h, w), frames)
+    left, right = _stream(frames, h, w, seed=5)
+    stall = (3, 1) if "fifo.sva_to_sink_depth" in over else None
+    slow = run_readable(plan, left, right, sink_stall=stall)
+    fast = run_compiled(plan, left, right, sink_stall=stall)
+    np.testing.assert_array_equal(fast.words, slow.words)
+    assert fast.stats == slow.stats
+    assert fast.report == slow.report
+    np.testing.assert_array_equal(fast.frame_times, slow.frame_times)
+
+
+def test_a_stream_is_checked():
+    cfg = load_config(overrides=SAME)
+    with pytest.raises(ConfigError, match="at least one frame"):
+        build_plan(cfg, (6, 40), 0)
+    left, right = _stream(2, 6, 40)
+    with pytest.raises(ConfigError, match="the plan is for 3 frame"):
+        run_compiled(build_plan(cfg, (6, 40), 3), left, right)
+    bad = FrameSupply(2, (6, 40), lambda f: (left[f], right[f][:, :30]))
+    with pytest.raises(InputError, match="frame 0's right image is 30x6"):
+        run_compiled(build_plan(cfg, (6, 40), 2), bad)
