@@ -84,15 +84,17 @@ def window_peaks(entered: np.ndarray, done: np.ndarray, offset: int, in_rows: in
     return int(held[i]), int(t[i])
 
 
-def buffer_report(plan: ChipPlan, occ: np.ndarray, stage_peaks: dict[str, int]) -> dict:
-    """``{block: {buffer: {capacity_rows, peak_rows, capacity_bits, peak_bits}}}`` from the
-    engines' row instants ``occ`` (see :mod:`sim.cycle.engine.layout`: per NNA submodule two
-    rows, then two for the SVA), and for every SVA stage ``{"pipeline.<stage>":
-    {capacity_words, peak_words, capacity_bits, peak_bits}}`` from the most words each held
-    (``stage_peaks``); raises BufferOverflow if a window or a stage exceeded its capacity."""
+def buffer_report(plan: ChipPlan, windows: list[tuple[int, int]],
+                  stage_peaks: dict[str, int]) -> dict:
+    """``{block: {buffer: {capacity_rows, peak_rows, capacity_bits, peak_bits}}}`` from the most
+    rows each row window held and the cycle it did (``windows``, in :func:`tracked` order:
+    :func:`window_peaks` of an engine's row instants), and for every SVA stage
+    ``{"pipeline.<stage>": {capacity_words, peak_words, capacity_bits, peak_bits}}`` from the
+    most words each held (``stage_peaks``); raises BufferOverflow if a window or a stage
+    exceeded its capacity."""
     report: dict[str, dict] = {}
-    for block, name, cap_rows, cap_bits, slot, offset, in_rows, out_rows in tracked(plan):
-        peak, at = window_peaks(occ[slot], occ[slot + 1], offset, in_rows, out_rows)
+    for (block, name, cap_rows, cap_bits, *_), (peak, at) in zip(tracked(plan), windows,
+                                                                  strict=True):
         if peak > cap_rows:
             raise BufferOverflow(
                 f"buffer {block}.{name} held {peak} rows at {plan.block(block).domain} cycle "
@@ -116,3 +118,10 @@ def buffer_report(plan: ChipPlan, occ: np.ndarray, stage_peaks: dict[str, int]) 
             "capacity_bits": st.register_bits, "peak_bits": peak * st.slot_bits,
         }
     return report
+
+
+def windows_of(plan: ChipPlan, occ: np.ndarray) -> list[tuple[int, int]]:
+    """(peak, cycle) of every row window from whole arrays of row instants (the readable
+    kernel's :meth:`~sim.cycle.chip.Chip.window_rows`)."""
+    return [window_peaks(occ[slot], occ[slot + 1], offset, in_rows, out_rows)
+            for _, _, _, _, slot, offset, in_rows, out_rows in tracked(plan)]

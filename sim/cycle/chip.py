@@ -16,7 +16,7 @@ import numpy as np
 
 from sim.config import ChipConfig
 from sim.cycle.blocks.nna import Merge, NnaSubmodule
-from sim.cycle.buffers import buffer_report
+from sim.cycle.buffers import buffer_report, windows_of
 from sim.cycle.blocks.sources import CameraSource, MemorySource, Sink
 from sim.cycle.blocks.sva import SvaBlock
 from sim.cycle.fifo import Fifo
@@ -172,9 +172,9 @@ def _run(chip: Chip) -> tuple[dict, dict]:
         stats = chip.sim.run(chip.done, budget_cycles=plan.budget,
                              watchdog_cycles=plan.cfg.sim.watchdog_cycles)
     except UserError:
-        buffer_report(plan, chip.window_rows(), sva.stage_peaks())
+        buffer_report(plan, windows_of(plan, chip.window_rows()), sva.stage_peaks())
         raise
-    buffers = buffer_report(plan, chip.window_rows(), sva.stage_peaks())
+    buffers = buffer_report(plan, windows_of(plan, chip.window_rows()), sva.stage_peaks())
     return stats, cycle_report(plan, chip.sink.first_cycle, chip.sink.last_cycle, stats,
                                buffers, chip.frame_times())
 

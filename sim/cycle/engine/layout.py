@@ -27,6 +27,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from sim.cycle.buffers import tracked
 from sim.cycle.plan import ChipPlan
 from sim.cycle.rules import FS_PER_S
 from sim.cycle.stages import stage_offsets
@@ -113,6 +114,17 @@ STAGE = np.dtype([
     ("done", np.int64),  # the cycle after which the frame's last word has left it (-1: not yet)
 ])
 
+# a row window's walk (sim.cycle.buffers.window_peaks, behind the streams): the slot of its row
+# instants in ``occ`` (input rows; output rows at slot + 1), the streams whose counts say how
+# many rows are known and their row widths, the window's offset and rows per frame, and the walk
+WINDOW = np.dtype([
+    ("slot", np.int64), ("in_stream", np.int64), ("in_width", np.int64),
+    ("out_stream", np.int64), ("out_width", np.int64), ("offset", np.int64),
+    ("in_rows", np.int64), ("out_rows", np.int64),
+    ("row", np.int64), ("done", np.int64),  # the next input row; output rows done before it
+    ("peak", np.int64), ("at", np.int64),  # the most rows held, and the cycle (-1: none yet)
+])
+
 # a FIFO's occupancy walk: consumer timeline (histogram) and producer timeline (crossing)
 WALK = np.dtype([
     ("inc", np.int64), ("dec", np.int64), ("cycle", np.int64), ("level", np.int64),
@@ -133,7 +145,8 @@ class Net(NamedTuple):
     gaps: np.ndarray  # int64 (blocks, capacity, 2): long gaps (start_fs, end_fs) between
     # busy instants, per block; ACC.gaps counts them
     rows: np.ndarray  # int64 (2, H + 1): the first frame's row instants (Chip.row_times)
-    occ: np.ndarray  # int64 (2 T + 2, frames H + 1): the tracked buffers' row instants, cycles of
+    occ: np.ndarray  # int64 (2 T + 2, R): a ring of R rows (row r at r % R) of the tracked
+    # buffers' row instants over the stream, cycles of
     # their block (sim.cycle.buffers): per tile t [2t] the cycle its line buffer took the first
     # pixel of each input row, [2t + 1] the cycle it pushed the last descriptor of each output
     # row; [2T] the cycle the SVA took the first pair of each input row, [2T + 1] the cycle it
@@ -144,6 +157,8 @@ class Net(NamedTuple):
     stages: np.ndarray  # STAGE: the SVA's stages in stream order
     frame_fs: np.ndarray  # int64 (2, frames): each frame's first pixel pushed by the left
     # source and last word popped by the sink (fs); -1 where not reached
+    win: np.ndarray  # WINDOW: the row windows' walks (sim.cycle.buffers), the tiles computed
+    # (side-major) then the SVA's
 
 
 class TraceData(NamedTuple):
@@ -159,6 +174,14 @@ class TraceData(NamedTuple):
 
 def _pow2(n: int) -> int:
     return 1 << max(4, int(n - 1).bit_length())
+
+
+def _row_ring(plan: ChipPlan, capacity: int) -> int:
+    """Rows the row-instant rings keep: every row an event ring of ``capacity`` events spans in
+    the narrowest tile, and the windows' own rows, at most the stream's rows."""
+    narrow = min(min(t.in_x1 - t.in_x0, t.x1 - t.x0) for t in plan.tiles)
+    rows = capacity // narrow + 4 * (plan.cfg.nna.line_buffer_rows + plan.shape[0] // 8) + 64
+    return min(_pow2(rows), _pow2(plan.frames * plan.shape[0] + 2))
 
 
 def ring_capacity(plan: ChipPlan, scale: int = 1) -> int:
@@ -310,8 +333,16 @@ def serialise(plan: ChipPlan, *, sink_stall=None, cap_fs: int = INF, stats: bool
     gaps = np.zeros((len(plan.blocks), gap_capacity, 2), np.int64)
     rows = np.full((2, h + 1), -1, np.int64)
     rows[:, 0] = 0
-    occ = np.full((2 * len(tiles) + 2, nf * h + 1), -1, np.int64)
+    occ = np.full((2 * len(tiles) + 2, _row_ring(plan, cap)), -1, np.int64)
     frame_fs = np.full((2, nf), -1, np.int64)
+    win = np.zeros(sides * parts + 1, WINDOW)
+    for i, (block, _, _, _, slot, offset, in_rows, out_rows) in enumerate(tracked(plan)):
+        if i < sides * parts:  # an NNA tile: its pops and pushes
+            tl = tiles[i]
+            win[i] = (slot, tl["b"], tl["iw"], tl["e"], tl["ow"], offset, in_rows, out_rows,
+                      0, 0, 0, -1)
+        elif block == "sva":
+            win[-1] = (slot, p_id, w, p_id + 3, w, offset, in_rows, out_rows, 0, 0, 0, -1)
     names = {"streams": specs, "a": a_id, "b": b_id, "e": e_id, "m": m_id, "p": p_id,
              "block_index": block_index, "fifo_index": fifo_index}
     scratch = np.zeros((parts, 14), np.int64)
@@ -320,7 +351,7 @@ def serialise(plan: ChipPlan, *, sink_stall=None, cap_fs: int = INF, stats: bool
     for i, (st, off) in enumerate(zip(sva.stages, stage_offsets(sva.stages))):
         stages[i] = (off, st.latency, st.slots, 0, 0, 0, -1)
     return Net(prm, streams, ring, tiles, fifos, blocks, acc, walks, hist, gaps, rows, occ,
-               scratch, cursors, stages, frame_fs), names
+               scratch, cursors, stages, frame_fs, win), names
 
 
 def seconds(fs: int) -> float:

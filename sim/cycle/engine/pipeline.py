@@ -214,7 +214,7 @@ def advance_sva_out_and_sink(net, p_s, f_sink):
             moved = True
             xt += 1
             if xt == w:
-                issue_rows[yt] = e
+                issue_rows[yt & (issue_rows.shape[0] - 1)] = e
                 xt = 0
                 yt += 1
         # pushes: an issued word at its arrival, once the slot a FIFO depth back is free

@@ -343,13 +343,15 @@ def _trace(plan: ChipPlan, sink_stall, window: tuple[int, int], t_end: int, data
 # ---- the frame ----------------------------------------------------------------------------------
 
 
-def _window_rows(plan: ChipPlan, net: Net) -> np.ndarray:
-    """The row windows' instants (``Net.occ``); a mirrored right side is the left side's."""
-    occ = net.occ.copy()
+def _windows(plan: ChipPlan, net: Net) -> list[tuple[int, int]]:
+    """(peak, cycle) of every row window, in ``buffers.tracked`` order, from the window walks
+    (a mirrored right side's are the left side's)."""
+    walks = [(int(w["peak"]), int(w["at"])) for w in net.win]
+    parts = plan.parts
+    tiles = walks[:-1]
     if int(net.prm[0]["sides"]) == 1:
-        parts = plan.parts
-        occ[2 * parts:4 * parts] = occ[:2 * parts]
-    return occ
+        tiles = tiles + tiles
+    return tiles[:2 * parts] + walks[-1:]
 
 
 def _window_frames(plan: ChipPlan, frame_fs: np.ndarray, window: tuple[int, int]) -> range:
@@ -390,7 +392,7 @@ def run_compiled(plan: ChipPlan, left, right=None, *, sink_stall=None,
     if net.prm[0]["end"] == END_DONE:
         t_end = _last(net, names["p"] + 2) * plan.domains["sva"].period_fs
     # an overflow before any stop
-    buffers = buffer_report(plan, _window_rows(plan, net), _stage_peaks(plan, net))
+    buffers = buffer_report(plan, _windows(plan, net), _stage_peaks(plan, net))
     _raise_stop(plan, net, names, sink_stall, t_end)
     stats = _stats(plan, net, names, t_end)
     frame_fs = net.frame_fs.copy()

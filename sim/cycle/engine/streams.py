@@ -248,7 +248,7 @@ def advance_whole_side(net, side):
                 empty += vis - b_prev - 1
             ring[b_off + (kb & b_mask)] = b
             if xb == 0:
-                occ[occ_in, yb] = b
+                occ[occ_in, yb & (occ.shape[1] - 1)] = b
             b_prev = b
             kb += 1
             moved = True
@@ -406,7 +406,7 @@ def advance_pops(net, ti):
             empty += vis - b_prev - 1
         ring[b_off + (i & b_mask)] = b
         if c == 0:
-            net.occ[2 * ti, r] = b
+            net.occ[2 * ti, r & (net.occ.shape[1] - 1)] = b
         b_prev = b
         i += 1
         c += 1
@@ -487,7 +487,7 @@ def advance_pushes(net, ti):
         j += 1
         c += 1
         if c == ow:
-            net.occ[2 * ti + 1, r] = e
+            net.occ[2 * ti + 1, r & (net.occ.shape[1] - 1)] = e
             c = 0
             r += 1
             rl += 1
@@ -627,7 +627,8 @@ def advance_sva_pops(net, p_s, f_left, f_right):
             if done > 0:
                 if done * w > n_issued:
                     break
-                window = occ[occ_out, done - 1] + 1  # the cycle after its last issue
+                # the cycle after its last issue
+                window = occ[occ_out, (done - 1) & (occ.shape[1] - 1)] + 1
             else:
                 window = 0
             window_row = y
@@ -641,7 +642,7 @@ def advance_sva_pops(net, p_s, f_left, f_right):
         empty_r += max(0, vr - p_prev - 1)
         ring[p_off + (j & p_mask)] = p
         if x == 0:
-            occ[occ_in, y] = p
+            occ[occ_in, y & (occ.shape[1] - 1)] = p
         p_prev = p
         j += 1
         x += 1
