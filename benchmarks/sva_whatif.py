@@ -21,8 +21,8 @@ from pathlib import Path
 
 from sim.api import run
 from sim.config import load_config
-from sim.outputs import atomic_write_bytes
 from sim.sweep import synthetic_pair
+from markers import write_between
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "architecture.md"
 BEGIN, END = "<!-- sva-whatif:begin -->", "<!-- sva-whatif:end -->"
@@ -63,15 +63,7 @@ def main() -> int:
     args = ap.parse_args()
     lines = measure()
     if args.write:
-        text = DOC.read_text()
-        if BEGIN not in text or END not in text:
-            print(f"{DOC} lacks the {BEGIN} / {END} markers", file=sys.stderr)
-            return 2
-        head, rest = text.split(BEGIN, 1)
-        _, tail = rest.split(END, 1)
-        atomic_write_bytes(DOC, (head + BEGIN + "\n" + "\n".join(lines) + "\n" + END + tail)
-                           .encode())
-        print(f"wrote {DOC}")
+        return write_between(DOC, BEGIN, END, lines)
     return 0
 
 

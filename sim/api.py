@@ -13,7 +13,9 @@ import numpy as np
 from nna.descriptor import compute_descriptor
 from sim.config import ChipConfig, check_config, config_to_dict, load_config
 from sim.cycle.frames import FrameSupply, functional_words
+from sim.cycle.energy import energy_report, energy_table
 from sim.cycle.plan import ChipPlan, architecture_report, build_plan
+from sim.cycle.report import power_basis
 from sim.cycle.simulate import simulate
 from sim.errors import ConfigError, InputError
 from sim.io import MAX_PIXELS, check_gt_values, to_grey
@@ -101,6 +103,7 @@ def run(
     masks: dict[str, np.ndarray] | None = None,
     trace=None,
     max_pixels: int | None = MAX_PIXELS,
+    energy: str | os.PathLike | None = None,
 ) -> Result:
     """Simulate one stereo frame.
 
@@ -116,10 +119,13 @@ def run(
     ``trace``: a :class:`sim.tracing.TraceRequest` (cycle mode only): the result carries the
     recorded :class:`traces.log.TraceLog` (files are written by :func:`sim.tracing.trace_files`).
     ``max_pixels``: refuse larger views (default :data:`sim.io.MAX_PIXELS`; None = no cap).
+    ``energy``: an energy table (TOML, :mod:`sim.cycle.energy`) for the cycle report's
+    ``energy`` section instead of stereosim's 45 nm default.
     Every mistake raises a :class:`sim.errors.UserError` before any kernel runs.
     """
     if mode not in MODES:
         raise ConfigError(f"mode must be one of {', '.join(MODES)}; got {mode!r}")
+    table = _energy_table(energy, mode)
     cfg = resolve_config(config, overrides)
     gl, gr = prepare_pair(left, right, max_pixels)
     if gt is None and masks:
@@ -146,12 +152,26 @@ def run(
     report = build_report(plan, mode, fixed)
     if mode == "cycle":
         report.update(cycle_report)
+        if table is not None:
+            report["energy"] = energy_report(plan, frame.stats,
+                                             *power_basis(report["throughput"], report["stream"]),
+                                             table)
     if gt is not None:
         report["metrics"] = evaluate(disp, gt, masks)
         notes = undefined_metrics(report["metrics"])
         if notes:
             report["metrics_undefined"] = notes
     return Result(disparity=disp, disparity_fixed=fixed, report=report, config=cfg, trace=log)
+
+
+def _energy_table(path, mode: str):
+    """The energy table of ``path`` (checked before any run), or None for the default."""
+    if path is None:
+        return None
+    if mode != "cycle":
+        raise ConfigError("an energy table needs the cycle model: use mode='cycle' (--mode "
+                          "cycle)")
+    return energy_table(path)
 
 
 def build_report(plan: ChipPlan, mode: str, fixed: np.ndarray) -> dict:
@@ -253,7 +273,8 @@ def stream_supply(pairs, max_pixels: int | None = MAX_PIXELS) -> FrameSupply:
 
 def run_stream(pairs, *, mode: str = "cycle", config: ChipConfig | str | None = None,
                overrides: dict[str, Any] | None = None, sink_stall=None,
-               max_pixels: int | None = MAX_PIXELS) -> Stream:
+               max_pixels: int | None = MAX_PIXELS,
+               energy: str | os.PathLike | None = None) -> Stream:
     """Simulate a stream of stereo pairs of one size, back to back through the chip.
 
     ``pairs``: a sequence of (left, right) images (a list, or any object with ``len`` and
@@ -267,6 +288,7 @@ def run_stream(pairs, *, mode: str = "cycle", config: ChipConfig | str | None = 
     read)."""
     if mode not in MODES:
         raise ConfigError(f"mode must be one of {', '.join(MODES)}; got {mode!r}")
+    table = _energy_table(energy, mode)
     cfg = resolve_config(config, overrides)
     supply = stream_supply(pairs, max_pixels)
     plan = build_plan(cfg, supply.shape, supply.count)
@@ -289,4 +311,8 @@ def run_stream(pairs, *, mode: str = "cycle", config: ChipConfig | str | None = 
         else:
             frame = simulate(plan, supply, sink_stall=sink_stall, words=False)
         report.update(frame.report)
+        if table is not None:
+            report["energy"] = energy_report(plan, frame.stats,
+                                             *power_basis(report["throughput"], report["stream"]),
+                                             table)
     return Stream(report, cfg, plan, supply, words)

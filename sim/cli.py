@@ -64,7 +64,7 @@ from sim.outputs import (
     path_text,
     publish,
 )
-from sim.stream_cli import cmd_run_stream
+from sim.stream_cli import cmd_run_stream, energy_line
 from sim.tracing import TraceRequest, parse_window, trace_files, trace_paths
 from traces.cli import add_wave_parser
 
@@ -246,6 +246,8 @@ def _summary(report: dict, seconds: float) -> str:
                 f"{thr['fps']} fps the busiest block's work allows: blocks wait on each other "
                 "(see blocks.*.blocked in report.json)"
             )
+    if "energy" in report:
+        lines.append(energy_line(report["energy"]))
     for mask, m in report.get("metrics", {}).items():
         lines.append(
             f"{mask:>7}: bad2 {m['bad2']:.2f}%  invalid {m['invalid']:.2f}%  "
@@ -279,7 +281,7 @@ def cmd_run(args) -> int:
     t0 = time.perf_counter()
     result = run(data["left"], data["right"], mode=args.mode, config=cfg,
                  gt=data.get("gt"), masks=data.get("masks"), trace=request,
-                 max_pixels=args.max_pixels or None)
+                 max_pixels=args.max_pixels or None, energy=args.energy)
     seconds = time.perf_counter() - t0
     result.report["scene"] = {"name": data["name"], "source": data["source"]}
     traces = trace_files(result.trace, request) if request is not None else {}
@@ -510,6 +512,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--json", action="store_true", help="print the report as JSON")
     r.add_argument("--max-pixels", type=nonnegative_int, default=MAX_PIXELS, metavar="N",
                    help=f"refuse larger images (default {MAX_PIXELS}, 4096x4096; 0 = no cap)")
+    r.add_argument("--energy", metavar="FILE", help="energy table (TOML) for the report's "
+                   "energy and power (default: stereosim's 45 nm table; docs/energy.md)")
     s = r.add_argument_group("streams of frames (see docs/streams.md)")
     s.add_argument("--frames", type=positive_int, metavar="N",
                    help="simulate N frames back to back: the pair repeated, or the first N of "

@@ -47,6 +47,16 @@ def _frame_files(folder: Path, f: int, disparity, dmax: float) -> dict[str, byte
             f"disparity_{f:05d}.png": encode_png(disparity_to_colour(disparity, dmax))}
 
 
+def energy_line(energy: dict) -> str:
+    """One line of the energy section: per frame, by block, and the average power."""
+    e = energy["per_frame_uj"]
+    blocks = ", ".join(f"{k} {v / 1e3:.3f}" for k, v in e["by_block"].items() if v)
+    power = (f"; {energy['power_mw']:.1f} mW at {energy['power_at_fps']} fps "
+             f"({energy['fps_basis']})" if energy["power_mw"] is not None else "")
+    return (f"energy: {e['total'] / 1e3:.3f} mJ per frame ({blocks}; {energy['table']['node']})"
+            f"{power}")
+
+
 def summary(report: dict, seconds: float) -> str:
     """The stream's figures: measured first, the bound named as a bound."""
     img = report["image"]
@@ -65,6 +75,7 @@ def summary(report: dict, seconds: float) -> str:
             f"{lat.get('p99', 0):.3f} / max {lat.get('max', 0):.3f} ms")
         lines.append(f"work bound: {thr['fps']} fps (the busiest block alone, "
                      f"{thr['bottleneck']}; a bound, not a measurement)")
+        lines.append(energy_line(report["energy"]))
     return "\n".join(lines)
 
 
@@ -88,7 +99,7 @@ def cmd_run_stream(args, request, data: dict | None, cfg) -> int:
     try:
         t0 = time.perf_counter()
         stream = run_stream(pairs, mode=args.mode, config=cfg,
-                            max_pixels=args.max_pixels or None)
+                            max_pixels=args.max_pixels or None, energy=args.energy)
         dmax = float(cfg.sva.disparities)
         files: dict[Path, object] = {}
         digests: dict[str, str] = {}

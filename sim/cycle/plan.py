@@ -259,13 +259,18 @@ def frame_budget(cfg: ChipConfig, shape: tuple[int, int], freqs: dict[str, float
 
 def nna_buffers(cfg: ChipConfig, width: int) -> tuple[BufferPlan, ...]:
     """SRAM of one NNA submodule serving input rows ``width`` pixels wide."""
-    out = [BufferPlan("nna.line_buffer", cfg.nna.line_buffer_rows * width * 8,
-                      f"{cfg.nna.line_buffer_rows} input rows x {width} pixels x 8 bits",
-                      rows=cfg.nna.line_buffer_rows)]
+    rows = cfg.nna.line_buffer_rows
+    out = [BufferPlan("nna.line_buffer", rows * width * 8,
+                      f"{rows} input rows x {width} pixels x 8 bits (a bank per row: per "
+                      "descriptor the window's next column read, one pixel from each of its "
+                      "rows' banks; per pixel one written)",
+                      rows=rows, banks=rows, word_bits=8, pixel_reads=window_rows(cfg.nna),
+                      pixel_writes=1)]
     if cfg.nna.descriptor == "cnn":
         c, k, _ = layer(cfg.nna)[0].shape
         out.append(BufferPlan("nna.weights", k * k * c * 8 + c * 32,
-                              f"{k}x{k}x{c} int8 weights and {c} int32 biases"))
+                              f"{k}x{k}x{c} int8 weights and {c} int32 biases (loaded into "
+                              "the MAC array's registers once: weight-stationary)"))
     return tuple(out)
 
 
@@ -429,30 +434,32 @@ def sram_bits(plan: ChipPlan) -> dict[str, int]:
 
 
 def action_counts(plan: ChipPlan) -> dict[str, dict[str, int]]:
-    """Per-frame counts of MACs and SRAM reads/writes per block (per camera for the NNA).
+    """Per-frame counts of MACs and SRAM reads/writes per block (per camera for the NNA), from
+    the buffers' declared accesses (:class:`~sim.cycle.stages.BufferPlan`: per output pixel).
 
-    NNA: H*W line-buffer writes; reads: K*K per descriptor (CNN) or the census window's samples
-    (census); MACs: K*K*C per descriptor. SVA: per pixel one write of each view's descriptor, D
-    Hamming costs, and per pixel and top path one D-vector read and write of path costs.
+    NNA: K*K*C MACs and (CNN) C requantising multiplies per descriptor; its line buffer writes
+    each pixel once and reads the window's next column (2h + 1 pixels) per descriptor. SVA: D
+    Hamming costs per pixel, and its SRAM banks' accesses per pixel.
     """
     cfg = plan.cfg
     h, w = plan.shape
     n = h * w
-    s = cfg.sva
-    if cfg.nna.descriptor == "census":
-        win_w, win_h = cfg.nna.census.window
-        reads = n * (win_w * win_h)
-    else:
-        _, k, _ = layer(cfg.nna)[0].shape
-        reads = n * k * k
-    top_paths = s.paths - 1
+    nna = next(b for b in plan.blocks_of("nna"))
+    sva = plan.block("sva")
+
+    def accesses(block, attr):
+        return sum(n * getattr(buf, attr) for buf in block.buffers)
+
+    requant = 0 if cfg.nna.descriptor == "census" else n * layer(cfg.nna)[0].shape[0]
     return {
-        "nna_per_camera": {"macs": n * macs_per_descriptor(cfg.nna), "sram_writes": n,
-                           "sram_reads": reads},
+        "nna_per_camera": {"macs": n * macs_per_descriptor(cfg.nna),
+                           "requant_multiplies": requant,
+                           "sram_writes": accesses(nna, "pixel_writes"),
+                           "sram_reads": accesses(nna, "pixel_reads")},
         "sva": {
-            "hamming_costs": n * s.disparities,
-            "sram_writes": 2 * n + n * top_paths * s.disparities,
-            "sram_reads": 2 * n * s.disparities + n * top_paths * s.disparities,
+            "hamming_costs": n * cfg.sva.disparities,
+            "sram_writes": accesses(sva, "pixel_writes"),
+            "sram_reads": accesses(sva, "pixel_reads"),
         },
     }
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from sim.cycle.energy import energy_report
 from sim.cycle.plan import ChipPlan
 from sim.cycle.rules import FS_PER_S
 
@@ -79,6 +80,7 @@ def cycle_report(plan: ChipPlan, first_cycle: int, last_cycle: int, stats: dict,
     frame0_fs = int(frame_times[1][0]) if frame_times[1][0] >= 0 else last_fs
     thr["fps_frame"] = round(FS_PER_S / frame0_fs, 3) if frame0_fs > 0 else None
     fifos = stats["fifos"]
+    stream = stream_report(plan, frame_times)
     return {
         "cycles": {
             "total": dict(sorted(stats["cycles"].items())),
@@ -93,8 +95,17 @@ def cycle_report(plan: ChipPlan, first_cycle: int, last_cycle: int, stats: dict,
         "fifo_sram_bits": {f.name: f.sram_bits for f in sorted(plan.fifos, key=lambda f: f.name)},
         "buffers": {b: buffers[b] for b in sorted(buffers)},
         "sva_stages": sva_stage_activity(plan, stats["stages"]["sva"]),
-        "stream": stream_report(plan, frame_times),
+        "stream": stream,
+        "energy": energy_report(plan, stats, *power_basis(thr, stream)),
     }
+
+
+def power_basis(throughput: dict, stream: dict) -> tuple[float | None, str]:
+    """The frame rate the average power is given at: a stream's measured sustained rate, or
+    for one frame the work bound."""
+    if stream.get("sustained_fps"):
+        return stream["sustained_fps"], "sustained (measured)"
+    return throughput["fps"], "work bound (one frame)"
 
 
 def sva_stage_activity(plan: ChipPlan, stages: dict) -> dict:

@@ -67,7 +67,11 @@ class BufferPlan:
     SRAM ports: ``reads`` and ``writes`` per pixel of each bank (one word per access: a lane
     group of D-indexed buffers), through ``ports`` = ``"1r1w"`` (a read and a write port:
     max(reads, writes) cycles per pixel) or ``"1rw"`` (one shared port: reads + writes); ``""``
-    for registers, which every cycle can read and write."""
+    for registers, which every cycle can read and write.
+
+    Energy (:mod:`sim.cycle.energy`): ``banks`` arrays of bits / banks each; per output pixel
+    ``pixel_reads`` and ``pixel_writes`` accesses of ``word_bits`` bits over all of them (0 for
+    registers, whose energy is the logic's)."""
 
     name: str
     bits: int
@@ -76,6 +80,10 @@ class BufferPlan:
     reads: int = 0
     writes: int = 0
     ports: str = ""
+    banks: int = 1
+    word_bits: int = 0
+    pixel_reads: int = 0
+    pixel_writes: int = 0
 
     @property
     def port_cycles(self) -> int:
@@ -155,16 +163,21 @@ def sva_stages(cfg: ChipConfig, width: int, bits: int, word_bits: int) -> tuple[
     rows_buf = BufferPlan("sva.descriptor_rows", 2 * (s.box_size + 1) * width * bits,
                           "both views' descriptor rows the box filter slides over (k + 1 "
                           "each; a bank per view: the arriving row written, the leaving read)",
-                          rows=s.box_size + 1, reads=1, writes=1, ports=ports)
+                          rows=s.box_size + 1, reads=1, writes=1, ports=ports, banks=2,
+                          word_bits=bits, pixel_reads=2, pixel_writes=2)
     sums_buf = BufferPlan("sva.column_sums", width * d * bits_for(s.box_size * bits),
                           "the vertical box sums, W x D (a lane group read and written per "
-                          "group)", reads=g, writes=g, ports=ports)
+                          "group)", reads=g, writes=g, ports=ports,
+                          word_bits=lanes * bits_for(s.box_size * bits), pixel_reads=g,
+                          pixel_writes=g)
     top = 1 if s.paths > 1 else 0
     sgm_buf = BufferPlan("sva.sgm_previous_row", (s.paths - 1) * width * d * s.path_bits
                          + d * s.path_bits,
                          "the top paths' previous row (a bank per path, a lane group read and "
                          "written per group) and the left path's previous pixel",
-                         reads=g * top, writes=g * top, ports=ports if top else "")
+                         reads=g * top, writes=g * top, ports=ports if top else "",
+                         banks=max(1, s.paths - 1), word_bits=lanes * s.path_bits,
+                         pixel_reads=g * (s.paths - 1), pixel_writes=g * (s.paths - 1))
     ham_ii = max(g, rows_buf.port_cycles)
     box_ii = max(g, sums_buf.port_cycles)
     stages = [
@@ -206,7 +219,10 @@ def sva_stages(cfg: ChipConfig, width: int, bits: int, word_bits: int) -> tuple[
         f"({s.subpixel}: F + 1 = {sub}) = {g + wta_tree + uniq + sub}"))
     med_buf = BufferPlan("sva.median_rows", s.median * width * word_bits,
                          "the median's output rows (a bank per row: its column read, the new "
-                         "word written)", reads=1, writes=1, ports=ports)
+                         "word written)", reads=1, writes=1, ports=ports,
+                         banks=max(1, s.median), word_bits=word_bits,
+                         pixel_reads=s.median if s.median > 1 else 0,
+                         pixel_writes=1 if s.median > 1 else 0)
     med_ii = max(1, med_buf.port_cycles)
     ii = max([st.ii for st in stages] + ([med_ii] if s.median > 1 else []))  # the pipeline's
     if s.lr_check:
