@@ -169,6 +169,16 @@ class SourceConfig:
     )
     camera_hblank: int = param(370, "camera horizontal blanking in pixel clocks", lo=0, hi=100000)
     camera_vblank: int = param(30, "camera vertical blanking in lines", lo=0, hi=100000)
+    frame_buffers: int = param(
+        0, "camera only: 0 streams the camera straight into the NNA; B >= 1 writes each frame "
+        "into one of B frame buffers in DRAM, which the NNA reads at memory_gbps",
+        lo=0, hi=64,
+    )
+    on_overflow: str = param(
+        "error", "camera only, when a frame finds no room (a full FIFO, or with frame buffers no "
+        "free buffer): error (stop with one line) or drop_frame (skip that frame and count it; "
+        "needs frame_buffers >= 1)", choices=("error", "drop_frame"),
+    )
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

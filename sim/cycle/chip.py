@@ -17,7 +17,7 @@ import numpy as np
 from sim.config import ChipConfig
 from sim.cycle.blocks.nna import Merge, NnaSubmodule
 from sim.cycle.buffers import buffer_report, windows_of
-from sim.cycle.blocks.sources import CameraSource, MemorySource, Sink
+from sim.cycle.blocks.sources import CameraSource, FrameBuffers, MemorySource, Sink
 from sim.cycle.blocks.sva import SvaBlock
 from sim.cycle.fifo import Fifo
 from sim.cycle.frames import FrameSupply
@@ -25,7 +25,7 @@ from sim.cycle.kernel import Simulator
 from sim.cycle.plan import ChipPlan, build_plan
 from sim.cycle.report import cycle_report
 from sim.cycle.rules import sink_may_pop
-from sim.cycle.stops import CameraOverflow, overflow_message
+from sim.cycle.stops import CameraOverflow, frame_buffer_message, overflow_message
 from sim.errors import ConfigError, UserError
 from traces.log import Clock, Signal, TraceLog, TraceRecorder
 
@@ -34,22 +34,32 @@ class Chip:
     """The blocks, FIFOs and domains of one frame's simulation (built by :func:`build_chip`)."""
 
     def __init__(self, plan: ChipPlan, sim: Simulator, domains: dict, fifos: dict,
-                 blocks: dict, sink: Sink):
+                 blocks: dict, sink: Sink, frame_buffers: FrameBuffers | None = None):
         self.plan = plan
         self.sim = sim
         self.domains = domains
         self.fifos = fifos
         self.blocks = blocks
         self.sink = sink
+        self.frame_buffers = frame_buffers
         self.cameras = [b for b in blocks.values() if isinstance(b, CameraSource)]
 
     def done(self) -> bool:
-        """The run's until condition: the sink holds the frame. A camera that overflowed in
-        the step just run stops the run here, after the step, naming every camera that did."""
+        """The run's until condition: the sink holds the frames (with frame buffers: the frames
+        taken, once every camera frame is decided). A camera that overflowed in the step just
+        run stops the run here, after the step, naming every camera that did."""
         over = [cam.overflow for cam in self.cameras if cam.overflow is not None]
         if over:
             raise CameraOverflow(overflow_message(over, self.plan.shape[0], self.plan.frames))
-        return self.sink.done
+        fb_over = next((cam.fb_overflow for cam in self.cameras if cam.fb_overflow), None)
+        if fb_over is not None:
+            raise CameraOverflow(frame_buffer_message(*fb_over, self.plan.cfg.source))
+        fb = self.frame_buffers
+        if fb is None:
+            return self.sink.done
+        total = fb.total
+        return total is not None and self.sink.received >= total * self.plan.shape[0] * \
+            self.plan.shape[1]
 
     def window_rows(self) -> np.ndarray:
         """The row windows' instants (rows counted over the stream): per NNA submodule (plan
@@ -86,14 +96,25 @@ class Chip:
         return out
 
     def frame_times(self) -> np.ndarray:
-        """(2, frames) instants (fs): [0] each frame's first pixel leaving the left source, [1]
-        its last word reaching the sink; -1 where not reached."""
-        src = next(b for b in self.plan.blocks if b.kind in ("memory", "camera") and b.side == 0)
-        out = np.full((2, self.plan.frames), -1, np.int64)
-        first = self.blocks[src.name].first_cycles
-        out[0][first >= 0] = first[first >= 0] * self.plan.domains[src.domain].period_fs
+        """(3, frames), per frame of the stream the chip took (every frame, but for a camera's
+        dropped ones): [0] the instant (fs) of its first pixel -- leaving the left memory
+        source, or a camera's --, [1] of its last word reaching the sink, [2] the input frame it
+        is; -1 where not reached."""
+        plan = self.plan
+        out = np.full((3, plan.frames), -1, np.int64)
+        fb = self.frame_buffers
+        if fb is not None:
+            taken = np.array(fb.taken, np.int64)
+            cam = plan.block("camera_left")
+            out[2, :len(taken)] = taken
+            out[0, :len(taken)] = taken * cam.frame_clocks * plan.domains["camera"].period_fs
+        else:
+            src = next(b for b in plan.blocks if b.kind in ("memory", "camera") and b.side == 0)
+            first = self.blocks[src.name].first_cycles
+            out[0][first >= 0] = first[first >= 0] * plan.domains[src.domain].period_fs
+            out[2] = np.arange(plan.frames)
         last = self.sink.frame_cycles
-        out[1][last >= 0] = last[last >= 0] * self.plan.domains["sva"].period_fs
+        out[1][last >= 0] = last[last >= 0] * plan.domains["sva"].period_fs
         return out
 
 
@@ -130,12 +151,25 @@ def build_chip(left, right, cfg: ChipConfig | ChipPlan, *, order_seed=None, sink
                                           sync_cycles=f.sync_cycles, handshake_signals=True))
     blocks = {}
     sink = None
+    fb = None
+    if plan.frame_buffered:
+        cam = plan.block("camera_left")
+        fb = FrameBuffers(frames, cfg.source.frame_buffers,
+                          cfg.source.on_overflow == "drop_frame", cam.line_clocks,
+                          cam.frame_clocks, plan.domains["camera"].period_fs,
+                          plan.domains["nna"].period_fs)
+        if on_frame is not None:  # the sink counts the frames taken: give the camera's
+            taken_on_frame = on_frame
+
+            def on_frame(g, words):
+                taken_on_frame(fb.taken[g], words)
     for b in plan.blocks:
         dom = domains[b.domain]
         if b.kind in ("memory", "camera"):
             outs = [(fifos[name], tile) for name, tile in zip(b.outputs, plan.tiles)]
             cls = CameraSource if b.kind == "camera" else MemorySource
-            block = cls(b, dom, lambda f, s=b.side: supply.pair(f)[s], shape, frames, outs)
+            block = cls(b, dom, lambda f, s=b.side: supply.pair(f)[s], shape, frames, outs,
+                        buffers=fb)
         elif b.kind == "nna":
             block = NnaSubmodule(b, dom, shape, fifos[b.inputs[0]], fifos[b.outputs[0]],
                                  cfg.nna, frames)
@@ -150,7 +184,7 @@ def build_chip(left, right, cfg: ChipConfig | ChipPlan, *, order_seed=None, sink
             block = sink = Sink(b.name, dom, fifos[b.inputs[0]], shape, frames,
                                 stall=_stall_function(sink_stall), on_frame=on_frame)
         blocks[b.name] = sim.add_block(block)
-    return Chip(plan, sim, domains, fifos, blocks, sink)
+    return Chip(plan, sim, domains, fifos, blocks, sink, fb)
 
 
 def run_cycle(left, right, cfg: ChipConfig | ChipPlan, *, order_seed=None, sink_stall=None,

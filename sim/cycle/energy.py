@@ -18,8 +18,8 @@ clock cycle per domain. The actions of one frame:
   1 adds), the winner-take-all (1 compare, 2 with the uniqueness check) and the LR check's
   diagonal (1 compare);
 - **FIFOs**: every bit through them, pushed and popped (over the run, shared per frame);
-- **DRAM**: a memory source reads both views (a byte a pixel each), the disparity is written
-  back (a word a pixel);
+- **DRAM**: a memory source reads both views (a byte a pixel each), a camera with frame
+  buffers writes them first, the disparity is written back (a word a pixel);
 - **clock**: the run's cycles of each domain, per frame.
 
 The report (``energy``) lists every item -- block, action, what, count, unit energy -- so the
@@ -198,8 +198,11 @@ def energy_items(plan: ChipPlan, table: EnergyTable, stats: dict) -> list[dict]:
         bits = stats["fifos"][f.name]["bits_transferred"] // frames
         add("fifos", "fifo", f"{f.name}: bits pushed and popped", 2 * bits, "bit",
             table.fifo_pj_per_bit)
-    if not plan.camera:
+    if not plan.camera_direct:
         add("dram", "dram", "both views read by the memory sources", 2 * n * 8, "bit",
+            table.dram_pj_per_bit)
+    if plan.frame_buffered:
+        add("dram", "dram", "both views written into the frame buffers", 2 * n * 8, "bit",
             table.dram_pj_per_bit)
     add("dram", "dram", "disparity words written back", n * plan.word_bits, "bit",
         table.dram_pj_per_bit)

@@ -103,8 +103,11 @@ class FifoPlan:
 class BlockPlan:
     """A block of the chip. ``kind``: memory, camera, nna, merge, sva or sink. Per kind:
 
-    - memory: ``bytes_per_s`` (token bucket), ``items`` pixels;
-    - camera: ``line_clocks`` = W + hblank, ``frame_clocks`` = (H + vblank)(W + hblank);
+    - memory: ``bytes_per_s`` (token bucket), ``items`` pixels; with ``feed`` (a camera with
+      frame buffers) it reads the frames that camera writes into ``frame_buffers`` buffers
+      (``line_clocks``, ``frame_clocks``: the camera's raster);
+    - camera: ``line_clocks`` = W + hblank, ``frame_clocks`` = (H + vblank)(W + hblank); with
+      frame buffers it writes into DRAM (no FIFO) and admits or drops each frame;
     - nna: ``tile``, ``half`` (window rows above/below), ``rows`` (line buffer), ``cycles`` per
       descriptor (the MAC array's initiation interval and latency);
     - merge: ``items`` descriptors moved, one per cycle;
@@ -133,6 +136,8 @@ class BlockPlan:
     frame_clocks: int = 0
     buffers: tuple[BufferPlan, ...] = ()
     stages: tuple[StagePlan, ...] = ()
+    feed: str = ""  # memory: the camera whose frame buffers it reads ("": frames in memory)
+    frame_buffers: int = 0  # memory fed by a camera: the frame buffers in DRAM
 
 
 @dataclass(frozen=True)
@@ -190,6 +195,16 @@ class ChipPlan:
     def camera(self) -> bool:
         return self.cfg.source.kind == "camera"
 
+    @property
+    def frame_buffered(self) -> bool:
+        """A camera that writes its frames into DRAM frame buffers, read by a memory source."""
+        return self.camera and self.cfg.source.frame_buffers > 0
+
+    @property
+    def camera_direct(self) -> bool:
+        """A camera streaming straight into the NNA's FIFOs."""
+        return self.camera and not self.frame_buffered
+
     @cached_property
     def symmetric(self) -> bool:
         """Do the two cameras' sides time alike -- the same blocks and FIFOs but for their
@@ -208,7 +223,8 @@ class ChipPlan:
 
     @property
     def source_domain(self) -> str:
-        return "camera" if self.camera else "nna"
+        """The domain of the block that pushes the pixels into the NNA's FIFOs."""
+        return "camera" if self.camera_direct else "nna"
 
     @property
     def p_max_fs(self) -> int:
@@ -296,7 +312,13 @@ def build_plan(cfg: ChipConfig, shape: tuple[int, int], frames: int = 1) -> Chip
     parts = cfg.nna.stereo_submodules // 2
     tiles = tuple(split_frame(shape, parts, cfg.nna.split, cfg.nna))
     camera = cfg.source.kind == "camera"
-    src_dom = "camera" if camera else "nna"
+    buffered = camera and cfg.source.frame_buffers > 0
+    src_dom = "camera" if camera and not buffered else "nna"
+    if cfg.source.on_overflow == "drop_frame" and not buffered:
+        raise ConfigError(
+            "source.on_overflow=drop_frame needs a camera with frame buffers "
+            "(--set source.kind=camera --set source.frame_buffers=2): a camera streaming "
+            "straight into the NNA cannot take back a frame it has started sending")
     freqs = {"nna": cfg.clocks.nna_mhz * 1e6, "sva": cfg.clocks.sva_mhz * 1e6}
     if camera:
         freqs["camera"] = cfg.clocks.camera_mhz * 1e6
@@ -317,7 +339,7 @@ def build_plan(cfg: ChipConfig, shape: tuple[int, int], frames: int = 1) -> Chip
 
     widest_in = max(t.in_x1 - t.in_x0 for t in tiles)
     for s, side in enumerate(SIDES):
-        src = f"camera_{side}" if camera else f"memory_{side}"
+        src = f"camera_{side}" if camera and not buffered else f"memory_{side}"
         subs = [f"nna_{side}" if parts == 1 else f"nna_{side}{t}" for t in range(parts)]
         merge = f"merge_{side}"
         to_sva = fifo(f"nna_{side}_to_sva", "fifo.nna_to_sva_depth", f.nna_to_sva_depth,
@@ -332,15 +354,22 @@ def build_plan(cfg: ChipConfig, shape: tuple[int, int], frames: int = 1) -> Chip
             sub_outs = [fifo(f"nna_{side}{t}_to_merge", "fifo.nna_to_merge_depth",
                              f.nna_to_merge_depth, beat_bits, subs[t], merge, "nna", "nna",
                              tiles[t].shape[0] * tiles[t].shape[1]) for t in range(parts)]
-        if camera:
-            line = w + cfg.source.camera_hblank
+        line = w + cfg.source.camera_hblank
+        raster = {"line_clocks": line, "frame_clocks": (h + cfg.source.camera_vblank) * line}
+        if camera and not buffered:
             blocks.append(BlockPlan(src, "camera", src_dom, s, (), tuple(src_fifos),
-                                    f"top.{src}", n, line_clocks=line,
-                                    frame_clocks=(h + cfg.source.camera_vblank) * line))
+                                    f"top.{src}", n, **raster))
         else:
+            if buffered:  # the camera writes its frames into DRAM, the memory source reads them
+                cam = f"camera_{side}"
+                blocks.append(BlockPlan(cam, "camera", "camera", s, (), (), f"top.{cam}", n,
+                                        **raster))
             blocks.append(BlockPlan(src, "memory", src_dom, s, (), tuple(src_fifos),
                                     f"top.{src}", n,
-                                    bytes_per_s=round(cfg.source.memory_gbps * 1e9)))
+                                    bytes_per_s=round(cfg.source.memory_gbps * 1e9),
+                                    feed=f"camera_{side}" if buffered else "",
+                                    frame_buffers=cfg.source.frame_buffers,
+                                    **(raster if buffered else {})))
         for t, tile in enumerate(tiles):
             blocks.append(BlockPlan(
                 subs[t], "nna", "nna", s, (src_fifos[t],), (sub_outs[t],),

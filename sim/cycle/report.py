@@ -32,16 +32,20 @@ def throughput(plan: ChipPlan, work: dict[str, int]) -> dict:
 
 
 def stream_report(plan: ChipPlan, frame_times) -> dict:
-    """The measured figures of a stream (``frame_times``: (2, frames) instants in fs of each
-    frame's first input pixel and last output word): frames completed; the **sustained** frame
+    """The measured figures of a stream (``frame_times``: (3, frames): per frame the chip took,
+    the instants in fs of its first input pixel and last output word, and the input frame it
+    is): frames completed and dropped (a camera with frame buffers); the **sustained** frame
     rate -- frames completed per second of simulated time after the first, (N - 1) / (end of
     frame N-1 - end of frame 0), None for a single frame -- and each frame's latency, first
     pixel in to last disparity out (min, median, p99, max and every frame's, in ms)."""
     first, last = np.asarray(frame_times[0]), np.asarray(frame_times[1])
+    taken = {int(f) for f in np.asarray(frame_times[2]) if f >= 0}
     done = last >= 0
     n_done = int(done.sum())
     lat_ms = (last[done] - first[done]) / 1e12
-    out: dict = {"frames": plan.frames, "frames_completed": n_done}
+    dropped = [f for f in range(plan.frames) if f not in taken]
+    out: dict = {"frames": plan.frames, "frames_completed": n_done,
+                 "frames_dropped": len(dropped), "dropped_frames": dropped}
     if n_done > 1:
         span_s = (last[done][-1] - last[done][0]) / FS_PER_S
         out["sustained_fps"] = round(float((n_done - 1) / span_s), 3)

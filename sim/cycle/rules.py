@@ -80,6 +80,15 @@ def camera_cycle(f, x, y, line_clocks, frame_clocks):
 
 
 @register_jitable
+def frame_buffer_admits(g, buffers, busy_until_fs, start_fs):
+    """Does a camera with ``buffers`` frame buffers in DRAM take the frame it starts at
+    ``start_fs`` as its g-th (from 0)? Yes while fewer than ``buffers`` frames were taken, else
+    when the reader finished the frame that held the buffer, the (g - buffers)-th, at
+    ``busy_until_fs`` -- strictly before the frame starts."""
+    return g < buffers or busy_until_fs < start_fs
+
+
+@register_jitable
 def nna_last_input_row(y, half, image_rows):
     """The last image row the descriptors of image row y read: min(y + h, H - 1) (replicate
     border below)."""

@@ -31,3 +31,13 @@ def overflow_message(overflows: list[tuple[str, str, int, int, int]], height: in
                      for cam, fifo, x, y, cycle in overflows)
     return (f"{what}: the NNA does not keep up with the camera; use a slower camera, more NNA "
             "throughput (clocks.nna_mhz, nna.macs) or a deeper fifo.source_to_nna_depth")
+
+
+def frame_buffer_message(camera: str, frame: int, busy_frame: int, cycle: int, source) -> str:
+    """The one-line message of a camera whose frame found no free frame buffer (``on_overflow
+    = "error"``): ``busy_frame`` is still being read from the buffer it would take."""
+    return (f"camera '{camera}' found no free frame buffer for frame {frame}, cycle {cycle}: "
+            f"the NNA still reads frame {busy_frame} from the buffer it needs "
+            f"({source.frame_buffers} buffer(s)); drop such frames "
+            "(source.on_overflow=drop_frame), add buffers (source.frame_buffers) or more NNA "
+            "throughput (nna.stereo_submodules, clocks.nna_mhz)")

@@ -71,6 +71,11 @@ def configurations(draw):
                      "clocks.camera_mhz": draw(st.sampled_from([4, 10, 25, 120])),
                      "source.camera_hblank": draw(st.integers(0, 12)),
                      "source.camera_vblank": draw(st.integers(0, 4))})
+        buffers = draw(st.sampled_from([0, 0, 1, 2]))  # into frame buffers in DRAM
+        if buffers:
+            over.update({"source.frame_buffers": buffers,
+                         "source.on_overflow": draw(st.sampled_from(["error", "drop_frame"])),
+                         "source.memory_gbps": draw(st.sampled_from([0.05, 4.0]))})
     else:
         over["source.memory_gbps"] = draw(st.sampled_from([0.05, 0.2, 4.0]))
     stall = None
@@ -82,7 +87,10 @@ def configurations(draw):
         stall = NEVER
     if kind == "never" or draw(st.integers(0, 9)) == 0:
         over["sim.watchdog_cycles"] = draw(st.integers(10, 400))
-    frames = draw(st.sampled_from([1, 1, 2, 3]))  # streams of frames back to back
+    # streams of frames back to back (a slow camera's stream is short: the readable kernel
+    # steps every NNA edge of its long frame periods)
+    frames = draw(st.sampled_from([1, 1, 2, 3] if over.get("clocks.camera_mhz", 120) >= 25
+                                  else [1, 1, 2]))
     p_sva = round(1e15 / (over["clocks.sva_mhz"] * 1e6))
     start = draw(st.integers(0, 1500 * frames)) * p_sva
     window = (start, start + draw(st.integers(1, 3000)) * p_sva)
@@ -121,7 +129,8 @@ def test_the_compiled_engine_equals_the_readable_kernel(case):
             assert getattr(fast_err, attr, None) == getattr(slow_err, attr, None)
         return
     np.testing.assert_array_equal(fast.words, slow.words)
-    assert [f for f, _ in got_fast] == [f for f, _ in got_slow] == list(range(frames))
+    assert [f for f, _ in got_fast] == [f for f, _ in got_slow]
+    assert len(got_fast) + fast.report["stream"]["frames_dropped"] == frames
     for (_, a), (_, b) in zip(got_fast, got_slow):
         np.testing.assert_array_equal(a, b)  # every frame's words
     assert fast.stats == slow.stats

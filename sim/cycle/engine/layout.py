@@ -60,6 +60,12 @@ PARAMS = np.dtype([
     ("cap_fs", np.int64),  # events at instants >= cap_fs are not computed
     ("watchdog_fs", np.int64), ("stats", np.int64),  # 1: accumulate statistics and gaps
     ("n_stages", np.int64),
+    ("target", np.int64),  # words the sink takes to finish
+    # a camera writing into frame buffers (fb of them), read by the memory sources
+    ("fb", np.int64), ("fb_drop", np.int64), ("cam_line", np.int64), ("cam_frame", np.int64),
+    ("per_cam", np.int64),
+    ("fb_taken", np.int64),  # frames taken so far
+    ("fb_next", np.int64),  # the next camera frame to decide
     ("sva_regular", np.int64),  # SVA words issued II ticks after the previous, without a stall
     ("sva_peaks_full", np.int64),  # 1: every SVA stage has held ceil(latency / II) words
     # outcome
@@ -155,10 +161,13 @@ class Net(NamedTuple):
     scratch: np.ndarray  # int64 (tiles per camera, 14): per-tile tables of a kernel call
     cursors: np.ndarray  # int64 (streams,): events up to an instant (the replay's)
     stages: np.ndarray  # STAGE: the SVA's stages in stream order
-    frame_fs: np.ndarray  # int64 (2, frames): each frame's first pixel pushed by the left
-    # source and last word popped by the sink (fs); -1 where not reached
+    frame_fs: np.ndarray  # int64 (3, frames): per frame of the stream the chip took, the
+    # instant (fs) of its first pixel (pushed by the left source, or a camera's) and of its last
+    # word popped by the sink, and the input frame it is; -1 where not reached
     win: np.ndarray  # WINDOW: the row windows' walks (sim.cycle.buffers), the tiles computed
     # (side-major) then the SVA's
+    fbuf: np.ndarray  # int64 (2, frames): with frame buffers, per camera frame whether it was
+    # dropped ([0]: 1) and per frame taken the instant (fs) the reader finished it ([1])
 
 
 class TraceData(NamedTuple):
@@ -215,7 +224,10 @@ def serialise(plan: ChipPlan, *, sink_stall=None, cap_fs: int = INF, stats: bool
     specs = []  # (kind, side, tile, n, period, block)
     a_id, b_id, e_id, m_id = {}, {}, {}, {}
     for s in range(sides):
-        src = next(b for b in plan.blocks if b.kind in ("memory", "camera") and b.side == s)
+        # the block that pushes the pixels: a camera straight into the NNA, or a memory
+        # source (reading frames in memory or a camera's frame buffers)
+        kind = "camera" if plan.camera_direct else "memory"
+        src = next(b for b in plan.blocks if b.kind == kind and b.side == s)
         a_id[s] = len(specs)
         specs.append((S_A, s, -1, nf * n, doms[src.domain].period_fs, block_index[src.name]))
     nna = [b for b in plan.blocks if b.kind == "nna"]
@@ -298,8 +310,8 @@ def serialise(plan: ChipPlan, *, sink_stall=None, cap_fs: int = INF, stats: bool
     p["h"], p["w"], p["n"], p["parts"] = h, w, n, parts
     p["sides"] = sides
     p["merge"] = 1 if parts > 1 else 0
-    p["camera"] = 1 if plan.camera else 0
-    src = plan.blocks_of("camera" if plan.camera else "memory")[0]
+    p["camera"] = 1 if plan.camera_direct else 0
+    src = plan.blocks_of("camera" if plan.camera_direct else "memory")[0]
     p["line_clocks"] = src.line_clocks
     p["frame_clocks"] = src.frame_clocks
     p["frames"] = nf
@@ -319,6 +331,13 @@ def serialise(plan: ChipPlan, *, sink_stall=None, cap_fs: int = INF, stats: bool
     p["watchdog_fs"] = plan.watchdog_fs
     p["stats"] = 1 if stats else 0
     p["n_stages"] = len(sva.stages)
+    p["target"] = nf * n  # words the sink takes to finish (fewer once a camera drops frames)
+    if plan.frame_buffered:
+        cam = plan.block("camera_left")
+        p["fb"] = cfg.source.frame_buffers
+        p["fb_drop"] = 1 if cfg.source.on_overflow == "drop_frame" else 0
+        p["cam_line"], p["cam_frame"] = cam.line_clocks, cam.frame_clocks
+        p["per_cam"] = doms["camera"].period_fs
     acc = np.zeros(len(plan.blocks) + len(plan.fifos), ACC)
     acc["last_pop"] = -1
     acc["over_cycle"] = INF
@@ -334,7 +353,10 @@ def serialise(plan: ChipPlan, *, sink_stall=None, cap_fs: int = INF, stats: bool
     rows = np.full((2, h + 1), -1, np.int64)
     rows[:, 0] = 0
     occ = np.full((2 * len(tiles) + 2, _row_ring(plan, cap)), -1, np.int64)
-    frame_fs = np.full((2, nf), -1, np.int64)
+    frame_fs = np.full((3, nf), -1, np.int64)
+    if not plan.frame_buffered:
+        frame_fs[2] = np.arange(nf)
+    fbuf = np.full((2, nf), -1, np.int64)
     win = np.zeros(sides * parts + 1, WINDOW)
     for i, (block, _, _, _, slot, offset, in_rows, out_rows) in enumerate(tracked(plan)):
         if i < sides * parts:  # an NNA tile: its pops and pushes
@@ -351,7 +373,7 @@ def serialise(plan: ChipPlan, *, sink_stall=None, cap_fs: int = INF, stats: bool
     for i, (st, off) in enumerate(zip(sva.stages, stage_offsets(sva.stages))):
         stages[i] = (off, st.latency, st.slots, 0, 0, 0, -1)
     return Net(prm, streams, ring, tiles, fifos, blocks, acc, walks, hist, gaps, rows, occ,
-               scratch, cursors, stages, frame_fs, win), names
+               scratch, cursors, stages, frame_fs, win, fbuf), names
 
 
 def seconds(fs: int) -> float:

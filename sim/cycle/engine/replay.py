@@ -33,6 +33,7 @@ from sim.cycle.engine.pipeline import arrival, issued_before, words_between
 from sim.cycle.engine.ring import rd
 from sim.cycle.engine.walkers import tile_input_before, tile_output_before
 from sim.cycle.rules import (
+    camera_cycle,
     memory_first_cycle,
     nna_last_input_row,
     seen_from,
@@ -135,10 +136,42 @@ def _tile_full(ring, streams, shape, tl, f, k, c):
     return b == INF or seen_from(b, f.per_dst, f.per_src, f.space_edges) > c
 
 
+FRAME_BUFFERS = -2  # what a memory source reading a camera's frame buffers waits on
+
+
+@njit(cache=True, inline="always")
+def _streamed(prm, c):
+    """Pixels a camera has streamed after its cycle c (its raster, frame after frame)."""
+    f = c // prm.cam_frame
+    if f >= prm.frames:
+        return prm.frames * prm.n
+    line = (c - f * prm.cam_frame) // prm.cam_line
+    col = c - f * prm.cam_frame - line * prm.cam_line
+    if line >= prm.h:
+        return (f + 1) * prm.n
+    return f * prm.n + line * prm.w + min(col + 1, prm.w)
+
+
 @njit(cache=True)
-def _status_memory(ring, streams, cursors, prm, tiles, fifos, b, c):
+def _status_memory(ring, streams, cursors, prm, tables, b, c):
+    tiles, fifos, frame_fs = tables
     k, at = _lt_at(ring, streams[b.stream], cursors[b.stream], c)
-    if k >= prm.frames * prm.n:
+    if prm.fb > 0:  # reading a camera's frame buffers: frames are decided at their start
+        instant = c * b.period
+        last_start = (prm.frames - 1) * prm.cam_frame * prm.per_cam
+        if prm.fb_next == prm.frames and last_start < instant and k >= prm.fb_taken * prm.n:
+            return A_IDLE, -1
+        if at:
+            return A_BUSY, -1
+        g = k // prm.n
+        if g >= prm.fb_taken or frame_fs[0, g] >= instant:
+            return A_STARVED, FRAME_BUFFERS  # the frame is not decided yet
+        y = (k - g * prm.n) // prm.w
+        x = k - g * prm.n - y * prm.w
+        cam = camera_cycle(frame_fs[2, g], x, y, prm.cam_line, prm.cam_frame)
+        if c < seen_from(cam, prm.per_cam, b.period, 1):
+            return A_STARVED, FRAME_BUFFERS  # the camera has not written the pixel
+    elif k >= prm.frames * prm.n:
         return A_IDLE, -1
     if at or c < memory_first_cycle(k, prm.mem_hz, prm.mem_bps):
         return A_BUSY, -1
@@ -188,7 +221,8 @@ def _status_nna(ring, streams, cursors, prm, tl, c):
 
 
 @njit(cache=True)
-def _status_merge(ring, streams, cursors, prm, tiles, fifos, b, c):
+def _status_merge(ring, streams, cursors, prm, tables, b, c):
+    tiles, fifos, _ = tables
     m_s = fifos[b.fifo_out].push
     m, at = _lt_at(ring, streams[m_s], cursors[m_s], c)
     if m >= prm.frames * prm.n:
@@ -277,29 +311,31 @@ def _status_sink(ring, streams, cursors, prm, fifos, b, c):
 
 
 @njit(cache=True)
-def _block_status(ring, streams, cursors, prm, tiles, fifos, b, c):
+def _block_status(ring, streams, cursors, prm, tables, b, c):
     """(activity, FIFO waited on or -1) that block ``b`` (its record) reports in its cycle c."""
     kind = b.kind
     if kind == K_MEMORY:
-        return _status_memory(ring, streams, cursors, prm, tiles, fifos, b, c)
+        return _status_memory(ring, streams, cursors, prm, tables, b, c)
     if kind == K_CAMERA:  # busy in the lines of its frames
         fr = c // prm.frame_clocks
         busy = fr < prm.frames and (c - fr * prm.frame_clocks) // prm.line_clocks < prm.h
         return (A_BUSY if busy else A_IDLE), -1
     if kind == K_NNA:
-        return _status_nna(ring, streams, cursors, prm, tiles[b.side * prm.parts + b.tile], c)
+        return _status_nna(ring, streams, cursors, prm, tables[0][b.side * prm.parts + b.tile],
+                           c)
     if kind == K_MERGE:
-        return _status_merge(ring, streams, cursors, prm, tiles, fifos, b, c)
+        return _status_merge(ring, streams, cursors, prm, tables, b, c)
     if kind == K_SVA:
-        return _status_sva(ring, streams, cursors, prm, fifos, b, c)
-    return _status_sink(ring, streams, cursors, prm, fifos, b, c)
+        return _status_sva(ring, streams, cursors, prm, tables[1], b, c)
+    return _status_sink(ring, streams, cursors, prm, tables[1], b, c)
 
 
 @njit(cache=True)
 def block_status(net, blk, c):
     """(activity, FIFO waited on or -1) that block ``blk`` reports in its cycle c (after
     :func:`cursors_at` for the instant)."""
-    return _block_status(net.ring, net.streams, net.cursors, net.prm[0], net.tiles, net.fifos,
+    return _block_status(net.ring, net.streams, net.cursors, net.prm[0],
+                         (net.tiles, net.fifos, net.frame_fs),
                          net.blocks[blk], c)
 
 
@@ -463,11 +499,14 @@ def sample(net, data, t, out, done):
             k += _block_signals(b.kind, prm.n_stages)
             continue
         done[blk, 0] = c
-        st, _ = _block_status(ring, streams, cursors, prm, tiles, fifos, b, c)
+        st, _ = _block_status(ring, streams, cursors, prm, (tiles, fifos, net.frame_fs), b, c)
         out[k] = (st + 1) % 4  # idle 0, busy 1, starved 2, blocked 3
         k += 1
-        if b.kind == K_MEMORY or b.kind == K_CAMERA:
+        if b.kind == K_MEMORY or (b.kind == K_CAMERA and prm.fb == 0):
             out[k] = cursors[b.stream]
+            k += 1
+        elif b.kind == K_CAMERA:  # writing frame buffers: the pixels it has streamed
+            out[k] = _streamed(prm, c)
             k += 1
         elif b.kind == K_NNA:
             _sample_nna(ring, streams, cursors, prm, tiles[b.side * prm.parts + b.tile],

@@ -32,6 +32,7 @@ from sim.cycle.clock import (
     stop_message,
     watchdog_message,
 )
+from sim.cycle.rules import seen_from
 from sim.cycle.engine.layout import (
     END_DONE,
     END_OVERFLOW,
@@ -44,6 +45,7 @@ from sim.cycle.engine.layout import (
     serialise,
 )
 from sim.cycle.engine.replay import (
+    FRAME_BUFFERS,
     block_status,
     count_le,
     cursors_at,
@@ -57,7 +59,7 @@ from sim.cycle.engine.walkers import finish_fifos, note_camera, pop_cycle
 from sim.cycle.frames import FrameSupply
 from sim.cycle.plan import ChipPlan
 from sim.cycle.report import cycle_report
-from sim.cycle.stops import CameraOverflow, overflow_message
+from sim.cycle.stops import CameraOverflow, frame_buffer_message, overflow_message
 from sim.errors import ConfigError
 from sva.pipeline import sva_stream
 from traces.log import TraceLog
@@ -116,7 +118,7 @@ def _pass(plan: ChipPlan, sink_stall, cap_fs: int, stats: bool, capacity: int | 
         if stats:
             for i, b in enumerate(plan.blocks):
                 if b.kind == "camera":
-                    note_camera(net, i, plan.shape[0], b.line_clocks)
+                    note_camera(net, i, plan.shape[0], b.line_clocks, b.frame_clocks)
         ids = np.array([names["p"], names["fifo_index"]["nna_left_to_sva"],
                         names["fifo_index"]["nna_right_to_sva"],
                         names["fifo_index"]["sva_to_sink"]], np.int64)
@@ -157,13 +159,17 @@ def _periods(plan: ChipPlan) -> np.ndarray:
 
 def _stats(plan: ChipPlan, net: Net, names: dict, t_end: int) -> dict:
     h, w = plan.shape
-    n = plan.frames * h * w
+    prm = net.prm[0]
+    # the frames the chip took: all of them, but for a camera's dropped ones -- whose beats the
+    # blocks after the source wait for in vain (starved, not idle, to the end of the run)
+    taken = int(prm["fb_taken"]) if plan.frame_buffered else plan.frames
+    short = taken < plan.frames
+    n = taken * h * w
     per = {name: d.period_fs for name, d in plan.domains.items()}
     cycles = {name: t_end // p + 1 for name, p in per.items()}
     nf = len(plan.fifos)
     fcyc = np.array([[cycles[f.dst], cycles[f.src]] for f in plan.fifos], np.int64)
     finish_fifos(net, fcyc)
-    prm = net.prm[0]
     mirrored = int(prm["sides"]) == 1  # the right side's events are the left side's
     blocks = {}
     for i, b in enumerate(plan.blocks):
@@ -172,9 +178,15 @@ def _stats(plan: ChipPlan, net: Net, names: dict, t_end: int) -> dict:
         if mirrored and b.side == 1:
             blocks[b.name] = blocks[_left(b.name)]
         elif b.kind == "memory":
-            active = _last(net, names["a"][b.side]) + 1
-            blocks[b.name] = activity_counts(active - acc["blocked"], 0, acc["blocked"],
-                                             c_d - active)
+            active = _last(net, names["a"][b.side]) + 1 if n else 0
+            starved = int(acc["starved"])
+            if plan.frame_buffered:  # it waits for the camera until the last frame's decision
+                last = (plan.frames - 1) * b.frame_clocks
+                seen = seen_from(last, per["camera"], per[b.domain], 1)
+                starved += max(0, min(c_d, seen) - active)
+                active = max(active, min(c_d, seen))
+            blocks[b.name] = activity_counts(active - starved - acc["blocked"], starved,
+                                             acc["blocked"], c_d - active)
         elif b.kind == "camera":  # busy in the lines of its frames
             busy = sum(min(max(0, c_d - f * b.frame_clocks), h * b.line_clocks)
                        for f in range(plan.frames))
@@ -184,11 +196,15 @@ def _stats(plan: ChipPlan, net: Net, names: dict, t_end: int) -> dict:
             stream = (names["e"][b.side, max(0, int(s["tile"]))] if b.kind == "nna"
                       else names["p"] + 1)
             active = _last(net, stream) + 1
+            tail = c_d - active
             blocks[b.name] = activity_counts(active - acc["starved"] - acc["blocked"],
-                                             acc["starved"], acc["blocked"], c_d - active)
+                                             acc["starved"] + (tail if short else 0),
+                                             acc["blocked"], 0 if short else tail)
         elif b.kind == "merge":
             active = _last(net, names["m"][b.side]) + 1
-            blocks[b.name] = activity_counts(n, acc["starved"], acc["blocked"], c_d - active)
+            tail = c_d - active
+            blocks[b.name] = activity_counts(n, acc["starved"] + (tail if short else 0),
+                                             acc["blocked"], 0 if short else tail)
         else:
             q_last = _last(net, names["p"] + 2)
             period, phase = int(prm["stall_period"]), int(prm["stall_phase"])
@@ -202,7 +218,7 @@ def _stats(plan: ChipPlan, net: Net, names: dict, t_end: int) -> dict:
             continue
         wk = net.walks[nf + k] if f.crossing else net.walks[k]
         hist = net.hist[net.walks[k]["hoff"]:net.walks[k]["hoff"] + f.depth + 1]
-        beats = plan.frames * f.beats
+        beats = taken * f.beats
         last_pop = int(pop_cycle(net, k, beats - 1))
         fifos[f.name] = fifo_counts(
             pushes=beats, pops=beats, depth=f.depth, width_bits=f.width_bits,
@@ -212,7 +228,7 @@ def _stats(plan: ChipPlan, net: Net, names: dict, t_end: int) -> dict:
     c_sva = cycles["sva"]
     stages = {}
     for st, rec in zip(plan.block("sva").stages, net.stages):
-        idle = c_sva - int(rec["done"]) - 1
+        idle = 0 if short else c_sva - int(rec["done"]) - 1
         stages[st.name] = {**activity_counts(int(rec["busy"]),
                                              c_sva - int(rec["busy"]) - int(rec["blocked"]) - idle,
                                              int(rec["blocked"]), idle),
@@ -253,6 +269,8 @@ def _stop(plan: ChipPlan, sink_stall, cls, now_fs: int, executed: int, tail: str
         waiting = None
         if wait >= 0:
             waiting = (plan.fifos[wait].name, "full" if status == "blocked" else "empty")
+        elif wait == FRAME_BUFFERS:
+            waiting = ("frame buffers", "empty")
         blocks[b.name] = {"status": status, "waiting_on": waiting}
     msg = stop_message("deadlock" if cls is DeadlockError else "cycle budget exceeded", now_fs,
                        cycles, fifos, blocks, tail)
@@ -267,7 +285,14 @@ def _raise_stop(plan: ChipPlan, net: Net, names: dict, sink_stall, t_end: int) -
     t_budget = _budget_instant(plan)
     t_over = INF
     over = []
-    if net.prm[0]["end"] == END_OVERFLOW:
+    fb_message = None
+    if net.prm[0]["end"] == END_OVERFLOW and plan.frame_buffered:  # no free frame buffer
+        acc = net.acc[[b.name for b in plan.blocks].index("memory_left")]
+        cycle = int(acc["over_cycle"])
+        t_over = cycle * plan.domains["camera"].period_fs
+        fb_message = frame_buffer_message("camera_left", int(acc["over_k"]),
+                                          int(acc["over_tile"]), cycle, plan.cfg.source)
+    elif net.prm[0]["end"] == END_OVERFLOW:
         index = {b.name: i for i, b in enumerate(plan.blocks)}
         mirrored = int(net.prm[0]["sides"]) == 1
         for b in plan.blocks:
@@ -290,6 +315,8 @@ def _raise_stop(plan: ChipPlan, net: Net, names: dict, sink_stall, t_end: int) -
         raise _stop(plan, sink_stall, BudgetExceeded, now, t_budget,
                     budget_message(limit_d, plan.budget[limit_d]))
     if t_over <= t_dog and t_over < INF:
+        if fb_message is not None:
+            raise CameraOverflow(fb_message)
         raise CameraOverflow(overflow_message([e[1:] for e in over if e[0] == t_over],
                                               plan.shape[0], plan.frames))
     if t_dog < INF:
@@ -403,10 +430,10 @@ def run_compiled(plan: ChipPlan, left, right=None, *, sink_stall=None,
     kept_desc, kept_words = [], []
     nna_s = sva_s = 0.0
     last = None
-    for f in range(plan.frames):
+    for f in range(int(np.count_nonzero(frame_fs[2] >= 0))):  # the frames the chip took
         if not words and f not in traced:
             continue
-        left_f, right_f = supply.pair(f)
+        left_f, right_f = supply.pair(int(frame_fs[2, f]))
         ta = time.process_time()
         desc = (compute_descriptor(left_f, plan.cfg.nna), compute_descriptor(right_f, plan.cfg.nna))
         tb = time.process_time()
@@ -417,7 +444,7 @@ def run_compiled(plan: ChipPlan, left, right=None, *, sink_stall=None,
             kept_desc.append(np.stack(desc).astype(np.uint64))
             kept_words.append(last)
         if on_frame is not None and words:
-            on_frame(f, last)
+            on_frame(int(frame_fs[2, f]), last)
     if timings is not None:
         timings.update(engine_s=t1 - t0, nna_kernels_s=nna_s, sva_kernels_s=sva_s)
     result = FrameResult(last if words else None, report, stats, net.rows.copy(), frame_fs)

@@ -57,6 +57,7 @@ from sim.cycle.rules import (
     nna_last_input_row,
     nna_rows_started_before_input,
     seen_from_scaled,
+    frame_buffer_admits,
     sva_rows_done_before_input,
 )
 
@@ -87,6 +88,48 @@ def _source_tables(tiles, fifos, streams, side, parts, tab):
         tab[t, 13] = tl.n_in
 
 
+@njit(cache=True)
+def decide_frame(net, g, acc):
+    """The camera frame the g-th frame of the stream is, with frame buffers: the next camera
+    frame whose buffer is free when it starts (:func:`~sim.cycle.rules.frame_buffer_admits`:
+    the reader finished frame g - B before), the ones before it dropped -- or a stop (policy
+    error: ``prm.end`` = END_OVERFLOW, the frame in ``acc``). Returns 1 taken, 0 undecided
+    (its start is beyond the cap) or no camera frame left (then the stream has g frames:
+    ``prm.target``), -1 stopped."""
+    prm = net.prm[0]
+    while prm.fb_next < prm.frames:
+        f = prm.fb_next
+        start = f * prm.cam_frame * prm.per_cam
+        if start >= prm.cap_fs:
+            return 0
+        busy_until = net.fbuf[1, g - prm.fb] if g >= prm.fb else INF
+        if frame_buffer_admits(g, prm.fb, busy_until, start):
+            net.frame_fs[0, g] = start
+            net.frame_fs[2, g] = f
+            prm.fb_taken = g + 1
+            prm.fb_next = f + 1
+            return 1
+        if prm.fb_drop == 1:
+            net.fbuf[0, f] = 1
+            prm.fb_next = f + 1
+            continue
+        acc.over_cycle, acc.over_k, acc.over_tile = f * prm.cam_frame, f, \
+            net.frame_fs[2, g - prm.fb]
+        prm.end = END_OVERFLOW
+        return -1
+    prm.target = g * prm.n
+    return 0
+
+
+@njit(cache=True, inline="always")
+def fb_first_cycle(net, g, x, y, per_src, rat):
+    """The first source cycle that may read pixel (x, y) of the g-th frame of the stream from
+    its frame buffer: the first edge after the camera wrote it."""
+    prm = net.prm[0]
+    c = camera_cycle(net.frame_fs[2, g], x, y, prm.cam_line, prm.cam_frame)
+    return seen_from_scaled(c, prm.per_cam, per_src, rat, 1)
+
+
 @njit(cache=True, inline="always")
 def advance_source(net, side):
     """Source pushes of camera ``side`` (a joint push to every tile that takes the pixel)."""
@@ -115,7 +158,13 @@ def advance_source(net, side):
     x = k - y * w
     fno = y // h
     y -= fno * h
+    fb = prm.fb
+    rat_cam = ratio(prm.per_cam, per) if fb > 0 else 1.0
+    starved = 0
     while k < n:
+        if fb > 0 and x == 0 and y == 0 and fno >= prm.fb_taken:  # a camera's next frame
+            if decide_frame(net, fno, acc) != 1:
+                break
         free = 0
         ok = True
         c = camera_cycle(fno, x, y, line_clocks, frame_clocks)
@@ -144,12 +193,19 @@ def advance_source(net, side):
             if full_tile >= 0:
                 break
         else:
-            lo = max(a_prev + 1, memory_first_cycle(k, mem_hz, mem_bps))
+            first = max(a_prev + 1, fb_first_cycle(net, fno, x, y, per, rat_cam) if fb > 0
+                        else 0)
+            lo = max(first, memory_first_cycle(k, mem_hz, mem_bps))
             a = max(lo, free)
             if a * per >= cap:
                 break
             if stats == 1:
-                # busy in every cycle but the blocked ones, lo .. a - 1
+                # starved waiting for the camera, then busy in every cycle but the blocked
+                # ones, lo .. a - 1
+                if first > a_prev + 1:
+                    starved += first - a_prev - 1
+                    n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy, first * per,
+                                             first * per, g)
                 if a > lo:
                     blocked += a - lo
                     n_gaps, last_busy = busy(gaps, blk, n_gaps,
@@ -157,8 +213,10 @@ def advance_source(net, side):
                                              a * per, g)
                 last_busy = a * per
         ring[a_off + (k & a_mask)] = a
-        if side == 0 and x == 0 and y == 0:
+        if side == 0 and x == 0 and y == 0 and fb == 0:
             frame_in[fno] = a * per
+        if fb > 0 and x == w - 1 and y == h - 1:
+            net.fbuf[1, fno] = a * per  # the reader is done with this frame's buffer
         a_prev = a
         k += 1
         x += 1
@@ -170,6 +228,7 @@ def advance_source(net, side):
                 fno += 1
     st.count = k
     acc.blocked += blocked
+    acc.starved += starved
     acc.last_busy, acc.gaps = last_busy, n_gaps
     if full_tile >= 0:
         acc.over_cycle, acc.over_k, acc.over_tile = (
@@ -211,7 +270,10 @@ def advance_whole_side(net, side):
     row_fs = net.rows[0]
     occ, occ_in = net.occ, 2 * side
     left = side == 0
+    fb = prm.fb
+    rat_cam = ratio(prm.per_cam, p_src) if fb > 0 else 1.0
     blocked = 0
+    starved = 0
     empty = 0
     start_a, start_b = ka, kb
     a_prev = rd(ring, a_off, a_mask, ka - 1) if ka > 0 else -1
@@ -273,12 +335,25 @@ def advance_whole_side(net, side):
                     break
                 a = c
             else:
-                lo = max(a_prev + 1, memory_first_cycle(ka, mem_hz, mem_bps))
+                avail = 0
+                if fb > 0:  # from a camera's frame buffer: decided at each frame's start
+                    if xa == 0 and ya == fa * h and fa >= prm.fb_taken:
+                        if decide_frame(net, fa, acc) != 1:
+                            over = prm.end == END_OVERFLOW
+                            break
+                    avail = fb_first_cycle(net, fa, xa, ya - fa * h, p_src, rat_cam)
+                first = max(a_prev + 1, avail)
+                lo = max(first, memory_first_cycle(ka, mem_hz, mem_bps))
                 a = max(lo, free)
                 if a * p_src >= cap:
                     break
                 if stats == 1:
-                    # busy in every cycle but the blocked ones, lo .. a - 1
+                    # starved waiting for the camera, then busy in every cycle but the
+                    # blocked ones, lo .. a - 1
+                    if first > a_prev + 1:
+                        starved += first - a_prev - 1
+                        n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy, first * p_src,
+                                                 first * p_src, g)
                     if a > lo:
                         blocked += a - lo
                         n_gaps, last_busy = busy(gaps, blk, n_gaps,
@@ -286,8 +361,10 @@ def advance_whole_side(net, side):
                                                  a * p_src, a * p_src, g)
                     last_busy = a * p_src
             ring[a_off + (ka & a_mask)] = a
-            if left and xa == 0 and ya == fa * h:
+            if left and xa == 0 and ya == fa * h and fb == 0:
                 frame_in[fa] = a * p_src
+            if fb > 0 and xa == w - 1 and ya == fa * h + h - 1:
+                net.fbuf[1, fa] = a * p_src  # the reader is done with this frame's buffer
             a_prev = a
             ka += 1
             moved = True
@@ -301,9 +378,10 @@ def advance_whole_side(net, side):
             break
     sa.count, sb.count = ka, kb
     acc.blocked += blocked
+    acc.starved += starved
     acc.last_busy, acc.gaps = last_busy, n_gaps
     net.acc[len(net.blocks) + tl.src_fifo].empty += empty
-    if over:
+    if over and fb == 0:
         acc.over_cycle, acc.over_k, acc.over_tile = (
             camera_cycle(fa, xa, ya - fa * h, line_clocks, frame_clocks), ka, side)
         prm.end = END_OVERFLOW
@@ -705,7 +783,7 @@ def run_pass(net, ids):
                 walk_all(net, False)
                 for s in range(n_streams):
                     walked[s] = streams[s].count
-        if streams[q_s].count == streams[q_s].n:
+        if streams[q_s].count >= prm.target:  # every frame taken is out
             prm.end = END_DONE
             break
         if not moved:

@@ -295,11 +295,11 @@ def walk_sva(net, blk, p_s, final):
         if x == w:
             x = 0
             y += 1
-    if j == n and a.walk < n:  # every word settled: when the last one left each stage
+    if j == prm.target and a.walk < j:  # every word settled: when the last left each stage
         for s in range(net.stages.shape[0]):
             st = net.stages[s]
             st.busy += prm.sva_regular * min(st.lat, prm.cpp) + st.lat
-            tick = rd(ring, t_off, t_mask, n - 1) + st.off + st.lat
+            tick = rd(ring, t_off, t_mask, j - 1) + st.off + st.lat
             st.done, _, bad = cycle_of(ring, o, t, lat, no, kt, tick)
             err |= bad
     a.walk, a.ptr, a.prev = j, ptr, prev
@@ -634,10 +634,13 @@ def finish_fifos(net, cycles):
 
 
 @njit(cache=True)
-def note_camera(net, blk, lines, line_clocks):
-    """A camera is busy from its first to its last line's end."""
+def note_camera(net, blk, lines, line_clocks, frame_clocks):
+    """A camera is busy from each frame's first to its last line's end."""
     if net.blocks[blk].kind == K_CAMERA:
         a = net.acc[blk]
         per = net.blocks[blk].period
-        a.gaps, a.last_busy = busy(net.gaps, blk, a.gaps, a.last_busy, 0,
-                                    (lines * line_clocks - 1) * per, net.prm[0].watchdog_fs)
+        for f in range(net.prm[0].frames):
+            start = f * frame_clocks
+            a.gaps, a.last_busy = busy(net.gaps, blk, a.gaps, a.last_busy, start * per,
+                                        (start + lines * line_clocks - 1) * per,
+                                        net.prm[0].watchdog_fs)
