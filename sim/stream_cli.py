@@ -47,6 +47,12 @@ def _frame_files(folder: Path, f: int, disparity, dmax: float) -> dict[str, byte
             f"disparity_{f:05d}.png": encode_png(disparity_to_colour(disparity, dmax))}
 
 
+def _frames(frames: list[int]) -> str:
+    """A list of frame numbers, the first ten."""
+    shown = ", ".join(str(f) for f in frames[:10])
+    return shown + (f", ... {len(frames) - 10} more" if len(frames) > 10 else "")
+
+
 def energy_line(energy: dict) -> str:
     """One line of the energy section: per frame, by block, and the average power."""
     e = energy["per_frame_uj"]
@@ -70,7 +76,9 @@ def summary(report: dict, seconds: float) -> str:
         lines.append(
             f"measured: {st['frames_completed']} of {st['frames']} frames completed, "
             f"{'sustained ' + format(sustained, '.3f') + ' fps' if sustained else 'one frame'}"
-            f", 0 dropped; latency per frame (first pixel in -> last disparity out) min "
+            f", {st['frames_dropped']} dropped"
+            f"{' (frames ' + _frames(st['dropped_frames']) + ')' if st['frames_dropped'] else ''}"
+            f"; latency per frame (first pixel in -> last disparity out) min "
             f"{lat.get('min', 0):.3f} / median {lat.get('median', 0):.3f} / p99 "
             f"{lat.get('p99', 0):.3f} / max {lat.get('max', 0):.3f} ms")
         lines.append(f"work bound: {thr['fps']} fps (the busiest block alone, "
