@@ -236,6 +236,11 @@ class Stream:
         """The chip plan of the stream (its frames and frame shape)."""
         return self._plan
 
+    @property
+    def supply(self) -> FrameSupply:
+        """The stream's frames, grey, read on demand."""
+        return self._supply
+
     def __iter__(self):
         plan = self._plan
         for f in range(self._supply.count):

@@ -22,7 +22,6 @@ import time
 from pathlib import Path
 
 from sim.api import run_stream
-from sim.cycle.frames import FrameSupply
 from sim.errors import InputError
 from sim.io import disparity_to_colour, encode_png, pfm_bytes
 from sim.outputs import STAGE_PREFIX, check_outputs, json_text, publish
@@ -125,12 +124,9 @@ def cmd_run_stream(args, request, data: dict | None, cfg) -> int:
         report["scene"] = {"name": name, "source": source}
         report["output"] = {"last_frame_invalid_percent": last.invalid_percent,
                             "saved_every": save_every}
-        traces = {}
+        traces, log = {}, None
         if request is not None:
-            supply = FrameSupply(len(pairs), (report["image"]["height"],
-                                              report["image"]["width"]),
-                                 lambda f: pairs[f])
-            _, log = run_traced(stream.plan, supply, None, request)
+            _, log = run_traced(stream.plan, stream.supply, None, request)
             traces = trace_files(log, request)
         seconds = time.perf_counter() - t0
         last_files = {out_dir / "disparity.pfm": pfm_bytes(last.disparity),
@@ -153,4 +149,6 @@ def cmd_run_stream(args, request, data: dict | None, cfg) -> int:
         saved = f", {len(files) // 2} frames in {out_dir}/frames" if files else ""
         print(f"wrote {out_dir}/disparity.pfm, disparity.png (the last frame), "
               f"report.json{saved}")
+        if traces:
+            print(f"wrote {', '.join(traces)} ({log.n_changes} value changes)")
     return 0

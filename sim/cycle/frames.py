@@ -37,10 +37,11 @@ class FrameSupply:
         left, right = self._read(f)
         for side, img in (("left", left), ("right", right)):
             if img.shape != self.shape:
+                got = "x".join(str(v) for v in (img.shape[1::-1] + img.shape[2:]))
                 raise InputError(
-                    f"frame {f}'s {side} image is {img.shape[1]}x{img.shape[0]}, the stream's "
-                    f"frames are {self.shape[1]}x{self.shape[0]}: every frame of a stream must "
-                    "have the same size")
+                    f"frame {f}'s {side} image is {got}, the stream's frames are "
+                    f"{self.shape[1]}x{self.shape[0]} grey: every frame of a stream must have "
+                    "the same size (and one channel)")
         self._cache[f] = (left, right)
         while len(self._cache) > 2:
             self._cache.popitem(last=False)
