@@ -199,12 +199,20 @@ def build_report(plan: ChipPlan, mode: str, fixed: np.ndarray) -> dict:
 
 @dataclass(frozen=True)
 class FrameOutput:
-    """One frame of a stream: its index, ``disparity`` (float32, inf invalid) and
-    ``disparity_fixed`` (the chip's words)."""
+    """One frame of a stream: its index (the camera frame of the stream), ``disparity``
+    (float32, inf invalid) and ``disparity_fixed`` (the chip's words); with camera pairs
+    sharing the chip (``sva.pairs``) its ``pair`` and that pair's frame ``pair_frame`` (the
+    input frame it shows)."""
 
     index: int
     disparity: np.ndarray
     disparity_fixed: np.ndarray
+    pair: int = 0
+    pair_frame: int = -1
+
+    def __post_init__(self):
+        if self.pair_frame < 0:
+            object.__setattr__(self, "pair_frame", self.index)
 
     @property
     def invalid_percent(self) -> float:
@@ -216,9 +224,10 @@ class Stream:
     """A simulated stream of stereo pairs (:func:`run_stream`). ``report``: the stream's report
     -- architecture, configuration and, in cycle mode, the cycle report of the whole stream
     (``stream``: frames, sustained fps, per-frame latency; ``throughput``: the work bound) --
-    known before any frame's words. Iterating yields a :class:`FrameOutput` per frame, in
-    order, each computed when it is asked for: a stream of any length takes the memory of a
-    few frames."""
+    known before any frame's words. Iterating yields a :class:`FrameOutput` per frame the
+    chip took (a camera's dropped frames have none), in order, each computed when it is asked
+    for: a stream of any length takes the memory of a few frames. With ``sva.pairs`` = P
+    camera pairs every pair sees the input stream: P outputs per input frame."""
 
     def __init__(self, report: dict, config: ChipConfig, plan: ChipPlan, supply: FrameSupply,
                  words: dict | None = None):
@@ -228,8 +237,12 @@ class Stream:
         self._supply = supply
         self._words = words  # the readable kernel's words, when it ran
 
+    def _taken(self) -> list[int]:
+        dropped = set(self.report.get("stream", {}).get("dropped_frames", ()))
+        return [f for f in range(self._plan.frames) if f not in dropped]
+
     def __len__(self) -> int:
-        return self._supply.count
+        return len(self._taken())
 
     @property
     def plan(self) -> ChipPlan:
@@ -243,12 +256,19 @@ class Stream:
 
     def __iter__(self):
         plan = self._plan
-        for f in range(self._supply.count):
+        pairs = plan.pairs
+        shown = (-1, None)  # the input frame last computed, its words (shared by the pairs)
+        for f in self._taken():
+            i = f // pairs
             if self._words is not None:
                 fixed = self._words.pop(f)
+            elif shown[0] == i:
+                fixed = shown[1]
             else:
-                fixed = functional_words(plan.cfg, plan.descriptor_bits, *self._supply.pair(f))
-            yield FrameOutput(f, to_float(fixed, plan.cfg.sva.subpixel_bits), fixed)
+                fixed = functional_words(plan.cfg, plan.descriptor_bits, *self._supply.pair(i))
+                shown = (i, fixed)
+            yield FrameOutput(f, to_float(fixed, plan.cfg.sva.subpixel_bits), fixed,
+                              f % pairs, i)
 
 
 def stream_supply(pairs, max_pixels: int | None = MAX_PIXELS) -> FrameSupply:

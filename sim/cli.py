@@ -64,7 +64,7 @@ from sim.outputs import (
     path_text,
     publish,
 )
-from sim.stream_cli import cmd_run_stream, energy_line
+from sim.stream_cli import cmd_run_stream, energy_line, pair_lines
 from sim.tracing import TraceRequest, parse_window, trace_files, trace_paths
 from traces.cli import add_wave_parser
 
@@ -238,8 +238,10 @@ def _summary(report: dict, seconds: float) -> str:
         thr, lat = report["throughput"], report["latency"]
         lines.append(
             f"cycles: {report['cycles']['total']}; first output {lat['first_output_ns'] / 1e3:.1f} us, "
-            f"frame {lat['frame_ns'] / 1e6:.3f} ms; {thr['fps']} fps, bottleneck {thr['bottleneck']}"
+            f"frame {lat['frame_ns'] / 1e6:.3f} ms; one frame alone {thr['fps_frame']} fps "
+            f"(measured), work bound {thr['fps']} fps (bottleneck {thr['bottleneck']})"
         )
+        lines += pair_lines(report.get("stream", {}))
         if thr.get("fps_frame") and thr["fps"] and thr["fps_frame"] < 0.9 * thr["fps"]:
             lines.append(
                 f"note: one frame at a time runs at {thr['fps_frame']} fps, far below the "

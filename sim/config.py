@@ -92,6 +92,13 @@ class NnaConfig:
         "columns", "how a camera's frame is shared by its submodules: columns (tiles with a "
         "halo) or rows (bands with a halo)", choices=("columns", "rows"),
     )
+    lent_submodules: int = param(
+        0, "submodules lent to another network (a what-if: they run its load, not the stereo "
+           "pair's, and add its energy; its DRAM traffic is dram.lent_gbps)", lo=0, hi=256,
+    )
+    lent_mac_load: float = param(
+        0.5, "the lent network's share of its submodules' MAC capacity (0..1)", lo=0.0, hi=1.0,
+    )
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -148,6 +155,11 @@ class SvaConfig:
         "(one shared port: a stage that reads and writes a bank in one pixel takes both)",
         choices=("1r1w", "1rw"),
     )
+    pairs: int = param(
+        1, "camera pairs sharing the chip frame by frame (each writes its frames into its own "
+        "source.frame_buffers; pair p's frames start p/pairs of a frame period after pair 0's)",
+        lo=1, hi=8,
+    )
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -179,6 +191,39 @@ class SourceConfig:
         "free buffer): error (stop with one line) or drop_frame (skip that frame and count it; "
         "needs frame_buffers >= 1)", choices=("error", "drop_frame"),
     )
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class DramConfig:
+    """The DRAM channel the memory sources read from and the sink writes the disparities back
+    to (a what-if: ``model = "none"`` keeps the memory sources' own token bucket and an ideal
+    sink; docs/dram.md). Defaults: one LPDDR4 x32 channel -- 4266 MT/s x 32 bits = 17 GB/s peak, bursts of
+    16 beats (BL16) of 4 bytes -- with an access latency assumed for a controller and PHY
+    (docs/dram.md)."""
+
+    model: str = param(
+        "none", "none (the memory sources' token bucket at source.memory_gbps, an ideal sink) "
+        "or tdm (one channel shared by time slots: the stereo read, then the write-back)",
+        choices=("none", "tdm"),
+    )
+    gbps: float = param(17.0, "the channel's peak bandwidth in GB/s (LPDDR4 x32: 17)",
+                        lo=0.001, hi=10000.0)
+    burst_bytes: int = param(64, "bytes a burst moves (LPDDR4 x32 BL16: 64)", lo=1, hi=4096)
+    latency_ns: float = param(100.0, "from a read burst's slot to its data in the chip, ns",
+                              lo=0.0, hi=1e6)
+    read_prefetch_bursts: int = param(8, "read bursts a memory source may have requested "
+                                         "ahead of the pixels it sent", lo=1, hi=1 << 16)
+    write_buffer_bursts: int = param(8, "bursts of disparity words the sink may hold before "
+                                        "they are written", lo=1, hi=1 << 16)
+    spill: str = param(
+        "none", "a what-if: what the NNA writes to DRAM and the SVA reads back per pixel -- "
+        "none, descriptors (both views' binary descriptors) or float32 (both views' feature "
+        "maps before the sign, 4 bytes per channel)",
+        choices=("none", "descriptors", "float32"),
+    )
+    lent_gbps: float = param(0.0, "DRAM traffic of another network run on the NNA submodules "
+                                  "the stereo pair does not use (nna.lent_submodules), GB/s",
+                             lo=0.0, hi=10000.0)
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -217,6 +262,7 @@ class ChipConfig:
     source: SourceConfig = field(default_factory=SourceConfig)
     fifo: FifoConfig = field(default_factory=FifoConfig)
     sim: SimConfig = field(default_factory=SimConfig)
+    dram: DramConfig = field(default_factory=DramConfig)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -373,7 +419,8 @@ def check_config(cfg) -> ChipConfig:
 
 
 SECTIONS = {"nna.": NnaConfig, "sva.": SvaConfig, "clocks.": ClockConfig,
-            "source.": SourceConfig, "fifo.": FifoConfig, "sim.": SimConfig}
+            "source.": SourceConfig, "fifo.": FifoConfig, "sim.": SimConfig,
+            "dram.": DramConfig}
 
 
 def check_section(section, prefix: str):
@@ -427,6 +474,34 @@ def _check_combinations(cfg: ChipConfig) -> ChipConfig:
         raise ConfigError(
             f"nna.stereo_submodules={nna.stereo_submodules} exceeds nna.submodules="
             f"{nna.submodules}: raise nna.submodules or use fewer for the stereo pair"
+        )
+    if nna.stereo_submodules + nna.lent_submodules > nna.submodules:
+        raise ConfigError(
+            f"nna.lent_submodules={nna.lent_submodules} with nna.stereo_submodules="
+            f"{nna.stereo_submodules} exceeds nna.submodules={nna.submodules}: lend at most "
+            f"{nna.submodules - nna.stereo_submodules}"
+        )
+    if cfg.sva.pairs > 1 and (cfg.source.kind != "camera" or cfg.source.frame_buffers == 0):
+        raise ConfigError(
+            f"sva.pairs={cfg.sva.pairs} shares the chip between camera pairs frame by frame, "
+            "which needs each pair's frames in DRAM frame buffers: add --set source.kind=camera "
+            "--set source.frame_buffers=2 (or use sva.pairs=1)"
+        )
+    d = cfg.dram
+    if d.model == "none" and (d.spill != "none" or d.lent_gbps > 0):
+        what = "dram.spill" if d.spill != "none" else "dram.lent_gbps"
+        raise ConfigError(
+            f"{what} needs the DRAM channel: add --set dram.model=tdm"
+        )
+    if d.lent_gbps > 0 and nna.lent_submodules == 0:
+        raise ConfigError(
+            f"dram.lent_gbps={d.lent_gbps} is the traffic of a network on lent NNA submodules, "
+            "but none is lent: add --set nna.lent_submodules=N (or drop dram.lent_gbps)"
+        )
+    if d.lent_gbps >= d.gbps:
+        raise ConfigError(
+            f"dram.lent_gbps={d.lent_gbps} is not below the channel's dram.gbps={d.gbps}: the "
+            "stereo pair would get no slot; lower it or widen the channel"
         )
     return cfg
 

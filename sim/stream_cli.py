@@ -41,9 +41,15 @@ def stream_pairs(args, data: dict | None):
     return [pair] * args.frames, data["name"], data["source"]
 
 
-def _frame_files(folder: Path, f: int, disparity, dmax: float) -> dict[str, bytes]:
-    return {f"disparity_{f:05d}.pfm": pfm_bytes(disparity),
-            f"disparity_{f:05d}.png": encode_png(disparity_to_colour(disparity, dmax))}
+def _frame_names(f: int, pair: int, pairs: int) -> tuple[str, str]:
+    """The saved files of frame f (of camera pair ``pair`` when several share the chip)."""
+    stem = f"disparity_{f:05d}" if pairs == 1 else f"pair{pair}_disparity_{f:05d}"
+    return f"{stem}.pfm", f"{stem}.png"
+
+
+def _frame_files(names: tuple[str, str], disparity, dmax: float) -> dict[str, bytes]:
+    return {names[0]: pfm_bytes(disparity),
+            names[1]: encode_png(disparity_to_colour(disparity, dmax))}
 
 
 def _frames(frames: list[int]) -> str:
@@ -62,6 +68,22 @@ def energy_line(energy: dict) -> str:
             f"{power}")
 
 
+def _measured(st: dict) -> str:
+    """Frames completed, the sustained rate and the drops of a stream (or of one pair's)."""
+    fps = st["sustained_fps"]
+    dropped = st["dropped_frames"]
+    return (f"{st['frames_completed']} of {st['frames']} frames completed, "
+            f"{'sustained ' + format(fps, '.3f') + ' fps' if fps else 'one frame'}, "
+            f"{len(dropped)} dropped{' (frames ' + _frames(dropped) + ')' if dropped else ''}")
+
+
+def pair_lines(stream: dict) -> list[str]:
+    """One line per camera pair sharing the chip (``sva.pairs`` > 1): what each pair gets."""
+    return [f"  pair {p['pair']}: {_measured(p)}; latency median "
+            f"{p.get('latency_ms', {}).get('median', 0):.3f} / max "
+            f"{p.get('latency_ms', {}).get('max', 0):.3f} ms" for p in stream.get("pairs", ())]
+
+
 def summary(report: dict, seconds: float) -> str:
     """The stream's figures: measured first, the bound named as a bound."""
     img = report["image"]
@@ -71,15 +93,11 @@ def summary(report: dict, seconds: float) -> str:
     if "stream" in report:
         st, thr = report["stream"], report["throughput"]
         lat = st.get("latency_ms", {})
-        sustained = st["sustained_fps"]
         lines.append(
-            f"measured: {st['frames_completed']} of {st['frames']} frames completed, "
-            f"{'sustained ' + format(sustained, '.3f') + ' fps' if sustained else 'one frame'}"
-            f", {st['frames_dropped']} dropped"
-            f"{' (frames ' + _frames(st['dropped_frames']) + ')' if st['frames_dropped'] else ''}"
-            f"; latency per frame (first pixel in -> last disparity out) min "
+            f"measured: {_measured(st)}; latency per frame (first pixel in -> last disparity out) min "
             f"{lat.get('min', 0):.3f} / median {lat.get('median', 0):.3f} / p99 "
             f"{lat.get('p99', 0):.3f} / max {lat.get('max', 0):.3f} ms")
+        lines += pair_lines(st)
         lines.append(f"work bound: {thr['fps']} fps (the busiest block alone, "
                      f"{thr['bottleneck']}; a bound, not a measurement)")
         lines.append(energy_line(report["energy"]))
@@ -95,8 +113,8 @@ def cmd_run_stream(args, request, data: dict | None, cfg) -> int:
     n = len(pairs)
     if save_every:
         planned += [(out_dir / "frames" / nm, "--save-every")
-                    for f in range(0, n, save_every)
-                    for nm in (f"disparity_{f:05d}.pfm", f"disparity_{f:05d}.png")]
+                    for f in range(0, n, save_every) for p in range(cfg.sva.pairs)
+                    for nm in _frame_names(f, p, cfg.sva.pairs)]
     if request is not None:
         planned += trace_paths(request)
     check_outputs(planned)  # before any work
@@ -113,9 +131,9 @@ def cmd_run_stream(args, request, data: dict | None, cfg) -> int:
         last = None
         for frame in stream:
             last = frame
-            if save_every and frame.index % save_every == 0:
-                for nm, blob in _frame_files(staging, frame.index, frame.disparity,
-                                             dmax).items():
+            if save_every and frame.pair_frame % save_every == 0:
+                names = _frame_names(frame.pair_frame, frame.pair, cfg.sva.pairs)
+                for nm, blob in _frame_files(names, frame.disparity, dmax).items():
                     tmp = staging / nm
                     tmp.write_bytes(blob)
                     files[out_dir / "frames" / nm] = tmp

@@ -17,16 +17,22 @@ import numpy as np
 from sim.config import ChipConfig
 from sim.cycle.blocks.nna import Merge, NnaSubmodule
 from sim.cycle.buffers import buffer_report, windows_of
-from sim.cycle.blocks.sources import CameraSource, FrameBuffers, MemorySource, Sink
+from sim.cycle.blocks.sources import (
+    CameraSource,
+    DramChannel,
+    FrameBuffers,
+    MemorySource,
+    Sink,
+)
 from sim.cycle.blocks.sva import SvaBlock
 from sim.cycle.fifo import Fifo
-from sim.cycle.frames import FrameSupply
+from sim.cycle.frames import FrameSupply, camera_frames
 from sim.cycle.kernel import Simulator
 from sim.cycle.plan import ChipPlan, build_plan
 from sim.cycle.report import cycle_report
-from sim.cycle.rules import sink_may_pop
+from sim.cycle.rules import camera_frame_start, sink_may_pop
 from sim.cycle.stops import CameraOverflow, frame_buffer_message, overflow_message
-from sim.errors import ConfigError, UserError
+from sim.errors import UserError
 from traces.log import Clock, Signal, TraceLog, TraceRecorder
 
 
@@ -34,8 +40,10 @@ class Chip:
     """The blocks, FIFOs and domains of one frame's simulation (built by :func:`build_chip`)."""
 
     def __init__(self, plan: ChipPlan, sim: Simulator, domains: dict, fifos: dict,
-                 blocks: dict, sink: Sink, frame_buffers: FrameBuffers | None = None):
+                 blocks: dict, sink: Sink, frame_buffers: FrameBuffers | None = None,
+                 dram: DramChannel | None = None):
         self.plan = plan
+        self.dram = dram
         self.sim = sim
         self.domains = domains
         self.fifos = fifos
@@ -53,7 +61,7 @@ class Chip:
             raise CameraOverflow(overflow_message(over, self.plan.shape[0], self.plan.frames))
         fb_over = next((cam.fb_overflow for cam in self.cameras if cam.fb_overflow), None)
         if fb_over is not None:
-            raise CameraOverflow(frame_buffer_message(*fb_over, self.plan.cfg.source))
+            raise CameraOverflow(frame_buffer_message(*fb_over, self.plan.cfg))
         fb = self.frame_buffers
         if fb is None:
             return self.sink.done
@@ -107,7 +115,8 @@ class Chip:
             taken = np.array(fb.taken, np.int64)
             cam = plan.block("camera_left")
             out[2, :len(taken)] = taken
-            out[0, :len(taken)] = taken * cam.frame_clocks * plan.domains["camera"].period_fs
+            starts = [camera_frame_start(f, cam.frame_clocks, plan.pairs) for f in fb.taken]
+            out[0, :len(taken)] = np.array(starts, np.int64) * plan.domains["camera"].period_fs
         else:
             src = next(b for b in plan.blocks if b.kind in ("memory", "camera") and b.side == 0)
             first = self.blocks[src.name].first_cycles
@@ -134,11 +143,7 @@ def build_chip(left, right, cfg: ChipConfig | ChipPlan, *, order_seed=None, sink
     ``on_frame(f, words)`` receives each frame's output words as the sink completes it."""
     supply = FrameSupply.of(left, right)
     plan = cfg if isinstance(cfg, ChipPlan) else build_plan(cfg, supply.shape, supply.count)
-    if (plan.frames, plan.shape) != (supply.count, supply.shape):
-        raise ConfigError(
-            f"the plan is for {plan.frames} frame(s) of {plan.shape[1]}x{plan.shape[0]}, the "
-            f"stream has {supply.count} of {supply.shape[1]}x{supply.shape[0]}: build the plan "
-            "for the frames you run")
+    supply = camera_frames(supply, plan)  # every camera pair sees the stream
     cfg = plan.cfg
     shape = plan.shape
     frames = plan.frames
@@ -157,19 +162,25 @@ def build_chip(left, right, cfg: ChipConfig | ChipPlan, *, order_seed=None, sink
         fb = FrameBuffers(frames, cfg.source.frame_buffers,
                           cfg.source.on_overflow == "drop_frame", cam.line_clocks,
                           cam.frame_clocks, plan.domains["camera"].period_fs,
-                          plan.domains["nna"].period_fs)
+                          plan.domains["nna"].period_fs, plan.pairs)
         if on_frame is not None:  # the sink counts the frames taken: give the camera's
             taken_on_frame = on_frame
 
             def on_frame(g, words):
                 taken_on_frame(fb.taken[g], words)
+    dram = None
+    if plan.dram is not None:
+        dram = DramChannel(plan.dram, shape, plan.domains[plan.source_domain].period_fs,
+                           plan.domains["sva"].period_fs, fb)
     for b in plan.blocks:
         dom = domains[b.domain]
         if b.kind in ("memory", "camera"):
             outs = [(fifos[name], tile) for name, tile in zip(b.outputs, plan.tiles)]
-            cls = CameraSource if b.kind == "camera" else MemorySource
-            block = cls(b, dom, lambda f, s=b.side: supply.pair(f)[s], shape, frames, outs,
-                        buffers=fb)
+            image = (lambda f, s=b.side: supply.pair(f)[s])
+            if b.kind == "camera":
+                block = CameraSource(b, dom, image, shape, frames, outs, buffers=fb)
+            else:
+                block = MemorySource(b, dom, image, shape, frames, outs, buffers=fb, dram=dram)
         elif b.kind == "nna":
             block = NnaSubmodule(b, dom, shape, fifos[b.inputs[0]], fifos[b.outputs[0]],
                                  cfg.nna, frames)
@@ -182,9 +193,10 @@ def build_chip(left, right, cfg: ChipConfig | ChipPlan, *, order_seed=None, sink
                              plan.word_bits, frames)
         else:
             block = sink = Sink(b.name, dom, fifos[b.inputs[0]], shape, frames,
-                                stall=_stall_function(sink_stall), on_frame=on_frame)
+                                stall=_stall_function(sink_stall), on_frame=on_frame,
+                                dram=dram)
         blocks[b.name] = sim.add_block(block)
-    return Chip(plan, sim, domains, fifos, blocks, sink, fb)
+    return Chip(plan, sim, domains, fifos, blocks, sink, fb, dram)
 
 
 def run_cycle(left, right, cfg: ChipConfig | ChipPlan, *, order_seed=None, sink_stall=None,
@@ -209,6 +221,8 @@ def _run(chip: Chip) -> tuple[dict, dict]:
         buffer_report(plan, windows_of(plan, chip.window_rows()), sva.stage_peaks())
         raise
     buffers = buffer_report(plan, windows_of(plan, chip.window_rows()), sva.stage_peaks())
+    if chip.dram is not None:
+        stats["dram"] = chip.dram.stats()
     return stats, cycle_report(plan, chip.sink.first_cycle, chip.sink.last_cycle, stats,
                                buffers, chip.frame_times())
 

@@ -206,6 +206,21 @@ def energy_items(plan: ChipPlan, table: EnergyTable, stats: dict) -> list[dict]:
             table.dram_pj_per_bit)
     add("dram", "dram", "disparity words written back", n * plan.word_bits, "bit",
         table.dram_pj_per_bit)
+    spill = plan.dram.client("spill") if plan.dram is not None else None
+    if spill is not None:
+        add("dram", "dram", f"{cfg.dram.spill} spilled between NNA and SVA (written and read "
+            "back, both views)", round(spill.bytes_per_pixel * n * 8), "bit",
+            table.dram_pj_per_bit)
+    if cfg.nna.lent_submodules:  # another network on the lent submodules, over the frame's time
+        nna_cycles = stats["cycles"]["nna"] // frames
+        add("lent", "mac", f"the lent network's MACs ({cfg.nna.lent_submodules} submodules at "
+            f"{cfg.nna.lent_mac_load:g} of their MACs)",
+            round(cfg.nna.lent_submodules * cfg.nna.macs * cfg.nna.lent_mac_load * nna_cycles),
+            "MAC", table.mac_int8_pj)
+        if cfg.dram.lent_gbps:
+            seconds = nna_cycles / plan.domains["nna"].freq_hz
+            add("lent", "dram", "the lent network's DRAM traffic",
+                round(cfg.dram.lent_gbps * 1e9 * 8 * seconds), "bit", table.dram_pj_per_bit)
     for domain, cycles in sorted(stats["cycles"].items()):
         pj = table.clock_pj_per_cycle.get(domain, 0.0)
         add("clock", "clock", f"{domain} domain cycles", cycles // frames, "cycle", pj)

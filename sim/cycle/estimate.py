@@ -11,7 +11,7 @@ work) and applies the timing rules of :mod:`sim.cycle.rules` per image row inste
   the figure the cycle report ranks (:meth:`ChipPlan.work_cycles`): descriptors x ``ceil(K*K*C / macs)`` per NNA
   submodule (census: 1 cycle), words x the SVA's II (:mod:`sim.cycle.stages`) for the SVA, one beat per pixel for a
   merge, ``max(N, ceil(N f / B))`` cycles for a memory source (N pixels, f its clock, B its
-  bandwidth in bytes/s) and ``H (W + hblank)`` pixel clocks for a camera. The block with
+  bandwidth in bytes/s; through the DRAM channel, its read bursts' rounds) and ``H (W + hblank)`` pixel clocks for a camera. The block with
   the largest work time sets the frame rate. Exact (the same integers the simulator counts),
   except a bandwidth-limited memory source that is also back-pressured (its tokens pile up
   while blocked, so it works less than the formula says; it is then not the bottleneck).
@@ -24,7 +24,9 @@ work) and applies the timing rules of :mod:`sim.cycle.rules` per image row inste
   computed on the same femtosecond grid as :class:`sim.cycle.clock.ClockDomain`. The line buffer's
   room rule and the SVA's look-ahead window (row y_in enters once the last word of output row
   y_in - r - m - 2 has entered the SVA's pipeline) are applied. Exact (to the cycle) when no FIFO fills; see docs/whatif.md for
-  what is approximated when one does.
+  what is approximated when one does. Through the DRAM channel a memory source's pixel is
+  taken to leave once read burst b is in from round b (a lower bound: the prefetch never
+  waits).
 - **FIFO rate.** A FIFO of depth d moves at most d items per round trip (push -> visible -> pop
   -> free seen by the producer): ``(latency + 1)`` cycles in one domain, about
   ``(latency + sync - 1.5) T_consumer + (sync - 0.5) T_producer`` across domains (half a period
@@ -42,6 +44,8 @@ from sim.config import ChipConfig, config_to_dict
 from sim.cycle.plan import ChipPlan, FifoPlan, action_counts, build_plan, sram_bits
 from sim.cycle.rules import (
     camera_cycle,
+    dram_read_ready_fs,
+    first_edge_at,
     memory_first_cycle,
     nna_last_input_row,
     nna_rows_started_before_input,
@@ -78,7 +82,8 @@ def block_work(plan: ChipPlan) -> dict[str, tuple[int, float]]:
     """Work per frame of every block as (cycles, clock in Hz), as the cycle report counts it;
     a memory source's is its transfer, max(N, ceil(N f / B)) cycles (its busy cycles unless it
     is also back-pressured). A camera's work is its frame period, ``(H + vblank) (W +
-    hblank)`` pixel clocks, so a camera-bound rate is the camera's own frame rate."""
+    hblank)`` pixel clocks, so a camera-bound rate is the camera's own frame rate (with
+    ``sva.pairs`` = P pairs sharing the chip, 1/P of it: the chip takes P frames a period)."""
     h, w = plan.shape
     n = h * w
     out: dict[str, tuple[int, float]] = {}
@@ -102,7 +107,12 @@ def _source_cycle(plan: ChipPlan, k: int) -> int:
     w = plan.shape[1]
     src = plan.blocks[0]
     if src.kind == "camera":
-        return camera_cycle(0, k % w, k // w, src.line_clocks, src.frame_clocks)
+        return camera_cycle(0, k % w, k // w, src.line_clocks, src.frame_clocks, 1)
+    if plan.dram is not None:  # burst b in round b (a prefetch that never waits: a bound)
+        d = plan.dram
+        slot = d.round_slots * (k // d.read_pixels) + d.reads.first
+        return max(k, first_edge_at(dram_read_ready_fs(slot, d.slot_fs, d.latency_fs),
+                                    plan.domains[src.domain].period_fs))
     hz = round(plan.domains[src.domain].freq_hz)
     return max(k, memory_first_cycle(k, hz, src.bytes_per_s))
 
@@ -360,6 +370,7 @@ def estimate(cfg: ChipConfig, shape: tuple[int, int]) -> dict:
             "fifo_items_per_s": {n: round(v, 1) for n, v in sorted(fifo_rate.items())},
             # a camera's real frame rate: its whole raster, vertical blanking included
             "camera_fps": camera_fps,
+            "camera_pairs": plan.pairs,  # pairs sharing the chip, each at camera_fps
         },
         "latency": {
             "first_output_ms": tl["first_output_cycle"] * p_sva / 1e12,

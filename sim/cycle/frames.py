@@ -15,7 +15,7 @@ from collections.abc import Callable
 import numpy as np
 
 from nna.descriptor import compute_descriptor
-from sim.errors import InputError
+from sim.errors import ConfigError, InputError
 from sva.pipeline import sva_stream
 
 
@@ -57,6 +57,21 @@ class FrameSupply:
         if left.ndim == 2:
             return cls(1, left.shape, lambda f: (left, right))
         return cls(left.shape[0], left.shape[1:], lambda f: (left[f], right[f]))
+
+
+def camera_frames(supply: FrameSupply, plan) -> FrameSupply:
+    """The supply of a plan's camera frames from the stream's: with ``sva.pairs`` = P camera
+    pairs sharing the chip every pair sees the stream, camera frame f being the stream's frame
+    f // P. Raises ConfigError when the plan is for another count or shape of frames."""
+    pairs = plan.pairs
+    if (plan.frames, plan.shape) != (supply.count * pairs, supply.shape):
+        raise ConfigError(
+            f"the plan is for {plan.frames // pairs} frame(s) of {plan.shape[1]}x"
+            f"{plan.shape[0]}, the stream has {supply.count} of {supply.shape[1]}x"
+            f"{supply.shape[0]}: build the plan for the frames you run")
+    if pairs == 1:
+        return supply
+    return FrameSupply(supply.count * pairs, supply.shape, lambda f: supply.pair(f // pairs))
 
 
 def functional_words(cfg, bits: int, left: np.ndarray, right: np.ndarray) -> np.ndarray:

@@ -23,6 +23,7 @@ stop messages)::
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass, field
 from functools import cached_property
 
@@ -153,6 +154,104 @@ class SignalPlan:
 
 
 @dataclass(frozen=True)
+class DramClient:
+    """A client of the DRAM channel: the slots it owns in every round (offsets ``first`` ..
+    ``first + count - 1``) and the bytes it moves per pixel of a view (a what-if's load)."""
+
+    name: str
+    first: int
+    count: int
+    bytes_per_pixel: float
+    what: str
+
+
+@dataclass(frozen=True)
+class DramPlan:
+    """The DRAM channel, time-division multiplexed (:mod:`sim.cycle.rules`, docs/dram.md).
+
+    A round has one slot per client burst in step with the pixels: for every ``read_pixels``
+    pixels of a view (one burst of each view read), the cameras' writes of as many pixels, the
+    write-back of as many words, the spill's and the lent network's bursts. The memory sources
+    request a pair of bursts (both views, the slots ``reads.first`` and the next) once their
+    ``prefetch`` buffers have a free burst; the sink writes a burst of ``write_words`` words once
+    its last word is in, holding at most ``write_buffer`` bursts."""
+
+    slot_fs: int  # one burst at the peak bandwidth
+    latency_fs: int  # a read slot's end to its data in the chip
+    round_slots: int
+    clients: tuple[DramClient, ...]
+    burst_bytes: int
+    read_pixels: int  # pixels of a view per read burst (one byte each)
+    prefetch: int  # read bursts per view requested ahead of the pixels sent
+    write_words: int  # disparity words per write-back burst
+    write_buffer: int  # bursts the sink's write buffer holds
+
+    def client(self, name: str) -> DramClient | None:
+        return next((c for c in self.clients if c.name == name), None)
+
+    @property
+    def reads(self) -> DramClient | None:
+        return self.client("read")
+
+    @property
+    def write_back(self) -> DramClient:
+        return self.client("write_back")
+
+    @property
+    def round_fs(self) -> int:
+        return self.round_slots * self.slot_fs
+
+    def gbps(self, client: DramClient) -> float:
+        """The bandwidth a client's slots give it, GB/s."""
+        return client.count * self.burst_bytes * 1e15 / self.round_fs / 1e9
+
+
+def dram_plan(cfg: ChipConfig, reads: bool, camera_writes: bool, beat_bits: int,
+              word_bits: int, descriptor_bits: int, camera_hz: float, line_share: float
+              ) -> DramPlan:
+    """The channel's slots. Raises ConfigError when it cannot absorb the cameras' writes (a
+    camera cannot wait)."""
+    d = cfg.dram
+    slot_fs = max(1, round(d.burst_bytes * 1e15 / (d.gbps * 1e9)))
+    px = d.burst_bytes  # pixels of a view per read burst: one byte each
+    wpb = max(1, d.burst_bytes * 8 // word_bits)
+    spill = {"none": 0.0, "descriptors": 2 * 2 * beat_bits / 8,
+             "float32": 2 * 2 * descriptor_bits * 4.0}[d.spill]
+    clients: list[DramClient] = []
+
+    def add(name, count, bpp, what):
+        first = sum(c.count for c in clients)
+        clients.append(DramClient(name, first, count, bpp, what))
+
+    if reads:
+        add("read", 2, 2.0, "the stereo pair read by the memory sources (left, right)")
+    if camera_writes:
+        add("camera_write", 2 * cfg.sva.pairs, 2.0,  # pairs' frames overlap: a slot each
+            "the cameras' frames written into the frame buffers")
+    add("write_back", -(-px // wpb), word_bits / 8, "the disparity words written back")
+    if spill:
+        add("spill", -(-round(spill * px) // d.burst_bytes), spill,
+            f"{d.spill} written by the NNA and read back by the SVA (both views)")
+    base = sum(c.count for c in clients)
+    if d.lent_gbps > 0:
+        x = d.lent_gbps / d.gbps
+        add("lent", math.ceil(x * base / (1 - x) - 1e-9), 0.0,
+            "the network on the lent NNA submodules")
+    plan = DramPlan(slot_fs, round(d.latency_ns * 1e6), sum(c.count for c in clients),
+                    tuple(clients), d.burst_bytes, px, d.read_prefetch_bursts, wpb,
+                    d.write_buffer_bursts)
+    if camera_writes:
+        need = camera_hz * line_share  # bytes per second per camera within its lines
+        got = px * 1e15 / plan.round_fs
+        if got < need:
+            raise ConfigError(
+                f"the DRAM channel writes {got / 1e9:.3f} GB/s per camera into the frame "
+                f"buffers but a camera sends {need / 1e9:.3f} GB/s in its lines: raise "
+                "dram.gbps or lower the other clients' load (dram.spill, dram.lent_gbps)")
+    return plan
+
+
+@dataclass(frozen=True)
 class ChipPlan:
     cfg: ChipConfig
     shape: tuple[int, int]
@@ -164,8 +263,9 @@ class ChipPlan:
     descriptor_bits: int
     beat_bits: int  # NNA -> SVA beat: the descriptor (+ 8 bits of intensity for adaptive P2)
     word_bits: int  # SVA output word
-    frames: int = 1  # frames of the stream, back to back (all of ``shape``)
+    frames: int = 1  # camera frames of the stream (all of ``shape``; every pair's: ``pairs``)
     signals: tuple[SignalPlan, ...] = field(default=())
+    dram: DramPlan | None = None  # the DRAM channel (dram.model = "tdm"), else None
 
     # ---- lookups ----------------------------------------------------------------------------
 
@@ -196,6 +296,12 @@ class ChipPlan:
         return self.cfg.source.kind == "camera"
 
     @property
+    def pairs(self) -> int:
+        """Camera pairs sharing the chip frame by frame (``sva.pairs``): the stream's frame f is
+        pair f % pairs's (:func:`~sim.cycle.rules.camera_frame_start`)."""
+        return self.cfg.sva.pairs
+
+    @property
     def frame_buffered(self) -> bool:
         """A camera that writes its frames into DRAM frame buffers, read by a memory source."""
         return self.camera and self.cfg.source.frame_buffers > 0
@@ -222,6 +328,11 @@ class ChipPlan:
         return side(0) == side(1)
 
     @property
+    def dram_channel(self) -> bool:
+        """The memory sources read, and the sink writes back, through the DRAM channel."""
+        return self.dram is not None
+
+    @property
     def source_domain(self) -> str:
         """The domain of the block that pushes the pixels into the NNA's FIFOs."""
         return "camera" if self.camera_direct else "nna"
@@ -241,11 +352,17 @@ class ChipPlan:
         cycle (merge), the whole raster with blanking (camera: a camera delivers frames no
         faster), and the cycles its port transferred (memory source: ``busy``, measured over the
         stream and shared out per frame -- a bandwidth-limited source that is back-pressured
-        banks tokens while blocked)."""
+        banks tokens while blocked; through the DRAM channel: the rounds of its frame's read
+        bursts)."""
+        if block.kind == "memory" and self.dram is not None:  # its read slots
+            d = self.dram
+            h, w = self.shape
+            per = self.domains[block.domain].period_fs
+            return -(-(-(-h * w // d.read_pixels)) * d.round_fs // per)
         if block.kind == "memory":
             return busy // self.frames  # measured over the stream: its share of a frame
-        if block.kind == "camera":
-            return block.frame_clocks
+        if block.kind == "camera":  # pairs sharing the chip start a frame every 1/P period
+            return block.frame_clocks // self.pairs
         return block.items * block.cycles
 
 
@@ -254,7 +371,8 @@ def _nb(n: int) -> int:
 
 
 def frame_budget(cfg: ChipConfig, shape: tuple[int, int], freqs: dict[str, float],
-                 cpd: int, sva_ii: int, frames: int = 1) -> dict[str, int]:
+                 cpd: int, sva_ii: int, frames: int = 1, dram: DramPlan | None = None
+                 ) -> dict[str, int]:
     """A generous cycle budget: 20x the frames at the slowest block's rate, per domain."""
     h, w = shape
     camera = cfg.source.kind == "camera"
@@ -262,6 +380,7 @@ def frame_budget(cfg: ChipConfig, shape: tuple[int, int], freqs: dict[str, float
         cpd / (cfg.clocks.nna_mhz * 1e6),
         sva_ii / (cfg.clocks.sva_mhz * 1e6),
         (w + cfg.source.camera_hblank) / w / (cfg.clocks.camera_mhz * 1e6) if camera else 0.0,
+        dram.round_fs / dram.read_pixels / 1e15 if dram is not None else 0.0,
     )
     frame_s = (h + 16) * w * per_pixel_s + 1e-6
     if camera and frames > 1:  # the vertical blanking between frames
@@ -294,8 +413,9 @@ def nna_buffers(cfg: ChipConfig, width: int) -> tuple[BufferPlan, ...]:
 
 
 def build_plan(cfg: ChipConfig, shape: tuple[int, int], frames: int = 1) -> ChipPlan:
-    """The plan of ``cfg`` for a stream of ``frames`` frames of ``shape`` = (H, W), back to back.
-    Raises ConfigError for a chip that cannot be built (a line buffer smaller than the
+    """The plan of ``cfg`` for a stream of ``frames`` frames of ``shape`` = (H, W), back to back
+    -- per camera pair: with ``sva.pairs`` = P pairs sharing the chip the stream has P x
+    ``frames`` camera frames, frame f pair f % P's (f // P)-th (``ChipPlan.frames``). Raises ConfigError for a chip that cannot be built (a line buffer smaller than the
     descriptor window, more tiles than rows or columns, D not below the width) or a stream
     without frames."""
     cfg = check_config(cfg)  # however it was built, the same checks as load_config
@@ -391,11 +511,16 @@ def build_plan(cfg: ChipConfig, shape: tuple[int, int], frames: int = 1) -> Chip
                             buffers=tuple(b for st in stages for b in st.buffers),
                             stages=stages))
     blocks.append(BlockPlan("sink", "sink", "sva", None, (to_sink,), (), "top.sink", n))
+    dram = None
+    if cfg.dram.model == "tdm":
+        dram = dram_plan(cfg, not (camera and not buffered), buffered, beat_bits, word_bits,
+                         bits, freqs.get("camera", 0.0), w / (w + cfg.source.camera_hblank))
     plan = ChipPlan(cfg=cfg, shape=(h, w), domains=domains, fifos=tuple(fifos),
                     blocks=tuple(blocks), tiles=tiles,
-                    budget=frame_budget(cfg, shape, freqs, cpd, sva_ii, frames),
+                    budget=frame_budget(cfg, shape, freqs, cpd, sva_ii,
+                                        frames * cfg.sva.pairs, dram),
                     descriptor_bits=bits, beat_bits=beat_bits, word_bits=word_bits,
-                    frames=frames)
+                    frames=frames * cfg.sva.pairs, dram=dram)
     object.__setattr__(plan, "signals", tuple(_signals(plan)))
     return plan
 

@@ -33,18 +33,33 @@ def throughput(plan: ChipPlan, work: dict[str, int]) -> dict:
 
 def stream_report(plan: ChipPlan, frame_times) -> dict:
     """The measured figures of a stream (``frame_times``: (3, frames): per frame the chip took,
-    the instants in fs of its first input pixel and last output word, and the input frame it
+    the instants in fs of its first input pixel and last output word, and the camera frame it
     is): frames completed and dropped (a camera with frame buffers); the **sustained** frame
     rate -- frames completed per second of simulated time after the first, (N - 1) / (end of
     frame N-1 - end of frame 0), None for a single frame -- and each frame's latency, first
-    pixel in to last disparity out (min, median, p99, max and every frame's, in ms)."""
-    first, last = np.asarray(frame_times[0]), np.asarray(frame_times[1])
-    taken = {int(f) for f in np.asarray(frame_times[2]) if f >= 0}
+    pixel in to last disparity out (min, median, p99, max and every frame's, in ms). With
+    ``sva.pairs`` > 1, ``pairs`` gives the same figures for each camera pair's frames (camera
+    frame f is pair f % pairs's)."""
+    first, last, cam = (np.asarray(frame_times[i]) for i in range(3))
+    out = _stream_figures(first, last, cam, range(plan.frames))
+    if plan.pairs > 1:
+        out["pairs"] = []
+        for p in range(plan.pairs):
+            mine = (cam >= 0) & (cam % plan.pairs == p)
+            out["pairs"].append({"pair": p, **_stream_figures(
+                first[mine], last[mine], cam[mine], range(p, plan.frames, plan.pairs))})
+    return out
+
+
+def _stream_figures(first, last, cam, frames) -> dict:
+    """:func:`stream_report`'s figures of the frames taken (their instants and camera frames)
+    among the camera frames ``frames``."""
+    taken = {int(f) for f in cam if f >= 0}
     done = last >= 0
     n_done = int(done.sum())
     lat_ms = (last[done] - first[done]) / 1e12
-    dropped = [f for f in range(plan.frames) if f not in taken]
-    out: dict = {"frames": plan.frames, "frames_completed": n_done,
+    dropped = [f for f in frames if f not in taken]
+    out: dict = {"frames": len(frames), "frames_completed": n_done,
                  "frames_dropped": len(dropped), "dropped_frames": dropped}
     if n_done > 1:
         span_s = (last[done][-1] - last[done][0]) / FS_PER_S
@@ -85,7 +100,12 @@ def cycle_report(plan: ChipPlan, first_cycle: int, last_cycle: int, stats: dict,
     thr["fps_frame"] = round(FS_PER_S / frame0_fs, 3) if frame0_fs > 0 else None
     fifos = stats["fifos"]
     stream = stream_report(plan, frame_times)
+    extra = {}
+    if plan.dram is not None:
+        taken = int(np.count_nonzero(np.asarray(frame_times[2]) >= 0))
+        extra["dram"] = dram_report(plan, stats, last_fs, taken)
     return {
+        **extra,
         "cycles": {
             "total": dict(sorted(stats["cycles"].items())),
             "first_output": {"sva": first_cycle, "ns": first_fs / 1e6},
@@ -101,6 +121,52 @@ def cycle_report(plan: ChipPlan, first_cycle: int, last_cycle: int, stats: dict,
         "sva_stages": sva_stage_activity(plan, stats["stages"]["sva"]),
         "stream": stream,
         "energy": energy_report(plan, stats, *power_basis(thr, stream)),
+    }
+
+
+def dram_report(plan: ChipPlan, stats: dict, end_fs: int, frames_taken: int) -> dict:
+    """The DRAM channel over the run (``end_fs``: the last word's instant): per client its slots
+    per round and the bandwidth they give it, the bytes it moved and their rate over the run,
+    the cycles the memory sources and the sink waited on it, the channel's utilisation (bytes
+    moved / what the peak could move) and the frame rate its read slots bound."""
+    d = plan.dram
+    h, w = plan.shape
+    n = h * w
+    span_s = end_fs / FS_PER_S if end_fs > 0 else None
+    moved = {"read": 2 * n * frames_taken, "camera_write": 2 * n * frames_taken,
+             "write_back": -(-n * plan.word_bits // 8) * frames_taken}
+    clients = {}
+    total = 0.0
+    for c in d.clients:
+        if c.name == "lent":
+            nbytes = plan.cfg.dram.lent_gbps * 1e9 * span_s if span_s else 0.0
+        elif c.name == "spill":
+            nbytes = c.bytes_per_pixel * n * frames_taken
+        else:
+            nbytes = moved[c.name]
+        total += nbytes
+        clients[c.name] = {
+            "what": c.what, "slots_per_round": c.count,
+            "slot_gbps": round(d.gbps(c), 6),
+            "bytes": round(nbytes),
+            "gbps": round(nbytes / span_s / 1e9, 6) if span_s else None,
+        }
+    waits = stats["dram"]
+    stalls = {"sink": waits["write_stall_cycles"]}
+    if d.reads is not None:
+        stalls.update({"memory_left": waits["read_stall_cycles"][0],
+                       "memory_right": waits["read_stall_cycles"][1]})
+    bound = None
+    if d.reads is not None:
+        bound = round(FS_PER_S / (-(-n // d.read_pixels) * d.round_fs), 3)
+    return {
+        "model": "tdm", "peak_gbps": plan.cfg.dram.gbps, "burst_bytes": d.burst_bytes,
+        "slot_ns": d.slot_fs / 1e6, "round_slots": d.round_slots,
+        "latency_ns": d.latency_fs / 1e6,
+        "clients": clients,
+        "stall_cycles": dict(sorted(stalls.items())),
+        "utilisation": round(total / (plan.cfg.dram.gbps * 1e9 * span_s), 6) if span_s else None,
+        "read_bound_fps": bound,
     }
 
 

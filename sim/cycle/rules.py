@@ -72,20 +72,149 @@ def memory_first_cycle(k, freq_hz, bytes_per_s):
 
 
 @register_jitable
-def camera_cycle(f, x, y, line_clocks, frame_clocks):
-    """The pixel-clock cycle in which a camera delivers pixel (x, y) of frame f: frames back to
-    back, each a raster of ``frame_clocks`` = (H + vblank)(W + hblank) clocks of ``line_clocks``
-    = W + hblank clocks per line, from cycle 0."""
-    return f * frame_clocks + y * line_clocks + x
+def camera_frame_start(f, frame_clocks, pairs):
+    """The pixel-clock cycle in which camera frame f starts. One camera pair: frames back to
+    back, f * ``frame_clocks``. ``pairs`` = P camera pairs sharing the chip frame by frame
+    (``sva.pairs``): the stream's frame f is pair f % P's (f // P)-th, and pair p runs pair 0's
+    raster p * (frame_clocks // P) clocks later -- the pairs' frame starts spread evenly over a
+    frame period, in the order of f."""
+    return (f // pairs) * frame_clocks + (f % pairs) * (frame_clocks // pairs)
+
+
+@register_jitable
+def camera_cycle(f, x, y, line_clocks, frame_clocks, pairs):
+    """The pixel-clock cycle in which a camera delivers pixel (x, y) of camera frame f: each
+    frame a raster of ``frame_clocks`` = (H + vblank)(W + hblank) clocks of ``line_clocks``
+    = W + hblank clocks per line, from its start (:func:`camera_frame_start`)."""
+    return camera_frame_start(f, frame_clocks, pairs) + y * line_clocks + x
+
+
+@register_jitable
+def camera_in_lines(c, frames, lines, line_clocks, frame_clocks, pairs):
+    """Is a camera of the stream in the lines of one of its ``frames`` camera frames (blanking
+    between its pixels included) in its cycle c?"""
+    step = frame_clocks // pairs
+    for p in range(pairs):
+        cp = c - p * step
+        if cp < 0:
+            continue
+        fl = cp // frame_clocks
+        if fl * pairs + p < frames and (cp - fl * frame_clocks) // line_clocks < lines:
+            return True
+    return False
+
+
+@register_jitable
+def camera_pixels_streamed(c, frames, h, w, line_clocks, frame_clocks, pairs):
+    """Pixels the cameras of one side have streamed up to their cycle c included (each pair's
+    raster, frame after frame, over the stream's ``frames`` camera frames)."""
+    step = frame_clocks // pairs
+    total = 0
+    for p in range(pairs):
+        cp = c - p * step
+        if cp < 0:
+            continue
+        count = (frames - p + pairs - 1) // pairs  # camera frames of pair p
+        fl = cp // frame_clocks
+        if fl >= count:
+            total += count * h * w
+            continue
+        line = (cp - fl * frame_clocks) // line_clocks
+        col = cp - fl * frame_clocks - line * line_clocks
+        total += fl * h * w + (h * w if line >= h else line * w + min(col + 1, w))
+    return total
+
+
+@register_jitable
+def camera_busy_cycles(cycles, frames, lines, line_clocks, frame_clocks, pairs):
+    """Cycles among the first ``cycles`` in which a camera of the stream is in the lines of a
+    frame: the union over its ``frames`` camera frames of [start, start + lines x line_clocks)
+    (with several pairs their frames overlap)."""
+    busy = 0
+    covered = 0  # the cycles before it are counted
+    for f in range(frames):
+        s = camera_frame_start(f, frame_clocks, pairs)
+        e = s + lines * line_clocks
+        lo, hi = max(s, covered), min(e, cycles)
+        if hi > lo:
+            busy += hi - lo
+        covered = max(covered, e)
+    return busy
 
 
 @register_jitable
 def frame_buffer_admits(g, buffers, busy_until_fs, start_fs):
-    """Does a camera with ``buffers`` frame buffers in DRAM take the frame it starts at
+    """Does a camera (pair) with ``buffers`` frame buffers in DRAM take the frame it starts at
     ``start_fs`` as its g-th (from 0)? Yes while fewer than ``buffers`` frames were taken, else
-    when the reader finished the frame that held the buffer, the (g - buffers)-th, at
-    ``busy_until_fs`` -- strictly before the frame starts."""
+    when the reader finished the frame that held the buffer, the pair's (g - buffers)-th taken,
+    at ``busy_until_fs`` -- strictly before the frame starts. (Pairs sharing the chip each have
+    their own buffers and count their own frames.)"""
     return g < buffers or busy_until_fs < start_fs
+
+
+# ---- the DRAM channel (dram.model = "tdm") ------------------------------------------------------
+# One channel, time-division multiplexed: time is cut into slots of one burst each (burst bytes
+# at the peak bandwidth), slots into rounds of R; each client owns fixed slots of every round
+# (the plan's DramPlan: the stereo pair's reads first, left then right, then the cameras'
+# frame-buffer writes, the disparity write-back, a spill, a lent network). Slot g spans
+# [g s, (g + 1) s) femtoseconds from 0. A client's bursts take its slots in order.
+
+
+@register_jitable
+def dram_slot(request_fs, last_slot, slot_fs, round_slots, first, count):
+    """The slot serving a client's burst requested at ``request_fs``: the first of the client's
+    slots (offsets ``first`` .. ``first + count - 1`` of every round of ``round_slots``) that
+    starts at or after the request and after its previous burst's slot ``last_slot`` (-1 before
+    the first)."""
+    g = max((request_fs + slot_fs - 1) // slot_fs, last_slot + 1)
+    rnd = g // round_slots
+    o = g - rnd * round_slots
+    if o < first:
+        return rnd * round_slots + first
+    if o < first + count:
+        return g
+    return (rnd + 1) * round_slots + first
+
+
+@register_jitable
+def dram_read_ready_fs(slot, slot_fs, latency_fs):
+    """When a stereo read that takes slots ``slot`` (left) and ``slot + 1`` (right) is in the
+    chip: the right view's slot's end plus the access latency."""
+    return (slot + 2) * slot_fs + latency_fs
+
+
+@register_jitable
+def dram_write_done_fs(slot, slot_fs):
+    """When a write-back burst served in ``slot`` has left the sink's write buffer: the slot's
+    end."""
+    return (slot + 1) * slot_fs
+
+
+@register_jitable
+def burst_of(k, n, per_burst):
+    """(burst over the stream, index of its last item over the stream) of item k (from 0, over
+    a stream of frames of n items): bursts of ``per_burst`` items, restarted at each frame (a
+    frame's last burst may be short)."""
+    f = k // n
+    i = k - f * n
+    per_frame = (n + per_burst - 1) // per_burst
+    b = i // per_burst
+    return f * per_frame + b, f * n + min((b + 1) * per_burst, n) - 1
+
+
+@register_jitable
+def burst_last(burst, n, per_burst):
+    """The index over the stream of the last item of ``burst`` (as :func:`burst_of`)."""
+    per_frame = (n + per_burst - 1) // per_burst
+    f = burst // per_frame
+    b = burst - f * per_frame
+    return f * n + min((b + 1) * per_burst, n) - 1
+
+
+@register_jitable
+def first_edge_at(t_fs, period_fs):
+    """The first edge of a clock of ``period_fs`` at or after the instant ``t_fs``."""
+    return (t_fs + period_fs - 1) // period_fs
 
 
 @register_jitable
@@ -196,6 +325,16 @@ def sink_may_pop(cycle, stall_period, stall_phase):
     """A sink with the periodic stall pattern (period, phase) pops only in cycles with
     ``cycle % period == phase``; period 0: in every cycle."""
     return stall_period == 0 or cycle % stall_period == stall_phase
+
+
+@register_jitable
+def sink_allowed_between(lo, hi, stall_period, stall_phase):
+    """Cycles in [lo, hi) in which the sink may pop."""
+    if hi <= lo:
+        return 0
+    if stall_period == 0:
+        return hi - lo
+    return (hi - 1 - stall_phase) // stall_period - (lo - 1 - stall_phase) // stall_period
 
 
 @register_jitable

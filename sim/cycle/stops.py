@@ -33,11 +33,14 @@ def overflow_message(overflows: list[tuple[str, str, int, int, int]], height: in
             "throughput (clocks.nna_mhz, nna.macs) or a deeper fifo.source_to_nna_depth")
 
 
-def frame_buffer_message(camera: str, frame: int, busy_frame: int, cycle: int, source) -> str:
+def frame_buffer_message(camera: str, frame: int, busy_frame: int, cycle: int, cfg) -> str:
     """The one-line message of a camera whose frame found no free frame buffer (``on_overflow
-    = "error"``): ``busy_frame`` is still being read from the buffer it would take."""
-    return (f"camera '{camera}' found no free frame buffer for frame {frame}, cycle {cycle}: "
-            f"the NNA still reads frame {busy_frame} from the buffer it needs "
-            f"({source.frame_buffers} buffer(s)); drop such frames "
+    = "error"``): ``busy_frame`` is still being read from the buffer it would take (camera
+    frames of the stream; with ``sva.pairs`` > 1, frame f is pair f % pairs's)."""
+    source, pairs = cfg.source, cfg.sva.pairs
+    pair = f" of pair {frame % pairs} (its frame {frame // pairs})" if pairs > 1 else ""
+    return (f"camera '{camera}' found no free frame buffer for frame {frame}{pair}, cycle "
+            f"{cycle}: the NNA still reads frame {busy_frame} from the buffer it needs "
+            f"({source.frame_buffers} buffer(s){' per pair' if pairs > 1 else ''}); drop such frames "
             "(source.on_overflow=drop_frame), add buffers (source.frame_buffers) or more NNA "
             "throughput (nna.stereo_submodules, clocks.nna_mhz)")

@@ -34,7 +34,8 @@ def configurations(draw):
     D, paths, LR check, median, every FIFO depth (1 included), latency and synchroniser,
     clocks, memory or camera sources with blanking, frames split over two or three submodules
     per camera (column tiles or row bands), periodic sink stalls and watchdogs that fire,
-    streams of one to three frames; and a trace window (which may span frames)."""
+    streams of one to three frames, camera pairs sharing the chip, reads and write-back through
+    the DRAM channel; and a trace window (which may span frames)."""
     d = draw(st.sampled_from([16, 16, 32]))
     h = draw(st.integers(2, 9))
     w = draw(st.integers(d + 1, d + 20))
@@ -68,16 +69,32 @@ def configurations(draw):
         over.update({"nna.stereo_submodules": 2 * parts, "nna.split": split})
     if draw(st.booleans()):
         over.update({"source.kind": "camera",
-                     "clocks.camera_mhz": draw(st.sampled_from([4, 10, 25, 120])),
+                     "clocks.camera_mhz": draw(st.sampled_from([8, 10, 25, 120])),
                      "source.camera_hblank": draw(st.integers(0, 12)),
                      "source.camera_vblank": draw(st.integers(0, 4))})
         buffers = draw(st.sampled_from([0, 0, 1, 2]))  # into frame buffers in DRAM
         if buffers:
             over.update({"source.frame_buffers": buffers,
                          "source.on_overflow": draw(st.sampled_from(["error", "drop_frame"])),
-                         "source.memory_gbps": draw(st.sampled_from([0.05, 4.0]))})
+                         "source.memory_gbps": draw(st.sampled_from([0.05, 4.0])),
+                         # camera pairs sharing the chip frame by frame
+                         "sva.pairs": draw(st.sampled_from([1, 1, 2, 3]))})
     else:
         over["source.memory_gbps"] = draw(st.sampled_from([0.05, 0.2, 4.0]))
+    if draw(st.integers(0, 2)) == 0:  # through the DRAM channel
+        over.update({"dram.model": "tdm",
+                     "dram.gbps": draw(st.sampled_from([0.3, 2.0, 17.0] if not
+                                                       over.get("source.frame_buffers")
+                                                       else [4.0, 17.0])),
+                     "dram.latency_ns": draw(st.sampled_from([0, 50, 400])),
+                     "dram.read_prefetch_bursts": draw(st.sampled_from([1, 2, 8])),
+                     "dram.write_buffer_bursts": draw(st.sampled_from([1, 2, 8])),
+                     "dram.spill": draw(st.sampled_from(["none", "none", "descriptors"]))})
+        # small bursts on a slow channel make many slots (long runs for the readable kernel)
+        over["dram.burst_bytes"] = draw(st.sampled_from([4, 8, 64] if over["dram.gbps"] >= 2
+                                                        else [8, 64]))
+        if over["dram.gbps"] < 1:  # a spill on a slow channel: long runs for the readable
+            over["dram.spill"] = "none"
     stall = None
     kind = draw(st.sampled_from(["none", "none", "periodic", "periodic", "never"]))
     if kind == "periodic":  # short periods fill the sink's FIFO; long ones stall the SVA long
@@ -87,10 +104,13 @@ def configurations(draw):
         stall = NEVER
     if kind == "never" or draw(st.integers(0, 9)) == 0:
         over["sim.watchdog_cycles"] = draw(st.integers(10, 400))
-    # streams of frames back to back (a slow camera's stream is short: the readable kernel
-    # steps every NNA edge of its long frame periods)
-    frames = draw(st.sampled_from([1, 1, 2, 3] if over.get("clocks.camera_mhz", 120) >= 25
-                                  else [1, 1, 2]))
+    # streams of frames back to back (a slow camera's stream is one frame: the readable
+    # kernel steps every NNA edge of its long frame periods; pairs multiply the camera frames)
+    if over.get("clocks.camera_mhz", 120) < 25:
+        frames = 1
+    else:
+        frames = draw(st.sampled_from([1, 1, 2, 3] if over.get("sva.pairs", 1) == 1
+                                      else [1, 1, 2]))
     p_sva = round(1e15 / (over["clocks.sva_mhz"] * 1e6))
     start = draw(st.integers(0, 1500 * frames)) * p_sva
     window = (start, start + draw(st.integers(1, 3000)) * p_sva)
@@ -130,7 +150,7 @@ def test_the_compiled_engine_equals_the_readable_kernel(case):
         return
     np.testing.assert_array_equal(fast.words, slow.words)
     assert [f for f, _ in got_fast] == [f for f, _ in got_slow]
-    assert len(got_fast) + fast.report["stream"]["frames_dropped"] == frames
+    assert len(got_fast) + fast.report["stream"]["frames_dropped"] == plan.frames
     for (_, a), (_, b) in zip(got_fast, got_slow):
         np.testing.assert_array_equal(a, b)  # every frame's words
     assert fast.stats == slow.stats

@@ -81,20 +81,10 @@ def test_a_camera_slower_than_the_chip_drops_nothing_and_errors_name_the_frame()
      "nna.split": "rows", "fifo.nna_to_merge_depth": 8},
     {"source.camera_hblank": 60, "source.frame_buffers": 3, "clocks.camera_mhz": 150},
 ])
-def test_the_engines_agree_with_frame_buffers(over):
+def test_the_engines_agree_with_frame_buffers(over, engines_agree):
     plan = build_plan(load_config(overrides={**CHIP, "source.on_overflow": "drop_frame",
                                              **over}), (H, W), N)
-    left, right = _stream(4)
-    words = {}
-    slow = run_readable(plan, left, right,
-                        on_frame=lambda f, w: words.setdefault("slow", []).append((f, w.copy())))
-    fast = run_compiled(plan, left, right,
-                        on_frame=lambda f, w: words.setdefault("fast", []).append((f, w.copy())))
-    assert slow.report == fast.report and slow.stats == fast.stats
-    np.testing.assert_array_equal(slow.frame_times, fast.frame_times)
-    assert [f for f, _ in words["slow"]] == [f for f, _ in words["fast"]]
-    for (_, a), (_, b) in zip(words["slow"], words["fast"]):
-        np.testing.assert_array_equal(a, b)
+    engines_agree(plan, *_stream(4))
 
 
 def test_dropping_needs_frame_buffers():

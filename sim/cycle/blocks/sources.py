@@ -16,8 +16,19 @@ from collections.abc import Callable
 import numpy as np
 
 from sim.cycle.clock import Block, ClockDomain
-from sim.cycle.plan import STATUS_CODES, BlockPlan
-from sim.cycle.rules import camera_cycle, frame_buffer_admits, memory_first_cycle, seen_from
+from sim.cycle.plan import STATUS_CODES, BlockPlan, DramPlan
+from sim.cycle.rules import (
+    burst_last,
+    burst_of,
+    camera_cycle,
+    dram_read_ready_fs,
+    dram_slot,
+    dram_write_done_fs,
+    first_edge_at,
+    frame_buffer_admits,
+    memory_first_cycle,
+    seen_from,
+)
 
 
 class _FrameSource(Block):
@@ -35,6 +46,7 @@ class _FrameSource(Block):
         self.sent = 0
         self.first_cycles = np.full(frames, -1, np.int64)  # each frame's first pixel
         self.buffers: FrameBuffers | None = None  # a camera's frame buffers in DRAM
+        self.dram: DramChannel | None = None  # the DRAM channel a memory source reads through
         self._pushed = False
         self._cycle = 0
         self._frame = -1
@@ -60,6 +72,8 @@ class _FrameSource(Block):
             fb = self.buffers
             if fb is not None and self.sent % n == 0:
                 fb.read_end[self.plan.side].append(self._cycle * self.domain.period_fs)
+            if self.dram is not None:
+                self.dram.pushed(self.plan.side, self.sent - 1, self._cycle * self.domain.period_fs)
             self._pushed = False
 
     def signal_values(self):
@@ -67,22 +81,26 @@ class _FrameSource(Block):
 
 
 class FrameBuffers:
-    """A camera pair's frame buffers in DRAM, shared by the two cameras that write them and the
-    two memory sources that read them (the readable kernel's; the plan's ``frame_buffers``).
+    """The camera pairs' frame buffers in DRAM, shared by the cameras that write them and the
+    two memory sources that read them (the readable kernel's; the plan's ``frame_buffers``,
+    that many per pair; ``pairs`` pairs sharing the chip frame by frame, camera frame f pair
+    f % pairs's).
 
-    The left camera decides at each frame's first pixel, from the committed state, whether the
-    pair takes the frame (:func:`~sim.cycle.rules.frame_buffer_admits`, the later of the two
-    readers' ends); a frame taken is written at the pixel clock, pixel (x, y) readable from the
-    first NNA edge after its camera cycle. ``taken[g]``: the camera frame the g-th taken frame
-    is; ``dropped``: the frames skipped; ``read_end[side][g]``: the instant a reader finished
-    the g-th."""
+    The left camera decides at each frame's first pixel, from the committed state, whether
+    its pair takes the frame (:func:`~sim.cycle.rules.frame_buffer_admits`: the pair's frame
+    taken ``buffers`` before it, the later of the two readers' ends); a frame taken is written
+    at the pixel clock, pixel (x, y) readable from the first NNA edge after its camera cycle.
+    ``taken[g]``: the camera frame the g-th taken frame of the stream is; ``pair_taken[p]``:
+    the stream's indices of pair p's; ``dropped``: the frames skipped; ``read_end[side][g]``:
+    the instant a reader finished the g-th."""
 
     def __init__(self, count: int, buffers: int, drop: bool, line_clocks: int,
-                 frame_clocks: int, camera_period_fs: int, nna_period_fs: int):
+                 frame_clocks: int, camera_period_fs: int, nna_period_fs: int, pairs: int = 1):
         self.count, self.buffers, self.drop = count, buffers, drop
-        self.line_clocks, self.frame_clocks = line_clocks, frame_clocks
+        self.line_clocks, self.frame_clocks, self.pairs = line_clocks, frame_clocks, pairs
         self.camera_period_fs, self.nna_period_fs = camera_period_fs, nna_period_fs
         self.taken: list[int] = []
+        self.pair_taken: list[list[int]] = [[] for _ in range(pairs)]
         self.dropped: list[int] = []
         self.decided = 0  # camera frames decided
         self.read_end: list[list[int]] = [[], []]
@@ -92,15 +110,108 @@ class FrameBuffers:
         ends = [r[g] if g < len(r) else None for r in self.read_end]
         return -1 if None in ends else max(ends)
 
+    def camera_cycle(self, f: int, x: int, y: int) -> int:
+        """The camera cycle in which pixel (x, y) of camera frame f is written."""
+        return camera_cycle(f, x, y, self.line_clocks, self.frame_clocks, self.pairs)
+
     def readable_cycle(self, f: int, x: int, y: int) -> int:
         """The first NNA cycle that may read pixel (x, y) of camera frame f."""
-        c = camera_cycle(f, x, y, self.line_clocks, self.frame_clocks)
-        return seen_from(c, self.camera_period_fs, self.nna_period_fs, 1)
+        return seen_from(self.camera_cycle(f, x, y), self.camera_period_fs,
+                         self.nna_period_fs, 1)
+
+    def take(self, f: int) -> None:
+        self.pair_taken[f % self.pairs].append(len(self.taken))
+        self.taken.append(f)
 
     @property
     def total(self) -> int | None:
         """Frames taken in all, once every camera frame is decided (else None)."""
         return len(self.taken) if self.decided == self.count else None
+
+
+class DramChannel:
+    """The DRAM channel's state in the readable kernel, shared by the two memory sources (their
+    reads) and the sink (its write-back): :class:`~sim.cycle.plan.DramPlan`'s slots, each
+    client's bursts served in turn by :func:`~sim.cycle.rules.dram_slot`.
+
+    Reads: the stereo pair's burst b (pixels of both views, :func:`~sim.cycle.rules.burst_of`)
+    is requested when both sources have sent the last pixel of burst b - prefetch (at 0 for
+    the first ``prefetch``) and, reading a camera's ``frame_buffers``, the camera wrote the
+    burst's last pixel; it is read in the next pair of read slots, and its pixels may leave
+    from the first source edge at or after :func:`~sim.cycle.rules.dram_read_ready_fs`.
+    Write-back: burst u of disparity words is requested when the sink took its last word and
+    written in the next write slot; word j may be taken once burst ``u(j) - write_buffer``
+    has been written (:func:`~sim.cycle.rules.dram_write_done_fs`, the first sink edge at or
+    after). ``read_stalls[side]``, ``write_stalls``: the cycles a source or the sink waited."""
+
+    def __init__(self, plan: DramPlan, shape: tuple[int, int], source_period_fs: int,
+                 sink_period_fs: int, frame_buffers: FrameBuffers | None = None):
+        self.plan, self.n, self.width = plan, shape[0] * shape[1], shape[1]
+        self.frame_buffers = frame_buffers
+        self.source_period_fs, self.sink_period_fs = source_period_fs, sink_period_fs
+        self.last_push: list[dict[int, int]] = [{}, {}]  # per side: burst -> its last push (fs)
+        self.read_ready: list[int] = []  # per read burst: the first source cycle it is in
+        self.read_slot = -1
+        self.write_free: list[int] = []  # per write burst: the first sink cycle its slot frees
+        self.write_slot = -1
+        self.read_stalls = [0, 0]
+        self.write_stalls = 0
+
+    def pushed(self, side: int, k: int, t_fs: int) -> None:
+        b, last = burst_of(k, self.n, self.plan.read_pixels)
+        if k == last:
+            self.last_push[side][b] = t_fs
+
+    def read_ready_cycle(self, k: int) -> int | None:
+        """The first source cycle pixel k may leave (None: its burst is not requested yet)."""
+        d = self.plan
+        b, _ = burst_of(k, self.n, d.read_pixels)
+        while len(self.read_ready) <= b:
+            r = len(self.read_ready)
+            request = 0
+            fb = self.frame_buffers
+            if fb is not None:  # after the camera wrote the burst's last pixel
+                g, i = divmod(burst_last(r, self.n, d.read_pixels), self.n)
+                if g >= len(fb.taken):
+                    return None
+                y, x = divmod(i, self.width)
+                request = fb.camera_cycle(fb.taken[g], x, y) * fb.camera_period_fs
+            if r >= d.prefetch:
+                ends = [self.last_push[s].get(r - d.prefetch) for s in (0, 1)]
+                if None in ends:
+                    return None
+                request = max(request, *ends)
+                for s in (0, 1):
+                    del self.last_push[s][r - d.prefetch]
+            self.read_slot = dram_slot(request, self.read_slot, d.slot_fs, d.round_slots,
+                                       d.reads.first, 1)
+            self.read_ready.append(first_edge_at(
+                dram_read_ready_fs(self.read_slot, d.slot_fs, d.latency_fs),
+                self.source_period_fs))
+        return self.read_ready[b]
+
+    def write_room(self, j: int, now_cycle: int) -> bool:
+        """May the sink take word j (over the stream) in ``now_cycle``?"""
+        u, _ = burst_of(j, self.n, self.plan.write_words)
+        v = u - self.plan.write_buffer
+        return v < 0 or self.write_free[v] <= now_cycle
+
+    def took(self, j: int, now_cycle: int) -> None:
+        """The sink took word j in ``now_cycle``: a full burst is requested."""
+        d = self.plan
+        u, last = burst_of(j, self.n, d.write_words)
+        if j == last:
+            wb = d.write_back
+            self.write_slot = dram_slot(now_cycle * self.sink_period_fs, self.write_slot,
+                                        d.slot_fs, d.round_slots, wb.first, wb.count)
+            assert len(self.write_free) == u
+            self.write_free.append(first_edge_at(dram_write_done_fs(self.write_slot, d.slot_fs),
+                                                 self.sink_period_fs))
+
+    def stats(self) -> dict:
+        """The cycles each client waited on the channel (the cycle report's ``dram``)."""
+        return {"read_stall_cycles": list(self.read_stalls),
+                "write_stall_cycles": self.write_stalls}
 
 
 class MemorySource(_FrameSource):
@@ -109,16 +220,19 @@ class MemorySource(_FrameSource):
 
     Port: the source FIFOs. Bandwidth: a token bucket filled at ``bytes_per_s``; pixel k (from
     0, over the stream) may leave from cycle :func:`~sim.cycle.rules.memory_first_cycle` on, at
-    most one pixel per cycle. Activity: busy while pixels remain (waiting for bandwidth counts
-    as busy: the transfer is under way), blocked when a target FIFO is full, idle once the last
-    frame has left.
+    most one pixel per cycle -- or, through the DRAM channel (``dram``), once its burst is in
+    (:class:`DramChannel`). Activity: busy while pixels remain (waiting for the token bucket
+    counts as busy: the transfer is under way), starved while the frame buffers or the DRAM
+    channel have not delivered the pixel, blocked when a target FIFO is full, idle once the
+    last frame has left.
     """
 
     def __init__(self, plan: BlockPlan, domain: ClockDomain, image, shape, frames, outs,
-                 buffers: FrameBuffers | None = None):
+                 buffers: FrameBuffers | None = None, dram: DramChannel | None = None):
         super().__init__(plan, domain, image, shape, frames, outs)
         self.freq_hz = round(domain.freq_hz)
         self.buffers = buffers  # a camera's frame buffers it reads (None: frames in memory)
+        self.dram = dram  # the DRAM channel it reads through (None: the token bucket)
 
     def evaluate(self, now_cycle: int) -> None:
         n = self.height * self.width
@@ -134,7 +248,13 @@ class MemorySource(_FrameSource):
                                or now_cycle < fb.readable_cycle(fb.taken[f], x, y)):
             self.starved("frame buffers")  # the camera has not written the pixel yet
             return
-        if now_cycle < memory_first_cycle(self.sent, self.freq_hz, self.plan.bytes_per_s):
+        if self.dram is not None:
+            ready = self.dram.read_ready_cycle(self.sent)
+            if ready is None or now_cycle < ready:
+                self.dram.read_stalls[self.plan.side] += 1
+                self.starved("dram")  # its burst is not in the chip yet
+                return
+        elif now_cycle < memory_first_cycle(self.sent, self.freq_hz, self.plan.bytes_per_s):
             self.busy()
             return
         targets = self._targets(x, y)
@@ -158,7 +278,8 @@ class CameraSource(_FrameSource):
     - Into frame buffers in DRAM (:class:`FrameBuffers`): the left camera decides at each
       frame's first pixel whether the pair takes the frame; a frame that finds no free buffer
       is dropped (``drop_frame``) or stops the run (``fb_overflow``). The memory sources read
-      the frames taken.
+      the frames taken. With ``sva.pairs`` = P the block stands for the P pairs' cameras of
+      its side, each on its own raster (:func:`~sim.cycle.rules.camera_frame_start`).
 
     ``sent`` counts the pixels streamed. Activity: busy in the lines of its frames (horizontal
     blanking included), idle in the vertical blanking and after the last frame.
@@ -175,21 +296,51 @@ class CameraSource(_FrameSource):
         self._decision: tuple[str, int] | None = None
 
     def _decide(self, f: int, now_cycle: int) -> None:
-        """Frame f's first pixel: take it if a buffer is free, else drop it or stop."""
+        """Frame f's first pixel: take it if its pair's buffer is free, else drop it or
+        stop."""
         fb = self.buffers
-        g = len(fb.taken)
-        busy = fb.busy_until_fs(g - fb.buffers) if g >= fb.buffers else -1
+        mine = fb.pair_taken[f % fb.pairs]  # the stream's indices of the pair's frames
+        g = len(mine)
+        held = mine[g - fb.buffers] if g >= fb.buffers else -1  # holds the buffer it needs
+        busy = fb.busy_until_fs(held) if held >= 0 else -1
         start = now_cycle * self.domain.period_fs
         if frame_buffer_admits(g, fb.buffers, busy if busy >= 0 else 1 << 62, start):
             self._decision = ("take", f)
         elif fb.drop:
             self._decision = ("drop", f)
         else:
-            self.fb_overflow = (self.name, f, fb.taken[g - fb.buffers], now_cycle)
+            self.fb_overflow = (self.name, f, fb.taken[held], now_cycle)
+
+    def _evaluate_buffered(self, now_cycle: int) -> None:
+        """Into frame buffers: every pair's camera in the lines of a frame now streams (its
+        pixel, outside the horizontal blanking) -- one raster per pair, pair p's p/P of a frame
+        period late."""
+        fb = self.buffers
+        step = fb.frame_clocks // fb.pairs
+        active = False
+        for p in range(fb.pairs):
+            fl, c = divmod(now_cycle - p * step, fb.frame_clocks)
+            f = fl * fb.pairs + p  # the camera frame of the stream
+            line, col = divmod(c, fb.line_clocks)
+            if fl < 0 or f >= self.frames or line >= self.height:
+                continue
+            active = True
+            if col < self.width:
+                assert fb.camera_cycle(f, col, line) == now_cycle
+                if self.plan.side == 0 and line == 0 and col == 0:
+                    self._decide(f, now_cycle)
+                self._pushed += 1  # streamed (into a buffer, or dropped)
+        if active:
+            self.busy()
+        else:
+            self.idle()
 
     def evaluate(self, now_cycle: int) -> None:
         self._cycle = now_cycle
         self._decision = None
+        if self.buffers is not None:
+            self._evaluate_buffered(now_cycle)
+            return
         f, c = divmod(now_cycle, self.plan.frame_clocks)
         line, col = divmod(c, self.plan.line_clocks)
         if f >= self.frames or line >= self.height:
@@ -197,38 +348,35 @@ class CameraSource(_FrameSource):
             return
         if col < self.width:
             assert camera_cycle(f, col, line, self.plan.line_clocks,
-                                self.plan.frame_clocks) == now_cycle
-            if self.buffers is not None:
-                if self.plan.side == 0 and line == 0 and col == 0:
-                    self._decide(f, now_cycle)
-                self._pushed = True  # streamed (into a buffer, or dropped)
+                                self.plan.frame_clocks, 1) == now_cycle
+            targets = self._targets(col, line)
+            full = next((fifo for fifo in targets if not fifo.can_push()), None)
+            if full is not None:
+                self.overflow = (self.name, full.name, col, f * self.height + line, now_cycle)
             else:
-                targets = self._targets(col, line)
-                full = next((fifo for fifo in targets if not fifo.can_push()), None)
-                if full is not None:
-                    self.overflow = (self.name, full.name, col, f * self.height + line,
-                                     now_cycle)
-                else:
-                    self._push_pixel(f, col, line, targets)
+                self._push_pixel(f, col, line, targets)
         self.busy()
 
     def commit(self) -> None:
         if self._decision is not None:
             kind, f = self._decision
             fb = self.buffers
-            (fb.taken if kind == "take" else fb.dropped).append(f)
+            if kind == "take":
+                fb.take(f)
+            else:
+                fb.dropped.append(f)
             fb.decided += 1
             self._decision = None
         if self.buffers is not None:
-            if self._pushed:
-                self.sent += 1
-                self._pushed = False
+            self.sent += self._pushed  # pixels streamed by the pairs' cameras
+            self._pushed = 0
             return
         super().commit()
 
 
 class Sink(Block):
-    """Collects the disparity words: pops one beat per cycle whenever one is visible.
+    """Collects the disparity words: pops one beat per cycle whenever one is visible (and,
+    writing back through the DRAM channel ``dram``, its write buffer has room: else blocked).
 
     ``stall`` (optional): a function of the cycle returning True on cycles the sink refuses to
     pop (back-pressure tests; the plan's periodic pattern is one such function). Records the
@@ -237,9 +385,10 @@ class Sink(Block):
     """
 
     def __init__(self, name: str, domain: ClockDomain, inp, shape: tuple[int, int],
-                 frames: int = 1, stall=None, on_frame=None):
+                 frames: int = 1, stall=None, on_frame=None, dram: DramChannel | None = None):
         super().__init__(name, domain)
         self.inp = inp
+        self.dram = dram  # the DRAM channel it writes back through (None: an ideal sink)
         self.shape = shape
         self.words = np.full(shape, -1, np.int32)  # the frame being received (then the last)
         self.n = shape[0] * shape[1]
@@ -267,6 +416,10 @@ class Sink(Block):
         if not self.inp.can_pop():
             self.starved(self.inp)
             return
+        if self.dram is not None and not self.dram.write_room(self.received, now_cycle):
+            self.dram.write_stalls += 1
+            self.blocked("dram")  # the write buffer is full
+            return
         self._beat = self.inp.pop()
         self._cycle = now_cycle
         self.busy()
@@ -278,6 +431,8 @@ class Sink(Block):
             if self.received % self.n == 0 and self.received > 0:
                 self.words = np.full(self.shape, -1, np.int32)
             self.words[y, x] = word
+            if self.dram is not None:
+                self.dram.took(self.received, self._cycle)
             self.received += 1
             if self.first_cycle is None:
                 self.first_cycle = self._cycle

@@ -14,7 +14,10 @@ Event streams (the cycle of every beat of a FIFO's producer or consumer, in beat
 - ``M`` per side, split frames only: the merge moves descriptor m (raster order);
 - ``P``: the SVA pops pair j; ``O``: it pushes word j; ``Q``: the sink pops word j;
 - ``T``: the SVA's pipeline *tick* at which word j is issued (:mod:`sim.cycle.rules`: advancing
-  cycles, not a cycle -- so the replay's cursors skip it).
+  cycles, not a cycle -- so the replay's cursors skip it);
+- ``R``: through the DRAM channel, the first source cycle the stereo pair's read burst r is in
+  the chip; ``W``: the first sink cycle write-back burst u has left the write buffer
+  (:class:`~sim.cycle.blocks.sources.DramChannel`; empty without the channel).
 
 The SVA's stages (``stages``, in stream order): offset and latency in ticks, the words their
 registers hold, and what the walker counts (the most words held, busy and blocked cycles; the
@@ -35,7 +38,7 @@ from sim.cycle.stages import stage_offsets
 INF = 1 << 62
 
 # stream kinds
-S_A, S_B, S_E, S_M, S_P, S_O, S_Q, S_T = range(8)
+S_A, S_B, S_E, S_M, S_P, S_O, S_Q, S_T, S_R, S_W = range(10)
 # FIFO kinds (how its items map onto streams)
 F_SRC, F_MERGE, F_TO_SVA, F_SINK = range(4)
 # block kinds
@@ -64,10 +67,18 @@ PARAMS = np.dtype([
     # a camera writing into frame buffers (fb of them), read by the memory sources
     ("fb", np.int64), ("fb_drop", np.int64), ("cam_line", np.int64), ("cam_frame", np.int64),
     ("per_cam", np.int64),
+    ("pairs", np.int64),  # camera pairs sharing the chip frame by frame (sva.pairs)
     ("fb_taken", np.int64),  # frames taken so far
     ("fb_next", np.int64),  # the next camera frame to decide
     ("sva_regular", np.int64),  # SVA words issued II ticks after the previous, without a stall
     ("sva_peaks_full", np.int64),  # 1: every SVA stage has held ceil(latency / II) words
+    # the DRAM channel (dram = 1; sim.cycle.plan.DramPlan): slot length, round, the read pair's
+    # and the write-back's slots, latency, pixels per read burst, read bursts ahead, words per
+    # write burst, write buffer bursts; the last read and write slots taken (-1: none yet)
+    ("dram", np.int64), ("d_slot", np.int64), ("d_round", np.int64), ("d_rfirst", np.int64),
+    ("d_wfirst", np.int64), ("d_wcount", np.int64), ("d_lat", np.int64), ("d_rpx", np.int64),
+    ("d_pref", np.int64), ("d_wwords", np.int64), ("d_wbuf", np.int64), ("d_rslot", np.int64),
+    ("d_wslot", np.int64),
     # outcome
     ("end", np.int64), ("error", np.int64), ("horizon_fs", np.int64), ("first_pop", np.int64),
     ("iterations", np.int64),
@@ -111,6 +122,7 @@ ACC = np.dtype([
     ("last_busy", np.int64),  # the block's last busy instant so far (fs)
     ("over_cycle", np.int64), ("over_k", np.int64), ("over_tile", np.int64),  # a camera's
     ("gaps", np.int64),  # long gaps kept (Net.gaps)
+    ("dram", np.int64),  # cycles a memory source or the sink waited on the DRAM channel
 ])
 
 # an SVA stage: its place in the pipeline, and what the walker counts
@@ -257,6 +269,12 @@ def serialise(plan: ChipPlan, *, sink_stall=None, cap_fs: int = INF, stats: bool
     specs.append((S_O, -1, -1, nf * n, doms["sva"].period_fs, block_index["sva"]))
     specs.append((S_Q, -1, -1, nf * n, doms["sva"].period_fs, block_index["sink"]))
     specs.append((S_T, -1, -1, nf * n, doms["sva"].period_fs, block_index["sva"]))
+    d = plan.dram
+    r_bursts = nf * -(-n // d.read_pixels) if d is not None and d.reads is not None else 0
+    w_bursts = nf * -(-n // d.write_words) if d is not None else 0
+    specs.append((S_R, -1, -1, r_bursts, doms[plan.source_domain].period_fs,
+                  block_index["sink" if plan.camera_direct else "memory_left"]))
+    specs.append((S_W, -1, -1, w_bursts, doms["sva"].period_fs, block_index["sink"]))
     streams = np.zeros(len(specs), STREAM)
     for i, (kind, side, tile, count, period, blk) in enumerate(specs):
         size = min(cap, _pow2(count + 1))
@@ -315,6 +333,7 @@ def serialise(plan: ChipPlan, *, sink_stall=None, cap_fs: int = INF, stats: bool
     p["line_clocks"] = src.line_clocks
     p["frame_clocks"] = src.frame_clocks
     p["frames"] = nf
+    p["pairs"] = plan.pairs
     p["mem_hz"] = round(doms[plan.source_domain].freq_hz)
     p["mem_bps"] = src.bytes_per_s
     sub = plan.blocks_of("nna")[0]
@@ -332,6 +351,15 @@ def serialise(plan: ChipPlan, *, sink_stall=None, cap_fs: int = INF, stats: bool
     p["stats"] = 1 if stats else 0
     p["n_stages"] = len(sva.stages)
     p["target"] = nf * n  # words the sink takes to finish (fewer once a camera drops frames)
+    p["d_rslot"], p["d_wslot"] = -1, -1
+    if d is not None:
+        p["dram"], p["d_slot"], p["d_round"], p["d_lat"] = 1, d.slot_fs, d.round_slots, \
+            d.latency_fs
+        p["d_rfirst"] = d.reads.first if d.reads is not None else -1
+        p["d_wfirst"], p["d_wcount"] = d.write_back.first, d.write_back.count
+        p["d_rpx"], p["d_pref"] = d.read_pixels, d.prefetch
+        p["d_wwords"], p["d_wbuf"] = d.write_words, d.write_buffer
+        p["mem_bps"] = p["mem_hz"]  # the channel, not the token bucket, paces the reads
     if plan.frame_buffered:
         cam = plan.block("camera_left")
         p["fb"] = cfg.source.frame_buffers
@@ -366,6 +394,7 @@ def serialise(plan: ChipPlan, *, sink_stall=None, cap_fs: int = INF, stats: bool
         elif block == "sva":
             win[-1] = (slot, p_id, w, p_id + 3, w, offset, in_rows, out_rows, 0, 0, 0, -1)
     names = {"streams": specs, "a": a_id, "b": b_id, "e": e_id, "m": m_id, "p": p_id,
+             "r": p_id + 4, "w": p_id + 5,
              "block_index": block_index, "fifo_index": fifo_index}
     scratch = np.zeros((parts, 14), np.int64)
     cursors = np.zeros(len(specs), np.int64)

@@ -29,6 +29,11 @@ from numba import njit
 from sim.cycle.engine.layout import ERR_GAPS, ERR_RING, INF
 from sim.cycle.engine.ring import busy, rd, view
 from sim.cycle.rules import (
+    burst_of,
+    dram_slot,
+    dram_write_done_fs,
+    first_edge_at,
+    sink_allowed_between,
     sink_next_allowed,
     sva_cycle_of_tick,
     sva_issue_tick,
@@ -147,6 +152,8 @@ def advance_sva_out_and_sink(net, p_s, f_sink):
     q_off, q_mask, kq, _ = view(streams, p_s + 2)
     t_off, t_mask, kt, _ = view(streams, p_s + 3)
     so, sq, st = streams[p_s + 1], streams[p_s + 2], streams[p_s + 3]
+    w_off, w_mask, kw, _ = view(streams, p_s + 5)  # W: the write-back's bursts
+    dram, d_wait = prm.dram, 0
     fi = net.fifos[f_sink]
     depth, de = fi.depth, fi.data_edges
     n, w, h, per, cap, la = so.n, prm.w, prm.h, so.period, prm.cap_fs, prm.lookahead
@@ -227,12 +234,32 @@ def advance_sva_out_and_sink(net, p_s, f_sink):
             ko += 1
             o = (o_off, o_mask, ko - 1 - o_mask)
             moved = True
-        # pops: the first allowed cycle from the word's visibility
+        # pops: the first allowed cycle from the word's visibility (and, writing back through
+        # the DRAM channel, once the write buffer has room)
         while kq < ko:
             vis = rd(ring, o_off, o_mask, kq) + de
             q = sink_next_allowed(max(q_prev + 1, vis), period, phase)
+            wait = 0
+            last = -1
+            if dram == 1:
+                u, last = burst_of(kq, prm.n, prm.d_wwords)
+                if u >= prm.d_wbuf:
+                    err |= u - prm.d_wbuf <= kw - 1 - w_mask
+                    room = rd(ring, w_off, w_mask, u - prm.d_wbuf)
+                    if room > q:
+                        q0 = q
+                        q = sink_next_allowed(room, period, phase)
+                        wait = sink_allowed_between(q0, q, period, phase)
             if q * per >= cap:
                 break
+            d_wait += wait
+            if dram == 1 and kq == last:  # a full burst: written in the next write slot
+                slot = dram_slot(q * per, prm.d_wslot, prm.d_slot, prm.d_round, prm.d_wfirst,
+                                 prm.d_wcount)
+                prm.d_wslot = slot
+                ring[w_off + (kw & w_mask)] = first_edge_at(dram_write_done_fs(slot,
+                                                                               prm.d_slot), per)
+                kw += 1
             empty += max(0, vis - q_prev - 1)
             ring[q_off + (kq & q_mask)] = q
             if kq == 0:
@@ -252,6 +279,9 @@ def advance_sva_out_and_sink(net, p_s, f_sink):
         if not moved:
             break
     so.count, sq.count, st.count = ko, kq, kt
+    streams[p_s + 5].count = kw
+    acc.blocked += d_wait
+    acc.dram += d_wait
     if first >= 0:
         prm.first_pop = first
     acc.last_busy, acc.gaps = last_busy, n_gaps

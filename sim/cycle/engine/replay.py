@@ -33,7 +33,11 @@ from sim.cycle.engine.pipeline import arrival, issued_before, words_between
 from sim.cycle.engine.ring import rd
 from sim.cycle.engine.walkers import tile_input_before, tile_output_before
 from sim.cycle.rules import (
+    burst_of,
     camera_cycle,
+    camera_frame_start,
+    camera_in_lines,
+    camera_pixels_streamed,
     memory_first_cycle,
     nna_last_input_row,
     seen_from,
@@ -137,19 +141,7 @@ def _tile_full(ring, streams, shape, tl, f, k, c):
 
 
 FRAME_BUFFERS = -2  # what a memory source reading a camera's frame buffers waits on
-
-
-@njit(cache=True, inline="always")
-def _streamed(prm, c):
-    """Pixels a camera has streamed after its cycle c (its raster, frame after frame)."""
-    f = c // prm.cam_frame
-    if f >= prm.frames:
-        return prm.frames * prm.n
-    line = (c - f * prm.cam_frame) // prm.cam_line
-    col = c - f * prm.cam_frame - line * prm.cam_line
-    if line >= prm.h:
-        return (f + 1) * prm.n
-    return f * prm.n + line * prm.w + min(col + 1, prm.w)
+DRAM = -3  # what a memory source (its read burst) or the sink (its write buffer) waits on
 
 
 @njit(cache=True)
@@ -158,7 +150,7 @@ def _status_memory(ring, streams, cursors, prm, tables, b, c):
     k, at = _lt_at(ring, streams[b.stream], cursors[b.stream], c)
     if prm.fb > 0:  # reading a camera's frame buffers: frames are decided at their start
         instant = c * b.period
-        last_start = (prm.frames - 1) * prm.cam_frame * prm.per_cam
+        last_start = camera_frame_start(prm.frames - 1, prm.cam_frame, prm.pairs) * prm.per_cam
         if prm.fb_next == prm.frames and last_start < instant and k >= prm.fb_taken * prm.n:
             return A_IDLE, -1
         if at:
@@ -168,12 +160,18 @@ def _status_memory(ring, streams, cursors, prm, tables, b, c):
             return A_STARVED, FRAME_BUFFERS  # the frame is not decided yet
         y = (k - g * prm.n) // prm.w
         x = k - g * prm.n - y * prm.w
-        cam = camera_cycle(frame_fs[2, g], x, y, prm.cam_line, prm.cam_frame)
+        cam = camera_cycle(frame_fs[2, g], x, y, prm.cam_line, prm.cam_frame, prm.pairs)
         if c < seen_from(cam, prm.per_cam, b.period, 1):
             return A_STARVED, FRAME_BUFFERS  # the camera has not written the pixel
     elif k >= prm.frames * prm.n:
         return A_IDLE, -1
-    if at or c < memory_first_cycle(k, prm.mem_hz, prm.mem_bps):
+    if at:
+        return A_BUSY, -1
+    if prm.dram == 1:  # its read burst is in from the R event on
+        r = _event(ring, streams[streams.shape[0] - 2], burst_of(k, prm.n, prm.d_rpx)[0])
+        if r == INF or c < r:
+            return A_STARVED, DRAM
+    elif c < memory_first_cycle(k, prm.mem_hz, prm.mem_bps):
         return A_BUSY, -1
     for t in range(prm.parts):
         tl = tiles[b.side * prm.parts + t]
@@ -307,6 +305,11 @@ def _status_sink(ring, streams, cursors, prm, fifos, b, c):
         return A_IDLE, -1
     if at:
         return A_BUSY, -1
+    if prm.dram == 1 and received < streams[q_s - 1].count:  # its word is visible: the write
+        fi = fifos[b.fifo_in]  # buffer is full
+        if seen_from(_event(ring, streams[q_s - 1], received), fi.per_src, fi.per_dst,
+                     fi.data_edges) <= c:
+            return A_BLOCKED, DRAM
     return A_STARVED, b.fifo_in
 
 
@@ -317,8 +320,8 @@ def _block_status(ring, streams, cursors, prm, tables, b, c):
     if kind == K_MEMORY:
         return _status_memory(ring, streams, cursors, prm, tables, b, c)
     if kind == K_CAMERA:  # busy in the lines of its frames
-        fr = c // prm.frame_clocks
-        busy = fr < prm.frames and (c - fr * prm.frame_clocks) // prm.line_clocks < prm.h
+        busy = camera_in_lines(c, prm.frames, prm.h, prm.line_clocks, prm.frame_clocks,
+                               prm.pairs)
         return (A_BUSY if busy else A_IDLE), -1
     if kind == K_NNA:
         return _status_nna(ring, streams, cursors, prm, tables[0][b.side * prm.parts + b.tile],
@@ -506,7 +509,8 @@ def sample(net, data, t, out, done):
             out[k] = cursors[b.stream]
             k += 1
         elif b.kind == K_CAMERA:  # writing frame buffers: the pixels it has streamed
-            out[k] = _streamed(prm, c)
+            out[k] = camera_pixels_streamed(c, prm.frames, prm.h, prm.w, prm.line_clocks,
+                                            prm.frame_clocks, prm.pairs)
             k += 1
         elif b.kind == K_NNA:
             _sample_nna(ring, streams, cursors, prm, tiles[b.side * prm.parts + b.tile],

@@ -36,3 +36,9 @@ def busy(gaps, blk, n_gaps, last_busy, u, v, g):
             gaps[blk, n_gaps, 1] = u
         n_gaps += 1
     return n_gaps, (v if v > last_busy else last_busy)
+
+
+@njit(cache=True, inline="always")
+def ratio(per_from, per_to):
+    """Two clock periods' ratio (for :func:`~sim.cycle.rules.seen_from_scaled`)."""
+    return per_from / per_to

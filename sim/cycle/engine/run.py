@@ -32,7 +32,7 @@ from sim.cycle.clock import (
     stop_message,
     watchdog_message,
 )
-from sim.cycle.rules import seen_from
+from sim.cycle.rules import camera_busy_cycles, camera_frame_start, seen_from
 from sim.cycle.engine.layout import (
     END_DONE,
     END_OVERFLOW,
@@ -45,6 +45,7 @@ from sim.cycle.engine.layout import (
     serialise,
 )
 from sim.cycle.engine.replay import (
+    DRAM,
     FRAME_BUFFERS,
     block_status,
     count_le,
@@ -54,13 +55,13 @@ from sim.cycle.engine.replay import (
     sample,
 )
 from sim.cycle.engine.replay import fifo_counts as fifo_state
+from sim.cycle.engine.reads import decide_until, note_source_wait
 from sim.cycle.engine.streams import run_pass
 from sim.cycle.engine.walkers import finish_fifos, note_camera, pop_cycle
-from sim.cycle.frames import FrameSupply
+from sim.cycle.frames import FrameSupply, camera_frames
 from sim.cycle.plan import ChipPlan
 from sim.cycle.report import cycle_report
 from sim.cycle.stops import CameraOverflow, frame_buffer_message, overflow_message
-from sim.errors import ConfigError
 from sva.pipeline import sva_stream
 from traces.log import TraceLog
 
@@ -181,15 +182,15 @@ def _stats(plan: ChipPlan, net: Net, names: dict, t_end: int) -> dict:
             active = _last(net, names["a"][b.side]) + 1 if n else 0
             starved = int(acc["starved"])
             if plan.frame_buffered:  # it waits for the camera until the last frame's decision
-                last = (plan.frames - 1) * b.frame_clocks
+                last = camera_frame_start(plan.frames - 1, b.frame_clocks, plan.pairs)
                 seen = seen_from(last, per["camera"], per[b.domain], 1)
                 starved += max(0, min(c_d, seen) - active)
                 active = max(active, min(c_d, seen))
             blocks[b.name] = activity_counts(active - starved - acc["blocked"], starved,
                                              acc["blocked"], c_d - active)
         elif b.kind == "camera":  # busy in the lines of its frames
-            busy = sum(min(max(0, c_d - f * b.frame_clocks), h * b.line_clocks)
-                       for f in range(plan.frames))
+            busy = camera_busy_cycles(c_d, plan.frames, h, b.line_clocks, b.frame_clocks,
+                                      plan.pairs)
             blocks[b.name] = activity_counts(busy, 0, 0, c_d - busy)
         elif b.kind in ("nna", "sva"):
             s = net.blocks[i]
@@ -210,7 +211,8 @@ def _stats(plan: ChipPlan, net: Net, names: dict, t_end: int) -> dict:
             period, phase = int(prm["stall_period"]), int(prm["stall_phase"])
             allowed = c_d if period == 0 else (q_last - phase) // period + 1 \
                 if q_last >= phase else 0
-            blocks[b.name] = activity_counts(n, allowed - n, 0, c_d - allowed)
+            blocked = int(acc["blocked"])  # waiting on the DRAM write buffer
+            blocks[b.name] = activity_counts(n, allowed - n - blocked, blocked, c_d - allowed)
     fifos = {}
     for k, f in enumerate(plan.fifos):
         if mirrored and plan.block(f.producer).side == 1:
@@ -233,7 +235,15 @@ def _stats(plan: ChipPlan, net: Net, names: dict, t_end: int) -> dict:
                                              c_sva - int(rec["busy"]) - int(rec["blocked"]) - idle,
                                              int(rec["blocked"]), idle),
                            "peak_words": int(rec["peak"])}
+    out = {}
+    if plan.dram is not None:
+        bi = names["block_index"]
+        reads = [int(net.acc[bi[f"memory_{side}"] if not mirrored else bi["memory_left"]]["dram"])
+                 if not plan.camera_direct else 0 for side in ("left", "right")]
+        out["dram"] = {"read_stall_cycles": reads,
+                       "write_stall_cycles": int(net.acc[bi["sink"]]["dram"])}
     return {
+        **out,
         "blocks": {b: blocks[b] for b in sorted(blocks)},
         "cycles": {name: int(cycles[name]) for name in sorted(cycles)},
         "end_time_fs": int(t_end),
@@ -256,6 +266,7 @@ def _stop(plan: ChipPlan, sink_stall, cls, now_fs: int, executed: int, tail: str
     ``executed``: steps before this instant are executed, and this one too if ``executed`` is
     ``now_fs + 1``), with the state of every FIFO and block."""
     net, _ = _pass(plan, sink_stall, executed, False)
+    _settle(plan, net, executed)
     cycles = {name: (executed - 1) // d.period_fs + 1 for name, d in plan.domains.items()}
     cursors_at(net, now_fs, True)
     fifos = {}
@@ -271,11 +282,24 @@ def _stop(plan: ChipPlan, sink_stall, cls, now_fs: int, executed: int, tail: str
             waiting = (plan.fifos[wait].name, "full" if status == "blocked" else "empty")
         elif wait == FRAME_BUFFERS:
             waiting = ("frame buffers", "empty")
+        elif wait == DRAM:
+            waiting = ("dram", "full" if status == "blocked" else "empty")
         blocks[b.name] = {"status": status, "waiting_on": waiting}
     msg = stop_message("deadlock" if cls is DeadlockError else "cycle budget exceeded", now_fs,
                        cycles, fifos, blocks, tail)
     return cls(msg, time_fs=now_fs, cycles=dict(sorted(cycles.items())), fifos=fifos,
                blocks=blocks)
+
+
+def _settle(plan: ChipPlan, net: Net, until_fs: int) -> None:
+    """What a pass that stopped leaves undone, as the readable kernel would have done it by
+    ``until_fs``: the camera frames that started decided, the sources' next read bursts and
+    token waits noted."""
+    note_source_wait(net)
+    if plan.frame_buffered:
+        decide_until(net, net.acc[[b.name for b in plan.blocks].index("memory_left")],
+                     until_fs)
+        note_source_wait(net)  # (a frame it took)
 
 
 def _raise_stop(plan: ChipPlan, net: Net, names: dict, sink_stall, t_end: int) -> None:
@@ -286,12 +310,16 @@ def _raise_stop(plan: ChipPlan, net: Net, names: dict, sink_stall, t_end: int) -
     t_over = INF
     over = []
     fb_message = None
+    note_source_wait(net)
+    if plan.frame_buffered:  # the frames that start before the run would stop
+        t_dog, _ = first_quiet(net, _periods(plan), min(t_end, t_budget))
+        _settle(plan, net, min(t_end, t_budget, t_dog))
     if net.prm[0]["end"] == END_OVERFLOW and plan.frame_buffered:  # no free frame buffer
         acc = net.acc[[b.name for b in plan.blocks].index("memory_left")]
         cycle = int(acc["over_cycle"])
         t_over = cycle * plan.domains["camera"].period_fs
         fb_message = frame_buffer_message("camera_left", int(acc["over_k"]),
-                                          int(acc["over_tile"]), cycle, plan.cfg.source)
+                                          int(acc["over_tile"]), cycle, plan.cfg)
     elif net.prm[0]["end"] == END_OVERFLOW:
         index = {b.name: i for i, b in enumerate(plan.blocks)}
         mirrored = int(net.prm[0]["sides"]) == 1
@@ -408,11 +436,7 @@ def run_compiled(plan: ChipPlan, left, right=None, *, sink_stall=None,
     (``engine_s``), the NNA's descriptors (``nna_kernels_s``) and the SVA's stream
     (``sva_kernels_s``)."""
     supply = FrameSupply.of(left, right)
-    if (plan.frames, plan.shape) != (supply.count, supply.shape):
-        raise ConfigError(
-            f"the plan is for {plan.frames} frame(s) of {plan.shape[1]}x{plan.shape[0]}, the "
-            f"stream has {supply.count} of {supply.shape[1]}x{supply.shape[0]}: build the plan "
-            "for the frames you run")
+    supply = camera_frames(supply, plan)  # every camera pair sees the stream
     t0 = time.process_time()
     net, names = _pass(plan, sink_stall, _budget_instant(plan), True)
     t_end = INF

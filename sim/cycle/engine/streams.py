@@ -49,7 +49,8 @@ from sim.cycle.engine.layout import (
     INF,
 )
 from sim.cycle.engine.pipeline import advance_sva_out_and_sink
-from sim.cycle.engine.ring import busy, rd, view
+from sim.cycle.engine.reads import decide_frame, reader_first
+from sim.cycle.engine.ring import busy, ratio, rd, view
 from sim.cycle.engine.walkers import walk_all
 from sim.cycle.rules import (
     camera_cycle,
@@ -57,17 +58,8 @@ from sim.cycle.rules import (
     nna_last_input_row,
     nna_rows_started_before_input,
     seen_from_scaled,
-    frame_buffer_admits,
     sva_rows_done_before_input,
 )
-
-# ---- rings --------------------------------------------------------------------------------------
-
-
-@njit(cache=True, inline="always")
-def ratio(per_from, per_to):
-    return per_from / per_to
-
 
 # ---- the sources --------------------------------------------------------------------------------
 
@@ -86,48 +78,6 @@ def _source_tables(tiles, fifos, streams, side, parts, tab):
         tab[t, 9], tab[t, 10], tab[t, 11], tab[t, 12] = f.depth, f.per_dst, f.per_src, \
             f.space_edges
         tab[t, 13] = tl.n_in
-
-
-@njit(cache=True)
-def decide_frame(net, g, acc):
-    """The camera frame the g-th frame of the stream is, with frame buffers: the next camera
-    frame whose buffer is free when it starts (:func:`~sim.cycle.rules.frame_buffer_admits`:
-    the reader finished frame g - B before), the ones before it dropped -- or a stop (policy
-    error: ``prm.end`` = END_OVERFLOW, the frame in ``acc``). Returns 1 taken, 0 undecided
-    (its start is beyond the cap) or no camera frame left (then the stream has g frames:
-    ``prm.target``), -1 stopped."""
-    prm = net.prm[0]
-    while prm.fb_next < prm.frames:
-        f = prm.fb_next
-        start = f * prm.cam_frame * prm.per_cam
-        if start >= prm.cap_fs:
-            return 0
-        busy_until = net.fbuf[1, g - prm.fb] if g >= prm.fb else INF
-        if frame_buffer_admits(g, prm.fb, busy_until, start):
-            net.frame_fs[0, g] = start
-            net.frame_fs[2, g] = f
-            prm.fb_taken = g + 1
-            prm.fb_next = f + 1
-            return 1
-        if prm.fb_drop == 1:
-            net.fbuf[0, f] = 1
-            prm.fb_next = f + 1
-            continue
-        acc.over_cycle, acc.over_k, acc.over_tile = f * prm.cam_frame, f, \
-            net.frame_fs[2, g - prm.fb]
-        prm.end = END_OVERFLOW
-        return -1
-    prm.target = g * prm.n
-    return 0
-
-
-@njit(cache=True, inline="always")
-def fb_first_cycle(net, g, x, y, per_src, rat):
-    """The first source cycle that may read pixel (x, y) of the g-th frame of the stream from
-    its frame buffer: the first edge after the camera wrote it."""
-    prm = net.prm[0]
-    c = camera_cycle(net.frame_fs[2, g], x, y, prm.cam_line, prm.cam_frame)
-    return seen_from_scaled(c, prm.per_cam, per_src, rat, 1)
 
 
 @njit(cache=True, inline="always")
@@ -161,13 +111,14 @@ def advance_source(net, side):
     fb = prm.fb
     rat_cam = ratio(prm.per_cam, per) if fb > 0 else 1.0
     starved = 0
+    d_wait = 0
     while k < n:
         if fb > 0 and x == 0 and y == 0 and fno >= prm.fb_taken:  # a camera's next frame
-            if decide_frame(net, fno, acc) != 1:
+            if decide_frame(net, fno, acc, prm.cap_fs) != 1:
                 break
         free = 0
         ok = True
-        c = camera_cycle(fno, x, y, line_clocks, frame_clocks)
+        c = camera_cycle(fno, x, y, line_clocks, frame_clocks, prm.pairs)
         for t in range(parts):
             if not (tab[t, 0] <= x < tab[t, 1] and tab[t, 2] <= y < tab[t, 3]):
                 continue
@@ -193,8 +144,11 @@ def advance_source(net, side):
             if full_tile >= 0:
                 break
         else:
-            first = max(a_prev + 1, fb_first_cycle(net, fno, x, y, per, rat_cam) if fb > 0
-                        else 0)
+            first, wait, ok, bad = reader_first(net, k, side, a_prev, per, rat_cam)
+            err |= bad
+            if not ok:
+                break
+            d_wait += wait
             lo = max(first, memory_first_cycle(k, mem_hz, mem_bps))
             a = max(lo, free)
             if a * per >= cap:
@@ -229,10 +183,12 @@ def advance_source(net, side):
     st.count = k
     acc.blocked += blocked
     acc.starved += starved
+    acc.dram += d_wait
     acc.last_busy, acc.gaps = last_busy, n_gaps
     if full_tile >= 0:
         acc.over_cycle, acc.over_k, acc.over_tile = (
-            camera_cycle(fno, x, y, line_clocks, frame_clocks), k, side * parts + full_tile)
+            camera_cycle(fno, x, y, line_clocks, frame_clocks, prm.pairs), k,
+            side * parts + full_tile)
         prm.end = END_OVERFLOW
     if err:
         prm.error = ERR_RING
@@ -275,6 +231,7 @@ def advance_whole_side(net, side):
     blocked = 0
     starved = 0
     empty = 0
+    d_wait = 0
     start_a, start_b = ka, kb
     a_prev = rd(ring, a_off, a_mask, ka - 1) if ka > 0 else -1
     b_prev = rd(ring, b_off, b_mask, kb - 1) if kb > 0 else -1
@@ -326,7 +283,7 @@ def advance_whole_side(net, side):
             if ka >= depth:
                 free = seen_from_scaled(rd(ring, b_off, b_mask, ka - depth), p_nna, p_src,
                                         rat_back, se)
-            c = camera_cycle(fa, xa, ya - fa * h, line_clocks, frame_clocks)
+            c = camera_cycle(fa, xa, ya - fa * h, line_clocks, frame_clocks, prm.pairs)
             if camera == 1:
                 if c * p_src >= cap:
                     break
@@ -335,14 +292,16 @@ def advance_whole_side(net, side):
                     break
                 a = c
             else:
-                avail = 0
-                if fb > 0:  # from a camera's frame buffer: decided at each frame's start
-                    if xa == 0 and ya == fa * h and fa >= prm.fb_taken:
-                        if decide_frame(net, fa, acc) != 1:
-                            over = prm.end == END_OVERFLOW
-                            break
-                    avail = fb_first_cycle(net, fa, xa, ya - fa * h, p_src, rat_cam)
-                first = max(a_prev + 1, avail)
+                # from a camera's frame buffer: decided at each frame's start
+                if fb > 0 and xa == 0 and ya == fa * h and fa >= prm.fb_taken:
+                    if decide_frame(net, fa, acc, prm.cap_fs) != 1:
+                        over = prm.end == END_OVERFLOW
+                        break
+                first, wait, ok, bad = reader_first(net, ka, side, a_prev, p_src, rat_cam)
+                err |= bad
+                if not ok:
+                    break
+                d_wait += wait
                 lo = max(first, memory_first_cycle(ka, mem_hz, mem_bps))
                 a = max(lo, free)
                 if a * p_src >= cap:
@@ -379,11 +338,13 @@ def advance_whole_side(net, side):
     sa.count, sb.count = ka, kb
     acc.blocked += blocked
     acc.starved += starved
+    acc.dram += d_wait
     acc.last_busy, acc.gaps = last_busy, n_gaps
     net.acc[len(net.blocks) + tl.src_fifo].empty += empty
     if over and fb == 0:
         acc.over_cycle, acc.over_k, acc.over_tile = (
-            camera_cycle(fa, xa, ya - fa * h, line_clocks, frame_clocks), ka, side)
+            camera_cycle(fa, xa, ya - fa * h, line_clocks, frame_clocks, prm.pairs), ka,
+            side)
         prm.end = END_OVERFLOW
     if err:
         prm.error = ERR_RING
@@ -407,7 +368,7 @@ def pending_overflow(net, side):
     x = k - y * w
     fr = y // prm.h
     y -= fr * prm.h
-    a = camera_cycle(fr, x, y, prm.line_clocks, prm.frame_clocks)
+    a = camera_cycle(fr, x, y, prm.line_clocks, prm.frame_clocks, prm.pairs)
     if a * st.period >= prm.cap_fs:
         return
     for t in range(parts):

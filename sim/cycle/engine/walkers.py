@@ -35,6 +35,7 @@ from sim.cycle.engine.layout import (
 from sim.cycle.engine.pipeline import arrival, cycle_of, issued_before, words_between
 from sim.cycle.engine.ring import busy, rd, view
 from sim.cycle.rules import (
+    camera_frame_start,
     nna_last_input_row,
     seen_from,
     seen_from_scaled,
@@ -635,12 +636,13 @@ def finish_fifos(net, cycles):
 
 @njit(cache=True)
 def note_camera(net, blk, lines, line_clocks, frame_clocks):
-    """A camera is busy from each frame's first to its last line's end."""
+    """A camera is busy from each frame's first to its last line's end (frames of pairs
+    sharing the chip overlap; their starts come in order)."""
     if net.blocks[blk].kind == K_CAMERA:
         a = net.acc[blk]
         per = net.blocks[blk].period
         for f in range(net.prm[0].frames):
-            start = f * frame_clocks
+            start = camera_frame_start(f, frame_clocks, net.prm[0].pairs)
             a.gaps, a.last_busy = busy(net.gaps, blk, a.gaps, a.last_busy, start * per,
                                         (start + lines * line_clocks - 1) * per,
                                         net.prm[0].watchdog_fs)

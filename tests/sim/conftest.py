@@ -1,0 +1,31 @@
+"""Shared fixtures of the cycle-model tests."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sim.cycle.chip import run_readable
+from sim.cycle.engine.run import run_compiled
+
+
+@pytest.fixture
+def engines_agree():
+    """A function running a plan on the readable kernel and the compiled engine and asserting
+    they agree: statistics, report, frame instants, the frames completed and every frame's
+    words. Returns the readable run and its [(frame, words)]."""
+
+    def check(plan, left, right, **kw):
+        got = {"slow": [], "fast": []}
+        slow = run_readable(plan, left, right,
+                            on_frame=lambda f, w: got["slow"].append((f, w.copy())), **kw)
+        fast = run_compiled(plan, left, right,
+                            on_frame=lambda f, w: got["fast"].append((f, w.copy())), **kw)
+        assert slow.stats == fast.stats and slow.report == fast.report
+        np.testing.assert_array_equal(slow.frame_times, fast.frame_times)
+        assert [f for f, _ in got["slow"]] == [f for f, _ in got["fast"]]
+        for (_, a), (_, b) in zip(got["slow"], got["fast"]):
+            np.testing.assert_array_equal(a, b)
+        return slow, got["slow"]
+
+    return check

@@ -1,0 +1,190 @@
+"""The DRAM channel (dram.model = "tdm"): the reads and the write-back in exact cycles by hand,
+both engines alike, the report's figures and the configurations it refuses."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sim.config import load_config
+from sim.cycle.engine.run import run_compiled
+from sim.cycle.plan import build_plan
+from sim.cycle.rules import (
+    burst_last,
+    burst_of,
+    dram_read_ready_fs,
+    dram_slot,
+    dram_write_done_fs,
+    first_edge_at,
+)
+from sim.errors import ConfigError
+
+H, W = 8, 40
+CHIP = {"clocks.nna_mhz": 400, "clocks.sva_mhz": 400, "sva.disparities": 16,
+        "nna.descriptor": "census", "dram.model": "tdm"}
+
+
+def _stream(n, seed=0):
+    rng = np.random.default_rng(seed)
+    base = rng.integers(0, 256, (n, H, W + 3), dtype=np.uint8)
+    return base[:, :, :W].copy(), base[:, :, 3:].copy()
+
+
+def _plan(frames=1, **over):
+    return build_plan(load_config(overrides={**CHIP, **over}), (H, W), frames)
+
+
+def test_the_slot_rule_serves_each_client_in_its_own_slots_in_order():
+    # rounds of 5 slots of 10 fs; a client owning offsets 2 and 3
+    assert dram_slot(0, -1, 10, 5, 2, 2) == 2
+    assert dram_slot(21, -1, 10, 5, 2, 2) == 3  # slot 3 starts at 30 >= 21
+    assert dram_slot(31, -1, 10, 5, 2, 2) == 7  # past its slots: the next round's first
+    assert dram_slot(0, 3, 10, 5, 2, 2) == 7  # after its previous burst's slot
+    assert dram_slot(20, -1, 10, 5, 2, 2) == 2  # a slot starting at the request serves it
+    # bursts restart at each frame: a frame of 10 items in bursts of 4 has bursts of 4, 4, 2
+    assert [burst_of(k, 10, 4)[0] for k in range(12)] == [0] * 4 + [1] * 4 + [2] * 2 + [3] * 2
+    assert [burst_last(b, 10, 4) for b in range(4)] == [3, 7, 9, 13]
+
+
+def test_a_slow_channel_paces_the_reads_a_round_per_burst():
+    """Bursts of 16 pixels at 0.01 GB/s: a slot is 1.6 us, 640 NNA cycles, far longer than a
+    burst's 16 pushes. With one burst of prefetch, burst b is requested when the last pixel of
+    burst b - 1 leaves, which is before the next round starts: burst b takes round b, its
+    pixels leave from the first edge at or after (R b + 2) slot + latency, one per cycle."""
+    plan = _plan(**{"dram.gbps": 0.01, "dram.burst_bytes": 16, "dram.read_prefetch_bursts": 1,
+                    "dram.latency_ns": 30})
+    d = plan.dram
+    per = plan.domains["nna"].period_fs
+    assert d.slot_fs == 1_600_000_000 and d.round_slots == 2 + 2  # reads, write-back
+    left, right = _stream(1)
+    res = run_compiled(plan, left, right)
+    bursts = H * W // 16
+    ready = [first_edge_at(dram_read_ready_fs(d.round_slots * b, d.slot_fs, d.latency_fs), per)
+             for b in range(bursts)]
+    # the first pixel leaves with the first burst; the last, 15 cycles after the last burst
+    assert res.frame_times[0, 0] == ready[0] * per
+    mem = res.stats["blocks"]["memory_left"]
+    assert mem["busy"] + mem["starved"] + mem["blocked"] == ready[-1] + 15 + 1
+    assert mem["blocked"] == 0 and mem["busy"] == H * W
+    # every cycle before a burst is in was a wait on the channel
+    waits = ready[0] + sum(ready[b] - (ready[b - 1] + 16) for b in range(1, bursts))
+    assert res.stats["dram"]["read_stall_cycles"] == [waits, waits]
+    assert mem["starved"] == waits
+    assert res.report["dram"]["stall_cycles"]["memory_left"] == waits
+    # the read slots bound the frame rate: a round per burst
+    assert res.report["dram"]["read_bound_fps"] == round(1e15 / (bursts * d.round_fs), 3)
+    assert res.report["throughput"]["bottleneck"] in ("memory_left", "memory_right")
+
+
+def _changes(trace, path, per):
+    """(cycles, values) of a traced signal's changes."""
+    i = next(k for k, sig in enumerate(trace.signals) if sig.path == path)
+    m = trace.ids == i
+    return trace.times_fs[m] // per, trace.values[m]
+
+
+def test_a_full_write_buffer_blocks_the_sink_until_its_oldest_burst_is_written():
+    """Write-back bursts of 8 bytes (7 words of 9 bits) at 0.05 GB/s with a one-burst buffer:
+    burst u is requested at the pop of its last word and written in the next write slot
+    (rules.dram_slot); word j of burst u >= 1 waits for burst u - 1 to be written -- the first
+    sink edge at or after that slot's end. Replayed by hand from the traced pops."""
+    plan = _plan(**{"dram.gbps": 0.05, "dram.burst_bytes": 8, "dram.write_buffer_bursts": 1,
+                    "dram.latency_ns": 0})
+    d, wb = plan.dram, plan.dram.write_back
+    per = plan.domains["sva"].period_fs
+    left, right = _stream(1)
+    end = run_compiled(plan, left, right).report["cycles"]["last_output"]["sva"]
+    res = run_compiled(plan, left, right, window=(0, (end + 2) * per))
+    cyc, count = _changes(res.trace, "top.sink.count", per)
+    pops = cyc[np.argsort(count)]  # word j popped in cycle pops[j]
+    assert len(pops) == H * W and d.write_words == 64 // plan.word_bits == 7
+    s_cyc, s_val = _changes(res.trace, "top.sink.status", per)
+    slot, free = -1, []
+    for u in range(-(-H * W // d.write_words)):
+        last = burst_last(u, H * W, d.write_words)
+        slot = dram_slot(int(pops[last]) * per, slot, d.slot_fs, d.round_slots, wb.first,
+                         wb.count)
+        free.append(first_edge_at(dram_write_done_fs(slot, d.slot_fs), per))
+    waited = 0
+    for u in range(1, len(free)):
+        first = u * d.write_words
+        assert pops[first] >= free[u - 1]  # never before the buffer has room
+        # blocked right before (the word was there): popped the cycle the room came
+        k = np.searchsorted(s_cyc, free[u - 1] - 1, side="right") - 1
+        if s_val[k] == 3:
+            assert pops[first] == free[u - 1]
+            waited += 1
+    assert waited > 10  # the channel, not the SVA, paced most bursts
+    sink = res.stats["blocks"]["sink"]
+    assert sink["blocked"] == res.stats["dram"]["write_stall_cycles"] > 0
+    assert res.report["dram"]["stall_cycles"]["sink"] == sink["blocked"]
+    assert res.report["cycles"]["last_output"]["sva"] == pops[-1]
+
+
+def test_a_larger_write_buffer_absorbs_the_channel_and_the_sink_never_waits():
+    plan = _plan(**{"dram.gbps": 0.05, "dram.burst_bytes": 8, "dram.write_buffer_bursts": 4096,
+                    "dram.latency_ns": 0})
+    left, right = _stream(1)
+    res = run_compiled(plan, left, right)
+    assert res.stats["blocks"]["sink"]["blocked"] == 0
+    assert res.stats["dram"]["write_stall_cycles"] == 0
+
+
+@pytest.mark.parametrize("over, stall", [
+    ({"dram.gbps": 0.2}, None),
+    ({"dram.gbps": 0.05, "dram.burst_bytes": 8, "dram.read_prefetch_bursts": 1,
+      "dram.write_buffer_bursts": 1}, (3, 1)),
+    ({"dram.gbps": 0.2, "dram.spill": "descriptors", "nna.lent_submodules": 2,
+      "dram.lent_gbps": 0.05, "dram.burst_bytes": 16, "nna.stereo_submodules": 4,
+      "fifo.nna_to_merge_depth": 8}, None),
+    ({"dram.gbps": 2, "source.kind": "camera", "source.frame_buffers": 2,
+      "source.on_overflow": "drop_frame", "clocks.camera_mhz": 400, "source.camera_vblank": 4,
+      "source.camera_hblank": 60, "dram.write_buffer_bursts": 1, "dram.latency_ns": 2000}, None),
+    ({"dram.gbps": 0.5, "source.kind": "camera", "dram.write_buffer_bursts": 1,
+      "clocks.camera_mhz": 50}, (2, 0)),
+])
+def test_the_engines_agree_through_the_channel(over, stall, engines_agree):
+    """Words of every frame, statistics, report and a trace window over a frame boundary."""
+    plan = _plan(3, **over)
+    p = plan.domains["sva"].period_fs
+    slow, _ = engines_agree(plan, *_stream(3, seed=7), sink_stall=stall,
+                            window=(1000 * p, 4000 * p))
+    assert slow.trace is not None
+
+
+def test_the_report_counts_every_clients_bytes_and_the_utilisation():
+    plan = _plan(2, **{"dram.gbps": 0.3, "dram.spill": "float32", "nna.lent_submodules": 2,
+                       "dram.lent_gbps": 0.1})
+    left, right = _stream(2)
+    rep = run_compiled(plan, left, right).report
+    dram = rep["dram"]
+    n = H * W
+    span_s = rep["cycles"]["last_output"]["ns"] / 1e9
+    c = dram["clients"]
+    assert c["read"]["bytes"] == 2 * 2 * n
+    assert c["write_back"]["bytes"] == 2 * -(-n * plan.word_bits // 8)
+    assert c["spill"]["bytes"] == 2 * n * 2 * 2 * plan.descriptor_bits * 4
+    total = sum(v["bytes"] for v in c.values())
+    assert dram["utilisation"] == pytest.approx(total / (0.3e9 * span_s), rel=1e-4)
+    slots = sum(v["slots_per_round"] for v in c.values())
+    assert slots == dram["round_slots"]
+    # the spill's slots carry its bytes in step with the reads: a round per read burst
+    assert c["spill"]["slots_per_round"] * plan.dram.burst_bytes >= \
+        plan.dram.read_pixels * 2 * 2 * plan.descriptor_bits * 4
+    # energy prices the spill and the lent network
+    whats = [it["what"] for it in rep["energy"]["items"]]
+    assert any("spilled" in w for w in whats) and any("lent network" in w for w in whats)
+
+
+@pytest.mark.parametrize("over, needle", [
+    ({"dram.model": "none", "dram.spill": "descriptors"}, "dram.spill needs the DRAM channel"),
+    ({"dram.lent_gbps": 1.0}, "none is lent"),
+    ({"dram.lent_gbps": 20.0, "nna.lent_submodules": 2}, "is not below the channel"),
+    ({"nna.lent_submodules": 9}, "exceeds nna.submodules"),
+    ({"source.kind": "camera", "source.frame_buffers": 2, "dram.gbps": 0.01},
+     "per camera into the frame buffers"),
+])
+def test_impossible_channels_are_refused_in_one_line(over, needle):
+    with pytest.raises(ConfigError, match=needle) as err:
+        _plan(**over)
+    assert "\n" not in str(err.value)
