@@ -526,7 +526,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="also write every K-th frame's disparity into OUT/frames/ (default 0: "
                    "only the last frame's)")
     t = r.add_argument_group("traces (cycle model; see docs/traces.md)")
-    t.add_argument("--vcd", help="write a VCD waveform of the trace window (and a .gtkw next to it)")
+    t.add_argument("--vcd", help="write a waveform of the trace window (and a .gtkw next to "
+                   "it): VCD, or FST (GTKWave's compressed format) when the name ends in .fst")
     t.add_argument("--timeline", help="write a Chrome/Perfetto trace-event JSON of the window")
     t.add_argument("--trace-window", metavar="A:B",
                    help="SVA cycles A:B, or nna:A:B / sva:A:B / camera:A:B, or rows:A:B "

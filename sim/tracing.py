@@ -30,6 +30,7 @@ from sim.outputs import publish
 from traces.gtkw import gtkw_text
 from traces.log import select
 from traces.timeline import timeline_bytes
+from traces.fst import fst_bytes
 from traces.vcd import estimate_vcd_bytes, vcd_bytes
 
 DEFAULT_LIMIT_MB = 500
@@ -113,13 +114,20 @@ def run_traced(plan: ChipPlan, left: np.ndarray, right: np.ndarray, request: Tra
     return frame, log
 
 
-def check_size(log, request: TraceRequest) -> int:
-    """The VCD's exact size in bytes; ConfigError above the limit unless ``force``."""
+def is_fst(path: str) -> bool:
+    """Does a ``--vcd`` path name an FST dump (``.fst``: GTKWave's compressed format)?"""
+    return path.lower().endswith(".fst")
 
-    size = estimate_vcd_bytes(log)
+
+def check_size(log, request: TraceRequest, size: int | None = None) -> int:
+    """The dump's size in bytes (a VCD's exact size computed before writing it; an FST's
+    ``size``, once written); ConfigError above the limit unless ``force``."""
+    if size is None:
+        size = estimate_vcd_bytes(log)
     if request.vcd and size > request.limit_mb * 1e6 and not request.force:
+        kind = "FST" if is_fst(request.vcd) else "VCD"
         raise ConfigError(
-            f"the VCD would be {size / 1e6:.1f} MB ({log.n_changes} value changes), above "
+            f"the {kind} would be {size / 1e6:.1f} MB ({log.n_changes} value changes), above "
             f"--trace-limit {request.limit_mb:g} MB: narrow --trace-window or --trace, or "
             "pass --force"
         )
@@ -144,10 +152,15 @@ def gtkw_path(vcd: str) -> str:
 
 def trace_files(log, request: TraceRequest) -> dict[str, bytes]:
     """The bytes of every file the request names (after :func:`check_size`), by path."""
-    check_size(log, request)
     files = {}
+    if request.vcd and is_fst(request.vcd):
+        files[request.vcd] = fst_bytes(log)
+        check_size(log, request, len(files[request.vcd]))
+    else:
+        check_size(log, request)
+        if request.vcd:
+            files[request.vcd] = vcd_bytes(log)
     if request.vcd:
-        files[request.vcd] = vcd_bytes(log)
         files[gtkw_path(request.vcd)] = gtkw_text(log, os.path.basename(request.vcd)).encode()
     if request.timeline:
         files[request.timeline] = timeline_bytes(log)

@@ -91,12 +91,9 @@ def clock_edges(clock: Clock, start_fs: int, end_fs: int) -> tuple[int, np.ndarr
 # ---- declarations -----------------------------------------------------------------------------
 
 
-def _declarations(log: TraceLog) -> tuple[list[str], list[str], list[str]]:
-    """The ``$scope``/``$var`` lines, the clocks' codes and the signals' codes."""
-    clock_codes = [identifier_code(j) for j in range(len(log.clocks))]
-    sig_codes = [identifier_code(len(log.clocks) + i) for i in range(len(log.signals))]
-    # A tree of scopes: each node is a dict name -> node (scope) or int (signal id), which keeps
-    # the order of first appearance.
+def scope_tree(log: TraceLog) -> dict:
+    """The signals' scopes as a tree: each node a dict name -> node (a scope) or int (a signal
+    id), in the order of first appearance (the VCD's and the FST's declarations)."""
     root: dict = {}
     for i, sig in enumerate(log.signals):
         *scopes, name = sig.path.split(".")
@@ -104,6 +101,14 @@ def _declarations(log: TraceLog) -> tuple[list[str], list[str], list[str]]:
         for s in scopes:
             node = node.setdefault(s, {})
         node[name] = i
+    return root
+
+
+def _declarations(log: TraceLog) -> tuple[list[str], list[str], list[str]]:
+    """The ``$scope``/``$var`` lines, the clocks' codes and the signals' codes."""
+    clock_codes = [identifier_code(j) for j in range(len(log.clocks))]
+    sig_codes = [identifier_code(len(log.clocks) + i) for i in range(len(log.signals))]
+    root = scope_tree(log)
     lines = []
     if log.clocks:
         lines.append(f"$scope module {CLOCK_SCOPE} $end")
