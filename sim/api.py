@@ -207,12 +207,8 @@ class FrameOutput:
     index: int
     disparity: np.ndarray
     disparity_fixed: np.ndarray
-    pair: int = 0
-    pair_frame: int = -1
-
-    def __post_init__(self):
-        if self.pair_frame < 0:
-            object.__setattr__(self, "pair_frame", self.index)
+    pair: int
+    pair_frame: int
 
     @property
     def invalid_percent(self) -> float:

@@ -370,7 +370,6 @@ def estimate(cfg: ChipConfig, shape: tuple[int, int]) -> dict:
             "fifo_items_per_s": {n: round(v, 1) for n, v in sorted(fifo_rate.items())},
             # a camera's real frame rate: its whole raster, vertical blanking included
             "camera_fps": camera_fps,
-            "camera_pairs": plan.pairs,  # pairs sharing the chip, each at camera_fps
         },
         "latency": {
             "first_output_ms": tl["first_output_cycle"] * p_sva / 1e12,

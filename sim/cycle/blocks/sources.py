@@ -120,6 +120,7 @@ class FrameBuffers:
                          self.nna_period_fs, 1)
 
     def take(self, f: int) -> None:
+        """Camera frame f is the stream's next frame (and its pair's)."""
         self.pair_taken[f % self.pairs].append(len(self.taken))
         self.taken.append(f)
 
