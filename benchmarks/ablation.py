@@ -16,7 +16,9 @@ gets independent Gaussian noise N(0, SIGMA^2), rounded and clipped to 0..255, fr
 descriptor bits equal to the float signs, and the architecture figures per 720p frame.
 
     python benchmarks/ablation.py [--data DIR] [--models DIR] [--noise SIGMA] [--seed S]
-                                  [--scenes N] [--write docs/ablation.md] [--json FILE]
+                                  [--scenes N] [--write docs/ablation.md] [--json FILE] [--quiet]
+
+On a terminal a progress bar on stderr counts every (configuration, scene) pair, with its ETA.
 
 ``--write`` replaces the generated table between the markers of docs/ablation.md (the clean or
 the noisy one) and leaves the discussion around it alone.
@@ -44,6 +46,7 @@ from sim.datasets import find_scenes, legal_disparities, load_scene, shared_data
 from sim.errors import UserError
 from sim.io import to_grey
 from sim.outputs import atomic_write_bytes
+from sim.progress import progress_bar
 from sim.metrics import evaluate
 from sva.cost import cosine_cost
 from sva.pipeline import sva_cost_volume, sva_stream
@@ -106,8 +109,14 @@ def architecture(variant: str) -> dict:
     }
 
 
-def evaluate_scene(data, index, args, models):
-    """Metrics (nonocc) of every row on one scene, plus the int8/float bit agreement."""
+def rows_per_scene(models) -> int:
+    """Table rows computed per scene: census, then three per network variant."""
+    return 1 + len(KINDS) * len(models)
+
+
+def evaluate_scene(data, index, args, models, done=lambda name: None):
+    """Metrics (nonocc) of every row on one scene, plus the int8/float bit agreement;
+    ``done(row name)`` is called as each row is scored (for the progress bar)."""
     left = add_noise(to_grey(data["left"]), args.noise, args.seed, index, 0)
     right = add_noise(to_grey(data["right"]), args.noise, args.seed, index, 1)
     dn = legal_disparities(data["ndisp"])
@@ -121,6 +130,7 @@ def evaluate_scene(data, index, args, models):
     c = ccfg.nna.census
     dl, dr = census(left, c.window, c.kind, c.stride), census(right, c.window, c.kind, c.stride)
     out["census"] = score(sva_stream(dl, dr, left, ccfg.sva, 32), ccfg.sva)
+    done("census")
     cfg = load_config(None, {"nna.descriptor": "cnn", "sva.disparities": dn}).sva
     for variant, (fmodel, qm) in models.items():
         fl, fr = float_forward(fmodel, left), float_forward(fmodel, right)
@@ -128,14 +138,17 @@ def evaluate_scene(data, index, args, models):
         out[(variant, "float cosine")] = score(
             sva_cost_volume(cosine_cost(fl, fr, dn, bits), left, cfg), cfg
         )
+        done(f"{variant} float cosine")
         out[(variant, "float sign")] = score(
             sva_stream(pack_signs(fl), pack_signs(fr), left, cfg, bits), cfg
         )
+        done(f"{variant} float sign")
         args_int = (qm.weights, qm.biases, qm.mult, qm.shift, qm.input_offset, qm.z_bits)
         al, ar = int_forward(left, *args_int), int_forward(right, *args_int)
         out[(variant, "int8 sign")] = score(
             sva_stream(pack_signs(al), pack_signs(ar), left, cfg, bits), cfg
         )
+        done(f"{variant} int8 sign")
         same = np.count_nonzero((al > 0) == (fl > 0)) + np.count_nonzero((ar > 0) == (fr > 0))
         agree[variant] = (same, al.size + ar.size)
     return out, agree
@@ -233,6 +246,7 @@ def main(argv=None):
     ap.add_argument("--scenes", type=int, default=0, metavar="N", help="only the first N scenes")
     ap.add_argument("--write", metavar="DOC", help="put the tables into this markdown file")
     ap.add_argument("--json", metavar="FILE", help="also write per-scene figures as JSON")
+    ap.add_argument("--quiet", action="store_true", help="no progress bar")
     args = ap.parse_args(argv)
     data_dir = args.data or (
         shared_data_dir() / "middlebury2014_trainingQ" if shared_data_dir() else None
@@ -257,14 +271,23 @@ def main(argv=None):
         scenes = scenes[: args.scenes]
     t0 = time.perf_counter()
     per_scene, agree = [], {v: (0, 0) for v in models}
-    for i, sc in enumerate(scenes):
-        res, ag = evaluate_scene(load_scene(sc), i, args, models)
-        per_scene.append(res)
-        for v, (same, total) in ag.items():
-            agree[v] = (agree[v][0] + same, agree[v][1] + total)
-        print(f"{sc.name}: census totbad {res['census']['totbad']:.2f}, " + ", ".join(
-            f"{v} int8 {res[(v, 'int8 sign')]['totbad']:.2f}" for v in models
-        ), file=sys.stderr)
+    # one step per (configuration, scene): the ETA counts every row of every scene
+    bar = progress_bar(len(scenes) * rows_per_scene(models), "ablation", "row",
+                       quiet=args.quiet)
+    with bar:
+        for i, sc in enumerate(scenes):
+
+            def done(name, scene=sc.name):
+                bar.set_postfix_str(f"{scene}: {name}", refresh=False)
+                bar.update(1)
+
+            res, ag = evaluate_scene(load_scene(sc), i, args, models, done)
+            per_scene.append(res)
+            for v, (same, total) in ag.items():
+                agree[v] = (agree[v][0] + same, agree[v][1] + total)
+            bar.write(f"{sc.name}: census totbad {res['census']['totbad']:.2f}, " + ", ".join(
+                f"{v} int8 {res[(v, 'int8 sign')]['totbad']:.2f}" for v in models
+            ), file=sys.stderr)
     seconds = time.perf_counter() - t0
     rows = mean_rows(per_scene)
     table = format_tables(rows, agree, models, args, len(scenes))

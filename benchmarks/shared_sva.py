@@ -47,7 +47,7 @@ def run_case(left, right, frames: int, over: dict, pairs: int) -> dict:
     stream = sim.run_stream([(left, right)] * frames,
                             overrides={**CAMERAS, **over, "sva.pairs": pairs})
     rep = stream.report
-    return {"stream": rep["stream"], "bound": rep["throughput"]["fps"],
+    return {"stream": rep["stream"], "bound": rep["throughput"]["fps_bound"],
             "bottleneck": rep["throughput"]["bottleneck"],
             "wall_s": time.perf_counter() - t0}
 

@@ -67,7 +67,7 @@ def one_frame_child(engine: str, split: bool) -> None:
     peak_mib = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     cycles = sum(res.report["cycles"]["total"].values())
     out = {"wall_s": wall, "cycles": cycles, "peak_mib": peak_mib,
-           "fps": res.report["throughput"]["fps"],
+           "fps": res.report["throughput"]["fps_bound"],
            "bottleneck": res.report["throughput"]["bottleneck"]}
     if split:
         out["split"] = _split_frame(left, right, over)

@@ -56,7 +56,7 @@ def child(frames: int, overrides: dict) -> dict:
     return {"frames": frames, "cpu_per_frame_s": cpu / frames, "wall_s": wall,
             "timing_cpu_per_frame_s": t_timing / frames, "peak_rss_mib": rss,
             "opencv_s": float(np.min(best)), "sustained_fps": st["sustained_fps"],
-            "latency_ms": st["latency_ms"], "bound_fps": stream.report["throughput"]["fps"],
+            "latency_ms": st["latency_ms"], "bound_fps": stream.report["throughput"]["fps_bound"],
             "bottleneck": stream.report["throughput"]["bottleneck"],
             "last_invalid_percent": invalid}
 

@@ -48,9 +48,9 @@ def measure() -> list[str]:
         lines.append(
             f"| {d} | {lanes} | {paths} | {'on' if lr else 'off'} | "
             f"{pipe['initiation_interval']} | {pipe['latency']} | "
-            f"{thr['fps_per_block']['sva']:.1f} | {census['throughput']['fps_frame']:.1f} | "
-            f"{thr['fps']:.1f} ({thr['bottleneck']}) | "
-            f"{rep['latency']['first_output_ns'] / 1e3:.1f} | "
+            f"{thr['fps_bound_per_block']['sva']:.1f} | {census['throughput']['fps_measured']:.1f} | "
+            f"{thr['fps_bound']:.1f} ({thr['bottleneck']}) | "
+            f"{rep['latency']['first_output_us']:.1f} | "
             f"{rep['architecture']['sram_bits_total']['sva'] / 1e3:.0f} | "
             f"{pipe['register_bits'] / 1e3:.1f} |")
         print(lines[-1], flush=True)

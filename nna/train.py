@@ -45,8 +45,8 @@ constants fixed before training (recorded in the output file), nothing per patch
 The training scenes are Middlebury 2005 (without Art, which is MiddEval3's ArtL) and 2006
 ThirdSize; MiddEval3 is the evaluation set and is never read here.
 
-torch is imported only inside the functions that need it: the rest of stereosim does not
-depend on it.
+Thread count, checkpoints and resuming a long run: :mod:`nna.trainrun`. torch is imported only
+inside the functions that need it: the rest of stereosim does not depend on it.
 """
 
 from __future__ import annotations
@@ -60,6 +60,15 @@ from pathlib import Path
 
 import numpy as np
 
+from nna.trainrun import (
+    load_checkpoint,
+    pick_threads,
+    restore,
+    save_checkpoint,
+    snapshot,
+    threads_line,
+    use_threads,
+)
 from quant.quantizer import FloatModel
 from sim.datasets import find_scene, find_scenes, load_scene, occluded_by_cross_check
 from sim.errors import ConfigError, InputError
@@ -74,6 +83,7 @@ from sim.io import (
 )
 from sim.npz import open_npz
 from sim.outputs import atomic_write_bytes
+from sim.progress import progress_bar
 
 # (C_in, C_out, K) per layer
 VARIANTS = {
@@ -125,7 +135,7 @@ class TrainConfig:
     noise_max: float = 2.0
     input_offset: int = 128
     input_scale: float = 1.0 / 64.0
-    threads: int = 2
+    threads: int = 0  # torch CPU threads; 0 = auto (nna.trainrun.pick_threads)
 
     def __post_init__(self):
         for f in dataclasses.fields(self):
@@ -151,9 +161,11 @@ class TrainConfig:
         for name in ("aggregate", "box"):
             if getattr(self, name) < 1 or getattr(self, name) % 2 == 0:
                 raise ConfigError(f"{name} must be odd and >= 1, got {getattr(self, name)}")
-        for name in ("epochs", "steps_per_epoch", "batch", "threads", "strips", "strip_width"):
+        for name in ("epochs", "steps_per_epoch", "batch", "strips", "strip_width"):
             if getattr(self, name) < 1:
                 raise ConfigError(f"{name} must be at least 1, got {getattr(self, name)}")
+        if self.threads < 0:
+            raise ConfigError(f"threads must be 0 (auto) or more, got {self.threads}")
         if not 0 <= self.pos_offset < self.neg_low <= self.neg_high:
             raise ConfigError(
                 "offsets must satisfy 0 <= pos_offset < neg_low <= neg_high, got "
@@ -585,12 +597,20 @@ def _curve_step(net, batch, cfg: TrainConfig, frac: float, log_temp):
 # --- the run ------------------------------------------------------------------------------------
 
 
-def train(cfg: TrainConfig, scene_dirs, *, progress: bool = True) -> dict:
-    """Train one network; returns the arrays and metadata :func:`save_float_model` writes."""
-    import torch
-    from tqdm import tqdm
+def train(cfg: TrainConfig, scene_dirs, *, progress: bool = True, checkpoint=None,
+          checkpoint_every: int = 0, resume: bool = False, log=None) -> dict:
+    """Train one network; returns the arrays and metadata :func:`save_float_model` writes.
 
-    torch.set_num_threads(cfg.threads)
+    ``cfg.threads`` 0 picks the thread count (:func:`nna.trainrun.pick_threads`; the result
+    records the count used). With ``checkpoint`` (a path) and ``checkpoint_every`` N > 0 the
+    state is written there every N steps; ``resume`` continues from it, to the same weights as
+    an uninterrupted run (:mod:`nna.trainrun`). ``log(line)`` receives the line that says how
+    many threads the run uses, before the first step."""
+    import torch
+
+    requested = cfg.threads
+    cfg = dataclasses.replace(cfg, threads=pick_threads(requested))
+    use_threads(cfg.threads)
     torch.manual_seed(cfg.seed)
     torch.use_deterministic_algorithms(True)
     rng = np.random.default_rng(cfg.seed)
@@ -610,34 +630,44 @@ def train(cfg: TrainConfig, scene_dirs, *, progress: bool = True) -> dict:
     opt = torch.optim.Adam(params, lr=cfg.lr)
     total = cfg.epochs * cfg.steps_per_epoch
     sched = torch.optim.lr_scheduler.LambdaLR(opt, lambda step: 1.0 - step / total)
-    history = []
-    bar = tqdm(total=total, desc=f"train {cfg.variant}", unit="step", disable=not progress)
-    try:
-        for epoch in range(cfg.epochs):
-            running = 0.0
-            for step in range(cfg.steps_per_epoch):
-                if cfg.objective == "curve":
-                    frac = (epoch * cfg.steps_per_epoch + step) / total
-                    loss = _curve_step(net, sample_strips(data, cfg, rng), cfg, frac, log_temp)
-                else:
-                    loss = _triplet_step(net, sample_batch(data, cfg, rng), cfg)
-                opt.zero_grad()
-                loss.backward()
-                opt.step()
-                sched.step()
-                running += loss.item()
-                bar.update(1)
-                bar.set_postfix(epoch=epoch + 1, loss=f"{loss.item():.4f}")
-            history.append(running / cfg.steps_per_epoch)
-    finally:
-        bar.close()
+    run = {"step": 0, "history": [], "running": 0.0}
+    if resume:
+        saved = load_checkpoint(checkpoint, asdict(cfg), data.names)
+        restore(saved, net, log_temp, opt, sched, rng)
+        run = {k: saved[k] for k in run}
+    if log is not None:
+        log(threads_line(cfg.threads, requested))
+    bar = progress_bar(total, f"train {cfg.variant}", "step", quiet=not progress,
+                       initial=run["step"])
+    with bar:
+        for step in range(run["step"], total):
+            epoch, k = divmod(step, cfg.steps_per_epoch)
+            if cfg.objective == "curve":
+                loss = _curve_step(net, sample_strips(data, cfg, rng), cfg, step / total, log_temp)
+            else:
+                loss = _triplet_step(net, sample_batch(data, cfg, rng), cfg)
+            opt.zero_grad()
+            loss.backward()
+            opt.step()
+            sched.step()
+            run["running"] += loss.item()
+            if k == cfg.steps_per_epoch - 1:
+                run["history"].append(run["running"] / cfg.steps_per_epoch)
+                run["running"] = 0.0
+            run["step"] = step + 1
+            bar.update(1)
+            bar.set_postfix(epoch=epoch + 1, loss=f"{loss.item():.4f}", refresh=False)
+            if checkpoint is not None and checkpoint_every > 0 and run["step"] < total \
+                    and run["step"] % checkpoint_every == 0:
+                state = {**snapshot(net, log_temp, opt, sched, rng), **run}
+                save_checkpoint(checkpoint, state, asdict(cfg), data.names)
     convs = [m for m in net if isinstance(m, torch.nn.Conv2d)]
     return {
         "weights": [c.weight.detach().numpy().astype(np.float32) for c in convs],
         "biases": [c.bias.detach().numpy().astype(np.float32) for c in convs],
         "config": asdict(cfg),
         "scenes": list(data.names),
-        "loss_per_epoch": history,
+        "loss_per_epoch": run["history"],
         "samples": int(n_samples),
     }
 

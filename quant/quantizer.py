@@ -53,6 +53,7 @@ from quant.intconv import (
     requantize,
 )
 from sim.errors import ConfigError
+from sim.progress import progress_bar
 
 TAU = 127
 # Largest integer float32 represents exactly: integer matmuls below it are exact in float32.
@@ -342,8 +343,12 @@ def quantize(
     *,
     variant: str = "",
     calibration: str = "",
+    progress: bool = True,
 ) -> QuantizedModel:
-    """Quantise ``model`` layer by layer on uint8 calibration images (module docstring)."""
+    """Quantise ``model`` layer by layer on uint8 calibration images (module docstring).
+
+    ``progress``: a bar on stderr (when it is a terminal) counting the channel searches, the
+    scale search of every output channel and the (m, h) search of every hidden channel."""
     config = config or QuantizerConfig()
     images = _as_images(calib_images)
     n_layers = len(model.weights)
@@ -354,7 +359,10 @@ def quantize(
     x_max = max(model.input_offset, 255 - model.input_offset)
     act_scales, weight_scales, distances = [], [], []
     q_weights, q_biases, q_mult, q_shift = [], [], [], []
+    searches = sum(np.shape(w)[0] for w in model.weights) * 2 - np.shape(model.weights[-1])[0]
+    bar = progress_bar(searches, "quantize", "channel", quiet=not progress)
     for layer in range(n_layers):
+        bar.set_postfix(layer=layer, refresh=False)
         w = np.asarray(model.weights[layer], dtype=np.float64)
         b = np.asarray(model.biases[layer], dtype=np.float64)
         c_out, k_size = w.shape[0], w.shape[2]
@@ -379,6 +387,7 @@ def quantize(
             scales[c] = scale
             w_int[c] = wq.reshape(w.shape[1:])
             b_int[c] = bq
+            bar.update(1)
         acc_maps = [int_layer(xi, w_int, b_int) for xi in x_int]
         f_maps = [float_layer(xf, w, b) for xf in x_float]
         act_scales.append(act_scale)
@@ -396,12 +405,14 @@ def quantize(
         for c in range(c_out):
             target = acc_s[:, c] * (next_scale / (scales[c] * act_scale))
             mult[c], shift[c], _ = search_mul_shift(acc_s[:, c], target, config.z_bits)
+            bar.update(1)
         q_mult.append(mult)
         q_shift.append(shift)
         x_int = [requantize(a, mult, shift) for a in acc_maps]
         x_float = [np.maximum(f, 0.0) for f in f_maps]
         act_scale = next_scale
         x_max = ACT_MAX
+    bar.close()
     acc_all = np.concatenate([a.reshape(a.shape[0], -1) for a in acc_maps], axis=1)
     f_all = np.concatenate([f.reshape(f.shape[0], -1) for f in f_maps], axis=1)
     agree = float(np.mean((acc_all > 0) == (f_all > 0)))

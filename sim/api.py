@@ -4,10 +4,13 @@
 from __future__ import annotations
 
 import os
+import platform
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+import cv2
+import numba
 import numpy as np
 
 from nna.descriptor import compute_descriptor
@@ -16,7 +19,7 @@ from sim.cycle.frames import FrameSupply, functional_words
 from sim.cycle.energy import energy_report, energy_table
 from sim.cycle.plan import ChipPlan, architecture_report, build_plan
 from sim.cycle.report import power_basis
-from sim.cycle.simulate import simulate
+from sim.cycle.simulate import announce_compiling, simulate
 from sim.errors import ConfigError, InputError
 from sim.io import MAX_PIXELS, check_gt_values, to_grey
 from sim.metrics import check_truth, evaluate, undefined_metrics
@@ -25,7 +28,16 @@ from sva.pipeline import sva_stream
 from sva.wta import to_float
 
 MODES = ("functional", "cycle")
-VERSION = "0.1.0"
+# report.json's layout: 2 names every unit and fps kind in its keys (docs/report.md)
+REPORT_VERSION = 2
+VERSION = "0.1.0"  # the one place (pyproject.toml reads it: [tool.setuptools.dynamic])
+
+
+def version_text() -> str:
+    """What ``stereosim --version`` prints: stereosim's version and the versions that decide
+    its numbers (Python, NumPy, Numba, OpenCV)."""
+    return (f"stereosim {VERSION} (Python {platform.python_version()}, NumPy {np.__version__}, "
+            f"Numba {numba.__version__}, OpenCV {cv2.__version__})")
 
 
 @dataclass(frozen=True)
@@ -96,7 +108,7 @@ def run(
     left,
     right,
     *,
-    mode: str = "functional",
+    mode: str = "cycle",
     config: ChipConfig | str | None = None,
     overrides: dict[str, Any] | None = None,
     gt: np.ndarray | None = None,
@@ -107,10 +119,11 @@ def run(
 ) -> Result:
     """Simulate one stereo frame.
 
-    ``mode="functional"`` runs the bit-exact integer model; ``mode="cycle"`` runs the clocked
+    ``mode="cycle"`` (the default, as in ``stereosim run``, ``eval`` and sweeps) runs the clocked
     chip (sources, NNA submodules, FIFOs, SVA, sink) -- the same output words plus cycle
     counts, latency, throughput, bottleneck and FIFO statistics -- on the engine ``sim.engine``
     selects (:mod:`sim.cycle.simulate`; the report's ``engine`` says which ran).
+    ``mode="functional"`` runs the bit-exact integer model alone: the same words, no timing.
 
     ``left``/``right``: 2-D uint8 arrays (or RGB, converted to grey). ``config``: a
     :class:`ChipConfig`, a TOML path or None (defaults); ``overrides``: dotted keys such as
@@ -145,6 +158,7 @@ def run(
         frame = simulate(plan, gl, gr)
         fixed, cycle_report = frame.words, frame.report
     else:
+        announce_compiling("functional")
         desc_l = compute_descriptor(gl, cfg.nna)
         desc_r = compute_descriptor(gr, cfg.nna)
         fixed = sva_stream(desc_l, desc_r, gl, cfg.sva, plan.descriptor_bits)
@@ -181,6 +195,7 @@ def build_report(plan: ChipPlan, mode: str, fixed: np.ndarray) -> dict:
     valid = int(np.count_nonzero(fixed >= 0))
     return {
         "architecture": architecture_report(plan),
+        "report_version": REPORT_VERSION,
         "stereosim": VERSION,
         "mode": mode,
         "image": {"width": w, "height": h},
@@ -316,6 +331,7 @@ def run_stream(pairs, *, mode: str = "cycle", config: ChipConfig | str | None = 
     h, w = supply.shape
     report = {
         "architecture": architecture_report(plan),
+        "report_version": REPORT_VERSION,
         "stereosim": VERSION,
         "mode": mode,
         "image": {"width": w, "height": h},

@@ -29,11 +29,19 @@ from nna.train import (
     train,
     training_scene_dirs,
 )
+from nna.trainrun import check_checkpoint_option, checkpoint_path, parse_threads
 from quant.artifact import save_quantized
 from quant.quantizer import QuantizerConfig, quantize
-from sim import whatif_cli
-from sim.api import run
-from sim.config import config_diff, config_to_toml, load_config, parse_set_options, read_toml
+from sim import formats, whatif_cli
+from sim.api import run, version_text
+from sim.config import (
+    config_diff,
+    config_to_toml,
+    keys_set,
+    load_config,
+    parse_set_options,
+    read_toml,
+)
 from sim.cycle.estimate import parse_size
 from sim.cycle.plan import build_plan
 from sim.datasets import (
@@ -46,6 +54,7 @@ from sim.datasets import (
 )
 from sim.diagram import plan_text, write_plan_png
 from sim.errors import ConfigError, InputError, UserError
+from sim.html_report import html_files
 from sim.io import (
     MAX_PIXELS,
     disparity_to_colour,
@@ -55,7 +64,6 @@ from sim.io import (
     read_image,
     read_mask,
 )
-from sim.metrics import format_table, mean_metrics
 from sim.outputs import (
     atomic_write_bytes,
     check_outputs,
@@ -64,7 +72,8 @@ from sim.outputs import (
     path_text,
     publish,
 )
-from sim.stream_cli import cmd_run_stream, energy_line, pair_lines
+from sim.stream_cli import cmd_run_stream
+from sim.summary import eval_document, eval_line, eval_tables, eval_timing, print_summary
 from sim.tracing import TraceRequest, parse_window, trace_files, trace_paths
 from traces.cli import add_wave_parser
 
@@ -113,8 +122,27 @@ class _Parser(argparse.ArgumentParser):
         raise UserError(f"{message} (see '{self.prog} --help')")
 
 
+# The named presets (--config NAME) are the TOML files of the checkout's configs/ folder.
+PRESETS = Path(__file__).resolve().parent.parent / "configs"
+
+
+def config_file(text: str) -> str:
+    """--config: a TOML file, or the name of a preset in configs/ (``paper-720p``)."""
+    if os.path.exists(text) or text.endswith(".toml") or os.sep in text:
+        return text
+    preset = PRESETS / f"{text}.toml"
+    if preset.is_file():
+        return str(preset)
+    names = sorted(p.stem for p in PRESETS.glob("*.toml")) if PRESETS.is_dir() else []
+    raise argparse.ArgumentTypeError(
+        f"no config file or preset named {text!r}: give a TOML file or one of the presets "
+        f"({', '.join(names) or 'none in this installation'})")
+
+
 def _add_config_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--config", metavar="FILE", help="TOML configuration file")
+    p.add_argument("--config", metavar="FILE|PRESET", type=config_file,
+                   help="TOML configuration file, or a preset of configs/: paper-720p, 1080p60, "
+                   "census-baseline")
     p.add_argument(
         "--set", metavar="KEY=VALUE", action="append", default=[],
         help="override one configuration key, e.g. --set sva.p1=10 (repeatable)",
@@ -131,6 +159,8 @@ def _overrides(args) -> dict:
         over["sva.disparities"] = args.disparities
     if args.descriptor is not None:
         over["nna.descriptor"] = args.descriptor
+    if getattr(args, "max_cycles", None) is not None:
+        over["sim.max_cycles"] = args.max_cycles
     return over
 
 
@@ -225,39 +255,6 @@ def _output_blobs(out_dir: Path, result, dmax: float, traces: dict[str, bytes]) 
     return blobs
 
 
-def _summary(report: dict, seconds: float) -> str:
-    img = report["image"]
-    lines = [
-        f"stereosim {report['mode']}: {img['width']}x{img['height']}, "
-        f"D={report['config']['sva']['disparities']}, descriptor {report['descriptor']['kind']} "
-        f"({report['descriptor']['bits']} bits), {report['config']['sva']['paths']} SGM paths, "
-        f"{seconds:.2f} s wall",
-        f"valid pixels: {100 - report['output']['invalid_percent']:.2f}%",
-    ]
-    if "throughput" in report:
-        thr, lat = report["throughput"], report["latency"]
-        lines.append(
-            f"cycles: {report['cycles']['total']}; first output {lat['first_output_ns'] / 1e3:.1f} us, "
-            f"frame {lat['frame_ns'] / 1e6:.3f} ms; one frame alone {thr['fps_frame']} fps "
-            f"(measured), work bound {thr['fps']} fps (bottleneck {thr['bottleneck']})"
-        )
-        lines += pair_lines(report.get("stream", {}))
-        if thr.get("fps_frame") and thr["fps"] and thr["fps_frame"] < 0.9 * thr["fps"]:
-            lines.append(
-                f"note: one frame at a time runs at {thr['fps_frame']} fps, far below the "
-                f"{thr['fps']} fps the busiest block's work allows: blocks wait on each other "
-                "(see blocks.*.blocked in report.json)"
-            )
-    if "energy" in report:
-        lines.append(energy_line(report["energy"]))
-    for mask, m in report.get("metrics", {}).items():
-        lines.append(
-            f"{mask:>7}: bad2 {m['bad2']:.2f}%  invalid {m['invalid']:.2f}%  "
-            f"totbad {m['totbad']:.2f}%  avgerr {m['avgerr']:.3f}  rms {m['rms']:.3f}"
-        )
-    return "\n".join(lines)
-
-
 def cmd_run(args) -> int:
     request = _trace_request(args)
     if not args.out.strip():
@@ -266,7 +263,16 @@ def cmd_run(args) -> int:
     planned = [(out_dir / name, f"--out {name}") for name in RUN_FILES]
     if request is not None:
         planned += trace_paths(request)
+    saving = formats.save_request(args.save_as, args.calib, args.scene)  # reads calib.txt
+    planned += saving.planned(out_dir)
+    if args.html:
+        planned.append((args.html, "--html"))
     if args.left_video or args.right_video or (args.frames or 1) > 1 or args.save_every:
+        if saving.formats:
+            raise InputError("--save-as writes one frame's files: drop --frames and the videos")
+        if args.html:
+            raise ConfigError("--html reports one frame: drop --frames, --save-every and the "
+                              "videos")
         video = bool(args.left_video or args.right_video)
         if video and (args.scene or args.left or args.right or args.gt or args.mask):
             raise InputError("give the videos or a pair (scene, --left/--right), not both")
@@ -279,6 +285,7 @@ def cmd_run(args) -> int:
         return cmd_run_stream(args, request, data, cfg)
     check_outputs(planned)  # before any work: writable, not folders, no two on one path
     data = _load_run_inputs(args)
+    saving.check_size(data["left"].shape)
     cfg = _scene_config(args, data.get("ndisp"))
     t0 = time.perf_counter()
     result = run(data["left"], data["right"], mode=args.mode, config=cfg,
@@ -287,15 +294,21 @@ def cmd_run(args) -> int:
     seconds = time.perf_counter() - t0
     result.report["scene"] = {"name": data["name"], "source": data["source"]}
     traces = trace_files(result.trace, request) if request is not None else {}
-    blobs = _output_blobs(out_dir, result, float(cfg.sva.disparities), traces)
+    saved = saving.files(out_dir, result.disparity, data["left"])
+    page = html_files(args.html, result, data)
+    blobs = _output_blobs(out_dir, result, float(cfg.sva.disparities), traces | saved | page)
     publish(blobs)  # the whole set, or (on any error or signal) the old set left as it was
     if args.json:
         sys.stdout.write(json_text(result.report))
     else:
-        print(_summary(result.report, seconds))
+        print_summary(result.report, seconds)
         print(f"wrote {out_dir}/disparity.pfm, disparity.png, report.json")
+        if saved:
+            print(f"wrote {', '.join(p.name for p in saved)} in {out_dir}")
         if traces:
             print(f"wrote {', '.join(traces)} ({result.trace.n_changes} value changes)")
+        if page:
+            print(f"wrote {args.html}")
     return 0
 
 
@@ -304,15 +317,15 @@ def _trace_request(args):
 
     if not (args.vcd or args.timeline):
         if args.trace_window or args.trace or args.force:
-            raise ConfigError("--trace-window, --trace and --force need --vcd FILE or --timeline "
-                              "FILE")
+            raise ConfigError("--trace-window, --trace (--signals) and --force need --vcd FILE "
+                              "or --timeline FILE")
         return None
     if args.mode != "cycle":
         raise ConfigError("traces need the cycle model: drop --mode functional")
     parse_window(args.trace_window)  # bad windows fail before the run
     if not args.trace_limit > 0:
         raise ConfigError(f"--trace-limit must be > 0 MB, got {args.trace_limit:g}")
-    patterns = tuple(p for item in args.trace for p in item.split(",") if p)
+    patterns = tuple(p.strip() for item in args.trace for p in item.split(",") if p.strip())
     return TraceRequest(window=args.trace_window, patterns=patterns, vcd=args.vcd,
                         timeline=args.timeline, force=args.force, limit_mb=args.trace_limit)
 
@@ -328,31 +341,39 @@ def cmd_eval(args) -> int:
     _scene_config(args, None)  # a bad --set or --config fails once, before any scene
     if args.out:
         check_outputs({Path(args.out): "--out"})
-    rows: list[tuple[str, dict, int]] = []
+    saved = {} if args.save else None  # scene -> (disparity, report, seconds) for --save
+    if args.algo_name is not None and not args.save:
+        raise ConfigError("--algo-name names the files of --save: give --save DIR too")
+    if args.save:
+        args.algo_name = name = formats.check_algo_name(args.algo_name
+                                                        or formats.DEFAULT_ALGO_NAME)
+        check_outputs(formats.middeval3_paths(args.save, name, [s.name for s in scenes]))
+    rows: list[tuple[str, dict, int, dict | None]] = []  # scene, metrics, D, timing
     failed: dict[str, str] = {}
     bar = tqdm(scenes, desc="eval", unit="scene", disable=args.json or None, file=sys.stderr)
     for scene in bar:
         try:
-            metrics, disparities = _eval_scene(args, scene)
+            metrics, disparities, timing = _eval_scene(args, scene, saved)
         except UserError as exc:
             failed[scene.name] = " ".join(str(exc).split())
             if not args.json:
                 bar.write(f"{scene.name}: failed: {failed[scene.name]}", file=sys.stdout)
         else:
-            rows.append((scene.name, metrics, disparities))
+            rows.append((scene.name, metrics, disparities, timing))
             if not args.json:
-                bar.write(_eval_line(scene.name, metrics), file=sys.stdout)
+                bar.write(eval_line(scene.name, metrics, timing), file=sys.stdout)
         if args.out:  # what is done so far survives an interrupt
-            atomic_write_bytes(args.out, json_text(_eval_document(args, rows, failed)).encode())
+            document = eval_document(str(args.dataset), rows, failed)
+            atomic_write_bytes(args.out, json_text(document).encode())
     bar.close()
+    if saved:  # every scored scene's MiddEval3 files, published as one set
+        publish(formats.middeval3_files(args.save, args.algo_name, saved))
+        if not args.json:
+            print(formats.middeval3_note(args.save, args.algo_name, saved))
     if args.json:
-        sys.stdout.write(json_text(_eval_document(args, rows, failed)))
+        sys.stdout.write(json_text(eval_document(str(args.dataset), rows, failed)))
     else:
-        for mask in ("nonocc", "all"):
-            table_rows = [(name, m[mask]) for name, m, _ in rows if mask in m]
-            if table_rows:
-                print(f"\n[{mask}]  (thresholds in pixels of the GT's resolution)")
-                print(format_table(table_rows, EVAL_KEYS))
+        print(eval_tables(rows, EVAL_KEYS), end="")
         for name, reason in failed.items():
             print(f"FAILED {name}: {reason}")
     if failed:
@@ -364,28 +385,19 @@ def cmd_eval(args) -> int:
     return 0
 
 
-def _eval_scene(args, scene) -> tuple[dict, int]:
-    """One scene's metrics and D; a scene that cannot be scored raises a UserError."""
+def _eval_scene(args, scene, saved: dict | None = None) -> tuple[dict, int, dict | None]:
+    """One scene's metrics, D and cycle figures (None in functional mode); a scene that cannot
+    be scored raises a UserError."""
     data = load_scene(scene, max_pixels=_pixel_cap(args))
     if data["gt"] is None:
         raise InputError(f"scene {scene.name} has no ground truth: nothing to score")
     cfg = _scene_config(args, data.get("ndisp"))
+    t0 = time.perf_counter()
     res = run(data["left"], data["right"], mode=args.mode, config=cfg, gt=data["gt"],
               masks=data["masks"], max_pixels=args.max_pixels or None)
-    return res.report["metrics"], cfg.sva.disparities
-
-
-def _eval_line(name: str, metrics: dict) -> str:
-    parts = [f"{mask} totbad {m['totbad']:.2f} bad2 {m['bad2']:.2f}" for mask, m in
-             metrics.items()]
-    return f"{name}: " + "; ".join(parts)
-
-
-def _eval_document(args, rows, failed) -> dict:
-    scenes = {name: {"disparities": d, "metrics": m} for name, m, d in rows}
-    scenes.update({name: {"error": reason, "metrics": None} for name, reason in failed.items()})
-    return {"dataset": str(args.dataset), "scenes": scenes,
-            "mean": mean_metrics([m for _, m, _ in rows]), "failed": len(failed)}
+    if saved is not None:
+        saved[scene.name] = (res.disparity, res.report, time.perf_counter() - t0)
+    return res.report["metrics"], cfg.sva.disparities, eval_timing(res.report)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -394,7 +406,8 @@ def _eval_document(args, rows, failed) -> dict:
 
 def cmd_config_show(args) -> int:
     cfg = load_config(args.config, _overrides(args))
-    sys.stdout.write(config_to_toml(cfg, comments=not args.plain))
+    sys.stdout.write(config_to_toml(cfg, comments=not args.plain,
+                                    set_keys=keys_set(args.config, _overrides(args))))
     return 0
 
 
@@ -452,10 +465,18 @@ def cmd_train(args) -> int:
     if data is None:
         raise InputError("no training data found: give --data DIR (the shared Middlebury folder)")
     dirs = training_scene_dirs(data)
+    ckpt = checkpoint_path(out) if args.checkpoint_every or args.resume else None
+    if ckpt is not None:
+        check_outputs([(ckpt, "checkpoint")])
+        check_checkpoint_option(ckpt, args.resume)
     _import_torch()
     t0 = time.perf_counter()
-    result = train(cfg, dirs, progress=not args.quiet)
+    result = train(cfg, dirs, progress=not args.quiet, checkpoint=ckpt,
+                   checkpoint_every=args.checkpoint_every, resume=args.resume,
+                   log=lambda line: print(line, file=sys.stderr))
     save_float_model(out, result)
+    if ckpt is not None:
+        ckpt.unlink(missing_ok=True)  # the model is written: the checkpoint is spent
     print(
         f"trained {args.variant} on {len(result['scenes'])} scenes ({result['samples']} pixels) in "
         f"{time.perf_counter() - t0:.0f} s; final loss {result['loss_per_epoch'][-1]:.4f}; "
@@ -486,7 +507,8 @@ def cmd_quantize(args) -> int:
         )
     )
     t0 = time.perf_counter()
-    qm = quantize(model, images, qcfg, variant=variant, calibration=calibration)
+    qm = quantize(model, images, qcfg, variant=variant, calibration=calibration,
+                  progress=not args.quiet)
     save_quantized(out, qm)
     print(
         f"quantized {variant} ({qm.n_layers} layer(s)) on {len(images)} calibration views in "
@@ -498,6 +520,7 @@ def cmd_quantize(args) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="stereosim", description="Simulator of an edge stereo-vision SoC.")
+    p.add_argument("--version", action="version", version=version_text())
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
     r = sub.add_parser("run", help="simulate one stereo frame")
@@ -514,6 +537,11 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--json", action="store_true", help="print the report as JSON")
     r.add_argument("--max-pixels", type=nonnegative_int, default=MAX_PIXELS, metavar="N",
                    help=f"refuse larger images (default {MAX_PIXELS}, 4096x4096; 0 = no cap)")
+    r.add_argument("--max-cycles", type=positive_int, metavar="N",
+                   help="stop once any clock domain ran N cycles (sim.max_cycles; exit status 2 "
+                   "with every FIFO's state)")
+    r.add_argument("--html", metavar="FILE", help="also write a one-page HTML report of the "
+                   "run (one frame; see docs/html-report.md)")
     r.add_argument("--energy", metavar="FILE", help="energy table (TOML) for the report's "
                    "energy and power (default: stereosim's 45 nm table; docs/energy.md)")
     s = r.add_argument_group("streams of frames (see docs/streams.md)")
@@ -530,26 +558,39 @@ def build_parser() -> argparse.ArgumentParser:
                    "it): VCD, or FST (GTKWave's compressed format) when the name ends in .fst")
     t.add_argument("--timeline", help="write a Chrome/Perfetto trace-event JSON of the window")
     t.add_argument("--trace-window", metavar="A:B",
-                   help="SVA cycles A:B, or nna:A:B / sva:A:B / camera:A:B, or rows:A:B "
-                   "(default: the whole frame)")
-    t.add_argument("--trace", action="append", default=[], metavar="PATTERNS",
-                   help="keep signals matching these glob patterns (comma-separated, "
-                   "repeatable), e.g. 'top.sva.*,top.fifo.*.occupancy'")
+                   help="a time window with units (fs/ps/ns/us/ms/s, e.g. 0:100us), SVA cycles "
+                   "A:B, nna:A:B / sva:A:B / camera:A:B cycles, or rows:A:B (default: the "
+                   "whole frame)")
+    t.add_argument("--trace", "--signals", dest="trace", action="append", default=[],
+                   metavar="PATTERNS", help="keep signals matching these glob patterns "
+                   "(comma-separated, repeatable), e.g. 'top.sva.*,top.fifo.*.occupancy'")
     t.add_argument("--trace-limit", type=finite_float, default=500.0, metavar="MB",
                    help="refuse a VCD larger than this (default 500 MB) unless --force")
     t.add_argument("--force", action="store_true", help="write the VCD whatever its size")
+    o = r.add_argument_group("formats other tools read (see docs/outputs.md)")
+    o.add_argument("--save-as", metavar="FORMATS", help="also write these into --out, comma-"
+                   "separated: kitti (disparity_kitti.png), opencv16 (disparity_opencv16.npy), "
+                   "depth (depth_mm.png), ply (points.ply); depth and ply need a calib.txt")
+    o.add_argument("--calib", metavar="FILE", help="Middlebury calib.txt for depth and ply "
+                   "(default: the scene folder's calib.txt)")
     _add_config_options(r)
     r.set_defaults(func=cmd_run)
 
     e = sub.add_parser("eval", help="run and score every scene of a Middlebury-layout folder")
     e.add_argument("dataset", help="folder of scenes (e.g. ../shared/data/middlebury2014_trainingQ)")
     e.add_argument("--gt-scale", type=finite_float, help="GT PNG scale for non-standard sizes")
-    e.add_argument("--mode", default="functional", choices=("functional", "cycle"))
+    e.add_argument("--mode", default="cycle", choices=("functional", "cycle"),
+                   help="cycle (default, as in run): scores plus fps, latency and bottleneck per "
+                   "scene; functional: the bit-exact model alone, faster")
     e.add_argument("--json", action="store_true", help="print per-scene and mean metrics as JSON")
     e.add_argument("--out", metavar="FILE.json", help="also write the per-scene and mean metrics "
                    "here, rewritten (atomically) after every scene")
     e.add_argument("--max-pixels", type=nonnegative_int, default=MAX_PIXELS, metavar="N",
                    help=f"refuse larger images (default {MAX_PIXELS}; 0 = no cap)")
+    e.add_argument("--save", metavar="DIR", help="also write the disparity maps in MiddEval3's "
+                   "layout: DIR/<Scene>/disp0NAME.pfm and timeNAME.txt (docs/outputs.md)")
+    e.add_argument("--algo-name", metavar="NAME",
+                   help=f"NAME in --save's file names (default {formats.DEFAULT_ALGO_NAME})")
     _add_config_options(e)
     e.set_defaults(func=cmd_eval)
 
@@ -575,7 +616,12 @@ def build_parser() -> argparse.ArgumentParser:
                    help="augmentation noise: sigma ~ U(0, SIGMA) grey levels per view (default 2)")
     t.add_argument("--aggregate", type=positive_int, metavar="A", help="triplet: average the "
                    "similarity over A x A neighbouring descriptors, as the box filter does (odd)")
-    t.add_argument("--threads", type=positive_int, default=2, metavar="N", help="torch CPU threads")
+    t.add_argument("--threads", type=parse_threads, default=0, metavar="N", help="torch CPU "
+                   "threads (default auto: 1 up to 2 CPUs, else half the CPUs, at most 4)")
+    t.add_argument("--checkpoint-every", type=nonnegative_int, default=200, metavar="N",
+                   help="write OUT.ckpt.pt every N steps (default 200; 0 = never)")
+    t.add_argument("--resume", action="store_true", help="continue from OUT.ckpt.pt, the "
+                   "checkpoint of an interrupted run with the same options")
     t.add_argument("--out", metavar="FILE", help="float model .npz (default: VARIANT.npz)")
     t.add_argument("--quiet", action="store_true", help="no progress bar")
     t.set_defaults(func=cmd_train)
@@ -600,6 +646,7 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--samples", type=positive_int, default=20000, metavar="N",
                    help="sampled pixels for the search")
     q.add_argument("--seed", type=nonnegative_int, default=0, metavar="S")
+    q.add_argument("--quiet", action="store_true", help="no progress bar")
     q.set_defaults(func=cmd_quantize)
 
     c = sub.add_parser("config", help="show or compare configurations")

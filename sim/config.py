@@ -252,6 +252,11 @@ class SimConfig:
         200000, "periods of the slowest clock without progress before a run is declared "
         "deadlocked", lo=10, hi=1 << 40
     )
+    max_cycles: int = param(
+        0, "stop the run once any clock domain has run this many cycles (like a simulator's "
+        "cycle limit; --max-cycles N); 0: an automatic budget of 20x the expected run", lo=0,
+        hi=1 << 50
+    )
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -544,9 +549,43 @@ def _toml_value(v) -> str:
     return repr(v)
 
 
-def config_to_toml(cfg, *, comments: bool = True) -> str:
-    """The effective configuration as TOML (loadable again with :func:`load_config`)."""
+def keys_set(path: str | Path | None = None, overrides: dict[str, Any] | None = None
+             ) -> frozenset[str]:
+    """The dotted keys a configuration file at ``path`` and ``overrides`` set (the keys the
+    user chose, as opposed to defaults)."""
+    out = set(overrides or {})
+
+    def walk(tree: dict, prefix: str) -> None:
+        for k, v in tree.items():
+            if isinstance(v, dict):
+                walk(v, f"{prefix}{k}.")
+            else:
+                out.add(f"{prefix}{k}")
+
+    if path is not None:
+        walk(read_toml(path, "config file"), "")
+    return frozenset(out)
+
+
+def _auto_keys(cfg, set_keys) -> dict[str, str]:
+    """The descriptor-dependent keys (:data:`DESCRIPTOR_DEFAULTS`) that hold their descriptor's
+    default and were not set by the user: dotted key -> why it is left to the descriptor."""
+    defaults = DESCRIPTOR_DEFAULTS.get(cfg.nna.descriptor, {})
+    choices = ", ".join(f"{d} {v['p1']}/{v['p2']}" for d, v in DESCRIPTOR_DEFAULTS.items())
+    return {f"sva.{k}": f"auto: nna.descriptor's tuned value (P1/P2: {choices})"
+            for k, v in defaults.items()
+            if f"sva.{k}" not in set_keys and getattr(cfg.sva, k) == v}
+
+
+def config_to_toml(cfg, *, comments: bool = True, set_keys=frozenset()) -> str:
+    """The effective configuration as TOML (loadable again with :func:`load_config`).
+
+    A key whose default depends on the descriptor (``sva.p1``, ``sva.p2``) that holds that
+    default and is not in ``set_keys`` (the keys the user set, :func:`keys_set`) is written
+    commented out, so that loading the file with another ``nna.descriptor`` gives that
+    descriptor's values rather than pinning these."""
     lines: list[str] = []
+    auto = _auto_keys(cfg, set_keys)
 
     def emit(obj, prefix: str):
         scalars = [f for f in dataclasses.fields(obj) if not dataclasses.is_dataclass(getattr(obj, f.name))]
@@ -557,7 +596,10 @@ def config_to_toml(cfg, *, comments: bool = True) -> str:
             lines.append(f"[{prefix}]")
         for f in scalars:
             text = f"{f.name} = {_toml_value(getattr(obj, f.name))}"
-            if comments and f.metadata.get("help"):
+            dotted = f"{prefix}.{f.name}" if prefix else f.name
+            if dotted in auto:
+                text = f"# {text:<26} # {auto[dotted]}"
+            elif comments and f.metadata.get("help"):
                 text = f"{text:<28} # {f.metadata['help']}"
             lines.append(text)
         for f in tables:

@@ -173,30 +173,44 @@ def mean_metrics(
     }
 
 
-def _cell(key: str, value: float | None) -> str:
+def _cell(key: str, value: float | str | None) -> str:
     if value is None:
         return "-"
+    if isinstance(value, str):
+        return value
     if key == "n" and math.isfinite(value) and float(value).is_integer():
         return str(int(value))
     return f"{value:.3f}"
 
 
-def format_table(rows: Iterable[tuple[str, Mapping[str, float]]], keys: Sequence[str]) -> str:
-    """An aligned text table: one row per ``(name, {key: value})``, one column per key, and a
-    ``MEAN`` row with the plain mean of each column (over the rows that have the key).
+def _numbers(rows, key: str) -> list[float]:
+    return [float(m[key]) for _, m in rows
+            if isinstance(m.get(key), (int, float)) and not isinstance(m.get(key), bool)]
 
-    Values print with 3 decimals (``n`` as an integer); a missing key prints ``-``.
+
+def format_table(rows: Iterable[tuple[str, Mapping[str, float | str | None]]],
+                 keys: Sequence[str], *, totals: Sequence[str] = ()) -> str:
+    """An aligned text table: one row per ``(name, {key: value})``, one column per key, a
+    ``MEAN`` row with the plain mean of each column (over the rows that have a number there)
+    and, when ``totals`` names columns, a ``TOTAL`` row with their sums.
+
+    Values print with 3 decimals (``n`` as an integer), text as it is; a missing key (or a
+    column of text, in the MEAN and TOTAL rows) prints ``-``.
     """
     rows = list(rows)
     header = ["scene", *keys]
     lines = [[name, *(_cell(k, metrics.get(k)) for k in keys)] for name, metrics in rows]
+    summary = []
     if rows:
         mean_row = ["MEAN"]
         for k in keys:
-            values = [float(m[k]) for _, m in rows if k in m]
+            values = _numbers(rows, k)
             mean_row.append(_cell(k, float(np.mean(values)) if values else None))
-        lines.append(mean_row)
-    table = [header, *lines]
+        summary.append(mean_row)
+    if rows and totals:
+        summary.append(["TOTAL", *(_cell(k, float(sum(_numbers(rows, k))))
+                                   if k in totals else "-" for k in keys)])
+    table = [header, *lines, *summary]
     widths = [max(len(r[i]) for r in table) for i in range(len(header))]
 
     def fmt(row: list[str]) -> str:
@@ -205,8 +219,8 @@ def format_table(rows: Iterable[tuple[str, Mapping[str, float]]], keys: Sequence
         return "  ".join(cells).rstrip()
 
     out = [fmt(header), "  ".join("-" * w for w in widths)]
-    out += [fmt(r) for r in lines[:-1]] if rows else []
-    if rows:
+    out += [fmt(r) for r in lines]
+    if summary:
         out.append("  ".join("-" * w for w in widths))
-        out.append(fmt(lines[-1]))
+        out += [fmt(r) for r in summary]
     return "\n".join(out) + "\n"

@@ -25,6 +25,7 @@ from sim.api import run_stream
 from sim.errors import InputError
 from sim.io import disparity_to_colour, encode_png, pfm_bytes
 from sim.outputs import STAGE_PREFIX, check_outputs, json_text, publish
+from sim.summary import print_summary
 from sim.tracing import run_traced, trace_files, trace_paths
 from sim.video import VideoPair
 
@@ -50,58 +51,6 @@ def _frame_names(f: int, pair: int, pairs: int) -> tuple[str, str]:
 def _frame_files(names: tuple[str, str], disparity, dmax: float) -> dict[str, bytes]:
     return {names[0]: pfm_bytes(disparity),
             names[1]: encode_png(disparity_to_colour(disparity, dmax))}
-
-
-def _frames(frames: list[int]) -> str:
-    """A list of frame numbers, the first ten."""
-    shown = ", ".join(str(f) for f in frames[:10])
-    return shown + (f", ... {len(frames) - 10} more" if len(frames) > 10 else "")
-
-
-def energy_line(energy: dict) -> str:
-    """One line of the energy section: per frame, by block, and the average power."""
-    e = energy["per_frame_uj"]
-    blocks = ", ".join(f"{k} {v / 1e3:.3f}" for k, v in e["by_block"].items() if v)
-    power = (f"; {energy['power_mw']:.1f} mW at {energy['power_at_fps']} fps "
-             f"({energy['fps_basis']})" if energy["power_mw"] is not None else "")
-    return (f"energy: {e['total'] / 1e3:.3f} mJ per frame ({blocks}; {energy['table']['node']})"
-            f"{power}")
-
-
-def _measured(st: dict) -> str:
-    """Frames completed, the sustained rate and the drops of a stream (or of one pair's)."""
-    fps = st["sustained_fps"]
-    dropped = st["dropped_frames"]
-    return (f"{st['frames_completed']} of {st['frames']} frames completed, "
-            f"{'sustained ' + format(fps, '.3f') + ' fps' if fps else 'one frame'}, "
-            f"{len(dropped)} dropped{' (frames ' + _frames(dropped) + ')' if dropped else ''}")
-
-
-def pair_lines(stream: dict) -> list[str]:
-    """One line per camera pair sharing the chip (``sva.pairs`` > 1): what each pair gets."""
-    return [f"  pair {p['pair']}: {_measured(p)}; latency median "
-            f"{p.get('latency_ms', {}).get('median', 0):.3f} / max "
-            f"{p.get('latency_ms', {}).get('max', 0):.3f} ms" for p in stream.get("pairs", ())]
-
-
-def summary(report: dict, seconds: float) -> str:
-    """The stream's figures: measured first, the bound named as a bound."""
-    img = report["image"]
-    lines = [f"stereosim {report['mode']} stream: {report['frames']} frames of "
-             f"{img['width']}x{img['height']}, D={report['config']['sva']['disparities']}, "
-             f"descriptor {report['descriptor']['kind']}, {seconds:.2f} s wall"]
-    if "stream" in report:
-        st, thr = report["stream"], report["throughput"]
-        lat = st.get("latency_ms", {})
-        lines.append(
-            f"measured: {_measured(st)}; latency per frame (first pixel in -> last disparity out) min "
-            f"{lat.get('min', 0):.3f} / median {lat.get('median', 0):.3f} / p99 "
-            f"{lat.get('p99', 0):.3f} / max {lat.get('max', 0):.3f} ms")
-        lines += pair_lines(st)
-        lines.append(f"work bound: {thr['fps']} fps (the busiest block alone, "
-                     f"{thr['bottleneck']}; a bound, not a measurement)")
-        lines.append(energy_line(report["energy"]))
-    return "\n".join(lines)
 
 
 def cmd_run_stream(args, request, data: dict | None, cfg) -> int:
@@ -163,7 +112,7 @@ def cmd_run_stream(args, request, data: dict | None, cfg) -> int:
     if args.json:
         sys.stdout.write(json_text(report))
     else:
-        print(summary(report, seconds))
+        print_summary(report, seconds)
         saved = f", {len(files) // 2} frames in {out_dir}/frames" if files else ""
         print(f"wrote {out_dir}/disparity.pfm, disparity.png (the last frame), "
               f"report.json{saved}")

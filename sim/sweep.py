@@ -369,7 +369,7 @@ def _run(task: Task) -> dict[str, Any]:
                      masks=data.get("masks")).report
     flat = flatten(report)
     flat["sram_bits"] = sum(est["sram_bits_total"][k] for k in ("nna_stereo", "sva", "fifos"))
-    for key in ("throughput.fps", "throughput.bottleneck", "latency.first_output_ms",
+    for key in ("throughput.fps_bound", "throughput.bottleneck", "latency.first_output_us",
                 "latency.frame_ms"):
         flat[f"estimate.{key}"] = flatten(est)[key]
     return flat

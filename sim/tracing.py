@@ -1,7 +1,9 @@
 """Traced runs: `stereosim run --vcd / --timeline` on the compiled cycle engine.
 
-A trace is recorded over a window of the frame (full-frame traces are gigabytes):
+A trace is recorded over a window of the frame (full-frame traces are gigabytes), in the window
+syntax ``stereosim wave --window`` shares (:mod:`traces.window`):
 
+* ``0:100us``, ``1.5us:2us`` -- a time window ``[A, B)``, with units fs, ps, ns, us, ms or s.
 * ``A:B`` -- SVA clock cycles ``[A, B)`` (the default domain); ``nna:A:B``, ``sva:A:B`` or
   ``camera:A:B`` -- cycles of that domain. Cycle ``k`` of a domain starts at its edge ``k``.
 * ``rows:A:B`` -- from the instant the left NNA's line buffer reaches image row ``A`` to the
@@ -14,6 +16,11 @@ its blocks' state, and both give the same VCD -- ``--trace PATTERNS`` keeps the 
 paths match one of the glob patterns, and the exact size of the VCD is computed before anything
 is written: above ``--trace-limit`` MB the run refuses unless ``--force``. Tracing changes
 nothing else (same words, report and statistics). Split frames are traced like whole ones.
+
+Beside the dump go a GTKWave save file (``.gtkw``, :mod:`traces.gtkw`) and, when the trace holds
+a ``status`` signal, the translate filter file it names (``<stem>.status.txt``); both name
+their files by absolute path, resolved when they are written, so ``gtkwave out/t.gtkw`` works
+from any folder. All of them are published as one set with the run's other outputs.
 """
 
 from __future__ import annotations
@@ -27,11 +34,13 @@ from sim.cycle.plan import ChipPlan
 from sim.cycle.simulate import simulate
 from sim.errors import ConfigError
 from sim.outputs import publish
-from traces.gtkw import gtkw_text
+from traces.fst import fst_bytes
+from traces.gtkw import gtkw_text, has_status, status_filter_text
 from traces.log import select
 from traces.timeline import timeline_bytes
-from traces.fst import fst_bytes
 from traces.vcd import estimate_vcd_bytes, vcd_bytes
+from traces.window import ROWS, Window
+from traces.window import parse_window as parse_any_window
 
 DEFAULT_LIMIT_MB = 500
 
@@ -48,56 +57,40 @@ class TraceRequest:
     limit_mb: float = DEFAULT_LIMIT_MB
 
 
-def parse_window(spec: str | None) -> tuple[str, int, int | None]:
-    """``(kind, A, B)``: kind is a domain name or "rows"; B None = to the end of the frame."""
-    if spec is None:
-        return "sva", 0, None
-    parts = spec.split(":")
-    kind = "sva"
-    if len(parts) == 3:
-        kind, parts = parts[0], parts[1:]
-    if kind not in ("sva", "nna", "camera", "rows") or len(parts) != 2:
-        raise ConfigError(
-            f"--trace-window {spec!r}: expected A:B (SVA cycles), DOMAIN:A:B with DOMAIN nna, "
-            "sva or camera, or rows:A:B (image rows), e.g. 0:100000 or rows:0:12"
-        )
-    try:
-        a = int(parts[0]) if parts[0] else 0
-        b = int(parts[1]) if parts[1] else None
-    except ValueError:
-        raise ConfigError(f"--trace-window {spec!r}: A and B must be whole numbers") from None
-    if a < 0 or (b is not None and b <= a):
-        raise ConfigError(f"--trace-window {spec!r}: need 0 <= A < B")
-    return kind, a, b
+def parse_window(spec: str | None) -> Window:
+    """The ``--trace-window`` of ``spec`` (None = the whole frame); ConfigError if malformed."""
+    return parse_any_window(spec, default="sva", option="--trace-window")
 
 
 def window_fs(spec: str | None, plan: ChipPlan, row_times=None) -> tuple[int, int]:
     """The window ``[start_fs, end_fs)`` of ``spec`` (``row_times`` from an untraced pass for a
     rows window; end None = the end of the run, given as a huge instant)."""
-    kind, a, b = parse_window(spec)
+    win = parse_window(spec)
     end_of_run = 1 << 62
-    if kind == "rows":
+    a = win.start or 0
+    if win.kind == ROWS:
         h = plan.shape[0]
-        b = h if b is None else b
-        if b > h:
-            raise ConfigError(f"--trace-window rows:{a}:{b}: the image has {h} rows")
+        b = h if win.end is None else win.end
+        if b > h or a >= b:
+            raise ConfigError(f"--trace-window {spec!r}: the image has rows 0 to {h - 1}")
         return int(row_times[0, a]), int(row_times[1, b]) + 1
-    if kind not in plan.domains:
+    if win.is_time:
+        return a, end_of_run if win.end is None else win.end
+    if win.kind not in plan.domains:
         raise ConfigError(
-            f"--trace-window {spec!r}: this configuration has no {kind} clock "
+            f"--trace-window {spec!r}: this configuration has no {win.kind} clock "
             f"(domains: {', '.join(plan.domains)})"
         )
-    per = plan.domains[kind].period_fs
-    return a * per, end_of_run if b is None else b * per
+    per = plan.domains[win.kind].period_fs
+    return a * per, end_of_run if win.end is None else win.end * per
 
 
 def run_traced(plan: ChipPlan, left: np.ndarray, right: np.ndarray, request: TraceRequest):
     """Simulate one frame with a trace: ``(frame result, log)``; raises ConfigError (nothing
     written) for a window outside the run or a trace above the size limit. Either engine
     records it (sim.engine; the same signals and values)."""
-    kind, _, _ = parse_window(request.window)
     row_times = None
-    if kind == "rows":
+    if parse_window(request.window).kind == ROWS:
         row_times = simulate(plan, left, right).row_times
     start, end = window_fs(request.window, plan, row_times)
     frame = simulate(plan, left, right, window=(start, end))
@@ -139,15 +132,21 @@ def trace_paths(request: TraceRequest) -> list[tuple[str, str]]:
     run): the VCD, the .gtkw beside it, the timeline."""
     paths = []
     if request.vcd:
-        paths += [(request.vcd, "--vcd"), (gtkw_path(request.vcd), "the .gtkw beside --vcd")]
+        paths += [(request.vcd, "--vcd"), (gtkw_path(request.vcd), "the .gtkw beside --vcd"),
+                  (filter_path(request.vcd), "the GTKWave status filter beside --vcd")]
     if request.timeline:
         paths.append((request.timeline, "--timeline"))
     return paths
 
 
 def gtkw_path(vcd: str) -> str:
-    """The GTKWave save file written beside a VCD."""
+    """The GTKWave save file written beside a dump."""
     return os.path.splitext(vcd)[0] + ".gtkw"
+
+
+def filter_path(vcd: str) -> str:
+    """The GTKWave translate filter file (status names) written beside a dump."""
+    return os.path.splitext(vcd)[0] + ".status.txt"
 
 
 def trace_files(log, request: TraceRequest) -> dict[str, bytes]:
@@ -161,13 +160,18 @@ def trace_files(log, request: TraceRequest) -> dict[str, bytes]:
         if request.vcd:
             files[request.vcd] = vcd_bytes(log)
     if request.vcd:
-        files[gtkw_path(request.vcd)] = gtkw_text(log, os.path.basename(request.vcd)).encode()
+        filt = filter_path(request.vcd) if has_status(log) else None
+        files[gtkw_path(request.vcd)] = gtkw_text(
+            log, os.path.abspath(request.vcd), filt and os.path.abspath(filt)).encode()
+        if filt:
+            files[filt] = status_filter_text().encode()
     if request.timeline:
         files[request.timeline] = timeline_bytes(log)
     return files
 
 
 def write_traces(log, request: TraceRequest) -> list[str]:
-    """Write the VCD (and its .gtkw next to it) and the timeline the request names, as one set
+    """Write the dump (and its .gtkw and filter file next to it) and the timeline the request
+    names, as one set
     (:func:`sim.outputs.publish`); returns the paths written."""
     return publish(trace_files(log, request))

@@ -103,7 +103,8 @@ def register(sub, add_config_options, scene_config) -> None:
         if not path.is_file():
             raise InputError(f"results file {path} not found: give a sweep's results.csv")
         rows = read_rows(path)
-        plot_xy(rows, args.x, args.y, args.png, hue=args.hue, title=args.title, source=str(path))
+        plot_xy(rows, args.x, args.y, args.png, hue=args.hue, title=args.title, source=str(path),
+                logx=args.logx, logy=args.logy)
         print(f"wrote {args.png}")
         return 0
 
@@ -114,4 +115,6 @@ def register(sub, add_config_options, scene_config) -> None:
     p.add_argument("--hue", metavar="COLUMN", help="one line per value of this column")
     p.add_argument("--title")
     p.add_argument("--png", required=True, metavar="OUT.png")
+    p.add_argument("--logx", action="store_true", help="logarithmic x axis (positive values)")
+    p.add_argument("--logy", action="store_true", help="logarithmic y axis (positive values)")
     p.set_defaults(func=cmd_plot)

@@ -13,7 +13,7 @@ from pathlib import Path
 from sim.errors import ConfigError
 from sim.outputs import atomic_write_bytes
 from traces.vcdread import read_vcd
-from traces.wave import match_vars, parse_window, wave_png
+from traces.wave import match_vars, wave_png, window_units
 
 
 def add_wave_parser(subparsers) -> argparse.ArgumentParser:
@@ -24,14 +24,16 @@ def add_wave_parser(subparsers) -> argparse.ArgumentParser:
     )
     w.add_argument("vcd", metavar="FILE.vcd", help="a VCD file (e.g. from stereosim run --vcd)")
     w.add_argument(
-        "--signals", metavar="PATTERNS", default="*",
-        help="comma-separated glob patterns on dotted signal paths, e.g. "
-        "'clocks.sva,top.sva.output.*' (default: all; at most 64 rows)",
+        "--signals", "--trace", dest="signals", action="append", metavar="PATTERNS",
+        help="comma-separated glob patterns on dotted signal paths, repeatable, e.g. "
+        "'clocks.sva,top.sva.output.*' (default: all; at most 64 rows; --trace is the same "
+        "option, named as in stereosim run)",
     )
     w.add_argument(
-        "--window", metavar="A:B",
-        help="time window: integers in the VCD's time unit (fs for stereosim) or numbers with "
-        "fs/ps/ns/us/ms/s, e.g. 0:20ns; a missing bound is the dump's start or end",
+        "--window", "--trace-window", dest="window", metavar="A:B",
+        help="time window, as stereosim run --trace-window: numbers with fs/ps/ns/us/ms/s "
+        "(e.g. 0:40us, 1.5ns:2us) or integers in the VCD's time unit (fs for stereosim); a "
+        "missing bound is the dump's start or end",
     )
     w.add_argument("--png", metavar="OUT.png", required=True, help="output PNG file")
     w.add_argument("--title", help="title above the waveform")
@@ -40,7 +42,8 @@ def add_wave_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def cmd_wave(args) -> int:
-    patterns = [p.strip() for p in args.signals.split(",") if p.strip()]
+    items = ["*"] if args.signals is None else args.signals
+    patterns = [p.strip() for item in items for p in item.split(",") if p.strip()]
     if not patterns:
         raise ConfigError("--signals is empty: give glob patterns, e.g. 'top.sva.*'")
     out = Path(args.png)
@@ -51,7 +54,7 @@ def cmd_wave(args) -> int:
         return chosen
 
     data = read_vcd(args.vcd, select)
-    a, b = parse_window(args.window, data)
+    a, b = window_units(args.window, data)
     png = wave_png(data, chosen, a, b, title=args.title)
     atomic_write_bytes(out, png)
     print(f"wrote {out} ({len(chosen)} signals, {a}..{b} x {data.unit_fs} fs)")

@@ -7,58 +7,44 @@ segment is wide enough for the text; unknown values (``x``/``z``) are drawn in r
 labelled in ns (or us for long windows). The PNG carries no software or date metadata, so the
 same input gives the same bytes.
 
-Windows (:func:`parse_window`): ``A:B`` with each bound an integer in the VCD's time unit or a
-number with a unit suffix (``fs``, ``ps``, ``ns``, ``us``, ``ms``, ``s``); a missing bound is the
-dump's first or last timestamp: ``100ns:2.5us``, ``:500ns``, ``2000000:``.
+Windows (:func:`window_units`) use the syntax of ``stereosim run --trace-window``
+(:mod:`traces.window`): times with a unit (``fs``, ``ps``, ``ns``, ``us``, ``ms``, ``s``), or
+bare integers in the VCD's time unit; a missing bound is the dump's first or last timestamp:
+``100ns:2.5us``, ``0:40us``, ``:500ns``, ``2000000:``. Cycle and row windows need the chip's
+plan, so only ``run`` takes them.
 """
 
 from __future__ import annotations
 
 import io
-import re
 from fnmatch import fnmatchcase
 
 import numpy as np
 
 from sim.errors import ConfigError
 from traces.vcdread import VcdData, VcdVar
+from traces.window import UNITS, parse_window
 
 MAX_ROWS = 64
-_BOUND = re.compile(r"\s*(\d+(?:\.\d*)?)\s*(fs|ps|ns|us|ms|s)?\s*")
-_UNIT_FS = {"s": 10**15, "ms": 10**12, "us": 10**9, "ns": 10**6, "ps": 10**3, "fs": 1}
 
 
-def parse_window(spec: str | None, data: VcdData) -> tuple[int, int]:
-    """``[a, b]`` in VCD time units from ``A:B`` (see the module docstring)."""
+def window_units(spec: str | None, data: VcdData, option: str = "--window") -> tuple[int, int]:
+    """``[a, b]`` in VCD time units from a window (see the module docstring); times are rounded
+    inwards to whole units."""
     if spec is None:
         return data.first_time, data.last_time
-    if spec.count(":") != 1:
-        raise ConfigError(f"window '{spec}' must be A:B, e.g. 0:2000000 or 100ns:2us")
-    bounds = []
-    for text, default in zip(spec.split(":"), (data.first_time, data.last_time)):
-        if not text.strip():
-            bounds.append(default)
-            continue
-        m = _BOUND.fullmatch(text)
-        if not m:
-            raise ConfigError(
-                f"window bound '{text}' is not a time: give an integer in VCD units or a number "
-                "with fs, ps, ns, us, ms or s"
-            )
-        number, unit = m.group(1), m.group(2)
-        if unit is None:
-            if "." in number:
-                raise ConfigError(f"window bound '{text}' in VCD units must be an integer")
-            bounds.append(int(number))
-        else:
-            fs = round(float(number) * _UNIT_FS[unit])
-            bounds.append(-(-fs // data.unit_fs) if bounds else fs // data.unit_fs)
-    a, b = bounds
+    win = parse_window(spec, default=UNITS, option=option, kinds=())
+    a, b = win.start, win.end
+    if win.is_time:
+        a = None if a is None else -(-a // data.unit_fs)
+        b = None if b is None else b // data.unit_fs
+    a = data.first_time if a is None else a
+    b = data.last_time if b is None else b
     if not a < b:
-        raise ConfigError(f"window '{spec}' is empty: its start must be before its end")
+        raise ConfigError(f"{option} {spec!r} is empty: its start must be before its end")
     if b < data.first_time or a > data.last_time:
         raise ConfigError(
-            f"window '{spec}' is outside the dump, which runs from {data.first_time} to "
+            f"{option} {spec!r} is outside the dump, which runs from {data.first_time} to "
             f"{data.last_time} (x {data.unit_fs} fs)"
         )
     return a, b

@@ -33,6 +33,7 @@ from sim.cycle.report import cycle_report
 from sim.cycle.rules import camera_frame_start, sink_may_pop
 from sim.cycle.stops import CameraOverflow, frame_buffer_message, overflow_message
 from sim.errors import UserError
+from sim.progress import poller, progress_bar
 from traces.log import Clock, Signal, TraceLog, TraceRecorder
 
 
@@ -214,12 +215,17 @@ def _run(chip: Chip) -> tuple[dict, dict]:
     overflowed raises BufferOverflow, before any stop the run ended in."""
     plan = chip.plan
     sva = chip.blocks["sva"]
+    sink = chip.sink
+    bar = progress_bar(sink.total // sink.width, "readable engine", "row")
     try:
         stats = chip.sim.run(chip.done, budget_cycles=plan.budget,
-                             watchdog_cycles=plan.cfg.sim.watchdog_cycles)
+                             on_progress=poller(bar, lambda: sink.received // sink.width),
+                             budget_remedy=plan.budget_remedy, watchdog_cycles=plan.cfg.sim.watchdog_cycles)
     except UserError:
         buffer_report(plan, windows_of(plan, chip.window_rows()), sva.stage_peaks())
         raise
+    finally:
+        bar.close()
     buffers = buffer_report(plan, windows_of(plan, chip.window_rows()), sva.stage_peaks())
     if chip.dram is not None:
         stats["dram"] = chip.dram.stats()

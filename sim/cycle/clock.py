@@ -133,10 +133,14 @@ def stop_message(head: str, now_fs: int, cycles: dict[str, int], fifos: dict[str
             f"{tail}")
 
 
-def budget_message(domain: str, limit: int) -> str:
-    """The tail of a :class:`BudgetExceeded` (both cycle engines)."""
-    return (f"{domain} ran its budget of {limit} cycles before the until condition held: "
-            "raise budget_cycles or check the until condition")
+def budget_message(domain: str, limit: int, remedy: str | None = None) -> str:
+    """The tail of a :class:`BudgetExceeded` (both cycle engines). The chip's runs give
+    ``remedy`` (:attr:`~sim.cycle.plan.ChipPlan.budget_remedy`); a bare kernel run says
+    which argument to change."""
+    if remedy is None:
+        return (f"{domain} ran its budget of {limit} cycles before the until condition held: "
+                "raise budget_cycles or check the until condition")
+    return f"{domain} reached {limit} cycles before the run completed: {remedy}"
 
 
 def activity_counts(busy: int, starved: int, blocked: int, idle: int) -> dict[str, int]:

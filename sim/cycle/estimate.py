@@ -363,16 +363,16 @@ def estimate(cfg: ChipConfig, shape: tuple[int, int]) -> dict:
         "image": {"width": w, "height": h},
         "config": config_to_dict(cfg),
         "throughput": {
-            "fps": round(1.0 / frame_s, 3),
+            "fps_bound": round(1.0 / frame_s, 3),
             "bottleneck": bottleneck,
             "work_ms_per_frame": {n: round(v * 1e3, 6) for n, v in sorted(work_s.items())},
-            "fps_per_block": {n: round(1.0 / v, 3) for n, v in sorted(work_s.items())},
+            "fps_bound_per_block": {n: round(1.0 / v, 3) for n, v in sorted(work_s.items())},
             "fifo_items_per_s": {n: round(v, 1) for n, v in sorted(fifo_rate.items())},
             # a camera's real frame rate: its whole raster, vertical blanking included
             "camera_fps": camera_fps,
         },
         "latency": {
-            "first_output_ms": tl["first_output_cycle"] * p_sva / 1e12,
+            "first_output_us": tl["first_output_cycle"] * p_sva / 1e9,
             "frame_ms": tl["last_output_cycle"] * p_sva / 1e12,
             "first_output_sva_cycle": round(tl["first_output_cycle"]),
             "last_output_sva_cycle": round(tl["last_output_cycle"]),
@@ -412,10 +412,10 @@ def format_estimate(est: dict) -> str:
     lines = [
         f"estimate: {img['width']}x{img['height']}, D={est['config']['sva']['disparities']}, "
         f"{est['config']['sva']['paths']} paths, descriptor {est['config']['nna']['descriptor']}",
-        f"fps {thr['fps']} (bottleneck {thr['bottleneck']}); first output "
-        f"{lat['first_output_ms']:.4f} ms, frame {lat['frame_ms']:.4f} ms",
-        "per block: " + ", ".join(
-            f"{n} {ms:.4f} ms ({thr['fps_per_block'][n]} fps)"
+        f"work bound {thr['fps_bound']} fps (bottleneck {thr['bottleneck']}); latency: first "
+        f"output {lat['first_output_us']:.3f} us, frame {lat['frame_ms']:.4f} ms",
+        "work per frame by block: " + ", ".join(
+            f"{n} {ms:.4f} ms (bound {thr['fps_bound_per_block'][n]} fps)"
             for n, ms in thr["work_ms_per_frame"].items()
         ),
         f"SRAM: NNA {sram['nna_per_submodule']} bits per submodule ({sram['nna_stereo']} for the "

@@ -24,6 +24,9 @@ from sim.cycle.clock import (
 from sim.cycle.fifo import Fifo
 from sim.errors import ConfigError
 
+# Steps between two calls of Simulator.run's on_progress (some tens per second).
+PROGRESS_STEPS = 4096
+
 
 class Simulator:
     """Holds the domains, FIFOs and blocks of a model and runs them step by step.
@@ -220,6 +223,8 @@ class Simulator:
         *,
         budget_cycles: dict[str, int] | int,
         watchdog_cycles: int | None = 1000,
+        budget_remedy: str | None = None,
+        on_progress: Callable[[], None] | None = None,
     ) -> dict:
         """Step until ``until()`` is true (checked before the first step and after every step).
 
@@ -229,8 +234,11 @@ class Simulator:
         ``watchdog_cycles``: raise :class:`DeadlockError` at the first step without progress
         that ends ``watchdog_cycles`` periods of the slowest clock domain after the last step
         with progress (or after one slowest period before the run's first step); ``None``
-        disables it. In time, not in steps, so an engine that skips quiet stretches reaches the
-        same verdict at the same instant. Returns :meth:`stats`.
+        disables it. ``budget_remedy``: what the budget's message tells the user to change.
+        In time, not in steps, so an engine that skips quiet stretches reaches the
+        same verdict at the same instant. ``on_progress()`` is called every
+        :data:`PROGRESS_STEPS` steps and at the end, for a progress bar; it must not touch the
+        model. Returns :meth:`stats`.
         """
         budget = self._budget(budget_cycles)
         if watchdog_cycles is not None:
@@ -242,18 +250,26 @@ class Simulator:
         p_max = max((dom.period_fs for dom in self._domains.values()), default=1)
         # time of the last step with progress; before the first step: one slowest period back
         last_progress = (min(self._next_fs.values()) if self._domains else 0) - p_max
+        countdown = PROGRESS_STEPS
         while not until():
             t = min(self._next_fs.values()) if self._domains else 0
             for d, limit in budget.items():
                 if self._next_fs[d] == t and self._cycles[d] - start[d] >= limit:
                     raise self._stop(BudgetExceeded, "cycle budget exceeded",
-                                     budget_message(d, limit))
+                                     budget_message(d, limit, budget_remedy))
             if self.step():
                 last_progress = t
             elif (watchdog_cycles is not None and t - last_progress >= watchdog_cycles * p_max
                   and not until()):
                 raise self._stop(DeadlockError, "deadlock",
                                  watchdog_message(t - last_progress, p_max))
+            countdown -= 1
+            if countdown == 0:
+                countdown = PROGRESS_STEPS
+                if on_progress is not None:
+                    on_progress()
+        if on_progress is not None:
+            on_progress()
         return self.stats()
 
     def _budget(self, budget_cycles) -> dict[str, int]:

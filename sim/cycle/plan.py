@@ -346,6 +346,15 @@ class ChipPlan:
     def watchdog_fs(self) -> int:
         return self.cfg.sim.watchdog_cycles * self.p_max_fs
 
+    @property
+    def budget_remedy(self) -> str:
+        """What a run that ran out of cycles tells the user (both engines)."""
+        if self.cfg.sim.max_cycles:
+            return (f"stopped by sim.max_cycles = {self.cfg.sim.max_cycles} (--max-cycles N); "
+                    "raise it or give 0 for the automatic budget")
+        return ("the automatic budget (20x the expected run) ran out: give a cycle limit with "
+                "--max-cycles N (sim.max_cycles)")
+
     def work_cycles(self, block: BlockPlan, busy: int) -> int:
         """A block's work per frame, the cycles its critical resource is occupied: the MAC
         array's descriptors x cycles (NNA), the output pipeline's words x II (SVA), one beat per
@@ -373,7 +382,10 @@ def _nb(n: int) -> int:
 def frame_budget(cfg: ChipConfig, shape: tuple[int, int], freqs: dict[str, float],
                  cpd: int, sva_ii: int, frames: int = 1, dram: DramPlan | None = None
                  ) -> dict[str, int]:
-    """A generous cycle budget: 20x the frames at the slowest block's rate, per domain."""
+    """The cycles each domain may run: ``sim.max_cycles`` for every domain when set, else a
+    generous budget of 20x the frames at the slowest block's rate."""
+    if cfg.sim.max_cycles:
+        return dict.fromkeys(freqs, cfg.sim.max_cycles)
     h, w = shape
     camera = cfg.source.kind == "camera"
     per_pixel_s = max(

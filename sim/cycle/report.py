@@ -15,18 +15,19 @@ def throughput(plan: ChipPlan, work: dict[str, int]) -> dict:
 
     A block's work per frame is the cycles its critical resource is occupied
     (:meth:`ChipPlan.work_cycles`); in a stream of frames the block with the most work time
-    sets the frame rate (``fps``) -- if no block waits on another beyond that.
+    sets the frame rate (``fps_bound``, a bound: it assumes no block waits on another beyond
+    that); ``fps_bound_per_block`` is the rate each block alone would sustain.
     """
     work_s = {name: cycles / plan.domains[plan.block(name).domain].freq_hz
               for name, cycles in work.items()}
     bottleneck = max(sorted(work_s), key=lambda n: work_s[n])
     frame_s = work_s[bottleneck]
     return {
-        "fps": round(1.0 / frame_s, 3) if frame_s > 0 else None,
+        "fps_bound": round(1.0 / frame_s, 3) if frame_s > 0 else None,
         "bottleneck": bottleneck,
         "work_ms_per_frame": {n: round(v * 1e3, 6) for n, v in sorted(work_s.items())},
         # the frame rate each block alone would sustain (1 / its work time per frame)
-        "fps_per_block": {n: round(1.0 / v, 3) if v > 0 else None
+        "fps_bound_per_block": {n: round(1.0 / v, 3) if v > 0 else None
                           for n, v in sorted(work_s.items())},
     }
 
@@ -83,10 +84,13 @@ def cycle_report(plan: ChipPlan, first_cycle: int, last_cycle: int, stats: dict,
     statistics (``Simulator.stats()`` or the compiled engine's equal dict) and the row
     windows' peaks (:func:`sim.cycle.buffers.buffer_report`).
 
-    ``fps_frame`` is the rate of frames run one at a time (the first input pixel at t = 0 to
-    the first frame's last output word): far below ``fps`` when blocks hold work they cannot
-    hand on (column tiles behind merge FIFOs shallower than a tile row, say). A stream's
-    measured rate is ``stream.sustained_fps`` (:func:`stream_report`).
+    ``throughput.fps_measured`` is the measured rate of frames run one at a time (1 / the
+    time from the first input pixel at t = 0 to the first frame's last output word): far below
+    the work bound ``fps_bound`` when blocks hold work they cannot hand on (column tiles behind
+    merge FIFOs shallower than a tile row, say). A stream's measured rate is
+    ``stream.sustained_fps`` (:func:`stream_report`). Times name their unit (``_us``,
+    ``_ms``); every block's cycles say their clock domain (:func:`block_report`); see
+    docs/report.md for every key.
     """
     period = plan.domains["sva"].period_fs
     first_fs = first_cycle * period
@@ -95,9 +99,9 @@ def cycle_report(plan: ChipPlan, first_cycle: int, last_cycle: int, stats: dict,
             for b in plan.blocks if b.kind != "sink"}
     thr = throughput(plan, work)
     # frames one at a time, first input pixel to last output word: a stream overlaps frames
-    # and reaches `fps` unless blocks wait on each other (see blocks.*.blocked)
+    # and reaches `fps_bound` unless blocks wait on each other (see blocks.*.blocked)
     frame0_fs = int(frame_times[1][0]) if frame_times[1][0] >= 0 else last_fs
-    thr["fps_frame"] = round(FS_PER_S / frame0_fs, 3) if frame0_fs > 0 else None
+    thr["fps_measured"] = round(FS_PER_S / frame0_fs, 3) if frame0_fs > 0 else None
     fifos = stats["fifos"]
     stream = stream_report(plan, frame_times)
     extra = {}
@@ -108,19 +112,69 @@ def cycle_report(plan: ChipPlan, first_cycle: int, last_cycle: int, stats: dict,
         **extra,
         "cycles": {
             "total": dict(sorted(stats["cycles"].items())),
-            "first_output": {"sva": first_cycle, "ns": first_fs / 1e6},
-            "last_output": {"sva": last_cycle, "ns": last_fs / 1e6},
+            "clock_mhz": {d: _mhz(plan, d) for d in sorted(stats["cycles"])},
+            "first_output": {"sva": first_cycle, "time_us": first_fs / 1e9},
+            "last_output": {"sva": last_cycle, "time_ms": last_fs / 1e12},
         },
-        "latency": {"first_output_ns": first_fs / 1e6, "frame_ns": last_fs / 1e6},
+        "latency": {"first_output_us": first_fs / 1e9, "frame_ms": last_fs / 1e12},
         "throughput": dict(sorted(thr.items())),
-        "blocks": {n: stats["blocks"][n] for n in sorted(stats["blocks"])},
-        "fifos": {n: fifos[n] for n in sorted(fifos)},
+        "blocks": block_report(plan, stats),
+        "fifos": {n: fifo_report(plan, n, fifos[n]) for n in sorted(fifos)},
         "fifo_bytes_per_frame": {n: fifos[n]["bits_transferred"] // 8 for n in sorted(fifos)},
         "fifo_sram_bits": {f.name: f.sram_bits for f in sorted(plan.fifos, key=lambda f: f.name)},
         "buffers": {b: buffers[b] for b in sorted(buffers)},
         "sva_stages": sva_stage_activity(plan, stats["stages"]["sva"]),
         "stream": stream,
         "energy": energy_report(plan, stats, *power_basis(thr, stream)),
+    }
+
+
+ACTIVITY_ORDER = ("busy", "starved", "blocked", "idle")
+
+
+def _mhz(plan: ChipPlan, domain: str) -> float:
+    return round(plan.domains[domain].freq_hz / 1e6, 6)
+
+
+def block_report(plan: ChipPlan, stats: dict) -> dict:
+    """Each block's cycles by activity (``stats["blocks"]``), in the cycles of the block's own
+    clock domain (``clock_domain``, ``clock_mhz``, ``cycles_total``: that domain's cycles over
+    the run), and as ``percent`` of them (busy, starved, blocked and idle add up to 100 but
+    for rounding)."""
+    out = {}
+    for name in sorted(stats["blocks"]):
+        counts = stats["blocks"][name]
+        domain = plan.block(name).domain
+        total = int(stats["cycles"][domain])
+        out[name] = {
+            **counts,
+            "clock_domain": domain,
+            "clock_mhz": _mhz(plan, domain),
+            "cycles_total": total,
+            "percent": {a: round(100.0 * counts[a] / total, 2) if total else 0.0
+                        for a in ACTIVITY_ORDER},
+        }
+    return out
+
+
+def fifo_report(plan: ChipPlan, name: str, counts: dict) -> dict:
+    """A FIFO's statistics with the domains they count in -- ``cycles_full`` in the
+    ``producer_domain``, ``cycles_empty`` in the ``consumer_domain`` -- and its occupancy
+    histogram made explicit: ``occupancy`` (the bins, 0..depth items) beside ``cycles`` (the
+    consumer's cycles that began with that many items), counted in ``clock_domain`` (the
+    consumer's; the cycles add up to that domain's cycles over the run)."""
+    fifo = next(f for f in plan.fifos if f.name == name)
+    hist = counts["occupancy_histogram"]
+    return {
+        **counts,
+        "consumer_domain": fifo.dst,
+        "producer_domain": fifo.src,
+        "occupancy_histogram": {
+            "clock_domain": fifo.dst,
+            "clock_mhz": _mhz(plan, fifo.dst),
+            "cycles": list(hist),
+            "occupancy": list(range(len(hist))),
+        },
     }
 
 
@@ -175,7 +229,7 @@ def power_basis(throughput: dict, stream: dict) -> tuple[float | None, str]:
     for one frame the work bound."""
     if stream.get("sustained_fps"):
         return stream["sustained_fps"], "sustained (measured)"
-    return throughput["fps"], "work bound (one frame)"
+    return throughput["fps_bound"], "work bound (one frame)"
 
 
 def sva_stage_activity(plan: ChipPlan, stages: dict) -> dict:

@@ -9,16 +9,58 @@ decides which engine runs.
   kernel does -- a shuffled evaluation order, or a sink stall given as a Python function rather
   than a periodic pattern; then the readable kernel, and the report's ``engine_reason`` says
   why.
+
+The first frame after an install or an edit compiles the numba kernels; one line on stderr
+says so beforehand (:func:`sim.progress.compile_notice`). The readable kernel draws a progress
+bar on stderr when it is a terminal.
 """
 
 from __future__ import annotations
 
+import nna.census
+import nna.conv
+import quant.fixedpoint
+import quant.intconv
+import sim.cycle.engine.pipeline
+import sim.cycle.engine.reads
+import sim.cycle.engine.replay
+import sim.cycle.engine.ring
+import sim.cycle.engine.streams
+import sim.cycle.engine.walkers
+import sim.cycle.rules
+import sva.aggregation
+import sva.cost
+import sva.lr_check
+import sva.median
+import sva.pipeline
+import sva.sgm
+import sva.wta
 from sim.cycle.chip import FrameResult, run_readable
+from sim.cycle.engine import run as engine_run
 from sim.cycle.engine.run import run_compiled
 from sim.cycle.plan import ChipPlan
 from sim.errors import ConfigError
+from sim.progress import compile_notice
 
 ENGINES = ("auto", "fast", "readable")
+# The numba kernels a frame compiles on first use, in two groups: the stages' (the functional
+# model and both engines) and the compiled engine's.
+STAGE_KERNELS = (nna.census, nna.conv, quant.fixedpoint, quant.intconv, sva.aggregation,
+                 sva.cost, sva.lr_check, sva.median, sva.pipeline, sva.sgm, sva.wta,
+                 sim.cycle.rules)
+ENGINE_KERNELS = (sim.cycle.engine.pipeline, sim.cycle.engine.reads, sim.cycle.engine.replay,
+                  sim.cycle.engine.ring, engine_run, sim.cycle.engine.streams,
+                  sim.cycle.engine.walkers)
+# What the notice announces: the approximate cold compile time of a whole run of each kind on
+# a quiet 2-core machine (docs/performance.md).
+COMPILE_SECONDS = {"functional": 20, "readable": 20, "fast": 40}
+
+
+def announce_compiling(kind: str) -> bool:
+    """One line on stderr before a ``kind`` of run ("functional", "readable" or "fast")
+    compiles its kernels for the first time (:func:`sim.progress.compile_notice`)."""
+    groups = [STAGE_KERNELS] if kind != "fast" else [STAGE_KERNELS, ENGINE_KERNELS]
+    return compile_notice(groups, COMPILE_SECONDS[kind])
 
 
 def _needs_readable(sink_stall, order_seed) -> str | None:
@@ -46,12 +88,14 @@ def simulate(plan: ChipPlan, left, right=None, *, sink_stall=None,
     if engine == "fast" and reason is not None:
         raise ConfigError(f"sim.engine=fast: {reason}; use sim.engine=auto or readable")
     if engine == "readable" or reason is not None:
+        announce_compiling("readable")
         result = run_readable(plan, left, right, sink_stall=sink_stall, window=window,
                               order_seed=order_seed, on_frame=on_frame)
         result.report["engine"] = "readable"
         if engine == "auto":
             result.report["engine_reason"] = reason
         return result
+    announce_compiling("fast")
     result = run_compiled(plan, left, right, sink_stall=sink_stall, window=window,
                           on_frame=on_frame, words=words)
     result.report["engine"] = "fast"

@@ -2,7 +2,9 @@
 
     PYTHONPATH=. python tests/golden/make_traces_golden.py
 
-Writes traces_small.vcd, traces_small.gtkw and traces_small.timeline.json from
+Writes traces_small.vcd, traces_small.gtkw (naming the dump and its filter file by bare file
+name, so the bytes do not depend on the folder; ``stereosim run`` writes absolute paths),
+traces_small.status.txt and traces_small.timeline.json from
 :func:`golden_log` -- the synthetic chip's signals and clocks over 20 SVA cycles, with values from
 integer arithmetic (no random generator, whose streams may change between numpy versions);
 tests/traces/test_golden.py compares them byte for byte.
@@ -12,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from traces.gtkw import write_gtkw
+from traces.gtkw import write_gtkw, write_status_filter
 from traces.log import TraceLog
 from traces.synthetic import synthetic_log
 from traces.timeline import write_timeline
@@ -48,7 +50,8 @@ def golden_log() -> TraceLog:
 def main() -> None:
     log = golden_log()
     write_vcd(GOLDEN / "traces_small.vcd", log, version=VERSION)
-    write_gtkw(GOLDEN / "traces_small.gtkw", log, "traces_small.vcd")
+    write_gtkw(GOLDEN / "traces_small.gtkw", log, "traces_small.vcd", "traces_small.status.txt")
+    write_status_filter(GOLDEN / "traces_small.status.txt")
     write_timeline(GOLDEN / "traces_small.timeline.json", log)
 
 

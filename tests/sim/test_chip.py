@@ -56,7 +56,8 @@ def test_census_first_and_last_output_cycles(h, w, engine):
     assert first == 6 * w + 4 + lat
     assert last == 6 * w + 4 + lat + 2 * (h * w - 1)
     assert report["throughput"]["bottleneck"] == "sva"
-    np.testing.assert_array_equal(words, run(left, right, config=cfg).disparity_fixed)
+    functional = run(left, right, mode="functional", config=cfg).disparity_fixed
+    np.testing.assert_array_equal(words, functional)
 
 
 @pytest.mark.parametrize("engine", ["readable", "compiled"])
@@ -80,7 +81,8 @@ def test_cnn_first_and_last_output_cycles(h, w, engine):
     assert report["throughput"]["bottleneck"] in ("nna_left", "nna_right")
     # the bottleneck's busy time per frame is its descriptors x 9 cycles
     assert report["blocks"]["nna_left"]["busy"] >= 9 * h * w
-    np.testing.assert_array_equal(words, run(left, right, config=cfg).disparity_fixed)
+    functional = run(left, right, mode="functional", config=cfg).disparity_fixed
+    np.testing.assert_array_equal(words, functional)
 
 
 @pytest.mark.parametrize(
@@ -101,14 +103,16 @@ def test_cycle_model_is_bit_exact_with_the_functional_model(over):
     left, right = _pair(13, 45, seed=len(over))
     cfg = load_config(overrides={"sva.disparities": 16, "nna.descriptor": "census", **over})
     words, _, _ = run_cycle(left, right, cfg)
-    np.testing.assert_array_equal(words, run(left, right, config=cfg).disparity_fixed)
+    functional = run(left, right, mode="functional", config=cfg).disparity_fixed
+    np.testing.assert_array_equal(words, functional)
 
 
 def test_backpressure_from_a_stalling_sink_keeps_data_exact():
     left, right = _pair(9, 35, seed=5)
     cfg = load_config(overrides={**SAME_CLOCKS, "fifo.sva_to_sink_depth": 1})
     words, report, chip = run_cycle(left, right, cfg, sink_stall=lambda c: c % 3 != 0)
-    np.testing.assert_array_equal(words, run(left, right, config=cfg).disparity_fixed)
+    functional = run(left, right, mode="functional", config=cfg).disparity_fixed
+    np.testing.assert_array_equal(words, functional)
     assert report["blocks"]["sva"]["blocked"] > 0
     # the sink pops at most every third cycle: the frame cannot end sooner
     assert chip.sink.last_cycle - chip.sink.first_cycle >= 3 * (9 * 35 - 1)
@@ -173,7 +177,8 @@ def test_split_frames_are_bit_exact(over):
     left, right = _pair(19, 45, seed=11)
     cfg = load_config(overrides={"sva.disparities": 16, "nna.descriptor": "census", **over})
     words, report, _ = run_cycle(left, right, cfg)
-    np.testing.assert_array_equal(words, run(left, right, config=cfg).disparity_fixed)
+    functional = run(left, right, mode="functional", config=cfg).disparity_fixed
+    np.testing.assert_array_equal(words, functional)
     parts = over["nna.stereo_submodules"] // 2
     assert {f"nna_left{t}" for t in range(parts)} <= set(report["blocks"])
 

@@ -62,7 +62,7 @@ def test_two_buffers_absorb_the_rate_until_the_backlog_is_a_frame(run):
     res = run(plan, *_stream(1))
     st = res.report["stream"]
     assert st["dropped_frames"] == [5]
-    assert st["sustained_fps"] == res.report["throughput"]["fps_per_block"]["nna_left"] \
+    assert st["sustained_fps"] == res.report["throughput"]["fps_bound_per_block"]["nna_left"] \
         == round(400e6 / 5760, 3)
 
 

@@ -265,7 +265,8 @@ def test_sigterm_during_a_run_leaves_the_old_set_and_no_temporary_files(old_run,
     leftovers = [p.name for p in out.iterdir() if p.name.startswith(".")]
     assert leftovers == []
     if proc.returncode == 0:  # it finished first: then the new set is whole
-        assert sorted(p.name for p in out.iterdir()) == sorted([*RUN_FILES, "t.vcd", "t.gtkw"])
+        assert sorted(p.name for p in out.iterdir()) == sorted([*RUN_FILES, "t.vcd", "t.gtkw",
+                                                                "t.status.txt"])
     else:
         assert proc.returncode == 143 and err.decode() == "stereosim: terminated\n"
         assert _snapshot(out) == before

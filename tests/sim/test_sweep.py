@@ -99,11 +99,11 @@ def test_four_point_sweep_on_two_workers_survives_a_failure_and_resumes(tmp_path
     assert [r["status"] for r in rows] == ["ok", "ok", "ok", "error"]
     assert "not smaller than the image width 64" in rows[3]["error"]
     for r in rows[:3]:
-        assert float(r["throughput.fps"]) > 0
+        assert float(r["throughput.fps_bound"]) > 0
         assert r["config.sva.disparities"] == r["sva.disparities"]
         assert r["config.sva.paths"] == "2"
         assert int(r["cycles.last_output.sva"]) > int(r["cycles.first_output.sva"])
-        assert r["estimate.throughput.fps"] == r["throughput.fps"]
+        assert r["estimate.throughput.fps_bound"] == r["throughput.fps_bound"]
     before = (out / CSV_NAME).read_bytes()
     # resume: only the failed point is submitted again; finished rows stay byte for byte
     counting = _CountingClient(client)
@@ -235,7 +235,7 @@ scenes = ["256x64"]
 
 def test_plot_is_byte_identical_across_runs(tmp_path, capsys):
     csv_path, _ = _results(tmp_path)
-    args = ["plot", str(csv_path), "--x", "nna.stereo_submodules", "--y", "throughput.fps",
+    args = ["plot", str(csv_path), "--x", "nna.stereo_submodules", "--y", "throughput.fps_bound",
             "--hue", "nna.descriptor"]
     assert main([*args, "--png", str(tmp_path / "a.png")]) == 0
     assert main([*args, "--png", str(tmp_path / "b.png")]) == 0
@@ -247,7 +247,7 @@ def test_plot_of_a_missing_column_is_one_line_exit_2(tmp_path, capsys):
     csv_path, _ = _results(tmp_path)
     capsys.readouterr()
     png = tmp_path / "x.png"
-    assert main(["plot", str(csv_path), "--x", "nope", "--y", "throughput.fps",
+    assert main(["plot", str(csv_path), "--x", "nope", "--y", "throughput.fps_bound",
                  "--png", str(png)]) == 2
     err = capsys.readouterr().err
     assert err.startswith("stereosim: error: column 'nope'") and err.count("\n") == 1
@@ -461,8 +461,8 @@ def test_a_row_with_new_columns_rewrites_the_file_from_a_fresh_read(tmp_path):
     assert path.stat().st_ino != inode
     got = read_rows(path)
     assert [r["point_id"] for r in got] == [failed["point_id"], "x", ok["point_id"]]
-    assert got[1]["zz.other"] == "1.5" and got[1]["throughput.fps"] == ""
-    assert float(got[2]["throughput.fps"]) > 0 and got[0]["error"] == failed["error"]
+    assert got[1]["zz.other"] == "1.5" and got[1]["throughput.fps_bound"] == ""
+    assert float(got[2]["throughput.fps_bound"]) > 0 and got[0]["error"] == failed["error"]
     header = path.read_text().split("\n", 1)[0].split(",")
     assert header[:6] == [*LEAD_COLUMNS, "sva.disparities"] and header[6:] == sorted(header[6:])
     inode = path.stat().st_ino
@@ -492,7 +492,7 @@ def test_a_full_disk_cuts_the_file_back_to_its_last_whole_row(tmp_path):
     data = csv_path.read_bytes()
     rows = read_rows(csv_path)
     assert data.endswith(b"\n") and data.count(b"\n") == 4 and len(rows) == 3
-    assert all(r["status"] == "ok" and float(r["throughput.fps"]) > 0 for r in rows)
+    assert all(r["status"] == "ok" and float(r["throughput.fps_bound"]) > 0 for r in rows)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -708,7 +708,7 @@ def test_ctrl_c_stops_a_sweep_within_seconds_and_leaves_a_valid_csv(tmp_path):
     rows = read_rows(csv_path)
     assert data.endswith(b"\n") and data.count(b"\n") == len(rows) + 1
     assert 2 <= len(rows) < len(depths)
-    assert all(r["status"] == "ok" and float(r["throughput.fps"]) > 0 for r in rows)
+    assert all(r["status"] == "ok" and float(r["throughput.fps_bound"]) > 0 for r in rows)
     deadline = time.monotonic() + 5
     while _live_processes_of_session(proc.pid) and time.monotonic() < deadline:
         time.sleep(0.1)

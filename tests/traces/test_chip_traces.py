@@ -180,8 +180,8 @@ def test_cli_traces_are_deterministic_and_do_not_change_the_outputs(tmp_path, ca
                            str(tmp_path / f"{name}.json"), "--trace-window", "0:3000")
         assert rc == 0
         files.append(out)
-    for ext in ("vcd", "gtkw", "json"):
-        assert (tmp_path / f"a.{ext}").read_bytes().replace(b"a.vcd", b"b.vcd") == \
+    for ext in ("vcd", "gtkw", "json", "status.txt"):
+        assert (tmp_path / f"a.{ext}").read_bytes().replace(b"/a.", b"/b.") == \
             (tmp_path / f"b.{ext}").read_bytes()
     assert np.array_equal(read_pfm(plain / "disparity.pfm"), read_pfm(files[0] / "disparity.pfm"),
                           equal_nan=True)
@@ -189,10 +189,32 @@ def test_cli_traces_are_deterministic_and_do_not_change_the_outputs(tmp_path, ca
     rep1 = json.loads((files[0] / "report.json").read_text())
     rep1.pop("trace")
     listed0, listed1 = rep0.pop("files"), rep1.pop("files")  # the set's SHA-256 manifest
-    assert sorted(listed1) == ["../a.gtkw", "../a.json", "../a.vcd", "disparity.pfm",
-                               "disparity.png"]
+    assert sorted(listed1) == ["../a.gtkw", "../a.json", "../a.status.txt", "../a.vcd",
+                               "disparity.pfm", "disparity.png"]
     assert {k: listed1[k] for k in listed0} == listed0
     assert rep0 == rep1
+
+
+def test_cli_time_window_and_the_gtkw_beside_the_dump(tmp_path, monkeypatch):
+    """`--trace-window 0:3us` is 3 us of the frame; `--signals` is `--trace`; the .gtkw names
+    the dump and the status filter by absolute path (the run is started in another folder)."""
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    rc, out = _cli_run(tmp_path, "w", "--vcd", "../w.vcd", "--trace-window", "0:3us",
+                       "--signals", "top.sva.*", "--trace", "top.fifo.*.occupancy")
+    assert rc == 0
+    report = json.loads((out / "report.json").read_text())
+    assert report["trace"]["window_fs"] == [0, 3 * 10**9]
+    lines = (tmp_path / "w.gtkw").read_text().splitlines()
+    assert f'[dumpfile] "{tmp_path / "w.vcd"}"' in lines
+    assert f"^1 {tmp_path / 'w.status.txt'}" in lines
+    assert (tmp_path / "w.status.txt").read_text().startswith("0 idle\n1 ?green?busy\n")
+    names = set(_Wellen(tmp_path / "w.vcd").vars)
+    assert "top.sva.stage.wta.status" in names and "top.fifo.sva_to_sink.occupancy" in names
+    assert not any(n.startswith("top.nna") for n in names)
+    aliases = [ln[2:].split("}")[0] for ln in lines if ln.startswith("+{")]
+    assert "sva/stage/wta/status" in aliases and len(set(aliases)) == len(aliases)
 
 
 def test_cli_trace_patterns_keep_only_matching_signals(tmp_path):

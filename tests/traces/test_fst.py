@@ -60,5 +60,9 @@ def test_the_cli_writes_fst_when_the_name_ends_in_fst(tmp_path):
                    str(tmp_path / name), "--out", str(tmp_path / name.replace(".", "_"))])
         assert rc == 0
     assert not (tmp_path / "f.fst").read_bytes().startswith(b"$")  # not VCD text
-    assert '[dumpfile] "f.fst"' in (tmp_path / "f.gtkw").read_text()
+    # the same save file as the VCD's, naming the .fst (by absolute path)
+    fst_gtkw = (tmp_path / "f.gtkw").read_text()
+    assert f'[dumpfile] "{tmp_path / "f.fst"}"' in fst_gtkw.splitlines()
+    assert fst_gtkw.replace("/f.fst", "/v.vcd").replace("/f.", "/v.") == \
+        (tmp_path / "v.gtkw").read_text()
     _same_as_vcd(tmp_path / "f.fst", tmp_path / "v.vcd")

@@ -4,7 +4,7 @@ tests/golden/make_traces_golden.py only when a format changes on purpose)."""
 import importlib.util
 from pathlib import Path
 
-from traces.gtkw import gtkw_text
+from traces.gtkw import gtkw_text, status_filter_text
 from traces.timeline import timeline_bytes
 from traces.vcd import vcd_bytes
 
@@ -23,6 +23,7 @@ def test_outputs_equal_the_golden_files():
     script = _script()
     log = script.golden_log()
     assert vcd_bytes(log, version=script.VERSION) == (GOLDEN / "traces_small.vcd").read_bytes()
-    assert gtkw_text(log, "traces_small.vcd").encode() == (
+    assert gtkw_text(log, "traces_small.vcd", "traces_small.status.txt").encode() == (
         GOLDEN / "traces_small.gtkw").read_bytes()
+    assert status_filter_text().encode() == (GOLDEN / "traces_small.status.txt").read_bytes()
     assert timeline_bytes(log) == (GOLDEN / "traces_small.timeline.json").read_bytes()

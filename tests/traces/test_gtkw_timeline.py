@@ -7,58 +7,135 @@ import pytest
 import vcdvcd
 
 from sim.errors import ConfigError
-from traces.gtkw import gtkw_text, write_gtkw
-from traces.log import Clock, Signal, TraceLog, changes_of
+from traces.gtkw import (
+    STATUS_NAMES,
+    aliases,
+    gtkw_text,
+    status_filter_text,
+    write_gtkw,
+    zoom_to_fit,
+)
+from traces.log import Clock, Signal, TraceLog, changes_of, select, window
 from traces.synthetic import synthetic_log
-from traces.timeline import STATUS_NAMES, timeline_bytes, timeline_events, write_timeline
+from traces.timeline import STATUS_NAMES as TIMELINE_STATUS_NAMES
+from traces.timeline import timeline_bytes, timeline_events, write_timeline
 from traces.vcd import write_vcd
 
 # ---- GTKWave ----------------------------------------------------------------------------------
 
 
-def _groups(text: str) -> list[tuple[str, list[tuple[str, str]]]]:
-    """Parse the save file's groups: [(name, [(flag, trace), ...])], checking the markers."""
-    lines = text.splitlines()
-    body = lines[lines.index(next(ln for ln in lines if ln == "@800200")):]
-    groups, k = [], 0
-    while k < len(body):
-        assert body[k] == "@800200" and body[k + 1].startswith("-")
-        name, k, members = body[k + 1][1:], k + 2, []
-        while body[k] != "@1000200":
-            members.append((body[k], body[k + 1]))
-            k += 2
-        assert body[k + 1] == f"-{name}"
-        groups.append((name, members))
-        k += 2
+def _groups(text: str) -> list[tuple[str, list[dict]]]:
+    """Parse the save file's groups: [(label, [{flags, alias, name, filter}, ...])], checking
+    that each group opens and closes with its label and every trace carries an alias."""
+    flags, filters, groups, current = None, {}, [], None
+    for line in text.splitlines():
+        if line.startswith("@"):
+            flags = int(line[1:], 16)
+        elif line.startswith("^"):
+            ident, path = line[1:].split(" ", 1)
+            filters[ident] = path
+            current_filter = path
+        elif line.startswith("-"):
+            if flags == 0x800200:
+                current = (line[1:], [])
+            else:
+                assert flags == 0x1000200 and current[0] == line[1:]
+                groups.append(current)
+                current = None
+        elif line.startswith("+{"):
+            alias, name = line[2:].split("} ", 1)
+            ftrans = bool(flags & 0x2000)
+            current[1].append({"flags": flags, "alias": alias, "name": name,
+                               "filter": current_filter if ftrans else None})
+        else:
+            assert line.startswith(("[", "*")), line
+    assert current is None
     return groups
 
 
 def test_gtkw_groups_reference_every_vcd_variable(tmp_path):
     log = synthetic_log(200, seed=5)
     write_vcd(tmp_path / "t.vcd", log)
-    write_gtkw(tmp_path / "t.gtkw", log, "t.vcd")
+    write_gtkw(tmp_path / "t.gtkw", log, "/any/where/t.vcd", "/any/where/t.status.txt")
     text = (tmp_path / "t.gtkw").read_text()
-    assert '[dumpfile] "t.vcd"' in text.splitlines()
-    assert f"[timestart] {log.start_fs}" in text.splitlines()
+    lines = text.splitlines()
+    assert '[dumpfile] "/any/where/t.vcd"' in lines
+    assert f"[timestart] {log.start_fs}" in lines
+    assert "[size] 1400 900" in lines and "[signals_width] 300" in lines
     groups = _groups(text)
-    assert [g for g, _ in groups] == ["clocks", "cameras", "nna", "fifo", "sva"]
+    # one group per block: the scopes that own a status signal, and each FIFO
+    assert [g for g, _ in groups] == [
+        "clocks", "cameras/left", "nna/left/sub0", "nna/left/sub1", "cameras/right",
+        "nna/right/sub0", "nna/right/sub1", "fifo/camera_left_to_nna",
+        "fifo/camera_right_to_nna", "fifo/nna_left_to_sva", "fifo/nna_right_to_sva",
+        "sva/cost", "sva/aggregation", "sva/sgm", "sva/wta", "sva/lr_check", "sva/output"]
+    members = dict(groups)
+    assert [t["alias"] for t in members["nna/left/sub0"]] == [
+        "nna/left/sub0/status", "nna/left/sub0/line_buffer/fill",
+        "nna/left/sub0/line_buffer/row", "nna/left/sub0/mac_array/phase",
+        "nna/left/sub0/mac_array/valid", "nna/left/sub0/descriptor", "nna/left/sub0/col"]
     names_in_vcd = set(vcdvcd.VCDVCD(str(tmp_path / "t.vcd"), only_sigs=True).signals)
-    traces = [t for _, members in groups for _, t in members]
-    assert sorted(traces) == sorted(names_in_vcd)
+    traces = [t for _, ts in groups for t in ts]
+    assert sorted(t["name"] for t in traces) == sorted(names_in_vcd)
+    aliases = [t["alias"] for t in traces]
+    assert len(set(aliases)) == len(aliases) == len(log.signals) + len(log.clocks)
     widths = {s.path: s.width for s in log.signals} | {f"clocks.{c.name}": 1 for c in log.clocks}
-    for _, members in groups:
-        for flag, trace in members:
-            path = trace.split("[")[0]
-            assert flag == ("@28" if widths[path] == 1 else "@22")
-            if widths[path] > 1:
-                assert trace.endswith(f"[{widths[path] - 1}:0]")
+    BIN, DEC, HEX, RJUSTIFY, FTRANS = 0x8, 0x4, 0x2, 0x20, 0x2000
+    for t in traces:
+        path = t["name"].split("[")[0]
+        assert t["alias"] == path.removeprefix("top.").replace(".", "/")
+        leaf = path.rsplit(".", 1)[-1]
+        if widths[path] == 1:
+            want = BIN
+        elif leaf in ("status", "fill", "row", "col", "occupancy", "phase", "pixels_sent",
+                      "disparity"):
+            want = DEC
+        else:
+            assert leaf in ("descriptor", "value", "path_cost"), leaf
+            want = HEX
+        if leaf == "status":
+            want |= FTRANS
+            assert t["filter"] == "/any/where/t.status.txt"
+        else:
+            assert t["filter"] is None
+        assert t["flags"] == want | RJUSTIFY, (t, hex(t["flags"]))
+        if widths[path] > 1:
+            assert t["name"].endswith(f"[{widths[path] - 1}:0]")
+
+
+def test_gtkw_zooms_to_the_window():
+    # GTKWave shows 2**-zoom / 200 fs per pixel: a 1 us window over 1000 px is 1e6 fs / px,
+    # zoom = -log2(2e8) = -27.5754..., rounded down to -27.576
+    assert zoom_to_fit(0, 10**9, 1000) == -27.576
+    assert zoom_to_fit(5 * 10**9, 6 * 10**9, 1000) == -27.576
+    assert 2 ** 27.576 / 200 * 1000 >= 10**9  # the rounding keeps the whole window in view
+    log = window(synthetic_log(400, seed=2), 2_000_000, 302_000_000)
+    lines = gtkw_text(log, "t.vcd", "t.status.txt").splitlines()
+    assert "[timestart] 2000000" in lines
+    zoom = [ln for ln in lines if ln.startswith("*")]
+    assert zoom == [f"*{zoom_to_fit(2_000_000, 302_000_000):.6f}" + " -1" * 27]
+
+
+def test_gtkw_aliases_stay_unique():
+    assert aliases(["top.a.x", "top.b.x", "clocks.sva"]) == ["a/x", "b/x", "clocks/sva"]
+    # dropping top. would merge top.a.x with a.x: keep the full paths
+    assert aliases(["top.a.x", "a.x"]) == ["top/a/x", "a/x"]
+
+
+def test_status_filter_names_the_kernels_activities():
+    assert STATUS_NAMES == TIMELINE_STATUS_NAMES
+    assert status_filter_text() == "0 idle\n1 ?green?busy\n2 ?orange?starved\n3 ?red?blocked\n"
 
 
 def test_gtkw_is_deterministic_and_refuses_quotes():
     log = synthetic_log(50)
-    assert gtkw_text(log, "a.vcd") == gtkw_text(synthetic_log(50), "a.vcd")
+    assert gtkw_text(log, "a.vcd", "f") == gtkw_text(synthetic_log(50), "a.vcd", "f")
     with pytest.raises(ConfigError, match="without quotes"):
-        gtkw_text(log, 'a".vcd')
+        gtkw_text(log, 'a".vcd', "f")
+    with pytest.raises(ConfigError, match="status signals"):
+        gtkw_text(log, "a.vcd")
+    no_status = select(log, ["top.fifo.*"])
+    assert "^1" not in gtkw_text(no_status, "a.vcd")
 
 
 # ---- Perfetto timeline ------------------------------------------------------------------------
@@ -108,7 +185,7 @@ def test_timeline_of_a_chip_like_log(tmp_path):
     tracks: dict = {}
     for e in timed:
         if e["ph"] == "X":
-            assert e["name"] in STATUS_NAMES and e["dur"] > 0
+            assert e["name"] in TIMELINE_STATUS_NAMES and e["dur"] > 0
             tracks.setdefault((e["pid"], e["tid"]), []).append(e)
     statuses = [s for s in log.signals if s.path.endswith(".status")]
     assert len(tracks) == len(statuses)

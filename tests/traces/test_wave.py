@@ -12,7 +12,7 @@ from traces.log import changes_of
 from traces.synthetic import synthetic_log
 from traces.vcd import write_vcd
 from traces.vcdread import read_vcd, value_at
-from traces.wave import parse_window
+from traces.wave import window_units
 
 
 def _main(argv):
@@ -83,15 +83,18 @@ def test_reader_rejects_corrupt_files(tmp_path, text, message):
 def test_windows(dumped):
     data = read_vcd(dumped[0] and dumped[1], lambda vs: [])
     end = data.last_time
-    assert parse_window(None, data) == (0, end)
-    assert parse_window("100:2000", data) == (100, 2000)
-    assert parse_window("1ns:2.5ns", data) == (1_000_000, 2_500_000)
-    assert parse_window(":1us", data) == (0, 10**9)
-    assert parse_window("3ns:", data) == (3_000_000, end)
-    for bad, message in [("5", "must be A:B"), ("9:3", "is empty"), ("1.5:3", "integer"),
-                         ("abc:3", "not a time"), (f"{end + 1}:{end + 9}", "outside the dump")]:
+    assert window_units(None, data) == (0, end)
+    assert window_units("100:2000", data) == (100, 2000)
+    assert window_units("1ns:2.5ns", data) == (1_000_000, 2_500_000)
+    assert window_units(":1us", data) == (0, 10**9)
+    assert window_units("0:1us", data) == (0, 10**9)  # as `stereosim run --trace-window 0:100us`
+    assert window_units("3ns:", data) == (3_000_000, end)
+    for bad, message in [("5", "expected A:B"), ("9:3", "is empty"), ("1.5:3", "whole numbers"),
+                         ("abc:3", "not a number"), ("100:2us", "mixes a time"),
+                         ("sva:0:10", "need stereosim run --trace-window"),
+                         (f"{end + 1}:{end + 9}", "outside the dump")]:
         with pytest.raises(UserError, match=message):
-            parse_window(bad, data)
+            window_units(bad, data)
 
 
 def test_wave_writes_a_deterministic_png(dumped, tmp_path, capsys):
@@ -107,6 +110,11 @@ def test_wave_writes_a_deterministic_png(dumped, tmp_path, capsys):
     # a different window draws a different picture
     assert _main(argv[:-1] + ["40ns:80ns", "--png", str(tmp_path / "c.png")]) == 0
     assert (tmp_path / "c.png").read_bytes() != a
+    # run's option names work too: --trace (repeatable) and --trace-window
+    same = ["wave", str(path), "--trace", "clocks.*", "--trace", "top.sva.output.*",
+            "--signals", "*.nna_left_to_sva.*", "--trace-window", "0:40ns"]
+    assert _main(same + ["--png", str(tmp_path / "d.png")]) == 0
+    assert (tmp_path / "d.png").read_bytes() == a
 
 
 def test_wave_picture_shows_the_levels(dumped, tmp_path):

@@ -341,7 +341,7 @@ def _raise_stop(plan: ChipPlan, net: Net, names: dict, sink_stall, t_end: int) -
         limit_d = min(plan.budget, key=lambda d: (plan.budget[d] * plan.domains[d].period_fs,
                                                   list(plan.domains).index(d)))
         raise _stop(plan, sink_stall, BudgetExceeded, now, t_budget,
-                    budget_message(limit_d, plan.budget[limit_d]))
+                    budget_message(limit_d, plan.budget[limit_d], plan.budget_remedy))
     if t_over <= t_dog and t_over < INF:
         if fb_message is not None:
             raise CameraOverflow(fb_message)

@@ -1,0 +1,294 @@
+"""The summaries ``stereosim run`` and ``stereosim eval`` print, built from report.json's keys.
+
+A run's summary is a few tables drawn with ``rich``: the run (scene, size, D, descriptor,
+paths, wall time), throughput and latency (the work bound and the measured rate named as such,
+every time with its unit), each block's cycles in its own clock domain with the share of them
+it was busy, starved, blocked and idle, the energy and the accuracy. On a terminal the tables
+have colour; anywhere else (a pipe, a file, a test) they are plain text 100 columns wide, the
+same bytes for the same report. The eval table (``stereosim eval``) is plain aligned text
+(:func:`sim.metrics.format_table`); in cycle mode it adds each scene's frame rates, latency and
+bottleneck.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+import shutil
+import sys
+from collections.abc import Mapping, Sequence
+
+from rich import box
+from rich.console import Console
+from rich.table import Table
+
+from sim.metrics import format_table, mean_metrics
+
+WIDTH = 100  # columns of the plain-text summary
+ACTIVITIES = ("busy", "starved", "blocked", "idle")
+# stereosim eval --mode cycle: the timing columns of each scene (report.json keys, flattened)
+TIMING_KEYS = ("fps_bound", "fps_measured", "first_output_us", "frame_ms", "bottleneck")
+
+
+# ---- formatting -------------------------------------------------------------------------------
+
+
+def _fps(value) -> str:
+    return "-" if value is None else f"{value:,.1f}"
+
+
+def _energy(uj: float) -> str:
+    """Energy in uJ, or in mJ from 1,000 uJ on."""
+    return f"{uj / 1e3:,.3f} mJ" if uj >= 1e3 else f"{uj:,.3f} uJ"
+
+
+def _int(value) -> str:
+    return f"{int(value):,}"
+
+
+def _pairs_table(title: str) -> Table:
+    """A two-column table: what, value."""
+    t = Table(title=title, title_justify="left", box=None, show_header=False, pad_edge=False)
+    t.add_column("what", style="bold", no_wrap=True)
+    t.add_column("value")
+    return t
+
+
+def render(tables: Sequence[Table], *, terminal: bool | None = None) -> str:
+    """The tables as text: plain (no colour, ``WIDTH`` columns, ASCII rules) unless
+    ``terminal`` (default: whether stdout is a terminal)."""
+    if terminal is None:
+        terminal = sys.stdout.isatty()
+    buf = io.StringIO()
+    if terminal:
+        console = Console(file=buf, force_terminal=True, highlight=False, emoji=False,
+                          width=shutil.get_terminal_size((WIDTH, 24)).columns)
+    else:
+        console = Console(file=buf, force_terminal=False, width=WIDTH, color_system=None,
+                          no_color=True, highlight=False, emoji=False, legacy_windows=False)
+    for i, t in enumerate(tables):
+        if not terminal and t.show_header:
+            t.box = _PLAIN_HEAD
+        if i:
+            console.print()
+        console.print(t)
+    return "\n".join(line.rstrip() for line in buf.getvalue().splitlines()) + "\n"
+
+
+# a header rule of ASCII dashes and nothing else: plain text that reads like the eval table
+_PLAIN_HEAD = box.Box("    \n    \n -- \n    \n    \n    \n    \n    \n", ascii=True)
+
+
+# ---- one frame (and the common parts of a stream) ------------------------------------------------
+
+
+def _run_rows(report: dict, seconds: float, t: Table) -> None:
+    img, cfg = report["image"], report["config"]
+    scene = report.get("scene")
+    if scene:
+        t.add_row("scene", f"{scene['name']} ({scene['source']})")
+    engine = f" ({report['engine']} engine)" if report.get("engine") else ""
+    t.add_row("mode", f"{report['mode']}{engine}")
+    frames = f", {report['frames']} frames" if "frames" in report else ""
+    t.add_row("size", f"{img['width']} x {img['height']} pixels{frames}")
+    t.add_row("disparities D", str(cfg["sva"]["disparities"]))
+    t.add_row("descriptor", f"{report['descriptor']['kind']} ({report['descriptor']['bits']} "
+              "bits)")
+    t.add_row("SGM paths", str(cfg["sva"]["paths"]))
+    t.add_row("wall time", f"{seconds:.2f} s")
+    out = report.get("output", {})
+    if "invalid_percent" in out:
+        t.add_row("valid pixels", f"{100 - out['invalid_percent']:.2f} %")
+    elif "last_frame_invalid_percent" in out:
+        t.add_row("valid pixels (last frame)", f"{100 - out['last_frame_invalid_percent']:.2f} %")
+
+
+def _measured(st: dict) -> str:
+    """Frames completed, the sustained rate and the drops of a stream (or of one pair's)."""
+    fps = st["sustained_fps"]
+    dropped = st["dropped_frames"]
+    shown = ", ".join(str(f) for f in dropped[:10])
+    if len(dropped) > 10:
+        shown += f", ... {len(dropped) - 10} more"
+    rate = f"sustained {fps:,.3f} fps" if fps else "one frame"
+    return (f"{st['frames_completed']} of {st['frames']} frames completed, {rate}, "
+            f"{len(dropped)} dropped{' (frames ' + shown + ')' if dropped else ''}")
+
+
+def _latency_ms(st: dict) -> str:
+    lat = st.get("latency_ms", {})
+    return (f"min {lat.get('min', 0):.3f} / median {lat.get('median', 0):.3f} / p99 "
+            f"{lat.get('p99', 0):.3f} / max {lat.get('max', 0):.3f} ms")
+
+
+def _throughput_table(report: dict) -> Table:
+    thr, lat = report["throughput"], report["latency"]
+    t = _pairs_table("throughput and latency")
+    st = report.get("stream", {})
+    if st.get("frames", 1) > 1:
+        t.add_row("stream, measured", _measured(st))
+        t.add_row("latency per frame, measured", _latency_ms(st))
+    for p in st.get("pairs", ()):
+        t.add_row(f"camera pair {p['pair']}", f"{_measured(p)}; latency {_latency_ms(p)}")
+    t.add_row("work bound (fps)", f"{_fps(thr['fps_bound'])} (the busiest block's work alone: "
+              "a bound)")
+    alone = "first frame alone" if st.get("frames", 1) > 1 else "one frame alone"
+    t.add_row(f"{alone}, measured (fps)", _fps(thr.get("fps_measured")))
+    t.add_row("bottleneck", thr["bottleneck"])
+    cyc = report["cycles"]
+    t.add_row("cycles per clock domain", ", ".join(
+        f"{d} {_int(n)} @ {cyc['clock_mhz'][d]:g} MHz" for d, n in cyc["total"].items()))
+    t.add_row("first output latency", f"{lat['first_output_us']:,.3f} us (first input pixel "
+              "-> first disparity)")
+    t.add_row("frame latency", f"{lat['frame_ms']:,.3f} ms (first input pixel -> last "
+              "disparity)")
+    if "dram" in report and report["dram"].get("read_bound_fps"):
+        d = report["dram"]
+        used = "-" if d["utilisation"] is None else f"{100 * d['utilisation']:.1f} %"
+        t.add_row("DRAM", f"{used} of {d['peak_gbps']} GB/s used; its read slots bound "
+                  f"{_fps(d['read_bound_fps'])} fps")
+    slow = thr.get("fps_measured")
+    if slow and thr["fps_bound"] and slow < 0.9 * thr["fps_bound"] and st.get("frames", 1) == 1:
+        t.add_row("note", f"one frame alone runs at {_fps(slow)} fps, far below the "
+                  f"{_fps(thr['fps_bound'])} fps bound: blocks wait on each other (the blocked "
+                  "column below)")
+    return t
+
+
+def _blocks_table(report: dict) -> Table:
+    """Each block's cycles in its clock domain, and what share of them it spent how."""
+    work = report["throughput"].get("work_ms_per_frame", {})
+    t = Table(title="blocks (cycles of each block's own clock, % of them, work per frame)",
+              title_justify="left",
+              box=box.SIMPLE_HEAD, pad_edge=False, show_edge=False)
+    t.add_column("block", no_wrap=True)
+    t.add_column("clock", no_wrap=True)
+    t.add_column("cycles", justify="right")
+    for a in ACTIVITIES:
+        t.add_column(f"{a} %", justify="right")
+    t.add_column("work ms", justify="right")
+    for name, b in report["blocks"].items():
+        pct = b["percent"]
+        t.add_row(name, f"{b['clock_domain']} @ {b['clock_mhz']:g} MHz", _int(b["cycles_total"]),
+                  *(f"{pct[a]:.2f}" for a in ACTIVITIES),
+                  f"{work[name]:.4f}" if name in work else "-")
+    return t
+
+
+def _energy_table(energy: dict) -> Table:
+    e = energy["per_frame_uj"]
+    t = _pairs_table(f"energy ({energy['table']['node']})")
+    t.add_row("per frame", _energy(e["total"]))
+    t.add_row("by block", ", ".join(f"{k} {_energy(v)}" for k, v in e["by_block"].items() if v))
+    if energy["power_mw"] is not None:
+        t.add_row("average power", f"{energy['power_mw']:,.1f} mW at "
+                  f"{_fps(energy['power_at_fps'])} fps, {energy['fps_basis']}")
+    return t
+
+
+def _metrics_table(metrics: dict) -> Table:
+    t = Table(title="accuracy (thresholds in pixels of the GT's resolution)", title_justify="left",
+              box=box.SIMPLE_HEAD, pad_edge=False, show_edge=False)
+    cols = (("bad2", "bad2 %"), ("invalid", "invalid %"), ("totbad", "totbad %"),
+            ("avgerr", "avgerr px"), ("rms", "rms px"))
+    t.add_column("mask", no_wrap=True)
+    for _, head in cols:
+        t.add_column(head, justify="right")
+    for mask, m in metrics.items():
+        t.add_row(mask, *(_metric(m.get(k)) for k, _ in cols))
+    return t
+
+
+def _metric(value) -> str:
+    return "-" if value is None or math.isnan(value) else f"{value:.3f}"
+
+
+def summary_tables(report: dict, seconds: float) -> list[Table]:
+    """The tables of a run's summary (one frame or a stream), from its report."""
+    run = _pairs_table(f"stereosim {report['mode']}" + (" stream" if "frames" in report else ""))
+    _run_rows(report, seconds, run)
+    tables = [run]
+    if "throughput" in report:
+        tables += [_throughput_table(report), _blocks_table(report)]
+    if "energy" in report:
+        tables.append(_energy_table(report["energy"]))
+    if report.get("metrics"):
+        tables.append(_metrics_table(report["metrics"]))
+    return tables
+
+
+def summary_text(report: dict, seconds: float, *, terminal: bool | None = None) -> str:
+    """A run's summary as text (plain unless ``terminal``; default: stdout is a terminal)."""
+    return render(summary_tables(report, seconds), terminal=terminal)
+
+
+def print_summary(report: dict, seconds: float) -> None:
+    sys.stdout.write(summary_text(report, seconds))
+
+
+# ---- stereosim eval ---------------------------------------------------------------------------------
+
+
+def eval_timing(report: dict) -> dict | None:
+    """A scene's cycle figures for the eval table (None in functional mode)."""
+    if "throughput" not in report:
+        return None
+    thr, lat = report["throughput"], report["latency"]
+    return {"fps_bound": thr["fps_bound"], "fps_measured": thr.get("fps_measured"),
+            "first_output_us": round(lat["first_output_us"], 6),
+            "frame_ms": round(lat["frame_ms"], 6), "bottleneck": thr["bottleneck"]}
+
+
+def eval_line(name: str, metrics: dict, timing: dict | None = None) -> str:
+    """The line ``stereosim eval`` prints when a scene is done."""
+    parts = [f"{mask} totbad {m['totbad']:.2f} bad2 {m['bad2']:.2f}" for mask, m in
+             metrics.items()]
+    if timing:
+        parts.append(f"work bound {_fps(timing['fps_bound'])} fps, one frame measured "
+                     f"{_fps(timing['fps_measured'])} fps, frame {timing['frame_ms']:.3f} ms "
+                     f"(bottleneck {timing['bottleneck']})")
+    return f"{name}: " + "; ".join(parts)
+
+
+def _timing_summary(timings: list[dict]) -> dict:
+    """The mean of each timing figure over the scenes, and the total frame time."""
+    out: dict = {}
+    for key in ("fps_bound", "fps_measured", "first_output_us", "frame_ms"):
+        values = [t[key] for t in timings if t.get(key) is not None]
+        out[key] = round(sum(values) / len(values), 6) if values else None
+    return {"mean": out, "total_frame_ms": round(sum(t["frame_ms"] for t in timings), 6)}
+
+
+def eval_document(dataset: str, rows: Sequence[tuple], failed: Mapping[str, str]) -> dict:
+    """What ``stereosim eval --json`` prints and ``--out`` writes; ``rows``: (scene, metrics,
+    D, timing or None) per scored scene."""
+    scenes = {}
+    for name, m, d, timing in rows:
+        scenes[name] = {"disparities": d, "metrics": m}
+        if timing:
+            scenes[name]["timing"] = timing
+    scenes.update({name: {"error": reason, "metrics": None} for name, reason in failed.items()})
+    doc = {"dataset": dataset, "scenes": scenes,
+           "mean": mean_metrics([m for _, m, _, _ in rows]), "failed": len(failed)}
+    timings = [t for *_, t in rows if t]
+    if timings:
+        doc["timing"] = _timing_summary(timings)
+    return doc
+
+
+def eval_tables(rows: Sequence[tuple], keys: Sequence[str]) -> str:
+    """The tables ``stereosim eval`` prints at the end: the metrics per mask and, in cycle
+    mode, the frame rates, latency and bottleneck of each scene with their mean (and the total
+    frame time)."""
+    out = []
+    for mask in ("nonocc", "all"):
+        table_rows = [(name, m[mask]) for name, m, _, _ in rows if mask in m]
+        if table_rows:
+            out.append(f"\n[{mask}]  (thresholds in pixels of the GT's resolution)\n")
+            out.append(format_table(table_rows, keys))
+    timed = [(name, t) for name, _, _, t in rows if t]
+    if timed:
+        out.append("\n[cycle]  (work bound and one frame alone, measured, in fps; latency from "
+                   "the first input pixel)\n")
+        out.append(format_table(timed, TIMING_KEYS, totals=("frame_ms",)))
+    return "".join(out)

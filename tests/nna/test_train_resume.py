@@ -1,0 +1,168 @@
+"""Long training runs (nna.trainrun): the thread count picked, checkpoints, and a resumed run
+that ends with the same weights, bit for bit, as the run that was never stopped."""
+
+import argparse
+from dataclasses import replace
+
+import numpy as np
+import pytest
+import torch  # noqa: F401  (the test extra; train imports it)
+from numpy.testing import assert_array_equal
+
+import nna.train as train_module
+from nna.train import TrainConfig, train, training_scene_dirs
+from nna.trainrun import (
+    checkpoint_path,
+    load_checkpoint,
+    parse_threads,
+    pick_threads,
+    threads_line,
+)
+from sim.cli import main
+from sim.errors import ConfigError, InputError
+from sim.io import encode_png
+
+SHIFT = 4
+
+
+def _scene(folder, seed, h=24, w=400):
+    """A Middlebury-2006-layout scene (ThirdSize width, so GT x3): smooth texture, the right
+    view shifted by SHIFT pixels."""
+    rng = np.random.default_rng(seed)
+    base = rng.integers(0, 256, (h, w + SHIFT)).astype(np.float64)
+    base = ((base + np.roll(base, 1, 0) + np.roll(base, 1, 1)) / 3).astype(np.uint8)
+    folder.mkdir(parents=True)
+    (folder / "view1.png").write_bytes(encode_png(base[:, :w].copy()))
+    (folder / "view5.png").write_bytes(encode_png(base[:, SHIFT:].copy()))
+    gt = np.full((h, w), 3 * SHIFT, np.uint8)
+    gt[:, :SHIFT] = 0
+    gt_right = np.full((h, w), 3 * SHIFT, np.uint8)
+    gt_right[:, w - SHIFT:] = 0
+    (folder / "disp1.png").write_bytes(encode_png(gt))
+    (folder / "disp5.png").write_bytes(encode_png(gt_right))
+
+
+@pytest.fixture(scope="module")
+def data_root(tmp_path_factory):
+    root = tmp_path_factory.mktemp("data")
+    _scene(root / "middlebury2006_third" / "Aloe", 3)
+    _scene(root / "middlebury2005_third" / "Books", 2)
+    return root
+
+
+def test_the_default_thread_count_is_safe_on_small_machines():
+    assert [pick_threads(0, cpus) for cpus in (1, 2, 3, 4, 6, 8, 16, 64)] == \
+        [1, 1, 1, 2, 3, 4, 4, 4]
+    assert pick_threads(3, 2) == 3  # an explicit count is kept
+    assert threads_line(1, 0, 2) == \
+        "training on 1 CPU thread (of 2, auto; --threads N to change)"
+    assert threads_line(3, 3, 8) == \
+        "training on 3 CPU threads (of 8, --threads; --threads N to change)"
+    assert parse_threads("auto") == 0 and parse_threads("3") == 3
+    for bad in ("0", "-1", "two", ""):
+        with pytest.raises(argparse.ArgumentTypeError):
+            parse_threads(bad)
+    assert checkpoint_path("out/m.npz").as_posix() == "out/m.ckpt.pt"
+
+
+class _Kill(KeyboardInterrupt):
+    pass
+
+
+def _interrupt_after(monkeypatch, name, steps):
+    """Make the objective's step function raise (as a kill would) when step ``steps`` + 1
+    starts, that is after ``steps`` completed steps."""
+    real = getattr(train_module, name)
+    calls = [0]
+
+    def step(*args):
+        calls[0] += 1
+        if calls[0] > steps:
+            raise _Kill
+        return real(*args)
+
+    monkeypatch.setattr(train_module, name, step)
+
+
+@pytest.mark.parametrize("variant, objective, step_fn", [
+    ("single9x9", "curve", "_curve_step"),
+    ("mccnn4-slim", "triplet", "_triplet_step"),
+])
+def test_a_resumed_run_ends_with_the_weights_of_an_uninterrupted_one(
+        data_root, tmp_path, monkeypatch, variant, objective, step_fn):
+    cfg = TrainConfig(variant=variant, objective=objective, epochs=3, steps_per_epoch=4,
+                      batch=16, strips=6, threads=1, seed=5)
+    dirs = training_scene_dirs(data_root)
+    straight = train(cfg, dirs, progress=False)
+    ckpt = tmp_path / "m.ckpt.pt"
+    with monkeypatch.context() as m:
+        _interrupt_after(m, step_fn, 7)  # killed in step 8, of 12
+        with pytest.raises(_Kill):
+            train(cfg, dirs, progress=False, checkpoint=ckpt, checkpoint_every=3)
+    saved = load_checkpoint(ckpt, straight["config"], straight["scenes"])
+    assert saved["step"] == 6  # the last checkpoint before the kill
+    assert len(saved["history"]) == 1  # epoch 1 done (steps 1-4), two steps into epoch 2
+    resumed = train(cfg, dirs, progress=False, checkpoint=ckpt, checkpoint_every=3,
+                    resume=True)
+    for a, b in zip(straight["weights"] + straight["biases"],
+                    resumed["weights"] + resumed["biases"]):
+        assert_array_equal(a, b)
+    assert resumed["loss_per_epoch"] == straight["loss_per_epoch"]
+    assert resumed["config"] == straight["config"]
+    # another seed really trains something else: the comparison above can fail
+    other = train(TrainConfig(**{**straight["config"], "seed": 6}), dirs, progress=False)
+    assert not np.array_equal(other["weights"][0], straight["weights"][0])
+
+
+def test_a_checkpoint_of_other_settings_or_scenes_is_refused(data_root, tmp_path,
+                                                            monkeypatch):
+    cfg = TrainConfig(epochs=1, steps_per_epoch=4, strips=6, threads=1)
+    dirs = training_scene_dirs(data_root)
+    ckpt = tmp_path / "m.ckpt.pt"
+    with monkeypatch.context() as m:
+        _interrupt_after(m, "_curve_step", 2)
+        with pytest.raises(_Kill):
+            train(cfg, dirs, progress=False, checkpoint=ckpt, checkpoint_every=2)
+    with pytest.raises(ConfigError, match=r"other settings: lr=0.004 \(now 0.001\)"):
+        train(replace(cfg, lr=0.001), dirs, progress=False, checkpoint=ckpt, resume=True)
+    with pytest.raises(ConfigError, match="other scenes"):
+        train(cfg, dirs[:1], progress=False, checkpoint=ckpt, resume=True)
+    # the thread count does not change the recipe: a resume may use another one
+    assert train(replace(cfg, threads=2), dirs, progress=False, checkpoint=ckpt,
+                 resume=True)["config"]["threads"] == 2
+    ckpt.write_bytes(b"not a checkpoint")
+    with pytest.raises(InputError, match="not a readable training checkpoint"):
+        train(cfg, dirs, progress=False, checkpoint=ckpt, resume=True)
+
+
+def _cli(data_root, out, *extra):
+    return ["train", "--data", str(data_root), "--epochs", "2", "--steps", "3", "--strips",
+            "6", "--threads", "1", "--out", str(out), "--quiet", *extra]
+
+
+def test_the_train_command_checkpoints_and_resumes(data_root, tmp_path, monkeypatch, capsys):
+    straight = tmp_path / "straight.npz"
+    assert main(_cli(data_root, straight)) == 0
+    assert "training on 1 CPU thread (of " in capsys.readouterr().err
+    out = tmp_path / "m.npz"
+    ckpt = tmp_path / "m.ckpt.pt"
+    with monkeypatch.context() as m:
+        _interrupt_after(m, "_curve_step", 5)
+        assert main(_cli(data_root, out, "--checkpoint-every", "2")) == 130
+    assert ckpt.is_file() and not out.exists()  # the kill keeps the last checkpoint
+    capsys.readouterr()
+    cases = [
+        (_cli(data_root, out), "exists from an interrupted run: add --resume"),
+        (_cli(data_root, out, "--resume", "--lr", "0.01"), "other settings: lr=0.004"),
+        (_cli(data_root, tmp_path / "new.npz", "--resume"), "no checkpoint"),
+        (_cli(data_root, out, "--threads", "0"), "'auto' or a whole number"),
+    ]
+    for args, message in cases:
+        assert main(args) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("stereosim: error: ") and message in err, err
+        assert err.count("\n") == 1
+    assert main(_cli(data_root, out, "--resume", "--checkpoint-every", "2")) == 0
+    # the same file, byte for byte, as the run that was never stopped; the checkpoint is gone
+    assert out.read_bytes() == straight.read_bytes()
+    assert not ckpt.exists()
