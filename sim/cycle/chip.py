@@ -138,17 +138,19 @@ def _stall_function(sink_stall) -> Callable | None:
 
 
 def build_chip(left, right, cfg: ChipConfig | ChipPlan, *, order_seed=None, sink_stall=None,
-               trace=None, on_frame=None) -> Chip:
+               trace=None, on_frame=None, trace_end_fs=None) -> Chip:
     """The readable chip of ``cfg`` (or of a plan) for this pair -- or stream of pairs: (N, H,
     W) stacks or a :class:`~sim.cycle.frames.FrameSupply`, whose count a plan must have.
-    ``on_frame(f, words)`` receives each frame's output words as the sink completes it."""
+    ``on_frame(f, words)`` receives each frame's output words as the sink completes it;
+    ``trace`` (a :class:`~sim.cycle.clock.Simulator` trace hook) sees no step at or after
+    ``trace_end_fs``."""
     supply = FrameSupply.of(left, right)
     plan = cfg if isinstance(cfg, ChipPlan) else build_plan(cfg, supply.shape, supply.count)
     supply = camera_frames(supply, plan)  # every camera pair sees the stream
     cfg = plan.cfg
     shape = plan.shape
     frames = plan.frames
-    sim = Simulator(order_seed=order_seed, trace=trace)
+    sim = Simulator(order_seed=order_seed, trace=trace, trace_end_fs=trace_end_fs)
     domains = {name: sim.add_domain(d.clock()) for name, d in plan.domains.items()}
     fifos = {}
     for f in plan.fifos:
@@ -295,7 +297,8 @@ def run_readable(plan: ChipPlan, left, right=None, *, sink_stall=None,
                                  start_fs=window[0], end_fs=window[1])
         hook = _WindowCounter(recorder, None, *window)
     chip = build_chip(left, right, plan, order_seed=order_seed, sink_stall=sink_stall,
-                      trace=hook, on_frame=on_frame)
+                      trace=hook, on_frame=on_frame,
+                      trace_end_fs=None if window is None else window[1])
     if hook is not None:
         hook.fifo = chip.fifos["sva_to_sink"]
     stats, report = _run(chip)

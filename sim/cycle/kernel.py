@@ -35,12 +35,16 @@ class Simulator:
     step with ``random.Random(order_seed)`` -- results must not change. ``trace``: a callable
     ``trace(time_fs, {domain: cycle_index}, {"block.signal": value})`` invoked after every step's
     commit with the domains that ticked and the signals whose committed value changed (every
-    signal the first time it is seen).
+    signal the first time it is seen). ``trace_end_fs``: the hook is not called for steps at or
+    after this instant (a trace window's end: nothing after it is recorded, and computing the
+    signals of every later step would only cost time).
     """
 
-    def __init__(self, order_seed: int | None = None, trace: Callable | None = None):
+    def __init__(self, order_seed: int | None = None, trace: Callable | None = None,
+                 trace_end_fs: int | None = None):
         self._rng = random.Random(order_seed) if order_seed is not None else None
         self._trace = trace
+        self._trace_end_fs = trace_end_fs
         self._domains: dict[str, ClockDomain] = {}
         self._fifos: dict = {}
         self._blocks: dict[str, Block] = {}
@@ -48,7 +52,9 @@ class Simulator:
         self._next_fs: dict[str, int] = {}
         self._blocks_of: dict[str, list[Block]] = {}
         self._fifos_of: dict[str, list] = {}
-        self._last_values: dict[str, object] = {}
+        # the trace's last value of each owner's signals, and its owners by set of ticking domains
+        self._last_values: dict[str, dict[str, object]] = {}
+        self._trace_owners: dict[tuple, list] = {}
         self._started = False
         self.now_fs = 0
         self.steps = 0
@@ -197,7 +203,7 @@ class Simulator:
         for f in fifos:
             if f._commit(t):
                 progress = True
-        if self._trace is not None:
+        if self._trace is not None and (self._trace_end_fs is None or t < self._trace_end_fs):
             self._emit_trace(t, ticking, blocks, fifos)
         for d in ticking:
             cycles[d] += 1
@@ -206,15 +212,21 @@ class Simulator:
         return progress
 
     def _emit_trace(self, t: int, ticking, blocks, fifos) -> None:
+        """Report the signals whose committed value changed in this step, every owner (block
+        or FIFO) of the ticking domains in name order, each owner's signals in its order."""
+        key = (tuple(ticking), len(blocks), len(fifos))
+        owners = self._trace_owners.get(key)
+        if owners is None:  # the same owners every time these domains tick together
+            owners = sorted([*blocks, *fifos], key=lambda o: o.name)
+            self._trace_owners[key] = owners
         last = self._last_values
         changed = {}
-        owners = sorted([*blocks, *fifos], key=lambda o: o.name)
         for owner in owners:
+            seen = last.setdefault(owner.name, {})
             for sig, v in owner.signal_values().items():
-                path = f"{owner.name}.{sig}"
-                if path not in last or last[path] != v:
-                    last[path] = v
-                    changed[path] = v
+                if sig not in seen or seen[sig] != v:
+                    seen[sig] = v
+                    changed[f"{owner.name}.{sig}"] = v
         self._trace(t, {d: self._cycles[d] for d in sorted(ticking)}, changed)
 
     def run(

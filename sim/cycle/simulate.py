@@ -53,7 +53,7 @@ ENGINE_KERNELS = (sim.cycle.engine.pipeline, sim.cycle.engine.reads, sim.cycle.e
                   sim.cycle.engine.walkers)
 # What the notice announces: the approximate cold compile time of a whole run of each kind on
 # a quiet 2-core machine (docs/performance.md).
-COMPILE_SECONDS = {"functional": 20, "readable": 20, "fast": 40}
+COMPILE_SECONDS = {"functional": 15, "readable": 15, "fast": 100}
 
 
 def announce_compiling(kind: str) -> bool:
