@@ -71,12 +71,17 @@ def xvfb(width: int = 1600, height: int = 1000, timeout: float = 10.0):
         yield f":{int(number)}"
     finally:
         os.close(read_fd)
-        proc.terminate()
-        try:
-            proc.wait(timeout=5)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
+        _stop(proc)
+
+
+def _stop(proc: subprocess.Popen) -> None:
+    """End a program we started: politely, then for sure."""
+    proc.terminate()
+    try:
+        proc.wait(timeout=5)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait()
 
 
 def _run(args: list[str], env: dict, timeout: float) -> str:
@@ -128,12 +133,7 @@ def gtkwave_view(gtkw: Path, png: Path, display: str, *, timeout: float = 20.0,
         subprocess.run(["import", "-window", wid, str(png)], env=env, check=True,
                        timeout=max(1.0, deadline - time.monotonic()), capture_output=True)
     finally:
-        proc.terminate()
-        try:
-            proc.wait(timeout=5)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
+        _stop(proc)
     shown = {"start": None, "end": None, "traces": []}
     for line in report.read_text().splitlines():
         key, _, value = line.partition(" ")

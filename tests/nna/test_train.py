@@ -47,38 +47,18 @@ from quant.quantizer import FloatModel, float_forward
 from sim.cli import main
 from sim.config import DESCRIPTOR_DEFAULTS, load_config
 from sim.errors import ConfigError, InputError
-from sim.io import encode_png
 from sva.aggregation import box_filter
 from sva.cost import hamming_cost
 
 SHIFT = 5  # disparity of the synthetic scenes
 
 
-def _scene(folder: Path, seed: int, h=30, w=400) -> None:
-    """A 2006-layout scene: a smooth random texture, the right view shifted by SHIFT pixels,
-    GT x3 as Middlebury stores it (the first SHIFT columns unknown); ThirdSize width, so the
-    loader applies the x3 scale."""
-    rng = np.random.default_rng(seed)
-    base = rng.integers(0, 256, (h, w + SHIFT)).astype(np.float64)
-    base = (base + np.roll(base, 1, 0) + np.roll(base, 1, 1) + np.roll(base, (1, 1), (0, 1))) / 4
-    base = base.astype(np.uint8)
-    folder.mkdir(parents=True)
-    (folder / "view1.png").write_bytes(encode_png(base[:, :w].copy()))
-    (folder / "view5.png").write_bytes(encode_png(base[:, SHIFT:].copy()))
-    gt = np.full((h, w), 3 * SHIFT, np.uint8)
-    gt[:, :SHIFT] = 0
-    gt_right = np.full((h, w), 3 * SHIFT, np.uint8)
-    gt_right[:, w - SHIFT :] = 0
-    (folder / "disp1.png").write_bytes(encode_png(gt))
-    (folder / "disp5.png").write_bytes(encode_png(gt_right))
-
-
 @pytest.fixture(scope="module")
-def data_root(tmp_path_factory):
+def data_root(tmp_path_factory, scene_writer):
     root = tmp_path_factory.mktemp("data")
-    _scene(root / "middlebury2005_third" / "Art", 1)  # must be left out (= MiddEval3 ArtL)
-    _scene(root / "middlebury2005_third" / "Books", 2)
-    _scene(root / "middlebury2006_third" / "Aloe", 3)
+    # Art must be left out (= MiddEval3 ArtL)
+    for year, name, seed in (("2005", "Art", 1), ("2005", "Books", 2), ("2006", "Aloe", 3)):
+        scene_writer(root / f"middlebury{year}_third" / name, seed, SHIFT)
     return root
 
 

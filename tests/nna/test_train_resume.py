@@ -20,33 +20,15 @@ from nna.trainrun import (
 )
 from sim.cli import main
 from sim.errors import ConfigError, InputError
-from sim.io import encode_png
 
 SHIFT = 4
 
 
-def _scene(folder, seed, h=24, w=400):
-    """A Middlebury-2006-layout scene (ThirdSize width, so GT x3): smooth texture, the right
-    view shifted by SHIFT pixels."""
-    rng = np.random.default_rng(seed)
-    base = rng.integers(0, 256, (h, w + SHIFT)).astype(np.float64)
-    base = ((base + np.roll(base, 1, 0) + np.roll(base, 1, 1)) / 3).astype(np.uint8)
-    folder.mkdir(parents=True)
-    (folder / "view1.png").write_bytes(encode_png(base[:, :w].copy()))
-    (folder / "view5.png").write_bytes(encode_png(base[:, SHIFT:].copy()))
-    gt = np.full((h, w), 3 * SHIFT, np.uint8)
-    gt[:, :SHIFT] = 0
-    gt_right = np.full((h, w), 3 * SHIFT, np.uint8)
-    gt_right[:, w - SHIFT:] = 0
-    (folder / "disp1.png").write_bytes(encode_png(gt))
-    (folder / "disp5.png").write_bytes(encode_png(gt_right))
-
-
 @pytest.fixture(scope="module")
-def data_root(tmp_path_factory):
+def data_root(tmp_path_factory, scene_writer):
     root = tmp_path_factory.mktemp("data")
-    _scene(root / "middlebury2006_third" / "Aloe", 3)
-    _scene(root / "middlebury2005_third" / "Books", 2)
+    scene_writer(root / "middlebury2006_third" / "Aloe", 3, SHIFT, h=24)
+    scene_writer(root / "middlebury2005_third" / "Books", 2, SHIFT, h=24)
     return root
 
 

@@ -302,6 +302,12 @@ def _cli(argv, capsys):
     return code, out, err
 
 
+def _run_pair(left, right, out, *extra):
+    """``stereosim run`` of a pair in the functional model, D = 16, into ``out``."""
+    return ["run", "--left", left, "--right", right, "--disparities", "16", "--mode",
+            "functional", "--out", out, *extra]
+
+
 def _small_calib(tmp_path, w=57, h=21):
     return _calib(
         tmp_path,
@@ -314,26 +320,8 @@ def test_run_save_as_writes_every_format_in_the_published_set(tmp_path, capsys):
     left, right = _pair(tmp_path)
     calib = _small_calib(tmp_path)
     out = tmp_path / "out"
-    code, stdout, _ = _cli(
-        [
-            "run",
-            "--left",
-            left,
-            "--right",
-            right,
-            "--disparities",
-            "16",
-            "--mode",
-            "functional",
-            "--out",
-            out,
-            "--calib",
-            calib,
-            "--save-as",
-            "kitti,opencv16,depth,ply",
-        ],
-        capsys,
-    )
+    code, stdout, _ = _cli(_run_pair(left, right, out, "--calib", calib, "--save-as",
+                                     "kitti,opencv16,depth,ply"), capsys)
     assert code == 0, stdout
     assert "wrote disparity_kitti.png, disparity_opencv16.npy, depth_mm.png, points.ply" in stdout
     disp = read_pfm(out / "disparity.pfm")
@@ -398,23 +386,7 @@ def test_run_save_as_mistakes_are_one_line_and_write_nothing(tmp_path, capsys, e
     wrong = _small_calib(tmp_path, w=40)
     extra = [str(wrong) if a == "WRONG" else a for a in extra]
     out = tmp_path / "out"
-    code, stdout, err = _cli(
-        [
-            "run",
-            "--left",
-            left,
-            "--right",
-            right,
-            "--disparities",
-            "16",
-            "--mode",
-            "functional",
-            "--out",
-            out,
-            *extra,
-        ],
-        capsys,
-    )
+    code, stdout, err = _cli(_run_pair(left, right, out, *extra), capsys)
     assert code == 2 and stdout == ""
     assert err.startswith("stereosim: error: ") and message in err and err.count("\n") == 1
     assert not out.exists()

@@ -17,6 +17,7 @@ from sim import progress
 from sim.config import load_config
 from sim.cycle import kernel
 from sim.cycle.chip import run_cycle
+from sim.cycle.simulate import COMPILE_SECONDS
 from sim.progress import (
     COMPILE_MESSAGE,
     compile_notice,
@@ -202,5 +203,6 @@ def test_a_run_announces_the_compile_with_an_empty_cache(tmp_path):
                           text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     assert done.stdout == "True True\n"
-    assert done.stderr.splitlines() == [COMPILE_MESSAGE.format(seconds=40),
-                                        COMPILE_MESSAGE.format(seconds=20)]
+    assert done.stderr.splitlines() == [
+        COMPILE_MESSAGE.format(seconds=COMPILE_SECONDS["fast"]),
+        COMPILE_MESSAGE.format(seconds=COMPILE_SECONDS["functional"])]
