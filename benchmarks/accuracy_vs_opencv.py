@@ -57,7 +57,8 @@ def main(argv=None):
         ndisp = legal_disparities(d["ndisp"])
         o = dict(over)
         o.setdefault("sva.disparities", ndisp)
-        res = run(d["left"], d["right"], config=load_config(None, o), gt=d["gt"], masks=d["masks"])
+        res = run(d["left"], d["right"], mode="functional", config=load_config(None, o),
+                  gt=d["gt"], masks=d["masks"])
         m_ours = res.report["metrics"]
         m_cv = evaluate(opencv_sgbm(d["left"], d["right"], ndisp), d["gt"], d["masks"])
         ours.append(m_ours)

@@ -42,7 +42,7 @@ def main(argv=None):
     right = cv2.resize(to_grey(scene["right"]), (1280, 720), interpolation=cv2.INTER_LINEAR)
     over = {"sva.disparities": 128, "sva.paths": 4, "sva.lr_check": True,
             "nna.descriptor": args.descriptor}
-    run(left[:64], right[:64], overrides=over)  # compile / load the numba cache
+    run(left[:64], right[:64], mode="functional", overrides=over)  # compile / load the numba cache
     sgbm = cv2.StereoSGBM_create(0, 128, 5, P1=8 * 25, P2=32 * 25, disp12MaxDiff=1,
                                  uniquenessRatio=10, mode=cv2.STEREO_SGBM_MODE_SGBM)
     prev_threads = cv2.getNumThreads()
@@ -50,7 +50,7 @@ def main(argv=None):
     sgbm.compute(left, right)
     times = {"ours": [], "cv": []}
     for _ in range(args.repeat):  # alternate: both see the same machine state
-        for key, fn in (("ours", lambda: run(left, right, overrides=over)),
+        for key, fn in (("ours", lambda: run(left, right, mode="functional", overrides=over)),
                         ("cv", lambda: sgbm.compute(left, right))):
             t0 = time.perf_counter()
             fn()

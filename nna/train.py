@@ -36,8 +36,9 @@ Two objectives:
   ``1 - 2 * Hamming(sign f_L, sign f_R) / 32``) or ``both``. With ``aggregate = A > 1`` the
   patches grow to (8 + A) x (8 + A) and the similarity is averaged over the A x A map.
 
-Each view gets its own photometric change -- gain, offset and Gaussian noise, then rounding and
-clipping to 0..255 -- so the descriptor learns to ignore what differs between two real cameras.
+Each view gets its own photometric change -- defocus, gain, offset, gamma and sensor noise, then
+rounding and clipping to 0..255 -- and the other view a small vertical misalignment, so the
+descriptor learns to ignore what differs between two real cameras (:mod:`nna.augment`).
 
 Input normalisation is the NNA's: ``x = (pixel - input_offset) * input_scale`` with two
 constants fixed before training (recorded in the output file), nothing per patch.
@@ -60,6 +61,7 @@ from pathlib import Path
 
 import numpy as np
 
+from nna.augment import photometric, rows_at, vertical_offsets
 from nna.trainrun import (
     load_checkpoint,
     pick_threads,
@@ -133,6 +135,11 @@ class TrainConfig:
     gain: float = 0.2
     offset: float = 20.0
     noise_max: float = 2.0
+    # more of what differs between two cameras (nna.augment; 0 = off)
+    gamma: float = 0.0
+    shot_noise: float = 0.0
+    blur_max: float = 0.0
+    vshift_max: float = 0.0
     input_offset: int = 128
     input_scale: float = 1.0 / 64.0
     threads: int = 0  # torch CPU threads; 0 = auto (nna.trainrun.pick_threads)
@@ -173,8 +180,10 @@ class TrainConfig:
             )
         if not 0 <= self.input_offset <= 255 or not self.input_scale > 0:
             raise ConfigError("input_offset must be in 0..255 and input_scale positive")
-        if self.lr <= 0 or min(self.margin, self.gain, self.offset, self.noise_max) < 0:
-            raise ConfigError("lr must be positive; margin, gain, offset, noise_max non-negative")
+        if self.lr <= 0 or min(self.margin, self.gain, self.offset, self.noise_max, self.gamma,
+                               self.shot_noise, self.blur_max, self.vshift_max) < 0:
+            raise ConfigError("lr must be positive; margin, gain, offset, noise_max, gamma, "
+                              "shot_noise, blur_max and vshift_max non-negative")
         if self.disparities < 2:
             raise ConfigError(f"disparities must be at least 2, got {self.disparities}")
         if not (self.temperature > 0 and 0 < self.scale_start <= self.scale_end):
@@ -291,9 +300,9 @@ def sample_batch(ts: TrainingSet, cfg: TrainConfig, rng: np.random.Generator) ->
     right_n = view.at(ts.right_base[s], y, xr + neg)
     size = patch_size(cfg)
     out = np.empty((3, n, size, size), np.float32)
-    out[0] = _photometric(left, cfg, rng)
+    out[0] = photometric(left, cfg, rng)
     # both right patches come from the same right view: one change for the two
-    pair = _photometric(np.stack([right_p, right_n]), cfg, rng, shared_axis=True)
+    pair = photometric(np.stack([right_p, right_n]), cfg, rng, shared_axis=True)
     out[1], out[2] = pair[0], pair[1]
     return out
 
@@ -318,18 +327,6 @@ class _Patches:
         a = self.pixels[idx]
         b = self.pixels[idx + 1]
         return a + frac * (b - a)
-
-
-def _photometric(patches, cfg: TrainConfig, rng, shared_axis: bool = False) -> np.ndarray:
-    """gain * (v - 128) + 128 + offset + N(0, sigma), rounded and clipped to 0..255, with gain,
-    offset and sigma drawn per sample (shared along axis 0 when ``shared_axis``)."""
-    n = patches.shape[1] if shared_axis else patches.shape[0]
-    gain = rng.uniform(1.0 - cfg.gain, 1.0 + cfg.gain, n).astype(np.float32)[:, None, None]
-    offset = rng.uniform(-cfg.offset, cfg.offset, n).astype(np.float32)[:, None, None]
-    sigma = rng.uniform(0.0, cfg.noise_max, n).astype(np.float32)[:, None, None]
-    noise = rng.standard_normal(patches.shape).astype(np.float32) * sigma
-    v = gain * (patches - 128.0) + 128.0 + offset + noise
-    return np.clip(np.rint(v), 0.0, 255.0)
 
 
 # --- strips (objective "curve") -----------------------------------------------------------------
@@ -425,6 +422,7 @@ def sample_strips(ss: StripSet, cfg: TrainConfig, rng: np.random.Generator) -> d
     max_disp = np.empty((n, ws), np.float32)
     mirror = np.zeros(n, bool)
     starts = np.empty(n, np.int64)
+    dys = vertical_offsets(cfg, rng, n)  # the other view's misalignment
     for k in range(n):
         i, y = int(ss.image[pick[k]]), int(ss.y[pick[k]])
         view, partner = ss.views[i], ss.views[i ^ 1]
@@ -444,10 +442,10 @@ def sample_strips(ss: StripSet, cfg: TrainConfig, rng: np.random.Generator) -> d
             ocols = np.arange(x0 - reach, x0 + ws + reach + dn - 1)
             target[k], max_disp[k] = gt[::-1], (width - 1 - xs)[::-1]
             mirror[k] = True
-        other[k] = partner[rr, np.clip(ocols, 0, width - 1)]
+        other[k] = rows_at(partner, y + rows, ocols, dys[k])
     return {
-        "ref": _photometric(ref, cfg, rng),
-        "other": _photometric(other, cfg, rng),
+        "ref": photometric(ref, cfg, rng),
+        "other": photometric(other, cfg, rng),
         "target": target,
         "max_disp": max_disp,
         "mirror": mirror,

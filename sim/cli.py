@@ -29,6 +29,7 @@ from nna.train import (
     train,
     training_scene_dirs,
 )
+from nna.augment import RECIPES
 from nna.trainrun import check_checkpoint_option, checkpoint_path, parse_threads
 from quant.artifact import save_quantized
 from quant.quantizer import QuantizerConfig, quantize
@@ -458,7 +459,8 @@ def cmd_train(args) -> int:
         "lr": args.lr, "seed": args.seed, "similarity": args.similarity,
         "noise_max": args.noise_max, "aggregate": args.aggregate, "threads": args.threads,
     }
-    cfg = TrainConfig(**{k: v for k, v in given.items() if v is not None})
+    recipe = dict(RECIPES[args.augment])  # then the options given on their own win
+    cfg = TrainConfig(**{**recipe, **{k: v for k, v in given.items() if v is not None}})
     out = Path(args.out or f"{args.variant}.npz")
     _check_single_output(out, "--out")
     data = args.data or shared_data_dir()
@@ -612,6 +614,10 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--similarity", choices=("cosine", "tanh", "both"), help="triplet: hinge on "
                    "cosine (MC-CNN), on the tanh relaxation of the Hamming comparison (default), "
                    "or both")
+    t.add_argument("--augment", default="basic", choices=sorted(RECIPES),
+                   help="what training does to the views: basic (gain, offset, noise up to "
+                   "sigma 2) or robust (noise up to 10 with shot noise, gamma, defocus, 0.5 px "
+                   "vertical misalignment; nna/augment.py)")
     t.add_argument("--noise-max", type=finite_float, metavar="SIGMA",
                    help="augmentation noise: sigma ~ U(0, SIGMA) grey levels per view (default 2)")
     t.add_argument("--aggregate", type=positive_int, metavar="A", help="triplet: average the "

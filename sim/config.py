@@ -25,11 +25,11 @@ from sim.outputs import path_text
 
 LEGAL_DISPARITIES = tuple(range(16, 257, 16))
 
-# The SGM penalties tuned for each descriptor on MiddEval3 trainingQ (docs/tuning.md,
-# docs/ablation.md). A configuration that does not set a key gets the value of its
-# nna.descriptor; a key set in a file or with --set always wins.
+# The SGM penalties of each descriptor, chosen on the tuning scenes only (Middlebury 2005
+# without Art and 2006; benchmarks/tune_defaults.py, docs/tuning.md). A configuration that does
+# not set a key gets the value of its nna.descriptor; a key set in a file or with --set wins.
 DESCRIPTOR_DEFAULTS = {
-    "census": {"p1": 80, "p2": 640},
+    "census": {"p1": 48, "p2": 384},
     "cnn": {"p1": 80, "p2": 512},
 }
 # The shipped learned descriptor beats the 32-bit census on clean and on noisy MiddEval3

@@ -33,6 +33,9 @@ T_KEYS = tuple(f"T{_tag(t)}" for t in T_THRESHOLDS)
 M_KEYS = tuple(f"M{_tag(t)}" for t in M_THRESHOLDS)
 F_KEYS = ("F0.5", "F0.75", "F1.0")
 
+#: The metrics also computed on the densified map (:func:`fill_invalid`), as ``dense_<key>``.
+DENSE_KEYS = ("bad0.5", "bad1", "bad2", "bad4", "avgerr", "rms")
+
 #: Every key of a per-mask result, in a sensible column order.
 METRIC_KEYS = (
     ("n",)
@@ -41,6 +44,7 @@ METRIC_KEYS = (
     + T_KEYS
     + M_KEYS
     + F_KEYS
+    + tuple(f"dense_{k}" for k in DENSE_KEYS)
 )
 
 #: The columns of the Middlebury table and of the paper's Table (MiddEval3 metrics).
@@ -89,6 +93,29 @@ def _evaluate_mask(disp: np.ndarray, gt: np.ndarray, evaluated: np.ndarray) -> d
     return out
 
 
+def fill_invalid(disp: np.ndarray) -> np.ndarray:
+    """The map made dense before scoring, as the Middlebury evaluation treats sparse results:
+    along each row, an invalid (non-finite) disparity takes the smaller of the nearest valid
+    disparities to its left and to its right -- the background, since an invalid pixel is most
+    often occluded -- or the one there is at a row's ends. A row without any valid disparity
+    stays invalid. (The same rule as the KITTI devkit's background interpolation.)"""
+    d = np.asarray(disp, dtype=np.float64)
+    valid = np.isfinite(d)
+    h, w = d.shape
+    cols = np.broadcast_to(np.arange(w), (h, w))
+    left = np.maximum.accumulate(np.where(valid, cols, -1), axis=1)
+    right = np.minimum.accumulate(np.where(valid, cols, w)[:, ::-1], axis=1)[:, ::-1]
+    from_left = np.where(left >= 0, np.take_along_axis(d, np.clip(left, 0, w - 1), 1), np.inf)
+    from_right = np.where(right < w, np.take_along_axis(d, np.clip(right, 0, w - 1), 1), np.inf)
+    return np.where(valid, d, np.minimum(from_left, from_right))
+
+
+def _dense_metrics(filled: np.ndarray, gt: np.ndarray, evaluated: np.ndarray) -> dict:
+    """``dense_<key>`` for :data:`DENSE_KEYS`: the sparse metrics of the filled map."""
+    dense = _evaluate_mask(filled, gt, evaluated)
+    return {f"dense_{k}": dense[k] for k in DENSE_KEYS}
+
+
 def evaluate(
     disp: np.ndarray, gt: np.ndarray, masks: Mapping[str, np.ndarray]
 ) -> dict[str, dict[str, float]]:
@@ -108,7 +135,9 @@ def evaluate(
     d = d.astype(np.float64)
     g = g.astype(np.float64)
     known = np.isfinite(g)
-    return {name: _evaluate_mask(d, g, m & known) for name, m in masks.items()}
+    filled = fill_invalid(d)
+    return {name: {**_evaluate_mask(d, g, m & known), **_dense_metrics(filled, g, m & known)}
+            for name, m in masks.items()}
 
 
 def check_truth(gt, masks, shape: tuple[int, int]) -> tuple[np.ndarray, dict[str, np.ndarray]]:

@@ -10,10 +10,12 @@ from sim.errors import InputError
 from sim.metrics import (
     BAD_KEYS,
     BAD_THRESHOLDS,
+    DENSE_KEYS,
     METRIC_KEYS,
     T_KEYS,
     T_THRESHOLDS,
     evaluate,
+    fill_invalid,
     format_table,
     mean_metrics,
 )
@@ -209,3 +211,63 @@ def test_format_table_exact_text():
     )
     assert format_table(rows, ["n", "bad2", "avgerr"]) == expected
     assert format_table([], ["bad2"]) == "scene  bad2\n-----  ----\n"
+
+
+# ---- dense metrics: the map filled as the Middlebury evaluation fills sparse results ----------
+
+
+def _fill_reference(disp):
+    """The fill rule as written: for each invalid pixel, walk left and right along its row to
+    the nearest valid disparities and take the smaller (the one there is at a row's end)."""
+    d = np.array(disp, dtype=np.float64)
+    out = d.copy()
+    h, w = d.shape
+    for y in range(h):
+        for x in range(w):
+            if np.isfinite(d[y, x]):
+                continue
+            seen = []
+            for step in (-1, 1):
+                k = x + step
+                while 0 <= k < w and not np.isfinite(d[y, k]):
+                    k += step
+                if 0 <= k < w:
+                    seen.append(d[y, k])
+            out[y, x] = min(seen) if seen else np.inf
+    return out
+
+
+def test_fill_invalid_by_hand():
+    d = np.array([[np.inf, 3, np.inf, np.inf, 5, np.inf],
+                  [np.inf] * 6,
+                  [1, np.nan, 2, 7, -np.inf, 4]])
+    np.testing.assert_array_equal(fill_invalid(d), [[3, 3, 3, 3, 5, 5],
+                                                    [np.inf] * 6,
+                                                    [1, 1, 2, 7, 4, 4]])
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.integers(1, 6), st.integers(1, 12), st.integers(0, 2**32 - 1), st.floats(0.0, 1.0))
+def test_fill_invalid_equals_the_reference(h, w, seed, holes):
+    rng = np.random.default_rng(seed)
+    d = rng.uniform(0, 64, (h, w))
+    d[rng.random((h, w)) < holes] = np.inf
+    np.testing.assert_array_equal(fill_invalid(d), _fill_reference(d))
+
+
+def test_dense_metrics_score_the_filled_map():
+    rng = np.random.default_rng(3)
+    gt = rng.uniform(0, 30, (20, 30))
+    disp = gt + rng.normal(0, 1.5, gt.shape)
+    disp[rng.random(gt.shape) < 0.2] = np.inf
+    masks = {"all": np.ones(gt.shape, bool), "left": np.zeros(gt.shape, bool)}
+    masks["left"][:, :15] = True
+    got = evaluate(disp, gt, masks)
+    filled = evaluate(fill_invalid(disp), gt, masks)
+    for mask in masks:
+        for key in DENSE_KEYS:
+            assert got[mask][f"dense_{key}"] == filled[mask][key]
+        assert filled[mask]["invalid"] == 0.0 and got[mask]["invalid"] > 0
+    dense_only = evaluate(gt + 0.25, gt, {"all": masks["all"]})["all"]
+    for key in DENSE_KEYS:  # nothing to fill: dense = sparse
+        assert dense_only[f"dense_{key}"] == dense_only[key]

@@ -252,7 +252,9 @@ def test_config_show_keeps_penalties_the_user_set(tmp_path, capsys):
     path.write_text(capsys.readouterr().out)
     assert "\np2 = 512\n" in path.read_text()
     assert load_config(path, {"nna.descriptor": "census"}).sva.p2 == 512
-    assert load_config(path, {"nna.descriptor": "census"}).sva.p1 == 80
+    # p1 was not set: census's own
+    assert load_config(path, {"nna.descriptor": "census"}).sva.p1 == \
+        DESCRIPTOR_DEFAULTS["census"]["p1"]
 
 
 # ---- plot ------------------------------------------------------------------------------------------
@@ -305,3 +307,23 @@ def test_pareto_points_are_labelled_by_their_configuration():
         "2": "stereo_submodules=4, nna_to_merge_depth=512",
     }
     assert point_labels(rows[:1], keys) == {"0": "point 0"}
+
+
+def test_eval_prints_the_dense_scores_beside_the_sparse_ones(tmp_path, capsys):
+    """The paper's results table scores both the map as computed and the map made dense: eval
+    prints a dense table per mask whose cells are the report's dense_* metrics."""
+    root = _dataset(tmp_path)
+    assert main(["eval", str(root), "--mode", "functional", "--disparities", str(D),
+                 "--json"]) == 0
+    metrics = json.loads(capsys.readouterr().out)["scenes"]["Alpha"]["metrics"]
+    text = eval_tables([("Alpha", metrics, D, None)], ("bad2",))
+    lines = text.splitlines()
+    head = lines.index(next(line for line in lines if line.startswith("[all, dense]")))
+    assert lines[head + 1].split() == ["scene", "dense_bad0.5", "dense_bad1", "dense_bad2",
+                                       "dense_bad4", "dense_avgerr", "dense_rms"]
+    alpha = lines[head + 3].split()
+    m = metrics["all"]
+    assert alpha == ["Alpha", *(f"{m[k]:.3f}" for k in ("dense_bad0.5", "dense_bad1",
+                                                        "dense_bad2", "dense_bad4",
+                                                        "dense_avgerr", "dense_rms"))]
+    assert m["invalid"] > 0  # something was filled
