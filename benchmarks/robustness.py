@@ -37,6 +37,7 @@ import numpy as np
 from accuracy_vs_opencv import opencv_sgbm
 from markers import write_between
 from sim.api import run
+from sim.config import parse_set_options
 from sim.datasets import find_scenes, legal_disparities, load_scene, shared_data_dir
 from sim.io import to_grey
 from sim.metrics import evaluate, mean_metrics
@@ -69,14 +70,15 @@ def degrade(left: np.ndarray, right: np.ndarray, condition: str, seed: int, scen
     raise ValueError(condition)
 
 
-def score(method: str, left, right, d: int, gt, masks) -> dict:
+def score(method: str, left, right, d: int, gt, masks, cnn: dict) -> dict:
     if method == "opencv":
         return evaluate(opencv_sgbm(left, right, d), gt, masks)
+    over = {"sva.disparities": d, "nna.descriptor": method, **(cnn if method == "cnn" else {})}
     return run(left, right, mode="functional", gt=gt, masks=masks,
-               overrides={"sva.disparities": d, "nna.descriptor": method}).report["metrics"]
+               overrides=over).report["metrics"]
 
 
-def measure(root: Path, seed: int) -> dict:
+def measure(root: Path, seed: int, cnn: dict) -> dict:
     """{set: {condition: {method: mean nonocc metrics}}} and the scene counts."""
     jobs = []
     for label, folder in SETS:
@@ -93,7 +95,7 @@ def measure(root: Path, seed: int) -> dict:
             for condition in CONDITIONS:
                 pair = degrade(left, right, condition, seed, index)
                 for method in METHODS:
-                    m = score(method, *pair, d, data["gt"], data["masks"])
+                    m = score(method, *pair, d, data["gt"], data["masks"], cnn)
                     results.setdefault(label, {}).setdefault(condition, {}) \
                         .setdefault(method, []).append(m)
                     bar.update(1)
@@ -102,7 +104,7 @@ def measure(root: Path, seed: int) -> dict:
     return {"means": means, "counts": counts}
 
 
-def table(result: dict, seed: int, seconds: float) -> list[str]:
+def table(result: dict, seed: int, seconds: float, cnn: dict) -> list[str]:
     lines = []
     for label, _ in SETS:
         means = result["means"].get(label)
@@ -122,7 +124,8 @@ def table(result: dict, seed: int, seconds: float) -> list[str]:
             lines.append(f"| {condition} | " + " | ".join(cells) + " |")
         lines.append("")
     lines.append(f"(`python benchmarks/robustness.py --seed {seed} --write docs/ablation.md`, "
-                 f"{seconds:.0f} s; bold: the lowest totbad of the row.)")
+                 f"{seconds:.0f} s; bold: the lowest totbad of the row"
+                 + (f"; cnn with {cnn}" if cnn else "") + ".)")
     return lines
 
 
@@ -131,6 +134,9 @@ def main(argv=None) -> int:
     ap.add_argument("--data", help="the shared data folder (default: ../shared/data)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--write", metavar="DOC", help="put the table into DOC between its markers")
+    ap.add_argument("--cnn", action="append", default=[], metavar="KEY=VALUE",
+                    help="overrides for the cnn column only, e.g. nna.cnn.weights=w.npz "
+                    "(a candidate; the defaults otherwise)")
     args = ap.parse_args(argv)
     root = Path(args.data) if args.data else shared_data_dir()
     if root is None or not (root / SETS[0][1]).is_dir():
@@ -138,8 +144,9 @@ def main(argv=None) -> int:
               file=sys.stderr)
         return 2
     t0 = time.perf_counter()
-    result = measure(root, args.seed)
-    lines = table(result, args.seed, time.perf_counter() - t0)
+    cnn = parse_set_options(args.cnn)
+    result = measure(root, args.seed, cnn)
+    lines = table(result, args.seed, time.perf_counter() - t0, cnn)
     print("\n".join(lines))
     return write_between(Path(args.write), BEGIN, END, lines) if args.write else 0
 

@@ -37,6 +37,7 @@ import numpy as np
 from nna.train import training_scene_dirs
 from sim.api import run
 from sim.datasets import find_scene, find_scenes, legal_disparities, load_scene, shared_data_dir
+from sim.errors import UserError
 from sim.progress import progress_bar
 
 KEYS = ("bad2", "invalid", "totbad", "avgerr")
@@ -157,4 +158,8 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    try:
+        sys.exit(main())
+    except UserError as err:  # a missing or wrong data folder, a bad override: one line
+        print(f"tune_defaults: {err}", file=sys.stderr)
+        sys.exit(2)

@@ -1,0 +1,33 @@
+"""The tuning protocol (docs/tuning.md) is enforced by the tuning script: it refuses to tune on
+a held-out test set, whatever the folder is called above it."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "tune_defaults.py"
+
+
+@pytest.mark.parametrize("held_out", ["middlebury2014_trainingQ", "middlebury2003_quarter"])
+def test_tuning_on_a_held_out_set_is_refused(tmp_path, held_out):
+    folder = tmp_path / "data" / held_out
+    folder.mkdir(parents=True)
+    done = subprocess.run([sys.executable, str(SCRIPT), "--data", str(folder), "--grid",
+                           "sva.p1=48"], capture_output=True, text=True, timeout=120,
+                          check=False)
+    assert done.returncode == 2 and done.stdout == ""
+    assert done.stderr.strip() == (f"tune_defaults: {folder} is a held-out test set: tune on "
+                                   "the shared data folder (its 2005/2006 scenes)")
+
+
+def test_the_shared_folder_tunes_on_2005_and_2006_only(tmp_path):
+    """A shared folder with only held-out sets has no tuning scene: the script stops with the
+    training-scene loader's one-line message before scoring anything."""
+    (tmp_path / "middlebury2014_trainingQ").mkdir()
+    done = subprocess.run([sys.executable, str(SCRIPT), "--data", str(tmp_path), "--grid",
+                           "sva.p1=48"], capture_output=True, text=True, timeout=120,
+                          check=False)
+    assert done.returncode == 2 and done.stderr.count("\n") == 1
+    assert done.stderr.startswith("tune_defaults: ") and "holds no training scenes" in done.stderr
