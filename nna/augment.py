@@ -25,13 +25,16 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-#: ``stereosim train --augment robust``: the ranges of a recipe for cameras that differ --
-#: noise up to sigma 10 plus shot noise, +-25 % gain, +-20 grey levels, gamma x/÷ 1.22, defocus
-#: up to sigma 1.2 px, vertical misalignment up to 0.5 px. (``basic``: TrainConfig's defaults.)
+#: ``stereosim train --augment NAME``: ``basic`` is TrainConfig's defaults (gain +-20 %, offset
+#: +-20, read noise up to sigma 2); ``robust`` adds read noise up to sigma 10 with shot noise,
+#: gain +-25 %, gamma x/÷ 1.22, defocus up to sigma 1.2 px and 0.5 px vertical misalignment;
+#: ``mild`` half of those ranges (noise up to 6).
 RECIPES = {
     "basic": {},
     "robust": {"noise_max": 10.0, "gain": 0.25, "offset": 20.0, "gamma": 0.2,
                "shot_noise": 1.0, "blur_max": 1.2, "vshift_max": 0.5},
+    "mild": {"noise_max": 6.0, "gain": 0.2, "offset": 20.0, "gamma": 0.1,
+             "shot_noise": 0.5, "blur_max": 0.8, "vshift_max": 0.25},
 }
 
 

@@ -616,8 +616,8 @@ def build_parser() -> argparse.ArgumentParser:
                    "or both")
     t.add_argument("--augment", default="basic", choices=sorted(RECIPES),
                    help="what training does to the views: basic (gain, offset, noise up to "
-                   "sigma 2) or robust (noise up to 10 with shot noise, gamma, defocus, 0.5 px "
-                   "vertical misalignment; nna/augment.py)")
+                   "sigma 2), robust (noise up to 10 with shot noise, gamma, defocus, 0.5 px "
+                   "vertical misalignment) or mild (half those ranges); nna/augment.py")
     t.add_argument("--noise-max", type=finite_float, metavar="SIGMA",
                    help="augmentation noise: sigma ~ U(0, SIGMA) grey levels per view (default 2)")
     t.add_argument("--aggregate", type=positive_int, metavar="A", help="triplet: average the "

@@ -30,7 +30,7 @@ LEGAL_DISPARITIES = tuple(range(16, 257, 16))
 # not set a key gets the value of its nna.descriptor; a key set in a file or with --set wins.
 DESCRIPTOR_DEFAULTS = {
     "census": {"p1": 48, "p2": 384},
-    "cnn": {"p1": 80, "p2": 512},
+    "cnn": {"p1": 96, "p2": 512},
 }
 # The shipped learned descriptor beats the 32-bit census on clean and on noisy MiddEval3
 # (docs/ablation.md), so it is the default; census stays selectable.
