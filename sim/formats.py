@@ -50,8 +50,6 @@ PLY_COMMENT = (
 # MiddEval3 algorithm names become part of file names (disp0<NAME>.pfm).
 _ALGO_NAME = re.compile(r"[A-Za-z0-9_-]{1,40}")
 DEFAULT_ALGO_NAME = "stereosim"
-# Units a report's latency may be given in (key suffix -> seconds).
-_SECONDS_PER = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 
 
 def _round_half_up(values: np.ndarray) -> np.ndarray:
@@ -378,16 +376,14 @@ def middeval3_paths(
 def runtime_seconds(report: dict, wall_s: float) -> tuple[float, str]:
     """The run time written to ``time<NAME>.txt`` and what it is.
 
-    With the cycle model (the report's ``latency`` has ``frame_ms``, or the same in another unit
-    of :data:`_SECONDS_PER`): the simulated chip's frame time, the figure a hardware submission
-    reports. Without it (``--mode functional``): the wall-clock seconds the simulator took on
-    this machine. Returns ``(seconds, "chip" | "wall")``.
+    With the cycle model (the report's ``latency.frame_ms``): the simulated chip's frame time,
+    the figure a hardware submission reports. Without it (``--mode functional``): the
+    wall-clock seconds the simulator took on this machine. Returns
+    ``(seconds, "chip" | "wall")``.
     """
-    latency = report.get("latency") or {}
-    for unit, scale in _SECONDS_PER.items():
-        value = latency.get(f"frame_{unit}")
-        if value is not None:
-            return float(value) * scale, "chip"
+    frame_ms = (report.get("latency") or {}).get("frame_ms")
+    if frame_ms is not None:
+        return float(frame_ms) * 1e-3, "chip"
     return float(wall_s), "wall"
 
 
