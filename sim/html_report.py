@@ -8,11 +8,8 @@ URI, so the page needs no network and no other file. The same inputs give the sa
 maps are encoded by :func:`sim.io.encode_png`, the charts by matplotlib's Agg backend without
 the ``Software`` metadata entry, and the page holds no date and no path but the scene's source.
 
-The report's keys are read through small accessors with fallbacks (:func:`first_present`,
-:func:`scaled`), so a report written before or after a key was renamed (``fps`` or
-``fps_bound``, ``first_output_ns`` or ``first_output_us``, a FIFO histogram as a bare list or
-as a dict with its bins) reads the same. A functional-mode report has no cycle figures: those
-sections say so and the page shows the rest.
+The page reads the keys of ``report_version`` 2 (docs/report.md). A functional-mode report has
+no cycle figures: those sections say so and the page shows the rest.
 """
 
 from __future__ import annotations
@@ -40,35 +37,11 @@ ERR_GREY_MAX = 170
 ERR_BAD = (220, 40, 40)
 ERR_INVALID = (40, 90, 230)
 ERR_UNSCORED = (255, 255, 255)
-TIME_UNITS_NS = {"_ns": 1.0, "_us": 1e3, "_ms": 1e6, "_s": 1e9}
-ENERGY_UNITS_UJ = {"_uj": 1.0, "_mj": 1e3, "_nj": 1e-3, "_j": 1e6}
 DPI = 100
 GANTT_COLUMNS = 1000
 
 
 # ---- reading the report ------------------------------------------------------------------------
-
-
-def first_present(d, *keys, default=None):
-    """The value of the first of ``keys`` that ``d`` holds (and is not None), else ``default``."""
-    if not isinstance(d, Mapping):
-        return default
-    for key in keys:
-        if d.get(key) is not None:
-            return d[key]
-    return default
-
-
-def scaled(d, stem: str, units: Mapping[str, float]) -> float | None:
-    """``d[stem + suffix] * factor`` for the first suffix of ``units`` that ``d`` holds: a value
-    in the unit whose factor is 1, whatever unit the key names (e.g. ``frame_ms`` -> ns)."""
-    if not isinstance(d, Mapping):
-        return None
-    for suffix, factor in units.items():
-        value = d.get(stem + suffix)
-        if isinstance(value, (int, float)) and not isinstance(value, bool):
-            return float(value) * factor
-    return None
 
 
 def flatten(d: Mapping, prefix: str = "") -> list[tuple[str, object]]:
@@ -84,42 +57,28 @@ def flatten(d: Mapping, prefix: str = "") -> list[tuple[str, object]]:
     return rows
 
 
-def activity(entry) -> dict[str, int] | None:
-    """The cycles a block spent busy / starved / blocked / idle (None if ``entry`` has none).
-    Accepts the counts at the top of the entry, under ``cycles``, or as ``{"cycles": n}``."""
-    if not isinstance(entry, Mapping):
-        return None
-    source = entry.get("cycles") if isinstance(entry.get("cycles"), Mapping) else entry
-    counts = {}
-    for state in STATES:
-        value = source.get(state)
-        if isinstance(value, Mapping):
-            value = first_present(value, "cycles", "count")
-        if not isinstance(value, (int, float)) or isinstance(value, bool):
-            return None
-        counts[state] = int(value)
+def activity(entry: Mapping) -> dict[str, int] | None:
+    """The cycles a block (``blocks.<block>``) or SVA stage (``sva_stages.<stage>``) spent
+    busy / starved / blocked / idle; None if it counted no cycle."""
+    counts = {state: int(entry[state]) for state in STATES}
     return counts if sum(counts.values()) > 0 else None
 
 
-def histogram(entry) -> tuple[np.ndarray, np.ndarray] | None:
-    """A FIFO's occupancy histogram: ``(occupancy of each bin, cycles in it)``. Accepts a bare
-    list (bin k = occupancy k) or a dict of counts (``cycles`` / ``counts``) with optional bins
-    (``occupancy`` / ``bins``, or ``bin_edges`` whose left edges are used)."""
-    hist = first_present(entry, "occupancy_histogram", "histogram")
-    bins = None
-    if isinstance(hist, Mapping):
-        counts = first_present(hist, "cycles", "counts", "values")
-        bins = first_present(hist, "occupancy", "bins")
-        edges = hist.get("bin_edges")
-        if bins is None and edges is not None and counts is not None:
-            bins = list(edges)[: len(counts)]
-    else:
-        counts = hist
-    if not isinstance(counts, (list, tuple)) or not counts:
+def histogram(entry: Mapping) -> tuple[np.ndarray, np.ndarray]:
+    """A FIFO's occupancy histogram (``fifos.<fifo>.occupancy_histogram``): ``(occupancy of
+    each bin, cycles in it)``, as floats."""
+    hist = entry["occupancy_histogram"]
+    return (np.asarray(hist["occupancy"], dtype=np.float64),
+            np.asarray(hist["cycles"], dtype=np.float64))
+
+
+def latency_ns(report: Mapping) -> tuple[float, float] | None:
+    """The frame's first-output and last-output (frame) latency in ns, from ``latency``
+    (None in functional mode, which has no clock)."""
+    lat = report.get("latency")
+    if lat is None:
         return None
-    c = np.asarray(counts, dtype=np.float64)
-    b = np.arange(c.size) if bins is None or len(bins) != c.size else np.asarray(bins, float)
-    return b, c
+    return lat["first_output_us"] * 1e3, lat["frame_ms"] * 1e6
 
 
 def _fmt(value, digits: int = 4) -> str:
@@ -149,9 +108,7 @@ def _toml(value) -> str:
     return str(value)
 
 
-def _time_text(ns: float | None) -> str:
-    if ns is None:
-        return "n/a"
+def _time_text(ns: float) -> str:
     if ns >= 1e6:
         return f"{ns / 1e6:.3f} ms"
     if ns >= 1e3:
@@ -335,8 +292,7 @@ def gantt_png(log) -> bytes | None:
     return _figure_png(fig)
 
 
-def instants_png(frame_ns: float, first_ns: float | None,
-                 rows: list[tuple[str, float]]) -> bytes:
+def instants_png(frame_ns: float, first_ns: float, rows: list[tuple[str, float]]) -> bytes:
     """The frame's key instants without a trace: the frame from 0 to its last output, the
     first output marked, and each block's busy share written on a bar across the frame."""
     frame_us = frame_ns / 1e3
@@ -344,9 +300,8 @@ def instants_png(frame_ns: float, first_ns: float | None,
     fig = _new_figure(10.0, 0.6 + 0.3 * n)
     ax = fig.add_subplot()
     ax.barh([0], [frame_us], height=0.6, color="#3b6fb6")
-    if first_ns is not None:
-        ax.barh([0], [first_ns / 1e3], height=0.6, color="#9db7dd")
-        ax.axvline(first_ns / 1e3, color="black", linestyle="--", linewidth=0.8)
+    ax.barh([0], [first_ns / 1e3], height=0.6, color="#9db7dd")
+    ax.axvline(first_ns / 1e3, color="black", linestyle="--", linewidth=0.8)
     for y, (_, busy) in enumerate(rows, start=1):
         ax.barh([y], [frame_us], height=0.6, color=STATE_COLOURS["idle"])
         ax.barh([y], [frame_us * busy / 100.0], height=0.6, color=STATE_COLOURS["busy"])
@@ -415,38 +370,31 @@ def _cards(items: list[tuple[str, str]]) -> str:
 
 def _headline(report: dict) -> list[tuple[str, str]]:
     items = []
-    thr, lat = report.get("throughput"), report.get("latency")
-    measured = first_present(thr, "fps_measured", "fps_frame")
-    bound = first_present(thr, "fps_bound", "fps")
-    if measured is not None:
-        items.append(("fps measured (one frame alone)", f"{float(measured):,.1f}"))
-    if bound is not None:
-        neck = first_present(thr, "bottleneck", default="?")
-        items.append((f"fps work bound (bottleneck {neck})", f"{float(bound):,.1f}"))
-    first = scaled(lat, "first_output", TIME_UNITS_NS)
-    frame = scaled(lat, "frame", TIME_UNITS_NS)
-    if first is not None:
-        items.append(("latency to first output", _time_text(first)))
-    if frame is not None:
-        items.append(("latency of the frame (last output)", _time_text(frame)))
+    thr = report.get("throughput")  # cycle mode only, as latency and energy
+    if thr is not None:
+        if thr["fps_measured"] is not None:  # None if the frame took no time
+            items.append(("fps measured (one frame alone)", f"{thr['fps_measured']:,.1f}"))
+        if thr["fps_bound"] is not None:
+            items.append((f"fps work bound (bottleneck {thr['bottleneck']})",
+                          f"{thr['fps_bound']:,.1f}"))
+    lat = latency_ns(report)
+    if lat is not None:
+        items.append(("latency to first output", _time_text(lat[0])))
+        items.append(("latency of the frame (last output)", _time_text(lat[1])))
     energy = report.get("energy")
-    per_frame = first_present(energy, "per_frame_uj")
-    total_uj = first_present(per_frame, "total") if isinstance(per_frame, Mapping) else per_frame
-    if total_uj is None:
-        total_uj = scaled(energy, "per_frame", ENERGY_UNITS_UJ)
-    if isinstance(total_uj, (int, float)):
+    if energy is not None:
+        total_uj = energy["per_frame_uj"]["total"]
         shown = f"{total_uj / 1e3:.3f} mJ" if total_uj >= 1e3 else f"{total_uj:.3f} µJ"
         items.append(("energy per frame", shown))
-    power = first_present(energy, "power_mw")
-    if isinstance(power, (int, float)):
-        items.append(("power at the work-bound fps", f"{power:.1f} mW"))
-    out = report.get("output", {})
-    if "invalid_percent" in out:
+        if energy["power_mw"] is not None:  # None without a frame rate
+            items.append(("power at the work-bound fps", f"{energy['power_mw']:.1f} mW"))
+    out = report.get("output")  # a stream's report has none
+    if out is not None:
         items.append(("valid pixels", f"{100.0 - out['invalid_percent']:.2f}%"))
+    metrics = report.get("metrics", {})  # with ground truth only
     for mask in ("nonocc", "all"):
-        m = first_present(report.get("metrics"), mask)
-        if isinstance(m, Mapping) and "bad2" in m:
-            items.append((f"bad2 ({mask})", f"{m['bad2']:.2f}%"))
+        if mask in metrics:
+            items.append((f"bad2 ({mask})", f"{metrics[mask]['bad2']:.2f}%"))
             break
     return items
 
@@ -466,15 +414,14 @@ def _config_section(config: Mapping) -> str:
 
 
 def _metrics_section(report: dict) -> str:
-    metrics = report.get("metrics")
-    if not isinstance(metrics, Mapping) or not metrics:
+    metrics = report.get("metrics")  # with ground truth only
+    if not metrics:
         return ('<h2 id="metrics">Accuracy</h2><p class="note">No ground truth was given, so '
                 "there are no accuracy metrics (give a scene with disp0GT, or --gt).</p>")
     head = "".join(f"<th>{html.escape(k)}</th>" for k in MIDDLEBURY_KEYS)
     rows = []
     for mask, m in metrics.items():
-        cells = "".join(f"<td>{_fmt(first_present(m, k), 4) if k in m else 'n/a'}</td>"
-                        for k in MIDDLEBURY_KEYS)
+        cells = "".join(f"<td>{_fmt(m[k], 4)}</td>" for k in MIDDLEBURY_KEYS)
         rows.append(f'<tr><td class="key">{html.escape(mask)}</td>{cells}</tr>')
     return ('<h2 id="metrics">Accuracy</h2><p class="caption">Middlebury metrics per mask: '
             "bad<i>t</i> = % of scored pixels off by more than <i>t</i> px, invalid = % with no "
@@ -485,8 +432,7 @@ def _metrics_section(report: dict) -> str:
 def _maps_section(report: dict, disparity: np.ndarray, gt, mask) -> str:
     finite = np.isfinite(disparity)
     top = float(disparity[finite].max()) if finite.any() else 1.0
-    dmax = float(first_present(report.get("config", {}).get("sva"), "disparities",
-                               default=max(1.0, top)))
+    dmax = float(report["config"]["sva"]["disparities"])
     span = (f"this frame's values span {float(disparity[finite].min()):.2f} to {top:.2f} px"
             if finite.any() else "no pixel of this frame has a disparity")
     h, w = disparity.shape
@@ -519,9 +465,8 @@ def _maps_section(report: dict, disparity: np.ndarray, gt, mask) -> str:
             "</div>")
 
 
-def _block_label(name: str, entry) -> str:
-    domain = first_present(entry, "clock_domain", "domain", "clock")
-    return f"{name} ({domain})" if domain else name
+def _block_label(name: str, entry: Mapping) -> str:
+    return f"{name} ({entry['clock_domain']})"
 
 
 def _no_cycles(title: str, anchor: str) -> str:
@@ -537,22 +482,21 @@ def _activity_table(blocks: Mapping) -> str:
         if counts is None:
             continue
         total = sum(counts.values())
-        domain = first_present(entry, "clock_domain", "domain", "clock", default="")
         cells = "".join(f"<td>{100.0 * counts[s] / total:.1f}%</td>" for s in STATES)
-        rows.append(f'<tr><td class="key">{html.escape(name)}</td><td>{html.escape(str(domain))}'
-                    f"</td><td>{total:,}</td>{cells}</tr>")
+        rows.append(f'<tr><td class="key">{html.escape(name)}</td>'
+                    f"<td>{html.escape(entry['clock_domain'])}</td><td>{total:,}</td>{cells}</tr>")
     head = "".join(f"<th>{s}</th>" for s in STATES)
     return (f'<table><tr><th class="key">block</th><th>clock</th><th>cycles</th>{head}</tr>'
             f'{"".join(rows)}</table>')
 
 
 def _activity_section(report: dict) -> str:
-    blocks = report.get("blocks")
-    rows = [(_block_label(k, v), a) for k, v in (blocks or {}).items()
+    blocks = report.get("blocks", {})  # cycle mode only
+    rows = [(_block_label(k, v), a) for k, v in blocks.items()
             if (a := activity(v)) is not None]
     if not rows:
         return _no_cycles("Block activity", "activity")
-    neck = first_present(report.get("throughput"), "bottleneck", default="n/a")
+    neck = report["throughput"]["bottleneck"]
     caption = (
         '<p class="caption">Share of each block\'s clock cycles (its clock domain in brackets) '
         "spent busy (doing work), starved (waiting for data from an input FIFO), blocked "
@@ -562,7 +506,7 @@ def _activity_section(report: dict) -> str:
     parts = ['<h2 id="activity">Block activity</h2>',
              _img(activity_png(rows), "chart", "block activity"), caption,
              _activity_table(blocks)]
-    stages = [(k, a) for k, v in (report.get("sva_stages") or {}).items()
+    stages = [(k, a) for k, v in report["sva_stages"].items()
               if (a := activity(v)) is not None]
     if stages:
         parts += ["<h3>SVA pipeline stages</h3>",
@@ -573,12 +517,8 @@ def _activity_section(report: dict) -> str:
 
 def _fifo_section(report: dict) -> str:
     fifos = []
-    for name, entry in (report.get("fifos") or {}).items():
-        hist = histogram(entry)
-        if hist is None:
-            continue
-        depth = first_present(entry, "depth", default=int(hist[0].max()))
-        fifos.append((name, hist[0], hist[1], int(depth)))
+    for name, entry in report.get("fifos", {}).items():  # cycle mode only
+        fifos.append((name, *histogram(entry), entry["depth"]))
     if not fifos:
         return _no_cycles("FIFO occupancy", "fifos")
     rows = "".join(
@@ -612,13 +552,12 @@ def _timeline_section(report: dict, log) -> str:
                 "it. Open the --timeline JSON in ui.perfetto.dev or the VCD in GTKWave for "
                 "every cycle.</p>"
             )
-    lat = report.get("latency")
-    frame = scaled(lat, "frame", TIME_UNITS_NS)
-    if frame is None:
+    lat = latency_ns(report)
+    if lat is None:
         return _no_cycles("Timeline", "timeline")
-    first = scaled(lat, "first_output", TIME_UNITS_NS)
+    first, frame = lat
     rows = []
-    for name, entry in (report.get("blocks") or {}).items():
+    for name, entry in report["blocks"].items():
         counts = activity(entry)
         if counts is not None:
             rows.append((_block_label(name, entry), 100.0 * counts["busy"] / sum(counts.values())))
@@ -634,23 +573,21 @@ def _timeline_section(report: dict, log) -> str:
 
 
 def _title(report: dict) -> tuple[str, str]:
-    scene = report.get("scene") or {}
-    img = report.get("image", {})
-    desc = report.get("descriptor", {})
-    sva = report.get("config", {}).get("sva", {})
-    name = first_present(scene, "name", default="stereo pair")
-    parts = [f"{report.get('mode', '?')} mode",
-             f"{img.get('width', '?')}×{img.get('height', '?')}",
-             f"D={sva.get('disparities', '?')}",
-             f"descriptor {desc.get('kind', '?')} ({desc.get('bits', '?')} bits)",
-             f"{sva.get('paths', '?')} SGM paths"]
-    if report.get("engine"):
+    scene = report.get("scene")  # the CLI adds it
+    img, desc = report["image"], report["descriptor"]
+    sva = report["config"]["sva"]
+    parts = [f"{report['mode']} mode",
+             f"{img['width']}×{img['height']}",
+             f"D={sva['disparities']}",
+             f"descriptor {desc['kind']} ({desc['bits']} bits)",
+             f"{sva['paths']} SGM paths"]
+    if "engine" in report:  # cycle mode only
         parts.append(f"engine {report['engine']}")
-    parts.append(f"stereosim {report.get('stereosim', '?')}")
+    parts.append(f"stereosim {report['stereosim']}")
     sub = ", ".join(parts)
-    if scene.get("source"):
-        sub += f". Input: {scene['source']}"
-    return str(name), sub
+    if scene is None:
+        return "stereo pair", sub
+    return scene["name"], f"{sub}. Input: {scene['source']}"
 
 
 def html_report(report: dict, disparity: np.ndarray, *, gt: np.ndarray | None = None,
@@ -679,7 +616,7 @@ def html_report(report: dict, disparity: np.ndarray, *, gt: np.ndarray | None = 
         _activity_section(report),
         _fifo_section(report),
         _timeline_section(report, log),
-        _config_section(report.get("config", {})),
+        _config_section(report["config"]),
     ]
     return (
         '<!DOCTYPE html>\n<html lang="en">\n<head>\n<meta charset="utf-8">\n'
