@@ -25,13 +25,27 @@ from sim.outputs import path_text
 
 LEGAL_DISPARITIES = tuple(range(16, 257, 16))
 
-# The SGM penalties of each descriptor, chosen on the tuning scenes only (Middlebury 2005
-# without Art and 2006; benchmarks/tune_defaults.py, docs/tuning.md). A configuration that does
-# not set a key gets the value of its nna.descriptor; a key set in a file or with --set wins.
-DESCRIPTOR_DEFAULTS = {
-    "census": {"p1": 48, "p2": 384},
-    "cnn": {"p1": 96, "p2": 512},
+
+
+def sgm_widths(p2: int, box: int = 5, bits: int = 32, paths: int = 4) -> dict:
+    """The narrowest cost, path and sum registers that never saturate: a box-filtered cost stays
+    below ``box^2 * bits``, a path cost below that plus P2, the sum below ``paths`` path costs."""
+    top = box * box * bits
+    path_bits = (top + p2).bit_length()
+    return {"cost_bits": top.bit_length(), "path_bits": path_bits,
+            "sum_bits": (paths * ((1 << path_bits) - 1)).bit_length()}
+
+
+# The back-end settings of each descriptor, chosen on the tuning scenes only (Middlebury 2005
+# without Art and 2006, clean and noisy; benchmarks/tuning_report.py writes the chain of choices
+# into docs/tuning.md): P1, P2 and the adaptive P2's slope, the box, then the cost, path and sum
+# registers just wide enough for that box and P2. A configuration that does not set a key gets
+# the value of its nna.descriptor; a key set in a file or with --set wins.
+_TUNED = {
+    "census": {"p1": 128, "p2": 1024, "p2_adaptive": True, "p2_slope": 256, "box_size": 5},
+    "cnn": {"p1": 160, "p2": 1792, "p2_adaptive": True, "p2_slope": 512, "box_size": 7},
 }
+DESCRIPTOR_DEFAULTS = {d: {**v, **sgm_widths(v["p2"], v["box_size"])} for d, v in _TUNED.items()}
 # The shipped learned descriptor beats the 32-bit census on clean and on noisy MiddEval3
 # (docs/ablation.md), so it is the default; census stays selectable.
 DEFAULT_DESCRIPTOR = "cnn"
@@ -103,16 +117,24 @@ class NnaConfig:
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class SvaConfig:
-    """The stereo accelerator. Accuracy defaults (box, P1, P2, checks, median) come from the
-    sweep in docs/tuning.md; widths are the narrowest that never saturate with the default
-    32-bit descriptor: box 5x5 sums <= 800 < 2^10, a path cost <= 800 + P2 < 2^11, and the sum of
-    four paths < 2^13."""
+    """The stereo accelerator. Accuracy defaults (box, P1, P2, adaptive P2, checks, median) come
+    from the protocol of docs/tuning.md; widths are the narrowest that never saturate with the
+    default 32-bit descriptor: box sums <= box^2 * 32, a path cost <= that + P2, and the sum of
+    four paths (:func:`sgm_widths`)."""
 
     disparities: int = param(
         128, "disparity range D (d in [0, D)); multiple of 16 in [16, 256]", choices=LEGAL_DISPARITIES
     )
-    box_size: int = param(5, "box-filter aggregation window k (k x k, odd; 1 = off)", lo=1, hi=15, odd=True)
-    cost_bits: int = param(10, "width of the aggregated matching cost (saturating)", lo=6, hi=15)
+    box_size: int = param(
+        DESCRIPTOR_DEFAULTS[DEFAULT_DESCRIPTOR]["box_size"],
+        "box-filter aggregation window k (k x k, odd; 1 = off; default: the descriptor's)",
+        lo=1, hi=15, odd=True,
+    )
+    cost_bits: int = param(
+        DESCRIPTOR_DEFAULTS[DEFAULT_DESCRIPTOR]["cost_bits"],
+        "width of the aggregated matching cost (saturating; default: the narrowest that never "
+        "saturates at the descriptor's box)", lo=6, hi=15,
+    )
     p1: int = param(
         DESCRIPTOR_DEFAULTS[DEFAULT_DESCRIPTOR]["p1"],
         "SGM penalty for a disparity change of 1 (default: the descriptor's tuned value)",
@@ -123,10 +145,24 @@ class SvaConfig:
         "SGM penalty for a disparity change of more than 1 (default: the descriptor's tuned value)",
         lo=0, hi=32767,
     )
-    p2_adaptive: bool = param(False, "lower P2 at intensity steps: P2 - (slope*|dI| >> 4), >= P1")
-    p2_slope: int = param(16, "slope of the adaptive P2 (in 1/16 per grey level)", lo=0, hi=1024)
-    path_bits: int = param(11, "width of each SGM path cost register (saturating)", lo=8, hi=14)
-    sum_bits: int = param(13, "width of the summed path cost S (saturating)", lo=8, hi=16)
+    p2_adaptive: bool = param(
+        DESCRIPTOR_DEFAULTS[DEFAULT_DESCRIPTOR]["p2_adaptive"],
+        "lower P2 at intensity steps: P2 - (slope*|dI| >> 4), >= P1 (default: the descriptor's)",
+    )
+    p2_slope: int = param(
+        DESCRIPTOR_DEFAULTS[DEFAULT_DESCRIPTOR]["p2_slope"],
+        "slope of the adaptive P2 (in 1/16 per grey level; default: the descriptor's)",
+        lo=0, hi=16384,
+    )
+    path_bits: int = param(
+        DESCRIPTOR_DEFAULTS[DEFAULT_DESCRIPTOR]["path_bits"],
+        "width of each SGM path cost register (saturating; default: the narrowest that never "
+        "saturates at the descriptor's P2)", lo=8, hi=14,
+    )
+    sum_bits: int = param(
+        DESCRIPTOR_DEFAULTS[DEFAULT_DESCRIPTOR]["sum_bits"],
+        "width of the summed path cost S (saturating; default: as path_bits)", lo=8, hi=16,
+    )
     paths: int = param(
         4, "SGM paths: 1 = left-to-right, 2 = + top, 3 = + top-left, 4 = + top-right", lo=1, hi=4
     )
@@ -140,7 +176,7 @@ class SvaConfig:
     subpixel_bits: int = param(4, "fractional bits F of the output disparity", lo=0, hi=8)
     lr_check: bool = param(True, "left-right consistency check from the same aggregated volume")
     lr_max_diff: int = param(2, "largest |dL - dR| (integer disparities) accepted by the LR check", lo=0, hi=255)
-    median: int = param(3, "median filter on the output: 0 (off), 3 or 5", choices=(0, 3, 5))
+    median: int = param(5, "median filter on the output: 0 (off), 3 or 5", choices=(0, 3, 5))
     lanes: int = param(
         128, "disparities each SVA stage evaluates per cycle: a pixel takes ceil(D / lanes) "
         "cycles per stage, and the left SGM path adds its minimum tree (docs/architecture.md)",
@@ -571,8 +607,11 @@ def _auto_keys(cfg, set_keys) -> dict[str, str]:
     """The descriptor-dependent keys (:data:`DESCRIPTOR_DEFAULTS`) that hold their descriptor's
     default and were not set by the user: dotted key -> why it is left to the descriptor."""
     defaults = DESCRIPTOR_DEFAULTS.get(cfg.nna.descriptor, {})
-    choices = ", ".join(f"{d} {v['p1']}/{v['p2']}" for d, v in DESCRIPTOR_DEFAULTS.items())
-    return {f"sva.{k}": f"auto: nna.descriptor's tuned value (P1/P2: {choices})"
+
+    def choices(key: str) -> str:
+        return ", ".join(f"{d} {str(v[key]).lower()}" for d, v in DESCRIPTOR_DEFAULTS.items())
+
+    return {f"sva.{k}": f"auto: nna.descriptor's tuned value ({choices(k)})"
             for k, v in defaults.items()
             if f"sva.{k}" not in set_keys and getattr(cfg.sva, k) == v}
 

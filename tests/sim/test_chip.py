@@ -13,8 +13,9 @@ from sim.cycle.stops import CameraOverflow
 
 # Equal NNA and SVA clocks make the crossing easy to count by hand: an item pushed at NNA cycle
 # t is visible at SVA cycle t + 2 (latency 1 + synchroniser 2 - 1, edges coinciding).
+# The hand derivations below take the 3x3 median (half-height m = 1) and the 5x5 box (r = 2).
 SAME_CLOCKS = {"clocks.nna_mhz": 400, "clocks.sva_mhz": 400, "sva.disparities": 16,
-               "nna.descriptor": "census"}
+               "nna.descriptor": "census", "sva.median": 3, "sva.box_size": 5}
 
 
 def _pair(h, w, seed=0, shift=3):

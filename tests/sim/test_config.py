@@ -1,11 +1,17 @@
+import itertools
+
+import numpy as np
 import pytest
 
+from sim.api import run
 from sim.config import (
+    DESCRIPTOR_DEFAULTS,
     ChipConfig,
     config_diff,
     config_to_toml,
     load_config,
     parse_set_options,
+    sgm_widths,
 )
 from sim.errors import ConfigError
 
@@ -62,3 +68,39 @@ def test_bad_files(tmp_path):
         load_config(bad)
     with pytest.raises(ConfigError, match="KEY=VALUE"):
         parse_set_options(["sva.p1"])
+
+
+def test_sgm_widths_are_the_narrowest_that_hold_a_path_cost():
+    for box, p2 in itertools.product((3, 5, 7), (0, 223, 224, 512, 1247, 1248, 1792, 2047)):
+        w = sgm_widths(p2, box)
+        cost = box * box * 32  # the largest k x k box of 32-bit Hamming costs
+        assert 2 ** (w["cost_bits"] - 1) <= cost < 2 ** w["cost_bits"]
+        top = cost + p2  # plus the P2 jump
+        assert 2 ** (w["path_bits"] - 1) <= top < 2 ** w["path_bits"]
+        assert 2 ** (w["sum_bits"] - 1) <= 4 * (2 ** w["path_bits"] - 1) < 2 ** w["sum_bits"]
+    for descriptor, tuned in DESCRIPTOR_DEFAULTS.items():
+        cfg = load_config(None, {"nna.descriptor": descriptor}).sva
+        widths = sgm_widths(tuned["p2"], cfg.box_size)
+        assert (cfg.cost_bits, cfg.path_bits, cfg.sum_bits) == tuple(widths.values())
+
+
+@pytest.mark.parametrize("descriptor", sorted(DESCRIPTOR_DEFAULTS))
+def test_default_sgm_registers_never_saturate(descriptor):
+    """At each descriptor's defaults the disparities equal those of registers two bits wider
+    on a random pair (high costs everywhere; that the widths are also the narrowest is the
+    arithmetic of the test above)."""
+    rng = np.random.default_rng(7)
+    left = rng.integers(0, 256, (24, 96), dtype=np.uint8)
+    right = rng.integers(0, 256, (24, 96), dtype=np.uint8)
+    base = {"nna.descriptor": descriptor, "sva.disparities": 32}
+    cfg = load_config(None, base).sva
+
+    def disparity(**widths):
+        over = {**base, **{f"sva.{k}": v for k, v in widths.items()}}
+        return run(left, right, mode="functional", overrides=over).disparity_fixed
+
+    shipped = disparity()
+    assert np.array_equal(shipped, disparity(cost_bits=cfg.cost_bits + 2,
+                                             path_bits=cfg.path_bits + 2,
+                                             sum_bits=cfg.sum_bits + 2))
+    assert not np.array_equal(shipped, disparity(path_bits=8, sum_bits=8))  # saturation shows

@@ -42,7 +42,8 @@ def test_the_counts_and_unit_energies_are_the_chips_and_the_tables():
     at 0.3 pJ; 32 requantising multiplies a descriptor at 3.1 pJ; the Hamming datapath's 32
     XOR bits and a 32-bit popcount tree (16 1-bit + 8 2-bit + 4 3-bit + 2 4-bit + 1 5-bit =
     57 bit-adds) per pixel and disparity at 0.1 / 32 pJ a bit; both views read from DRAM, a
-    byte a pixel, and 9-bit words written back, at 20.3 pJ a bit."""
+    byte a pixel, and 9-bit words written back, at 20.3 pJ a bit; each NNA -> SVA FIFO moves
+    a 40-bit beat a pixel (the descriptor and the pixel the adaptive P2 compares)."""
     plan, res = _run({"nna.descriptor": "cnn"})
     items = {(it["block"], it["action"], it["what"]): it for it in res.report["energy"]["items"]}
     n = 8 * 40
@@ -58,7 +59,7 @@ def test_the_counts_and_unit_energies_are_the_chips_and_the_tables():
     back = items["dram", "dram", "disparity words written back"]
     assert back["count"] == n * plan.word_bits == n * 9
     fifo = items["fifos", "fifo", "nna_left_to_sva: bits pushed and popped"]
-    assert fifo["count"] == 2 * n * 32
+    assert fifo["count"] == 2 * n * (32 + 8)
     # an SRAM bank of 64 kbit or less costs the table's first figure a bit, 8 KB: 10 pJ / 64
     table = energy_table()
     assert table.sram_read_pj_per_bit(1000) == 10 / 64

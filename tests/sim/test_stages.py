@@ -17,8 +17,10 @@ from sim.cycle.plan import architecture_report, build_plan
 from sim.cycle.stages import lane_groups, lg, sorting_depth, tree_cycles
 
 # census (1 NNA cycle per descriptor, 32 bits), equal clocks: the input side is the one of
-# tests/sim/test_chip.py::test_census_first_and_last_output_cycles (row 0 ready at 6W + 3)
-BASE = {"clocks.nna_mhz": 400, "clocks.sva_mhz": 400, "nna.descriptor": "census"}
+# tests/sim/test_chip.py::test_census_first_and_last_output_cycles (row 0 ready at 6W + 3); the
+# 3x3 median and the 5x5 box that derivation takes
+BASE = {"clocks.nna_mhz": 400, "clocks.sva_mhz": 400, "nna.descriptor": "census",
+        "sva.median": 3, "sva.box_size": 5}
 
 
 def _ceil_log2(n):

@@ -246,7 +246,7 @@ def test_config_show_leaves_descriptor_defaults_to_the_descriptor(tmp_path, caps
 
 
 def test_config_show_keeps_penalties_the_user_set(tmp_path, capsys):
-    # 512 is cnn's default, but given by hand it is pinned
+    # given by hand, a penalty is pinned (whatever the descriptor's own)
     assert main(["config", "show", "--plain", "--descriptor", "cnn", "--set", "sva.p2=512"]) == 0
     path = tmp_path / "c.toml"
     path.write_text(capsys.readouterr().out)

@@ -680,7 +680,7 @@ def test_ctrl_c_stops_a_sweep_within_seconds_and_leaves_a_valid_csv(tmp_path):
     """SIGINT to the whole process group, as Ctrl-C at a terminal sends it (the Dask workers
     get it too), while both workers are busy: exit 130 within seconds, only our line on stderr,
     every finished row whole, no process left behind."""
-    depths = list(range(8, 108))
+    depths = list(range(8, 408))  # long enough that a loaded machine cannot finish it first
     path = _write(tmp_path, 'mode = "cycle"\nscenes = ["640x200"]\n[set]\n'
                   f'"sva.disparities" = 32\n[grid]\n"fifo.nna_to_sva_depth" = {depths}\n')
     csv_path = tmp_path / "out" / CSV_NAME
