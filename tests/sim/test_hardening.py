@@ -254,7 +254,9 @@ def test_sigterm_during_a_run_leaves_the_old_set_and_no_temporary_files(old_run,
     left, right = _write_pair(tmp_path / "big", h=120, w=300, seed=2)
     cmd = [sys.executable, "-m", "sim.cli", "run", "--left", str(left), "--right", str(right),
            "--disparities", "32", "--out", str(out), "--vcd", str(out / "t.vcd"), "--force"]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    # as from a shell: no signal blocked (the test process may hold some, and hand them down)
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            preexec_fn=lambda: signal.pthread_sigmask(signal.SIG_SETMASK, set()))
     deadline = time.monotonic() + 60
     while proc.poll() is None and not _handles_sigterm(proc.pid):
         assert time.monotonic() < deadline, "stereosim never installed its SIGTERM handler"

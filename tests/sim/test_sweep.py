@@ -677,9 +677,11 @@ def _live_processes_of_session(sid: int) -> list[str]:
 
 
 def _default_sigint() -> None:
-    """The child starts with Ctrl-C's default disposition, as at a terminal: a process that
-    inherits an ignored SIGINT (as from a parent that ignores it) rightly keeps ignoring it."""
+    """The child starts as from a terminal: SIGINT at its default disposition and no signal
+    blocked. A process that inherits an ignored or blocked SIGINT rightly never sees Ctrl-C,
+    and inside the full suite the test process may hand one down."""
     signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_SETMASK, set())
 
 
 def test_ctrl_c_stops_a_sweep_within_seconds_and_leaves_a_valid_csv(tmp_path):
