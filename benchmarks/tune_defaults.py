@@ -22,9 +22,9 @@ The protocol (docs/tuning.md), enforced here:
                                        [--base KEY=VALUE ...] [--folds 5] [--heldout]
                                        [--condition "noise 8"]
 
-``--condition`` degrades every pair as benchmarks/robustness.py does (noise, exposure, blur),
-to see what the same choice would be on degraded images of the tuning scenes; the shipped
-defaults are chosen on clean ones (docs/tuning.md).
+``--condition`` degrades every pair as benchmarks/robustness.py does (noise, exposure, blur);
+given several times, the criterion is the mean over the conditions (the shipped defaults are
+chosen on clean and sigma-8 pairs: benchmarks/tuning_report.py, docs/tuning.md).
 
 D is 96 on the tuning scenes (their third-size disparities stay below 86), each 2014 scene's
 calib.txt ndisp rounded up on MiddEval3, and 64 on the 2003 quarter-size scenes.
@@ -185,8 +185,8 @@ def sweep(scenes: list, base: dict, grid: dict, folds: int, bar_label: str = "po
     every = np.arange(len(scenes))
     names = [name for name, _, _ in scenes]
     # a scene's degraded copies fall in its fold: scene i (names sorted) in fold i mod k
-    base = sorted({name.split(" (")[0] for name in names})
-    fold_of = np.array([base.index(name.split(" (")[0]) % folds for name in names])
+    plain = sorted({name.split(" (")[0] for name in names})
+    fold_of = np.array([plain.index(name.split(" (")[0]) % folds for name in names])
     picks, held_rows = [], []
     for k in range(folds):
         pick = best(points, table, every[fold_of != k])

@@ -26,7 +26,6 @@ from sim.outputs import path_text
 LEGAL_DISPARITIES = tuple(range(16, 257, 16))
 
 
-
 def sgm_widths(p2: int, box: int = 5, bits: int = 32, paths: int = 4) -> dict:
     """The narrowest cost, path and sum registers that never saturate: a box-filtered cost stays
     below ``box^2 * bits``, a path cost below that plus P2, the sum below ``paths`` path costs."""
