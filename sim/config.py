@@ -39,15 +39,19 @@ def sgm_widths(p2: int, box: int = 5, bits: int = 32, paths: int = 4) -> dict:
 # without Art and 2006, clean and noisy; benchmarks/tuning_report.py writes the chain of choices
 # into docs/tuning.md): P1, P2 and the adaptive P2's slope, the box, then the cost, path and sum
 # registers just wide enough for that box and P2. A configuration that does not set a key gets
-# the value of its nna.descriptor; a key set in a file or with --set wins.
-_TUNED = {
+# the value of its nna.descriptor; a key set in a file or with --set wins. The register widths
+# it does not set follow its own box, P2 and paths (_derived_widths), so that a what-if on the
+# box or the penalties does not saturate the registers sized for the tuned values.
+DESCRIPTOR_DEFAULTS = {
     "census": {"p1": 128, "p2": 1024, "p2_adaptive": True, "p2_slope": 256, "box_size": 5},
     "cnn": {"p1": 160, "p2": 1792, "p2_adaptive": True, "p2_slope": 512, "box_size": 7},
 }
-DESCRIPTOR_DEFAULTS = {d: {**v, **sgm_widths(v["p2"], v["box_size"])} for d, v in _TUNED.items()}
+WIDTH_KEYS = ("cost_bits", "path_bits", "sum_bits")
 # The shipped learned descriptor beats the 32-bit census on clean and on noisy MiddEval3
 # (docs/ablation.md), so it is the default; census stays selectable.
 DEFAULT_DESCRIPTOR = "cnn"
+_DEFAULT_WIDTHS = sgm_widths(DESCRIPTOR_DEFAULTS[DEFAULT_DESCRIPTOR]["p2"],
+                             DESCRIPTOR_DEFAULTS[DEFAULT_DESCRIPTOR]["box_size"])
 
 
 def param(default, help: str, *, lo=None, hi=None, choices=None, odd=False):
@@ -117,9 +121,9 @@ class NnaConfig:
 @dataclass(frozen=True, slots=True, kw_only=True)
 class SvaConfig:
     """The stereo accelerator. Accuracy defaults (box, P1, P2, adaptive P2, checks, median) come
-    from the protocol of docs/tuning.md; widths are the narrowest that never saturate with the
-    default 32-bit descriptor: box sums <= box^2 * 32, a path cost <= that + P2, and the sum of
-    four paths (:func:`sgm_widths`)."""
+    from the protocol of docs/tuning.md; register widths left unset are the narrowest that never
+    saturate with a 32-bit descriptor at the configured box, P2 and paths: box sums <= box^2 *
+    32, a path cost <= that + P2, the sum of the paths' costs (:func:`sgm_widths`)."""
 
     disparities: int = param(
         128, "disparity range D (d in [0, D)); multiple of 16 in [16, 256]", choices=LEGAL_DISPARITIES
@@ -130,9 +134,9 @@ class SvaConfig:
         lo=1, hi=15, odd=True,
     )
     cost_bits: int = param(
-        DESCRIPTOR_DEFAULTS[DEFAULT_DESCRIPTOR]["cost_bits"],
+        _DEFAULT_WIDTHS["cost_bits"],
         "width of the aggregated matching cost (saturating; default: the narrowest that never "
-        "saturates at the descriptor's box)", lo=6, hi=15,
+        "saturates at the configured box)", lo=6, hi=15,
     )
     p1: int = param(
         DESCRIPTOR_DEFAULTS[DEFAULT_DESCRIPTOR]["p1"],
@@ -154,13 +158,14 @@ class SvaConfig:
         lo=0, hi=16384,
     )
     path_bits: int = param(
-        DESCRIPTOR_DEFAULTS[DEFAULT_DESCRIPTOR]["path_bits"],
+        _DEFAULT_WIDTHS["path_bits"],
         "width of each SGM path cost register (saturating; default: the narrowest that never "
-        "saturates at the descriptor's P2)", lo=8, hi=14,
+        "saturates at the configured box and P2)", lo=8, hi=14,
     )
     sum_bits: int = param(
-        DESCRIPTOR_DEFAULTS[DEFAULT_DESCRIPTOR]["sum_bits"],
-        "width of the summed path cost S (saturating; default: as path_bits)", lo=8, hi=16,
+        _DEFAULT_WIDTHS["sum_bits"],
+        "width of the summed path cost S (saturating; default: the narrowest that holds the "
+        "configured paths)", lo=8, hi=16,
     )
     paths: int = param(
         4, "SGM paths: 1 = left-to-right, 2 = + top, 3 = + top-left, 4 = + top-right", lo=1, hi=4
@@ -501,6 +506,24 @@ def _descriptor_defaults(tree: dict) -> None:
         return
     for key, value in DESCRIPTOR_DEFAULTS.get(descriptor, {}).items():
         sva.setdefault(key, value)
+    derived = _derived_widths(sva)
+    for key in WIDTH_KEYS:
+        if key in derived:
+            sva.setdefault(key, derived[key])
+
+
+def _derived_widths(sva: dict) -> dict:
+    """The register widths :func:`sgm_widths` gives for the box, P2 and paths of the SVA table
+    ``sva`` (their defaults where unset), each clamped into its key's legal range (a P2 too
+    large for the widest path register saturates it); none when one of them is malformed (left
+    for :func:`_build` to report)."""
+    meta = {f.name: f for f in dataclasses.fields(SvaConfig)}
+    values = {k: sva.get(k, meta[k].default) for k in ("box_size", "p2", "paths")}
+    if not all(isinstance(v, int) and not isinstance(v, bool) and v >= 0 for v in values.values()):
+        return {}
+    widths = sgm_widths(values["p2"], values["box_size"], paths=max(values["paths"], 1))
+    return {k: min(max(v, meta[k].metadata["lo"]), meta[k].metadata["hi"])
+            for k, v in widths.items()}
 
 
 def _check_combinations(cfg: ChipConfig) -> ChipConfig:
@@ -603,16 +626,22 @@ def keys_set(path: str | Path | None = None, overrides: dict[str, Any] | None = 
 
 
 def _auto_keys(cfg, set_keys) -> dict[str, str]:
-    """The descriptor-dependent keys (:data:`DESCRIPTOR_DEFAULTS`) that hold their descriptor's
-    default and were not set by the user: dotted key -> why it is left to the descriptor."""
+    """The keys left to be worked out that hold the worked-out value and were not set by the
+    user: the descriptor's tuned values (:data:`DESCRIPTOR_DEFAULTS`) and the register widths
+    that follow the box, P2 and paths (:func:`_derived_widths`): dotted key -> why."""
     defaults = DESCRIPTOR_DEFAULTS.get(cfg.nna.descriptor, {})
 
     def choices(key: str) -> str:
         return ", ".join(f"{d} {str(v[key]).lower()}" for d, v in DESCRIPTOR_DEFAULTS.items())
 
-    return {f"sva.{k}": f"auto: nna.descriptor's tuned value ({choices(k)})"
+    auto = {f"sva.{k}": f"auto: nna.descriptor's tuned value ({choices(k)})"
             for k, v in defaults.items()
             if f"sva.{k}" not in set_keys and getattr(cfg.sva, k) == v}
+    derived = _derived_widths({k: getattr(cfg.sva, k) for k in ("box_size", "p2", "paths")})
+    auto.update({f"sva.{k}": "auto: the narrowest that never saturates at this box, P2 and paths"
+                 for k, v in derived.items()
+                 if f"sva.{k}" not in set_keys and getattr(cfg.sva, k) == v})
+    return auto
 
 
 def config_to_toml(cfg, *, comments: bool = True, set_keys=frozenset()) -> str:

@@ -24,7 +24,11 @@ work) and applies the timing rules of :mod:`sim.cycle.rules` per image row inste
   computed on the same femtosecond grid as :class:`sim.cycle.clock.ClockDomain`. The line buffer's
   room rule and the SVA's look-ahead window (row y_in enters once the last word of output row
   y_in - r - m - 2 has entered the SVA's pipeline) are applied. Exact (to the cycle) when no FIFO fills; see docs/whatif.md for
-  what is approximated when one does. Through the DRAM channel a memory source's pixel is
+  what is approximated when one does. The NNA -> SVA FIFO is exact either way: when it is
+  within a beat of its round trip (:func:`fills`) its handshake is walked beat by beat
+  (:class:`LinkWalk`, with the FIFO's own visibility and free-slot rules), as its mean rate
+  puts a row's last pop up to a cycle off and the rows add up (exact when its producer's row
+  times are: one submodule per camera). Through the DRAM channel a memory source's pixel is
   taken to leave once read burst b is in from round b (a lower bound: the prefetch never
   waits).
 - **FIFO rate.** A FIFO of depth d moves at most d items per round trip (push -> visible -> pop
@@ -76,6 +80,76 @@ def round_trip_fs(f: FifoPlan, plan: ChipPlan) -> float:
     if not f.crossing:
         return (f.latency_cycles + 1) * p_src
     return ((f.latency_cycles + f.sync_cycles - 1.5) * p_dst + (f.sync_cycles - 0.5) * p_src)
+
+
+def fills(f: FifoPlan, plan: ChipPlan) -> bool:
+    """Can ``f`` limit its stream: are its ``depth`` slots no more than a round trip and one
+    beat (``round_trip_fs`` in consumer cycles, plus one)? Then the row model's mean rate is
+    off by up to a cycle a row, and the estimate walks its handshake beat by beat."""
+    return f.depth <= round_trip_fs(f, plan) / plan.domains[f.dst].period_fs + 1
+
+
+class LinkWalk:
+    """A FIFO's handshake beat by beat, with the FIFO's own rules (:mod:`sim.cycle.fifo`): the
+    producer pushes beat k once it is made (its row's unobstructed times, and ``step`` cycles
+    after its previous push: a blocked producer resumes from its push) and it sees the slot of
+    beat k - depth freed (:func:`seen_from` of that pop, ``space_edges``); the consumer pops
+    it once visible (``data_edges``), a cycle after its previous pop and not before its row is
+    let in.
+
+    Shortcut (exact): a slot freed by a pop is seen at most ``K = floor(data_edges P_dst /
+    P_src) + space_edges`` producer cycles after the push. If ``depth x step >= K`` and ``step
+    P_src >= P_dst``, once ``depth`` beats in a row were pushed at their own pace (not waiting
+    for a slot) and popped as soon as visible, every later beat of the row is too: the rest of
+    the row follows at ``step`` without walking it. Only a link slower than its producer
+    (``depth x step < K``) is walked over the whole frame (O(H W): about 1.5 s for a 720p
+    census frame behind a 2-deep FIFO). Exact when the producer's row times are; a merge of
+    column tiles makes its rows unevenly (half at the tiles' II, half drained at once), which
+    the even spacing assumed here does not see."""
+
+    def __init__(self, f: FifoPlan, plan: ChipPlan, step: int):
+        self.depth = f.depth
+        self.p_src = plan.domains[f.src].period_fs
+        self.p_dst = plan.domains[f.dst].period_fs
+        self.data_edges, self.space_edges = f.data_edges, f.space_edges
+        self.step = step
+        k = self.data_edges * self.p_dst // self.p_src + self.space_edges
+        self.shortcut = f.depth * step >= k and step * self.p_src >= self.p_dst
+        self.pops: list[int] = []
+        self.push = -(1 << 40)
+
+    def row(self, first: float, last: float, w: int, released: float) -> int:
+        """Pop cycle of the row's last beat, for a row made from ``first`` to ``last``
+        (producer cycles, evenly) and let in from consumer cycle ``released``."""
+        pops, d, step = self.pops, self.depth, self.step
+        p_src, p_dst, de, se = self.p_src, self.p_dst, self.data_edges, self.space_edges
+        first, last = math.ceil(first), math.ceil(last)
+        span = last - first
+        even = span == (w - 1) * step
+        q = max(pops[-1] + 1 if pops else 0, math.ceil(released))
+        p = self.push
+        run = 0  # beats in a row pushed at their own pace and popped once visible
+        x = 0
+        while x < w:
+            p = max(first + -(-x * span // max(1, w - 1)), p + step)
+            own = p
+            if len(pops) >= d:
+                p = max(p, seen_from(pops[-d], p_dst, p_src, se))
+            v = seen_from(p, p_src, p_dst, de)
+            run = run + 1 if p == own and v >= q else 0
+            q = max(q, v)
+            pops.append(q)
+            q += 1
+            x += 1
+            if run >= d and even and self.shortcut and x < w:
+                # the rest of the row at the producer's pace (class docstring)
+                p += (w - x) * step
+                pops.extend(seen_from(p - j * step, p_src, p_dst, de)
+                            for j in range(min(d, w - x) - 1, -1, -1))
+                break
+        self.push = p
+        del pops[:-d]
+        return pops[-1]
 
 
 def block_work(plan: ChipPlan) -> dict[str, tuple[int, float]]:
@@ -225,6 +299,11 @@ def timeline(plan: ChipPlan) -> dict:
     ii_in = max(ii_link, nna_ii * p_nna / p_sva)
     # the SVA -> sink FIFO: the SVA's II, or depth words per round trip
     ii_out = max(float(sva.cycles), (to_sink.latency_cycles + 1) / to_sink.depth)
+    walk = None
+    if fills(link, plan):
+        # the producer's pace after a block: a submodule's II, or the merge's one beat a cycle
+        producer = plan.block(link.producer)
+        walk = LinkWalk(link, plan, producer.cycles if producer.kind == "nna" else 1)
     in_end: dict[int, float] = {}
     out_rows: dict[int, tuple[float, float]] = {}
     next_out = 0
@@ -232,20 +311,24 @@ def timeline(plan: ChipPlan) -> dict:
     prev_out = -math.inf
     for y in range(h):
         first, last = nna_rows[y]
-        start = max(visible(link, first, plan), prev_end + 1)
-        span = (w - 1) * ii_link
         done = sva_rows_done_before_input(y, la)
         # the row window is released when the last word of output row done - 1 enters the
         # pipeline: L cycles before it leaves (the estimate has no stalls)
         released = out_rows[done - 1][1] - sva.latency + 1 if done > 0 else 0
-        if released > start:
-            # the look-ahead window held the row back: the FIFO filled meanwhile, so its first
-            # `depth` beats leave one per cycle and the rest at the upstream's own II (its row
-            # times above are those of an unobstructed producer)
-            start = released
-            held = min(link.depth, w)
-            span = (held - 1) * ii_link + (w - held) * ii_in
-        end = max(visible(link, last, plan), math.ceil(start + span))
+        if walk is not None:
+            # a FIFO within a beat of its round trip: its handshake beat by beat (LinkWalk)
+            end = walk.row(first, last, w, released)
+        else:
+            start = max(visible(link, first, plan), prev_end + 1)
+            span = (w - 1) * ii_link
+            if released > start:
+                # the look-ahead window held the row back: the FIFO filled meanwhile, so its
+                # first `depth` beats leave one per cycle and the rest at the upstream's own II
+                # (its row times above are those of an unobstructed producer)
+                start = released
+                held = min(link.depth, w)
+                span = (held - 1) * ii_link + (w - held) * ii_in
+            end = max(visible(link, last, plan), math.ceil(start + span))
         in_end[y] = end
         prev_end = end
         while next_out < h and sva_last_input_row(next_out, la, h) <= y:

@@ -126,7 +126,8 @@ def test_config_diff(tmp_path, capsys):
     b.write_text("[sva]\np1 = 4\npaths = 2\n")
     code, stdout, _ = _run(["config", "diff", str(a), str(b)], capsys)
     assert code == 0
-    assert stdout.splitlines() == ["sva.p1: 3 -> 4", "sva.paths: 4 -> 2"]
+    # the sum register left unset follows the paths: 2 x (2^12 - 1) needs 13 bits, 4 x it 14
+    assert stdout.splitlines() == ["sva.p1: 3 -> 4", "sva.paths: 4 -> 2", "sva.sum_bits: 14 -> 13"]
 
 
 @pytest.mark.skipif(DATA is None, reason="../shared/data (Middlebury scenes) is not present")

@@ -84,6 +84,28 @@ def test_sgm_widths_are_the_narrowest_that_hold_a_path_cost():
         assert (cfg.cost_bits, cfg.path_bits, cfg.sum_bits) == tuple(widths.values())
 
 
+@pytest.mark.parametrize(("over", "widths"), [
+    ({"sva.box_size": 9}, (12, 13, 15)),                    # 2592 < 2^12; + 1792 < 2^13
+    ({"sva.box_size": 3, "sva.p2": 100}, (9, 9, 11)),       # 288 < 2^9; 388 < 2^9
+    ({"sva.paths": 2}, (11, 12, 13)),                       # 2 x 4095 < 2^13
+    ({"sva.box_size": 1, "sva.p2": 0}, (6, 8, 8)),  # 32 needs 6 bits: path at its floor 8
+    ({"sva.box_size": 15, "sva.p2": 30000}, (13, 14, 16)),  # 7200 + 30000 needs 16: capped at 14
+    ({"sva.box_size": 9, "sva.cost_bits": 10}, (10, 13, 15)),  # a width set by the user wins
+])
+def test_unset_widths_follow_the_configured_box_p2_and_paths(over, widths):
+    sva = load_config(None, {"nna.descriptor": "cnn", **over}).sva
+    assert (sva.cost_bits, sva.path_bits, sva.sum_bits) == widths
+
+
+def test_derived_widths_are_written_as_auto_and_follow_a_reload(tmp_path):
+    cfg = load_config(None, {"sva.box_size": 9})
+    text = config_to_toml(cfg, set_keys={"sva.box_size"})
+    assert "# cost_bits = 12" in text and "auto: the narrowest" in text
+    saved = tmp_path / "chip.toml"
+    saved.write_text(text.replace("box_size = 9", "box_size = 3"))
+    assert load_config(saved).sva.cost_bits == 9  # re-derived for the new box, not pinned at 12
+
+
 @pytest.mark.parametrize("descriptor", sorted(DESCRIPTOR_DEFAULTS))
 def test_default_sgm_registers_never_saturate(descriptor):
     """At each descriptor's defaults the disparities equal those of registers two bits wider
