@@ -46,7 +46,6 @@ DESCRIPTOR_DEFAULTS = {
     "census": {"p1": 128, "p2": 1024, "p2_adaptive": True, "p2_slope": 256, "box_size": 5},
     "cnn": {"p1": 160, "p2": 1792, "p2_adaptive": True, "p2_slope": 512, "box_size": 7},
 }
-WIDTH_KEYS = ("cost_bits", "path_bits", "sum_bits")
 # The shipped learned descriptor beats the 32-bit census on clean and on noisy MiddEval3
 # (docs/ablation.md), so it is the default; census stays selectable.
 DEFAULT_DESCRIPTOR = "cnn"
@@ -506,10 +505,8 @@ def _descriptor_defaults(tree: dict) -> None:
         return
     for key, value in DESCRIPTOR_DEFAULTS.get(descriptor, {}).items():
         sva.setdefault(key, value)
-    derived = _derived_widths(sva)
-    for key in WIDTH_KEYS:
-        if key in derived:
-            sva.setdefault(key, derived[key])
+    for key, value in _derived_widths(sva).items():
+        sva.setdefault(key, value)
 
 
 def _derived_widths(sva: dict) -> dict:
@@ -637,7 +634,7 @@ def _auto_keys(cfg, set_keys) -> dict[str, str]:
     auto = {f"sva.{k}": f"auto: nna.descriptor's tuned value ({choices(k)})"
             for k, v in defaults.items()
             if f"sva.{k}" not in set_keys and getattr(cfg.sva, k) == v}
-    derived = _derived_widths({k: getattr(cfg.sva, k) for k in ("box_size", "p2", "paths")})
+    derived = _derived_widths(dataclasses.asdict(cfg.sva))
     auto.update({f"sva.{k}": "auto: the narrowest that never saturates at this box, P2 and paths"
                  for k, v in derived.items()
                  if f"sva.{k}" not in set_keys and getattr(cfg.sva, k) == v})

@@ -102,7 +102,7 @@ class LinkWalk:
     P_src >= P_dst``, once ``depth`` beats in a row were pushed at their own pace (not waiting
     for a slot) and popped as soon as visible, every later beat of the row is too: the rest of
     the row follows at ``step`` without walking it. Only a link slower than its producer
-    (``depth x step < K``) is walked over the whole frame (O(H W): about 1.5 s for a 720p
+    (``depth x step < K``) is walked over the whole frame (O(H W): about 1.9 s for a 720p
     census frame behind a 2-deep FIFO). Exact when the producer's row times are; a merge of
     column tiles makes its rows unevenly (half at the tiles' II, half drained at once), which
     the even spacing assumed here does not see."""
