@@ -31,3 +31,21 @@ def test_the_shared_folder_tunes_on_2005_and_2006_only(tmp_path):
                           check=False)
     assert done.returncode == 2 and done.stderr.count("\n") == 1
     assert done.stderr.startswith("tune_defaults: ") and "holds no training scenes" in done.stderr
+
+
+@pytest.mark.parametrize("explore", [["--descriptor", "cnn"], ["--condition", "blur"]])
+def test_a_partial_chain_is_never_written_into_the_page(tmp_path, explore):
+    """``tuning_report.py`` may explore one descriptor or other conditions, but the page holds
+    the whole chain under the protocol's criterion: such a run with --write is refused before
+    any scene is read, and the page is left as it was."""
+    page = tmp_path / "tuning.md"
+    page.write_text("<!-- protocol-results:begin -->\nold\n<!-- protocol-results:end -->\n")
+    before = page.read_bytes()
+    done = subprocess.run([sys.executable, str(SCRIPT.with_name("tuning_report.py")), *explore,
+                           "--data", str(tmp_path), "--write", str(page)],
+                          capture_output=True, text=True, timeout=120, check=False)
+    assert done.returncode == 2 and done.stdout == ""
+    assert done.stderr.strip() == ("tuning_report: --descriptor and --condition explore; the "
+                                   "page holds the whole chain under the protocol's criterion: "
+                                   "drop them to --write")
+    assert page.read_bytes() == before
