@@ -9,8 +9,9 @@ descriptor (coordinate descent, one pass), so the block is the whole chain of de
 the page states whether the shipped defaults are what the chain chose. The criterion averages
 clean and sigma-8 noisy pairs (CONDITIONS); about 10 minutes on 2 cores (``--jobs``).
 ``--descriptor`` runs one descriptor's studies only (e.g. to compare candidate weights) and
-``--condition`` averages other conditions; both explorations are printed, never written: the
-page holds the whole chain under the protocol's criterion.
+``--condition`` averages other conditions and ``--passes N`` repeats the chain from its own
+choices (does one pass of coordinate descent settle?); these explorations are printed, never
+written: the page holds the one-pass chain under the protocol's criterion.
 """
 
 from __future__ import annotations
@@ -144,23 +145,28 @@ def main(argv=None) -> int:
     ap.add_argument("--condition", action="append", choices=CONDITION_CHOICES,
                     help="average these conditions instead of the protocol's "
                          "(repeatable; printed; not with --write)")
+    ap.add_argument("--passes", type=int, default=1, choices=range(1, 5), metavar="N",
+                    help="run the chain N times, each pass starting from the last one's "
+                         "choices (1-4; printed; not with --write)")
     args = ap.parse_args(argv)
-    if (args.descriptor or args.condition) and args.write:
-        raise UserError("--descriptor and --condition explore; the page holds the whole chain "
-                        "under the protocol's criterion: drop them to --write")
+    if (args.descriptor or args.condition or args.passes > 1) and args.write:
+        raise UserError("--descriptor, --condition and --passes explore; the page holds the "
+                        "whole chain under the protocol's criterion: drop them to --write")
     conditions = tuple(args.condition or CONDITIONS)
     root = tuning_root(args.data)
     scenes = tuning_scenes(root, conditions)
     chosen = {d: dict(FIXED[d]) for d in FIXED}
     body, summary = [], []
-    for n, (descriptor, what, spec) in enumerate(STUDIES, 1):
+    plan = [(d, what + (f" (pass {p})" if p > 1 else ""), spec)
+            for p in range(1, args.passes + 1) for d, what, spec in STUDIES]
+    for n, (descriptor, what, spec) in enumerate(plan, 1):
         if args.descriptor not in (None, descriptor):
             continue
         grid = grid_of(spec)
         base = dict(chosen[descriptor])
         for key in grid:
             base.update(NEEDS.get(key, (None, {}))[1])
-        study = sweep(scenes, base, grid, args.folds, f"study {n}/{len(STUDIES)}", args.jobs)
+        study = sweep(scenes, base, grid, args.folds, f"study {n}/{len(plan)}", args.jobs)
         point = study.points[study.chosen]
         held = {f"{label}, {c}": m for c in conditions
                 for label, m in heldout_scores(root, point, c).items()}

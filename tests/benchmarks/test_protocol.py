@@ -33,7 +33,8 @@ def test_the_shared_folder_tunes_on_2005_and_2006_only(tmp_path):
     assert done.stderr.startswith("tune_defaults: ") and "holds no training scenes" in done.stderr
 
 
-@pytest.mark.parametrize("explore", [["--descriptor", "cnn"], ["--condition", "blur"]])
+@pytest.mark.parametrize("explore", [["--descriptor", "cnn"], ["--condition", "blur"],
+                                     ["--passes", "2"]])
 def test_a_partial_chain_is_never_written_into_the_page(tmp_path, explore):
     """``tuning_report.py`` may explore one descriptor or other conditions, but the page holds
     the whole chain under the protocol's criterion: such a run with --write is refused before
@@ -45,7 +46,7 @@ def test_a_partial_chain_is_never_written_into_the_page(tmp_path, explore):
                            "--data", str(tmp_path), "--write", str(page)],
                           capture_output=True, text=True, timeout=120, check=False)
     assert done.returncode == 2 and done.stdout == ""
-    assert done.stderr.strip() == ("tuning_report: --descriptor and --condition explore; the "
-                                   "page holds the whole chain under the protocol's criterion: "
-                                   "drop them to --write")
+    assert done.stderr.strip() == ("tuning_report: --descriptor, --condition and --passes "
+                                   "explore; the page holds the whole chain under the "
+                                   "protocol's criterion: drop them to --write")
     assert page.read_bytes() == before
