@@ -8,10 +8,10 @@ held-out sets afterwards. A study starts from the choices of the earlier studies
 descriptor (coordinate descent, one pass), so the block is the whole chain of decisions, and
 the page states whether the shipped defaults are what the chain chose. The criterion averages
 clean and sigma-8 noisy pairs (CONDITIONS); about 10 minutes on 2 cores (``--jobs``).
-``--descriptor`` runs one descriptor's studies only (e.g. to compare candidate weights) and
-``--condition`` averages other conditions and ``--passes N`` repeats the chain from its own
-choices (does one pass of coordinate descent settle?); these explorations are printed, never
-written: the page holds the one-pass chain under the protocol's criterion.
+Three explorations, printed and never written (the page holds the one-pass chain under the
+protocol's criterion): ``--descriptor`` runs one descriptor's studies (e.g. to compare
+candidate weights), ``--condition`` averages other conditions, ``--passes N`` repeats the
+chain from its own choices (does one pass of coordinate descent settle?).
 """
 
 from __future__ import annotations
@@ -158,10 +158,9 @@ def main(argv=None) -> int:
     chosen = {d: dict(FIXED[d]) for d in FIXED}
     body, summary = [], []
     plan = [(d, what + (f" (pass {p})" if p > 1 else ""), spec)
-            for p in range(1, args.passes + 1) for d, what, spec in STUDIES]
+            for p in range(1, args.passes + 1) for d, what, spec in STUDIES
+            if args.descriptor in (None, d)]
     for n, (descriptor, what, spec) in enumerate(plan, 1):
-        if args.descriptor not in (None, descriptor):
-            continue
         grid = grid_of(spec)
         base = dict(chosen[descriptor])
         for key in grid:
