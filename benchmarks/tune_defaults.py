@@ -11,8 +11,8 @@ The protocol (docs/tuning.md), enforced here:
 * **Criterion**: the mean over the tuning scenes (nonocc) of ``bad2 + totbad`` =
   ``2 bad2 + invalid`` -- a wrong disparity counts twice an invalid one, since a later stage
   can fill a hole but not spot a wrong match -- under every ``--condition`` given (each on all
-  the scenes; benchmarks/tuning_report.py uses clean and sigma-8 noise). Ties go to the
-  earlier point of the grid.
+  the scenes; benchmarks/tuning_report.py uses clean, sigma-8 noise, exposure and blur). Ties
+  go to the earlier point of the grid.
 * **Cross-validation**: the scenes are split into ``--folds`` folds (scene i in fold
   i mod k, names sorted). For each fold the point best on the other folds is scored on the
   fold; the mean of those scores estimates how the *choice* does on scenes it did not see,
@@ -24,7 +24,8 @@ The protocol (docs/tuning.md), enforced here:
 
 ``--condition`` degrades every pair as benchmarks/robustness.py does (noise, exposure, blur);
 given several times, the criterion is the mean over the conditions (the shipped defaults are
-chosen on clean and sigma-8 pairs: benchmarks/tuning_report.py, docs/tuning.md).
+chosen on clean, sigma-8, exposure-changed and blurred pairs: benchmarks/tuning_report.py,
+docs/tuning.md).
 
 D is 96 on the tuning scenes (their third-size disparities stay below 86), each 2014 scene's
 calib.txt ndisp rounded up on MiddEval3, and 64 on the 2003 quarter-size scenes.

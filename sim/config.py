@@ -36,15 +36,16 @@ def sgm_widths(p2: int, box: int = 5, bits: int = 32, paths: int = 4) -> dict:
 
 
 # The back-end settings of each descriptor, chosen on the tuning scenes only (Middlebury 2005
-# without Art and 2006, clean and noisy; benchmarks/tuning_report.py writes the chain of choices
-# into docs/tuning.md): P1, P2 and the adaptive P2's slope, the box, then the cost, path and sum
-# registers just wide enough for that box and P2. A configuration that does not set a key gets
-# the value of its nna.descriptor; a key set in a file or with --set wins. The register widths
-# it does not set follow its own box, P2 and paths (_derived_widths), so that a what-if on the
-# box or the penalties does not saturate the registers sized for the tuned values.
+# without Art and 2006; clean, noisy, exposure-changed and blurred pairs;
+# benchmarks/tuning_report.py writes the chain of choices into docs/tuning.md): P1, P2 and
+# the adaptive P2's slope, the box, then the cost, path and sum registers just wide enough for
+# that box and P2. A configuration that does not set a key gets the value of its
+# nna.descriptor; a key set in a file or with --set wins. The register widths it does not set
+# follow its own box, P2 and paths (_derived_widths), so that a what-if on the box or the
+# penalties does not saturate the registers sized for the tuned values.
 DESCRIPTOR_DEFAULTS = {
-    "census": {"p1": 128, "p2": 1024, "p2_adaptive": True, "p2_slope": 256, "box_size": 5},
-    "cnn": {"p1": 160, "p2": 1792, "p2_adaptive": True, "p2_slope": 512, "box_size": 7},
+    "census": {"p1": 256, "p2": 2048, "p2_adaptive": True, "p2_slope": 512, "box_size": 7},
+    "cnn": {"p1": 256, "p2": 1792, "p2_adaptive": True, "p2_slope": 512, "box_size": 7},
 }
 # The shipped learned descriptor beats the 32-bit census on clean and on noisy MiddEval3
 # (docs/ablation.md), so it is the default; census stays selectable.
