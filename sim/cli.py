@@ -457,7 +457,8 @@ def cmd_train(args) -> int:
         "variant": args.variant, "objective": args.objective, "epochs": args.epochs,
         "steps_per_epoch": args.steps, "batch": args.batch, "strips": args.strips,
         "lr": args.lr, "seed": args.seed, "similarity": args.similarity,
-        "noise_max": args.noise_max, "aggregate": args.aggregate, "threads": args.threads,
+        "noise_max": args.noise_max, "blur_max": args.blur_max, "aggregate": args.aggregate,
+        "threads": args.threads,
     }
     recipe = dict(RECIPES[args.augment])  # then the options given on their own win
     cfg = TrainConfig(**{**recipe, **{k: v for k, v in given.items() if v is not None}})
@@ -620,6 +621,9 @@ def build_parser() -> argparse.ArgumentParser:
                    "vertical misalignment) or mild (half those ranges); nna/augment.py")
     t.add_argument("--noise-max", type=finite_float, metavar="SIGMA",
                    help="augmentation noise: sigma ~ U(0, SIGMA) grey levels per view (default 2)")
+    t.add_argument("--blur-max", type=finite_float, metavar="SIGMA",
+                   help="augmentation defocus: Gaussian blur of sigma ~ U(0, SIGMA) px per view "
+                   "(default 0 = off; robust 1.2)")
     t.add_argument("--aggregate", type=positive_int, metavar="A", help="triplet: average the "
                    "similarity over A x A neighbouring descriptors, as the box filter does (odd)")
     t.add_argument("--threads", type=parse_threads, default=0, metavar="N", help="torch CPU "

@@ -343,6 +343,7 @@ def test_eval_refuses_a_bad_override_once(tmp_path, capfd):
     (["run", "--gt-scale", "nan"], "'nan' is not a finite number"),
     (["train", "--lr", "nan"], "'nan' is not a finite number"),
     (["train", "--noise-max", "inf"], "'inf' is not a finite number"),
+    (["train", "--blur-max", "nan"], "'nan' is not a finite number"),
     (["train", "--epochs", "0"], "'0' must be at least 1"),
     (["quantize", "m.npz", "--calib", ".", "--out", "q.npz", "--act-quantile", "nan"],
      "'nan' is not a finite number"),
