@@ -623,7 +623,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="augmentation noise: sigma ~ U(0, SIGMA) grey levels per view (default 2)")
     t.add_argument("--blur-max", type=finite_float, metavar="SIGMA",
                    help="augmentation defocus: Gaussian blur of sigma ~ U(0, SIGMA) px per view "
-                   "(default 0 = off; robust 1.2)")
+                   "(default: the recipe's; basic has none)")
     t.add_argument("--aggregate", type=positive_int, metavar="A", help="triplet: average the "
                    "similarity over A x A neighbouring descriptors, as the box filter does (odd)")
     t.add_argument("--threads", type=parse_threads, default=0, metavar="N", help="torch CPU "

@@ -22,7 +22,7 @@ from sva.pipeline import sva_stream
 
 # census (1 NNA cycle per descriptor), equal clocks: the worked example of docs/architecture.md
 # (row 0 of the first frame ready at 6W + 3, its first word popped at 6W + 4 + L)
-# the 3x3 median of tests/sim/test_chip.py's derivation (first output at 6W + 4 + L)
+# the 3x3 median and 5x5 box of tests/sim/test_chip.py's derivation (first output at 6W + 4 + L)
 SAME = {"clocks.nna_mhz": 400, "clocks.sva_mhz": 400, "nna.descriptor": "census",
         "sva.disparities": 16, "sva.median": 3, "sva.box_size": 5}
 ENGINES = [run_readable, run_compiled]

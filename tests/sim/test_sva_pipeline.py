@@ -14,7 +14,7 @@ from sim.cycle.engine.run import run_compiled
 from sim.cycle.plan import build_plan
 from traces.log import changes_of
 
-# the 3x3 median of tests/sim/test_chip.py's derivation (latency 49 at D = 16)
+# the 3x3 median and 5x5 box of tests/sim/test_chip.py's derivation (latency 49 at D = 16)
 SAME = {"clocks.nna_mhz": 400, "clocks.sva_mhz": 400, "nna.descriptor": "census",
         "sva.disparities": 16, "sva.median": 3, "sva.box_size": 5}
 
