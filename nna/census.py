@@ -35,6 +35,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from sim.census_layout import comparison_offsets
 from sim.errors import ConfigError, InputError
 
 KINDS = ("plain", "symmetric")
@@ -68,25 +69,6 @@ def _check_params(window, kind, stride) -> tuple[int, int, str, int]:
     return int(w), int(h), str(kind), int(stride)
 
 
-def _axis_samples(size: int, stride: int) -> list[int]:
-    """Sample positions along one axis: -(size//2) + i*stride while <= size//2."""
-    half = size // 2
-    return list(range(-half, half + 1, stride))
-
-
-def _comparison_offsets(w: int, h: int, kind: str, stride: int) -> list[tuple[int, int]]:
-    """The (dx, dy) offsets of the comparisons, in bit order, without the bit-count check."""
-    offsets = []
-    for dy in _axis_samples(h, stride):
-        for dx in _axis_samples(w, stride):
-            if kind == "plain":
-                if (dx, dy) != (0, 0):
-                    offsets.append((dx, dy))
-            elif dy < 0 or (dy == 0 and dx < 0):
-                offsets.append((dx, dy))
-    return offsets
-
-
 def census_offsets(
     window=(9, 7), kind: str = "symmetric", stride: int = 1
 ) -> list[tuple[int, int]]:
@@ -97,7 +79,7 @@ def census_offsets(
     descriptor would have no bits or more than 64.
     """
     w, h, kind, stride = _check_params(window, kind, stride)
-    offsets = _comparison_offsets(w, h, kind, stride)
+    offsets = comparison_offsets(w, h, kind, stride)
     n_bits = len(offsets)
     if n_bits == 0:
         raise ConfigError(
@@ -107,11 +89,11 @@ def census_offsets(
     if n_bits > MAX_BITS:
         hints = []
         if kind == "plain":
-            n_sym = len(_comparison_offsets(w, h, "symmetric", stride))
+            n_sym = len(comparison_offsets(w, h, "symmetric", stride))
             if n_sym <= MAX_BITS:
                 hints.append(f"kind='symmetric' ({n_sym} bits)")
         for s in range(stride + 1, MAX_STRIDE + 1):
-            n_s = len(_comparison_offsets(w, h, kind, s))
+            n_s = len(comparison_offsets(w, h, kind, s))
             if n_s <= MAX_BITS:
                 hints.append(f"stride={s} ({n_s} bits)")
                 break

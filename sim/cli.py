@@ -458,7 +458,7 @@ def cmd_train(args) -> int:
         "steps_per_epoch": args.steps, "batch": args.batch, "strips": args.strips,
         "lr": args.lr, "seed": args.seed, "similarity": args.similarity,
         "noise_max": args.noise_max, "blur_max": args.blur_max, "aggregate": args.aggregate,
-        "threads": args.threads,
+        "box": args.box, "threads": args.threads,
     }
     recipe = dict(RECIPES[args.augment])  # then the options given on their own win
     cfg = TrainConfig(**{**recipe, **{k: v for k, v in given.items() if v is not None}})
@@ -624,6 +624,8 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--blur-max", type=finite_float, metavar="SIGMA",
                    help="augmentation defocus: Gaussian blur of sigma ~ U(0, SIGMA) px per view "
                    "(default: the recipe's; basic has none)")
+    t.add_argument("--box", type=positive_int, metavar="K", help="curve: the K x K box filter "
+                   "of the cost the loss sees (odd; default 5)")
     t.add_argument("--aggregate", type=positive_int, metavar="A", help="triplet: average the "
                    "similarity over A x A neighbouring descriptors, as the box filter does (odd)")
     t.add_argument("--threads", type=parse_threads, default=0, metavar="N", help="torch CPU "

@@ -20,13 +20,19 @@ from typing import Any
 
 import numpy as np
 
+from sim.census_layout import comparison_offsets
 from sim.errors import ConfigError, UserError
 from sim.outputs import path_text
 
 LEGAL_DISPARITIES = tuple(range(16, 257, 16))
 
 
-def sgm_widths(p2: int, box: int = 5, bits: int = 32, paths: int = 4) -> dict:
+#: Bits of the CNN descriptor the register widths are worked out for: the shipped 9x9x32 layer
+#: (a custom layer with more channels needs its widths set; ``stereosim config show`` lists them).
+CNN_BITS = 32
+
+
+def sgm_widths(p2: int, box: int = 5, bits: int = CNN_BITS, paths: int = 4) -> dict:
     """The narrowest cost, path and sum registers that never saturate: a box-filtered cost stays
     below ``box^2 * bits``, a path cost below that plus P2, the sum below ``paths`` path costs."""
     top = box * box * bits
@@ -122,8 +128,9 @@ class NnaConfig:
 class SvaConfig:
     """The stereo accelerator. Accuracy defaults (box, P1, P2, adaptive P2, checks, median) come
     from the protocol of docs/tuning.md; register widths left unset are the narrowest that never
-    saturate with a 32-bit descriptor at the configured box, P2 and paths: box sums <= box^2 *
-    32, a path cost <= that + P2, the sum of the paths' costs (:func:`sgm_widths`)."""
+    saturate with the configured descriptor (:func:`descriptor_width`: the census's bits, the
+    CNN's 32) at the configured box, P2 and paths: box sums <= box^2 * bits, a path cost <= that
+    + P2, the sum of the paths' costs (:func:`sgm_widths`)."""
 
     disparities: int = param(
         128, "disparity range D (d in [0, D)); multiple of 16 in [16, 256]", choices=LEGAL_DISPARITIES
@@ -506,20 +513,39 @@ def _descriptor_defaults(tree: dict) -> None:
         return
     for key, value in DESCRIPTOR_DEFAULTS.get(descriptor, {}).items():
         sva.setdefault(key, value)
-    for key, value in _derived_widths(sva).items():
+    for key, value in _derived_widths(sva, descriptor_width(nna)).items():
         sva.setdefault(key, value)
 
 
-def _derived_widths(sva: dict) -> dict:
-    """The register widths :func:`sgm_widths` gives for the box, P2 and paths of the SVA table
-    ``sva`` (their defaults where unset), each clamped into its key's legal range (a P2 too
-    large for the widest path register saturates it); none when one of them is malformed (left
-    for :func:`_build` to report)."""
+def descriptor_width(nna: dict) -> int:
+    """Bits of the descriptor the NNA table ``nna`` selects (defaults where unset), as far as the
+    configuration knows it: the census's comparisons (:mod:`sim.census_layout`; at most 64, more
+    is refused when the census is built), else :data:`CNN_BITS`. A malformed census table gives
+    :data:`CNN_BITS`, its error is left for :func:`_build`."""
+    if nna.get("descriptor", DEFAULT_DESCRIPTOR) != "census":
+        return CNN_BITS
+    census = nna.get("census", {})
+    if not isinstance(census, dict):
+        return CNN_BITS
+    meta = {f.name: f for f in dataclasses.fields(CensusConfig)}
+    window, kind, stride = (census.get(k, meta[k].default) for k in ("window", "kind", "stride"))
+    sizes = [*window, stride] if isinstance(window, (list, tuple)) and len(window) == 2 else []
+    if not sizes or not all(isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= 15
+                            for v in sizes) or stride > 4:
+        return CNN_BITS
+    return max(1, min(len(comparison_offsets(window[0], window[1], kind, stride)), 64))
+
+
+def _derived_widths(sva: dict, bits: int) -> dict:
+    """The register widths :func:`sgm_widths` gives for a ``bits``-bit descriptor and the box,
+    P2 and paths of the SVA table ``sva`` (their defaults where unset), each clamped into its
+    key's legal range (a P2 too large for the widest path register saturates it); none when one
+    of them is malformed (left for :func:`_build` to report)."""
     meta = {f.name: f for f in dataclasses.fields(SvaConfig)}
     values = {k: sva.get(k, meta[k].default) for k in ("box_size", "p2", "paths")}
     if not all(isinstance(v, int) and not isinstance(v, bool) and v >= 0 for v in values.values()):
         return {}
-    widths = sgm_widths(values["p2"], values["box_size"], paths=max(values["paths"], 1))
+    widths = sgm_widths(values["p2"], values["box_size"], bits, paths=max(values["paths"], 1))
     return {k: min(max(v, meta[k].metadata["lo"]), meta[k].metadata["hi"])
             for k, v in widths.items()}
 
@@ -635,8 +661,9 @@ def _auto_keys(cfg, set_keys) -> dict[str, str]:
     auto = {f"sva.{k}": f"auto: nna.descriptor's tuned value ({choices(k)})"
             for k, v in defaults.items()
             if f"sva.{k}" not in set_keys and getattr(cfg.sva, k) == v}
-    derived = _derived_widths(dataclasses.asdict(cfg.sva))
-    auto.update({f"sva.{k}": "auto: the narrowest that never saturates at this box, P2 and paths"
+    bits = descriptor_width(dataclasses.asdict(cfg.nna))
+    derived = _derived_widths(dataclasses.asdict(cfg.sva), bits)
+    auto.update({f"sva.{k}": "auto: the narrowest that never saturates at this descriptor, box, P2 and paths"
                  for k, v in derived.items()
                  if f"sva.{k}" not in set_keys and getattr(cfg.sva, k) == v})
     return auto

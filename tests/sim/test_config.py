@@ -3,6 +3,7 @@ import itertools
 import numpy as np
 import pytest
 
+from nna.census import census, census_bits
 from sim.api import run
 from sim.config import (
     DESCRIPTOR_DEFAULTS,
@@ -14,6 +15,8 @@ from sim.config import (
     sgm_widths,
 )
 from sim.errors import ConfigError
+from sva.aggregation import box_filter
+from sva.cost import hamming_cost
 
 
 def test_defaults_round_trip_through_toml(tmp_path):
@@ -91,6 +94,9 @@ def test_sgm_widths_are_the_narrowest_that_hold_a_path_cost():
     ({"sva.box_size": 1, "sva.p2": 0}, (6, 8, 8)),  # 32 needs 6 bits: path at its floor 8
     ({"sva.box_size": 15, "sva.p2": 30000}, (13, 14, 16)),  # 7200 + 30000 needs 16: capped at 14
     ({"sva.box_size": 9, "sva.cost_bits": 10}, (10, 13, 15)),  # a width set by the user wins
+    # a plain 9x7 census has 62 bits: 62 x 49 = 3038 < 2^12; + its P2 2048 < 2^13
+    ({"nna.descriptor": "census", "nna.census.window": [9, 7]}, (12, 13, 15)),
+    ({"nna.descriptor": "census", "nna.census.window": [3, 3]}, (9, 12, 14)),  # 8 x 49 = 392
 ])
 def test_unset_widths_follow_the_configured_box_p2_and_paths(over, widths):
     sva = load_config(None, {"nna.descriptor": "cnn", **over}).sva
@@ -104,6 +110,23 @@ def test_derived_widths_are_written_as_auto_and_follow_a_reload(tmp_path):
     saved = tmp_path / "chip.toml"
     saved.write_text(text.replace("box_size = 9", "box_size = 3"))
     assert load_config(saved).sva.cost_bits == 9  # re-derived for the new box, not pinned at 12
+
+
+@pytest.mark.parametrize("window, kind", [((9, 7), "plain"), ((15, 7), "symmetric"),
+                                          ((5, 3), "plain")])
+def test_census_registers_hold_its_own_largest_cost(window, kind):
+    """The widths follow the census's bit count, not a 32-bit descriptor's: a pair whose right
+    view is the left one inverted differs in nearly every bit at every disparity, and its
+    box-filtered cost stays below the cost register's ceiling (where it would saturate)."""
+    over = {"nna.descriptor": "census", "nna.census.window": list(window), "nna.census.kind": kind}
+    sva = load_config(None, over).sva
+    bits = census_bits(window, kind)
+    left = np.random.default_rng(3).integers(0, 256, (32, 64), dtype=np.uint8)
+    dl, dr = census(left, window, kind), census(255 - left, window, kind)
+    cost = box_filter(hamming_cost(dl, dr, 16, bits), sva.box_size, sva.cost_bits)
+    ceiling = 2 ** sva.cost_bits - 1
+    assert sva.box_size ** 2 * bits <= ceiling < 2 * sva.box_size ** 2 * bits
+    assert 0.9 * sva.box_size ** 2 * bits < cost.max() < ceiling
 
 
 @pytest.mark.parametrize("descriptor", sorted(DESCRIPTOR_DEFAULTS))
