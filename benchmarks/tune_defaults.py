@@ -44,7 +44,7 @@ from pathlib import Path
 import numpy as np
 from robustness import CONDITIONS, degrade
 
-from nna.train import training_scene_dirs
+from nna.train import cv_folds, training_scene_dirs
 from sim.api import run
 from sim.datasets import find_scene, find_scenes, legal_disparities, load_scene, shared_data_dir
 from sim.errors import UserError
@@ -186,8 +186,7 @@ def sweep(scenes: list, base: dict, grid: dict, folds: int, bar_label: str = "po
     every = np.arange(len(scenes))
     names = [name for name, _, _ in scenes]
     # a scene's degraded copies fall in its fold: scene i (names sorted) in fold i mod k
-    plain = sorted({name.split(" (")[0] for name in names})
-    fold_of = np.array([plain.index(name.split(" (")[0]) % folds for name in names])
+    fold_of = np.array(cv_folds([name.split(" (")[0] for name in names], folds))
     picks, held_rows = [], []
     for k in range(folds):
         pick = best(points, table, every[fold_of != k])

@@ -10,6 +10,7 @@ from nna.census import census, census_bits
 from nna.conv import cnn_descriptor
 from nna.weights import default_weights, load_layer
 from sim.config import NnaConfig, check_section
+from sim.errors import ConfigError
 
 
 @lru_cache(maxsize=8)
@@ -18,8 +19,18 @@ def _layer(weights: str):
 
 
 def layer(cfg: NnaConfig) -> tuple[np.ndarray, np.ndarray, int]:
-    """(int8 weights, int32 bias, input offset) of the CNN descriptor the config names."""
-    return _layer(cfg.cnn.weights)
+    """(int8 weights, int32 bias, input offset) of the CNN descriptor the config names.
+
+    The layer must have ``nna.cnn.channels`` output channels -- the SVA's register widths were
+    worked out for that many bits -- else :class:`ConfigError` says which value to set."""
+    weights, bias, offset = _layer(cfg.cnn.weights)
+    if weights.shape[0] != cfg.cnn.channels:
+        raise ConfigError(
+            f"the CNN layer {cfg.cnn.weights!r} has {weights.shape[0]} output channels but "
+            f"nna.cnn.channels is {cfg.cnn.channels}: set nna.cnn.channels = "
+            f"{weights.shape[0]} (the SVA's automatic register widths follow it)"
+        )
+    return weights, bias, offset
 
 
 def descriptor_bits(cfg: NnaConfig) -> int:
@@ -27,7 +38,7 @@ def descriptor_bits(cfg: NnaConfig) -> int:
     if cfg.descriptor == "census":
         c = cfg.census
         return census_bits(c.window, c.kind, c.stride)
-    return int(layer(cfg)[0].shape[0])
+    return int(layer(cfg)[0].shape[0])  # = nna.cnn.channels (layer() checks it)
 
 
 def compute_descriptor(img: np.ndarray, cfg: NnaConfig) -> np.ndarray:

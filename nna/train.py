@@ -240,6 +240,22 @@ def training_scene_dirs(data_dir) -> list[Path]:
     return dirs
 
 
+def cv_folds(names, folds: int) -> list[int]:
+    """Each scene name's cross-validation fold: scene i of the sorted distinct names is in fold
+    i mod ``folds`` (the tuning's folds, benchmarks/tune_defaults.py, and --leave-out-fold's)."""
+    return [sorted(set(names)).index(name) % folds for name in names]
+
+
+def leave_fold_out(scene_dirs, fold: int, folds: int) -> list[Path]:
+    """``scene_dirs`` without fold ``fold`` of ``folds`` (:func:`cv_folds` of the folder names)."""
+    dirs = [Path(d) for d in scene_dirs]
+    if not 2 <= folds <= len(dirs) or not 0 <= fold < folds:
+        raise ConfigError(f"fold {fold} of {folds}: need 2 <= folds <= {len(dirs)} (the "
+                          f"scenes) and 0 <= fold < folds, e.g. --leave-out-fold 0/5")
+    return [d for d, f in zip(dirs, cv_folds([d.name for d in dirs], folds), strict=True)
+            if f != fold]
+
+
 def load_training_set(scene_dirs, cfg: TrainConfig) -> TrainingSet:
     """Read the scenes and list the pixels that can be sampled (module docstring)."""
 

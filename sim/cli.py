@@ -20,16 +20,17 @@ from pathlib import Path
 
 import numpy as np
 
+from nna.augment import RECIPES
 from nna.train import (
     TrainConfig,
     calibration_images,
     calibration_scene_dirs,
+    leave_fold_out,
     load_float_model,
     save_float_model,
     train,
     training_scene_dirs,
 )
-from nna.augment import RECIPES
 from nna.trainrun import check_checkpoint_option, checkpoint_path, parse_threads
 from quant.artifact import save_quantized
 from quant.quantizer import QuantizerConfig, quantize
@@ -106,6 +107,14 @@ def positive_int(text: str) -> int:
     if value < 1:
         raise argparse.ArgumentTypeError(f"{text!r} must be at least 1")
     return value
+
+
+def parse_fold(text: str) -> tuple[int, int]:
+    """argparse type: ``K/N``, fold K (0-based) of N cross-validation folds."""
+    fold, _, folds = text.partition("/")
+    if not (fold.strip().isdigit() and folds.strip().isdigit()):
+        raise argparse.ArgumentTypeError(f"{text!r} is not K/N (fold K of N, e.g. 0/5)")
+    return int(fold), int(folds)
 
 
 def nonnegative_int(text: str) -> int:
@@ -468,6 +477,8 @@ def cmd_train(args) -> int:
     if data is None:
         raise InputError("no training data found: give --data DIR (the shared Middlebury folder)")
     dirs = training_scene_dirs(data)
+    if args.leave_out_fold is not None:
+        dirs = leave_fold_out(dirs, *args.leave_out_fold)
     ckpt = checkpoint_path(out) if args.checkpoint_every or args.resume else None
     if ckpt is not None:
         check_outputs([(ckpt, "checkpoint")])
@@ -626,6 +637,9 @@ def build_parser() -> argparse.ArgumentParser:
                    "(default: the recipe's; basic has none)")
     t.add_argument("--box", type=positive_int, metavar="K", help="curve: the K x K box filter "
                    "of the cost the loss sees (odd; default 5)")
+    t.add_argument("--leave-out-fold", type=parse_fold, metavar="K/N", help="train without "
+                   "fold K of N of the tuning scenes (scene i of the sorted names is in fold "
+                   "i mod N, as in benchmarks/tune_defaults.py), to cross-validate a recipe")
     t.add_argument("--aggregate", type=positive_int, metavar="A", help="triplet: average the "
                    "similarity over A x A neighbouring descriptors, as the box filter does (odd)")
     t.add_argument("--threads", type=parse_threads, default=0, metavar="N", help="torch CPU "

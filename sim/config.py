@@ -27,8 +27,8 @@ from sim.outputs import path_text
 LEGAL_DISPARITIES = tuple(range(16, 257, 16))
 
 
-#: Bits of the CNN descriptor the register widths are worked out for: the shipped 9x9x32 layer
-#: (a custom layer with more channels needs its widths set; ``stereosim config show`` lists them).
+#: Output channels (descriptor bits) of the shipped 9x9x32 layer: the default of
+#: ``nna.cnn.channels``, which the automatic register widths follow.
 CNN_BITS = 32
 
 
@@ -85,7 +85,12 @@ class CensusConfig:
 @dataclass(frozen=True, slots=True, kw_only=True)
 class CnnConfig:
     weights: str = param(
-        "default", "int8 weight file (.npz) of the 9x9x32 layer, or 'default' for the shipped one"
+        "default", "int8 weight file (.npz) of the descriptor layer, or 'default' for the shipped "
+        "9x9x32 one"
+    )
+    channels: int = param(
+        CNN_BITS, "output channels of the layer = descriptor bits; the SVA's automatic register "
+        "widths follow it and the weight file must have this many", lo=1, hi=64,
     )
 
 
@@ -129,8 +134,8 @@ class SvaConfig:
     """The stereo accelerator. Accuracy defaults (box, P1, P2, adaptive P2, checks, median) come
     from the protocol of docs/tuning.md; register widths left unset are the narrowest that never
     saturate with the configured descriptor (:func:`descriptor_width`: the census's bits, the
-    CNN's 32) at the configured box, P2 and paths: box sums <= box^2 * bits, a path cost <= that
-    + P2, the sum of the paths' costs (:func:`sgm_widths`)."""
+    CNN's ``nna.cnn.channels``) at the configured box, P2 and paths: box sums <= box^2 * bits,
+    a path cost <= that + P2, the sum of the paths' costs (:func:`sgm_widths`)."""
 
     disparities: int = param(
         128, "disparity range D (d in [0, D)); multiple of 16 in [16, 256]", choices=LEGAL_DISPARITIES
@@ -520,10 +525,13 @@ def _descriptor_defaults(tree: dict) -> None:
 def descriptor_width(nna: dict) -> int:
     """Bits of the descriptor the NNA table ``nna`` selects (defaults where unset), as far as the
     configuration knows it: the census's comparisons (:mod:`sim.census_layout`; at most 64, more
-    is refused when the census is built), else :data:`CNN_BITS`. A malformed census table gives
-    :data:`CNN_BITS`, its error is left for :func:`_build`."""
+    is refused when the census is built), else the CNN's ``nna.cnn.channels``. A malformed table
+    gives :data:`CNN_BITS`, its error is left for :func:`_build`."""
     if nna.get("descriptor", DEFAULT_DESCRIPTOR) != "census":
-        return CNN_BITS
+        cnn = nna.get("cnn", {})
+        channels = cnn.get("channels", CNN_BITS) if isinstance(cnn, dict) else CNN_BITS
+        ok = isinstance(channels, int) and not isinstance(channels, bool) and 1 <= channels <= 64
+        return channels if ok else CNN_BITS
     census = nna.get("census", {})
     if not isinstance(census, dict):
         return CNN_BITS

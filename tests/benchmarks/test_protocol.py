@@ -50,3 +50,15 @@ def test_a_partial_chain_is_never_written_into_the_page(tmp_path, explore):
                                    "explore; the page holds the whole chain under the "
                                    "protocol's criterion: drop them to --write")
     assert page.read_bytes() == before
+
+
+def test_cross_validating_weights_on_a_held_out_set_is_refused(tmp_path):
+    """``descriptor_cv.py`` scores per-fold weights on the tuning scenes under the same rule."""
+    folder = tmp_path / "data" / "middlebury2014_trainingQ"
+    folder.mkdir(parents=True)
+    done = subprocess.run([sys.executable, str(SCRIPT.with_name("descriptor_cv.py")), "--data",
+                           str(folder), "--weights", "a.npz,b.npz"], capture_output=True,
+                          text=True, timeout=120, check=False)
+    assert done.returncode == 2 and done.stdout == ""
+    assert done.stderr.strip() == (f"descriptor_cv: {folder} is a held-out test set: tune on "
+                                   "the shared data folder (its 2005/2006 scenes)")

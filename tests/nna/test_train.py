@@ -29,6 +29,8 @@ from nna.train import (
     calibration_scene_dirs,
     cost_curves,
     curve_loss,
+    cv_folds,
+    leave_fold_out,
     load_float_model,
     load_strip_set,
     load_training_set,
@@ -73,6 +75,17 @@ def test_training_scenes_leave_out_art_and_refuse_middeval3(data_root, tmp_path)
         calibration_scene_dirs(eval_dir)
     with pytest.raises(InputError, match="no training scenes"):
         training_scene_dirs(tmp_path)
+
+
+def test_a_left_out_fold_is_the_tuning_cross_validation_fold(data_root):
+    """Scene i of the sorted names is in fold i mod k -- worked by hand for seven names in
+    three folds -- and leaving a fold out trains on the other folds' scenes only."""
+    names = ["g", "a", "e", "b", "f", "c", "d"]  # sorted: a b c d e f g -> folds 0 1 2 0 1 2 0
+    assert cv_folds(names, 3) == [0, 0, 1, 1, 2, 2, 0]
+    assert cv_folds([*names, "a"], 3)[-1] == 0  # a degraded copy's name falls in its scene's fold
+    dirs = training_scene_dirs(data_root)  # Books, Aloe: sorted Aloe (fold 0), Books (fold 1)
+    assert [p.name for p in leave_fold_out(dirs, 0, 2)] == ["Books"]
+    assert [p.name for p in leave_fold_out(dirs, 1, 2)] == ["Aloe"]
 
 
 def test_positive_patch_is_the_left_patch_without_augmentation(data_root):
@@ -188,6 +201,12 @@ def test_bad_inputs_are_one_line_errors(data_root, tmp_path, capsys):
          "not found"),
         (["train", "--data", str(tmp_path / "nowhere"), "--out", str(out)], "not found"),
         (["train", "--data", str(data_root), "--epochs", "0", "--out", str(out)], "epochs"),
+        (["train", "--data", str(data_root), "--leave-out-fold", "2/2", "--out", str(out)],
+         "fold 2 of 2: need 2 <= folds <= 2 (the scenes) and 0 <= fold < folds"),
+        (["train", "--data", str(data_root), "--leave-out-fold", "0/3", "--out", str(out)],
+         "fold 0 of 3: need 2 <= folds <= 2"),
+        (["train", "--data", str(data_root), "--leave-out-fold", "1", "--out", str(out)],
+         "'1' is not K/N"),
         (["train", "--data", str(data_root), "--out", str(tmp_path / "no" / "m.npz")],
          "does not exist"),
         (["run", "--descriptor", "cnn", "--set", f"nna.cnn.weights={model}", "--mode",

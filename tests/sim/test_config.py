@@ -4,6 +4,8 @@ import numpy as np
 import pytest
 
 from nna.census import census, census_bits
+from nna.descriptor import compute_descriptor, descriptor_bits
+from nna.weights import save_weights
 from sim.api import run
 from sim.config import (
     DESCRIPTOR_DEFAULTS,
@@ -97,6 +99,7 @@ def test_sgm_widths_are_the_narrowest_that_hold_a_path_cost():
     # a plain 9x7 census has 62 bits: 62 x 49 = 3038 < 2^12; + its P2 2048 < 2^13
     ({"nna.descriptor": "census", "nna.census.window": [9, 7]}, (12, 13, 15)),
     ({"nna.descriptor": "census", "nna.census.window": [3, 3]}, (9, 12, 14)),  # 8 x 49 = 392
+    ({"nna.cnn.channels": 48}, (12, 13, 15)),               # 48 x 49 = 2352 < 2^12
 ])
 def test_unset_widths_follow_the_configured_box_p2_and_paths(over, widths):
     sva = load_config(None, {"nna.descriptor": "cnn", **over}).sva
@@ -127,6 +130,28 @@ def test_census_registers_hold_its_own_largest_cost(window, kind):
     ceiling = 2 ** sva.cost_bits - 1
     assert sva.box_size ** 2 * bits <= ceiling < 2 * sva.box_size ** 2 * bits
     assert 0.9 * sva.box_size ** 2 * bits < cost.max() < ceiling
+
+
+def test_a_wider_cnn_layer_sets_its_channels_and_its_registers_hold_its_largest_cost(tmp_path):
+    """A 48-channel layer runs only with ``nna.cnn.channels = 48`` (else one line saying so);
+    the registers then follow 48 bits: a pair whose views differ in every bit of the descriptor
+    reaches box^2 x 48 without saturating the cost register."""
+    weights = np.zeros((48, 3, 3), np.int8)
+    weights[:, 1, 1] = 1  # every channel is the sign of the centre pixel minus 128
+    path = tmp_path / "wide.npz"
+    save_weights(path, weights, np.zeros(48, np.int32), 128)
+    left = np.random.default_rng(5).integers(0, 256, (24, 64), dtype=np.uint8)
+    left = np.where(left < 128, 0, 255).astype(np.uint8)
+    over = {"nna.descriptor": "cnn", "nna.cnn.weights": str(path), "sva.disparities": 16}
+    with pytest.raises(ConfigError, match=r"has 48 output channels but nna.cnn.channels is 32: "
+                                          r"set nna.cnn.channels = 48"):
+        run(left, 255 - left, mode="functional", overrides=over)
+    cfg = load_config(None, {**over, "nna.cnn.channels": 48})
+    sva, nna = cfg.sva, cfg.nna
+    assert descriptor_bits(nna) == 48 and sva.cost_bits == (sva.box_size ** 2 * 48).bit_length()
+    dl, dr = compute_descriptor(left, nna), compute_descriptor(255 - left, nna)
+    cost = box_filter(hamming_cost(dl, dr, 16, 48), sva.box_size, sva.cost_bits)
+    assert cost.max() == sva.box_size ** 2 * 48 < 2 ** sva.cost_bits - 1
 
 
 @pytest.mark.parametrize("descriptor", sorted(DESCRIPTOR_DEFAULTS))

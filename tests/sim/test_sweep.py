@@ -710,6 +710,8 @@ def test_ctrl_c_stops_a_sweep_within_seconds_and_leaves_a_valid_csv(tmp_path):
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)
             proc.wait()
+    # a cold kernel cache adds each worker's one-line compile note before the interrupt
+    err = "".join(ln for ln in err.splitlines(True) if not ln.startswith("stereosim: compiling"))
     assert (proc.returncode, err, out) == (130, "stereosim: interrupted\n", "")
     assert seconds < 10, seconds
     data = csv_path.read_bytes()
