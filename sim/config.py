@@ -526,22 +526,20 @@ def descriptor_width(nna: dict) -> int:
     """Bits of the descriptor the NNA table ``nna`` selects (defaults where unset), as far as the
     configuration knows it: the census's comparisons (:mod:`sim.census_layout`; at most 64, more
     is refused when the census is built), else the CNN's ``nna.cnn.channels``. A malformed table
-    gives :data:`CNN_BITS`, its error is left for :func:`_build`."""
-    if nna.get("descriptor", DEFAULT_DESCRIPTOR) != "census":
-        cnn = nna.get("cnn", {})
-        channels = cnn.get("channels", CNN_BITS) if isinstance(cnn, dict) else CNN_BITS
-        ok = isinstance(channels, int) and not isinstance(channels, bool) and 1 <= channels <= 64
-        return channels if ok else CNN_BITS
-    census = nna.get("census", {})
-    if not isinstance(census, dict):
+    gives :data:`CNN_BITS`; :func:`_build` reports it when the whole tree is built."""
+    is_census = nna.get("descriptor", DEFAULT_DESCRIPTOR) == "census"
+    cls, key = (CensusConfig, "census") if is_census else (CnnConfig, "cnn")
+    sub = nna.get(key, {})
+    try:  # the keys' own rules (types, ranges, odd sizes), read from their declarations
+        table = _build(cls, sub, f"nna.{key}.") if isinstance(sub, dict) else None
+    except ConfigError:
+        table = None
+    if table is None:
         return CNN_BITS
-    meta = {f.name: f for f in dataclasses.fields(CensusConfig)}
-    window, kind, stride = (census.get(k, meta[k].default) for k in ("window", "kind", "stride"))
-    sizes = [*window, stride] if isinstance(window, (list, tuple)) and len(window) == 2 else []
-    if not sizes or not all(isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= 15
-                            for v in sizes) or stride > 4:
-        return CNN_BITS
-    return max(1, min(len(comparison_offsets(window[0], window[1], kind, stride)), 64))
+    if not is_census:
+        return table.channels
+    offsets = comparison_offsets(*table.window, table.kind, table.stride)
+    return max(1, min(len(offsets), 64))
 
 
 def _derived_widths(sva: dict, bits: int) -> dict:
