@@ -36,21 +36,21 @@ from pathlib import Path
 
 import numpy as np
 
-from nna.census import census
-from nna.train import VARIANTS, load_float_model
-from quant.artifact import load_quantized
-from quant.intconv import int_forward
-from quant.quantizer import float_forward
-from sim.config import load_config
-from sim.datasets import find_scenes, legal_disparities, load_scene, shared_data_dir
-from sim.errors import UserError
-from sim.io import to_grey
-from sim.outputs import atomic_write_bytes
-from sim.progress import progress_bar
-from sim.metrics import evaluate
-from sva.cost import cosine_cost
-from sva.pipeline import sva_cost_volume, sva_stream
-from sva.wta import to_float
+from stereosim.nna.census import census
+from stereosim.nna.train import VARIANTS, load_float_model
+from stereosim.quant.artifact import load_quantized
+from stereosim.quant.intconv import int_forward
+from stereosim.quant.quantizer import float_forward
+from stereosim.sim.config import load_config
+from stereosim.sim.datasets import find_scenes, legal_disparities, load_scene, shared_data_dir
+from stereosim.sim.errors import UserError
+from stereosim.sim.io import to_grey
+from stereosim.sim.outputs import atomic_write_bytes
+from stereosim.sim.progress import progress_bar
+from stereosim.sim.metrics import evaluate
+from stereosim.sva.cost import cosine_cost
+from stereosim.sva.pipeline import sva_cost_volume, sva_stream
+from stereosim.sva.wta import to_float
 
 ROOT = Path(__file__).resolve().parents[1]
 MODELS = ROOT / "benchmarks" / "models"

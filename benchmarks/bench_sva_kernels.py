@@ -24,14 +24,14 @@ import numpy as np
 import skimage.data
 from numba import njit
 
-from nna.descriptor import compute_descriptor, descriptor_bits
-from sim.config import load_config
-from sva.aggregation import box_filter, box_start, box_step
-from sva.cost import cost_row_update, hamming_cost, reverse_row
-from sva.lr_check import lr_check_row, new_diagonal_buffers, right_disparity_row
-from sva.pipeline import sva_stream
-from sva.sgm import new_path_buffers, sgm, sgm_params, sgm_pixel, sgm_row_start
-from sva.wta import disparity_index, subpixel_mode_code, wta, wta_pixel
+from stereosim.nna.descriptor import compute_descriptor, descriptor_bits
+from stereosim.sim.config import load_config
+from stereosim.sva.aggregation import box_filter, box_start, box_step
+from stereosim.sva.cost import cost_row_update, hamming_cost, reverse_row
+from stereosim.sva.lr_check import lr_check_row, new_diagonal_buffers, right_disparity_row
+from stereosim.sva.pipeline import sva_stream
+from stereosim.sva.sgm import new_path_buffers, sgm, sgm_params, sgm_pixel, sgm_row_start
+from stereosim.sva.wta import disparity_index, subpixel_mode_code, wta, wta_pixel
 
 WIDTH, HEIGHT = 1280, 720
 # pinned so the figures do not move with the defaults; the rest (penalties, register widths,

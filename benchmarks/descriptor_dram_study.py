@@ -26,8 +26,8 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
-from sim.api import run_stream
-from sim.sweep import synthetic_pair
+from stereosim.sim.api import run_stream
+from stereosim.sim.sweep import synthetic_pair
 from markers import write_between
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -19,12 +19,12 @@ import sys
 
 import cv2
 
-from sim.api import run
-from sim.config import load_config
-from sim.cycle.engine.layout import ring_capacity
-from sim.cycle.plan import build_plan
-from sim.datasets import default_scene
-from sim.io import to_grey
+from stereosim.sim.api import run
+from stereosim.sim.config import load_config
+from stereosim.sim.cycle.engine.layout import ring_capacity
+from stereosim.sim.cycle.plan import build_plan
+from stereosim.sim.datasets import default_scene
+from stereosim.sim.io import to_grey
 
 CONFIG = {"nna.descriptor": "cnn", "sva.disparities": 128}
 

@@ -21,9 +21,9 @@ from pathlib import Path
 
 import cv2
 
-import sim
+import stereosim
 from markers import write_between
-from sim.datasets import default_scene
+from stereosim.sim.datasets import default_scene
 
 DOC = Path(__file__).resolve().parent.parent / "docs" / "streams.md"
 BEGIN, END = "<!-- shared-sva:begin -->", "<!-- shared-sva:end -->"
@@ -44,7 +44,7 @@ CASES = [
 
 def run_case(left, right, frames: int, over: dict, pairs: int) -> dict:
     t0 = time.perf_counter()
-    stream = sim.run_stream([(left, right)] * frames,
+    stream = stereosim.run_stream([(left, right)] * frames,
                             overrides={**CAMERAS, **over, "sva.pairs": pairs})
     rep = stream.report
     return {"stream": rep["stream"], "bound": rep["throughput"]["fps_bound"],

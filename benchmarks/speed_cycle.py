@@ -1,6 +1,6 @@
 """Speed of the cycle-accurate model on a 1280x720 frame against OpenCV StereoSGBM, same run.
 
-stereosim: `sim.run(mode="cycle")` with the CNN int8 descriptor, D = 128, 4 SGM paths, LR check
+stereosim: `stereosim.run(mode="cycle")` with the CNN int8 descriptor, D = 128, 4 SGM paths, LR check
 (the issue's benchmark configuration); it prints the wall time, the simulated cycles per second
 (all clock domains together) and the peak resident memory of a fresh process that runs one
 frame. OpenCV: StereoSGBM MODE_SGBM, D = 128, blockSize 5, single-threaded, on the same pair,
@@ -27,12 +27,12 @@ import time
 
 import cv2
 
-from sim.api import run
-from sim.config import load_config
-from sim.cycle.engine.run import run_compiled
-from sim.cycle.plan import build_plan
-from sim.datasets import default_scene
-from sim.io import to_grey
+from stereosim.sim.api import run
+from stereosim.sim.config import load_config
+from stereosim.sim.cycle.engine.run import run_compiled
+from stereosim.sim.cycle.plan import build_plan
+from stereosim.sim.datasets import default_scene
+from stereosim.sim.io import to_grey
 
 CONFIG = {"nna.descriptor": "cnn", "sva.disparities": 128, "sva.paths": 4, "sva.lr_check": True}
 

@@ -18,9 +18,9 @@ import time
 import cv2
 import numpy as np
 
-from sim.api import run
-from sim.datasets import default_scene
-from sim.io import to_grey
+from stereosim.sim.api import run
+from stereosim.sim.datasets import default_scene
+from stereosim.sim.io import to_grey
 
 
 def best_of(fn, repeat):

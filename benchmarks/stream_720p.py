@@ -3,7 +3,7 @@ peak memory for streams of different lengths, each in a fresh process.
 
     python benchmarks/stream_720p.py [--frames 60 600] [--set KEY=VALUE ...]
 
-For each length N a child process runs ``sim.run_stream`` on the embedded scene resized to
+For each length N a child process runs ``stereosim.run_stream`` on the embedded scene resized to
 1280x720 (the pair repeated N times; cycle counts do not depend on the pixels), iterates over
 every frame's disparities as the CLI does, and prints the stream's measured figures, its CPU
 per frame and its peak RSS; then OpenCV StereoSGBM (MODE_SGBM, D = 128, block 5, one thread)
@@ -25,19 +25,19 @@ def child(frames: int, overrides: dict) -> dict:
     import cv2
     import numpy as np
 
-    import sim
-    from sim.datasets import default_scene
+    import stereosim
+    from stereosim.sim.datasets import default_scene
 
     cv2.setNumThreads(1)
     scene = default_scene()
     left = cv2.resize(scene["left"], (1280, 720), interpolation=cv2.INTER_AREA)
     right = cv2.resize(scene["right"], (1280, 720), interpolation=cv2.INTER_AREA)
-    warm = sim.run_stream([(left[:64, :256], right[:64, :256])] * 2,
+    warm = stereosim.run_stream([(left[:64, :256], right[:64, :256])] * 2,
                           overrides={**overrides, "sva.disparities": 64})
     for _ in warm:  # compile the kernels before timing
         pass
     t0, c0 = time.perf_counter(), time.process_time()
-    stream = sim.run_stream([(left, right)] * frames, overrides=overrides)
+    stream = stereosim.run_stream([(left, right)] * frames, overrides=overrides)
     t_timing = time.process_time() - c0
     invalid = 0.0
     for frame in stream:

@@ -19,9 +19,9 @@ import itertools
 import sys
 from pathlib import Path
 
-from sim.api import run
-from sim.config import load_config
-from sim.sweep import synthetic_pair
+from stereosim.sim.api import run
+from stereosim.sim.config import load_config
+from stereosim.sim.sweep import synthetic_pair
 from markers import write_between
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "architecture.md"

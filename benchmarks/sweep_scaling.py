@@ -27,9 +27,9 @@ from pathlib import Path
 
 from distributed import Client, LocalCluster
 
-import sim.sweep
-from sim.config import LEGAL_DISPARITIES
-from sim.sweep import CSV_NAME, load_sweep, read_rows, run_sweep, run_task
+import stereosim
+from stereosim.sim.config import LEGAL_DISPARITIES
+from stereosim.sim.sweep import CSV_NAME, load_sweep, read_rows, run_sweep, run_task
 
 SIZES = {100: (10, 10), 1600: (100, 16)}  # points: (FIFO depths, disparities)
 
@@ -76,7 +76,7 @@ def main() -> None:
     per_point = {n: s / n for n, s in seconds.items()}
     print(f"estimate-mode sweeps of a {args.size} scene on {args.workers} warmed-up local "
           f"workers, {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.2f} at the end "
-          f"(code: {Path(sim.sweep.__file__).parent.parent})")
+          f"(code: {Path(stereosim.__file__).parent})")
     for n, s in seconds.items():
         print(f"{n:5d} points: {s:7.2f} s, {1e3 * per_point[n]:6.2f} ms a point")
     ratio = per_point[1600] / per_point[100]

@@ -20,7 +20,7 @@ from pathlib import Path
 
 from distributed import Client, LocalCluster
 
-from sim.sweep import load_sweep, run_sweep, run_task
+from stereosim.sim.sweep import load_sweep, run_sweep, run_task
 
 
 def _sweep_file(folder: Path, points: int) -> Path:

@@ -16,9 +16,9 @@ from __future__ import annotations
 import argparse
 import time
 
-from traces.synthetic import synthetic_log
-from traces.timeline import timeline_bytes
-from traces.vcd import estimate_vcd_bytes, vcd_bytes, vcd_text_pyvcd
+from stereosim.traces.synthetic import synthetic_log
+from stereosim.traces.timeline import timeline_bytes
+from stereosim.traces.vcd import estimate_vcd_bytes, vcd_bytes, vcd_text_pyvcd
 
 
 def _best(fn, repeat: int) -> tuple[float, object]:

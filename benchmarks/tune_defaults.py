@@ -44,12 +44,12 @@ from pathlib import Path
 import numpy as np
 from robustness import CONDITIONS, degrade
 
-from nna.train import cv_folds, training_scene_dirs
-from sim.api import run
-from sim.datasets import find_scene, find_scenes, legal_disparities, load_scene, shared_data_dir
-from sim.errors import UserError
-from sim.io import to_grey
-from sim.progress import progress_bar
+from stereosim.nna.train import cv_folds, training_scene_dirs
+from stereosim.sim.api import run
+from stereosim.sim.datasets import find_scene, find_scenes, legal_disparities, load_scene, shared_data_dir
+from stereosim.sim.errors import UserError
+from stereosim.sim.io import to_grey
+from stereosim.sim.progress import progress_bar
 
 KEYS = ("bad2", "invalid", "totbad", "avgerr")
 D_TUNING, D_2003 = 96, 64

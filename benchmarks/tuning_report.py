@@ -27,8 +27,8 @@ from markers import write_between
 from robustness import CONDITIONS as CONDITION_CHOICES
 from tune_defaults import Study, criterion, heldout_scores, sweep, tuning_root, tuning_scenes
 
-from sim.config import DESCRIPTOR_DEFAULTS, load_config
-from sim.errors import UserError
+from stereosim.sim.config import DESCRIPTOR_DEFAULTS, load_config
+from stereosim.sim.errors import UserError
 
 BEGIN, END = "<!-- protocol-results:begin -->", "<!-- protocol-results:end -->"
 

@@ -161,7 +161,7 @@ def main() -> int:
         return 1
     with tempfile.TemporaryDirectory() as tmp:
         vcd = Path(tmp) / "t.vcd"
-        run = [sys.executable, "-m", "sim.cli", "run", "--out", str(Path(tmp) / "out"), "--vcd",
+        run = [sys.executable, "-m", "stereosim.sim.cli", "run", "--out", str(Path(tmp) / "out"), "--vcd",
                str(vcd), "--trace-window", "rows:0:2", "--signals", SIGNALS]
         print("$ " + " ".join(shlex.quote(a) for a in run), flush=True)
         subprocess.run(run, check=True)

@@ -29,7 +29,7 @@ PICTURES = [
 def main() -> None:
     listing = ""
     for name, options in PICTURES:
-        cmd = [sys.executable, "-m", "sim.cli", "config", "plan", *options,
+        cmd = [sys.executable, "-m", "stereosim.sim.cli", "config", "plan", *options,
                "--png", os.path.join(IMG, name)]
         print("$", shlex.join(["stereosim", *cmd[3:]]))
         out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout

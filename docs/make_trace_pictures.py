@@ -60,7 +60,7 @@ def sh(args: list[str]) -> None:
 
 def main() -> int:
     os.makedirs(IMG, exist_ok=True)
-    exe = [sys.executable, "-m", "sim.cli"]
+    exe = [sys.executable, "-m", "stereosim.sim.cli"]
     with tempfile.TemporaryDirectory() as tmp:
         for png, run_opts, signals, window in PICTURES:
             vcd = os.path.join(tmp, png.replace(".png", ".vcd"))

@@ -35,8 +35,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from sim.census_layout import comparison_offsets
-from sim.errors import ConfigError, InputError
+from stereosim.sim.census_layout import comparison_offsets
+from stereosim.sim.errors import ConfigError, InputError
 
 KINDS = ("plain", "symmetric")
 MAX_WINDOW = 15

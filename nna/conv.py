@@ -24,8 +24,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from nna.census import as_image_u8
-from sim.errors import ConfigError
+from stereosim.nna.census import as_image_u8
+from stereosim.sim.errors import ConfigError
 
 MAX_CHANNELS = 64
 # The largest kernel size K: a K x K window needs K input rows in a submodule's line buffer

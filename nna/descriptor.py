@@ -6,11 +6,11 @@ from functools import lru_cache
 
 import numpy as np
 
-from nna.census import census, census_bits
-from nna.conv import cnn_descriptor
-from nna.weights import default_weights, load_layer
-from sim.config import NnaConfig, check_section
-from sim.errors import ConfigError
+from stereosim.nna.census import census, census_bits
+from stereosim.nna.conv import cnn_descriptor
+from stereosim.nna.weights import default_weights, load_layer
+from stereosim.sim.config import NnaConfig, check_section
+from stereosim.sim.errors import ConfigError
 
 
 @lru_cache(maxsize=8)

@@ -10,9 +10,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from nna.descriptor import layer
-from sim.config import NnaConfig
-from sim.errors import ConfigError
+from stereosim.nna.descriptor import layer
+from stereosim.sim.config import NnaConfig
+from stereosim.sim.errors import ConfigError
 
 
 def half_window(cfg: NnaConfig) -> int:

@@ -61,8 +61,8 @@ from pathlib import Path
 
 import numpy as np
 
-from nna.augment import photometric, rows_at, vertical_offsets
-from nna.trainrun import (
+from stereosim.nna.augment import photometric, rows_at, vertical_offsets
+from stereosim.nna.trainrun import (
     load_checkpoint,
     pick_threads,
     restore,
@@ -71,10 +71,10 @@ from nna.trainrun import (
     threads_line,
     use_threads,
 )
-from quant.quantizer import FloatModel
-from sim.datasets import find_scene, find_scenes, load_scene, occluded_by_cross_check
-from sim.errors import ConfigError, InputError
-from sim.io import (
+from stereosim.quant.quantizer import FloatModel
+from stereosim.sim.datasets import find_scene, find_scenes, load_scene, occluded_by_cross_check
+from stereosim.sim.errors import ConfigError, InputError
+from stereosim.sim.io import (
     is_folder,
     path_kind,
     path_text,
@@ -83,9 +83,9 @@ from sim.io import (
     sub_folders,
     to_grey,
 )
-from sim.npz import open_npz
-from sim.outputs import atomic_write_bytes
-from sim.progress import progress_bar
+from stereosim.sim.npz import open_npz
+from stereosim.sim.outputs import atomic_write_bytes
+from stereosim.sim.progress import progress_bar
 
 # (C_in, C_out, K) per layer
 VARIANTS = {

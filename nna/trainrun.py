@@ -26,8 +26,8 @@ import pickle
 import zipfile
 from pathlib import Path
 
-from sim.errors import ConfigError, InputError
-from sim.outputs import atomic_write_bytes, path_text
+from stereosim.sim.errors import ConfigError, InputError
+from stereosim.sim.outputs import atomic_write_bytes, path_text
 
 CHECKPOINT_FORMAT = "stereosim-train-checkpoint-v1"
 # Settings that do not change the computed weights (they may differ on resume).

@@ -22,10 +22,10 @@ import os
 
 import numpy as np
 
-from nna.conv import check_layer
-from quant.artifact import load_quantized, to_nna_weights
-from sim.errors import ConfigError
-from sim.npz import open_npz
+from stereosim.nna.conv import check_layer
+from stereosim.quant.artifact import load_quantized, to_nna_weights
+from stereosim.sim.errors import ConfigError
+from stereosim.sim.npz import open_npz
 
 DEFAULT_SEED = 20261122
 DEFAULT_SHAPE = (32, 9, 9)

@@ -16,11 +16,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from quant.distances import DISTANCES
-from quant.intconv import INT32_MAX, check_network
-from sim.errors import ConfigError
-from sim.npz import open_npz
-from sim.outputs import atomic_write_bytes
+from stereosim.quant.distances import DISTANCES
+from stereosim.quant.intconv import INT32_MAX, check_network
+from stereosim.sim.errors import ConfigError
+from stereosim.sim.npz import open_npz
+from stereosim.sim.outputs import atomic_write_bytes
 
 FORMAT = "stereosim-quant-v1"
 

@@ -36,7 +36,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from sim.errors import ConfigError
+from stereosim.sim.errors import ConfigError
 
 MAX_LAYERS = 4
 MAX_OUT_CHANNELS = 64

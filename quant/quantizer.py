@@ -42,9 +42,9 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from quant.artifact import QuantizedModel, check_quantized
-from quant.distances import get_distance, l1
-from quant.intconv import (
+from stereosim.quant.artifact import QuantizedModel, check_quantized
+from stereosim.quant.distances import get_distance, l1
+from stereosim.quant.intconv import (
     ACT_MAX,
     INT32_MAX,
     MAX_Z_BITS,
@@ -52,8 +52,8 @@ from quant.intconv import (
     mul_shift,
     requantize,
 )
-from sim.errors import ConfigError
-from sim.progress import progress_bar
+from stereosim.sim.errors import ConfigError
+from stereosim.sim.progress import progress_bar
 
 TAU = 127
 # Largest integer float32 represents exactly: integer matmuls below it are exact in float32.

@@ -1,7 +1,9 @@
-"""stereosim: a simulator of an edge stereo-vision SoC (NNA descriptor + SGM stereo accelerator).
+"""The simulator's application package, ``stereosim.sim``: the core, the cycle model and the
+application of stereosim.
 
-``sim.run(left, right, mode=..., config=..., overrides=...)`` simulates one frame and
-``sim.run_stream(pairs, ...)`` a stream of them; see :mod:`sim.api`. The command line is ``stereosim`` (:mod:`sim.cli`).
+``stereosim.run(left, right, mode=..., config=..., overrides=...)`` (also ``stereosim.sim.run``)
+simulates one frame and ``run_stream(pairs, ...)`` a stream of them; see :mod:`sim.api`. The
+command line is ``stereosim`` (:mod:`sim.cli`).
 
 The package holds three layers of the project (docs/architecture.md, "Layers"): the core every
 stage imports (:mod:`sim.errors`, :mod:`sim.config`, :mod:`sim.io`), the cycle model
@@ -9,11 +11,11 @@ stage imports (:mod:`sim.errors`, :mod:`sim.config`, :mod:`sim.io`), the cycle m
 the application (:mod:`sim.api`, :mod:`sim.cli`, sweeps, traces, datasets, metrics). Python runs
 this file before any module of the package, so it imports only the core; ``run`` and
 ``Result`` (and the stream's names) are resolved on first use (PEP 562) -- importing the API here would make every
-``import nna.census`` load the whole application.
+``import stereosim.nna.census`` load the whole application.
 """
 
-from sim.config import ChipConfig, load_config
-from sim.errors import ConfigError, InputError, UserError
+from stereosim.sim.config import ChipConfig, load_config
+from stereosim.sim.errors import ConfigError, InputError, UserError
 
 __all__ = ["ChipConfig", "ConfigError", "FrameOutput", "InputError", "Result", "Stream",
            "UserError", "load_config", "run", "run_stream"]
@@ -22,7 +24,11 @@ _API = ("run", "Result", "run_stream", "Stream", "FrameOutput")
 
 def __getattr__(name):
     if name in _API:
-        import sim.api
+        from stereosim.sim import api
 
-        return getattr(sim.api, name)
-    raise AttributeError(f"module 'sim' has no attribute {name!r}")
+        return getattr(api, name)
+    raise AttributeError(f"module 'stereosim.sim' has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(__all__))

@@ -1,5 +1,5 @@
-"""Public Python interface: ``sim.run(left, right, ...) -> Result`` for one stereo frame,
-``sim.run_stream(pairs, ...) -> Stream`` for a stream of them."""
+"""Public Python interface: ``stereosim.run(left, right, ...) -> Result`` for one stereo frame,
+``stereosim.run_stream(pairs, ...) -> Stream`` for a stream of them."""
 
 from __future__ import annotations
 
@@ -13,19 +13,19 @@ import cv2
 import numba
 import numpy as np
 
-from nna.descriptor import compute_descriptor
-from sim.config import ChipConfig, check_config, config_to_dict, load_config
-from sim.cycle.frames import FrameSupply, functional_words
-from sim.cycle.energy import energy_report, energy_table
-from sim.cycle.plan import ChipPlan, architecture_report, build_plan
-from sim.cycle.report import power_basis
-from sim.cycle.simulate import announce_compiling, simulate
-from sim.errors import ConfigError, InputError
-from sim.io import MAX_PIXELS, check_gt_values, to_grey
-from sim.metrics import check_truth, evaluate, undefined_metrics
-from sim.tracing import run_traced
-from sva.pipeline import sva_stream
-from sva.wta import to_float
+from stereosim.nna.descriptor import compute_descriptor
+from stereosim.sim.config import ChipConfig, check_config, config_to_dict, load_config
+from stereosim.sim.cycle.frames import FrameSupply, functional_words
+from stereosim.sim.cycle.energy import energy_report, energy_table
+from stereosim.sim.cycle.plan import ChipPlan, architecture_report, build_plan
+from stereosim.sim.cycle.report import power_basis
+from stereosim.sim.cycle.simulate import announce_compiling, simulate
+from stereosim.sim.errors import ConfigError, InputError
+from stereosim.sim.io import MAX_PIXELS, check_gt_values, to_grey
+from stereosim.sim.metrics import check_truth, evaluate, undefined_metrics
+from stereosim.sim.tracing import run_traced
+from stereosim.sva.pipeline import sva_stream
+from stereosim.sva.wta import to_float
 
 MODES = ("functional", "cycle")
 # report.json's layout: 2 names every unit and fps kind in its keys (docs/report.md)

@@ -20,8 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from nna.augment import RECIPES
-from nna.train import (
+from stereosim.nna.augment import RECIPES
+from stereosim.nna.train import (
     TrainConfig,
     calibration_images,
     calibration_scene_dirs,
@@ -31,12 +31,12 @@ from nna.train import (
     train,
     training_scene_dirs,
 )
-from nna.trainrun import check_checkpoint_option, checkpoint_path, parse_threads
-from quant.artifact import save_quantized
-from quant.quantizer import QuantizerConfig, quantize
-from sim import formats, whatif_cli
-from sim.api import run, version_text
-from sim.config import (
+from stereosim.nna.trainrun import check_checkpoint_option, checkpoint_path, parse_threads
+from stereosim.quant.artifact import save_quantized
+from stereosim.quant.quantizer import QuantizerConfig, quantize
+from stereosim.sim import formats, whatif_cli
+from stereosim.sim.api import run, version_text
+from stereosim.sim.config import (
     config_diff,
     config_to_toml,
     keys_set,
@@ -44,9 +44,9 @@ from sim.config import (
     parse_set_options,
     read_toml,
 )
-from sim.cycle.estimate import parse_size
-from sim.cycle.plan import build_plan
-from sim.datasets import (
+from stereosim.sim.cycle.estimate import parse_size
+from stereosim.sim.cycle.plan import build_plan
+from stereosim.sim.datasets import (
     default_scene,
     find_scene,
     find_scenes,
@@ -54,10 +54,10 @@ from sim.datasets import (
     load_scene,
     shared_data_dir,
 )
-from sim.diagram import plan_text, write_plan_png
-from sim.errors import ConfigError, InputError, UserError
-from sim.html_report import html_files
-from sim.io import (
+from stereosim.sim.diagram import plan_text, write_plan_png
+from stereosim.sim.errors import ConfigError, InputError, UserError
+from stereosim.sim.html_report import html_files
+from stereosim.sim.io import (
     MAX_PIXELS,
     disparity_to_colour,
     encode_png,
@@ -66,7 +66,7 @@ from sim.io import (
     read_image,
     read_mask,
 )
-from sim.outputs import (
+from stereosim.sim.outputs import (
     atomic_write_bytes,
     check_outputs,
     describe_os_error,
@@ -74,10 +74,10 @@ from sim.outputs import (
     path_text,
     publish,
 )
-from sim.stream_cli import cmd_run_stream
-from sim.summary import eval_document, eval_line, eval_tables, eval_timing, print_summary
-from sim.tracing import TraceRequest, parse_window, trace_files, trace_paths
-from traces.cli import add_wave_parser
+from stereosim.sim.stream_cli import cmd_run_stream
+from stereosim.sim.summary import eval_document, eval_line, eval_tables, eval_timing, print_summary
+from stereosim.sim.tracing import TraceRequest, parse_window, trace_files, trace_paths
+from stereosim.traces.cli import add_wave_parser
 
 EVAL_KEYS = ("bad0.5", "bad1", "bad2", "bad4", "invalid", "totbad", "avgerr", "rms")
 RUN_FILES = ("disparity.pfm", "disparity.png", "report.json")

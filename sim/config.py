@@ -20,9 +20,9 @@ from typing import Any
 
 import numpy as np
 
-from sim.census_layout import comparison_offsets
-from sim.errors import ConfigError, UserError
-from sim.outputs import path_text
+from stereosim.sim.census_layout import comparison_offsets
+from stereosim.sim.errors import ConfigError, UserError
+from stereosim.sim.outputs import path_text
 
 LEGAL_DISPARITIES = tuple(range(16, 257, 16))
 

@@ -29,8 +29,8 @@ from pathlib import Path
 
 import numpy as np
 
-from sim.errors import InputError
-from sim.io import (
+from stereosim.sim.errors import InputError
+from stereosim.sim.io import (
     MAX_PIXELS,
     is_file,
     is_folder,

@@ -16,9 +16,9 @@ from __future__ import annotations
 import io
 from pathlib import Path
 
-from sim.cycle.plan import BlockPlan, ChipPlan, sram_bits
-from sim.errors import InputError
-from sim.outputs import atomic_write_bytes
+from stereosim.sim.cycle.plan import BlockPlan, ChipPlan, sram_bits
+from stereosim.sim.errors import InputError
+from stereosim.sim.outputs import atomic_write_bytes
 
 COLUMNS = {"memory": 0, "camera": 0, "nna": 1, "merge": 2, "sva": 3, "sink": 4}
 DOMAIN_COLOURS = {"camera": "#f4d35e", "nna": "#9ad1d4", "sva": "#f7a072"}

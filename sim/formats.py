@@ -24,10 +24,10 @@ from pathlib import Path
 import numpy as np
 from plyfile import PlyData, PlyElement
 
-from sim.datasets import parse_calib
-from sim.errors import ConfigError, InputError
-from sim.io import encode_png, pfm_bytes
-from sim.outputs import path_text
+from stereosim.sim.datasets import parse_calib
+from stereosim.sim.errors import ConfigError, InputError
+from stereosim.sim.io import encode_png, pfm_bytes
+from stereosim.sim.outputs import path_text
 
 # --save-as name -> the file it writes in the output folder (in this order).
 SAVE_FORMATS = {

@@ -22,10 +22,10 @@ from collections.abc import Mapping
 import cv2
 import numpy as np
 
-from sim.io import disparity_to_colour, encode_png
-from sim.metrics import MIDDLEBURY_KEYS
-from traces.log import changes_of
-from traces.timeline import STATUS_NAMES
+from stereosim.sim.io import disparity_to_colour, encode_png
+from stereosim.sim.metrics import MIDDLEBURY_KEYS
+from stereosim.traces.log import changes_of
+from stereosim.traces.timeline import STATUS_NAMES
 
 #: The four activities of a block, in the order the bars stack them.
 STATES = ("busy", "starved", "blocked", "idle")

@@ -35,13 +35,13 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from sim.errors import InputError
-from sim.outputs import atomic_write_bytes, describe_os_error, path_text
+from stereosim.sim.errors import InputError
+from stereosim.sim.outputs import atomic_write_bytes, describe_os_error, path_text
 
 # Integer BT.601 luma weights in 1/256: 77 + 150 + 29 == 256, so white stays 255.
 _LUMA_R, _LUMA_G, _LUMA_B = 77, 150, 29
 
-# The largest image (in pixels) `stereosim run`/`eval` and `sim.run` accept unless told otherwise
+# The largest image (in pixels) `stereosim run`/`eval` and `stereosim.run` accept unless told otherwise
 # (--max-pixels / max_pixels=): 4096 x 4096, about twice 4K UHD. A cycle-model frame of 4K UHD
 # peaks at ~354 MiB; the cap keeps a small file that claims a huge image from taking gigabytes.
 MAX_PIXELS = 1 << 24

@@ -12,8 +12,8 @@ import zlib
 
 import numpy as np
 
-from sim.errors import ConfigError
-from sim.io import mib, open_file, path_text
+from stereosim.sim.errors import ConfigError
+from stereosim.sim.io import mib, open_file, path_text
 
 # The largest total of array bytes an .npz archive may hold: 256 MiB, over 2000 times the
 # largest file the project writes (the shipped layer is 11 KB, a float mccnn4 model 112 KB).

@@ -39,7 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sim.errors import InputError
+from stereosim.sim.errors import InputError
 
 STAGE_PREFIX = ".stereosim-stage-"
 LOCK_TIMEOUT_S = 60.0

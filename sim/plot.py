@@ -17,8 +17,8 @@ import math
 from collections import defaultdict
 from pathlib import Path
 
-from sim.errors import InputError
-from sim.outputs import atomic_write_bytes
+from stereosim.sim.errors import InputError
+from stereosim.sim.outputs import atomic_write_bytes
 
 FIGSIZE = (6.4, 4.2)
 DPI = 100

@@ -21,13 +21,13 @@ import tempfile
 import time
 from pathlib import Path
 
-from sim.api import run_stream
-from sim.errors import InputError
-from sim.io import disparity_to_colour, encode_png, pfm_bytes
-from sim.outputs import STAGE_PREFIX, check_outputs, json_text, publish
-from sim.summary import print_summary
-from sim.tracing import run_traced, trace_files, trace_paths
-from sim.video import VideoPair
+from stereosim.sim.api import run_stream
+from stereosim.sim.errors import InputError
+from stereosim.sim.io import disparity_to_colour, encode_png, pfm_bytes
+from stereosim.sim.outputs import STAGE_PREFIX, check_outputs, json_text, publish
+from stereosim.sim.summary import print_summary
+from stereosim.sim.tracing import run_traced, trace_files, trace_paths
+from stereosim.sim.video import VideoPair
 
 
 def stream_pairs(args, data: dict | None):

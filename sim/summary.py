@@ -22,7 +22,7 @@ from rich import box
 from rich.console import Console
 from rich.table import Table
 
-from sim.metrics import DENSE_KEYS, format_table, mean_metrics
+from stereosim.sim.metrics import DENSE_KEYS, format_table, mean_metrics
 
 WIDTH = 100  # columns of the plain-text summary
 ACTIVITIES = ("busy", "starved", "blocked", "idle")

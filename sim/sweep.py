@@ -77,10 +77,10 @@ from typing import Any
 
 import numpy as np
 
-from sim.api import prepare_pair, run
-from sim.config import load_config, read_toml
-from sim.cycle.estimate import estimate
-from sim.datasets import (
+from stereosim.sim.api import prepare_pair, run
+from stereosim.sim.config import load_config, read_toml
+from stereosim.sim.cycle.estimate import estimate
+from stereosim.sim.datasets import (
     default_scene,
     find_scene,
     find_scenes,
@@ -88,8 +88,8 @@ from sim.datasets import (
     load_scene,
     shared_data_dir,
 )
-from sim.errors import ConfigError, InputError, UserError
-from sim.outputs import atomic_write_bytes, describe_os_error, folder_lock
+from stereosim.sim.errors import ConfigError, InputError, UserError
+from stereosim.sim.outputs import atomic_write_bytes, describe_os_error, folder_lock
 
 MODES = ("cycle", "functional", "estimate")
 SWEEP_KEYS = ("mode", "scenes", "config", "set", "grid", "zip")

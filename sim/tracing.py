@@ -30,17 +30,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sim.cycle.plan import ChipPlan
-from sim.cycle.simulate import simulate
-from sim.errors import ConfigError
-from sim.outputs import publish
-from traces.fst import fst_bytes
-from traces.gtkw import gtkw_text, has_status, status_filter_text
-from traces.log import select
-from traces.timeline import timeline_bytes
-from traces.vcd import estimate_vcd_bytes, vcd_bytes
-from traces.window import ROWS, Window
-from traces.window import parse_window as parse_any_window
+from stereosim.sim.cycle.plan import ChipPlan
+from stereosim.sim.cycle.simulate import simulate
+from stereosim.sim.errors import ConfigError
+from stereosim.sim.outputs import publish
+from stereosim.traces.fst import fst_bytes
+from stereosim.traces.gtkw import gtkw_text, has_status, status_filter_text
+from stereosim.traces.log import select
+from stereosim.traces.timeline import timeline_bytes
+from stereosim.traces.vcd import estimate_vcd_bytes, vcd_bytes
+from stereosim.traces.window import ROWS, Window
+from stereosim.traces.window import parse_window as parse_any_window
 
 DEFAULT_LIMIT_MB = 500
 

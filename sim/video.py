@@ -13,8 +13,8 @@ import os
 import cv2
 import numpy as np
 
-from sim.errors import InputError
-from sim.io import to_grey
+from stereosim.sim.errors import InputError
+from stereosim.sim.io import to_grey
 
 
 def _open(path: str | os.PathLike, side: str) -> cv2.VideoCapture:

@@ -10,11 +10,11 @@ import os
 import sys
 from pathlib import Path
 
-from sim.cycle.estimate import estimate, format_estimate, parse_size
-from sim.errors import InputError, UserError
-from sim.outputs import json_text
-from sim.plot import plot_xy, sweep_plots
-from sim.sweep import (
+from stereosim.sim.cycle.estimate import estimate, format_estimate, parse_size
+from stereosim.sim.errors import InputError, UserError
+from stereosim.sim.outputs import json_text
+from stereosim.sim.plot import plot_xy, sweep_plots
+from stereosim.sim.sweep import (
     CSV_NAME,
     MAX_POINTS,
     load_scene_spec,

@@ -13,7 +13,7 @@ row functions below do the same.
 import numpy as np
 from numba import njit
 
-from sim.errors import InputError
+from stereosim.sim.errors import InputError
 
 
 def box_filter_ref(cost, k: int, cost_bits: int) -> np.ndarray:

@@ -14,7 +14,7 @@ import numpy as np
 from numba import njit, types
 from numba.extending import intrinsic
 
-from sim.errors import InputError
+from stereosim.sim.errors import InputError
 
 
 def hamming_cost_ref(desc_l, desc_r, disparities: int, bits: int) -> np.ndarray:

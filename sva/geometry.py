@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 
-from sim.config import SvaConfig
+from stereosim.sim.config import SvaConfig
 
 
 def box_radius(cfg: SvaConfig) -> int:

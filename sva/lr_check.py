@@ -14,8 +14,8 @@ aggregation alone this shear is exact; through SGM's causal paths it is the usua
 import numpy as np
 from numba import njit
 
-from sim.errors import InputError
-from sva.wta import INVALID, disparity_index
+from stereosim.sim.errors import InputError
+from stereosim.sva.wta import INVALID, disparity_index
 
 
 def right_disparity_ref(s) -> np.ndarray:

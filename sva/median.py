@@ -10,7 +10,7 @@ import functools
 import numpy as np
 from numba import njit
 
-from sim.errors import InputError
+from stereosim.sim.errors import InputError
 
 
 def median_ref(q, k: int) -> np.ndarray:

@@ -16,17 +16,17 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from sim.config import SvaConfig, check_section
-from sim.errors import InputError
-from sva.aggregation import box_filter, box_filter_ref, box_start, box_step
-from sva.cost import (
+from stereosim.sim.config import SvaConfig, check_section
+from stereosim.sim.errors import InputError
+from stereosim.sva.aggregation import box_filter, box_filter_ref, box_start, box_step
+from stereosim.sva.cost import (
     check_descriptor_pair,
     cost_row_add,
     cost_row_update,
     hamming_cost_ref,
     reverse_row,
 )
-from sva.lr_check import (
+from stereosim.sva.lr_check import (
     diagonal_finish,
     diagonal_start,
     diagonal_update,
@@ -36,9 +36,9 @@ from sva.lr_check import (
     new_diagonal_buffers,
     right_disparity_ref,
 )
-from sva.median import median, median_ref, median_rows
-from sva.sgm import new_path_buffers, sgm, sgm_params, sgm_pixel, sgm_ref, sgm_row_start
-from sva.wta import disparity_index, subpixel_mode_code, wta, wta_pixel, wta_ref
+from stereosim.sva.median import median, median_ref, median_rows
+from stereosim.sva.sgm import new_path_buffers, sgm, sgm_params, sgm_pixel, sgm_ref, sgm_row_start
+from stereosim.sva.wta import disparity_index, subpixel_mode_code, wta, wta_pixel, wta_ref
 
 
 def check_inputs(desc_l, desc_r, img_l, cfg: SvaConfig, bits: int) -> None:

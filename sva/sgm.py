@@ -24,7 +24,7 @@ Integer definition (the chip's):
 import numpy as np
 from numba import njit
 
-from sim.errors import InputError
+from stereosim.sim.errors import InputError
 
 # (dx, dy) of the predecessor p - r, in the order ``sva.paths`` enables them.
 PATHS = ((-1, 0), (0, -1), (-1, -1), (1, -1))

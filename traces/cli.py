@@ -10,10 +10,10 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from sim.errors import ConfigError
-from sim.outputs import atomic_write_bytes
-from traces.vcdread import read_vcd
-from traces.wave import match_vars, wave_png, window_units
+from stereosim.sim.errors import ConfigError
+from stereosim.sim.outputs import atomic_write_bytes
+from stereosim.traces.vcdread import read_vcd
+from stereosim.traces.wave import match_vars, wave_png, window_units
 
 
 def add_wave_parser(subparsers) -> argparse.ArgumentParser:

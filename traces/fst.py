@@ -16,8 +16,8 @@ import tempfile
 
 from pylibfst import ffi, lib
 
-from traces.log import CLOCK_SCOPE, TraceLog, validate
-from traces.vcd import (
+from stereosim.traces.log import CLOCK_SCOPE, TraceLog, validate
+from stereosim.traces.vcd import (
     _events,
     _head_and_tail,
     _package_version,

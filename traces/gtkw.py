@@ -45,9 +45,9 @@ import os
 
 from vcd.gtkw import GTKWSave, make_translation_filter
 
-from sim.errors import ConfigError
-from sim.outputs import atomic_write_bytes
-from traces.log import CLOCK_SCOPE, TraceLog, validate
+from stereosim.sim.errors import ConfigError
+from stereosim.sim.outputs import atomic_write_bytes
+from stereosim.traces.log import CLOCK_SCOPE, TraceLog, validate
 
 # Keep in step with traces.timeline.STATUS_NAMES (a test checks it).
 STATUS_NAMES = ("idle", "busy", "starved", "blocked")

@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim.cycle.clock import ClockDomain
-from traces.log import Clock, Signal, TraceLog
+from stereosim.sim.cycle.clock import ClockDomain
+from stereosim.traces.log import Clock, Signal, TraceLog
 
 CHIP_CLOCKS_MHZ = {"camera": 74.25, "nna": 460.0, "sva": 465.0}
 

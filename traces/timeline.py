@@ -39,10 +39,10 @@ import os
 
 import numpy as np
 
-from sim.errors import ConfigError
-from sim.outputs import atomic_write_bytes
-from traces.gtkw import unit_of
-from traces.log import TraceLog, changes_of, validate
+from stereosim.sim.errors import ConfigError
+from stereosim.sim.outputs import atomic_write_bytes
+from stereosim.traces.gtkw import unit_of
+from stereosim.traces.log import TraceLog, changes_of, validate
 
 STATUS_NAMES = ("idle", "busy", "starved", "blocked")
 STATUS_SUFFIX, OCCUPANCY_SUFFIX = ".status", ".occupancy"

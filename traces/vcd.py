@@ -37,9 +37,9 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from sim.errors import ConfigError
-from sim.outputs import atomic_write_bytes
-from traces.log import CLOCK_SCOPE, Clock, Signal, TraceLog, validate
+from stereosim.sim.errors import ConfigError
+from stereosim.sim.outputs import atomic_write_bytes
+from stereosim.traces.log import CLOCK_SCOPE, Clock, Signal, TraceLog, validate
 
 TIMESCALE = "1 fs"
 _FIRST_CODE, _N_CODE_CHARS = 33, 94

@@ -21,9 +21,9 @@ from fnmatch import fnmatchcase
 
 import numpy as np
 
-from sim.errors import ConfigError
-from traces.vcdread import VcdData, VcdVar
-from traces.window import UNITS, parse_window
+from stereosim.sim.errors import ConfigError
+from stereosim.traces.vcdread import VcdData, VcdVar
+from stereosim.traces.window import UNITS, parse_window
 
 MAX_ROWS = 64
 

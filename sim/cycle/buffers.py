@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim.cycle.plan import ChipPlan
+from stereosim.sim.cycle.plan import ChipPlan
 
 
 class BufferOverflow(RuntimeError):

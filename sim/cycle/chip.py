@@ -14,27 +14,27 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sim.config import ChipConfig
-from sim.cycle.blocks.nna import Merge, NnaSubmodule
-from sim.cycle.buffers import buffer_report, windows_of
-from sim.cycle.blocks.sources import (
+from stereosim.sim.config import ChipConfig
+from stereosim.sim.cycle.blocks.nna import Merge, NnaSubmodule
+from stereosim.sim.cycle.buffers import buffer_report, windows_of
+from stereosim.sim.cycle.blocks.sources import (
     CameraSource,
     DramChannel,
     FrameBuffers,
     MemorySource,
     Sink,
 )
-from sim.cycle.blocks.sva import SvaBlock
-from sim.cycle.fifo import Fifo
-from sim.cycle.frames import FrameSupply, camera_frames
-from sim.cycle.kernel import Simulator
-from sim.cycle.plan import ChipPlan, build_plan
-from sim.cycle.report import cycle_report
-from sim.cycle.rules import camera_frame_start, sink_may_pop
-from sim.cycle.stops import CameraOverflow, frame_buffer_message, overflow_message
-from sim.errors import UserError
-from sim.progress import poller, progress_bar
-from traces.log import Clock, Signal, TraceLog, TraceRecorder
+from stereosim.sim.cycle.blocks.sva import SvaBlock
+from stereosim.sim.cycle.fifo import Fifo
+from stereosim.sim.cycle.frames import FrameSupply, camera_frames
+from stereosim.sim.cycle.kernel import Simulator
+from stereosim.sim.cycle.plan import ChipPlan, build_plan
+from stereosim.sim.cycle.report import cycle_report
+from stereosim.sim.cycle.rules import camera_frame_start, sink_may_pop
+from stereosim.sim.cycle.stops import CameraOverflow, frame_buffer_message, overflow_message
+from stereosim.sim.errors import UserError
+from stereosim.sim.progress import poller, progress_bar
+from stereosim.traces.log import Clock, Signal, TraceLog, TraceRecorder
 
 
 class Chip:

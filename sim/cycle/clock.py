@@ -25,8 +25,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from sim.cycle.rules import period_fs
-from sim.errors import ConfigError, UserError
+from stereosim.sim.cycle.rules import period_fs
+from stereosim.sim.errors import ConfigError, UserError
 
 ACTIVITIES = ("busy", "starved", "blocked", "idle")
 

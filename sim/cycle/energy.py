@@ -33,11 +33,11 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
-from sim.config import read_toml
-from sim.cycle.plan import ChipPlan, action_counts
-from sim.cycle.stages import lg
-from sim.errors import ConfigError
-from sva.geometry import bits_for
+from stereosim.sim.config import read_toml
+from stereosim.sim.cycle.plan import ChipPlan, action_counts
+from stereosim.sim.cycle.stages import lg
+from stereosim.sim.errors import ConfigError
+from stereosim.sva.geometry import bits_for
 
 DEFAULT_TABLE = Path(__file__).resolve().parents[1] / "energy.toml"
 

@@ -43,10 +43,10 @@ from __future__ import annotations
 
 import math
 
-from nna.geometry import Tile
-from sim.config import ChipConfig, config_to_dict
-from sim.cycle.plan import ChipPlan, FifoPlan, action_counts, build_plan, sram_bits
-from sim.cycle.rules import (
+from stereosim.nna.geometry import Tile
+from stereosim.sim.config import ChipConfig, config_to_dict
+from stereosim.sim.cycle.plan import ChipPlan, FifoPlan, action_counts, build_plan, sram_bits
+from stereosim.sim.cycle.rules import (
     camera_cycle,
     dram_read_ready_fs,
     first_edge_at,
@@ -57,7 +57,7 @@ from sim.cycle.rules import (
     sva_last_input_row,
     sva_rows_done_before_input,
 )
-from sim.errors import InputError
+from stereosim.sim.errors import InputError
 
 FS_PER_S = 10**15
 

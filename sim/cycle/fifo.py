@@ -23,9 +23,9 @@ from __future__ import annotations
 
 from collections import deque
 
-from sim.cycle.clock import ClockDomain, KernelError, check_int, fifo_counts
-from sim.cycle.rules import fifo_edges
-from sim.errors import ConfigError
+from stereosim.sim.cycle.clock import ClockDomain, KernelError, check_int, fifo_counts
+from stereosim.sim.cycle.rules import fifo_edges
+from stereosim.sim.errors import ConfigError
 
 
 class Fifo:

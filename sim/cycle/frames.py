@@ -14,9 +14,9 @@ from collections.abc import Callable
 
 import numpy as np
 
-from nna.descriptor import compute_descriptor
-from sim.errors import ConfigError, InputError
-from sva.pipeline import sva_stream
+from stereosim.nna.descriptor import compute_descriptor
+from stereosim.sim.errors import ConfigError, InputError
+from stereosim.sva.pipeline import sva_stream
 
 
 class FrameSupply:

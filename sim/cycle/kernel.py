@@ -10,7 +10,7 @@ from __future__ import annotations
 import random
 from collections.abc import Callable
 
-from sim.cycle.clock import (
+from stereosim.sim.cycle.clock import (
     Block,
     BudgetExceeded,
     ClockDomain,
@@ -21,8 +21,8 @@ from sim.cycle.clock import (
     stop_message,
     watchdog_message,
 )
-from sim.cycle.fifo import Fifo
-from sim.errors import ConfigError
+from stereosim.sim.cycle.fifo import Fifo
+from stereosim.sim.errors import ConfigError
 
 # Steps between two calls of Simulator.run's on_progress (some tens per second).
 PROGRESS_STEPS = 4096

@@ -27,8 +27,8 @@ import math
 from dataclasses import dataclass, field
 from functools import cached_property
 
-from nna.descriptor import descriptor_bits, layer
-from nna.geometry import (
+from stereosim.nna.descriptor import descriptor_bits, layer
+from stereosim.nna.geometry import (
     Tile,
     check_line_buffer,
     cycles_per_descriptor,
@@ -37,10 +37,10 @@ from nna.geometry import (
     split_frame,
     window_rows,
 )
-from sim.config import ChipConfig, check_config
-from sim.cycle.clock import ClockDomain
-from sim.cycle.rules import fifo_edges, period_fs
-from sim.cycle.stages import (
+from stereosim.sim.config import ChipConfig, check_config
+from stereosim.sim.cycle.clock import ClockDomain
+from stereosim.sim.cycle.rules import fifo_edges, period_fs
+from stereosim.sim.cycle.stages import (
     BufferPlan,
     StagePlan,
     nna_stages,
@@ -48,8 +48,8 @@ from sim.cycle.stages import (
     pipeline_latency,
     sva_stages,
 )
-from sim.errors import ConfigError
-from sva.geometry import output_word_bits, row_lookahead
+from stereosim.sim.errors import ConfigError
+from stereosim.sva.geometry import output_word_bits, row_lookahead
 
 SIDES = ("left", "right")
 STATUS_CODES = {"idle": 0, "busy": 1, "starved": 2, "blocked": 3}  # as traced

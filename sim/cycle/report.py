@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim.cycle.energy import energy_report
-from sim.cycle.plan import ChipPlan
-from sim.cycle.rules import FS_PER_S
+from stereosim.sim.cycle.energy import energy_report
+from stereosim.sim.cycle.plan import ChipPlan
+from stereosim.sim.cycle.rules import FS_PER_S
 
 
 def throughput(plan: ChipPlan, work: dict[str, int]) -> dict:

@@ -17,40 +17,32 @@ bar on stderr when it is a terminal.
 
 from __future__ import annotations
 
-import nna.census
-import nna.conv
-import quant.fixedpoint
-import quant.intconv
-import sim.cycle.engine.pipeline
-import sim.cycle.engine.reads
-import sim.cycle.engine.replay
-import sim.cycle.engine.ring
-import sim.cycle.engine.streams
-import sim.cycle.engine.walkers
-import sim.cycle.rules
-import sva.aggregation
-import sva.cost
-import sva.lr_check
-import sva.median
-import sva.pipeline
-import sva.sgm
-import sva.wta
-from sim.cycle.chip import FrameResult, run_readable
-from sim.cycle.engine import run as engine_run
-from sim.cycle.engine.run import run_compiled
-from sim.cycle.plan import ChipPlan
-from sim.errors import ConfigError
-from sim.progress import compile_notice
+from stereosim.nna import census as nna_census
+from stereosim.nna import conv as nna_conv
+from stereosim.quant import fixedpoint, intconv
+from stereosim.sim.cycle import rules
+from stereosim.sim.cycle.engine import pipeline as engine_pipeline
+from stereosim.sim.cycle.engine import reads as engine_reads
+from stereosim.sim.cycle.engine import replay as engine_replay
+from stereosim.sim.cycle.engine import ring as engine_ring
+from stereosim.sim.cycle.engine import streams as engine_streams
+from stereosim.sim.cycle.engine import walkers as engine_walkers
+from stereosim.sva import aggregation, cost, lr_check, median, sgm, wta
+from stereosim.sva import pipeline as sva_pipeline
+from stereosim.sim.cycle.chip import FrameResult, run_readable
+from stereosim.sim.cycle.engine import run as engine_run
+from stereosim.sim.cycle.engine.run import run_compiled
+from stereosim.sim.cycle.plan import ChipPlan
+from stereosim.sim.errors import ConfigError
+from stereosim.sim.progress import compile_notice
 
 ENGINES = ("auto", "fast", "readable")
 # The numba kernels a frame compiles on first use, in two groups: the stages' (the functional
 # model and both engines) and the compiled engine's.
-STAGE_KERNELS = (nna.census, nna.conv, quant.fixedpoint, quant.intconv, sva.aggregation,
-                 sva.cost, sva.lr_check, sva.median, sva.pipeline, sva.sgm, sva.wta,
-                 sim.cycle.rules)
-ENGINE_KERNELS = (sim.cycle.engine.pipeline, sim.cycle.engine.reads, sim.cycle.engine.replay,
-                  sim.cycle.engine.ring, engine_run, sim.cycle.engine.streams,
-                  sim.cycle.engine.walkers)
+STAGE_KERNELS = (nna_census, nna_conv, fixedpoint, intconv, aggregation, cost, lr_check, median,
+                 sva_pipeline, sgm, wta, rules)
+ENGINE_KERNELS = (engine_pipeline, engine_reads, engine_replay, engine_ring, engine_run,
+                  engine_streams, engine_walkers)
 # What the notice announces: the approximate cold compile time of a whole run of each kind on
 # a quiet 2-core machine (docs/performance.md).
 COMPILE_SECONDS = {"functional": 15, "readable": 15, "fast": 100}

@@ -55,8 +55,8 @@ import dataclasses
 import math
 from dataclasses import dataclass
 
-from sim.config import ChipConfig
-from sva.geometry import bits_for, disparity_bits
+from stereosim.sim.config import ChipConfig
+from stereosim.sva.geometry import bits_for, disparity_bits
 
 
 @dataclass(frozen=True)

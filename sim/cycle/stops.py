@@ -9,7 +9,7 @@ blocks evaluate cannot change the message).
 
 from __future__ import annotations
 
-from sim.errors import UserError
+from stereosim.sim.errors import UserError
 
 
 class CameraOverflow(UserError):

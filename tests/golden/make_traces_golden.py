@@ -14,11 +14,11 @@ from pathlib import Path
 
 import numpy as np
 
-from traces.gtkw import write_gtkw, write_status_filter
-from traces.log import TraceLog
-from traces.synthetic import synthetic_log
-from traces.timeline import write_timeline
-from traces.vcd import write_vcd
+from stereosim.traces.gtkw import write_gtkw, write_status_filter
+from stereosim.traces.log import TraceLog
+from stereosim.traces.synthetic import synthetic_log
+from stereosim.traces.timeline import write_timeline
+from stereosim.traces.vcd import write_vcd
 
 GOLDEN = Path(__file__).resolve().parent
 VERSION = "stereosim golden"

@@ -19,8 +19,8 @@ import pytest
 import torch  # in the test extra: the smoke epoch must run in CI
 from numpy.testing import assert_array_equal
 
-from nna.conv import cnn_descriptor
-from nna.train import (
+from stereosim.nna.conv import cnn_descriptor
+from stereosim.nna.train import (
     PATCH,
     VARIANTS,
     TrainConfig,
@@ -42,15 +42,15 @@ from nna.train import (
     train,
     training_scene_dirs,
 )
-from nna.weights import SHIPPED_WEIGHTS, default_weights, load_layer
-from quant.artifact import load_quantized, to_nna_weights
-from quant.intconv import int_forward
-from quant.quantizer import FloatModel, float_forward
-from sim.cli import main
-from sim.config import DESCRIPTOR_DEFAULTS, load_config
-from sim.errors import ConfigError, InputError
-from sva.aggregation import box_filter
-from sva.cost import hamming_cost
+from stereosim.nna.weights import SHIPPED_WEIGHTS, default_weights, load_layer
+from stereosim.quant.artifact import load_quantized, to_nna_weights
+from stereosim.quant.intconv import int_forward
+from stereosim.quant.quantizer import FloatModel, float_forward
+from stereosim.sim.cli import main
+from stereosim.sim.config import DESCRIPTOR_DEFAULTS, load_config
+from stereosim.sim.errors import ConfigError, InputError
+from stereosim.sva.aggregation import box_filter
+from stereosim.sva.cost import hamming_cost
 
 SHIFT = 5  # disparity of the synthetic scenes
 

@@ -9,17 +9,17 @@ import pytest
 import torch  # noqa: F401  (the test extra; train imports it)
 from numpy.testing import assert_array_equal
 
-import nna.train as train_module
-from nna.train import TrainConfig, train, training_scene_dirs
-from nna.trainrun import (
+import stereosim.nna.train as train_module
+from stereosim.nna.train import TrainConfig, train, training_scene_dirs
+from stereosim.nna.trainrun import (
     checkpoint_path,
     load_checkpoint,
     parse_threads,
     pick_threads,
     threads_line,
 )
-from sim.cli import main
-from sim.errors import ConfigError, InputError
+from stereosim.sim.cli import main
+from stereosim.sim.errors import ConfigError, InputError
 
 SHIFT = 4
 

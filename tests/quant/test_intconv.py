@@ -6,15 +6,15 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_array_equal
 
-from nna.conv import cnn_accumulators
-from quant.intconv import (
+from stereosim.nna.conv import cnn_accumulators
+from stereosim.quant.intconv import (
     check_network,
     int_forward,
     int_forward_ref,
     mul_shift,
     mul_shift_ref,
 )
-from sim.errors import ConfigError
+from stereosim.sim.errors import ConfigError
 
 
 def _network(seed, channels, k_sizes, z_bits=8, bias_range=5000):

@@ -10,12 +10,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose, assert_array_equal
 
-from nna.conv import cnn_accumulators
-from nna.weights import load_layer, load_weights
-from quant.artifact import load_quantized, save_quantized, to_nna_weights
-from quant.distances import DISTANCES, l1
-from quant.intconv import int_forward, mul_shift_ref
-from quant.quantizer import (
+from stereosim.nna.conv import cnn_accumulators
+from stereosim.nna.weights import load_layer, load_weights
+from stereosim.quant.artifact import load_quantized, save_quantized, to_nna_weights
+from stereosim.quant.distances import DISTANCES, l1
+from stereosim.quant.intconv import int_forward, mul_shift_ref
+from stereosim.quant.quantizer import (
     FloatModel,
     QuantizerConfig,
     float_forward,
@@ -26,7 +26,7 @@ from quant.quantizer import (
     search_channel_scale,
     search_mul_shift,
 )
-from sim.errors import ConfigError
+from stereosim.sim.errors import ConfigError
 
 INPUT_SCALE = 1 / 64  # a power of two, so float inputs are exact
 

@@ -11,13 +11,13 @@ import dataclasses
 import numpy as np
 import pytest
 
-import sim.cycle.blocks.nna as nna_block
-import sim.cycle.blocks.sva as sva_block
-from sim.config import load_config
-from sim.cycle.buffers import BufferOverflow, window_peaks
-from sim.cycle.chip import run_readable
-from sim.cycle.engine.run import run_compiled
-from sim.cycle.plan import build_plan
+import stereosim.sim.cycle.blocks.nna as nna_block
+import stereosim.sim.cycle.blocks.sva as sva_block
+from stereosim.sim.config import load_config
+from stereosim.sim.cycle.buffers import BufferOverflow, window_peaks
+from stereosim.sim.cycle.chip import run_readable
+from stereosim.sim.cycle.engine.run import run_compiled
+from stereosim.sim.cycle.plan import build_plan
 
 CNN = {"nna.descriptor": "cnn", "sva.disparities": 16}  # the NNA (9 cycles) is the bottleneck
 # the SVA (II 2) is the bottleneck; the 5x5 box pinned for the k + 1 = 6 rows derived below

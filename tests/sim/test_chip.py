@@ -3,13 +3,13 @@
 import numpy as np
 import pytest
 
-from sim.api import run
-from sim.config import load_config
-from sim.cycle.chip import run_cycle
-from sim.cycle.clock import DeadlockError
-from sim.cycle.engine.run import run_compiled
-from sim.cycle.plan import build_plan
-from sim.cycle.stops import CameraOverflow
+from stereosim.sim.api import run
+from stereosim.sim.config import load_config
+from stereosim.sim.cycle.chip import run_cycle
+from stereosim.sim.cycle.clock import DeadlockError
+from stereosim.sim.cycle.engine.run import run_compiled
+from stereosim.sim.cycle.plan import build_plan
+from stereosim.sim.cycle.stops import CameraOverflow
 
 # Equal NNA and SVA clocks make the crossing easy to count by hand: an item pushed at NNA cycle
 # t is visible at SVA cycle t + 2 (latency 1 + synchroniser 2 - 1, edges coinciding).
@@ -202,7 +202,7 @@ def test_column_tiles_speed_up_an_nna_bound_frame():
 
 
 def test_bad_split_configurations_are_refused():
-    from sim.errors import ConfigError
+    from stereosim.sim.errors import ConfigError
 
     with pytest.raises(ConfigError, match="must be even"):
         load_config(overrides={"nna.stereo_submodules": 3})

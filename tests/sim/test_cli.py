@@ -7,9 +7,9 @@ import sys
 import numpy as np
 import pytest
 
-from sim.cli import main
-from sim.datasets import shared_data_dir
-from sim.io import encode_png, read_pfm
+from stereosim.sim.cli import main
+from stereosim.sim.datasets import shared_data_dir
+from stereosim.sim.io import encode_png, read_pfm
 
 DATA = shared_data_dir()
 
@@ -102,7 +102,7 @@ def test_bad_input_is_one_line_exit_2_and_writes_nothing(case, tmp_path, capsys)
 
 def test_console_script_has_no_traceback(tmp_path):
     proc = subprocess.run(
-        [sys.executable, "-m", "sim.cli", "run", "--left", str(tmp_path / "x.png"),
+        [sys.executable, "-m", "stereosim.sim.cli", "run", "--left", str(tmp_path / "x.png"),
          "--right", str(tmp_path / "y.png")],
         capture_output=True, text=True, check=False,
     )

@@ -3,7 +3,7 @@ watchdog, the cycle budget, order independence and the trace hook -- all in exac
 
 import pytest
 
-from sim.cycle.clock import (
+from stereosim.sim.cycle.clock import (
     Block,
     BudgetExceeded,
     ClockDomain,
@@ -12,9 +12,9 @@ from sim.cycle.clock import (
     Register,
     count_instants,
 )
-from sim.cycle.fifo import Fifo
-from sim.cycle.kernel import Simulator
-from sim.errors import ConfigError, UserError
+from stereosim.sim.cycle.fifo import Fifo
+from stereosim.sim.cycle.kernel import Simulator
+from stereosim.sim.errors import ConfigError, UserError
 
 P = 10_000_000  # 100 MHz in fs
 

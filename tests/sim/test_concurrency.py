@@ -10,7 +10,7 @@ import sys
 
 import numpy as np
 
-from sim.io import encode_png
+from stereosim.sim.io import encode_png
 
 TRIALS = 16
 
@@ -35,7 +35,7 @@ def test_two_concurrent_runs_into_one_out_leave_a_whole_set(tmp_path):
     for trial in range(TRIALS):
         procs = [
             subprocess.Popen(
-                [sys.executable, "-m", "sim.cli", "run", "--mode", "functional", "--left",
+                [sys.executable, "-m", "stereosim.sim.cli", "run", "--mode", "functional", "--left",
                  str(tmp_path / "l.png"), "--right", str(tmp_path / "r.png"), "--disparities",
                  str(d), "--out", str(out)],
                 stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)

@@ -3,11 +3,11 @@ import itertools
 import numpy as np
 import pytest
 
-from nna.census import census, census_bits
-from nna.descriptor import compute_descriptor, descriptor_bits
-from nna.weights import save_weights
-from sim.api import run
-from sim.config import (
+from stereosim.nna.census import census, census_bits
+from stereosim.nna.descriptor import compute_descriptor, descriptor_bits
+from stereosim.nna.weights import save_weights
+from stereosim.sim.api import run
+from stereosim.sim.config import (
     DESCRIPTOR_DEFAULTS,
     ChipConfig,
     config_diff,
@@ -16,9 +16,9 @@ from sim.config import (
     parse_set_options,
     sgm_widths,
 )
-from sim.errors import ConfigError
-from sva.aggregation import box_filter
-from sva.cost import hamming_cost
+from stereosim.sim.errors import ConfigError
+from stereosim.sva.aggregation import box_filter
+from stereosim.sva.cost import hamming_cost
 
 
 def test_defaults_round_trip_through_toml(tmp_path):

@@ -4,10 +4,10 @@ docs/architecture.md, deterministic, bad input refused with one line."""
 import re
 from pathlib import Path
 
-from sim.cli import main
-from sim.config import load_config
-from sim.cycle.plan import build_plan
-from sim.diagram import plan_png, plan_text
+from stereosim.sim.cli import main
+from stereosim.sim.config import load_config
+from stereosim.sim.cycle.plan import build_plan
+from stereosim.sim.diagram import plan_png, plan_text
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "architecture.md"
 

@@ -6,10 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sim.config import load_config
-from sim.cycle.engine.run import run_compiled
-from sim.cycle.plan import build_plan
-from sim.cycle.rules import (
+from stereosim.sim.config import load_config
+from stereosim.sim.cycle.engine.run import run_compiled
+from stereosim.sim.cycle.plan import build_plan
+from stereosim.sim.cycle.rules import (
     burst_last,
     burst_of,
     dram_read_ready_fs,
@@ -17,7 +17,7 @@ from sim.cycle.rules import (
     dram_write_done_fs,
     first_edge_at,
 )
-from sim.errors import ConfigError
+from stereosim.sim.errors import ConfigError
 
 H, W = 8, 40
 CHIP = {"clocks.nna_mhz": 400, "clocks.sva_mhz": 400, "sva.disparities": 16,

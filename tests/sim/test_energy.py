@@ -9,11 +9,11 @@ import math
 import numpy as np
 import pytest
 
-from sim.config import load_config
-from sim.cycle.energy import DEFAULT_TABLE, energy_report, energy_table, popcount_bit_adds
-from sim.cycle.engine.run import run_compiled
-from sim.cycle.plan import build_plan
-from sim.errors import ConfigError
+from stereosim.sim.config import load_config
+from stereosim.sim.cycle.energy import DEFAULT_TABLE, energy_report, energy_table, popcount_bit_adds
+from stereosim.sim.cycle.engine.run import run_compiled
+from stereosim.sim.cycle.plan import build_plan
+from stereosim.sim.errors import ConfigError
 
 SAME = {"clocks.nna_mhz": 400, "clocks.sva_mhz": 400, "sva.disparities": 16}
 

@@ -5,12 +5,12 @@ and block."""
 import numpy as np
 import pytest
 
-from sim.config import load_config
-from sim.cycle.chip import run_cycle
-from sim.cycle.clock import BudgetExceeded, DeadlockError
-from sim.cycle.engine.run import run_compiled
-from sim.cycle.plan import build_plan
-from sim.cycle.stops import CameraOverflow
+from stereosim.sim.config import load_config
+from stereosim.sim.cycle.chip import run_cycle
+from stereosim.sim.cycle.clock import BudgetExceeded, DeadlockError
+from stereosim.sim.cycle.engine.run import run_compiled
+from stereosim.sim.cycle.plan import build_plan
+from stereosim.sim.cycle.stops import CameraOverflow
 
 
 def run_cycle_fast(left, right, cfg, sink_stall=None):

@@ -10,14 +10,14 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from sim.config import load_config
-from sim.cycle.chip import run_readable
-from sim.cycle.engine.layout import INF, serialise
-from sim.cycle.engine.replay import count_le
-from sim.cycle.engine.run import first_quiet, run_compiled
-from sim.cycle.plan import build_plan
-from sim.errors import UserError
-from traces.vcd import vcd_bytes
+from stereosim.sim.config import load_config
+from stereosim.sim.cycle.chip import run_readable
+from stereosim.sim.cycle.engine.layout import INF, serialise
+from stereosim.sim.cycle.engine.replay import count_le
+from stereosim.sim.cycle.engine.run import first_quiet, run_compiled
+from stereosim.sim.cycle.plan import build_plan
+from stereosim.sim.errors import UserError
+from stereosim.traces.vcd import vcd_bytes
 
 NEVER = (1 << 40, (1 << 40) - 1)  # a sink that pops first in cycle 2^40 - 1
 

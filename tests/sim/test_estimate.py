@@ -9,10 +9,10 @@ within a beat of its round trip), and within 1 % everywhere in the grid.
 import numpy as np
 import pytest
 
-from sim.api import run
-from sim.config import load_config
-from sim.cycle.estimate import estimate, paper_analysis, parse_size
-from sim.errors import InputError
+from stereosim.sim.api import run
+from stereosim.sim.config import load_config
+from stereosim.sim.cycle.estimate import estimate, paper_analysis, parse_size
+from stereosim.sim.errors import InputError
 
 SMALL, SPLIT = (20, 112), (16, 48)  # split frames run on the readable engine: keep them tiny
 MID = (24, 64)

@@ -7,10 +7,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from sim.cycle.clock import Block, ClockDomain, KernelError
-from sim.cycle.fifo import Fifo
-from sim.cycle.kernel import Simulator
-from sim.errors import ConfigError
+from stereosim.sim.cycle.clock import Block, ClockDomain, KernelError
+from stereosim.sim.cycle.fifo import Fifo
+from stereosim.sim.cycle.kernel import Simulator
+from stereosim.sim.errors import ConfigError
 
 
 def _domain(name, period_fs, phase_fs=0):

@@ -15,13 +15,13 @@ import numpy as np
 import pytest
 from plyfile import PlyData
 
-from sim import formats
-from sim.api import run
-from sim.cli import main
-from sim.config import load_config
-from sim.errors import ConfigError, InputError
-from sim.formats import Calibration
-from sim.io import encode_png, pfm_bytes, read_pfm
+from stereosim.sim import formats
+from stereosim.sim.api import run
+from stereosim.sim.cli import main
+from stereosim.sim.config import load_config
+from stereosim.sim.errors import ConfigError, InputError
+from stereosim.sim.formats import Calibration
+from stereosim.sim.io import encode_png, pfm_bytes, read_pfm
 
 NAN, INF = float("nan"), float("inf")
 

@@ -8,12 +8,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sim.config import load_config
-from sim.cycle.chip import run_readable
-from sim.cycle.engine.run import run_compiled
-from sim.cycle.plan import build_plan
-from sim.cycle.stops import CameraOverflow
-from sim.errors import ConfigError
+from stereosim.sim.config import load_config
+from stereosim.sim.cycle.chip import run_readable
+from stereosim.sim.cycle.engine.run import run_compiled
+from stereosim.sim.cycle.plan import build_plan
+from stereosim.sim.cycle.stops import CameraOverflow
+from stereosim.sim.errors import ConfigError
 
 H, W, N = 16, 40, 6
 # CNN at 400 MHz: a 16x40 frame is 640 descriptors x 9 MAC cycles = 5,760 NNA cycles of work

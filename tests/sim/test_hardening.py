@@ -16,12 +16,12 @@ import time
 import numpy as np
 import pytest
 
-from sim import outputs
-from sim.api import run
-from sim.cli import main
-from sim.config import ChipConfig, load_config
-from sim.errors import ConfigError, InputError
-from sim.io import encode_png
+from stereosim.sim import outputs
+from stereosim.sim.api import run
+from stereosim.sim.cli import main
+from stereosim.sim.config import ChipConfig, load_config
+from stereosim.sim.errors import ConfigError, InputError
+from stereosim.sim.io import encode_png
 
 RUN_FILES = ("disparity.pfm", "disparity.png", "report.json")
 
@@ -155,7 +155,7 @@ def test_the_api_caps_the_image_size():
 def test_report_json_is_strict_when_a_metric_is_undefined(tmp_path, capfd):
     left, right = _write_pair(tmp_path / "in")
     gt = np.full((20, 48), np.inf, np.float32)  # no known pixel: every metric undefined
-    from sim.io import pfm_bytes
+    from stereosim.sim.io import pfm_bytes
 
     (tmp_path / "gt.pfm").write_bytes(pfm_bytes(gt))
     code, _, err = _cli(["run", "--mode", "functional", "--left", left, "--right", right, "--gt",
@@ -180,7 +180,7 @@ def test_outputs_are_checked_before_the_run(old_run, tmp_path, capfd, monkeypatc
     def no_run(*a, **k):
         raise AssertionError("the simulation ran before the outputs were checked")
 
-    monkeypatch.setattr("sim.cli.run", no_run)
+    monkeypatch.setattr("stereosim.sim.cli.run", no_run)
     (tmp_path / "adir").mkdir()
     cases = [
         (["--vcd", tmp_path / "adir"], "--vcd path .* is a folder"),
@@ -252,7 +252,7 @@ def test_sigterm_during_a_run_leaves_the_old_set_and_no_temporary_files(old_run,
     the start of the work, during the simulation, or while the files are written."""
     _, _, out, before = old_run
     left, right = _write_pair(tmp_path / "big", h=120, w=300, seed=2)
-    cmd = [sys.executable, "-m", "sim.cli", "run", "--left", str(left), "--right", str(right),
+    cmd = [sys.executable, "-m", "stereosim.sim.cli", "run", "--left", str(left), "--right", str(right),
            "--disparities", "32", "--out", str(out), "--vcd", str(out / "t.vcd"), "--force"]
     # as from a shell: no signal blocked (the test process may hold some, and hand them down)
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
@@ -279,7 +279,7 @@ def test_sigterm_during_a_run_leaves_the_old_set_and_no_temporary_files(old_run,
 
 def test_stdout_on_a_full_device_is_one_line(tmp_path):
     with open("/dev/full", "w") as full:
-        proc = subprocess.run([sys.executable, "-m", "sim.cli", "config", "show"], stdout=full,
+        proc = subprocess.run([sys.executable, "-m", "stereosim.sim.cli", "config", "show"], stdout=full,
                               stderr=subprocess.PIPE, timeout=120)
     assert proc.returncode == 2
     assert proc.stderr.decode().splitlines() == [
@@ -297,7 +297,7 @@ def _dataset(tmp_path):
         lp, rp = _write_pair(root / name, h=20, w=48)
         lp.rename(root / name / "im0.png")
         rp.rename(root / name / "im1.png")
-    from sim.io import pfm_bytes
+    from stereosim.sim.io import pfm_bytes
 
     (root / "a_good" / "disp0GT.pfm").write_bytes(pfm_bytes(np.full((20, 48), 3.0, np.float32)))
     (root / "c_corrupt" / "disp0GT.pfm").write_bytes(pfm_bytes(np.full((20, 48), 3.0,

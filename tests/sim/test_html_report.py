@@ -15,9 +15,9 @@ import cv2
 import numpy as np
 import pytest
 
-from sim.api import run
-from sim.cli import main
-from sim.html_report import (
+from stereosim.sim.api import run
+from stereosim.sim.cli import main
+from stereosim.sim.html_report import (
     BAD_PX,
     ERR_BAD,
     ERR_INVALID,
@@ -29,8 +29,8 @@ from sim.html_report import (
     html_report,
     latency_ns,
 )
-from sim.io import disparity_to_colour, encode_png
-from sim.tracing import TraceRequest
+from stereosim.sim.io import disparity_to_colour, encode_png
+from stereosim.sim.tracing import TraceRequest
 
 H, W, SHIFT, D = 48, 64, 3, 16
 PNG_URI = re.compile(r'src="data:image/png;base64,([A-Za-z0-9+/=]+)"')

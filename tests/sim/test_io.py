@@ -11,11 +11,10 @@ import cv2
 import numpy as np
 import pytest
 
-import sim.io
-import sim.npz
-from sim.datasets import shared_data_dir
-from sim.errors import ConfigError, InputError
-from sim.io import (
+from stereosim.sim import npz as sim_npz
+from stereosim.sim.datasets import shared_data_dir
+from stereosim.sim.errors import ConfigError, InputError
+from stereosim.sim.io import (
     disparity_to_colour,
     encode_png,
     read_gt,
@@ -27,7 +26,7 @@ from sim.io import (
     write_disparity_png,
     write_pfm,
 )
-from sim.npz import NpzArrays, open_npz
+from stereosim.sim.npz import NpzArrays, open_npz
 
 DATA = shared_data_dir()
 needs_data = pytest.mark.skipif(
@@ -667,11 +666,11 @@ def test_npz_zip_bomb_by_ratio_and_by_size(tmp_path, monkeypatch):
     _refused(bomb, r"unpacks \d+x \(2.0 MiB from \d+ bytes\), beyond the 100x of real arrays")
     # Under a lower cap (and no ratio limit), a deflated member larger than the cap is refused
     # from the directory, without inflating it.
-    monkeypatch.setattr(sim.npz, "MAX_NPZ_BYTES", 1 << 20)
-    monkeypatch.setattr(sim.npz, "MAX_NPZ_RATIO", 10**9)
+    monkeypatch.setattr(sim_npz, "MAX_NPZ_BYTES", 1 << 20)
+    monkeypatch.setattr(sim_npz, "MAX_NPZ_RATIO", 10**9)
     peak = _peak_bytes(lambda: _refused(bomb, r"2.0 MiB unpacked, more than .* 1.0 MiB allowed"))
     assert peak < 1 << 20
-    monkeypatch.setattr(sim.npz, "MAX_NPZ_BYTES", 4 << 20)
+    monkeypatch.setattr(sim_npz, "MAX_NPZ_BYTES", 4 << 20)
     assert _open(bomb)["w"].shape == (1 << 18,)  # under the cap, the same file loads
 
 

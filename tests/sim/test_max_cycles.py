@@ -8,13 +8,13 @@ import json
 import numpy as np
 import pytest
 
-from sim.cli import main
-from sim.config import load_config
-from sim.cycle.chip import run_cycle
-from sim.cycle.clock import BudgetExceeded
-from sim.cycle.engine.run import run_compiled
-from sim.cycle.plan import build_plan
-from sim.io import encode_png
+from stereosim.sim.cli import main
+from stereosim.sim.config import load_config
+from stereosim.sim.cycle.chip import run_cycle
+from stereosim.sim.cycle.clock import BudgetExceeded
+from stereosim.sim.cycle.engine.run import run_compiled
+from stereosim.sim.cycle.plan import build_plan
+from stereosim.sim.io import encode_png
 
 CENSUS = {"sva.disparities": 16, "nna.descriptor": "census"}
 

@@ -6,8 +6,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from sim.errors import InputError
-from sim.metrics import (
+from stereosim.sim.errors import InputError
+from stereosim.sim.metrics import (
     BAD_KEYS,
     BAD_THRESHOLDS,
     DENSE_KEYS,

@@ -10,9 +10,9 @@ import os
 import numpy as np
 import pytest
 
-from sim import outputs
-from sim.errors import InputError
-from sim.outputs import atomic_write_bytes, check_outputs, json_text, publish
+from stereosim.sim import outputs
+from stereosim.sim.errors import InputError
+from stereosim.sim.outputs import atomic_write_bytes, check_outputs, json_text, publish
 
 
 def test_atomic_write_replaces_and_leaves_no_temp_files(tmp_path):

@@ -10,20 +10,20 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from sim.config import load_config
-from sim.cycle.chip import run_readable
-from sim.cycle.engine.run import run_compiled
-from sim.cycle.frames import functional_words
-from sim.cycle.plan import build_plan
-from sim.cycle.rules import (
+from stereosim.sim.config import load_config
+from stereosim.sim.cycle.chip import run_readable
+from stereosim.sim.cycle.engine.run import run_compiled
+from stereosim.sim.cycle.frames import functional_words
+from stereosim.sim.cycle.plan import build_plan
+from stereosim.sim.cycle.rules import (
     camera_busy_cycles,
     camera_cycle,
     camera_frame_start,
     camera_in_lines,
     camera_pixels_streamed,
 )
-from sim.cycle.stops import CameraOverflow
-from sim.errors import ConfigError
+from stereosim.sim.cycle.stops import CameraOverflow
+from stereosim.sim.errors import ConfigError
 
 H, W = 16, 40
 # CNN at 400 MHz: a 16x40 frame is 640 descriptors x 9 MAC cycles = 5,760 NNA cycles of work

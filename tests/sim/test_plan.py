@@ -5,15 +5,15 @@ line-buffer SRAM, both cameras named when they overflow together, one dispatcher
 import numpy as np
 import pytest
 
-from sim.api import run
-from sim.cli import main
-from sim.config import load_config
-from sim.cycle.estimate import estimate
-from sim.cycle.plan import build_plan, sram_bits
-from sim.cycle.simulate import simulate
-from sim.cycle.stops import CameraOverflow
-from sim.errors import ConfigError
-from sim.io import encode_png
+from stereosim.sim.api import run
+from stereosim.sim.cli import main
+from stereosim.sim.config import load_config
+from stereosim.sim.cycle.estimate import estimate
+from stereosim.sim.cycle.plan import build_plan, sram_bits
+from stereosim.sim.cycle.simulate import simulate
+from stereosim.sim.cycle.stops import CameraOverflow
+from stereosim.sim.errors import ConfigError
+from stereosim.sim.io import encode_png
 
 SMALL = {"sva.disparities": 16}
 

@@ -3,9 +3,9 @@ analytic work bound is the one its comment derives by hand."""
 
 import pytest
 
-from sim.cli import PRESETS, main
-from sim.config import DESCRIPTOR_DEFAULTS, load_config
-from sim.cycle.estimate import estimate
+from stereosim.sim.cli import PRESETS, main
+from stereosim.sim.config import DESCRIPTOR_DEFAULTS, load_config
+from stereosim.sim.cycle.estimate import estimate
 
 NAMES = ("paper-720p", "1080p60", "census-baseline")
 

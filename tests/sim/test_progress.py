@@ -12,13 +12,13 @@ import numpy as np
 import pytest
 from tqdm import tqdm
 
-from quant.quantizer import FloatModel, QuantizerConfig, quantize
-from sim import progress
-from sim.config import load_config
-from sim.cycle import kernel
-from sim.cycle.chip import run_cycle
-from sim.cycle.simulate import COMPILE_SECONDS
-from sim.progress import (
+from stereosim.quant.quantizer import FloatModel, QuantizerConfig, quantize
+from stereosim.sim import progress
+from stereosim.sim.config import load_config
+from stereosim.sim.cycle import kernel
+from stereosim.sim.cycle.chip import run_cycle
+from stereosim.sim.cycle.simulate import COMPILE_SECONDS
+from stereosim.sim.progress import (
     COMPILE_MESSAGE,
     compile_notice,
     index_file,
@@ -196,7 +196,7 @@ def test_the_notice_goes_to_stderr_only(tmp_path, capsys, monkeypatch, env):
 def test_a_run_announces_the_compile_with_an_empty_cache(tmp_path):
     """The real kernel groups, in a process whose numba cache is an empty folder: the notice
     is due, on stderr only (nothing is compiled here: the check reads the cache folder)."""
-    code = ("from sim.cycle.simulate import announce_compiling as a; "
+    code = ("from stereosim.sim.cycle.simulate import announce_compiling as a; "
             "print(a('fast'), a('functional'))")
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
     done = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, check=False,

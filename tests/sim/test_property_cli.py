@@ -28,8 +28,8 @@ import pytest
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
-from sim.cli import main
-from sim.io import encode_png, pfm_bytes
+from stereosim.sim.cli import main
+from stereosim.sim.io import encode_png, pfm_bytes
 
 EXAMPLES = int(os.environ.get("STEREOSIM_PROPERTY_EXAMPLES", "40"))
 RUN_FILES = ("disparity.pfm", "disparity.png", "report.json")

@@ -9,12 +9,12 @@ import math
 import numpy as np
 import pytest
 
-from sim.api import run
-from sim.config import load_config
-from sim.cycle.chip import run_readable
-from sim.cycle.engine.run import run_compiled
-from sim.cycle.plan import architecture_report, build_plan
-from sim.cycle.stages import lane_groups, lg, sorting_depth, tree_cycles
+from stereosim.sim.api import run
+from stereosim.sim.config import load_config
+from stereosim.sim.cycle.chip import run_readable
+from stereosim.sim.cycle.engine.run import run_compiled
+from stereosim.sim.cycle.plan import architecture_report, build_plan
+from stereosim.sim.cycle.stages import lane_groups, lg, sorting_depth, tree_cycles
 
 # census (1 NNA cycle per descriptor, 32 bits), equal clocks: the input side is the one of
 # tests/sim/test_chip.py::test_census_first_and_last_output_cycles (row 0 ready at 6W + 3); the

@@ -11,14 +11,14 @@ import sys
 import numpy as np
 import pytest
 
-from nna.descriptor import compute_descriptor
-from sim.config import load_config
-from sim.cycle.chip import run_readable
-from sim.cycle.engine.run import run_compiled
-from sim.cycle.frames import FrameSupply
-from sim.cycle.plan import build_plan
-from sim.errors import ConfigError, InputError
-from sva.pipeline import sva_stream
+from stereosim.nna.descriptor import compute_descriptor
+from stereosim.sim.config import load_config
+from stereosim.sim.cycle.chip import run_readable
+from stereosim.sim.cycle.engine.run import run_compiled
+from stereosim.sim.cycle.frames import FrameSupply
+from stereosim.sim.cycle.plan import build_plan
+from stereosim.sim.errors import ConfigError, InputError
+from stereosim.sva.pipeline import sva_stream
 
 # census (1 NNA cycle per descriptor), equal clocks: the worked example of docs/architecture.md
 # (row 0 of the first frame ready at 6W + 3, its first word popped at 6W + 4 + L)
@@ -159,7 +159,7 @@ def test_the_cli_runs_a_stream_with_a_trace_across_frames(tmp_path):
     """stereosim run --frames 3 on the default scene (RGB, made grey): the report's stream, a
     VCD window in the second frame, the saved frames, one set."""
     out = tmp_path / "out"
-    cmd = [sys.executable, "-m", "sim.cli", "run", "--frames", "3", "--descriptor", "census",
+    cmd = [sys.executable, "-m", "stereosim.sim.cli", "run", "--frames", "3", "--descriptor", "census",
            "--disparities", "32", "--save-every", "2", "--vcd", str(out / "t.vcd"),
            "--trace-window", "sva:700000:700400", "--out", str(out)]
     done = subprocess.run(cmd, capture_output=True, text=True, timeout=600)

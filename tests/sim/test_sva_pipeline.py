@@ -8,11 +8,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sim.config import load_config
-from sim.cycle.chip import run_cycle, run_readable
-from sim.cycle.engine.run import run_compiled
-from sim.cycle.plan import build_plan
-from traces.log import changes_of
+from stereosim.sim.config import load_config
+from stereosim.sim.cycle.chip import run_cycle, run_readable
+from stereosim.sim.cycle.engine.run import run_compiled
+from stereosim.sim.cycle.plan import build_plan
+from stereosim.traces.log import changes_of
 
 # the 3x3 median and 5x5 box of tests/sim/test_chip.py's derivation (latency 49 at D = 16)
 SAME = {"clocks.nna_mhz": 400, "clocks.sva_mhz": 400, "nna.descriptor": "census",

@@ -15,11 +15,11 @@ from pathlib import Path
 import distributed
 import pytest
 
-from sim.cli import main
-from sim.datasets import shared_data_dir
-from sim.errors import ConfigError
-from sim.plot import sweep_plots
-from sim.sweep import (
+from stereosim.sim.cli import main
+from stereosim.sim.datasets import shared_data_dir
+from stereosim.sim.errors import ConfigError
+from stereosim.sim.plot import sweep_plots
+from stereosim.sim.sweep import (
     CSV_NAME,
     LEAD_COLUMNS,
     MAX_POINTS,
@@ -273,7 +273,7 @@ def _env() -> dict:
 
 
 def _stereosim(args, cwd, **kw) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "sim.cli", *map(str, args)], check=False,
+    return subprocess.run([sys.executable, "-m", "stereosim.sim.cli", *map(str, args)], check=False,
                           cwd=cwd,
                           env=_env(), capture_output=True, text=True, timeout=180, **kw)
 
@@ -328,7 +328,7 @@ def test_two_sweep_processes_into_one_out_lose_no_row(tmp_path):
                     "a.toml"),
              _write(tmp_path, _estimate([32], extra=f'"fifo.nna_to_sva_depth" = {depths}\n'),
                     "b.toml")]
-    procs = [subprocess.Popen([sys.executable, "-m", "sim.cli", "sweep", str(f), "--out", "out",
+    procs = [subprocess.Popen([sys.executable, "-m", "stereosim.sim.cli", "sweep", str(f), "--out", "out",
                                "--quiet", "--workers", "1"], cwd=tmp_path, env=_env(),
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
              for f in files]
@@ -692,7 +692,7 @@ def test_ctrl_c_stops_a_sweep_within_seconds_and_leaves_a_valid_csv(tmp_path):
     path = _write(tmp_path, 'mode = "cycle"\nscenes = ["640x200"]\n[set]\n'
                   f'"sva.disparities" = 32\n[grid]\n"fifo.nna_to_sva_depth" = {depths}\n')
     csv_path = tmp_path / "out" / CSV_NAME
-    proc = subprocess.Popen([sys.executable, "-m", "sim.cli", "sweep", str(path), "--out", "out",
+    proc = subprocess.Popen([sys.executable, "-m", "stereosim.sim.cli", "sweep", str(path), "--out", "out",
                              "--quiet", "--workers", "2"], cwd=tmp_path, env=_env(),
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             start_new_session=True, preexec_fn=_default_sigint)

@@ -6,8 +6,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_array_equal
 
-from sim.errors import InputError
-from sva.cost import cost_row_add, cost_row_update, hamming_cost, hamming_cost_ref, reverse_row
+from stereosim.sim.errors import InputError
+from stereosim.sva.cost import cost_row_add, cost_row_update, hamming_cost, hamming_cost_ref, reverse_row
 
 SHAPES = [(1, 1), (1, 17), (19, 1), (7, 13), (9, 21)]
 
@@ -125,7 +125,7 @@ def test_bad_inputs_raise():
 
 
 def test_cosine_cost_of_sign_vectors_is_hamming():
-    from sva.cost import cosine_cost, hamming_cost
+    from stereosim.sva.cost import cosine_cost, hamming_cost
 
     rng = np.random.default_rng(11)
     for bits, h, w, dn in ((32, 7, 29, 16), (8, 5, 13, 12)):
@@ -138,7 +138,7 @@ def test_cosine_cost_of_sign_vectors_is_hamming():
 
 
 def test_cosine_cost_by_hand():
-    from sva.cost import cosine_cost
+    from stereosim.sva.cost import cosine_cost
 
     left = np.array([[[1.0, 0.0], [0.0, 2.0], [3.0, 3.0]]])  # (1, 3, 2)
     right = np.array([[[0.0, 1.0], [1.0, 0.0], [-1.0, -1.0]]])

@@ -6,8 +6,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_array_equal
 
-from sim.errors import InputError
-from sva.median import median, median_ref, selection_network
+from stereosim.sim.errors import InputError
+from stereosim.sva.median import median, median_ref, selection_network
 
 SHAPES = [(1, 1), (1, 17), (19, 1), (7, 13), (9, 21)]
 

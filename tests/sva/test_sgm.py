@@ -6,8 +6,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_array_equal
 
-from sim.errors import InputError
-from sva.sgm import effective_p2, sgm, sgm_ref
+from stereosim.sim.errors import InputError
+from stereosim.sva.sgm import effective_p2, sgm, sgm_ref
 
 # (19, 1), (23, 2), (40, 3): taller than W + 2, so the top paths' row rings wrap many times
 SHAPES = [(1, 1), (1, 17), (19, 1), (23, 2), (40, 3), (7, 13), (9, 21)]

@@ -11,14 +11,14 @@ import pytest
 import pywellen
 import vcdvcd
 
-from sim.cli import main
-from sim.config import load_config
-from sim.cycle.chip import build_chip
-from sim.cycle.clock import BudgetExceeded
-from sim.cycle.engine.run import run_compiled
-from sim.cycle.plan import build_plan
-from sim.io import read_pfm
-from sim.tracing import TraceRequest, run_traced, write_traces
+from stereosim.sim.cli import main
+from stereosim.sim.config import load_config
+from stereosim.sim.cycle.chip import build_chip
+from stereosim.sim.cycle.clock import BudgetExceeded
+from stereosim.sim.cycle.engine.run import run_compiled
+from stereosim.sim.cycle.plan import build_plan
+from stereosim.sim.io import read_pfm
+from stereosim.sim.tracing import TraceRequest, run_traced, write_traces
 
 
 def run_cycle_fast(left, right, cfg):

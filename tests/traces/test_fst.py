@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 import pywellen
 
-from sim.cli import main
-from traces.fst import fst_bytes
-from traces.synthetic import synthetic_log
-from traces.vcd import vcd_bytes
+from stereosim.sim.cli import main
+from stereosim.traces.fst import fst_bytes
+from stereosim.traces.synthetic import synthetic_log
+from stereosim.traces.vcd import vcd_bytes
 
 
 def _read(path) -> tuple[str, str, dict]:

@@ -4,9 +4,9 @@ tests/golden/make_traces_golden.py only when a format changes on purpose)."""
 import importlib.util
 from pathlib import Path
 
-from traces.gtkw import gtkw_text, status_filter_text
-from traces.timeline import timeline_bytes
-from traces.vcd import vcd_bytes
+from stereosim.traces.gtkw import gtkw_text, status_filter_text
+from stereosim.traces.timeline import timeline_bytes
+from stereosim.traces.vcd import vcd_bytes
 
 GOLDEN = Path(__file__).resolve().parents[1] / "golden"
 

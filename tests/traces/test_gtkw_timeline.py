@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 import vcdvcd
 
-from sim.errors import ConfigError
-from traces.gtkw import (
+from stereosim.sim.errors import ConfigError
+from stereosim.traces.gtkw import (
     STATUS_NAMES,
     aliases,
     gtkw_text,
@@ -15,11 +15,11 @@ from traces.gtkw import (
     write_gtkw,
     zoom_to_fit,
 )
-from traces.log import Clock, Signal, TraceLog, changes_of, select, window
-from traces.synthetic import synthetic_log
-from traces.timeline import STATUS_NAMES as TIMELINE_STATUS_NAMES
-from traces.timeline import timeline_bytes, timeline_events, write_timeline
-from traces.vcd import write_vcd
+from stereosim.traces.log import Clock, Signal, TraceLog, changes_of, select, window
+from stereosim.traces.synthetic import synthetic_log
+from stereosim.traces.timeline import STATUS_NAMES as TIMELINE_STATUS_NAMES
+from stereosim.traces.timeline import timeline_bytes, timeline_events, write_timeline
+from stereosim.traces.vcd import write_vcd
 
 # ---- GTKWave ----------------------------------------------------------------------------------
 

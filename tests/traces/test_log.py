@@ -5,10 +5,10 @@ import dataclasses
 import numpy as np
 import pytest
 
-from sim.cycle.clock import Block, ClockDomain
-from sim.cycle.kernel import Simulator
-from sim.errors import ConfigError
-from traces.log import Clock, Signal, TraceLog, TraceRecorder, select, validate, window
+from stereosim.sim.cycle.clock import Block, ClockDomain
+from stereosim.sim.cycle.kernel import Simulator
+from stereosim.sim.errors import ConfigError
+from stereosim.traces.log import Clock, Signal, TraceLog, TraceRecorder, select, validate, window
 
 
 def _log(**over):
@@ -161,7 +161,7 @@ def test_dump_of_a_simulation_reads_back_as_the_simulators_state(tmp_path):
     values equal what the simulator itself reported (signal_values after the step)."""
     import pywellen
 
-    from traces.vcd import write_vcd
+    from stereosim.traces.vcd import write_vcd
 
     fast, slow = ClockDomain("nna", 460e6), ClockDomain("camera", 74.25e6, phase_fs=1_000_000)
     keys = ["f.count", "s.count"]

@@ -12,11 +12,11 @@ import vcdvcd
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from sim.cycle.clock import ClockDomain
-from sim.errors import ConfigError
-from traces.log import Clock, Signal, TraceLog, select, window
-from traces.synthetic import synthetic_log
-from traces.vcd import (
+from stereosim.sim.cycle.clock import ClockDomain
+from stereosim.sim.errors import ConfigError
+from stereosim.traces.log import Clock, Signal, TraceLog, select, window
+from stereosim.traces.synthetic import synthetic_log
+from stereosim.traces.vcd import (
     bound_vcd_bytes,
     clock_edges,
     estimate_vcd_bytes,

@@ -5,14 +5,14 @@ import sys
 import numpy as np
 import pytest
 
-from sim.cli import _Parser
-from sim.errors import InputError, UserError
-from traces.cli import add_wave_parser
-from traces.log import changes_of
-from traces.synthetic import synthetic_log
-from traces.vcd import write_vcd
-from traces.vcdread import read_vcd, value_at
-from traces.wave import window_units
+from stereosim.sim.cli import _Parser
+from stereosim.sim.errors import InputError, UserError
+from stereosim.traces.cli import add_wave_parser
+from stereosim.traces.log import changes_of
+from stereosim.traces.synthetic import synthetic_log
+from stereosim.traces.vcd import write_vcd
+from stereosim.traces.vcdread import read_vcd, value_at
+from stereosim.traces.wave import window_units
 
 
 def _main(argv):

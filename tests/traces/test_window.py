@@ -4,11 +4,11 @@ resolution into femtoseconds for a chip plan (sim.tracing.window_fs)."""
 import numpy as np
 import pytest
 
-from sim.config import load_config
-from sim.cycle.plan import build_plan
-from sim.errors import ConfigError
-from sim.tracing import window_fs
-from traces.window import Window, parse_window
+from stereosim.sim.config import load_config
+from stereosim.sim.cycle.plan import build_plan
+from stereosim.sim.errors import ConfigError
+from stereosim.sim.tracing import window_fs
+from stereosim.traces.window import Window, parse_window
 
 
 @pytest.mark.parametrize("spec, want", [

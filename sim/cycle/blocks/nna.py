@@ -36,11 +36,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from nna.descriptor import compute_descriptor
-from sim.config import NnaConfig
-from sim.cycle.clock import Block, ClockDomain
-from sim.cycle.plan import STATUS_CODES, BlockPlan
-from sim.cycle.rules import frame_row, nna_last_input_row, nna_rows_started_before_input
+from stereosim.nna.descriptor import compute_descriptor
+from stereosim.sim.config import NnaConfig
+from stereosim.sim.cycle.clock import Block, ClockDomain
+from stereosim.sim.cycle.plan import STATUS_CODES, BlockPlan
+from stereosim.sim.cycle.rules import frame_row, nna_last_input_row, nna_rows_started_before_input
 
 
 class NnaSubmodule(Block):

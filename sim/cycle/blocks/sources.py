@@ -15,9 +15,9 @@ from collections.abc import Callable
 
 import numpy as np
 
-from sim.cycle.clock import Block, ClockDomain
-from sim.cycle.plan import STATUS_CODES, BlockPlan, DramPlan
-from sim.cycle.rules import (
+from stereosim.sim.cycle.clock import Block, ClockDomain
+from stereosim.sim.cycle.plan import STATUS_CODES, BlockPlan, DramPlan
+from stereosim.sim.cycle.rules import (
     burst_last,
     burst_of,
     camera_cycle,

@@ -49,18 +49,18 @@ from collections import deque
 
 import numpy as np
 
-from sim.config import SvaConfig
-from sim.cycle.clock import ACTIVITIES, Block, ClockDomain
-from sim.cycle.plan import STATUS_CODES, BlockPlan
-from sim.cycle.rules import (
+from stereosim.sim.config import SvaConfig
+from stereosim.sim.cycle.clock import ACTIVITIES, Block, ClockDomain
+from stereosim.sim.cycle.plan import STATUS_CODES, BlockPlan
+from stereosim.sim.cycle.rules import (
     frame_row,
     rows_ready_in_frame,
     sva_issue_tick,
     sva_last_input_row,
     sva_rows_done_before_input,
 )
-from sim.cycle.stages import stage_offsets
-from sva.pipeline import SvaStream
+from stereosim.sim.cycle.stages import stage_offsets
+from stereosim.sva.pipeline import SvaStream
 
 NEVER = -(1 << 40)  # "the previous issue tick" before the first word
 

@@ -30,10 +30,10 @@ from typing import NamedTuple
 
 import numpy as np
 
-from sim.cycle.buffers import tracked
-from sim.cycle.plan import ChipPlan
-from sim.cycle.rules import FS_PER_S
-from sim.cycle.stages import stage_offsets
+from stereosim.sim.cycle.buffers import tracked
+from stereosim.sim.cycle.plan import ChipPlan
+from stereosim.sim.cycle.rules import FS_PER_S
+from stereosim.sim.cycle.stages import stage_offsets
 
 INF = 1 << 62
 

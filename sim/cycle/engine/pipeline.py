@@ -26,9 +26,9 @@ from __future__ import annotations
 
 from numba import njit
 
-from sim.cycle.engine.layout import ERR_GAPS, ERR_RING, INF
-from sim.cycle.engine.ring import busy, rd, view
-from sim.cycle.rules import (
+from stereosim.sim.cycle.engine.layout import ERR_GAPS, ERR_RING, INF
+from stereosim.sim.cycle.engine.ring import busy, rd, view
+from stereosim.sim.cycle.rules import (
     burst_of,
     dram_slot,
     dram_write_done_fs,

@@ -14,9 +14,9 @@ from __future__ import annotations
 
 from numba import njit
 
-from sim.cycle.engine.layout import END_OVERFLOW, INF, K_MEMORY
-from sim.cycle.engine.ring import busy, ratio
-from sim.cycle.rules import (
+from stereosim.sim.cycle.engine.layout import END_OVERFLOW, INF, K_MEMORY
+from stereosim.sim.cycle.engine.ring import busy, ratio
+from stereosim.sim.cycle.rules import (
     burst_last,
     burst_of,
     camera_cycle,

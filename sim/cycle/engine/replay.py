@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from numba import njit
 
-from sim.cycle.engine.layout import (
+from stereosim.sim.cycle.engine.layout import (
     A_BLOCKED,
     A_BUSY,
     A_IDLE,
@@ -29,10 +29,10 @@ from sim.cycle.engine.layout import (
     K_SVA,
     S_T,
 )
-from sim.cycle.engine.pipeline import arrival, issued_before, words_between
-from sim.cycle.engine.ring import rd
-from sim.cycle.engine.walkers import tile_input_before, tile_output_before
-from sim.cycle.rules import (
+from stereosim.sim.cycle.engine.pipeline import arrival, issued_before, words_between
+from stereosim.sim.cycle.engine.ring import rd
+from stereosim.sim.cycle.engine.walkers import tile_input_before, tile_output_before
+from stereosim.sim.cycle.rules import (
     burst_of,
     camera_cycle,
     camera_frame_start,

@@ -18,10 +18,10 @@ import time
 import numpy as np
 from numba import njit
 
-from nna.descriptor import compute_descriptor
-from sim.cycle.buffers import buffer_report
-from sim.cycle.chip import FrameResult, trace_clocks, trace_signals
-from sim.cycle.clock import (
+from stereosim.nna.descriptor import compute_descriptor
+from stereosim.sim.cycle.buffers import buffer_report
+from stereosim.sim.cycle.chip import FrameResult, trace_clocks, trace_signals
+from stereosim.sim.cycle.clock import (
     ACTIVITIES,
     BudgetExceeded,
     DeadlockError,
@@ -32,8 +32,8 @@ from sim.cycle.clock import (
     stop_message,
     watchdog_message,
 )
-from sim.cycle.rules import camera_busy_cycles, camera_frame_start, seen_from
-from sim.cycle.engine.layout import (
+from stereosim.sim.cycle.rules import camera_busy_cycles, camera_frame_start, seen_from
+from stereosim.sim.cycle.engine.layout import (
     END_DONE,
     END_OVERFLOW,
     ERR_GAPS,
@@ -44,7 +44,7 @@ from sim.cycle.engine.layout import (
     ring_capacity,
     serialise,
 )
-from sim.cycle.engine.replay import (
+from stereosim.sim.cycle.engine.replay import (
     DRAM,
     FRAME_BUFFERS,
     block_status,
@@ -54,16 +54,16 @@ from sim.cycle.engine.replay import (
     record_window,
     sample,
 )
-from sim.cycle.engine.replay import fifo_counts as fifo_state
-from sim.cycle.engine.reads import decide_until, note_source_wait
-from sim.cycle.engine.streams import run_pass
-from sim.cycle.engine.walkers import finish_fifos, note_camera, pop_cycle
-from sim.cycle.frames import FrameSupply, camera_frames
-from sim.cycle.plan import ChipPlan
-from sim.cycle.report import cycle_report
-from sim.cycle.stops import CameraOverflow, frame_buffer_message, overflow_message
-from sva.pipeline import sva_stream
-from traces.log import TraceLog
+from stereosim.sim.cycle.engine.replay import fifo_counts as fifo_state
+from stereosim.sim.cycle.engine.reads import decide_until, note_source_wait
+from stereosim.sim.cycle.engine.streams import run_pass
+from stereosim.sim.cycle.engine.walkers import finish_fifos, note_camera, pop_cycle
+from stereosim.sim.cycle.frames import FrameSupply, camera_frames
+from stereosim.sim.cycle.plan import ChipPlan
+from stereosim.sim.cycle.report import cycle_report
+from stereosim.sim.cycle.stops import CameraOverflow, frame_buffer_message, overflow_message
+from stereosim.sva.pipeline import sva_stream
+from stereosim.traces.log import TraceLog
 
 
 @njit(cache=True)

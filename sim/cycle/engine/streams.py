@@ -39,7 +39,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from sim.cycle.engine.layout import (
+from stereosim.sim.cycle.engine.layout import (
     END_CAP,
     END_DONE,
     END_OVERFLOW,
@@ -48,11 +48,11 @@ from sim.cycle.engine.layout import (
     ERR_RING,
     INF,
 )
-from sim.cycle.engine.pipeline import advance_sva_out_and_sink
-from sim.cycle.engine.reads import decide_frame, reader_first
-from sim.cycle.engine.ring import busy, ratio, rd, view
-from sim.cycle.engine.walkers import walk_all
-from sim.cycle.rules import (
+from stereosim.sim.cycle.engine.pipeline import advance_sva_out_and_sink
+from stereosim.sim.cycle.engine.reads import decide_frame, reader_first
+from stereosim.sim.cycle.engine.ring import busy, ratio, rd, view
+from stereosim.sim.cycle.engine.walkers import walk_all
+from stereosim.sim.cycle.rules import (
     camera_cycle,
     memory_first_cycle,
     nna_last_input_row,

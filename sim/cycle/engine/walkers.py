@@ -22,7 +22,7 @@ from __future__ import annotations
 
 from numba import njit
 
-from sim.cycle.engine.layout import (
+from stereosim.sim.cycle.engine.layout import (
     ERR_GAPS,
     ERR_RING,
     F_MERGE,
@@ -32,9 +32,9 @@ from sim.cycle.engine.layout import (
     K_SVA,
     S_T,
 )
-from sim.cycle.engine.pipeline import arrival, cycle_of, issued_before, words_between
-from sim.cycle.engine.ring import busy, rd, view
-from sim.cycle.rules import (
+from stereosim.sim.cycle.engine.pipeline import arrival, cycle_of, issued_before, words_between
+from stereosim.sim.cycle.engine.ring import busy, rd, view
+from stereosim.sim.cycle.rules import (
     camera_frame_start,
     nna_last_input_row,
     seen_from,

@@ -1,0 +1,32 @@
+"""stereosim: a cycle-accurate simulator of an edge stereo-vision SoC (NNA descriptor + SGM
+stereo accelerator).
+
+``stereosim.run(left, right, mode=..., config=..., overrides=...)`` simulates one frame and
+``stereosim.run_stream(pairs, ...)`` a stream of them (:mod:`stereosim.sim.api`); the command
+line is ``stereosim`` (:mod:`stereosim.sim.cli`).
+
+This one top-level package holds the project's folders as sub-packages (``pyproject.toml`` maps
+them): :mod:`stereosim.sim` (the core, the cycle model, the application), :mod:`stereosim.nna`
+and :mod:`stereosim.sva` (the two accelerators' stages), :mod:`stereosim.quant` (the integer
+arithmetic and the quantizer) and :mod:`stereosim.traces` (waveforms). Like ``stereosim.sim``,
+it imports only the core here: the API's names resolve on first use (PEP 562), so that
+``import stereosim.nna.census`` does not load the whole application.
+"""
+
+from stereosim.sim import ChipConfig, ConfigError, InputError, UserError, load_config
+
+__all__ = ["ChipConfig", "ConfigError", "FrameOutput", "InputError", "Result", "Stream",
+           "UserError", "load_config", "run", "run_stream"]
+_API = ("run", "Result", "run_stream", "Stream", "FrameOutput")
+
+
+def __getattr__(name):
+    if name in _API:
+        from stereosim.sim import api
+
+        return getattr(api, name)
+    raise AttributeError(f"module 'stereosim' has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(__all__))
