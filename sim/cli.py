@@ -687,9 +687,10 @@ def build_parser() -> argparse.ArgumentParser:
     cp.add_argument("--png", metavar="PATH", help="also draw the plan into this PNG")
     _add_config_options(cp)
     cp.set_defaults(func=cmd_config_plan)
-    cd = csub.add_parser("diff", help="keys that differ between two TOML configurations")
-    cd.add_argument("a")
-    cd.add_argument("b")
+    cd = csub.add_parser("diff", help="keys that differ between two configurations (TOML files "
+                         "or presets)")
+    cd.add_argument("a", metavar="A", type=config_file, help="TOML file or preset (e.g. paper-720p)")
+    cd.add_argument("b", metavar="B", type=config_file, help="TOML file or preset (e.g. 1080p60)")
     cd.set_defaults(func=cmd_config_diff)
 
 

@@ -147,7 +147,22 @@ def find_scene(folder: str | os.PathLike, gt_scale: float | None = None) -> Scen
             gt_right=folder / gt_right if is_file(folder / gt_right, "GT") else None,
             ndisp=ndisp,
         )
+    scenes = [d.name for d in _scene_subfolders(folder)]
+    if scenes:
+        raise InputError(
+            f"{path_text(folder)} is a folder of {len(scenes)} scenes ({', '.join(scenes[:3])}"
+            f"{', ...' if len(scenes) > 3 else ''}), not one scene: run one of them "
+            f"(stereosim run {path_text(folder / scenes[0])}) or score them all (stereosim eval "
+            f"{path_text(folder)})")
     raise InputError(f"{path_text(folder)} is not a scene folder: expected {_EXPECTED}")
+
+
+def _scene_subfolders(folder: Path) -> list[Path]:
+    """The sub-folders of ``folder`` that are scenes (none if it cannot be listed)."""
+    try:
+        return [d for d in sub_folders(folder, "dataset folder") if _is_scene(d)]
+    except InputError:
+        return []
 
 
 def _is_scene(folder: Path) -> bool:

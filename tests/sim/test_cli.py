@@ -130,6 +130,17 @@ def test_config_diff(tmp_path, capsys):
     assert stdout.splitlines() == ["sva.p1: 3 -> 4", "sva.paths: 4 -> 2", "sva.sum_bits: 14 -> 13"]
 
 
+def test_config_diff_takes_preset_names_as_run_does(tmp_path, capsys):
+    """``config diff paper-720p 1080p60`` reads the presets of configs/, like ``--config``; an
+    unknown name lists the presets in one line."""
+    code, stdout, _ = _run(["config", "diff", "paper-720p", "1080p60"], capsys)
+    assert code == 0
+    assert "nna.stereo_submodules: 2 -> 6" in stdout.splitlines()
+    code, _, err = _run(["config", "diff", "paper-720p", "no-such-preset"], capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert "'no-such-preset'" in err and "paper-720p" in err
+
+
 @pytest.mark.skipif(DATA is None, reason="../shared/data (Middlebury scenes) is not present")
 def test_run_on_a_2014_scene_folder_takes_d_from_calib(tmp_path, capsys):
     scene = DATA / "middlebury2014_trainingQ" / "ArtL"

@@ -116,6 +116,17 @@ def test_find_and_load_synthetic_2014(tmp_path):
     assert find_scenes(tmp_path / "Tiny")[0].name == "Tiny"
 
 
+def test_a_folder_of_scenes_given_as_one_scene_points_to_eval(tmp_path):
+    """``run`` on a dataset folder names its scenes and the two commands that fit."""
+    for name in ("A", "B"):
+        _scene_2014(tmp_path / name)
+    with pytest.raises(InputError) as err:
+        find_scene(tmp_path)
+    text = str(err.value)
+    assert "folder of 2 scenes (A, B)" in text
+    assert f"stereosim run {tmp_path / 'A'}" in text and f"stereosim eval {tmp_path}" in text
+
+
 def test_load_scene_rejects_mismatched_sizes(tmp_path):
     _scene_2014(tmp_path / "S")
     _png(tmp_path / "S" / "im1.png", np.zeros((4, 7, 3), np.uint8))
