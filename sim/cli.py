@@ -78,6 +78,7 @@ from stereosim.sim.stream_cli import cmd_run_stream
 from stereosim.sim.summary import eval_document, eval_line, eval_tables, eval_timing, print_summary
 from stereosim.sim.tracing import TraceRequest, parse_window, trace_files, trace_paths
 from stereosim.traces.cli import add_wave_parser
+from stereosim.traces.log import parse_patterns
 
 EVAL_KEYS = ("bad0.5", "bad1", "bad2", "bad4", "invalid", "totbad", "avgerr", "rms")
 RUN_FILES = ("disparity.pfm", "disparity.png", "report.json")
@@ -335,7 +336,7 @@ def _trace_request(args):
     parse_window(args.trace_window)  # bad windows fail before the run
     if not args.trace_limit > 0:
         raise ConfigError(f"--trace-limit must be > 0 MB, got {args.trace_limit:g}")
-    patterns = tuple(p.strip() for item in args.trace for p in item.split(",") if p.strip())
+    patterns = parse_patterns(args.trace, "--trace (--signals)")
     return TraceRequest(window=args.trace_window, patterns=patterns, vcd=args.vcd,
                         timeline=args.timeline, force=args.force, limit_mb=args.trace_limit)
 

@@ -8,7 +8,8 @@ Perfetto timeline and waveform pictures, all from one engine-agnostic columnar l
   block, status names through a translate filter;
 - :mod:`traces.window` -- the one window syntax of ``run --trace-window`` and ``wave --window``;
 - :mod:`traces.timeline` -- Chrome/Perfetto trace-event JSON (busy/stall spans, FIFO counters);
-- :mod:`traces.vcdread` and :mod:`traces.wave` -- read a VCD back, draw it with matplotlib;
+- :mod:`traces.vcdread` and :mod:`traces.dumpread` -- read a VCD, or an FST (pywellen), back;
+- :mod:`traces.wave` -- draw a dump with matplotlib: statuses by name, counts in decimal;
 - :mod:`traces.cli` -- the ``stereosim wave`` subcommand.
 
 ``docs/traces.md`` describes the format, the signal names and the viewers.

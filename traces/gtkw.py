@@ -49,7 +49,8 @@ from stereosim.sim.errors import ConfigError
 from stereosim.sim.outputs import atomic_write_bytes
 from stereosim.traces.log import CLOCK_SCOPE, TraceLog, validate
 
-# Keep in step with traces.timeline.STATUS_NAMES (a test checks it).
+#: The names and GTKWave colours of the status codes 0..3, as the chip traces them
+#: (sim.cycle.plan.STATUS_CODES); the timeline and the wave picture read them from here.
 STATUS_NAMES = ("idle", "busy", "starved", "blocked")
 STATUS_COLOURS = (None, "green", "orange", "red")
 STATUS_SUFFIX = ".status"

@@ -272,6 +272,22 @@ def window(log: TraceLog, start_fs: int, end_fs: int) -> TraceLog:
     )
 
 
+def parse_patterns(items: Sequence[str] | None, option: str = "--signals") -> tuple[str, ...]:
+    """The glob patterns of a repeatable, comma-separated option (``--signals 'a.*,b.*'
+    --signals c``), blanks dropped: ``()`` when the option was not given (every signal). Given
+    with no pattern at all (``--signals ''``, ``' , '``) it is a ConfigError, for ``run`` and
+    ``wave`` alike: an empty list reads as "nothing", yet would trace everything."""
+    if not items:
+        return ()
+    patterns = tuple(p.strip() for item in items for p in item.split(",") if p.strip())
+    if not patterns:
+        raise ConfigError(
+            f"{option} {', '.join(repr(i) for i in items)[:60]} holds no pattern: give glob "
+            "patterns, e.g. 'top.sva.*', or leave the option out to keep every signal"
+        )
+    return patterns
+
+
 def match_paths(paths: Sequence[str], patterns: Iterable[str]) -> list[int]:
     """Indices of the paths matched by any glob pattern (``fnmatch``, case-sensitive; ``*``
     also matches dots). A pattern that matches nothing is a ConfigError naming a few paths."""

@@ -41,11 +41,10 @@ import numpy as np
 
 from stereosim.sim.errors import ConfigError
 from stereosim.sim.outputs import atomic_write_bytes
-from stereosim.traces.gtkw import unit_of
+from stereosim.traces.gtkw import STATUS_NAMES, STATUS_SUFFIX, unit_of
 from stereosim.traces.log import TraceLog, changes_of, validate
 
-STATUS_NAMES = ("idle", "busy", "starved", "blocked")
-STATUS_SUFFIX, OCCUPANCY_SUFFIX = ".status", ".occupancy"
+OCCUPANCY_SUFFIX = ".occupancy"
 FS_PER_US = 10**9
 
 

@@ -3,7 +3,9 @@
 :func:`read_vcd` returns the variables (dotted path, width) and, for the variables asked for, their
 value changes; ``x``/``z`` digits make a value unknown (``None``) and real values are read as
 unknown too. Anything that is not a readable VCD raises :class:`sim.errors.InputError` with one
-line naming the file.
+line naming the file; so does a timestamp above :data:`MAX_TIME` (2**63 - 1 time units, the
+largest instant numpy's int64 and FST's times hold). :mod:`traces.dumpread` reads FST files
+into the same :class:`VcdData`.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from stereosim.sim.errors import InputError
 
 _UNITS_FS = {"s": 10**15, "ms": 10**12, "us": 10**9, "ns": 10**6, "ps": 10**3, "fs": 1}
 _RANGE = re.compile(r"\[[^\]]*\]$")
+MAX_TIME = 2**63 - 1
 
 
 @dataclass
@@ -29,8 +32,9 @@ class VcdVar:
 
 @dataclass
 class VcdData:
-    """A parsed VCD: ``unit_fs`` femtoseconds per time unit, the variables, the first and last
-    timestamps, and ``changes[code] = (times, values)`` for the variables read."""
+    """A parsed dump (a VCD, or an FST read by :mod:`traces.dumpread`): ``unit_fs``
+    femtoseconds per time unit, the variables, the first and last timestamps, and
+    ``changes[code] = (times, values)`` for the variables read."""
 
     unit_fs: int
     vars: list[VcdVar]
@@ -65,6 +69,8 @@ def _parse_header(header: str, path: Path) -> tuple[int, list[VcdVar]]:
                 unit_fs = _timescale(" ".join(args), path)
             elif tok == "$var":
                 width, code, name = int(args[1]), args[2], "".join(args[3:])
+                if width < 1:
+                    raise ValueError(tok)
                 name = _RANGE.sub("", name)
                 out.append(VcdVar(".".join([*scopes, name]), width, code))
             elif not tok.startswith("$"):
@@ -78,6 +84,18 @@ def _parse_header(header: str, path: Path) -> tuple[int, list[VcdVar]]:
             "replace the file"
         ) from None
     return unit_fs, out
+
+
+def _timestamp(tok: str) -> int:
+    """The time of ``#digits``; ValueError (a corrupt dump) for anything else or above
+    :data:`MAX_TIME` (checked on the digit count first: int() refuses 4300 digits)."""
+    digits = tok[1:]
+    if not (digits.isascii() and digits.isdigit()):
+        raise ValueError(f"bad timestamp '{tok[:20]}'")
+    if len(digits) > len(str(MAX_TIME)) or int(digits) > MAX_TIME:
+        raise ValueError(f"timestamp #{digits[:12]}... has {len(digits)} digits, above "
+                         "2**63 - 1, the largest time a dump may hold")
+    return int(digits)
 
 
 def read_vcd(path: str | os.PathLike, select: Callable | None = None) -> VcdData:
@@ -95,7 +113,9 @@ def read_vcd(path: str | os.PathLike, select: Callable | None = None) -> VcdData
     try:
         text = data.decode("ascii")
     except UnicodeDecodeError:
-        raise InputError(f"VCD file {p} is not ASCII text: it is not a VCD, replace it") from None
+        raise InputError(
+            f"dump file {p} is not ASCII text, nor an FST: it is not a dump, replace it"
+        ) from None
     head, sep, body = text.partition("$enddefinitions")
     if not sep:
         raise InputError(f"VCD file {p} has no $enddefinitions: it is not a VCD or is truncated")
@@ -114,7 +134,7 @@ def read_vcd(path: str | os.PathLike, select: Callable | None = None) -> VcdData
             tok = tokens[k]
             c0 = tok[0]
             if c0 == "#":
-                t = int(tok[1:])
+                t = _timestamp(tok)
                 if now is not None and t < now:
                     raise ValueError(f"time goes back from #{now} to #{t}")
                 now = t

@@ -1,43 +1,145 @@
-"""Waveform pictures of a VCD with matplotlib, for readers without a waveform viewer.
+"""Waveform pictures of a dump (VCD or FST) with matplotlib, for readers without a waveform viewer.
 
 :func:`wave_png` draws the selected variables over a time window, one row each, top to bottom
-in the VCD's declaration order: 1-bit wires (clocks included) as digital lines, vectors as bus
-segments (two lines that cross at each change) labelled with their hexadecimal value where the
-segment is wide enough for the text; unknown values (``x``/``z``) are drawn in red. Time is
-labelled in ns (or us for long windows). The PNG carries no software or date metadata, so the
-same input gives the same bytes.
+in the dump's declaration order, and writes values as GTKWave's save file shows them
+(:mod:`traces.gtkw`, one rule for both):
+
+* 1-bit wires (clocks included) as digital lines;
+* ``status`` signals as a strip of blocks filled with the status's GTKWave colour (none, green,
+  orange, red) and named -- ``idle``, ``busy``, ``starved``, ``blocked`` -- where a block is
+  wide enough, with a legend above the rows (:data:`traces.gtkw.STATUS_NAMES`,
+  :data:`traces.gtkw.STATUS_COLOURS`); where the status changes every pixel or so the colours
+  blend rather than the dividers making a black bar;
+* counts -- rows, columns, fill levels, occupancies, words, counters
+  (:data:`traces.gtkw.COUNT_NAMES`) -- in decimal, other vectors (descriptors, costs) in
+  hexadecimal, their row name marked ``(hex)``; a value is written where its segment is wide
+  enough for the text;
+* unknown values (``x``/``z``, from other simulators' dumps) in red, with a legend entry.
+
+Time is labelled in ns (or us for long windows); a cycle window adds that clock's cycle numbers
+along the top. The PNG carries no software or date metadata, so the same input gives the same
+bytes.
 
 Windows (:func:`window_units`) use the syntax of ``stereosim run --trace-window``
-(:mod:`traces.window`): times with a unit (``fs``, ``ps``, ``ns``, ``us``, ``ms``, ``s``), or
-bare integers in the VCD's time unit; a missing bound is the dump's first or last timestamp:
-``100ns:2.5us``, ``0:40us``, ``:500ns``, ``2000000:``. Cycle and row windows need the chip's
-plan, so only ``run`` takes them.
+(:mod:`traces.window`):
+
+* times with a unit (``fs``, ``ps``, ``ns``, ``us``, ``ms``, ``s``), or bare integers in the
+  dump's time unit; a missing bound is the dump's first or last instant: ``100ns:2.5us``,
+  ``0:40us``, ``:500ns``, ``2000000:``;
+* cycles of a clock the dump holds, ``sva:A:B``, ``nna:A:B``, ``camera:A:B``: cycle ``k`` starts
+  at the clock's rising edge ``k``, ``phase + k * period``, as in ``run``. The period and phase
+  are read off the dump's own clock wire (``clocks.sva``): the spacing of its rising edges, and
+  the first one modulo the period (0 for the chip's clocks);
+* ``rows:A:B`` is refused: its instants come from the run (the line buffer's and the sink's
+  rows), which a dump does not hold.
+
+Without ``--signals`` the picture is an overview: every ``status`` signal when the dump has
+some (:data:`OVERVIEW`), else every signal.
 """
 
 from __future__ import annotations
 
 import io
-from fnmatch import fnmatchcase
+from dataclasses import dataclass
 
 import numpy as np
 
 from stereosim.sim.errors import ConfigError
+from stereosim.traces.gtkw import STATUS_COLOURS, STATUS_NAMES, STATUS_SUFFIX, datafmt_of
+from stereosim.traces.log import CLOCK_SCOPE, match_paths
 from stereosim.traces.vcdread import VcdData, VcdVar
-from stereosim.traces.window import UNITS, parse_window
+from stereosim.traces.window import DOMAINS, ROWS, UNITS, Window, parse_window
 
 MAX_ROWS = 64
+#: The default selection of a dump that has status signals: one row per block and stage.
+OVERVIEW = ("*" + STATUS_SUFFIX,)
+#: The fill of a status segment: its GTKWave colour, light enough to read black text on.
+STATUS_ALPHA = 0.45
+UNKNOWN_COLOUR = "red"
+MIN_BLOCK_PX = 3
+
+
+@dataclass(frozen=True)
+class CycleClock:
+    """A clock of the dump, in dump time units: rising edge ``k`` at ``phase + k * period``."""
+
+    name: str
+    phase: int
+    period: int
+
+
+def parse_wave_window(spec: str | None, option: str = "--window") -> Window:
+    """``spec`` parsed as ``wave`` reads it (see the module docstring); ConfigError for a rows
+    window or a malformed one, before any dump is read."""
+    win = parse_window(spec, default=UNITS, option=option, kinds=(*DOMAINS, ROWS))
+    if win.kind == ROWS:
+        raise ConfigError(
+            f"{option} {spec!r}: a rows window needs the run's row instants, which a dump does "
+            "not hold: give stereosim run --trace-window rows:A:B, or here a time or cycle "
+            "window, e.g. 0:40us or sva:0:3000"
+        )
+    return win
+
+
+def clock_var(spec: str | None, variables: list[VcdVar],
+              option: str = "--window") -> VcdVar | None:
+    """The clock wire a cycle window ``spec`` is counted on (None for a time window);
+    ConfigError naming the dump's clocks if it has no such clock."""
+    win = parse_wave_window(spec, option)
+    if win.kind not in DOMAINS:
+        return None
+    path = f"{CLOCK_SCOPE}.{win.kind}"
+    for var in variables:
+        if var.path == path and var.width == 1:
+            return var
+    have = [v.path for v in variables if v.path.startswith(CLOCK_SCOPE + ".") and v.width == 1]
+    raise ConfigError(
+        f"{option} {spec!r} counts cycles of {path}, which the dump does not hold "
+        f"(its clocks: {', '.join(have) or 'none'}): give a time window, e.g. 0:40us"
+    )
+
+
+def window_clock(spec: str | None, data: VcdData, option: str = "--window") -> CycleClock | None:
+    """The clock of a cycle window, its period and phase read off the dump's rising edges
+    (:class:`CycleClock`); None for a time window. ConfigError if the wire holds fewer than two
+    rising edges or they are not evenly spaced."""
+    var = clock_var(spec, data.vars, option)
+    if var is None:
+        return None
+    times, values = data.changes[var.code]
+    t = np.asarray(times, dtype=np.int64)
+    v = np.asarray([-1 if x is None else x for x in values], dtype=np.int64)
+    rising = t[1:][(v[1:] == 1) & (v[:-1] == 0)]
+    if rising.size < 2:
+        raise ConfigError(
+            f"{option} {spec!r}: {var.path} has {rising.size} rising edge(s) in the dump, too "
+            "few to tell its period: give a time window, e.g. 0:40us"
+        )
+    gaps = np.diff(rising)
+    if not (gaps == gaps[0]).all():
+        raise ConfigError(
+            f"{option} {spec!r}: the rising edges of {var.path} are not evenly spaced (gaps "
+            f"{int(gaps.min())} to {int(gaps.max())} time units), so it counts no cycles: give "
+            "a time window, e.g. 0:40us"
+        )
+    period = int(gaps[0])
+    return CycleClock(var.path[len(CLOCK_SCOPE) + 1:], int(rising[0]) % period, period)
 
 
 def window_units(spec: str | None, data: VcdData, option: str = "--window") -> tuple[int, int]:
-    """``[a, b]`` in VCD time units from a window (see the module docstring); times are rounded
-    inwards to whole units."""
+    """``[a, b]`` in dump time units from a window (see the module docstring); times are
+    rounded inwards to whole units. A cycle window needs its clock's changes in ``data``."""
     if spec is None:
         return data.first_time, data.last_time
-    win = parse_window(spec, default=UNITS, option=option, kinds=())
+    win = parse_wave_window(spec, option)
     a, b = win.start, win.end
     if win.is_time:
         a = None if a is None else -(-a // data.unit_fs)
         b = None if b is None else b // data.unit_fs
+    elif win.kind in DOMAINS:
+        clk = window_clock(spec, data, option)
+        a = None if a is None else clk.phase + a * clk.period
+        b = None if b is None else clk.phase + b * clk.period
     a = data.first_time if a is None else a
     b = data.last_time if b is None else b
     if not a < b:
@@ -50,18 +152,18 @@ def window_units(spec: str | None, data: VcdData, option: str = "--window") -> t
     return a, b
 
 
-def match_vars(variables: list[VcdVar], patterns: list[str]) -> list[VcdVar]:
-    """The variables whose path matches any glob; ConfigError naming a few paths otherwise."""
-    chosen = [v for v in variables if any(fnmatchcase(v.path, p) for p in patterns)]
-    if not chosen:
-        names = ", ".join(v.path for v in variables[:6]) + (", ..." if len(variables) > 6 else "")
-        raise ConfigError(
-            f"no signal matches {', '.join(patterns)}; the dump has {len(variables)}: {names}"
-        )
+def match_vars(variables: list[VcdVar], patterns: tuple[str, ...] | list[str]) -> list[VcdVar]:
+    """The variables whose path matches any glob, in the dump's order (each pattern must match
+    one, as for ``run --signals``: traces.log.match_paths); no patterns is the overview (see the
+    module docstring). ConfigError above :data:`MAX_ROWS`."""
+    if not patterns:
+        has_status = any(v.path.endswith(STATUS_SUFFIX) and v.width > 1 for v in variables)
+        patterns = OVERVIEW if has_status else ("*",)
+    chosen = [variables[i] for i in match_paths([v.path for v in variables], patterns)]
     if len(chosen) > MAX_ROWS:
         raise ConfigError(
             f"{len(chosen)} signals match {', '.join(patterns)}; draw at most {MAX_ROWS} at once "
-            "(narrow the patterns)"
+            "(narrow them with --signals)"
         )
     return chosen
 
@@ -83,30 +185,65 @@ def _segments(times: list[int], values: list, a: int, b: int) -> list[tuple[int,
     return runs
 
 
+def value_text(var: VcdVar, value: int) -> str:
+    """A known value as the picture writes it: a status by name, a count in decimal, any other
+    vector in hexadecimal (traces.gtkw.datafmt_of)."""
+    if var.path.endswith(STATUS_SUFFIX) and 0 <= value < len(STATUS_NAMES):
+        return STATUS_NAMES[value]
+    return str(value) if datafmt_of(var.path, var.width) == "dec" else f"{value:x}"
+
+
+def _row_name(var: VcdVar) -> str:
+    hexa = var.width > 1 and datafmt_of(var.path, var.width) == "hex"
+    return f"{var.path} (hex)" if hexa else var.path
+
+
+def _status_colour(var: VcdVar, value) -> str | None:
+    """The fill of a status segment (None: no fill)."""
+    if value is None or not 0 <= value < len(STATUS_COLOURS):
+        return None
+    return STATUS_COLOURS[value]
+
+
 def wave_png(data: VcdData, variables: list[VcdVar], a: int, b: int, *,
-             title: str | None = None, width_in: float = 12.0) -> bytes:
-    """The picture of ``variables`` over ``[a, b]`` (VCD time units) as PNG bytes."""
+             title: str | None = None, clock: CycleClock | None = None,
+             width_in: float = 12.0) -> bytes:
+    """The picture of ``variables`` over ``[a, b]`` (dump time units) as PNG bytes; ``clock``
+    (a cycle window's) numbers its cycles along the top."""
+    fig = wave_figure(data, variables, a, b, title=title, clock=clock, width_in=width_in)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=100, metadata={"Software": None})
+    return buf.getvalue()
+
+
+def wave_figure(data: VcdData, variables: list[VcdVar], a: int, b: int, *,
+                title: str | None = None, clock: CycleClock | None = None,
+                width_in: float = 12.0):
+    """The matplotlib Figure :func:`wave_png` saves (its texts and legend are what a reader
+    sees)."""
     import matplotlib
 
     matplotlib.use("Agg")
-    from matplotlib.collections import LineCollection
+    from matplotlib.collections import LineCollection, PolyCollection
+    from matplotlib.colors import to_rgba
     from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+    from matplotlib.ticker import MaxNLocator
 
     span_fs = (b - a) * data.unit_fs
     unit, scale = ("us", 1e9) if span_fs >= 10**8 else ("ns", 1e6)
-    k = data.unit_fs / scale  # VCD units -> plotted unit
+    k = data.unit_fs / scale  # dump units -> plotted unit
 
     n = len(variables)
-    dpi = 100
-    fig = Figure(figsize=(width_in, 0.9 + 0.42 * n), dpi=dpi)
-    label_w = min(0.45, 0.0056 * max(len(v.path) for v in variables) + 0.025)
-    height_in = 0.9 + 0.42 * n
-    ax = fig.add_axes((label_w, 0.55 / height_in, 0.98 - label_w, 0.42 * n / height_in))
-    ax.set_xlim(a * k, b * k)
-    ax.set_ylim(-0.2, n)
-    axis_px = width_in * dpi * (0.98 - label_w)
-    px_per_unit = axis_px / max(b - a, 1)
-    black, red = [], []
+    row_in, bottom_in = 0.42, 0.55
+    statuses = [v for v in variables if v.path.endswith(STATUS_SUFFIX) and v.width > 1]
+    black, red, polys, faces = [], [], [], []
+    labels = []  # (x, y, text)
+    names = [_row_name(v) for v in variables]
+    width_px = width_in * 100
+    label_w = min(0.45, 0.0062 * max(len(s) for s in names) + 0.025)
+    px_per_unit = width_px * (0.98 - label_w) / max(b - a, 1)
     for row, var in enumerate(variables):
         y = n - 1 - row
         lo, hi = y + 0.15, y + 0.75
@@ -119,42 +256,89 @@ def wave_png(data: VcdData, variables: list[VcdVar], a: int, b: int, *,
                 (red if v is None else black).append(seg)
                 if i and v is not None and runs[i - 1][2] is not None:
                     black.append([(s * k, lo), (s * k, hi)])
-        else:
-            mid = (lo + hi) / 2
-            slope = min(0.25 * (e - s) for s, e, _ in runs) if runs else 0
-            slope = min(slope, 3 / px_per_unit)  # 3 pixels wide crossings
-            for s, e, v in runs:
-                target = red if v is None else black
-                # crossings at changes only, not at the window's edges
-                s1 = s + slope if s > a else s
-                e1 = e - slope if e < b else e
-                ys, ye = (mid if s > a else None), (mid if e < b else None)
-                for level in (hi, lo):
-                    line = [(s1 * k, level), (e1 * k, level)]
-                    if ys is not None:
-                        line.insert(0, (s * k, ys))
-                    if ye is not None:
-                        line.append((e * k, ye))
-                    target.append(line)
+            continue
+        mid = (lo + hi) / 2
+        if var.path.endswith(STATUS_SUFFIX):
+            # a status row is a strip of coloured blocks, outlined, with a divider at each change
+            # between blocks both at least MIN_BLOCK_PX wide: where it changes every pixel or
+            # so, the colours blend instead of the dividers drawing a black bar
+            black.extend([[(a * k, hi), (b * k, hi)], [(a * k, lo), (b * k, lo)]])
+            for i, (s, e, v) in enumerate(runs):
+                colour = _status_colour(var, v)
+                if colour is not None:
+                    polys.append([(s * k, lo), (s * k, hi), (e * k, hi), (e * k, lo)])
+                    faces.append(to_rgba(colour, STATUS_ALPHA))
+                wide = (e - s) * px_per_unit >= MIN_BLOCK_PX
+                if i and wide and (s - runs[i - 1][0]) * px_per_unit >= MIN_BLOCK_PX:
+                    black.append([(s * k, lo), (s * k, hi)])
                 if v is None:
+                    red.extend([[(s * k, hi), (e * k, hi)], [(s * k, lo), (e * k, lo)]])
                     continue
-                label = f"{v:x}"
-                if (e - s) * px_per_unit > 7.5 * len(label) + 6:
-                    ax.text((s + e) / 2 * k, mid, label, ha="center", va="center", fontsize=7,
-                            family="DejaVu Sans Mono")
+                text = value_text(var, v)
+                if (e - s) * px_per_unit > 7 * len(text) + 6:
+                    labels.append(((s + e) / 2 * k, mid, text))
+            continue
+        slope = min(0.25 * (e - s) for s, e, _ in runs) if runs else 0
+        slope = min(slope, 3 / px_per_unit)  # 3 pixels wide crossings
+        for s, e, v in runs:
+            target = red if v is None else black
+            # crossings at changes only, not at the window's edges
+            s1 = s + slope if s > a else s
+            e1 = e - slope if e < b else e
+            left = [(s * k, mid)] if s > a else []
+            right = [(e * k, mid)] if e < b else []
+            for level in (hi, lo):
+                target.append(left + [(s1 * k, level), (e1 * k, level)] + right)
+            if v is None:
+                continue
+            text = value_text(var, v)
+            if (e - s) * px_per_unit > 7 * len(text) + 6:
+                labels.append(((s + e) / 2 * k, mid, text))
+
+    legend = []
+    if statuses:
+        legend += [Patch(facecolor=to_rgba(c, STATUS_ALPHA) if c else "white", edgecolor="0.3",
+                         linewidth=0.6, label=name)
+                   for name, c in zip(STATUS_NAMES, STATUS_COLOURS)]
+    if red:
+        legend.append(Line2D([], [], color=UNKNOWN_COLOUR, linewidth=1.2, label="unknown (x/z)"))
+    top_in = 0.2 + (0.3 if title else 0) + (0.32 if legend else 0) + (0.4 if clock else 0)
+    height_in = top_in + row_in * n + bottom_in
+    fig = Figure(figsize=(width_in, height_in), dpi=100)
+    ax = fig.add_axes((label_w, bottom_in / height_in, 0.98 - label_w, row_in * n / height_in))
+    ax.set_xlim(a * k, b * k)
+    ax.set_ylim(-0.2, n)
+    if polys:
+        ax.add_collection(PolyCollection(polys, facecolors=faces, edgecolors="none"))
     ax.add_collection(LineCollection(black, colors="black", linewidths=0.8))
     if red:
-        ax.add_collection(LineCollection(red, colors="red", linewidths=0.8))
+        ax.add_collection(LineCollection(red, colors=UNKNOWN_COLOUR, linewidths=0.8))
+    for x, y, text in labels:
+        ax.text(x, y, text, ha="center", va="center", fontsize=7.5, family="DejaVu Sans Mono")
     ax.set_yticks([n - 1 - r + 0.45 for r in range(n)])
-    ax.set_yticklabels([v.path for v in variables], fontsize=7, family="DejaVu Sans Mono")
+    ax.set_yticklabels(names, fontsize=8, family="DejaVu Sans Mono")
     ax.tick_params(axis="y", length=0)
-    ax.tick_params(axis="x", labelsize=7)
+    ax.tick_params(axis="x", labelsize=8)
     ax.set_xlabel(f"time ({unit})", fontsize=8)
     ax.grid(axis="x", color="0.85", linewidth=0.5)
     for side in ("top", "right", "left"):
         ax.spines[side].set_visible(False)
+    if clock is not None:
+        def to_cycles(x):
+            return (np.asarray(x) / k - clock.phase) / clock.period
+
+        def to_time(c):
+            return (np.asarray(c) * clock.period + clock.phase) * k
+
+        top = ax.secondary_xaxis("top", functions=(to_cycles, to_time))
+        top.xaxis.set_major_locator(MaxNLocator(integer=True))
+        top.tick_params(labelsize=8)
+        top.set_xlabel(f"{clock.name} cycle", fontsize=8)
     if title:
-        ax.set_title(title, fontsize=9)
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi, metadata={"Software": None})
-    return buf.getvalue()
+        fig.suptitle(title, fontsize=10, y=1 - 0.08 / height_in, va="top")
+    if legend:
+        y_in = height_in - 0.2 - (0.3 if title else 0)
+        fig.legend(handles=legend, loc="upper right", bbox_to_anchor=(0.98, y_in / height_in),
+                   ncol=len(legend), fontsize=8, frameon=False, handlelength=1.6,
+                   columnspacing=1.2)
+    return fig

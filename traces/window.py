@@ -8,13 +8,14 @@ end (of the frame for ``run``, of the dump for ``wave``).
   time zero (``0:100us``); any other bare number beside a time is refused, since it is unclear
   what it counts.
 * **Cycles**: ``nna:A:B``, ``sva:A:B``, ``camera:A:B`` -- whole clock cycles of that domain,
-  cycle ``k`` starting at the domain's rising edge ``k``.
-* **Rows**: ``rows:A:B`` -- image rows (``run`` only).
+  cycle ``k`` starting at the domain's rising edge ``k`` (``wave`` reads the clock's period and
+  phase off the dump's clock wire).
+* **Rows**: ``rows:A:B`` -- image rows (``run`` only: ``wave`` refuses it).
 * **Bare numbers**: ``A:B`` without units or kind means the command's default: SVA cycles for
   ``run``, the dump's time unit (fs for stereosim's dumps) for ``wave``.
 
 :func:`parse_window` turns the text into a :class:`Window`; each command resolves it against
-what it knows (a chip plan's clocks, a dump's time unit). Errors are one-line ConfigErrors that
+what it knows (a chip plan's clocks, a dump's time unit and clock wires). Errors are one-line ConfigErrors that
 name the option and show valid examples.
 """
 

@@ -1,5 +1,7 @@
-"""Reading a VCD back, the waveform PNG and the ``stereosim wave`` subcommand."""
+"""Reading a VCD back, the waveform PNG and the ``stereosim wave`` subcommand (FST dumps and
+the run-to-wave round trip: test_wave_fst.py)."""
 
+import os
 import sys
 
 import numpy as np
@@ -12,7 +14,7 @@ from stereosim.traces.log import changes_of
 from stereosim.traces.synthetic import synthetic_log
 from stereosim.traces.vcd import write_vcd
 from stereosim.traces.vcdread import read_vcd, value_at
-from stereosim.traces.wave import window_units
+from stereosim.traces.wave import CycleClock, window_clock, window_units
 
 
 def _main(argv):
@@ -71,6 +73,11 @@ def test_reader_reads_x_z_and_other_timescales(tmp_path):
     ("$var wire 1 ! a $end $enddefinitions $end 1!", "before the first timestamp"),
     ("$var wire 1 ! a $end $enddefinitions $end", "no timestamp"),
     ("$enddefinitions $end #0", "declares no variables"),
+    ("$var wire 1 ! a $end $enddefinitions $end #" + "9" * 400 + " 1!", "has 400 digits, above"),
+    ("$var wire 1 ! a $end $enddefinitions $end #9223372036854775808 1!", r"above 2\*\*63 - 1"),
+    ("$var wire 1 ! a $end $enddefinitions $end #" + "1" * 5000, "has 5000 digits"),
+    ("$var wire 1 ! a $end $enddefinitions $end #-5 1!", "bad timestamp '#-5'"),
+    ("$var wire 0 ! a $end $enddefinitions $end #0", "corrupt header"),
 ])
 def test_reader_rejects_corrupt_files(tmp_path, text, message):
     path = tmp_path / "bad.vcd"
@@ -80,8 +87,16 @@ def test_reader_rejects_corrupt_files(tmp_path, text, message):
     assert "\n" not in str(exc.value)
 
 
+def test_the_largest_timestamp_is_read(tmp_path):
+    """2**63 - 1 is the last instant a dump may hold (numpy's int64, FST's times)."""
+    path = tmp_path / "big.vcd"
+    path.write_text(f"$var wire 1 ! a $end $enddefinitions $end #0 0! #{2**63 - 1} 1!")
+    assert read_vcd(path).changes["!"] == ([0, 2**63 - 1], [0, 1])
+
+
 def test_windows(dumped):
-    data = read_vcd(dumped[0] and dumped[1], lambda vs: [])
+    _, path = dumped
+    data = read_vcd(path, lambda vs: [])
     end = data.last_time
     assert window_units(None, data) == (0, end)
     assert window_units("100:2000", data) == (100, 2000)
@@ -91,10 +106,52 @@ def test_windows(dumped):
     assert window_units("3ns:", data) == (3_000_000, end)
     for bad, message in [("5", "expected A:B"), ("9:3", "is empty"), ("1.5:3", "whole numbers"),
                          ("abc:3", "not a number"), ("100:2us", "mixes a time"),
-                         ("sva:0:10", "need stereosim run --trace-window"),
+                         ("gpu:0:10", "KIND one of sva, nna, camera, rows"),
+                         ("rows:0:2", "a rows window needs the run's row instants"),
+                         ("nna:0:3us", "whole numbers"),
                          (f"{end + 1}:{end + 9}", "outside the dump")]:
         with pytest.raises(UserError, match=message):
             window_units(bad, data)
+
+
+def test_cycle_windows_count_the_dumps_own_clock_edges(dumped):
+    """Cycle k of a clock starts at its rising edge k (phase + k * period), as in
+    ``run --trace-window``; the period and phase come from the dump's clock wire."""
+    log, path = dumped
+    data = read_vcd(path)
+    clocks = {c.name: c for c in log.clocks}
+    for name in ("sva", "nna", "camera"):
+        per, phase = clocks[name].period_fs, clocks[name].phase_fs
+        assert window_clock(f"{name}:1:2", data) == CycleClock(name, phase, per)
+        assert window_units(f"{name}:1:3", data) == (phase + per, phase + 3 * per)
+    per = clocks["sva"].period_fs
+    assert window_units("sva:100:", data) == (100 * per, data.last_time)
+    assert window_units("sva::7", data) == (0, 7 * per)
+    assert window_clock("0:40ns", data) is None and window_clock(None, data) is None
+    with pytest.raises(UserError, match="outside the dump"):
+        window_units("sva:100000:100001", data)
+
+
+@pytest.mark.parametrize("edges, message", [
+    ("#0 0! #10 1! #15 0! #30", "has 1 rising edge"),
+    ("#0 0! #10 1! #15 0! #20 1! #25 0! #40 1! #45 0!", r"not evenly spaced \(gaps 10 to 20"),
+])
+def test_cycle_windows_need_a_regular_clock(tmp_path, edges, message):
+    path = tmp_path / "c.vcd"
+    path.write_text("$timescale 1 ps $end $scope module clocks $end $var wire 1 ! sva $end "
+                    f"$upscope $end $enddefinitions $end {edges}")
+    with pytest.raises(UserError, match=message):
+        window_units("sva:0:1", read_vcd(path))
+
+
+def test_a_phase_shifted_clock(tmp_path):
+    """A clock whose first edge is not at 0 (phase 3, period 10): cycle 2 starts at 23."""
+    path = tmp_path / "p.vcd"
+    path.write_text("$scope module clocks $end $var wire 1 ! nna $end $upscope $end "
+                    "$enddefinitions $end #0 0! #3 1! #8 0! #13 1! #18 0! #23 1! #28 0! #33 1!")
+    data = read_vcd(path)
+    assert window_clock("nna:2:3", data) == CycleClock("nna", 3, 10)
+    assert window_units("nna:2:3", data) == (23, 33)
 
 
 def test_wave_writes_a_deterministic_png(dumped, tmp_path, capsys):
@@ -128,8 +185,10 @@ def test_wave_picture_shows_the_levels(dumped, tmp_path):
     img = mpimg.imread(out)[..., :3].mean(axis=2)
     dark = img < 0.5
     counts = dark.sum(axis=1)
-    # horizontal half-period lines: long, but shorter than the x axis that spans the window
-    long_rows = [r for r in range(img.shape[0]) if 100 < counts[r] < 0.8 * counts.max()]
+    # horizontal half-period lines: long, but shorter than the x axis that spans the window,
+    # and above it (the tick labels are below)
+    axis = int(np.argmax(counts))
+    long_rows = [r for r in range(axis) if 100 < counts[r] < 0.8 * counts.max()]
     high, low = min(long_rows), max(long_rows)
     assert low - high > 10
     high_x, low_x = np.flatnonzero(dark[high]), np.flatnonzero(dark[low])
@@ -141,18 +200,175 @@ def test_wave_picture_shows_the_levels(dumped, tmp_path):
 @pytest.mark.parametrize("args, message", [
     (["missing.vcd"], "not found"),
     (["{corrupt}"], "corrupt"),
-    (["{vcd}", "--signals", "nothing.*"], "no signal matches nothing.*; the dump has 78: clocks"),
-    (["{vcd}", "--signals", "*"], "draw at most 64"),
+    (["{vcd}", "--signals", "nothing.*"],
+     "signal pattern 'nothing.*' matches no signal (there are 78: clocks.camera"),
+    (["{vcd}", "--signals", "clocks.*,nothing.*"], "'nothing.*' matches no signal"),
+    (["{vcd}", "--signals", "*"], "78 signals match *; draw at most 64"),
     (["{vcd}", "--signals", "clocks.*", "--window", "9:3"], "is empty"),
-    (["{vcd}", "--signals", " , "], "--signals is empty"),
+    (["{vcd}", "--signals", "clocks.*", "--window", "rows:0:3"], "rows window needs"),
+    (["{plain}", "--window", "sva:0:3"],
+     "counts cycles of clocks.sva, which the dump does not hold (its clocks: none)"),
+    (["{vcd}", "--signals", " , "], "--signals ' , ' holds no pattern"),
+    (["{vcd}", "--signals", ""], "--signals '' holds no pattern"),
+    (["{huge}"], "has 400 digits, above 2**63 - 1"),
 ])
 def test_wave_errors_are_one_line_and_write_nothing(dumped, tmp_path, capsys, args, message):
     corrupt = tmp_path / "c.vcd"
     corrupt.write_text("$var wire 1 ! a $end $enddefinitions $end #1 7!")
-    argv = ["wave"] + [a.format(vcd=dumped[1], corrupt=corrupt) for a in args]
+    plain = tmp_path / "p.vcd"
+    plain.write_text("$scope module m $end $var wire 1 ! a $end $upscope $end "
+                     "$enddefinitions $end #0 1! #5 0!")
+    huge = tmp_path / "h.vcd"
+    huge.write_text(plain.read_text() + " #" + "7" * 400 + " 1!")
+    argv = ["wave"] + [a.format(vcd=dumped[1], corrupt=corrupt, plain=plain, huge=huge)
+                       for a in args]
     out = tmp_path / "o.png"
     assert _main(argv + ["--png", str(out)]) == 2
     err = capsys.readouterr().err
     assert err.startswith("stereosim: error: ") and err.count("\n") == 1
     assert message in err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("link", ["same", "relative", "symlink", "hardlink"])
+def test_wave_never_writes_over_the_dump(dumped, tmp_path, capsys, link):
+    """``wave t.vcd --png t.vcd`` (or a path that reaches the dump another way) is refused
+    before anything is read or written; the dump is left as it was."""
+    dump = tmp_path / "t.vcd"
+    dump.write_bytes(dumped[1].read_bytes())
+    before = dump.read_bytes()
+    png = {"same": str(dump), "relative": os.path.relpath(dump), "symlink": tmp_path / "s.png",
+           "hardlink": tmp_path / "h.png"}[link]
+    if link == "symlink":
+        png.symlink_to(dump)
+    elif link == "hardlink":
+        os.link(dump, png)
+    assert _main(["wave", str(dump), "--signals", "clocks.*", "--png", str(png)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "is the dump being read" in err
+    assert dump.read_bytes() == before
+
+
+def test_without_signals_wave_draws_the_status_overview(dumped, tmp_path, capsys):
+    """No --signals: every status signal (78 signals would be above the 64-row limit); a dump
+    without status signals: every signal."""
+    log, path = dumped
+    statuses = [s.path for s in log.signals if s.path.endswith(".status")]
+    assert _main(["wave", str(path), "--png", str(tmp_path / "o.png")]) == 0
+    assert f"({len(statuses)} signals," in capsys.readouterr().out
+    plain = tmp_path / "p.vcd"
+    plain.write_text("$scope module m $end $var wire 1 ! a $end $var wire 3 # b $end $upscope "
+                     "$end $enddefinitions $end #0 1! b101 # #5 0!")
+    assert _main(["wave", str(plain), "--png", str(tmp_path / "p.png")]) == 0
+    assert "(2 signals," in capsys.readouterr().out
+
+
+def _figure_texts(data, paths, a, b):
+    """(texts per row, top first; row names; legend labels) of the picture of ``paths``."""
+    from stereosim.traces.wave import wave_figure
+
+    chosen = [v for v in data.vars if v.path in paths]
+    fig = wave_figure(data, chosen, a, b)
+    ax = fig.axes[0]
+    n = len(chosen)
+    rows = [set() for _ in chosen]
+    for t in ax.texts:
+        rows[n - 1 - int(t.get_position()[1])].add(t.get_text())
+    legend = [t.get_text() for lg in fig.legends for t in lg.get_texts()]
+    return rows, [t.get_text() for t in ax.get_yticklabels()], legend
+
+
+def test_the_picture_names_statuses_and_writes_counts_in_decimal(dumped):
+    """What a reader sees: status values by name with a legend of the four, counts in decimal
+    and other vectors in hex, marked (hex) -- from the values of the dump."""
+    from stereosim.traces.gtkw import STATUS_NAMES
+
+    log, path = dumped
+    data = read_vcd(path)
+    by_path = {v.path: v for v in data.vars}
+    status, desc, occ = ("top.nna.left.sub0.status", "top.nna.left.sub0.descriptor",
+                         "top.fifo.nna_left_to_sva.occupancy")
+
+    def values(p):
+        return data.changes[by_path[p].code][1]
+
+    assert max(values(occ)) >= 10  # (so decimal and hex differ)
+    nna = next(c for c in log.clocks if c.name == "nna").period_fs
+    # (the descriptor changes every NNA cycle: 5 cycles leave room to write its values)
+    texts, names, legend = _figure_texts(data, {status, occ, desc}, 0, 5 * nna)
+    assert names == [status, f"{desc} (hex)", occ]
+    assert legend == list(STATUS_NAMES)
+    assert texts[0] and texts[0] <= {STATUS_NAMES[v] for v in values(status)}
+    assert texts[1] and texts[1] <= {f"{v:x}" for v in values(desc)}
+    assert texts[2] and texts[2] <= {str(v) for v in values(occ)}
+    # a window where the occupancy sits at 10 or more: written 10.., not a..
+    times, occs = data.changes[by_path[occ].code]
+    k = next(i for i, v in enumerate(occs) if v >= 10)
+    texts, _, legend = _figure_texts(data, {occ}, times[k], times[k + 1])
+    assert texts == [{str(occs[k])}] and legend == []  # no status row, no legend
+
+
+def test_status_rows_are_filled_with_their_colour(tmp_path):
+    """A status row busy over the whole window is green (GTKWave's colour for busy), blocked
+    red; the legend shows all four colours even where the data has one status."""
+    import matplotlib.image as mpimg
+    from matplotlib.colors import to_rgb
+
+    from stereosim.traces.wave import STATUS_ALPHA
+
+    path = tmp_path / "s.vcd"
+    path.write_text("$scope module top $end $scope module blk $end $var wire 2 ! status $end "
+                    "$upscope $end $upscope $end $enddefinitions $end #0 b1 ! #1000 b11 ! #2000")
+    out = tmp_path / "s.png"
+    assert _main(["wave", str(path), "--png", str(out)]) == 0
+    img = mpimg.imread(out)[..., :3]
+
+    def count(colour):
+        want = STATUS_ALPHA * np.array(to_rgb(colour)) + (1 - STATUS_ALPHA)  # over white
+        return int((np.abs(img - want).max(axis=2) < 0.02).sum())
+
+    h, w = img.shape[:2]
+    green, red, orange = count("green"), count("red"), count("orange")
+    assert green > 0.1 * w * 20 and red > 0.1 * w * 20  # half the row each, ~20 px high
+    assert 0 < orange < 0.01 * h * w  # the legend's patch only
+
+
+def test_status_names_are_the_chips_codes():
+    """The names the picture, the timeline and GTKWave's filter give the codes are the codes the
+    chip traces."""
+    from stereosim.sim.cycle.plan import STATUS_CODES
+    from stereosim.traces.gtkw import STATUS_NAMES
+
+    assert {name: STATUS_NAMES.index(name) for name in STATUS_NAMES} == STATUS_CODES
+
+
+def test_signal_patterns_are_one_rule_for_run_and_wave():
+    from stereosim.traces.log import parse_patterns
+
+    assert parse_patterns(None) == () and parse_patterns([]) == ()
+    assert parse_patterns([" a.* , b", "c", "d,,"]) == ("a.*", "b", "c", "d")
+    for empty in ([""], [" , "], ["", " "]):
+        with pytest.raises(UserError, match="holds no pattern"):
+            parse_patterns(empty)
+
+
+@pytest.mark.parametrize("value", ["", " , "])
+def test_run_refuses_empty_signals_before_any_work(tmp_path, capsys, value):
+    """``run --signals ''`` is refused as ``wave --signals ''`` is (it traced everything)."""
+    from stereosim.sim.cli import main
+
+    out = tmp_path / "out"
+    rc = main(["run", "--left", str(tmp_path / "missing_l.png"), "--right",
+               str(tmp_path / "missing_r.png"), "--vcd", str(tmp_path / "t.vcd"),
+               "--signals", value, "--out", str(out)])
+    err = capsys.readouterr().err
+    assert rc == 2 and err.count("\n") == 1 and "holds no pattern" in err
+    assert not out.exists() and not (tmp_path / "t.vcd").exists()
+
+
+def test_wave_checks_the_png_path_before_reading(tmp_path, capsys):
+    """An unusable --png (here a folder) is refused before the dump is read: the dump named
+    does not even exist."""
+    assert _main(["wave", str(tmp_path / "missing.vcd"), "--png", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "is a folder" in err
