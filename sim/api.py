@@ -15,21 +15,22 @@ import numpy as np
 
 from stereosim.nna.descriptor import compute_descriptor
 from stereosim.sim.config import ChipConfig, check_config, config_to_dict, load_config
-from stereosim.sim.cycle.frames import FrameSupply, functional_words
+from stereosim.sim.cycle.frames import FrameSupply, check_frame_count, functional_words
 from stereosim.sim.cycle.energy import energy_report, energy_table
 from stereosim.sim.cycle.plan import ChipPlan, architecture_report, build_plan
 from stereosim.sim.cycle.report import power_basis
 from stereosim.sim.cycle.simulate import announce_compiling, simulate
 from stereosim.sim.errors import ConfigError, InputError
 from stereosim.sim.io import MAX_PIXELS, check_gt_values, to_grey
-from stereosim.sim.metrics import check_truth, evaluate, undefined_metrics
+from stereosim.sim.metrics import check_truth, evaluate, mean_metrics, undefined_metrics
 from stereosim.sim.tracing import run_traced
 from stereosim.sva.pipeline import sva_stream
 from stereosim.sva.wta import to_float
 
 MODES = ("functional", "cycle")
-# report.json's layout: 2 names every unit and fps kind in its keys (docs/report.md)
-REPORT_VERSION = 2
+# report.json's layout: 2 names every unit and fps kind in its keys; 3 names a stream's span
+# apart from its frames' latencies and gives a stream's accuracy per frame (docs/report.md)
+REPORT_VERSION = 3
 VERSION = "0.1.0"  # the one place (pyproject.toml reads it: [tool.setuptools.dynamic])
 
 
@@ -141,12 +142,7 @@ def run(
     table = _energy_table(energy, mode)
     cfg = resolve_config(config, overrides)
     gl, gr = prepare_pair(left, right, max_pixels)
-    if gt is None and masks:
-        raise InputError("masks need ground truth: give gt= too")
-    if gt is not None:  # checked before the run, not after it
-        masks = check_truth(gt, {} if masks is None else masks, gl.shape)[1]
-        check_gt_values(np.asarray(gt, dtype=np.float64), "the gt= array")
-        masks = masks or {"all": np.isfinite(gt)}
+    masks = check_ground_truth(gt, masks, gl.shape)
     plan = build_plan(cfg, gl.shape)  # refuses a chip that cannot be built, in every mode
     log = None
     if trace is not None and mode != "cycle":
@@ -176,6 +172,18 @@ def run(
         if notes:
             report["metrics_undefined"] = notes
     return Result(disparity=disp, disparity_fixed=fixed, report=report, config=cfg, trace=log)
+
+
+def check_ground_truth(gt, masks, shape: tuple[int, int]) -> dict | None:
+    """The masks to score a map of ``shape`` with ``gt`` (given ``masks``, or every pixel of
+    known GT), None without GT; the GT and masks are checked before any run, not after it."""
+    if gt is None and masks:
+        raise InputError("masks need ground truth: give gt= too")
+    if gt is None:
+        return None
+    masks = check_truth(gt, {} if masks is None else masks, shape)[1]
+    check_gt_values(np.asarray(gt, dtype=np.float64), "the gt= array")
+    return masks or {"all": np.isfinite(gt)}
 
 
 def _energy_table(path, mode: str):
@@ -217,13 +225,15 @@ class FrameOutput:
     """One frame of a stream: its index (the camera frame of the stream), ``disparity``
     (float32, inf invalid) and ``disparity_fixed`` (the chip's words); with camera pairs
     sharing the chip (``sva.pairs``) its ``pair`` and that pair's frame ``pair_frame`` (the
-    input frame it shows)."""
+    input frame it shows); with ground truth its ``metrics`` (as ``run``'s report gives them:
+    ``{mask: {metric: value}}``), else None."""
 
     index: int
     disparity: np.ndarray
     disparity_fixed: np.ndarray
     pair: int
     pair_frame: int
+    metrics: dict | None = None
 
     @property
     def invalid_percent(self) -> float:
@@ -234,19 +244,22 @@ class FrameOutput:
 class Stream:
     """A simulated stream of stereo pairs (:func:`run_stream`). ``report``: the stream's report
     -- architecture, configuration and, in cycle mode, the cycle report of the whole stream
-    (``stream``: frames, sustained fps, per-frame latency; ``throughput``: the work bound) --
-    known before any frame's words. Iterating yields a :class:`FrameOutput` per frame the
-    chip took (a camera's dropped frames have none), in order, each computed when it is asked
-    for: a stream of any length takes the memory of a few frames. With ``sva.pairs`` = P
-    camera pairs every pair sees the input stream: P outputs per input frame."""
+    (``stream``: frames, sustained fps, each frame's latency, the stream's span;
+    ``throughput``: the work bound) -- known before any frame's words. Iterating yields a
+    :class:`FrameOutput` per frame the chip took (a camera's dropped frames have none), in
+    order, each computed when it is asked for: a stream of any length takes the memory of a
+    few frames. With ``sva.pairs`` = P camera pairs every pair sees the input stream: P outputs
+    per input frame. With ground truth each frame carries its metrics, and once every frame has
+    been iterated the report gains ``metrics_per_frame`` and their mean, ``metrics_mean``."""
 
     def __init__(self, report: dict, config: ChipConfig, plan: ChipPlan, supply: FrameSupply,
-                 words: dict | None = None):
+                 words: dict | None = None, truth: tuple | None = None):
         self.report = report
         self.config = config
         self._plan = plan
         self._supply = supply
         self._words = words  # the readable kernel's words, when it ran
+        self._truth = truth  # (gt, masks) that score every frame, or None
 
     def _taken(self) -> list[int]:
         dropped = set(self.report.get("stream", {}).get("dropped_frames", ()))
@@ -268,7 +281,9 @@ class Stream:
     def __iter__(self):
         plan = self._plan
         pairs = plan.pairs
-        shown = (-1, None)  # the input frame last computed, its words (shared by the pairs)
+        bits = plan.cfg.sva.subpixel_bits
+        shown = (-1, None, None)  # the input frame last computed, its words and metrics
+        scored = []
         for f in self._taken():
             i = f // pairs
             if self._words is not None:
@@ -277,15 +292,33 @@ class Stream:
                 fixed = shown[1]
             else:
                 fixed = functional_words(plan.cfg, plan.descriptor_bits, *self._supply.pair(i))
-                shown = (i, fixed)
-            yield FrameOutput(f, to_float(fixed, plan.cfg.sva.subpixel_bits), fixed,
-                              f % pairs, i)
+            disparity = to_float(fixed, bits)
+            metrics = None
+            if self._truth is not None:  # pairs showing one input frame share its words
+                metrics = shown[2] if shown[0] == i else evaluate(disparity, *self._truth)
+                scored.append({"frame": f, "metrics": metrics})
+            shown = (i, fixed, metrics)
+            yield FrameOutput(f, disparity, fixed, f % pairs, i, metrics)
+        if self._truth is not None:
+            self._score(scored)
+
+    def _score(self, scored: list[dict]) -> None:
+        """The report's accuracy of a stream: every frame's metrics and their mean."""
+        self.report["metrics_per_frame"] = scored
+        self.report["metrics_mean"] = mean_metrics([s["metrics"] for s in scored])
+        notes = undefined_metrics(self.report["metrics_mean"])
+        self.report.pop("metrics_undefined", None)
+        if notes:
+            self.report["metrics_undefined"] = notes
 
 
-def stream_supply(pairs, max_pixels: int | None = MAX_PIXELS) -> FrameSupply:
+def stream_supply(pairs, max_pixels: int | None = MAX_PIXELS,
+                  camera_pairs: int = 1) -> FrameSupply:
     """A :class:`FrameSupply` of grey pairs from a sequence of (left, right) images (anything
     with ``len`` and indexing, read on demand) or an existing supply; every pair checked as
-    :func:`prepare_pair` checks one."""
+    :func:`prepare_pair` checks one, and a stream of more than
+    :data:`~sim.cycle.frames.MAX_FRAMES` camera frames (seen by ``camera_pairs`` pairs, as
+    ``sva.pairs`` says) refused before any frame is read."""
     if isinstance(pairs, FrameSupply):
         count, read = pairs.count, pairs.pair
     else:
@@ -302,31 +335,36 @@ def stream_supply(pairs, max_pixels: int | None = MAX_PIXELS) -> FrameSupply:
             return item
     if count < 1:
         raise InputError("the stream has no frames: give at least one (left, right) pair")
+    check_frame_count(count, camera_pairs)
     first = prepare_pair(*read(0), max_pixels)
     return FrameSupply(count, first[0].shape,
                        lambda f: first if f == 0 else prepare_pair(*read(f), max_pixels))
 
 
 def run_stream(pairs, *, mode: str = "cycle", config: ChipConfig | str | None = None,
-               overrides: dict[str, Any] | None = None, sink_stall=None,
+               overrides: dict[str, Any] | None = None, gt: np.ndarray | None = None,
+               masks: dict[str, np.ndarray] | None = None, sink_stall=None,
                max_pixels: int | None = MAX_PIXELS,
                energy: str | os.PathLike | None = None) -> Stream:
     """Simulate a stream of stereo pairs of one size, back to back through the chip.
 
     ``pairs``: a sequence of (left, right) images (a list, or any object with ``len`` and
-    indexing that reads frames on demand) or a :class:`~sim.cycle.frames.FrameSupply`.
+    indexing that reads frames on demand) or a :class:`~sim.cycle.frames.FrameSupply`, at
+    most :data:`~sim.cycle.frames.MAX_FRAMES` frames (times ``sva.pairs``).
     ``mode="cycle"`` (default) times the whole stream first -- frames overlap in the pipeline
     as the blocks allow -- and reports the measured sustained frame rate and each frame's
     latency beside the work bound; the frames' words then come one by one as the returned
-    :class:`Stream` is iterated. ``mode="functional"``: the words alone. ``sink_stall``: a
-    periodic pattern ``(period, allowed_phase)`` for the sink. Mistakes raise a
-    :class:`sim.errors.UserError` before any kernel runs (a frame of another size, when it is
-    read)."""
+    :class:`Stream` is iterated. ``mode="functional"``: the words alone. ``gt`` and ``masks``
+    (as :func:`run` takes them) score every frame -- the ground truth of a pair repeated, or of
+    a scene that does not move. ``sink_stall``: a periodic pattern ``(period, allowed_phase)``
+    for the sink. Mistakes raise a :class:`sim.errors.UserError` before any kernel runs (a
+    frame of another size, when it is read)."""
     if mode not in MODES:
         raise ConfigError(f"mode must be one of {', '.join(MODES)}; got {mode!r}")
     table = _energy_table(energy, mode)
     cfg = resolve_config(config, overrides)
-    supply = stream_supply(pairs, max_pixels)
+    supply = stream_supply(pairs, max_pixels, cfg.sva.pairs)
+    masks = check_ground_truth(gt, masks, supply.shape)
     plan = build_plan(cfg, supply.shape, supply.count)
     h, w = supply.shape
     report = {
@@ -352,4 +390,4 @@ def run_stream(pairs, *, mode: str = "cycle", config: ChipConfig | str | None = 
             report["energy"] = energy_report(plan, frame.stats,
                                              *power_basis(report["throughput"], report["stream"]),
                                              table)
-    return Stream(report, cfg, plan, supply, words)
+    return Stream(report, cfg, plan, supply, words, None if gt is None else (gt, masks))

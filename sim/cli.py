@@ -45,6 +45,7 @@ from stereosim.sim.config import (
     read_toml,
 )
 from stereosim.sim.cycle.estimate import parse_size
+from stereosim.sim.cycle.frames import MAX_FRAMES
 from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.datasets import (
     default_scene,
@@ -285,10 +286,11 @@ def cmd_run(args) -> int:
             raise ConfigError("--html reports one frame: drop --frames, --save-every and the "
                               "videos")
         video = bool(args.left_video or args.right_video)
-        if video and (args.scene or args.left or args.right or args.gt or args.mask):
+        if video and (args.scene or args.left or args.right):
             raise InputError("give the videos or a pair (scene, --left/--right), not both")
-        if args.gt or args.mask:
-            raise InputError("a stream has no ground truth: drop --gt/--mask, or run one frame")
+        if video and (args.gt or args.mask):
+            raise InputError("videos have no ground truth: drop --gt/--mask (a pair repeated "
+                             "with --frames N is scored frame by frame)")
         data = None if video else _load_run_inputs(args)
         if not video and args.frames is None:
             raise InputError("--save-every needs a stream: give --frames N or the videos")
@@ -562,7 +564,7 @@ def build_parser() -> argparse.ArgumentParser:
     s = r.add_argument_group("streams of frames (see docs/streams.md)")
     s.add_argument("--frames", type=positive_int, metavar="N",
                    help="simulate N frames back to back: the pair repeated, or the first N of "
-                   "the videos (default 1, all of the videos)")
+                   f"the videos (default 1, all of the videos; at most {MAX_FRAMES:,})")
     s.add_argument("--left-video", metavar="FILE", help="left camera's video (read with OpenCV)")
     s.add_argument("--right-video", metavar="FILE", help="right camera's video")
     s.add_argument("--save-every", type=nonnegative_int, default=0, metavar="K",

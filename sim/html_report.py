@@ -8,7 +8,7 @@ URI, so the page needs no network and no other file. The same inputs give the sa
 maps are encoded by :func:`sim.io.encode_png`, the charts by matplotlib's Agg backend without
 the ``Software`` metadata entry, and the page holds no date and no path but the scene's source.
 
-The page reads the keys of ``report_version`` 2 (docs/report.md). A functional-mode report has
+The page reads the keys of ``report_version`` 3 (docs/report.md). A functional-mode report has
 no cycle figures: those sections say so and the page shows the rest.
 """
 

@@ -3,9 +3,13 @@ videos (``--left-video`` / ``--right-video``, at most ``--frames`` of them).
 
 The cycle model times the whole stream first -- frames overlap in the pipeline as the blocks
 allow -- and the summary gives the measured figures (sustained frame rate, every frame's
-latency) beside the work bound; then the frames' disparities are computed one after another
-and written as they come, every ``--save-every`` K-th into ``OUT/frames/``, so memory does not
-grow with the number of frames. The output set (the last frame's ``disparity.pfm`` and
+latency, the stream's span) beside the work bound; then the frames' disparities are computed
+one after another and written as they come, every ``--save-every`` K-th into ``OUT/frames/``,
+so memory does not grow with the number of frames (a stream is capped at
+:data:`~sim.cycle.frames.MAX_FRAMES`: the timing pass and the report keep a few figures per
+frame). A repeated pair with ground truth (a scene's, or ``--gt``/``--mask``) is scored frame by
+frame. On a terminal (and not with ``--json``) a bar on stderr follows the timing pass and
+then the frames. The output set (the last frame's ``disparity.pfm`` and
 ``.png``, the saved frames, ``report.json`` with the SHA-256 of every file) is published as
 one set at the end; until then the frames wait in a staging folder inside ``OUT``, removed if
 the run fails.
@@ -22,12 +26,30 @@ import time
 from pathlib import Path
 
 from stereosim.sim.api import run_stream
+from stereosim.sim.cycle.frames import check_frame_count
 from stereosim.sim.errors import InputError
 from stereosim.sim.io import disparity_to_colour, encode_png, pfm_bytes
 from stereosim.sim.outputs import STAGE_PREFIX, check_outputs, json_text, publish
+from stereosim.sim.progress import progress_bar
 from stereosim.sim.summary import print_summary
 from stereosim.sim.tracing import run_traced, trace_files, trace_paths
 from stereosim.sim.video import VideoPair
+
+
+class RepeatedPair:
+    """One (left, right) pair as a stream of ``count`` frames, without a list of them."""
+
+    def __init__(self, pair: tuple, count: int):
+        self.pair = pair
+        self.count = count
+
+    def __len__(self) -> int:
+        return self.count
+
+    def __getitem__(self, f: int) -> tuple:
+        if not 0 <= f < self.count:
+            raise IndexError(f"frame {f} of a stream of {self.count}")
+        return self.pair
 
 
 def stream_pairs(args, data: dict | None):
@@ -38,8 +60,7 @@ def stream_pairs(args, data: dict | None):
             raise InputError("give both --left-video and --right-video")
         pairs = VideoPair(args.left_video, args.right_video, limit=args.frames)
         return pairs, Path(args.left_video).stem, f"{args.left_video} + {args.right_video}"
-    pair = (data["left"], data["right"])
-    return [pair] * args.frames, data["name"], data["source"]
+    return RepeatedPair((data["left"], data["right"]), args.frames), data["name"], data["source"]
 
 
 def _frame_names(f: int, pair: int, pairs: int) -> tuple[str, str]:
@@ -60,6 +81,7 @@ def cmd_run_stream(args, request, data: dict | None, cfg) -> int:
                ("disparity.pfm", "disparity.png", "report.json")]
     pairs, name, source = stream_pairs(args, data)
     n = len(pairs)
+    check_frame_count(n, cfg.sva.pairs)  # before the frames' files are planned
     if save_every:
         planned += [(out_dir / "frames" / nm, "--save-every")
                     for f in range(0, n, save_every) for p in range(cfg.sva.pairs)
@@ -72,21 +94,28 @@ def cmd_run_stream(args, request, data: dict | None, cfg) -> int:
                                     dir=out_dir))
     try:
         t0 = time.perf_counter()
-        stream = run_stream(pairs, mode=args.mode, config=cfg,
-                            max_pixels=args.max_pixels or None, energy=args.energy)
+        gt, masks = (None, None) if data is None else (data.get("gt"), data.get("masks"))
+        with progress_bar(n * cfg.sva.pairs, "timing pass", "frame",
+                          quiet=args.json or args.mode != "cycle") as bar:
+            stream = run_stream(pairs, mode=args.mode, config=cfg,
+                                max_pixels=args.max_pixels or None, energy=args.energy, gt=gt,
+                                masks=masks)
+            bar.update(bar.total)  # the compiled pass is one call: done at once
         dmax = float(cfg.sva.disparities)
         files: dict[Path, object] = {}
         digests: dict[str, str] = {}
         last = None
-        for frame in stream:
-            last = frame
-            if save_every and frame.pair_frame % save_every == 0:
-                names = _frame_names(frame.pair_frame, frame.pair, cfg.sva.pairs)
-                for nm, blob in _frame_files(names, frame.disparity, dmax).items():
-                    tmp = staging / nm
-                    tmp.write_bytes(blob)
-                    files[out_dir / "frames" / nm] = tmp
-                    digests[os.path.join("frames", nm)] = hashlib.sha256(blob).hexdigest()
+        with progress_bar(len(stream), "frames", "frame", quiet=args.json) as bar:
+            for frame in stream:
+                bar.update()
+                last = frame
+                if save_every and frame.pair_frame % save_every == 0:
+                    names = _frame_names(frame.pair_frame, frame.pair, cfg.sva.pairs)
+                    for nm, blob in _frame_files(names, frame.disparity, dmax).items():
+                        tmp = staging / nm
+                        tmp.write_bytes(blob)
+                        files[out_dir / "frames" / nm] = tmp
+                        digests[os.path.join("frames", nm)] = hashlib.sha256(blob).hexdigest()
         report = stream.report
         report["scene"] = {"name": name, "source": source}
         report["output"] = {"last_frame_invalid_percent": last.invalid_percent,

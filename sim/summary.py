@@ -2,8 +2,9 @@
 
 A run's summary is a few tables drawn with ``rich``: the run (scene, size, D, descriptor,
 paths, wall time), throughput and latency (the work bound and the measured rate named as such,
-every time with its unit), each block's cycles in its own clock domain with the share of them
-it was busy, starved, blocked and idle, the energy and the accuracy. On a terminal the tables
+every time with its unit, a stream's span apart from its frames' latencies), each block's
+cycles in its own clock domain with the share of them it was busy, starved, blocked and idle,
+the energy and the accuracy (a stream's: the mean over its frames). On a terminal the tables
 have colour; anywhere else (a pipe, a file, a test) they are plain text 100 columns wide, the
 same bytes for the same report. The eval table (``stereosim eval``) is plain aligned text
 (:func:`sim.metrics.format_table`); in cycle mode it adds each scene's frame rates, latency and
@@ -140,8 +141,12 @@ def _throughput_table(report: dict) -> Table:
         f"{d} {_int(n)} @ {cyc['clock_mhz'][d]:g} MHz" for d, n in cyc["total"].items()))
     t.add_row("first output latency", f"{lat['first_output_us']:,.3f} us (first input pixel "
               "-> first disparity)")
-    t.add_row("frame latency", f"{lat['frame_ms']:,.3f} ms (first input pixel -> last "
-              "disparity)")
+    if "frame_ms" in lat:  # one frame: its span is its latency
+        t.add_row("frame latency", f"{lat['frame_ms']:,.3f} ms (first input pixel -> last "
+                  "disparity)")
+    else:  # a stream: its span, not a frame's latency (that is the row per frame above)
+        t.add_row("stream span", f"{st['span_ms']:,.3f} ms (first input pixel -> the last "
+                  "frame's last disparity)")
     if "dram" in report and report["dram"].get("read_bound_fps"):
         d = report["dram"]
         used = "-" if d["utilisation"] is None else f"{100 * d['utilisation']:.1f} %"
@@ -186,9 +191,12 @@ def _energy_table(energy: dict) -> Table:
     return t
 
 
-def _metrics_table(metrics: dict) -> Table:
-    t = Table(title="accuracy (thresholds in pixels of the GT's resolution)", title_justify="left",
-              box=box.SIMPLE_HEAD, pad_edge=False, show_edge=False)
+def _metrics_table(metrics: dict, frames: int | None = None) -> Table:
+    """The accuracy per mask: of the frame, or the mean over a stream's ``frames``."""
+    what = "accuracy" if frames is None else f"accuracy, mean of {frames:,} frames"
+    title = f"{what} (thresholds in pixels of the GT's resolution)"
+    t = Table(title=title, title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False,
+              show_edge=False, min_width=len(title))  # the title on one line
     cols = (("bad2", "bad2 %"), ("invalid", "invalid %"), ("totbad", "totbad %"),
             ("avgerr", "avgerr px"), ("rms", "rms px"))
     t.add_column("mask", no_wrap=True)
@@ -214,6 +222,8 @@ def summary_tables(report: dict, seconds: float) -> list[Table]:
         tables.append(_energy_table(report["energy"]))
     if report.get("metrics"):
         tables.append(_metrics_table(report["metrics"]))
+    if report.get("metrics_mean"):
+        tables.append(_metrics_table(report["metrics_mean"], len(report["metrics_per_frame"])))
     return tables
 
 

@@ -5,6 +5,10 @@ frame f's (left, right) uint8 images. The timing of the chip does not depend on 
 the compiled engine reads frame f only when it computes that frame's words, in order; a video
 or a folder of pairs is then never held whole in memory (the supply keeps the last two frames
 it read, so the two cameras of one frame share a read).
+
+What does grow with the number of frames is bounded by :data:`MAX_FRAMES` (checked by
+:func:`check_frame_count` before anything is allocated): the timing pass keeps every camera
+frame's instants and the report every frame's latency (and, with ground truth, its metrics).
 """
 
 from __future__ import annotations
@@ -17,6 +21,13 @@ import numpy as np
 from stereosim.nna.descriptor import compute_descriptor
 from stereosim.sim.errors import ConfigError, InputError
 from stereosim.sva.pipeline import sva_stream
+
+# The most camera frames one run simulates (input frames x camera pairs). What a stream keeps
+# per frame (python benchmarks/stream_memory.py): the timing pass about 250 bytes at its peak
+# (the engine's five int64 instants of each frame, the report's per-frame latency list), and
+# with ground truth each frame's metrics, about 4.2 KB in memory and 2.4 KB in report.json for
+# two masks -- about 1 GB at the cap (docs/streams.md, "How long a stream may be").
+MAX_FRAMES = 100_000
 
 
 class FrameSupply:
@@ -57,6 +68,19 @@ class FrameSupply:
         if left.ndim == 2:
             return cls(1, left.shape, lambda f: (left, right))
         return cls(left.shape[0], left.shape[1:], lambda f: (left[f], right[f]))
+
+
+def check_frame_count(frames: int, pairs: int = 1) -> None:
+    """Refuse a stream of more than :data:`MAX_FRAMES` camera frames (``frames`` input frames
+    seen by ``pairs`` camera pairs) before any memory is spent on it."""
+    total = int(frames) * int(pairs)
+    if total > MAX_FRAMES:
+        shown = f"{frames:,} frames" if pairs == 1 else \
+            f"{frames:,} frames x {pairs} camera pairs = {total:,} camera frames"
+        raise InputError(
+            f"the stream has {shown}, above the cap of {MAX_FRAMES:,} a run (the timing pass "
+            "keeps every frame's instants and the report every frame's latency and metrics): "
+            f"simulate it in parts of at most {MAX_FRAMES // pairs:,} frames (--frames)")
 
 
 def camera_frames(supply: FrameSupply, plan) -> FrameSupply:

@@ -40,7 +40,7 @@ def stream_report(plan: ChipPlan, frame_times) -> dict:
     frame N-1 - end of frame 0), None for a single frame -- and each frame's latency, first
     pixel in to last disparity out (min, median, p99, max and every frame's, in ms). With
     ``sva.pairs`` > 1, ``pairs`` gives the same figures for each camera pair's frames (camera
-    frame f is pair f % pairs's)."""
+    frame f is pair f % pairs's). :func:`cycle_report` adds the stream's ``span_ms``."""
     first, last, cam = (np.asarray(frame_times[i]) for i in range(3))
     out = _stream_figures(first, last, cam, range(plan.frames))
     if plan.pairs > 1:
@@ -88,9 +88,11 @@ def cycle_report(plan: ChipPlan, first_cycle: int, last_cycle: int, stats: dict,
     time from the first input pixel at t = 0 to the first frame's last output word): far below
     the work bound ``fps_bound`` when blocks hold work they cannot hand on (column tiles behind
     merge FIFOs shallower than a tile row, say). A stream's measured rate is
-    ``stream.sustained_fps`` (:func:`stream_report`). Times name their unit (``_us``,
-    ``_ms``); every block's cycles say their clock domain (:func:`block_report`); see
-    docs/report.md for every key.
+    ``stream.sustained_fps`` (:func:`stream_report`). ``stream.span_ms`` is the run's span, first
+    input pixel to last output word; ``latency.frame_ms``, the same instant, only when the run
+    is one frame -- a stream's frames have their own latencies, ``stream.latency_ms``. Times
+    name their unit (``_us``, ``_ms``); every block's cycles say their clock domain
+    (:func:`block_report`); see docs/report.md for every key.
     """
     period = plan.domains["sva"].period_fs
     first_fs = first_cycle * period
@@ -103,7 +105,12 @@ def cycle_report(plan: ChipPlan, first_cycle: int, last_cycle: int, stats: dict,
     frame0_fs = int(frame_times[1][0]) if frame_times[1][0] >= 0 else last_fs
     thr["fps_measured"] = round(FS_PER_S / frame0_fs, 3) if frame0_fs > 0 else None
     fifos = stats["fifos"]
-    stream = stream_report(plan, frame_times)
+    # a stream's span (first input pixel to its last word) is not a frame's latency: the
+    # frames' latencies are stream.latency_ms; latency.frame_ms is reported for one frame alone
+    stream = {**stream_report(plan, frame_times), "span_ms": last_fs / 1e12}
+    latency = {"first_output_us": first_fs / 1e9}
+    if plan.frames == 1:
+        latency["frame_ms"] = stream["span_ms"]
     extra = {}
     if plan.dram is not None:
         taken = int(np.count_nonzero(np.asarray(frame_times[2]) >= 0))
@@ -116,7 +123,7 @@ def cycle_report(plan: ChipPlan, first_cycle: int, last_cycle: int, stats: dict,
             "first_output": {"sva": first_cycle, "time_us": first_fs / 1e9},
             "last_output": {"sva": last_cycle, "time_ms": last_fs / 1e12},
         },
-        "latency": {"first_output_us": first_fs / 1e9, "frame_ms": last_fs / 1e12},
+        "latency": latency,
         "throughput": dict(sorted(thr.items())),
         "blocks": block_report(plan, stats),
         "fifos": {n: fifo_report(plan, n, fifos[n]) for n in sorted(fifos)},

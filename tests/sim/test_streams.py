@@ -12,12 +12,16 @@ import numpy as np
 import pytest
 
 from stereosim.nna.descriptor import compute_descriptor
+from stereosim.sim import api, progress
+from stereosim.sim.api import run, run_stream
+from stereosim.sim.cli import main
 from stereosim.sim.config import load_config
 from stereosim.sim.cycle.chip import run_readable
 from stereosim.sim.cycle.engine.run import run_compiled
-from stereosim.sim.cycle.frames import FrameSupply
+from stereosim.sim.cycle.frames import MAX_FRAMES, FrameSupply, check_frame_count
 from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.errors import ConfigError, InputError
+from stereosim.sim.io import encode_png, pfm_bytes
 from stereosim.sva.pipeline import sva_stream
 
 # census (1 NNA cycle per descriptor), equal clocks: the worked example of docs/architecture.md
@@ -172,3 +176,129 @@ def test_the_cli_runs_a_stream_with_a_trace_across_frames(tmp_path):
         "disparity_00002.png"]
     assert set(rep["files"]) >= {"t.vcd", "frames/disparity_00002.pfm", "disparity.pfm"}
     assert (out / "t.vcd").read_text().count("#") > 100
+
+
+# ---- accuracy, progress and the length of a stream (issue 31) -----------------------------------
+
+TINY = {"nna.descriptor": "census", "sva.disparities": 16}
+
+
+def _scene(folder, h=24, w=64):
+    """A Middlebury 2014 scene folder: a pair shifted by 4 pixels, its GT (4 px, unknown in
+    the first columns) and a mask with an occluded band."""
+    folder.mkdir(parents=True)
+    base = np.random.default_rng(11).integers(0, 256, (h, w + 4), dtype=np.uint8)
+    (folder / "im0.png").write_bytes(encode_png(base[:, 4:].copy()))
+    (folder / "im1.png").write_bytes(encode_png(base[:, :w].copy()))
+    gt = np.full((h, w), 4.0, np.float32)
+    gt[:, :6] = np.inf
+    (folder / "disp0GT.pfm").write_bytes(pfm_bytes(gt))
+    mask = np.full((h, w), 255, np.uint8)
+    mask[:, w - 8:] = 128
+    (folder / "mask0nocc.png").write_bytes(encode_png(mask))
+    return folder
+
+
+@pytest.mark.parametrize("mode", ["cycle", "functional"])
+def test_run_stream_scores_every_frame_against_the_ground_truth(mode):
+    """gt= and masks= score each frame as run() scores one; the report gains every frame's
+    metrics and their mean once the stream has been iterated."""
+    (l0, l1), (r0, r1) = (list(v) for v in _stream(2, 10, 48, seed=6))
+    pairs = [(l0, r0), (l1, r1), (l0, r0)]
+    gt = np.full((10, 48), 2.0, np.float32)
+    gt[:, :3] = np.inf
+    masks = {"left": np.arange(48)[None, :].repeat(10, 0) < 24, "all": np.ones((10, 48), bool)}
+    stream = run_stream(pairs, mode=mode, overrides=TINY, gt=gt, masks=masks)
+    assert "metrics_per_frame" not in stream.report  # known only once the frames are computed
+    frames = list(stream)
+    cfg = load_config(overrides=TINY)
+    for frame, (left, right) in zip(frames, pairs, strict=True):
+        alone = run(left, right, mode="functional", config=cfg, gt=gt, masks=masks)
+        assert frame.metrics == alone.report["metrics"]
+    assert frames[0].metrics == frames[2].metrics != frames[1].metrics
+    rep = stream.report
+    assert rep["metrics_per_frame"] == [{"frame": f.index, "metrics": f.metrics} for f in frames]
+    for mask in masks:
+        assert rep["metrics_mean"][mask]["bad2"] == pytest.approx(
+            sum(f.metrics[mask]["bad2"] for f in frames) / 3)
+    plain = run_stream(pairs[:1], mode=mode, overrides=TINY)
+    assert next(iter(plain)).metrics is None and "metrics_mean" not in plain.report
+
+
+def test_a_streams_ground_truth_is_checked_before_any_kernel_runs(monkeypatch):
+    def no_kernel(*args, **kw):
+        raise AssertionError("a kernel ran")
+
+    monkeypatch.setattr(api, "simulate", no_kernel)
+    left, right = _stream(1, 8, 40)
+    pairs = [(left[0], right[0])] * 2
+    with pytest.raises(InputError, match="masks need ground truth"):
+        run_stream(pairs, overrides=TINY, masks={"all": np.ones((8, 40), bool)})
+    with pytest.raises(InputError, match="GT is"):
+        run_stream(pairs, overrides=TINY, gt=np.zeros((8, 41), np.float32))
+
+
+def test_the_cli_scores_a_scene_stream_frame_by_frame(tmp_path, capsys):
+    """stereosim run SCENE --frames 3: the scene's GT and mask score every frame (the pair
+    repeated: each frame scores as the single frame does), the summary gives the mean."""
+    scene = _scene(tmp_path / "S")
+    opts = ["--descriptor", "census", "--disparities", "16"]
+    assert main(["run", str(scene), *opts, "--out", str(tmp_path / "one"), "--json"]) == 0
+    assert main(["run", str(scene), "--frames", "3", *opts, "--out", str(tmp_path / "st")]) == 0
+    out = capsys.readouterr().out
+    one = json.loads((tmp_path / "one" / "report.json").read_text())
+    rep = json.loads((tmp_path / "st" / "report.json").read_text())
+    assert set(one["metrics"]) == {"nonocc", "all"}
+    assert rep["metrics_per_frame"] == [{"frame": f, "metrics": one["metrics"]} for f in range(3)]
+    for mask, m in one["metrics"].items():
+        assert rep["metrics_mean"][mask]["bad2"] == pytest.approx(m["bad2"])
+    assert "accuracy, mean of 3 frames" in out
+    assert main(["run", "--left-video", "l.mp4", "--right-video", "r.mp4", "--gt", "g.pfm",
+                 "--out", str(tmp_path / "v")]) == 2
+    assert "videos have no ground truth" in capsys.readouterr().err
+
+
+def test_a_stream_longer_than_the_cap_is_refused_up_front(tmp_path, capsys):
+    """More camera frames than MAX_FRAMES is one line and exit status 2, before any frame is
+    read (the API) or any file written (the CLI); sva.pairs counts every pair's frames."""
+    check_frame_count(MAX_FRAMES)
+    check_frame_count(MAX_FRAMES // 2, 2)
+    with pytest.raises(InputError, match="2 camera pairs = 100,002 camera frames"):
+        check_frame_count(MAX_FRAMES // 2 + 1, 2)
+    reads = []
+
+    class Huge:  # a stream of 10^12 frames that counts the frames read
+        def __len__(self):
+            return 10 ** 12
+
+        def __getitem__(self, f):
+            reads.append(f)
+            return np.zeros((8, 40), np.uint8), np.zeros((8, 40), np.uint8)
+
+    with pytest.raises(InputError, match=f"above the cap of {MAX_FRAMES:,}"):
+        run_stream(Huge(), overrides=TINY)
+    assert reads == []
+    scene = _scene(tmp_path / "S")
+    out = tmp_path / "o"
+    assert main(["run", str(scene), "--frames", str(MAX_FRAMES + 1), "--save-every", "1",
+                 "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"{MAX_FRAMES + 1:,} frames, above the cap" in err
+    assert not out.exists()
+
+
+def test_a_stream_shows_progress_on_a_terminal_and_never_in_json(tmp_path, capsys,
+                                                                  monkeypatch):
+    scene = _scene(tmp_path / "S")
+    args = ["run", str(scene), "--frames", "3", "--descriptor", "census", "--disparities",
+            "16", "--out", str(tmp_path / "o")]
+    assert main(args) == 0
+    assert "timing pass" not in capsys.readouterr().err  # captured: not a terminal
+    monkeypatch.setattr(progress, "show_progress", lambda quiet=False, stream=None: not quiet)
+    assert main(args) == 0
+    err = capsys.readouterr().err
+    assert "timing pass: 100%" in err and "3/3" in err and "frames: 100%" in err
+    assert main([*args, "--json"]) == 0
+    captured = capsys.readouterr()
+    assert "timing pass" not in captured.err and "frames:" not in captured.err
+    assert json.loads(captured.out)["frames"] == 3

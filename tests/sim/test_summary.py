@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from stereosim.sim.api import REPORT_VERSION, run
+from stereosim.sim.api import REPORT_VERSION, run, run_stream
 from stereosim.sim.cli import main
 from stereosim.sim.config import DESCRIPTOR_DEFAULTS, load_config
 from stereosim.sim.cycle.estimate import estimate, format_estimate
@@ -42,7 +42,7 @@ def cycle_report():
 
 def test_report_names_its_version_units_and_fps_kinds(cycle_report):
     rep = cycle_report
-    assert rep["report_version"] == REPORT_VERSION == 2
+    assert rep["report_version"] == REPORT_VERSION == 3
     thr, lat, cyc = rep["throughput"], rep["latency"], rep["cycles"]
     assert {"fps_bound", "fps_measured", "fps_bound_per_block", "bottleneck"} <= set(thr)
     assert "fps" not in thr and "fps_frame" not in thr
@@ -53,7 +53,7 @@ def test_report_names_its_version_units_and_fps_kinds(cycle_report):
     assert cyc["first_output"]["time_us"] == cyc["first_output"]["sva"] * period_fs / 1e9
     assert cyc["last_output"]["time_ms"] == cyc["last_output"]["sva"] * period_fs / 1e12
     assert lat["first_output_us"] == cyc["first_output"]["time_us"]
-    assert lat["frame_ms"] == cyc["last_output"]["time_ms"]
+    assert lat["frame_ms"] == cyc["last_output"]["time_ms"] == rep["stream"]["span_ms"]
     # one frame alone: 1 / (first input pixel to the last word), 3 decimals
     assert thr["fps_measured"] == round(1e3 / lat["frame_ms"], 3)
     assert thr["fps_bound"] == thr["fps_bound_per_block"][thr["bottleneck"]]
@@ -140,6 +140,53 @@ def test_summary_is_plain_tables_with_labelled_fps_and_block_domains(cycle_repor
     m = rep["metrics"]["all"]
     assert row("all ").split()[1:4] == [f"{m['bad2']:.3f}", f"{m['invalid']:.3f}",
                                         f"{m['totbad']:.3f}"]
+
+
+@pytest.fixture(scope="module")
+def stream_report():
+    """Three frames (two pairs, the first again) scored against one GT."""
+    cfg = load_config(overrides={"sva.disparities": D})
+    first, second = _pair(), _pair(seed=7)
+    stream = run_stream([first, second, first], config=cfg,
+                        gt=np.full((H, W), 4.0, np.float32))
+    frames = list(stream)
+    assert len(frames) == 3
+    return stream.report
+
+
+def test_a_streams_span_is_named_apart_from_its_frames_latencies(stream_report, cycle_report):
+    """A stream's last word is its span, not a frame's latency: report version 3 has no
+    latency.frame_ms in a stream (stream.span_ms instead), and the summary prints it as the
+    stream's span. One frame keeps latency.frame_ms, and its summary row."""
+    rep = stream_report
+    st = rep["stream"]
+    assert set(rep["latency"]) == {"first_output_us"}
+    assert st["span_ms"] == rep["cycles"]["last_output"]["time_ms"]
+    assert st["span_ms"] > st["latency_ms"]["max"]  # the frames overlap: 3 latencies, 1 span
+    text = summary_text(rep, 1.0, terminal=False)
+    lines = text.splitlines()
+    span = next(line for line in lines if line.startswith("stream span"))
+    assert span.split()[2:4] == [f"{st['span_ms']:,.3f}", "ms"]
+    assert "last frame's last disparity" in span
+    assert not any(line.startswith("frame latency") for line in lines)
+    per_frame = next(line for line in lines if line.startswith("latency per frame, measured"))
+    assert f"median {st['latency_ms']['median']:.3f}" in per_frame
+    single = summary_text(cycle_report, 1.0, terminal=False)
+    assert "stream span" not in single and "\nframe latency" in single
+
+
+def test_a_streams_summary_gives_the_mean_accuracy_of_its_frames(stream_report):
+    rep = stream_report
+    per_frame = [f["metrics"]["all"] for f in rep["metrics_per_frame"]]
+    assert [f["frame"] for f in rep["metrics_per_frame"]] == [0, 1, 2]
+    mean = rep["metrics_mean"]["all"]
+    assert mean["bad2"] == pytest.approx(sum(m["bad2"] for m in per_frame) / 3)
+    assert "metrics" not in rep  # a stream's accuracy is named as what it is: a mean
+    text = summary_text(rep, 1.0, terminal=False)
+    assert "accuracy, mean of 3 frames (thresholds in pixels of the GT's resolution)" in text
+    row = next(line for line in text.splitlines() if line.startswith("all "))
+    assert row.split()[1:4] == [f"{mean['bad2']:.3f}", f"{mean['invalid']:.3f}",
+                                f"{mean['totbad']:.3f}"]
 
 
 def test_run_prints_the_summary_tables(tmp_path, capsys):
