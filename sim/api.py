@@ -19,11 +19,14 @@ from stereosim.sim.cycle.frames import FrameSupply, check_frame_count, functiona
 from stereosim.sim.cycle.energy import energy_report, energy_table
 from stereosim.sim.cycle.plan import ChipPlan, architecture_report, build_plan
 from stereosim.sim.cycle.report import power_basis
-from stereosim.sim.cycle.simulate import announce_compiling, simulate
+from stereosim.sim.cycle.clock import RunStopped
+from stereosim.sim.cycle.simulate import simulate
+from stereosim.sim.cycle.stops import stop_report
 from stereosim.sim.errors import ConfigError, InputError
 from stereosim.sim.io import MAX_PIXELS, check_gt_values, to_grey
 from stereosim.sim.metrics import check_truth, evaluate, mean_metrics, undefined_metrics
-from stereosim.sim.tracing import run_traced
+from stereosim.sim.progress import compile_notice
+from stereosim.sim.tracing import run_traced, trace_section
 from stereosim.sva.pipeline import sva_stream
 from stereosim.sva.wta import to_float
 
@@ -135,7 +138,11 @@ def run(
     ``max_pixels``: refuse larger views (default :data:`sim.io.MAX_PIXELS`; None = no cap).
     ``energy``: an energy table (TOML, :mod:`sim.cycle.energy`) for the cycle report's
     ``energy`` section instead of stereosim's 45 nm default.
-    Every mistake raises a :class:`sim.errors.UserError` before any kernel runs.
+    Every mistake raises a :class:`sim.errors.UserError` before any kernel runs. A cycle run
+    that stops early (``sim.max_cycles``, the automatic budget, a deadlock, a camera's
+    overflow) raises a :class:`~sim.cycle.clock.RunStopped` whose ``report`` is the stopped
+    run's report (:func:`stopped_report`) and whose ``trace`` is the log up to the stop (with
+    ``trace``; None otherwise or when the window starts after the stop).
     """
     if mode not in MODES:
         raise ConfigError(f"mode must be one of {', '.join(MODES)}; got {mode!r}")
@@ -147,17 +154,21 @@ def run(
     log = None
     if trace is not None and mode != "cycle":
         raise ConfigError("traces need the cycle model: use mode='cycle' (--mode cycle)")
-    if mode == "cycle" and trace is not None:
-        frame, log = run_traced(plan, gl, gr, trace)
-        fixed, cycle_report = frame.words, frame.report
-    elif mode == "cycle":
-        frame = simulate(plan, gl, gr)
+    if mode == "cycle":
+        try:
+            if trace is not None:
+                frame, log = run_traced(plan, gl, gr, trace)
+            else:
+                frame = simulate(plan, gl, gr)
+        except RunStopped as stop:
+            stop.report = stopped_report(plan, stop)
+            raise
         fixed, cycle_report = frame.words, frame.report
     else:
-        announce_compiling("functional")
-        desc_l = compute_descriptor(gl, cfg.nna)
-        desc_r = compute_descriptor(gr, cfg.nna)
-        fixed = sva_stream(desc_l, desc_r, gl, cfg.sva, plan.descriptor_bits)
+        with compile_notice():
+            desc_l = compute_descriptor(gl, cfg.nna)
+            desc_r = compute_descriptor(gr, cfg.nna)
+            fixed = sva_stream(desc_l, desc_r, gl, cfg.sva, plan.descriptor_bits)
     disp = to_float(fixed, cfg.sva.subpixel_bits)
     report = build_report(plan, mode, fixed)
     if mode == "cycle":
@@ -196,25 +207,43 @@ def _energy_table(path, mode: str):
     return energy_table(path)
 
 
-def build_report(plan: ChipPlan, mode: str, fixed: np.ndarray) -> dict:
+def build_report(plan: ChipPlan, mode: str, fixed: np.ndarray | None) -> dict:
+    """The report's sections every run has, and the ``output`` words' (``fixed``; None: a
+    stopped run has no output)."""
     cfg = plan.cfg
     bits = plan.descriptor_bits
-    h, w = fixed.shape
-    valid = int(np.count_nonzero(fixed >= 0))
-    return {
+    h, w = plan.shape
+    report = {
         "architecture": architecture_report(plan),
         "report_version": REPORT_VERSION,
         "stereosim": VERSION,
         "mode": mode,
         "image": {"width": w, "height": h},
         "descriptor": {"kind": cfg.nna.descriptor, "bits": bits},
-        "output": {
+        "config": config_to_dict(cfg),
+    }
+    if fixed is not None:
+        valid = int(np.count_nonzero(fixed >= 0))
+        report["output"] = {
             "valid_pixels": valid,
             "invalid_percent": round(100.0 * (h * w - valid) / (h * w), 4),
             "fractional_bits": cfg.sva.subpixel_bits,
-        },
-        "config": config_to_dict(cfg),
-    }
+        }
+    return report
+
+
+def stopped_report(plan: ChipPlan, stop: RunStopped) -> dict:
+    """The report of a cycle run that stopped: what every run reports of itself, the engine,
+    the ``stopped`` section (:func:`sim.cycle.stops.stop_report`: the reason, the instant, the
+    cycles per clock domain, every FIFO's and block's state) and, for a traced run, the
+    ``trace`` section -- and nothing that belongs to a complete frame (no output, metrics,
+    throughput or fps)."""
+    report = build_report(plan, "cycle", None)
+    report["engine"] = stop.engine
+    report["stopped"] = stop_report(stop, plan)
+    if stop.trace is not None:
+        report["trace"] = trace_section(stop.trace, stop.outputs_in_window)
+    return report
 
 
 # ---- streams of frames ---------------------------------------------------------------------------

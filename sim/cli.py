@@ -10,7 +10,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import errno
-import hashlib
 import math
 import os
 import signal
@@ -44,6 +43,7 @@ from stereosim.sim.config import (
     parse_set_options,
     read_toml,
 )
+from stereosim.sim.cycle.clock import RunStopped
 from stereosim.sim.cycle.estimate import parse_size
 from stereosim.sim.cycle.frames import MAX_FRAMES
 from stereosim.sim.cycle.plan import build_plan
@@ -75,6 +75,8 @@ from stereosim.sim.outputs import (
     path_text,
     publish,
 )
+from stereosim.sim.progress import compile_notice
+from stereosim.sim.run_files import publish_stop, with_report
 from stereosim.sim.stream_cli import cmd_run_stream
 from stereosim.sim.summary import eval_document, eval_line, eval_tables, eval_timing, print_summary
 from stereosim.sim.tracing import TraceRequest, parse_window, trace_files, trace_paths
@@ -253,20 +255,16 @@ def _load_run_inputs(args) -> dict:
 
 
 def _output_blobs(out_dir: Path, result, dmax: float, traces: dict[str, bytes]) -> dict:
-    """Every file of a run by path: the disparity maps, the report (which lists the SHA-256 of
-    every other file of the set, so a reader can tell the files belong together) and traces."""
+    """Every file of a run by path: the disparity maps, the report and traces."""
     blobs = {
         out_dir / "disparity.pfm": pfm_bytes(result.disparity),
         out_dir / "disparity.png": encode_png(disparity_to_colour(result.disparity, dmax)),
     }
     blobs.update((Path(p), data) for p, data in traces.items())
-    result.report["files"] = {
-        os.path.relpath(p, out_dir): hashlib.sha256(data).hexdigest() for p, data in blobs.items()
-    }
-    blobs[out_dir / "report.json"] = json_text(result.report).encode()
-    return blobs
+    return with_report(out_dir, result.report, blobs)
 
 
+@compile_notice()  # one notice for all the kernels a run compiles (the run's, the writers')
 def cmd_run(args) -> int:
     request = _trace_request(args)
     if not args.out.strip():
@@ -301,11 +299,15 @@ def cmd_run(args) -> int:
     saving.check_size(data["left"].shape)
     cfg = _scene_config(args, data.get("ndisp"))
     t0 = time.perf_counter()
-    result = run(data["left"], data["right"], mode=args.mode, config=cfg,
-                 gt=data.get("gt"), masks=data.get("masks"), trace=request,
-                 max_pixels=args.max_pixels or None, energy=args.energy)
+    scene = {"name": data["name"], "source": data["source"]}
+    try:
+        result = run(data["left"], data["right"], mode=args.mode, config=cfg,
+                     gt=data.get("gt"), masks=data.get("masks"), trace=request,
+                     max_pixels=args.max_pixels or None, energy=args.energy)
+    except RunStopped as stop:
+        raise publish_stop(stop, request, out_dir, planned, scene) from None
     seconds = time.perf_counter() - t0
-    result.report["scene"] = {"name": data["name"], "source": data["source"]}
+    result.report["scene"] = scene
     traces = trace_files(result.trace, request) if request is not None else {}
     saved = saving.files(out_dir, result.disparity, data["left"])
     page = html_files(args.html, result, data)

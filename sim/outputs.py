@@ -273,8 +273,8 @@ def _fsync_folder(folder: Path) -> None:
 
 def publish(files: Mapping[str | os.PathLike, object]) -> list[str]:
     """Write a set of files (path -> bytes-like, or the :class:`~pathlib.Path` of a file
-    written already on the same file system, which is moved) as one transaction; returns the
-    paths.
+    written already on the same file system, which is moved, or None: the file is removed) as
+    one transaction; returns the paths.
 
     Either every file is replaced by its new content or (on any error, interrupt or signal) every
     old file is left as it was and no temporary file remains. Missing destination folders are
@@ -306,6 +306,9 @@ def publish(files: Mapping[str | os.PathLike, object]) -> list[str]:
         staged = []
         for target, blob in zip(targets, blobs, strict=True):
             tmp = stages[target.parent] / target.name
+            if blob is None:  # removed at the swap
+                staged.append(None)
+                continue
             try:
                 if isinstance(blob, Path):  # written already (on this file system): moved
                     os.replace(blob, tmp)
@@ -332,8 +335,9 @@ def publish(files: Mapping[str | os.PathLike, object]) -> list[str]:
                 folder.rmdir()  # only if still empty
 
 
-def _swap_in(targets: list[Path], staged: list[Path], stages: dict[Path, Path]) -> None:
-    """Rename every staged file over its target; on a failure put the old files back."""
+def _swap_in(targets: list[Path], staged: list[Path | None], stages: dict[Path, Path]) -> None:
+    """Rename every staged file over its target (None: remove the target); on a failure put
+    the old files back."""
     done: list[tuple[Path, Path | None]] = []
     try:
         for target, tmp in zip(targets, staged, strict=True):
@@ -344,7 +348,11 @@ def _swap_in(targets: list[Path], staged: list[Path], stages: dict[Path, Path]) 
                     os.link(target, backup)
                 except OSError:
                     backup = None  # no hard links here: this file cannot be rolled back
-            os.replace(tmp, target)
+            if tmp is None:
+                with contextlib.suppress(FileNotFoundError):
+                    os.unlink(target)
+            else:
+                os.replace(tmp, target)
             done.append((target, backup))
     except OSError as exc:
         for target, backup in reversed(done):

@@ -1,30 +1,38 @@
-"""Feedback on long work: progress bars, and one line before numba compiles the kernels.
+"""Feedback on long work: progress bars, and a notice while numba compiles the kernels.
 
 Progress bars (tqdm) go to stderr, so that stdout stays clean for tables and ``--json``. A bar
 shows only when stderr is a terminal: piped, redirected or captured output (CI, pytest, a log
 file) gets no bar and no control characters. ``quiet=True`` (a command's ``--quiet``) and the
 environment variable ``TQDM_DISABLE=1`` turn bars off everywhere.
 
-The first run after an install or an edit compiles the numba kernels, which takes tens of
-seconds (docs/performance.md). :func:`compile_notice` prints one line to stderr before that
-happens, and only when it will happen (:func:`kernels_need_compiling`).
+The first run after an install or an edit compiles the numba kernels it uses, which takes
+from seconds to minutes (docs/performance.md). Inside :func:`compile_notice` numba's own
+compile events are watched: once compiling has taken a second, one line on stderr says so
+(while it compiles), and the end of the block prints how long compiling took and how many
+kernels it compiled. What is announced is therefore exactly what the run compiles -- every
+``@njit`` module, the stages', both engines', the trace writers' -- with no list of modules to
+keep up to date, and nothing is printed when every kernel comes from numba's cache (or a few
+kernels compile in a moment).
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
-from collections.abc import Callable, Iterable
-from pathlib import Path
-from types import ModuleType
+import threading
+import time
+from collections.abc import Callable, Iterator
 
-from numba.extending import is_jitted
+from numba.core import event
 from tqdm import tqdm
 
 COMPILE_MESSAGE = (
-    "stereosim: compiling the cycle/functional kernels (first run only, about {seconds} s; "
-    "cached afterwards)"
+    "stereosim: compiling numba kernels (once after an install or an edit; cached afterwards)"
 )
+COMPILED_MESSAGE = "stereosim: compiling took {seconds:.1f} s ({kernels} numba kernels)"
+# compiling shorter than this in all is not announced (a kernel of a new signature, say)
+COMPILE_NOTICE_DELAY_S = 1.0
 
 
 def show_progress(quiet: bool = False, stream=None) -> bool:
@@ -63,76 +71,94 @@ def poller(bar: tqdm, count: Callable[[], int]) -> Callable[[], None] | None:
 # ---- the compile notice -------------------------------------------------------------------------
 
 
-def cached_kernels(modules: Iterable[ModuleType]) -> dict[str, list]:
-    """The numba dispatchers defined in each module with ``cache=True``, by module name."""
-    out: dict[str, list] = {}
-    for module in modules:
-        found = [obj for obj in vars(module).values()
-                 if is_jitted(obj) and obj.py_func.__module__ == module.__name__
-                 and obj.stats.cache_path is not None]
-        if found:
-            out[module.__name__] = found
-    return out
+class CompileWatch(event.Listener):
+    """Listens to numba's ``numba:compile`` events: adds up the time of the outermost compiles
+    (a kernel compiles the kernels it calls inside its own event) and counts the kernels
+    compiled (one per function and signature). Once ``delay_s`` seconds of compiling have
+    passed -- while a kernel compiles -- it announces the compile on ``stream`` (stderr by
+    default); a few short compiles stay silent. A timer thread says it in time, since a
+    single kernel may compile for many seconds."""
+
+    def __init__(self, stream=None, delay_s: float = COMPILE_NOTICE_DELAY_S):
+        self.stream = stream
+        self.delay_s = delay_s
+        self.seconds = 0.0
+        self.kernels: set[tuple] = set()
+        self.announced = False
+        self._depth = 0
+        self._since = 0.0
+        self._timer: threading.Timer | None = None
+        self._lock = threading.Lock()
+
+    def _write(self, line: str) -> None:
+        stream = sys.stderr if self.stream is None else self.stream
+        # through tqdm, so that a bar already on the terminal (eval's) is redrawn below the line
+        tqdm.write(line, file=stream)
+        stream.flush()
+
+    def _announce(self) -> None:
+        with self._lock:
+            if self._depth > 0 and not self.announced:
+                self.announced = True
+                self._write(COMPILE_MESSAGE)
+
+    def on_start(self, ev) -> None:
+        func = ev.data["dispatcher"].py_func
+        with self._lock:
+            self.kernels.add((func.__module__, func.__qualname__, str(ev.data["args"])))
+            self._depth += 1
+            if self._depth > 1:
+                return
+            self._since = time.perf_counter()
+            left = self.delay_s - self.seconds
+        if self.announced:
+            return
+        if left <= 0:
+            self._announce()
+        else:
+            self._timer = threading.Timer(left, self._announce)
+            self._timer.daemon = True
+            self._timer.start()
+
+    def on_end(self, ev) -> None:
+        with self._lock:
+            self._depth -= 1
+            if self._depth > 0:
+                return
+            self.seconds += time.perf_counter() - self._since
+            timer, self._timer = self._timer, None
+        if timer is not None:
+            timer.cancel()
+
+    def report(self) -> None:
+        """The closing line, when the compile was announced."""
+        if self.announced:
+            self._write(COMPILED_MESSAGE.format(seconds=self.seconds, kernels=len(self.kernels)))
 
 
-def index_file(kernel) -> Path:
-    """Where numba keeps the cache index of a ``cache=True`` dispatcher:
-    ``<cache dir>/<file stem>.<qualname>-<first line>.py<major><minor>.nbi`` (numba's naming;
-    the cache dir is ``__pycache__`` beside the source, or under ``NUMBA_CACHE_DIR``)."""
-    func = kernel.py_func
-    stem = Path(func.__code__.co_filename).stem
-    qualname = func.__qualname__.replace("<", "").replace(">", "")
-    version = f"py{sys.version_info[0]}{sys.version_info[1]}"
-    name = f"{stem}.{qualname}-{func.__code__.co_firstlineno}.{version}.nbi"
-    return Path(kernel.stats.cache_path) / name
+_open = threading.local()  # the outermost open notice of this thread (.watch)
 
 
-def _index_state(kernel) -> str:
-    """``"fresh"`` (the cache index exists and is not older than the source file: numba drops
-    an index whose source changed, and one written after the last edit is current),
-    ``"stale"`` (it exists but is older) or ``"none"``."""
+@contextlib.contextmanager
+def compile_notice(stream=None, delay_s: float = COMPILE_NOTICE_DELAY_S
+                   ) -> Iterator[CompileWatch]:
+    """Within the block, numba compiling for more than ``delay_s`` seconds in all prints
+    :data:`COMPILE_MESSAGE` (one line, stderr by default) while it compiles, and leaving the
+    block then prints :data:`COMPILED_MESSAGE` with the time spent compiling and the kernels
+    compiled -- nothing at all when every kernel came from the cache or compiling was brief.
+    A block inside another one reports through the outer one, so a command gets one pair of
+    lines. Usable as a decorator."""
+    outer = getattr(_open, "watch", None)
+    if outer is not None:
+        yield outer
+        return
+    watch = _open.watch = CompileWatch(stream, delay_s)
     try:
-        index = index_file(kernel).stat()
-    except OSError:
-        return "none"
-    try:
-        source = os.stat(kernel.py_func.__code__.co_filename)
-    except OSError:
-        return "stale"
-    return "fresh" if index.st_mtime >= source.st_mtime else "stale"
-
-
-def _group_cold(kernels: dict[str, list]) -> bool:
-    if any(k.signatures for found in kernels.values() for k in found):
-        return False  # loaded in this process already
-    states = [{_index_state(k) for k in found} for found in kernels.values()]
-    if not states:
-        return False
-    stale = any("stale" in s and "fresh" not in s for s in states)
-    return stale or all(s == {"none"} for s in states)
-
-
-def kernels_need_compiling(groups: Iterable[Iterable[ModuleType]]) -> bool:
-    """True when running the kernels of these groups of modules will compile them.
-
-    A group is cold when none of its kernels is loaded in this process yet, and either no
-    kernel of any of its modules has a cache index on disk (a new install, a new
-    ``NUMBA_CACHE_DIR``), or when a module's indexes are all older than its source (an edit).
-    A module that has no index at all inside a group that has some is not counted: numba
-    writes no index for a kernel that only other kernels call, and a run compiles only the
-    kernels it uses."""
-    return any(_group_cold(cached_kernels(modules)) for modules in groups)
-
-
-def compile_notice(groups: Iterable[Iterable[ModuleType]], seconds: int, stream=None) -> bool:
-    """Print :data:`COMPILE_MESSAGE` (one line, stderr by default) when the kernels of these
-    groups of modules are about to be compiled (:func:`kernels_need_compiling`); returns
-    whether it printed. Once the kernels are loaded (or cached) the check is false, so the line
-    appears once per process at most."""
-    if not kernels_need_compiling(groups):
-        return False
-    # through tqdm, so that a bar already on the terminal (eval's) is redrawn below the line
-    stream = sys.stderr if stream is None else stream
-    tqdm.write(COMPILE_MESSAGE.format(seconds=seconds), file=stream)
-    stream.flush()
-    return True
+        with event.install_listener("numba:compile", watch):
+            yield watch
+    finally:
+        _open.watch = None
+        timer = watch._timer
+        if timer is not None:  # (an exception out of a compile)
+            timer.cancel()
+        watch.report()

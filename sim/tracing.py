@@ -30,10 +30,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from stereosim.sim.cycle.clock import RunStopped
 from stereosim.sim.cycle.plan import ChipPlan
 from stereosim.sim.cycle.simulate import simulate
 from stereosim.sim.errors import ConfigError
 from stereosim.sim.outputs import publish
+from stereosim.sim.progress import compile_notice
 from stereosim.traces.fst import fst_bytes
 from stereosim.traces.gtkw import gtkw_text, has_status, status_filter_text
 from stereosim.traces.log import select
@@ -64,7 +66,8 @@ def parse_window(spec: str | None) -> Window:
 
 def window_fs(spec: str | None, plan: ChipPlan, row_times=None) -> tuple[int, int]:
     """The window ``[start_fs, end_fs)`` of ``spec`` (``row_times`` from an untraced pass for a
-    rows window; end None = the end of the run, given as a huge instant)."""
+    rows window; end None = the end of the run, given as a huge instant, and so is a row a
+    stopped run never reached: -1 in ``row_times``)."""
     win = parse_window(spec)
     end_of_run = 1 << 62
     a = win.start or 0
@@ -73,7 +76,8 @@ def window_fs(spec: str | None, plan: ChipPlan, row_times=None) -> tuple[int, in
         b = h if win.end is None else win.end
         if b > h or a >= b:
             raise ConfigError(f"--trace-window {spec!r}: the image has rows 0 to {h - 1}")
-        return int(row_times[0, a]), int(row_times[1, b]) + 1
+        first, last = int(row_times[0, a]), int(row_times[1, b])
+        return (first if first >= 0 else end_of_run), (last + 1 if last >= 0 else end_of_run)
     if win.is_time:
         return a, end_of_run if win.end is None else win.end
     if win.kind not in plan.domains:
@@ -85,15 +89,31 @@ def window_fs(spec: str | None, plan: ChipPlan, row_times=None) -> tuple[int, in
     return a * per, end_of_run if win.end is None else win.end * per
 
 
+def trace_section(log, outputs_in_window: int) -> dict:
+    """The report's ``trace`` section of a recorded ``log``."""
+    return {"window_fs": [log.start_fs, log.end_fs], "signals": len(log.signals),
+            "value_changes": log.n_changes, "outputs_in_window": outputs_in_window}
+
+
 def run_traced(plan: ChipPlan, left: np.ndarray, right: np.ndarray, request: TraceRequest):
     """Simulate one frame with a trace: ``(frame result, log)``; raises ConfigError (nothing
     written) for a window outside the run or a trace above the size limit. Either engine
-    records it (sim.engine; the same signals and values)."""
+    records it (sim.engine; the same signals and values). A run that stops raises its
+    :class:`~sim.cycle.clock.RunStopped` with ``trace`` the log of the window up to the stop
+    (the request's signals; None when the window starts after it)."""
     row_times = None
     if parse_window(request.window).kind == ROWS:
-        row_times = simulate(plan, left, right).row_times
+        try:
+            row_times = simulate(plan, left, right).row_times
+        except RunStopped as stop:  # the rows reached before the stop
+            row_times = stop.row_times
     start, end = window_fs(request.window, plan, row_times)
-    frame = simulate(plan, left, right, window=(start, end))
+    try:
+        frame = simulate(plan, left, right, window=(start, end))
+    except RunStopped as stop:
+        if stop.trace is not None and request.patterns:
+            stop.trace = select(stop.trace, request.patterns)
+        raise
     if frame.trace is None:
         last = int(frame.stats["end_time_fs"])
         raise ConfigError(
@@ -101,9 +121,7 @@ def run_traced(plan: ChipPlan, left: np.ndarray, right: np.ndarray, request: Tra
             f"({last} fs): choose an earlier window"
         )
     log = select(frame.trace, request.patterns) if request.patterns else frame.trace
-    frame.report["trace"] = {"window_fs": [log.start_fs, log.end_fs],
-                             "signals": len(log.signals), "value_changes": log.n_changes,
-                             "outputs_in_window": frame.outputs_in_window}
+    frame.report["trace"] = trace_section(log, frame.outputs_in_window)
     return frame, log
 
 
@@ -149,8 +167,10 @@ def filter_path(vcd: str) -> str:
     return os.path.splitext(vcd)[0] + ".status.txt"
 
 
+@compile_notice()
 def trace_files(log, request: TraceRequest) -> dict[str, bytes]:
-    """The bytes of every file the request names (after :func:`check_size`), by path."""
+    """The bytes of every file the request names (after :func:`check_size`), by path (the
+    writers' kernels compile on first use: :func:`sim.progress.compile_notice`)."""
     files = {}
     if request.vcd and is_fst(request.vcd):
         files[request.vcd] = fst_bytes(log)

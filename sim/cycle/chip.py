@@ -25,13 +25,19 @@ from stereosim.sim.cycle.blocks.sources import (
     Sink,
 )
 from stereosim.sim.cycle.blocks.sva import SvaBlock
+from stereosim.sim.cycle.clock import RunStopped
 from stereosim.sim.cycle.fifo import Fifo
 from stereosim.sim.cycle.frames import FrameSupply, camera_frames
 from stereosim.sim.cycle.kernel import Simulator
 from stereosim.sim.cycle.plan import ChipPlan, build_plan
 from stereosim.sim.cycle.report import cycle_report
 from stereosim.sim.cycle.rules import camera_frame_start, sink_may_pop
-from stereosim.sim.cycle.stops import CameraOverflow, frame_buffer_message, overflow_message
+from stereosim.sim.cycle.stops import (
+    CameraOverflow,
+    FrameBufferFull,
+    frame_buffer_message,
+    overflow_message,
+)
 from stereosim.sim.errors import UserError
 from stereosim.sim.progress import poller, progress_bar
 from stereosim.traces.log import Clock, Signal, TraceLog, TraceRecorder
@@ -59,10 +65,11 @@ class Chip:
         run stops the run here, after the step, naming every camera that did."""
         over = [cam.overflow for cam in self.cameras if cam.overflow is not None]
         if over:
-            raise CameraOverflow(overflow_message(over, self.plan.shape[0], self.plan.frames))
+            raise self.sim.stop(CameraOverflow, overflow_message(over, self.plan.shape[0],
+                                                                 self.plan.frames))
         fb_over = next((cam.fb_overflow for cam in self.cameras if cam.fb_overflow), None)
         if fb_over is not None:
-            raise CameraOverflow(frame_buffer_message(*fb_over, self.plan.cfg))
+            raise self.sim.stop(FrameBufferFull, frame_buffer_message(*fb_over, self.plan.cfg))
         fb = self.frame_buffers
         if fb is None:
             return self.sink.done
@@ -222,7 +229,9 @@ def _run(chip: Chip) -> tuple[dict, dict]:
     try:
         stats = chip.sim.run(chip.done, budget_cycles=plan.budget,
                              on_progress=poller(bar, lambda: sink.received // sink.width),
-                             budget_remedy=plan.budget_remedy, watchdog_cycles=plan.cfg.sim.watchdog_cycles)
+                             budget_remedy=plan.budget_remedy,
+                             watchdog_cycles=plan.watchdog_cycles,
+                             watchdog_remedy=plan.watchdog_remedy)
     except UserError:
         buffer_report(plan, windows_of(plan, chip.window_rows()), sva.stage_peaks())
         raise
@@ -289,7 +298,10 @@ def run_readable(plan: ChipPlan, left, right=None, *, sink_stall=None,
     """One frame or a stream (the plan's) on the readable kernel; ``window`` = (start_fs,
     end_fs) records every signal of the plan in it (the trace ends one femtosecond after the
     run's last step at the latest). ``trace`` is None when the window starts after the run
-    ended. ``on_frame(f, words)`` receives each frame's words as it completes."""
+    ended. ``on_frame(f, words)`` receives each frame's words as it completes. A run that
+    stops raises its :class:`~sim.cycle.clock.RunStopped` with the row instants reached by
+    then (``row_times``) and the trace of the window up to the stop (``trace``,
+    ``outputs_in_window``)."""
     hook = None
     if window is not None:
         names = [f"{s.owner}.{s.key}" for s in plan.signals]
@@ -301,12 +313,26 @@ def run_readable(plan: ChipPlan, left, right=None, *, sink_stall=None,
                       trace_end_fs=None if window is None else window[1])
     if hook is not None:
         hook.fifo = chip.fifos["sva_to_sink"]
-    stats, report = _run(chip)
+    try:
+        stats, report = _run(chip)
+    except RunStopped as stop:
+        stop.row_times = chip.row_times()
+        if hook is not None:
+            stop.trace, stop.outputs_in_window = _window_trace(hook, window, stop.time_fs)
+        raise
     result = FrameResult(chip.sink.words.copy(), report, stats, chip.row_times(),
                          chip.frame_times())
-    if hook is not None and hook.started:
-        end = min(window[1], stats["end_time_fs"] + 1)
-        result.trace = hook.recorder.log(end)
-        result.outputs_in_window = (hook.until or 0) - (hook.before or 0)
+    if hook is not None:
+        result.trace, result.outputs_in_window = _window_trace(hook, window,
+                                                               stats["end_time_fs"])
     return result
 
+
+def _window_trace(hook: _WindowCounter, window: tuple[int, int], last_fs: int):
+    """The recorded trace of ``window`` up to the run's last step at ``last_fs`` (one
+    femtosecond after it at the latest) and the words pushed in it; (None, 0) when the window
+    starts after that step."""
+    if not hook.started:
+        return None, 0
+    end = min(window[1], last_fs + 1)
+    return hook.recorder.log(end), (hook.until or 0) - (hook.before or 0)

@@ -43,6 +43,11 @@ class RunStopped(UserError):
     Attributes: ``time_fs`` (instant of the last executed step), ``cycles`` (cycles run per
     domain), ``fifos`` (name -> ``{"occupancy", "depth"}``), ``blocks`` (name -> ``{"status",
     "waiting_on"}`` where ``waiting_on`` is ``(fifo_name, "empty" | "full")`` or ``None``).
+    A chip's run fills in more on the way up (None until then): ``row_times`` (the row
+    instants reached, as :meth:`sim.cycle.chip.Chip.row_times`), ``trace`` (the
+    :class:`~traces.log.TraceLog` of a traced run, up to the stop) with ``outputs_in_window``,
+    ``engine`` (the cycle engine that ran) and, from :func:`stereosim.run`, ``report`` (the
+    stopped run's report, its ``stopped`` section from :func:`sim.cycle.stops.stop_report`).
     """
 
     def __init__(self, message: str, *, time_fs: int, cycles: dict, fifos: dict, blocks: dict):
@@ -51,6 +56,11 @@ class RunStopped(UserError):
         self.cycles = cycles
         self.fifos = fifos
         self.blocks = blocks
+        self.row_times = None
+        self.trace = None
+        self.outputs_in_window = 0
+        self.engine: str | None = None
+        self.report: dict | None = None
 
 
 class DeadlockError(RunStopped):
@@ -110,27 +120,33 @@ class ClockDomain:
         return (t_fs - self.phase_fs) // self.period_fs + 1
 
 
+# the full FIFOs a stop's line names (every FIFO's state is on the exception)
+STOP_LINE_FIFOS = 6
+
+
+def time_text(t_fs: int) -> str:
+    """An instant as a stop's line gives it: microseconds to the picosecond."""
+    return f"{t_fs / 1e9:.6f} us"
+
+
 def stop_message(head: str, now_fs: int, cycles: dict[str, int], fifos: dict[str, dict],
                  blocks: dict[str, dict], tail: str) -> str:
-    """The one-line message of a :class:`RunStopped` (both cycle engines build it here):
-    ``cycles`` per domain in domain order, ``fifos`` name -> {"occupancy", "depth"} and
-    ``blocks`` name -> {"status", "waiting_on"} in the order the chip lists them."""
-    fifo_words = []
-    for name, st in fifos.items():
-        occ, depth = st["occupancy"], st["depth"]
-        tag = " full" if occ >= depth else " empty" if occ == 0 else ""
-        fifo_words.append(f"{name} {occ}/{depth}{tag}")
-    block_words = []
-    for name, st in blocks.items():
-        if st["waiting_on"] is not None:
-            fname, kind = st["waiting_on"]
-            block_words.append(f"{name} {st['status']} on {fname} ({kind})")
-        else:
-            block_words.append(f"{name} {st['status'] or 'never clocked'}")
+    """The one-line message of a :class:`RunStopped` (both cycle engines build it here): the
+    reason, the instant and the cycles run per domain (``cycles`` in domain order), the FIFOs
+    that matter -- the full ones, each of which holds its producer back (``fifos``: name ->
+    {"occupancy", "depth"}, in the chip's order; the first :data:`STOP_LINE_FIFOS`) -- the
+    blocks waiting on something that is not a FIFO (the DRAM channel, the frame buffers), and
+    ``tail``. Every FIFO's and block's state is on the exception, not in the line."""
+    full = [f"{name} {st['occupancy']}/{st['depth']}" for name, st in fifos.items()
+            if st["occupancy"] >= st["depth"]]
+    shown = ", ".join(full[:STOP_LINE_FIFOS])
+    if len(full) > STOP_LINE_FIFOS:
+        shown += f" and {len(full) - STOP_LINE_FIFOS} more"
+    words = [f"full FIFOs: {shown}" if full else "no FIFO is full"]
+    words += [f"{name} {st['status']} on {st['waiting_on'][0]}" for name, st in blocks.items()
+              if st["waiting_on"] is not None and st["waiting_on"][0] not in fifos]
     cyc = ", ".join(f"{d} {n}" for d, n in cycles.items())
-    return (f"{head} at t={now_fs} fs (cycles run: {cyc}): fifo "
-            f"{', '.join(fifo_words) or 'none'}; blocks: {', '.join(block_words) or 'none'}; "
-            f"{tail}")
+    return f"{head} at {time_text(now_fs)} (cycles run: {cyc}): {'; '.join(words)}; {tail}"
 
 
 def budget_message(domain: str, limit: int, remedy: str | None = None) -> str:
@@ -168,10 +184,14 @@ def fifo_counts(*, pushes: int, pops: int, depth: int, width_bits: int, max_occu
     }
 
 
-def watchdog_message(quiet_fs: int, p_max_fs: int) -> str:
-    """The tail of the watchdog's :class:`DeadlockError` (shared by both cycle engines)."""
-    return (f"no FIFO moved and no block was busy for {quiet_fs} fs ({quiet_fs // p_max_fs} "
-            "periods of the slowest clock): deepen a FIFO or change what a block waits for")
+def watchdog_message(quiet_fs: int, p_max_fs: int, remedy: str | None = None) -> str:
+    """The tail of the watchdog's :class:`DeadlockError` (shared by both cycle engines). The
+    chip's runs give ``remedy`` (:attr:`~sim.cycle.plan.ChipPlan.watchdog_remedy`: which limit
+    fired and how to raise it)."""
+    if remedy is None:
+        remedy = "deepen a FIFO or change what a block waits for"
+    return (f"no FIFO moved and no block was busy for {time_text(quiet_fs)} "
+            f"({quiet_fs // p_max_fs} periods of the slowest clock): {remedy}")
 
 
 def count_instants(edges: list[tuple[int, int, int]]) -> int:

@@ -159,10 +159,18 @@ class Simulator:
         }
         return fifos, blocks
 
+    def stop(self, cls, message: str):
+        """A :class:`~sim.cycle.clock.RunStopped` of class ``cls`` with ``message`` and the
+        state after the last executed step (for a stop the model decides, such as a camera's
+        overflow)."""
+        fifos, blocks = self._state()
+        return cls(message, time_fs=self.now_fs, cycles=self.cycles, fifos=fifos,
+                   blocks=blocks)
+
     def _stop(self, cls, head: str, tail: str):
         fifos, blocks = self._state()
-        msg = stop_message(head, self.now_fs, dict(self._cycles), fifos, blocks, tail)
-        return cls(msg, time_fs=self.now_fs, cycles=self.cycles, fifos=fifos, blocks=blocks)
+        return self.stop(cls, stop_message(head, self.now_fs, dict(self._cycles), fifos, blocks,
+                                           tail))
 
     # ---- running -----------------------------------------------------------------------------
 
@@ -236,6 +244,7 @@ class Simulator:
         budget_cycles: dict[str, int] | int,
         watchdog_cycles: int | None = 1000,
         budget_remedy: str | None = None,
+        watchdog_remedy: str | None = None,
         on_progress: Callable[[], None] | None = None,
     ) -> dict:
         """Step until ``until()`` is true (checked before the first step and after every step).
@@ -246,7 +255,8 @@ class Simulator:
         ``watchdog_cycles``: raise :class:`DeadlockError` at the first step without progress
         that ends ``watchdog_cycles`` periods of the slowest clock domain after the last step
         with progress (or after one slowest period before the run's first step); ``None``
-        disables it. ``budget_remedy``: what the budget's message tells the user to change.
+        disables it. ``budget_remedy``, ``watchdog_remedy``: what the budget's and the
+        watchdog's messages tell the user to change.
         In time, not in steps, so an engine that skips quiet stretches reaches the
         same verdict at the same instant. ``on_progress()`` is called every
         :data:`PROGRESS_STEPS` steps and at the end, for a progress bar; it must not touch the
@@ -274,7 +284,8 @@ class Simulator:
             elif (watchdog_cycles is not None and t - last_progress >= watchdog_cycles * p_max
                   and not until()):
                 raise self._stop(DeadlockError, "deadlock",
-                                 watchdog_message(t - last_progress, p_max))
+                                 watchdog_message(t - last_progress, p_max,
+                                                  watchdog_remedy))
             countdown -= 1
             if countdown == 0:
                 countdown = PROGRESS_STEPS

@@ -201,6 +201,14 @@ class DramPlan:
     def round_fs(self) -> int:
         return self.round_slots * self.slot_fs
 
+    @property
+    def longest_wait_fs(self) -> int:
+        """The longest a read may legitimately keep the chip waiting with nothing moving: a
+        request just after its round's read slots waits for the next round and its two slots
+        (at most a round each), then the access latency (``rules.dram_read_ready_fs``). The
+        watchdog and the automatic cycle budget allow it."""
+        return 2 * self.round_fs + self.latency_fs
+
     def gbps(self, client: DramClient) -> float:
         """The bandwidth a client's slots give it, GB/s."""
         return client.count * self.burst_bytes * 1e15 / self.round_fs / 1e9
@@ -343,8 +351,33 @@ class ChipPlan:
         return max(d.period_fs for d in self.domains.values())
 
     @property
+    def dram_wait_cycles(self) -> int:
+        """Periods of the slowest clock the watchdog adds for the DRAM channel's longest wait
+        (:attr:`DramPlan.longest_wait_fs`; 0 without the channel): a legal latency such as
+        ``dram.latency_ns = 1e6`` is not a deadlock."""
+        if self.dram is None:
+            return 0
+        return -(-self.dram.longest_wait_fs // self.p_max_fs)
+
+    @property
+    def watchdog_cycles(self) -> int:
+        """The watchdog's window in periods of the slowest clock, as both engines count it:
+        ``sim.watchdog_cycles`` plus :attr:`dram_wait_cycles`."""
+        return self.cfg.sim.watchdog_cycles + self.dram_wait_cycles
+
+    @property
     def watchdog_fs(self) -> int:
-        return self.cfg.sim.watchdog_cycles * self.p_max_fs
+        return self.watchdog_cycles * self.p_max_fs
+
+    @property
+    def watchdog_remedy(self) -> str:
+        """What a run the watchdog stopped tells the user (both engines): which limit fired
+        and how to raise it."""
+        limit = f"sim.watchdog_cycles = {self.cfg.sim.watchdog_cycles} periods"
+        if self.dram_wait_cycles:
+            limit += f" (+ {self.dram_wait_cycles} for the DRAM's longest wait)"
+        return (f"the watchdog allows {limit}: deepen a FIFO or change what a block waits for, "
+                "or raise sim.watchdog_cycles if the chip may legitimately wait longer")
 
     @property
     def budget_remedy(self) -> str:
@@ -383,7 +416,10 @@ def frame_budget(cfg: ChipConfig, shape: tuple[int, int], freqs: dict[str, float
                  cpd: int, sva_ii: int, frames: int = 1, dram: DramPlan | None = None
                  ) -> dict[str, int]:
     """The cycles each domain may run: ``sim.max_cycles`` for every domain when set, else a
-    generous budget of 20x the frames at the slowest block's rate."""
+    generous budget of 20x the frames at the slowest block's rate. Through the DRAM channel a
+    memory source reads no faster than its read slots give, nor than its prefetch window per
+    round trip (``read_prefetch_bursts`` bursts per access latency), and every frame's first
+    burst waits the channel's longest wait."""
     if cfg.sim.max_cycles:
         return dict.fromkeys(freqs, cfg.sim.max_cycles)
     h, w = shape
@@ -393,8 +429,12 @@ def frame_budget(cfg: ChipConfig, shape: tuple[int, int], freqs: dict[str, float
         sva_ii / (cfg.clocks.sva_mhz * 1e6),
         (w + cfg.source.camera_hblank) / w / (cfg.clocks.camera_mhz * 1e6) if camera else 0.0,
         dram.round_fs / dram.read_pixels / 1e15 if dram is not None else 0.0,
+        (dram.longest_wait_fs / (dram.prefetch * dram.read_pixels) / 1e15
+         if dram is not None else 0.0),
     )
     frame_s = (h + 16) * w * per_pixel_s + 1e-6
+    if dram is not None:
+        frame_s += dram.longest_wait_fs / 1e15
     if camera and frames > 1:  # the vertical blanking between frames
         frame_s += (cfg.source.camera_vblank * (w + cfg.source.camera_hblank)
                     / (cfg.clocks.camera_mhz * 1e6))

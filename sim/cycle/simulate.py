@@ -10,49 +10,23 @@ decides which engine runs.
   than a periodic pattern; then the readable kernel, and the report's ``engine_reason`` says
   why.
 
-The first frame after an install or an edit compiles the numba kernels; one line on stderr
-says so beforehand (:func:`sim.progress.compile_notice`). The readable kernel draws a progress
-bar on stderr when it is a terminal.
+The first frame after an install or an edit compiles the numba kernels it uses; one line on
+stderr says so when the first one starts, and one more how long it took
+(:func:`sim.progress.compile_notice`). The readable kernel draws a progress bar on stderr when
+it is a terminal. A run that stops raises its :class:`~sim.cycle.clock.RunStopped` with
+``engine`` set (and, with ``window``, the trace up to the stop).
 """
 
 from __future__ import annotations
 
-from stereosim.nna import census as nna_census
-from stereosim.nna import conv as nna_conv
-from stereosim.quant import fixedpoint, intconv
-from stereosim.sim.cycle import rules
-from stereosim.sim.cycle.engine import pipeline as engine_pipeline
-from stereosim.sim.cycle.engine import reads as engine_reads
-from stereosim.sim.cycle.engine import replay as engine_replay
-from stereosim.sim.cycle.engine import ring as engine_ring
-from stereosim.sim.cycle.engine import streams as engine_streams
-from stereosim.sim.cycle.engine import walkers as engine_walkers
-from stereosim.sva import aggregation, cost, lr_check, median, sgm, wta
-from stereosim.sva import pipeline as sva_pipeline
 from stereosim.sim.cycle.chip import FrameResult, run_readable
-from stereosim.sim.cycle.engine import run as engine_run
+from stereosim.sim.cycle.clock import RunStopped
 from stereosim.sim.cycle.engine.run import run_compiled
 from stereosim.sim.cycle.plan import ChipPlan
 from stereosim.sim.errors import ConfigError
 from stereosim.sim.progress import compile_notice
 
 ENGINES = ("auto", "fast", "readable")
-# The numba kernels a frame compiles on first use, in two groups: the stages' (the functional
-# model and both engines) and the compiled engine's.
-STAGE_KERNELS = (nna_census, nna_conv, fixedpoint, intconv, aggregation, cost, lr_check, median,
-                 sva_pipeline, sgm, wta, rules)
-ENGINE_KERNELS = (engine_pipeline, engine_reads, engine_replay, engine_ring, engine_run,
-                  engine_streams, engine_walkers)
-# What the notice announces: the approximate cold compile time of a whole run of each kind on
-# a quiet 2-core machine (docs/performance.md).
-COMPILE_SECONDS = {"functional": 15, "readable": 15, "fast": 100}
-
-
-def announce_compiling(kind: str) -> bool:
-    """One line on stderr before a ``kind`` of run ("functional", "readable" or "fast")
-    compiles its kernels for the first time (:func:`sim.progress.compile_notice`)."""
-    groups = [STAGE_KERNELS] if kind != "fast" else [STAGE_KERNELS, ENGINE_KERNELS]
-    return compile_notice(groups, COMPILE_SECONDS[kind])
 
 
 def _needs_readable(sink_stall, order_seed) -> str | None:
@@ -79,16 +53,19 @@ def simulate(plan: ChipPlan, left, right=None, *, sink_stall=None,
     reason = _needs_readable(sink_stall, order_seed)
     if engine == "fast" and reason is not None:
         raise ConfigError(f"sim.engine=fast: {reason}; use sim.engine=auto or readable")
-    if engine == "readable" or reason is not None:
-        announce_compiling("readable")
-        result = run_readable(plan, left, right, sink_stall=sink_stall, window=window,
-                              order_seed=order_seed, on_frame=on_frame)
-        result.report["engine"] = "readable"
-        if engine == "auto":
-            result.report["engine_reason"] = reason
-        return result
-    announce_compiling("fast")
-    result = run_compiled(plan, left, right, sink_stall=sink_stall, window=window,
-                          on_frame=on_frame, words=words)
-    result.report["engine"] = "fast"
+    ran = "readable" if engine == "readable" or reason is not None else "fast"
+    try:
+        with compile_notice():
+            if ran == "readable":
+                result = run_readable(plan, left, right, sink_stall=sink_stall, window=window,
+                                      order_seed=order_seed, on_frame=on_frame)
+            else:
+                result = run_compiled(plan, left, right, sink_stall=sink_stall, window=window,
+                                      on_frame=on_frame, words=words)
+    except RunStopped as stop:
+        stop.engine = ran
+        raise
+    result.report["engine"] = ran
+    if ran == "readable" and engine == "auto":
+        result.report["engine_reason"] = reason
     return result

@@ -148,7 +148,9 @@ def test_a_sink_that_never_drains_is_reported_as_a_deadlock():
     with pytest.raises(DeadlockError) as exc:
         run_cycle(left, right, cfg, sink_stall=lambda c: True)
     msg = str(exc.value)
-    assert "sva_to_sink" in msg and "nna_left_to_sva" in msg and "\n" not in msg
+    assert "full FIFOs: sva_to_sink 16/16" in msg and "\n" not in msg
+    assert exc.value.fifos["sva_to_sink"] == {"occupancy": 16, "depth": 16}
+    assert "nna_left_to_sva" in exc.value.fifos
     assert exc.value.blocks["sva"]["status"] == "blocked"
 
 

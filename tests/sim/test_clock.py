@@ -352,13 +352,12 @@ def test_window_of_3_on_a_depth_2_fifo_deadlocks_with_every_fifo_and_wait_named(
         sim.run(lambda: len(sink.items) == 4, budget_cycles=1000, watchdog_cycles=w)
     err = info.value
     assert isinstance(err, UserError)
+    # the line names the full FIFO; every FIFO's and block's state is on the exception
     assert str(err) == (
-        f"deadlock at t={(1 + w) * P} fs (cycles run: clk {w + 2}): "
-        "fifo src_to_win 2/2 full, win_to_sink 0/4 empty; "
-        "blocks: source blocked on src_to_win (full), win starved on src_to_win (empty), "
-        "sink starved on win_to_sink (empty); "
-        f"no FIFO moved and no block was busy for {w * P} fs ({w} periods of the slowest clock): "
-        "deepen a FIFO or change what a block waits for"
+        f"deadlock at {(1 + w) * P / 1e9:.6f} us (cycles run: clk {w + 2}): "
+        "full FIFOs: src_to_win 2/2; "
+        f"no FIFO moved and no block was busy for {w * P / 1e9:.6f} us ({w} periods of the "
+        "slowest clock): deepen a FIFO or change what a block waits for"
     )
     assert "\n" not in str(err)
     assert err.time_fs == (1 + w) * P
@@ -402,8 +401,8 @@ def test_budget_exceeded_reports_the_same_state():
     assert isinstance(err, UserError)
     assert err.cycles == {"clk": 5} and err.time_fs == 4 * P
     assert str(err) == (
-        f"cycle budget exceeded at t={4 * P} fs (cycles run: clk 5): fifo a_to_b 1/2; "
-        "blocks: a busy, b busy; clk ran its budget of 5 cycles before the until condition "
+        f"cycle budget exceeded at {4 * P / 1e9:.6f} us (cycles run: clk 5): no FIFO is full; "
+        "clk ran its budget of 5 cycles before the until condition "
         "held: raise budget_cycles or check the until condition"
     )
     assert err.fifos == {"a_to_b": {"occupancy": 1, "depth": 2}}
@@ -525,7 +524,8 @@ def test_watchdog_counts_periods_of_the_slowest_clock():
     t_last = p_slow  # the source's second push
     deadline = t_last + w * p_slow
     assert info.value.time_fs == deadline  # an edge of both clocks (3 fast per 2 slow periods)
-    assert f"busy for {w * p_slow} fs ({w} periods of the slowest clock)" in str(info.value)
+    assert f"busy for {w * p_slow / 1e9:.6f} us ({w} periods of the slowest clock)" in \
+        str(info.value)
 
 
 def test_shuffling_does_change_the_order_a_combinational_path_would_see():

@@ -1,5 +1,6 @@
 """The DRAM channel (dram.model = "tdm"): the reads and the write-back in exact cycles by hand,
-both engines alike, the report's figures and the configurations it refuses."""
+both engines alike, the report's figures and the configurations it refuses; the watchdog and
+the automatic cycle budget allow the channel's latency."""
 
 from __future__ import annotations
 
@@ -7,6 +8,8 @@ import numpy as np
 import pytest
 
 from stereosim.sim.config import load_config
+from stereosim.sim.cycle.chip import run_readable
+from stereosim.sim.cycle.clock import DeadlockError
 from stereosim.sim.cycle.engine.run import run_compiled
 from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.cycle.rules import (
@@ -188,3 +191,52 @@ def test_impossible_channels_are_refused_in_one_line(over, needle):
     with pytest.raises(ConfigError, match=needle) as err:
         _plan(**over)
     assert "\n" not in str(err.value)
+
+
+# ---- the watchdog and the automatic budget allow the channel's latency (issue 31, item 9) ----
+
+
+def test_the_longest_legal_latency_completes_under_the_automatic_limits():
+    """``dram.latency_ns = 1e6`` (the largest the key takes): a millisecond before the first
+    pixel, and the read window of 8 bursts per millisecond after it, is neither a deadlock
+    (the watchdog allows the channel's longest wait on top of sim.watchdog_cycles) nor past
+    the automatic cycle budget (which counts the latency-bound read rate)."""
+    plan = _plan(**{"dram.latency_ns": 1e6})
+    d = plan.dram
+    assert d.longest_wait_fs == 2 * d.round_fs + 10**12
+    assert plan.dram_wait_cycles == -(-d.longest_wait_fs // plan.p_max_fs)
+    assert plan.watchdog_fs == (200_000 + plan.dram_wait_cycles) * plan.p_max_fs
+    assert plan.watchdog_fs > d.longest_wait_fs
+    left, right = _stream(1)
+    res = run_compiled(plan, left, right)
+    # the first burst's data after a millisecond; 320 pixels in bursts of 64, all requested
+    # at once (8 bursts of prefetch): one latency in all
+    assert 1.0 < res.report["latency"]["frame_ms"] < 1.01
+    budget_fs = min(n * plan.domains[k].period_fs for k, n in plan.budget.items())
+    assert budget_fs > 10 * res.stats["end_time_fs"]  # generous, as without the channel
+
+
+def test_a_window_of_a_few_periods_still_waits_for_the_channel_on_both_engines(engines_agree):
+    """sim.watchdog_cycles = 10 (25 ns) and a 2 us latency: the wait for the first burst is not
+    a deadlock, on either engine."""
+    plan = _plan(**{"dram.latency_ns": 2000, "sim.watchdog_cycles": 10})
+    assert plan.watchdog_cycles == 10 + plan.dram_wait_cycles > 800
+    slow, _ = engines_agree(plan, *_stream(1))
+    assert slow.report["latency"]["first_output_us"] > 2
+
+
+def test_a_watchdog_stop_names_the_limit_and_how_to_raise_it():
+    plan = _plan(**{"dram.latency_ns": 2000, "sim.watchdog_cycles": 10})
+    never = (1 << 40, (1 << 40) - 1)  # a sink that never pops
+    left, right = _stream(1)
+    with pytest.raises(DeadlockError) as fast:
+        run_compiled(plan, left, right, sink_stall=never)
+    with pytest.raises(DeadlockError) as slow:
+        run_readable(plan, left, right, sink_stall=never)
+    assert str(fast.value) == str(slow.value)
+    assert (f"the watchdog allows sim.watchdog_cycles = 10 periods (+ {plan.dram_wait_cycles} "
+            "for the DRAM's longest wait)") in str(fast.value)
+    assert "raise sim.watchdog_cycles" in str(fast.value)
+    no_dram = _plan(**{"dram.model": "none", "sim.watchdog_cycles": 10})
+    assert no_dram.dram_wait_cycles == 0 and no_dram.watchdog_fs == 10 * no_dram.p_max_fs
+    assert "sim.watchdog_cycles = 10 periods" in no_dram.watchdog_remedy

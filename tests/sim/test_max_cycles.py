@@ -1,19 +1,26 @@
 """``--max-cycles N`` (sim.max_cycles): a run stops once any clock domain ran N cycles, on both
 engines at the same instant with the same state of every FIFO; a limit the run does not reach
-changes nothing; ``--version`` names the installed version."""
+changes nothing. A stopped command (the limit, or a deadlock) exits 2 with one line and
+publishes its report and the trace up to the stop. ``--version`` names the installed
+version."""
 
+import hashlib
 import importlib.metadata
 import json
+import os
 
 import numpy as np
 import pytest
+import pywellen
 
+from stereosim.sim import tracing
 from stereosim.sim.cli import main
 from stereosim.sim.config import load_config
 from stereosim.sim.cycle.chip import run_cycle
 from stereosim.sim.cycle.clock import BudgetExceeded
 from stereosim.sim.cycle.engine.run import run_compiled
-from stereosim.sim.cycle.plan import build_plan
+from stereosim.sim.cycle.plan import STATUS_CODES, build_plan
+from stereosim.sim.cycle.simulate import simulate
 from stereosim.sim.io import encode_png
 
 CENSUS = {"sva.disparities": 16, "nna.descriptor": "census"}
@@ -66,24 +73,116 @@ def test_a_limit_the_run_does_not_reach_changes_nothing():
                                 left.shape), left, right)
 
 
-def test_the_cli_stops_with_one_line_and_writes_nothing(tmp_path, capsys):
-    left, right = _pair(12, 40)
+def _inputs(tmp_path, h, w):
+    left, right = _pair(h, w)
     lp, rp = tmp_path / "l.png", tmp_path / "r.png"
     lp.write_bytes(encode_png(left))
     rp.write_bytes(encode_png(right))
+    return ["run", "--left", str(lp), "--right", str(rp), "--disparities", "16"]
+
+
+class _Wave:
+    """A dump read back by pywellen (Surfer's backend): every signal's value at an instant,
+    and the last instant it holds."""
+
+    def __init__(self, path):
+        wave = pywellen.Waveform(str(path))
+        self.vars = {var.full_name: var.signal for var in wave.all_vars()}
+        times = []
+        wave.stream_time_steps(lambda t, *_: times.append(t), None)
+        self.last_fs = times[-1]
+
+    def value(self, name, t_fs):
+        return int(self.vars[name].value_at(t_fs))
+
+
+def _one_line(err: str) -> str:
+    """The error line on stderr, less numba's first-run compile notice (sim.progress)."""
+    lines = [ln for ln in err.splitlines(True) if not ln.startswith("stereosim: compiling")]
+    assert len(lines) == 1, lines
+    return lines[0]
+
+
+def _stopped_set(out, err, dump, plan) -> dict:
+    """What a stopped run left: one line naming the report and the dump; report.json marked
+    stopped, with the hashes of the set's files; the dump, read back by pywellen, ending at the
+    stop with every FIFO's occupancy and every block's status the report gives; nothing that
+    pretends to be a frame."""
+    err = _one_line(err)
+    assert err.startswith("stereosim: error: ")
+    assert f"see {out / 'report.json'} for every block's and FIFO's state" in err
+    assert f"the trace up to the stop in {dump}" in err
+    assert not (out / "disparity.pfm").exists() and not (out / "disparity.png").exists()
+    report = json.loads((out / "report.json").read_text())
+    stop = report["stopped"]
+    assert stop["message"] in err
+    for whole_frame in ("output", "throughput", "cycles", "metrics"):
+        assert whole_frame not in report
+    files = {name: hashlib.sha256((out / name).read_bytes()).hexdigest()
+             for name in sorted(os.listdir(out))
+             if name != "report.json" and not name.startswith(".")}
+    assert report["files"] == files and dump.name in files
+    wave = _Wave(dump)
+    t = stop["time_fs"]
+    assert t <= wave.last_fs <= t + 1  # up to the stop, nothing after it
+    for name, st in stop["fifos"].items():
+        assert wave.value(f"top.fifo.{name}.occupancy", t) == st["occupancy"]
+    scopes = {b.name: b.scope for b in plan.blocks}
+    for name, st in stop["blocks"].items():
+        assert wave.value(f"{scopes[name]}.status", t) == STATUS_CODES[st["status"]]
+    return report
+
+
+@pytest.mark.parametrize("engine, dump", [("fast", "t.vcd"), ("readable", "t.fst")])
+def test_a_stopped_run_publishes_its_report_and_the_trace_up_to_the_stop(tmp_path, capsys,
+                                                                          engine, dump):
+    """Issue 31's acceptance 3: ``--max-cycles 5000 --vcd t.vcd`` exits 2 with one line and
+    leaves the dump up to the stop and a report marked stopped -- replacing a complete run's
+    set in the same folder, whose disparity maps and page go (they are not this run's)."""
+    args = _inputs(tmp_path, 40, 64) + ["--set", f"sim.engine={engine}"]
     out = tmp_path / "out"
-    args = ["run", "--left", str(lp), "--right", str(rp), "--disparities", "16",
-            "--out", str(out)]
-    assert main(args + ["--max-cycles", "500"]) == 2
-    _, err = capsys.readouterr()
-    assert err.count("\n") == 1
-    assert "stopped by sim.max_cycles = 500" in err and "src_left_to_nna" in err
-    assert not out.exists()
-    assert main(args + ["--max-cycles", "0"]) == 2  # not a positive count
+    dump = out / dump
+    files = ["--out", str(out), "--vcd", str(dump), "--html", str(out / "page.html")]
+    assert main(args + files) == 0  # a whole frame first
+    assert (out / "disparity.pfm").is_file() and (out / "page.html").is_file()
+    capsys.readouterr()
+    assert main(args + files + ["--max-cycles", "5000"]) == 2
+    assert not (out / "page.html").exists()
+    err = capsys.readouterr().err
+    assert "stopped by sim.max_cycles = 5000" in err
+    cfg = load_config(overrides={"sva.disparities": 16, "sim.max_cycles": 5000})
+    report = _stopped_set(out, err, dump, build_plan(cfg, (40, 64)))
+    assert report["stopped"]["reason"] == "max_cycles" and report["engine"] == engine
+    assert max(report["stopped"]["cycles"].values()) == 5000
+    assert report["config"]["sim"]["max_cycles"] == 5000
+    assert main(args + ["--out", str(out), "--max-cycles", "0"]) == 2  # not a positive count
     assert "--max-cycles" in capsys.readouterr().err
-    assert main(args + ["--max-cycles", "10000000", "--json"]) == 0
+    assert main(args + ["--out", str(out), "--max-cycles", "10000000", "--json"]) == 0
     report = json.loads(capsys.readouterr().out)
     assert report["config"]["sim"]["max_cycles"] == 10000000
+
+
+def test_a_deadlocked_run_publishes_its_report_and_the_trace_up_to_the_stop(tmp_path, capsys,
+                                                                           monkeypatch):
+    """A sink that never pops (the hook the engine tests use, here under the command): the
+    FIFOs fill back to the sources and the watchdog stops the run; the line names the full
+    FIFOs, the report who waits on whom."""
+    def never_popping(plan, left, right, **kw):
+        return simulate(plan, left, right, sink_stall=(1 << 40, (1 << 40) - 1), **kw)
+
+    monkeypatch.setattr(tracing, "simulate", never_popping)
+    args = _inputs(tmp_path, 12, 40) + ["--set", "sim.watchdog_cycles=500"]
+    out, dump = tmp_path / "out", tmp_path / "out" / "t.vcd"
+    assert main(args + ["--out", str(out), "--vcd", str(dump)]) == 2
+    err = _one_line(capsys.readouterr().err)
+    assert err.startswith("stereosim: error: deadlock at ") and "full FIFOs: " in err
+    assert "sva_to_sink 16/16" in err and "sim.watchdog_cycles = 500" in err
+    plan = build_plan(load_config(overrides={"sva.disparities": 16}), (12, 40))
+    report = _stopped_set(out, err, dump, plan)
+    stop = report["stopped"]
+    assert stop["reason"] == "deadlock"
+    assert stop["blocks"]["sva"]["waiting_on_block"] == "sink"
+    assert stop["fifos"]["sva_to_sink"]["state"] == "full"
 
 
 def test_version_is_the_installed_one(capsys):

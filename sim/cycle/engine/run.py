@@ -25,6 +25,7 @@ from stereosim.sim.cycle.clock import (
     ACTIVITIES,
     BudgetExceeded,
     DeadlockError,
+    RunStopped,
     activity_counts,
     budget_message,
     count_instants,
@@ -61,7 +62,12 @@ from stereosim.sim.cycle.engine.walkers import finish_fifos, note_camera, pop_cy
 from stereosim.sim.cycle.frames import FrameSupply, camera_frames
 from stereosim.sim.cycle.plan import ChipPlan
 from stereosim.sim.cycle.report import cycle_report
-from stereosim.sim.cycle.stops import CameraOverflow, frame_buffer_message, overflow_message
+from stereosim.sim.cycle.stops import (
+    CameraOverflow,
+    FrameBufferFull,
+    frame_buffer_message,
+    overflow_message,
+)
 from stereosim.sva.pipeline import sva_stream
 from stereosim.traces.log import TraceLog
 
@@ -261,10 +267,12 @@ def _stage_peaks(plan: ChipPlan, net: Net) -> dict[str, int]:
 # ---- a run that stops ---------------------------------------------------------------------------
 
 
-def _stop(plan: ChipPlan, sink_stall, cls, now_fs: int, executed: int, tail: str):
+def _stop(plan: ChipPlan, sink_stall, cls, now_fs: int, executed: int, tail: str = "",
+          message: str | None = None) -> RunStopped:
     """The exception the readable kernel raises at ``now_fs`` (the last executed step;
     ``executed``: steps before this instant are executed, and this one too if ``executed`` is
-    ``now_fs + 1``), with the state of every FIFO and block."""
+    ``now_fs + 1``), with the state of every FIFO and block: the kernel's message with
+    ``tail``, or the chip's ``message`` (a camera's overflow)."""
     net, _ = _pass(plan, sink_stall, executed, False)
     _settle(plan, net, executed)
     cycles = {name: (executed - 1) // d.period_fs + 1 for name, d in plan.domains.items()}
@@ -285,9 +293,10 @@ def _stop(plan: ChipPlan, sink_stall, cls, now_fs: int, executed: int, tail: str
         elif wait == DRAM:
             waiting = ("dram", "full" if status == "blocked" else "empty")
         blocks[b.name] = {"status": status, "waiting_on": waiting}
-    msg = stop_message("deadlock" if cls is DeadlockError else "cycle budget exceeded", now_fs,
-                       cycles, fifos, blocks, tail)
-    return cls(msg, time_fs=now_fs, cycles=dict(sorted(cycles.items())), fifos=fifos,
+    if message is None:
+        message = stop_message("deadlock" if cls is DeadlockError else "cycle budget exceeded",
+                               now_fs, cycles, fifos, blocks, tail)
+    return cls(message, time_fs=now_fs, cycles=dict(sorted(cycles.items())), fifos=fifos,
                blocks=blocks)
 
 
@@ -344,12 +353,14 @@ def _raise_stop(plan: ChipPlan, net: Net, names: dict, sink_stall, t_end: int) -
                     budget_message(limit_d, plan.budget[limit_d], plan.budget_remedy))
     if t_over <= t_dog and t_over < INF:
         if fb_message is not None:
-            raise CameraOverflow(fb_message)
-        raise CameraOverflow(overflow_message([e[1:] for e in over if e[0] == t_over],
-                                              plan.shape[0], plan.frames))
+            raise _stop(plan, sink_stall, FrameBufferFull, t_over, t_over + 1,
+                        message=fb_message)
+        raise _stop(plan, sink_stall, CameraOverflow, t_over, t_over + 1,
+                    message=overflow_message([e[1:] for e in over if e[0] == t_over],
+                                             plan.shape[0], plan.frames))
     if t_dog < INF:
         raise _stop(plan, sink_stall, DeadlockError, t_dog, t_dog + 1,
-                    watchdog_message(t_dog - quiet_from, plan.p_max_fs))
+                    watchdog_message(t_dog - quiet_from, plan.p_max_fs, plan.watchdog_remedy))
 
 
 # ---- traces -------------------------------------------------------------------------------------
@@ -421,6 +432,34 @@ def _window_frames(plan: ChipPlan, frame_fs: np.ndarray, window: tuple[int, int]
     return range(f_lo, f_hi + 1)
 
 
+def _trace_data(plan: ChipPlan, descs: list, words: list, first: int) -> TraceData:
+    """What the trace sampler reads the data signals from: the descriptors and words of the
+    traced frames, the first of which is frame ``first`` of the stream."""
+    return TraceData(np.stack(descs), np.stack(words), np.int64((1 << plan.word_bits) - 1),
+                     np.int64(first))
+
+
+def _stop_trace(plan: ChipPlan, sink_stall, window: tuple[int, int], supply, net: Net,
+                stop: RunStopped) -> tuple:
+    """The trace of ``window`` up to a stop (its last executed step), with the words pushed in
+    it, as the readable kernel records it; ``net`` is the first pass (the frames' instants)."""
+    h, w = plan.shape
+    traced = _window_frames(plan, net.frame_fs, (window[0], min(window[1], stop.time_fs + 1)))
+    descs, words = [], []
+    for f in traced:
+        src = int(net.frame_fs[2, f])
+        if src < 0:  # no frame taken yet: none of its data is in the chip
+            descs.append(np.zeros((2, h, w), np.uint64))
+            words.append(np.zeros((h, w), np.int32))
+            continue
+        left_f, right_f = supply.pair(src)
+        desc = (compute_descriptor(left_f, plan.cfg.nna), compute_descriptor(right_f, plan.cfg.nna))
+        descs.append(np.stack(desc).astype(np.uint64))
+        words.append(sva_stream(desc[0], desc[1], left_f, plan.cfg.sva, plan.descriptor_bits))
+    data = _trace_data(plan, descs, words, traced.start)
+    return _trace(plan, sink_stall, window, stop.time_fs, data)
+
+
 def run_compiled(plan: ChipPlan, left, right=None, *, sink_stall=None,
                  window: tuple[int, int] | None = None, timings: dict | None = None,
                  on_frame=None, words: bool = True) -> FrameResult:
@@ -434,7 +473,10 @@ def run_compiled(plan: ChipPlan, left, right=None, *, sink_stall=None,
     is None: the caller takes them from :func:`~sim.cycle.frames.functional_words`, frame by
     frame). ``timings`` (a dict) receives the CPU seconds of the event streams and statistics
     (``engine_s``), the NNA's descriptors (``nna_kernels_s``) and the SVA's stream
-    (``sva_kernels_s``)."""
+    (``sva_kernels_s``). A run that stops raises the readable kernel's
+    :class:`~sim.cycle.clock.RunStopped`, with the row instants reached by then
+    (``row_times``) and the trace of ``window`` up to the stop (``trace``,
+    ``outputs_in_window``)."""
     supply = FrameSupply.of(left, right)
     supply = camera_frames(supply, plan)  # every camera pair sees the stream
     t0 = time.process_time()
@@ -444,7 +486,16 @@ def run_compiled(plan: ChipPlan, left, right=None, *, sink_stall=None,
         t_end = _last(net, names["p"] + 2) * plan.domains["sva"].period_fs
     # an overflow before any stop
     buffers = buffer_report(plan, _windows(plan, net), _stage_peaks(plan, net))
-    _raise_stop(plan, net, names, sink_stall, t_end)
+    try:
+        _raise_stop(plan, net, names, sink_stall, t_end)
+    except RunStopped as stop:
+        rows = net.rows.copy()
+        rows[rows > stop.time_fs] = -1  # what the first pass computed beyond the stop
+        stop.row_times = rows
+        if window is not None:
+            stop.trace, stop.outputs_in_window = _stop_trace(plan, sink_stall, window, supply,
+                                                             net, stop)
+        raise
     stats = _stats(plan, net, names, t_end)
     frame_fs = net.frame_fs.copy()
     report = cycle_report(plan, int(net.prm[0]["first_pop"]), _last(net, names["p"] + 2),
@@ -473,7 +524,6 @@ def run_compiled(plan: ChipPlan, left, right=None, *, sink_stall=None,
         timings.update(engine_s=t1 - t0, nna_kernels_s=nna_s, sva_kernels_s=sva_s)
     result = FrameResult(last if words else None, report, stats, net.rows.copy(), frame_fs)
     if window is not None:
-        data = TraceData(np.stack(kept_desc), np.stack(kept_words),
-                         np.int64((1 << plan.word_bits) - 1), np.int64(traced.start))
+        data = _trace_data(plan, kept_desc, kept_words, traced.start)
         result.trace, result.outputs_in_window = _trace(plan, sink_stall, window, t_end, data)
     return result
