@@ -647,7 +647,7 @@ def train(cfg: TrainConfig, scene_dirs, *, progress: bool = True, checkpoint=Non
     run = {"step": 0, "history": [], "running": 0.0}
     if resume:
         saved = load_checkpoint(checkpoint, asdict(cfg), data.names)
-        restore(saved, net, log_temp, opt, sched, rng)
+        restore(saved, net, log_temp, opt, sched, rng, checkpoint)
         run = {k: saved[k] for k in run}
     if log is not None:
         log(threads_line(cfg.threads, requested))

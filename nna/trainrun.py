@@ -14,18 +14,23 @@ schedule, the step, the finished epochs' losses and the running loss of the curr
 numpy and torch random states, the settings and the scene list. Resuming from it gives the same
 final weights, bit for bit, as the run that was never stopped (same machine and thread count).
 The file is ``OUT.ckpt.pt`` beside the output (:func:`checkpoint_path`); a run that finishes
-removes it. torch is imported only inside the functions that need it.
+removes it. A checkpoint is read with ``weights_only=True`` and its contents are checked before
+any is used (:func:`load_checkpoint`, :func:`restore`): a damaged or crafted file, or one whose
+weights went NaN, is one line. torch is imported only inside the functions that need it.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import io
+import math
 import os
 import pickle
 import zipfile
 from pathlib import Path
 
+from stereosim.sim.config import SvaConfig
 from stereosim.sim.errors import ConfigError, InputError
 from stereosim.sim.outputs import atomic_write_bytes, path_text
 
@@ -58,6 +63,19 @@ def parse_threads(text: str) -> int:
     if not text.strip().isdigit() or int(text) < 1:
         raise argparse.ArgumentTypeError(f"{text!r} must be 'auto' or a whole number >= 1")
     return int(text)
+
+
+def box_width(text: str) -> int:
+    """argparse type of ``train --box`` and ``--aggregate``: the window stands in the loss for
+    the chip's box filter, so it may be as wide as ``sva.box_size`` allows (odd is checked
+    with the other settings, by TrainConfig)."""
+    rule = next(f.metadata for f in dataclasses.fields(SvaConfig) if f.name == "box_size")
+    value = int(text) if text.strip().isdigit() else 0
+    if not rule["lo"] <= value <= rule["hi"]:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a window the chip's box filter has: "
+                                         f"give an odd K in {rule['lo']}..{rule['hi']} "
+                                         "(sva.box_size's range)")
+    return value
 
 
 def threads_line(threads: int, requested: int, cpus: int | None = None) -> str:
@@ -111,17 +129,70 @@ def snapshot(net, log_temp, opt, sched, rng) -> dict:
             "numpy_rng": rng.bit_generator.state, "torch_rng": torch.get_rng_state()}
 
 
-def restore(saved: dict, net, log_temp, opt, sched, rng) -> None:
-    """Put a :func:`snapshot` back into freshly built parts of the same run."""
+def restore(saved: dict, net, log_temp, opt, sched, rng, source) -> None:
+    """Put a :func:`snapshot` (checked by :func:`load_checkpoint`) back into freshly built parts
+    of the same run; a part that does not fit them (a crafted or damaged file from ``source``)
+    raises a one-line InputError naming it."""
     import torch
 
-    net.load_state_dict(saved["net"])
-    with torch.no_grad():
-        log_temp.copy_(saved["log_temp"])
-    opt.load_state_dict(saved["optimizer"])
-    sched.load_state_dict(saved["schedule"])
-    rng.bit_generator.state = saved["numpy_rng"]
-    torch.set_rng_state(saved["torch_rng"])
+    def temperature(value):
+        with torch.no_grad():
+            log_temp.copy_(value)
+
+    name = path_text(Path(source))
+    _check_fits(saved, opt, sched, name)
+    parts = (("net", net.load_state_dict), ("log_temp", temperature),
+             ("optimizer", opt.load_state_dict), ("schedule", sched.load_state_dict),
+             ("numpy_rng", lambda state: setattr(rng.bit_generator, "state", state)),
+             ("torch_rng", torch.set_rng_state))
+    for part, put in parts:
+        try:
+            put(saved[part])
+        except (KeyError, TypeError, ValueError, RuntimeError, IndexError, AttributeError) as exc:
+            reason = (str(exc).strip().splitlines() or [type(exc).__name__])[0][:120]
+            raise _damaged(name, f"its {part} does not fit this run ({reason})") from None
+
+
+def _fits(saved, fresh) -> bool:
+    """``saved`` has the structure of ``fresh``: the same keys and lengths, tensors of the same
+    shapes, the same flags and names, finite numbers where ``fresh`` has numbers."""
+    import torch
+
+    if isinstance(fresh, dict):
+        return isinstance(saved, dict) and saved.keys() == fresh.keys() \
+            and all(_fits(saved[k], v) for k, v in fresh.items())
+    if isinstance(fresh, (list, tuple)):
+        return isinstance(saved, (list, tuple)) and len(saved) == len(fresh) \
+            and all(_fits(a, b) for a, b in zip(saved, fresh))
+    if isinstance(fresh, torch.Tensor):
+        return isinstance(saved, torch.Tensor) and saved.shape == fresh.shape
+    if isinstance(fresh, (bool, str)) or fresh is None:
+        return type(saved) is type(fresh) and saved == fresh
+    return _finite_number(saved)
+
+
+def _check_fits(saved: dict, opt, sched, name: str) -> None:
+    """The optimizer's and the schedule's states are those of this run at the saved step (torch
+    loads them without looking; a crafted one would break a later step, or train silently
+    with another learning rate)."""
+    import torch
+
+    fresh_opt, fresh_sched, step = opt.state_dict(), sched.state_dict(), saved["step"]
+    params = [p for group in opt.param_groups for p in group["params"]]
+    adam = {i: {"step": torch.zeros(()), "exp_avg": p, "exp_avg_sq": p}
+            for i, p in enumerate(params)}
+    groups = saved["optimizer"].get("param_groups") if isinstance(saved["optimizer"], dict) \
+        else None
+    if not (_fits(saved["optimizer"], {"state": adam if step else {}, "param_groups":
+                                       fresh_opt["param_groups"]})
+            and all({k: v for k, v in a.items() if k != "lr"}
+                    == {k: v for k, v in b.items() if k != "lr"}
+                    for a, b in zip(groups, fresh_opt["param_groups"]))):
+        raise _damaged(name, "its optimizer state is not that of this run")
+    sched_state = saved["schedule"]
+    if not (_fits(sched_state, fresh_sched) and sched_state["last_epoch"] == step
+            and sched_state["base_lrs"] == fresh_sched["base_lrs"]):
+        raise _damaged(name, "its learning-rate schedule is not that of this run at its step")
 
 
 def _identity(config: dict, scenes) -> dict:
@@ -149,11 +220,14 @@ def load_checkpoint(path, config: dict, scenes) -> dict:
         data = torch.load(path, map_location="cpu", weights_only=True)
     except OSError as err:
         raise InputError(f"cannot read checkpoint {name}: {err.strerror or err}") from None
-    except (RuntimeError, pickle.UnpicklingError, zipfile.BadZipFile, EOFError, ValueError):
+    except (RuntimeError, pickle.UnpicklingError, zipfile.BadZipFile, EOFError, ValueError,
+            KeyError, TypeError, IndexError, AttributeError):  # damaged or crafted
         raise InputError(f"{name} is not a readable training checkpoint: delete it and run "
                          "without --resume") from None
     if not isinstance(data, dict) or data.get("format") != CHECKPOINT_FORMAT:
         raise InputError(f"{name} is not a stereosim training checkpoint ({CHECKPOINT_FORMAT})")
+    if not isinstance(data.get("config"), dict) or not isinstance(data.get("scenes"), list):
+        raise _damaged(name, "it lacks the settings and scenes of its run")
     want = _identity(config, scenes)
     if data["scenes"] != want["scenes"]:
         raise ConfigError(f"checkpoint {name} was trained on other scenes: resume with the "
@@ -165,4 +239,56 @@ def load_checkpoint(path, config: dict, scenes) -> dict:
                           for k in diff[:3])
         raise ConfigError(f"checkpoint {name} has other settings: {shown}; resume with the "
                           "same options, or delete it to start over")
+    _check_contents(data, config, name)
     return data
+
+
+# What a checkpoint holds besides its identity: snapshot()'s parts and the run's progress.
+CONTENTS = ("net", "log_temp", "optimizer", "schedule", "numpy_rng", "torch_rng", "step",
+            "history", "running")
+
+
+def _damaged(name: str, what: str) -> InputError:
+    return InputError(f"checkpoint {name} is damaged: {what}; delete it and run without "
+                      "--resume")
+
+
+def _finite_number(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) \
+        and math.isfinite(value)
+
+
+def _tensors(obj, prefix: str):
+    """``(name, tensor)`` of every tensor in nested dicts and lists."""
+    if isinstance(obj, dict):
+        for key, value in obj.items():
+            yield from _tensors(value, f"{prefix}.{key}")
+    elif isinstance(obj, (list, tuple)):
+        for i, value in enumerate(obj):
+            yield from _tensors(value, f"{prefix}.{i}")
+    elif hasattr(obj, "is_floating_point"):
+        yield prefix, obj
+
+
+def _check_contents(data: dict, config: dict, name: str) -> None:
+    """A checkpoint's contents before they are trusted: every part there, the step inside the
+    run, one finished loss per finished epoch, and every number finite (a run that diverged
+    must not resume silently into a NaN model)."""
+    import torch
+
+    missing = [k for k in CONTENTS if k not in data]
+    if missing:
+        raise _damaged(name, f"it lacks {', '.join(missing)}")
+    per_epoch = config["steps_per_epoch"]
+    step, history = data["step"], data["history"]
+    if type(step) is not int or not 0 <= step < config["epochs"] * per_epoch:
+        raise _damaged(name, f"its step {step!r} is not a step of this run")
+    if not isinstance(history, list) or len(history) != step // per_epoch \
+            or not all(_finite_number(h) for h in history) \
+            or not _finite_number(data["running"]):
+        raise _damaged(name, "its losses do not match its step")
+    for part in ("net", "log_temp", "optimizer"):
+        for tensor_name, tensor in _tensors(data[part], part):
+            if tensor.is_floating_point() and not bool(torch.isfinite(tensor).all()):
+                raise _damaged(name, f"{tensor_name} holds NaN or infinite values (the run "
+                               "it saved had diverged)")

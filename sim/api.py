@@ -23,7 +23,7 @@ from stereosim.sim.cycle.clock import RunStopped
 from stereosim.sim.cycle.simulate import simulate
 from stereosim.sim.cycle.stops import stop_report
 from stereosim.sim.errors import ConfigError, InputError
-from stereosim.sim.io import MAX_PIXELS, check_gt_values, to_grey
+from stereosim.sim.io import MAX_PIXELS, check_gt_values, pixel_cap, to_grey
 from stereosim.sim.metrics import check_truth, evaluate, mean_metrics, undefined_metrics
 from stereosim.sim.progress import compile_notice
 from stereosim.sim.tracing import run_traced, trace_section
@@ -65,7 +65,8 @@ def prepare_pair(left, right, max_pixels: int | None = MAX_PIXELS) -> tuple[np.n
     """Validate a stereo pair and return both views as grey uint8 (H, W).
 
     RGB (H, W, 3) views are converted with the integer BT.601 formula of :func:`sim.io.to_grey`.
-    A pair of more than ``max_pixels`` pixels per view is refused (None: no cap).
+    A pair of more than ``max_pixels`` pixels per view is refused; None or 0 mean no cap, as
+    ``--max-pixels 0`` does (:func:`sim.io.pixel_cap`).
     """
     for name, img in (("left", left), ("right", right)):
         if not isinstance(img, np.ndarray):
@@ -79,10 +80,11 @@ def prepare_pair(left, right, max_pixels: int | None = MAX_PIXELS) -> tuple[np.n
     h, w = gl.shape
     if h < 1 or w < 2:
         raise InputError(f"the images are {w}x{h}: a stereo pair needs at least 2 columns and 1 row")
-    if max_pixels is not None and h * w > max_pixels:
+    cap = pixel_cap(max_pixels)
+    if h * w > cap:
         raise InputError(
             f"the images are {w}x{h} ({h * w / 1e6:.1f} M pixels), above the cap of "
-            f"{max_pixels / 1e6:.1f} M pixels: downsample them or raise the cap (--max-pixels, "
+            f"{cap / 1e6:.1f} M pixels: downsample them or raise the cap (--max-pixels, "
             "max_pixels=)"
         )
     return gl, gr
@@ -135,7 +137,7 @@ def run(
     the report gains ``metrics`` over ``masks`` (default: every pixel with known GT).
     ``trace``: a :class:`sim.tracing.TraceRequest` (cycle mode only): the result carries the
     recorded :class:`traces.log.TraceLog` (files are written by :func:`sim.tracing.trace_files`).
-    ``max_pixels``: refuse larger views (default :data:`sim.io.MAX_PIXELS`; None = no cap).
+    ``max_pixels``: refuse larger views (default :data:`sim.io.MAX_PIXELS`; None or 0: no cap).
     ``energy``: an energy table (TOML, :mod:`sim.cycle.energy`) for the cycle report's
     ``energy`` section instead of stereosim's 45 nm default.
     Every mistake raises a :class:`sim.errors.UserError` before any kernel runs. A cycle run

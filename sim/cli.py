@@ -12,7 +12,6 @@ import contextlib
 import errno
 import math
 import os
-import signal
 import sys
 import time
 from pathlib import Path
@@ -30,10 +29,15 @@ from stereosim.nna.train import (
     train,
     training_scene_dirs,
 )
-from stereosim.nna.trainrun import check_checkpoint_option, checkpoint_path, parse_threads
+from stereosim.nna.trainrun import (
+    box_width,
+    check_checkpoint_option,
+    checkpoint_path,
+    parse_threads,
+)
 from stereosim.quant.artifact import save_quantized
 from stereosim.quant.quantizer import QuantizerConfig, quantize
-from stereosim.sim import formats, whatif_cli
+from stereosim.sim import formats, signals, whatif_cli
 from stereosim.sim.api import run, version_text
 from stereosim.sim.config import (
     config_diff,
@@ -53,6 +57,7 @@ from stereosim.sim.datasets import (
     find_scenes,
     legal_disparities,
     load_scene,
+    scene_files,
     shared_data_dir,
 )
 from stereosim.sim.diagram import plan_text, write_plan_png
@@ -63,6 +68,7 @@ from stereosim.sim.io import (
     disparity_to_colour,
     encode_png,
     pfm_bytes,
+    pixel_cap,
     read_gt,
     read_image,
     read_mask,
@@ -85,10 +91,10 @@ from stereosim.traces.log import parse_patterns
 
 EVAL_KEYS = ("bad0.5", "bad1", "bad2", "bad4", "invalid", "totbad", "avgerr", "rms")
 RUN_FILES = ("disparity.pfm", "disparity.png", "report.json")
-
-
-class Terminated(KeyboardInterrupt):
-    """SIGTERM, raised in the main thread so that clean-up (staging folders) runs."""
+# run's options that name a file it reads (no output may replace one) and those it writes
+RUN_INPUTS = ("left", "right", "gt", "mask", "config", "energy", "calib", "left_video",
+              "right_video")
+RUN_OUTPUTS = ("html", "vcd", "timeline")
 
 
 def finite_float(text: str) -> float:
@@ -201,7 +207,7 @@ def _scene_config(args, ndisp: int | None):
 
 def _pixel_cap(args) -> int:
     """--max-pixels for the file readers (0: no cap)."""
-    return args.max_pixels if args.max_pixels > 0 else 1 << 40
+    return pixel_cap(args.max_pixels)
 
 
 def _load_run_inputs(args) -> dict:
@@ -266,6 +272,9 @@ def _output_blobs(out_dir: Path, result, dmax: float, traces: dict[str, bytes]) 
 
 @compile_notice()  # one notice for all the kernels a run compiles (the run's, the writers')
 def cmd_run(args) -> int:
+    for name in RUN_INPUTS + RUN_OUTPUTS:  # '' (an unset shell variable, say) is not ignored
+        if getattr(args, name) is not None and not getattr(args, name).strip():
+            raise InputError(f"--{name.replace('_', '-')} is empty: give a file name")
     request = _trace_request(args)
     if not args.out.strip():
         raise InputError("--out is empty: give the output folder, e.g. --out out")
@@ -277,6 +286,9 @@ def cmd_run(args) -> int:
     planned += saving.planned(out_dir)
     if args.html:
         planned.append((args.html, "--html"))
+    inputs = [(getattr(args, name), f"--{name.replace('_', '-')}") for name in RUN_INPUTS]
+    scenes = [find_scene(args.scene, gt_scale=args.gt_scale)] if args.scene else []
+    check_outputs(planned, inputs + scene_files(scenes))  # before any work, none an input
     if args.left_video or args.right_video or (args.frames or 1) > 1 or args.save_every:
         if saving.formats:
             raise InputError("--save-as writes one frame's files: drop --frames and the videos")
@@ -294,7 +306,6 @@ def cmd_run(args) -> int:
             raise InputError("--save-every needs a stream: give --frames N or the videos")
         cfg = _scene_config(args, None if data is None else data.get("ndisp"))
         return cmd_run_stream(args, request, data, cfg)
-    check_outputs(planned)  # before any work: writable, not folders, no two on one path
     data = _load_run_inputs(args)
     saving.check_size(data["left"].shape)
     cfg = _scene_config(args, data.get("ndisp"))
@@ -312,7 +323,7 @@ def cmd_run(args) -> int:
     saved = saving.files(out_dir, result.disparity, data["left"])
     page = html_files(args.html, result, data)
     blobs = _output_blobs(out_dir, result, float(cfg.sva.disparities), traces | saved | page)
-    publish(blobs)  # the whole set, or (on any error or signal) the old set left as it was
+    publish(blobs, manifest=out_dir / "report.json")  # the whole set, or the old one
     if args.json:
         sys.stdout.write(json_text(result.report))
     else:
@@ -354,15 +365,15 @@ def cmd_eval(args) -> int:
 
     scenes = find_scenes(args.dataset, gt_scale=args.gt_scale)
     _scene_config(args, None)  # a bad --set or --config fails once, before any scene
-    if args.out:
-        check_outputs({Path(args.out): "--out"})
+    planned = [(Path(args.out), "--out")] if args.out else []
     saved = {} if args.save else None  # scene -> (disparity, report, seconds) for --save
     if args.algo_name is not None and not args.save:
         raise ConfigError("--algo-name names the files of --save: give --save DIR too")
     if args.save:
         args.algo_name = name = formats.check_algo_name(args.algo_name
                                                         or formats.DEFAULT_ALGO_NAME)
-        check_outputs(formats.middeval3_paths(args.save, name, [s.name for s in scenes]))
+        planned += formats.middeval3_paths(args.save, name, [s.name for s in scenes])
+    check_outputs(planned, [(args.config, "--config"), *scene_files(scenes)])  # before a scene
     rows: list[tuple[str, dict, int, dict | None]] = []  # scene, metrics, D, timing
     failed: dict[str, str] = {}
     bar = tqdm(scenes, desc="eval", unit="scene", disable=args.json or None, file=sys.stderr)
@@ -428,7 +439,7 @@ def cmd_config_show(args) -> int:
 
 def cmd_config_plan(args) -> int:
     if args.png:
-        _check_single_output(Path(args.png), "--png")
+        _check_single_output(Path(args.png), "--png", [(args.config, "--config")])
     plan = build_plan(load_config(args.config, _overrides(args)), parse_size(args.size))
     if args.png:
         write_plan_png(plan, args.png)
@@ -458,9 +469,9 @@ def _import_torch():
         ) from None
 
 
-def _check_single_output(out: Path, label: str) -> None:
-    """Before a long job: its one output file can be written (its folder must exist)."""
-    check_outputs([(out, label)])
+def _check_single_output(out: Path, label: str, inputs=()) -> None:
+    """Before a long job: its one output can be written (its folder must exist), no input."""
+    check_outputs([(out, label)], inputs)
     if not out.parent.is_dir():
         raise InputError(f"output folder {out.parent} does not exist: create it first")
 
@@ -485,8 +496,9 @@ def cmd_train(args) -> int:
     if args.leave_out_fold is not None:
         dirs = leave_fold_out(dirs, *args.leave_out_fold)
     ckpt = checkpoint_path(out) if args.checkpoint_every or args.resume else None
+    check_outputs([(out, "--out"), *([(ckpt, "the checkpoint")] if ckpt else [])],
+                  scene_files(dirs))
     if ckpt is not None:
-        check_outputs([(ckpt, "checkpoint")])
         check_checkpoint_option(ckpt, args.resume)
     _import_torch()
     t0 = time.perf_counter()
@@ -505,7 +517,7 @@ def cmd_train(args) -> int:
 
 
 def cmd_quantize(args) -> int:
-    _check_single_output(Path(args.out), "--out")
+    _check_single_output(Path(args.out), "--out", [(args.model, "model")])
     model, variant, _ = load_float_model(args.model)
     qcfg = QuantizerConfig(
         n_steps=args.steps, z_bits=args.z_bits, n_samples=args.samples, seed=args.seed,
@@ -513,7 +525,9 @@ def cmd_quantize(args) -> int:
         act_quantile=args.act_quantile,
     )
     out = Path(args.out)
-    images, names = calibration_images(calibration_scene_dirs(args.calib), args.calib_scenes)
+    dirs = calibration_scene_dirs(args.calib)
+    check_outputs([(out, "--out")], scene_files(dirs))
+    images, names = calibration_images(dirs, args.calib_scenes)
     calibration = (
         f"{len(images)} views (left+right) of {', '.join(names)}; {qcfg.n_samples} sampled "
         f"pixels, seed {qcfg.seed}, {qcfg.n_steps} scale steps, z={qcfg.z_bits}, "
@@ -640,12 +654,12 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--blur-max", type=finite_float, metavar="SIGMA",
                    help="augmentation defocus: Gaussian blur of sigma ~ U(0, SIGMA) px per view "
                    "(default: the recipe's; basic has none)")
-    t.add_argument("--box", type=positive_int, metavar="K", help="curve: the K x K box filter "
-                   "of the cost the loss sees (odd; default 5)")
+    t.add_argument("--box", type=box_width, metavar="K", help="curve: the K x K box filter "
+                   "of the cost the loss sees (odd, in sva.box_size's range; default 5)")
     t.add_argument("--leave-out-fold", type=parse_fold, metavar="K/N", help="train without "
                    "fold K of N of the tuning scenes (scene i of the sorted names is in fold "
                    "i mod N, as in benchmarks/tune_defaults.py), to cross-validate a recipe")
-    t.add_argument("--aggregate", type=positive_int, metavar="A", help="triplet: average the "
+    t.add_argument("--aggregate", type=box_width, metavar="A", help="triplet: average the "
                    "similarity over A x A neighbouring descriptors, as the box filter does (odd)")
     t.add_argument("--threads", type=parse_threads, default=0, metavar="N", help="torch CPU "
                    "threads (default auto: 1 up to 2 CPUs, else half the CPUs, at most 4)")
@@ -704,44 +718,45 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def _on_sigterm(signum, frame):
-    raise Terminated
-
-
 def main(argv: list[str] | None = None) -> int:
     """Run one command: 0 on success; 2 with one line on stderr for every user mistake or file
-    system problem; 130 on SIGINT and 143 on SIGTERM (after clean-up: nothing half-written)."""
-    previous = None
-    with contextlib.suppress(ValueError):  # signals can only be set in the main thread
-        previous = signal.signal(signal.SIGTERM, _on_sigterm)
-    try:
-        args = build_parser().parse_args(argv)
-        status = args.func(args)
-        if not _stdout_works():
-            return _fail("cannot write to standard output: check the device or pipe it writes to")
-        return status
-    except UserError as exc:
-        return _fail(str(exc))
-    except OSError as exc:  # a file-system problem no command anticipated
-        if not _stdout_works() or (exc.filename is None and exc.errno in _STREAM_ERRNOS):
-            _silence_stdout()
-            return _fail(f"cannot write to standard output ({describe_os_error(exc)}): check the "
-                         "device or pipe it writes to")
-        where = f" ({path_text(exc.filename)})" if exc.filename else ""
-        return _fail(f"{describe_os_error(exc)}{where}: check the path, its permissions and the "
-                     "free space")
-    except MemoryError:
-        return _fail("out of memory: use smaller images (--max-pixels) or a smaller disparity "
-                     "range")
-    except Terminated:
-        print("stereosim: terminated", file=sys.stderr)
-        return 143
-    except KeyboardInterrupt:
-        print("stereosim: interrupted", file=sys.stderr)
-        return 130
-    finally:
-        if previous is not None:
-            signal.signal(signal.SIGTERM, previous)
+    system problem; 130 on SIGINT, 143 on SIGTERM and 129 on SIGHUP, after clean-up: nothing
+    half-written (sim.signals; the line says when the outputs were written first)."""
+    with signals.handling() as handler:
+        try:
+            try:
+                status = _command(argv)
+            finally:
+                if handler is not None:
+                    handler.settle()  # the outcome is decided: a signal no longer changes it
+            return status
+        except UserError as exc:
+            return _fail(str(exc))
+        except OSError as exc:  # a file-system problem no command anticipated
+            if not _stdout_works() or (exc.filename is None and exc.errno in _STREAM_ERRNOS):
+                _silence_stdout()
+                return _fail(f"cannot write to standard output ({describe_os_error(exc)}): "
+                             "check the device or pipe it writes to")
+            where = f" ({path_text(exc.filename)})" if exc.filename else ""
+            return _fail(f"{describe_os_error(exc)}{where}: check the path, its permissions and "
+                         "the free space")
+        except MemoryError:
+            return _fail("out of memory: use smaller images (--max-pixels) or a smaller "
+                         "disparity range")
+        except KeyboardInterrupt as exc:  # SIGINT, or Terminated (SIGTERM, SIGHUP)
+            status, line = signals.exit_line(exc, handler is not None and handler.published)
+            print(line, file=sys.stderr)
+            return status
+
+
+def _command(argv: list[str] | None) -> int:
+    if sys.stdout is None:  # started with file descriptor 1 closed
+        raise UserError("standard output is closed: give stereosim one (e.g. > /dev/null)")
+    args = build_parser().parse_args(argv)
+    status = args.func(args)
+    if not _stdout_works():
+        return _fail("cannot write to standard output: check the device or pipe it writes to")
+    return status
 
 
 # errnos of a write to a stream that cannot take more (an OSError without a file name)
@@ -750,10 +765,12 @@ _STREAM_ERRNOS = {errno.ENOSPC, errno.EPIPE, errno.EDQUOT, errno.EIO}
 
 def _stdout_works() -> bool:
     """Flush stdout; if it is broken (a full device, a closed pipe), silence it and say so."""
+    if sys.stdout is None:  # closed from the start: the command was refused before any work
+        return True
     try:
         sys.stdout.flush()
         return True
-    except OSError:
+    except (OSError, ValueError):
         _silence_stdout()
         return False
 
@@ -775,4 +792,5 @@ def _fail(message: str) -> int:
 
 
 if __name__ == "__main__":
+    signals.install()  # kept until the process exits: a late signal cannot cut the exit short
     sys.exit(main())

@@ -401,12 +401,16 @@ def _build(cls, data: dict, prefix: str):
     return cls(**kwargs)
 
 
-def _parse_value(text: str):
-    """A --set value: TOML syntax (numbers, true/false, [a, b], "str"), else a bare string."""
+def _parse_value(text: str, key: str):
+    """A --set value: TOML syntax (numbers, true/false, [a, b], "str"), else a bare string;
+    one nested deeper than the TOML reader can recurse is refused by its key."""
     try:
         return tomllib.loads(f"v = {text}")["v"]
     except tomllib.TOMLDecodeError:
         return text
+    except RecursionError:
+        raise ConfigError(f"the value of {key} nests arrays or tables too deeply to be read: "
+                          "give a plain value") from None
 
 
 def _insert(tree: dict, dotted: str, value) -> None:
@@ -441,6 +445,9 @@ def read_toml(path, what: str, error: type[UserError] = ConfigError) -> dict:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise error(f"{what} {shown} is not valid TOML: {exc}") from None
+    except RecursionError:  # the reader recurses once per level of [[[...]]] or {a = {...}}
+        raise error(f"{what} {shown} nests arrays or tables too deeply to be read: flatten "
+                    "them") from None
 
 
 def load_config(
@@ -458,7 +465,7 @@ def load_config(
         if not isinstance(key, str) or not key:
             raise ConfigError(f"override key {key!r} must be a dotted name such as sva.p1")
         if isinstance(value, str):
-            value = _parse_value(value)
+            value = _parse_value(value, key)
         _insert(tree, key, value)
     _descriptor_defaults(tree)
     return _check_combinations(_build(ChipConfig, tree, ""))

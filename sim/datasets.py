@@ -82,6 +82,15 @@ class Scene:
     gt_right: Path | None
     ndisp: int | None
 
+    @property
+    def files(self) -> tuple[Path, ...]:
+        """Every file of the scene a command may read (the pair, the GTs, the masks,
+        ``calib.txt``): no output may replace one of them."""
+        folder = self.left.parent
+        named = (self.left, self.right, self.gt, self.mask, self.gt_right, folder / "calib.txt",
+                 folder / "all.png" if self.layout == LAYOUT_2003 else None)
+        return tuple(p for p in named if p is not None)
+
 
 def shared_data_dir() -> Path | None:
     """The folder of the shared Middlebury data, or None when it is not there.
@@ -163,6 +172,13 @@ def _scene_subfolders(folder: Path) -> list[Path]:
         return [d for d in sub_folders(folder, "dataset folder") if _is_scene(d)]
     except InputError:
         return []
+
+
+def scene_files(scenes) -> list[tuple[Path, str]]:
+    """The files of these scenes (:class:`Scene` objects or folders) as ``(path, "scene file")``
+    inputs for :func:`sim.outputs.check_outputs`: no output may replace one."""
+    return [(p, "scene file") for s in scenes
+            for p in (s if isinstance(s, Scene) else find_scene(s)).files]
 
 
 def _is_scene(folder: Path) -> bool:

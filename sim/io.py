@@ -11,11 +11,11 @@ Everything here works on plain numpy arrays with fixed dtypes:
 
 Anything wrong with a file the user handed in (missing, unreadable, a folder, a path too long,
 corrupt, too large, wrong bit depth or format) raises :class:`sim.errors.InputError` with one line naming the
-file and saying how to fix it: no ``OSError`` gets out, and what OpenCV, libpng and libjpeg print
-on stderr is caught (:func:`_imdecode_quietly`). Every read is bounded before memory is committed:
-an image, GT or mask holds at most ``max_pixels`` pixels (:data:`MAX_PIXELS`), read from the PNG
-or JPEG header before decoding (other formats: after); a PFM's declared size is checked the same
-way.
+file and saying how to fix it: no ``OSError`` gets out, and what OpenCV, libpng, libjpeg (and
+FFmpeg, for videos) print on stderr is caught (:func:`native_stderr_caught`). Every read is
+bounded before memory is committed: an image, GT or mask holds at most ``max_pixels`` pixels
+(:data:`MAX_PIXELS`), read from the PNG or JPEG header before decoding (other formats: after);
+a PFM's declared size is checked the same way.
 
 Files are written atomically (:func:`sim.outputs.atomic_write_bytes`) so a reader never sees half
 a file, and PNG output is byte-identical for identical input.
@@ -25,11 +25,13 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import numbers
 import os
 import stat
 import sys
 import tempfile
 import threading
+from collections.abc import Iterator
 from pathlib import Path
 
 import cv2
@@ -45,6 +47,8 @@ _LUMA_R, _LUMA_G, _LUMA_B = 77, 150, 29
 # (--max-pixels / max_pixels=): 4096 x 4096, about twice 4K UHD. A cycle-model frame of 4K UHD
 # peaks at ~354 MiB; the cap keeps a small file that claims a huge image from taking gigabytes.
 MAX_PIXELS = 1 << 24
+# The cap of "no cap" (--max-pixels 0, max_pixels=None or 0): more pixels than any image has.
+NO_PIXEL_CAP = 1 << 40
 
 # Room for metadata (ICC profiles, EXIF, text chunks) in an image file beyond its pixel data.
 _IMAGE_FILE_SLACK_BYTES = 16 << 20
@@ -75,9 +79,9 @@ _READ_HINTS = {
     errno.ELOOP: "the path runs in a loop of symbolic links",
 }
 
-# cv2.imdecode's stderr is silenced by pointing file descriptor 2 elsewhere, which is process
-# wide: one decode at a time.
-_DECODE_LOCK = threading.Lock()
+# What native libraries print is kept off stderr by pointing file descriptor 2 elsewhere,
+# which is process wide: one image decode or video read at a time.
+_STDERR_LOCK = threading.Lock()
 
 
 # ---------------------------------------------------------------------------------------------
@@ -210,6 +214,19 @@ def read_text(
 # image sizes from headers
 
 
+def pixel_cap(max_pixels: int | None) -> int:
+    """The pixel cap for a user's ``max_pixels`` (``--max-pixels``, ``max_pixels=``): 0 and
+    None mean no cap (:data:`NO_PIXEL_CAP`), as on the command line; anything but a whole
+    number >= 0 raises InputError."""
+    if max_pixels is None or (not isinstance(max_pixels, bool) and max_pixels == 0):
+        return NO_PIXEL_CAP
+    if isinstance(max_pixels, bool) or not isinstance(max_pixels, numbers.Integral) \
+            or max_pixels < 0:
+        raise InputError(f"max_pixels must be a whole number >= 0 (0 or None: no cap); got "
+                         f"{max_pixels!r}")
+    return int(max_pixels)
+
+
 def max_image_file_bytes(max_pixels: int) -> int:
     """The longest image file read for a pixel cap: 8 bytes a pixel (16-bit RGBA stored
     uncompressed, the largest PNG) plus 16 MiB of metadata."""
@@ -277,12 +294,15 @@ def _check_pixels(width: int, height: int, max_pixels: int, what: str, path) -> 
 # decoding
 
 
-def _imdecode_quietly(data: bytes, flags: int) -> tuple[np.ndarray | None, str]:
-    """``cv2.imdecode`` returning ``(image or None, the last line printed on stderr)``: OpenCV's
-    log is switched off and file descriptor 2, where libpng and libjpeg write, points at a
-    temporary file for the call (put back in a ``finally``; without one, nothing is caught)."""
-    buf = np.frombuffer(data, dtype=np.uint8)
-    with _DECODE_LOCK:
+@contextlib.contextmanager
+def native_stderr_caught() -> Iterator[list[str]]:
+    """Keep what native libraries print off stderr for the duration: OpenCV's log is switched
+    off and file descriptor 2, where libpng, libjpeg and FFmpeg write, points at a temporary
+    file (put back in a ``finally``; without one, nothing is caught). Yields a list that holds,
+    once the block is left, the last line written there (none if nothing was), made fit for a
+    one-line message. Process wide, so one block at a time."""
+    said: list[str] = []
+    with _STDERR_LOCK:
         level = cv2.utils.logging.getLogLevel()
         cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
         try:
@@ -296,21 +316,30 @@ def _imdecode_quietly(data: bytes, flags: int) -> tuple[np.ndarray | None, str]:
                         with contextlib.suppress(Exception):
                             sys.stderr.flush()  # Python's buffered text goes out first
                         os.dup2(sink.fileno(), 2)
-                    img = cv2.imdecode(buf, flags)
-                except cv2.error:
-                    img = None
+                    yield said
                 finally:
                     if saved is not None:
                         os.dup2(saved, 2)
                         os.close(saved)
-                said = ""
-                if sink is not None:  # the last 4 KiB hold the last line
-                    sink.seek(max(0, sink.seek(0, os.SEEK_END) - 4096))
-                    said = sink.read().decode("utf-8", "replace")
+                    if sink is not None:  # the last 4 KiB hold the last line
+                        sink.seek(max(0, sink.seek(0, os.SEEK_END) - 4096))
+                        text = sink.read().decode("utf-8", "replace")
+                        lines = [line.strip() for line in text.splitlines() if line.strip()]
+                        said += [path_text(lines[-1])[:120]] if lines else []
         finally:
             cv2.utils.logging.setLogLevel(level)
-    lines = [line.strip() for line in said.splitlines() if line.strip()]
-    return img, (path_text(lines[-1])[:120] if lines else "")
+
+
+def _imdecode_quietly(data: bytes, flags: int) -> tuple[np.ndarray | None, str]:
+    """``cv2.imdecode`` returning ``(image or None, the last line printed on stderr)``
+    (:func:`native_stderr_caught`)."""
+    buf = np.frombuffer(data, dtype=np.uint8)
+    with native_stderr_caught() as said:
+        try:
+            img = cv2.imdecode(buf, flags)
+        except cv2.error:
+            img = None
+    return img, (said[-1] if said else "")
 
 
 def _decode(data: bytes, flags: int, path, what: str, max_pixels: int) -> np.ndarray:

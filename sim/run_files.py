@@ -45,7 +45,7 @@ def publish_stop(stop: RunStopped, request: TraceRequest | None, out_dir: Path, 
         waves = [p for p in (request.vcd, request.timeline) if p]
     blobs = with_report(out_dir, stop.report, blobs)
     stale = {Path(p): None for p, _ in planned if Path(p) not in blobs and Path(p).exists()}
-    publish(blobs | stale)
+    publish(blobs | stale, manifest=out_dir / "report.json")
     also = f" and the trace up to the stop in {', '.join(waves)}" if waves else ""
     return UserError(f"{stop}; see {out_dir / 'report.json'} for every block's and FIFO's "
                      f"state{also}")

@@ -21,7 +21,6 @@ import hashlib
 import os
 import shutil
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -29,7 +28,7 @@ from stereosim.sim.api import run_stream
 from stereosim.sim.cycle.frames import check_frame_count
 from stereosim.sim.errors import InputError
 from stereosim.sim.io import disparity_to_colour, encode_png, pfm_bytes
-from stereosim.sim.outputs import STAGE_PREFIX, check_outputs, json_text, publish
+from stereosim.sim.outputs import check_outputs, json_text, new_stage, publish
 from stereosim.sim.progress import progress_bar
 from stereosim.sim.summary import print_summary
 from stereosim.sim.tracing import run_traced, trace_files, trace_paths
@@ -90,8 +89,7 @@ def cmd_run_stream(args, request, data: dict | None, cfg) -> int:
         planned += trace_paths(request)
     check_outputs(planned)  # before any work
     out_dir.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=f"{STAGE_PREFIX}frames-{os.getpid()}-",
-                                    dir=out_dir))
+    staging = new_stage(out_dir)
     try:
         t0 = time.perf_counter()
         gt, masks = (None, None) if data is None else (data.get("gt"), data.get("masks"))
@@ -133,7 +131,7 @@ def cmd_run_stream(args, request, data: dict | None, cfg) -> int:
             digests[os.path.relpath(p, out_dir)] = hashlib.sha256(blob).hexdigest()
         report["files"] = dict(sorted(digests.items()))
         blobs = {**last_files, **files, out_dir / "report.json": json_text(report).encode()}
-        publish(blobs)
+        publish(blobs, manifest=out_dir / "report.json")
     finally:
         shutil.rmtree(staging, ignore_errors=True)
         if hasattr(pairs, "close"):

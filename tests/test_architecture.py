@@ -104,8 +104,9 @@ def _imports_in_functions(tree):
 # Python runs a package's __init__ before any module in it, and the core the stages import
 # (sim.config, sim.errors, sim.io) lives in the sim package: importing the API eagerly there
 # would load the whole application on every `import nna.census`. So the public names sim.run
-# and sim.Result resolve on first use (PEP 562) -- the one deferred import of the project.
-DEFERRED = {("sim", "__getattr__", "sim")}
+# and sim.Result resolve on first use (PEP 562). The console entry imports the command line
+# only once it has installed the signal handler (a SIGTERM while numba loads gets its line).
+DEFERRED = {("sim", "__getattr__", "sim"), ("sim.console", "main", "sim.cli")}
 
 
 def test_no_project_import_hides_in_a_function():

@@ -1,12 +1,14 @@
 """Long training runs (nna.trainrun): the thread count picked, checkpoints, and a resumed run
-that ends with the same weights, bit for bit, as the run that was never stopped."""
+that ends with the same weights, bit for bit, as the run that was never stopped; a damaged or
+crafted checkpoint is one line."""
 
 import argparse
+import io
 from dataclasses import replace
 
 import numpy as np
 import pytest
-import torch  # noqa: F401  (the test extra; train imports it)
+import torch  # the test extra (train imports it)
 from numpy.testing import assert_array_equal
 
 import stereosim.nna.train as train_module
@@ -148,3 +150,89 @@ def test_the_train_command_checkpoints_and_resumes(data_root, tmp_path, monkeypa
     # the same file, byte for byte, as the run that was never stopped; the checkpoint is gone
     assert out.read_bytes() == straight.read_bytes()
     assert not ckpt.exists()
+
+
+# ---------------------------------------------------------------- issue 31: crafted checkpoints
+
+
+@pytest.fixture(scope="module")
+def interrupted(data_root, tmp_path_factory):
+    """The checkpoint (step 2 of 4) of an interrupted run, with the run's settings."""
+    cfg = TrainConfig(epochs=2, steps_per_epoch=2, strips=6, threads=1)
+    ckpt = tmp_path_factory.mktemp("ckpt") / "m.ckpt.pt"
+    with pytest.MonkeyPatch.context() as m:
+        _interrupt_after(m, "_curve_step", 3)
+        with pytest.raises(_Kill):
+            train(cfg, training_scene_dirs(data_root), progress=False, checkpoint=ckpt,
+                  checkpoint_every=2)
+    return cfg, ckpt.read_bytes()
+
+
+def _nan_weight(d):
+    d["net"]["0.weight"][0, 0, 0, 0] = float("nan")
+
+
+def _inf_moment(d):
+    d["optimizer"]["state"][0]["exp_avg"][0] = float("inf")
+
+
+CRAFTED = [
+    (lambda d: d.pop("step"), "it lacks step"),
+    (lambda d: d.pop("config"), "it lacks the settings and scenes of its run"),
+    (lambda d: d.update(step=10**6), "its step 1000000 is not a step of this run"),
+    (lambda d: d.update(step="2"), "its step '2' is not a step of this run"),
+    (lambda d: d.update(history=[]), "its losses do not match its step"),
+    (lambda d: d.update(running=float("nan")), "its losses do not match its step"),
+    (_nan_weight, "net.0.weight holds NaN or infinite values (the run it saved had diverged)"),
+    (_inf_moment, "optimizer.state.0.exp_avg holds NaN or infinite values"),
+    (lambda d: d["net"].update({"0.weight": torch.zeros(1)}), "its net does not fit this run"),
+    (lambda d: d["optimizer"]["param_groups"][0].update(lr="x"),
+     "its optimizer state is not that of this run"),
+    (lambda d: d["optimizer"].update(state={}), "its optimizer state is not that of this run"),
+    (lambda d: d["schedule"].update(last_epoch=7), "its learning-rate schedule is not that"),
+    (lambda d: d["schedule"].update(base_lrs=[1e30]), "its learning-rate schedule is not that"),
+    (lambda d: d.update(numpy_rng={"bit_generator": "PCG64"}), "its numpy_rng does not fit"),
+    (lambda d: d.update(torch_rng=torch.zeros(5, dtype=torch.uint8)),
+     "its torch_rng does not fit"),
+    (lambda d: d.update(log_temp=torch.zeros(3)), "its log_temp does not fit this run"),
+]
+
+
+@pytest.mark.parametrize("craft, message", CRAFTED)
+def test_a_crafted_checkpoint_is_refused_with_one_line(interrupted, data_root, tmp_path, craft,
+                                                        message):
+    """`train --resume` trusted a checkpoint's contents: KeyError, RuntimeError, TypeError or
+    IndexError tracebacks, and NaN weights resumed silently into a NaN model."""
+    cfg, good = interrupted
+    ckpt = tmp_path / "m.ckpt.pt"
+    ckpt.write_bytes(good)
+    data = torch.load(ckpt, weights_only=True)
+    craft(data)
+    torch.save(data, ckpt)
+    with pytest.raises(InputError) as caught:
+        train(cfg, training_scene_dirs(data_root), progress=False, checkpoint=ckpt, resume=True)
+    line = str(caught.value)
+    assert message in line and "\n" not in line and "delete it and run without --resume" in line
+    ckpt.write_bytes(good)  # the untouched checkpoint resumes: the check refuses only the craft
+    assert train(cfg, training_scene_dirs(data_root), progress=False, checkpoint=ckpt,
+                 resume=True)["loss_per_epoch"]
+
+
+def test_the_train_command_refuses_a_crafted_checkpoint_and_an_out_on_its_data(
+        interrupted, data_root, tmp_path, capsys):
+    _, good = interrupted
+    ckpt = tmp_path / "m.ckpt.pt"
+    data = torch.load(io.BytesIO(good), weights_only=True)
+    _nan_weight(data)
+    torch.save(data, ckpt)
+    argv = ["train", "--data", str(data_root), "--epochs", "2", "--steps", "2", "--strips", "6",
+            "--threads", "1", "--quiet"]
+    assert main([*argv, "--out", str(tmp_path / "m.npz"), "--resume"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "holds NaN or infinite values" in err
+    view = data_root / "middlebury2005_third" / "Books" / "view1.png"
+    before = view.read_bytes()
+    assert main([*argv, "--out", str(view)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--out path" in err and "is the input scene file" in err
+    assert view.read_bytes() == before

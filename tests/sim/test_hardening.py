@@ -16,7 +16,7 @@ import time
 import numpy as np
 import pytest
 
-from stereosim.sim import outputs
+from stereosim.sim import outputs, signals
 from stereosim.sim.api import run
 from stereosim.sim.cli import main
 from stereosim.sim.config import ChipConfig, load_config
@@ -273,8 +273,14 @@ def test_sigterm_during_a_run_leaves_the_old_set_and_no_temporary_files(old_run,
         # a first run may note first that it compiles the kernels (killed during it, it will
         # say so again next time): that line, then the one that says what happened
         lines = [ln for ln in err.decode().splitlines() if not ln.startswith("stereosim: compiling")]
-        assert proc.returncode == 143 and lines == ["stereosim: terminated"]
-        assert _snapshot(out) == before
+        assert proc.returncode == 143 and len(lines) == 1
+        if lines[0] != "stereosim: terminated":  # after the publish: then the new set is whole
+            assert lines == ["stereosim: terminated after writing its outputs (they are "
+                             "complete)"]
+            assert json.loads((out / "report.json").read_text())["config"]["sva"][
+                "disparities"] == 32
+        else:
+            assert _snapshot(out) == before
 
 
 def test_stdout_on_a_full_device_is_one_line(tmp_path):
@@ -379,3 +385,208 @@ def test_an_unreadable_or_too_long_config_is_one_line(tmp_path, capfd):
         code, _, err = _cli(["config", "show", "--config", path], capfd)
         assert message in _one_line_error(code, err)
 
+
+
+# ---------------------------------------------------------------- issue 31: outputs never replace inputs
+
+
+@pytest.fixture
+def no_work(monkeypatch):
+    """Every simulation, training and quantization fails the test: what is tested here must be
+    refused before any of them starts."""
+    def refuse(*a, **k):
+        raise AssertionError("the work started before the outputs were checked")
+
+    for name in ("run", "train", "quantize"):
+        monkeypatch.setattr(f"stereosim.sim.cli.{name}", refuse)
+
+
+def _inputs(tmp_path):
+    left, right = _write_pair(tmp_path / "in")
+    (tmp_path / "c.toml").write_text("[sva]\np1 = 200\n")
+    (tmp_path / "m.npz").write_bytes(b"a model")
+    return left, right, _dataset(tmp_path)
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["run", "--left", "{l}", "--right", "{r}", "--html", "{l}"],
+     r"--html path .*l.png is the input --left .*l.png: write it elsewhere"),
+    (["run", "--left", "{l}", "--right", "{r}", "--gt", "{t}/out/disparity.pfm", "--out",
+      "{t}/out"], r"--out disparity.pfm path .* is the input --gt"),
+    (["run", "--left", "{l}", "--right", "{r}", "--vcd", "{r}"], r"--vcd path .* is the input "
+     r"--right"),
+    (["run", "--left", "{l}", "--right", "{r}", "--config", "{t}/c.toml", "--timeline",
+      "{t}/c.toml"], r"--timeline path .* is the input --config"),
+    (["run", "--left", "{t}/in/disparity_kitti.png", "--right", "{r}", "--save-as", "kitti",
+      "--out", "{t}/in"], r"--save-as kitti path .* is the input --left"),
+    (["run", "{t}/ds/a_good", "--html", "{t}/ds/a_good/im0.png"],
+     r"--html path .*im0.png is the input scene file"),
+    (["quantize", "{t}/m.npz", "--calib", "{t}/ds", "--out", "{t}/m.npz"],
+     r"--out path .*m.npz is the input model"),
+    (["config", "plan", "--config", "{t}/c.toml", "--png", "{t}/c.toml"],
+     r"--png path .*c.toml is the input --config"),
+    (["eval", "{t}/ds", "--out", "{t}/ds/a_good/disp0GT.pfm"],
+     r"--out path .*disp0GT.pfm is the input scene file"),
+    (["eval", "{t}/ds", "--save", "{t}/ds", "--algo-name", "GT"],
+     r"--save path .*a_good/disp0GT.pfm is the input scene file"),
+    (["eval", "{t}/ds", "--save", "{t}/x", "--out", "{t}/x"],
+     r"--out path .*x is a folder --save writes into"),
+])
+def test_an_output_never_replaces_an_input(argv, message, tmp_path, capfd, no_work):
+    """Issue 31: `run --html L.png`, `quantize m.npz --out m.npz`, ... once overwrote what they
+    read; now one line before any work, and every input as it was."""
+    left, right, _ = _inputs(tmp_path)
+    (tmp_path / "in" / "disparity_kitti.png").write_bytes(left.read_bytes())
+    (tmp_path / "out").mkdir()
+    (tmp_path / "out" / "disparity.pfm").write_bytes((tmp_path / "ds" / "a_good" /
+                                                      "disp0GT.pfm").read_bytes())
+    before = {p: p.read_bytes() for p in tmp_path.rglob("*") if p.is_file()}
+    args = [a.format(l=left, r=right, t=tmp_path) for a in argv]
+    code, _, err = _cli(args + (["--disparities", "16"] if argv[0] in ("run", "eval") else []),
+                          capfd)
+    assert __import__("re").search(message, _one_line_error(code, err)), err
+    assert {p: p.read_bytes() for p in tmp_path.rglob("*") if p.is_file()} == before
+
+
+@pytest.mark.parametrize("option", ["--html", "--vcd", "--timeline", "--energy", "--gt"])
+def test_an_empty_file_option_is_refused(option, tmp_path, capfd, no_work):
+    """`--html ''` was ignored silently (an unset shell variable, say): now one line."""
+    left, right = _write_pair(tmp_path / "in")
+    code, _, err = _cli(["run", "--left", left, "--right", right, option, "", "--out",
+                         tmp_path / "o"], capfd)
+    assert f"{option} is empty: give a file name" in _one_line_error(code, err)
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_deeply_nested_toml_value_is_one_line(tmp_path, capfd):
+    """3,000 nested arrays (or inline tables) once gave a RecursionError traceback."""
+    deep = "[" * 3000 + "1" + "]" * 3000
+    (tmp_path / "deep.toml").write_text(f"[sva]\np1 = {deep}\n")
+    (tmp_path / "plain.toml").write_text("[sva]\np1 = 200\n")
+    cases = [
+        (["config", "show", "--set", f"sva.p1={deep}"], "the value of sva.p1 nests arrays or "
+         "tables too deeply to be read"),
+        (["config", "show", "--set", "sva.p1=" + "{a = " * 3000 + "1" + "}" * 3000],
+         "the value of sva.p1 nests"),
+        (["config", "show", "--config", tmp_path / "deep.toml"], "deep.toml nests arrays or "
+         "tables too deeply to be read: flatten them"),
+        (["config", "diff", tmp_path / "plain.toml", tmp_path / "deep.toml"], "deep.toml nests"),
+    ]
+    for argv, message in cases:
+        code, out, err = _cli(argv, capfd)
+        assert message in _one_line_error(code, err) and out == ""
+
+
+def test_a_closed_stdout_is_refused_before_any_work(tmp_path):
+    """`stereosim estimate --json >&-` gave an AttributeError traceback; `run` got there only
+    after publishing."""
+    left, right = _write_pair(tmp_path / "in")
+    for argv in (["estimate", "--json"],
+                 ["run", "--left", str(left), "--right", str(right), "--disparities", "16",
+                  "--out", str(tmp_path / "o")]):
+        proc = subprocess.run([sys.executable, "-m", "stereosim", *argv], stderr=subprocess.PIPE,
+                              preexec_fn=lambda: os.close(1), timeout=120, check=False)
+        assert proc.returncode == 2
+        assert proc.stderr.decode().splitlines() == [
+            "stereosim: error: standard output is closed: give stereosim one (e.g. > /dev/null)"]
+    assert not (tmp_path / "o").exists()
+
+
+def test_an_unreadable_video_is_one_line(tmp_path, capfd):
+    """FFmpeg's own log line once came out beside ours: now its last line is part of ours."""
+    (tmp_path / "bad.mp4").write_bytes(bytes(range(256)) * 12)
+    code, _, err = _cli(["run", "--left-video", tmp_path / "bad.mp4", "--right-video",
+                         tmp_path / "bad.mp4", "--disparities", "16", "--out", tmp_path / "o"],
+                        capfd)
+    line = _one_line_error(code, err)
+    assert "the left video" in line and "cannot be read" in line and "0x" not in line
+
+
+def test_max_pixels_zero_means_no_cap_in_the_api_as_on_the_command_line():
+    left, right = _pair(h=40, w=64)
+    result = run(left, right, mode="functional", overrides={"sva.disparities": 16}, max_pixels=0)
+    assert result.disparity.shape == (40, 64)
+    for bad in (-1, 2.5, True):
+        with pytest.raises(InputError, match="max_pixels must be a whole number >= 0"):
+            run(left, right, overrides={"sva.disparities": 16}, max_pixels=bad)
+
+
+# ---------------------------------------------------------------- issue 31: signals
+
+
+def test_sigterm_during_start_up_is_one_line(tmp_path):
+    """The console entry installs the handler before it imports the command line (numba,
+    OpenCV): a SIGTERM while they load ends with the one line, not a silent death."""
+    proc = subprocess.Popen([sys.executable, "-m", "stereosim", "config", "show"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            preexec_fn=lambda: signal.pthread_sigmask(signal.SIG_SETMASK, set()))
+    deadline = time.monotonic() + 60
+    while not _handles_sigterm(proc.pid):
+        assert proc.poll() is None and time.monotonic() < deadline, "no SIGTERM handler"
+        time.sleep(0.001)
+    with open(f"/proc/{proc.pid}/maps") as f:
+        loading = "llvmlite" not in f.read()  # numba's compiler is not loaded yet
+    proc.send_signal(signal.SIGTERM)
+    out, err = proc.communicate(timeout=60)
+    assert loading, "the handler came only once the heavy modules were loaded"
+    assert (proc.returncode, err.decode(), out) == (143, "stereosim: terminated\n", b"")
+
+
+def test_a_signal_after_the_outputs_are_written_says_so(old_run, capfd, monkeypatch):
+    """A signal once the new set is published exits 130/143 with a line that says the outputs
+    are complete (it once said only "interrupted", or left the staging folder)."""
+    left, right, out, _ = old_run
+
+    def summary_then_signal(*a, **k):
+        os.kill(os.getpid(), signal.SIGINT)
+
+    monkeypatch.setattr("stereosim.sim.cli.print_summary", summary_then_signal)
+    code, _, err = _cli(["run", "--mode", "functional", "--left", left, "--right", right,
+                         "--disparities", "32", "--out", out], capfd)
+    assert (code, err) == (130, "stereosim: interrupted after writing its outputs (they are "
+                                "complete)\n")
+    report = json.loads((out / "report.json").read_text())
+    assert report["config"]["sva"]["disparities"] == 32
+    assert sorted(p.name for p in out.iterdir()) == sorted(RUN_FILES)
+
+
+def test_a_signal_after_the_outcome_is_decided_changes_nothing(tmp_path, capfd, monkeypatch):
+    """Once main knows its outcome (a status, or a one-line error) a signal no longer cuts it
+    short: no traceback, no second line, no other status."""
+    real = signals.Handler.settle
+
+    def settle_then_signal(self):
+        real(self)
+        os.kill(os.getpid(), signal.SIGTERM)
+
+    monkeypatch.setattr(signals.Handler, "settle", settle_then_signal)
+    assert _cli(["config", "show", "--plain"], capfd)[0] == 0
+    code, _, err = _cli(["config", "show", "--set", "sva.pathz=2"], capfd)
+    assert "unknown config key 'sva.pathz'" in _one_line_error(code, err)
+    assert signals.current() is None  # the caller's handlers are back
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["train", "--box", "999"], "'999' is not a window the chip's box filter has: give an odd "
+     "K in 1..15 (sva.box_size's range)"),
+    (["train", "--aggregate", "17"], "give an odd K in 1..15"),
+])
+def test_train_windows_are_bounded_by_the_chips_box_filter(argv, message, capfd, tmp_path,
+                                                           monkeypatch):
+    """`train --box 999` was accepted (77 s a step)."""
+    monkeypatch.chdir(tmp_path)
+    code, _, err = _cli(argv, capfd)
+    assert message in _one_line_error(code, err)
+
+
+def test_sighup_before_the_switch_leaves_the_old_set(old_run, capfd, monkeypatch):
+    left, right, out, before = old_run
+
+    def hang_up(*a, **k):
+        os.kill(os.getpid(), signal.SIGHUP)
+
+    monkeypatch.setattr("stereosim.sim.cli.html_files", hang_up)
+    code, _, err = _cli(["run", "--mode", "functional", "--left", left, "--right", right,
+                         "--disparities", "32", "--out", out], capfd)
+    assert (code, err) == (129, "stereosim: hung up\n")
+    assert _snapshot(out) == before

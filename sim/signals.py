@@ -1,0 +1,142 @@
+"""SIGINT, SIGTERM and SIGHUP while a command runs (the promises of docs/reliability.md).
+
+A command's :class:`Handler` turns these signals into exceptions in the main thread --
+``KeyboardInterrupt`` for SIGINT, :class:`Terminated` for SIGTERM and SIGHUP -- so that every
+``finally`` runs (staging folders and half-made folders are removed) and the command line exits
+128 + the signal's number with one line (:func:`exit_line`). Three more rules close the gaps a
+plain handler leaves:
+
+* :func:`held` blocks the signals for a stretch that must not be cut: :func:`sim.outputs.publish`
+  holds them from the moment it switches a set until its clean-up is done, so a signal lands
+  before the switch (the old set stays) or after it (the new set is complete, which
+  :func:`note_published` records and the exit line says).
+* :meth:`Handler.settle`: once a command's outcome is decided (its status, or its one-line
+  error), a signal no longer interrupts it; the process exits with that outcome instead of a
+  traceback or a silent death.
+* :func:`install` is idempotent: the console entry (:mod:`sim.console`) installs the handler
+  before it imports the heavy modules (numba, OpenCV), the command reuses it, and it stays in
+  place until the process exits.
+
+Only the standard library is imported here: the console entry needs this module before anything
+else.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import signal
+from collections.abc import Iterator
+
+HELD = frozenset({signal.SIGINT, signal.SIGTERM, signal.SIGHUP})
+_WORDS = {signal.SIGINT: "interrupted", signal.SIGTERM: "terminated", signal.SIGHUP: "hung up"}
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM or SIGHUP, raised in the main thread so that clean-up runs."""
+
+    def __init__(self, signum: int = signal.SIGTERM):
+        super().__init__(signum)
+        self.signum = signum
+
+
+class Handler:
+    """The handler of :data:`HELD` while a command runs: raises until :meth:`settle`, and
+    keeps a signal for the end of a :func:`held` stretch; ``published`` says whether a set of
+    outputs was switched in (:func:`note_published`)."""
+
+    def __init__(self):
+        self.settled = False
+        self.published = False
+        self.holding = 0  # nested held() stretches
+        self.pending: int | None = None
+
+    def __call__(self, signum, frame):
+        if self.settled:  # the outcome is decided: the process exits with it
+            return
+        if self.holding:  # another thread took the signal: it waits for the stretch's end
+            self.pending = self.pending or signum
+            return
+        if signum == signal.SIGINT:
+            raise KeyboardInterrupt
+        raise Terminated(signum)
+
+    def settle(self) -> None:
+        """From now on a signal is ignored: the command's outcome is decided."""
+        self.settled = True
+
+
+def current() -> Handler | None:
+    """The installed :class:`Handler`, or None."""
+    handler = signal.getsignal(signal.SIGTERM)
+    return handler if isinstance(handler, Handler) else None
+
+
+def install() -> Handler | None:
+    """Install a :class:`Handler` on :data:`HELD` for the rest of the process, or return the one
+    installed already; None outside the main thread (where signals cannot be caught)."""
+    handler = current()
+    if handler is not None:
+        return handler
+    handler = Handler()
+    try:
+        for signum in HELD:
+            signal.signal(signum, handler)
+    except ValueError:  # not the main thread
+        return None
+    return handler
+
+
+@contextlib.contextmanager
+def handling() -> Iterator[Handler | None]:
+    """A :class:`Handler` for the duration: the installed one if there is one (then it stays),
+    else a new one, and the previous handlers put back at the end (for callers of ``main`` in
+    their own process)."""
+    if current() is not None:
+        yield current()
+        return
+    previous = {signum: signal.getsignal(signum) for signum in HELD}
+    handler = install()
+    try:
+        yield handler
+    finally:
+        if handler is not None:
+            for signum, old in previous.items():
+                signal.signal(signum, signal.SIG_DFL if old is None else old)
+
+
+@contextlib.contextmanager
+def held() -> Iterator[None]:
+    """Hold :data:`HELD` back for the duration; one that arrives meanwhile is delivered at the
+    end. Blocking them covers this thread; a signal another thread takes (numpy's BLAS,
+    torch's and tqdm's threads do not block them) reaches the installed :class:`Handler`, which
+    keeps it."""
+    handler = current()
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, HELD)
+    if handler is not None:
+        handler.holding += 1
+    try:
+        yield
+    finally:
+        if handler is not None:
+            handler.holding -= 1
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)  # a blocked signal is delivered here
+        if handler is not None and not handler.holding and handler.pending is not None:
+            signum, handler.pending = handler.pending, None
+            handler(signum, None)
+
+
+def note_published() -> None:
+    """Record that a set of outputs was switched in (read by :func:`exit_line`)."""
+    handler = current()
+    if handler is not None:
+        handler.published = True
+
+
+def exit_line(exc: KeyboardInterrupt, published: bool) -> tuple[int, str]:
+    """The exit status (128 + the signal's number) and the one line of a command stopped by
+    ``exc``; ``published``: its outputs were written, complete, before the signal came."""
+    signum = getattr(exc, "signum", signal.SIGINT)
+    line = f"stereosim: {_WORDS[signum]}"
+    if published:
+        line += " after writing its outputs (they are complete)"
+    return 128 + signum, line
