@@ -4,9 +4,10 @@ NNA and the SVA, if they went through DRAM -- traffic, stall cycles, energy per 
     python benchmarks/descriptor_dram_study.py [--write]
 
 The chip as built passes 32-bit descriptors from the NNA to the SVA through on-chip FIFOs. A
-design without them would spill the NNA's output to DRAM and read it back: 32 bits a pixel per
-camera as binary descriptors (the paper's 3.6 MB per 720p frame), or 32 float32 channels, 1,024
-bits a pixel (118 MB). This script simulates a 720p stream of three frames on the cycle model
+design without them would spill the NNA's output to DRAM and read it back: the binary beats
+(the 32-bit descriptor -- the paper's 3.6 MB per 720p frame and camera -- and the 8-bit pixel the
+default adaptive P2 reads: 40 bits a pixel per camera), or 32 float32 channels, 1,024 bits a
+pixel (118 MB). This script simulates a 720p stream of three frames on the cycle model
 with the DRAM channel on (``dram.model = "tdm"``: one LPDDR4 x32 channel, 17 GB/s, its slots
 shared by the stereo read, the write-back and ``dram.spill``), and reports per case the channel
 traffic at 30 fps, the cycles the memory sources waited on the channel per frame, the

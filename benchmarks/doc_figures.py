@@ -2,7 +2,8 @@
 
 A generated block sits between two marker comments, ``<!-- NAME:begin -->`` and
 ``<!-- NAME:end -->``. Every block of docs/ is listed here with the command that writes it:
-the blocks of this script (:data:`FIGURES`, cheap: a few 720p frames of the cycle model) and the
+the blocks of this script (:data:`FIGURES`, cheap: a few 720p and 1080p frames of the cycle
+model, a multiply-shift search, the import layers of pyproject.toml) and the
 blocks other scripts write (:data:`ELSEWHERE`: accuracy tables, sweeps, minutes to hours).
 ``tests/benchmarks/test_doc_figures.py`` re-runs this script's blocks and requires the pages
 to hold exactly what they print, and requires every block of docs/ to be listed here with a
@@ -18,18 +19,23 @@ from __future__ import annotations
 
 import argparse
 import difflib
+import functools
 import sys
+import tomllib
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 from markers import write_between
 
-from stereosim.sim.api import run
+from stereosim.quant.quantizer import search_mul_shift
+from stereosim.sim.api import run, run_stream
 from stereosim.sim.config import load_config
 from stereosim.sim.sweep import synthetic_pair
 
-DOCS = Path(__file__).resolve().parents[1] / "docs"
+ROOT = Path(__file__).resolve().parents[1]
+DOCS = ROOT / "docs"
 COMMAND = "python benchmarks/doc_figures.py --write"
 
 
@@ -44,9 +50,20 @@ class Figure:
 def _run_720p(overrides: dict) -> dict:
     """The cycle report of one 1280x720 frame (a synthetic textured pair: cycle counts do not
     depend on the pixels) at D = 128."""
-    left, right = synthetic_pair(720, 1280)
-    cfg = load_config(overrides={"sva.disparities": 128, **overrides})
+    return _run_frame((720, 1280), tuple(sorted(overrides.items())))
+
+
+@functools.cache
+def _run_frame(shape: tuple[int, int], overrides: tuple) -> dict:
+    """The cycle report of one frame of ``shape`` at D = 128, run once per process: several
+    blocks quote the same runs (the report is shared: read it, never change it)."""
+    left, right = synthetic_pair(*shape)
+    cfg = load_config(overrides={"sva.disparities": 128, **dict(overrides)})
     return run(left, right, mode="cycle", config=cfg).report
+
+
+RUNS_720P = (("defaults (CNN descriptor)", {}),
+             ("`--descriptor census`", {"nna.descriptor": "census"}))
 
 
 def calibration() -> list[str]:
@@ -56,8 +73,7 @@ def calibration() -> list[str]:
     lines = ["| run | cycles (nna / sva) | first output | frame (first input pixel to last "
              "word) | fps (work bound) | fps (measured) | bottleneck |",
              "|---|---|---|---|---|---|---|"]
-    for name, over in (("defaults (CNN descriptor)", {}),
-                       ("`--descriptor census`", {"nna.descriptor": "census"})):
+    for name, over in RUNS_720P:
         rep = _run_720p(over)
         cycles, thr, lat = rep["cycles"]["total"], rep["throughput"], rep["latency"]
         lines.append(
@@ -67,8 +83,115 @@ def calibration() -> list[str]:
     return lines
 
 
+def row_windows() -> list[str]:
+    """docs/architecture.md, "Row windows": the most each row window (and the FIFO in front of
+    the NNA) held in the calibration runs, beside its capacity."""
+    lines = ["| run | NNA line buffer (rows) | source-to-NNA FIFO (pixels) | NNA-to-SVA FIFO "
+             "(descriptors) | SVA descriptor rows | bottleneck |",
+             "|---|---|---|---|---|---|"]
+    for name, over in RUNS_720P:
+        rep = _run_720p(over)
+        nna = rep["buffers"]["nna_left"]["nna.line_buffer"]
+        sva = rep["buffers"]["sva"]["sva.descriptor_rows"]
+        src, n2s = rep["fifos"]["src_left_to_nna"], rep["fifos"]["nna_left_to_sva"]
+        lines.append(
+            f"| {name} | {nna['peak_rows']} of {nna['capacity_rows']} | "
+            f"{src['max_occupancy']} of {src['depth']} | {n2s['max_occupancy']} of "
+            f"{n2s['depth']} | {sva['peak_rows']} of {sva['capacity_rows']} | "
+            f"{rep['throughput']['bottleneck']} |")
+    return lines
+
+
+def splits() -> list[str]:
+    """docs/architecture.md, "Splits": a 1920x1080 frame on 6 NNA submodules (3 column tiles a
+    camera) with the default merge FIFOs and with FIFOs of two thirds of a tile row."""
+    lines = ["| `fifo.nna_to_merge_depth` | frame (first input pixel to last word) | "
+             "fps (measured) | fps (work bound) | bottleneck |",
+             "|---|---|---|---|---|"]
+    for depth in (64, 428):
+        rep = _run_frame((1080, 1920), (("fifo.nna_to_merge_depth", depth),
+                                        ("nna.stereo_submodules", 6)))
+        thr = rep["throughput"]
+        lines.append(f"| {depth} | {rep['latency']['frame_ms']:.3f} ms | "
+                     f"{thr['fps_measured']:.3f} | {thr['fps_bound']:.3f} | "
+                     f"{thr['bottleneck']} |")
+    return lines
+
+
+def layers() -> list[str]:
+    """docs/architecture.md, "Layers": the layers contract of pyproject.toml, top to bottom
+    (a module may import only from the lines below its own)."""
+    contracts = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["importlinter"]
+    (layered,) = [c for c in contracts["contracts"] if c["type"] == "layers"]
+    return ["```", *(", ".join(m.strip() for m in layer.split(":"))
+                     for layer in layered["layers"]), "```"]
+
+
+def energy_720p() -> list[str]:
+    """docs/energy.md, "What is counted": the energy of a 720p frame at the defaults and with
+    the paper's 2-path option, by block, the SGM's previous-row SRAM apart."""
+    lines = ["| run (1280x720, D = 128) | energy per frame | NNA | SVA | of which the SGM's "
+             "previous-row SRAM | FIFOs | DRAM | power at the work bound |",
+             "|---|---|---|---|---|---|---|---|"]
+    for name, over in (("defaults (CNN descriptor, 4 paths, LR check)", {}),
+                       ("`--set sva.paths=2`", {"sva.paths": 2})):
+        energy = _run_720p(over)["energy"]
+        block = energy["per_frame_uj"]["by_block"]
+        total = energy["per_frame_uj"]["total"]
+        sgm_uj = sum(i["count"] * i["pj_each"] for i in energy["items"]
+                     if i["what"].startswith("sva.sgm_previous_row")) * 1e-6
+        lines.append(
+            f"| {name} | {total / 1e3:.2f} mJ | {block['nna'] / 1e3:.2f} mJ | "
+            f"{block['sva'] / 1e3:.2f} mJ | {sgm_uj / 1e3:.2f} mJ ({100 * sgm_uj / total:.0f} %) "
+            f"| {block['fifos'] / 1e3:.2f} mJ | {block['dram'] / 1e3:.2f} mJ | "
+            f"{energy['power_mw']:.1f} mW at {energy['power_at_fps']:.3f} fps |")
+    return lines
+
+
+def dram_defaults() -> list[str]:
+    """docs/dram.md, "The report": a stream of three 720p frames (the defaults) without and
+    with the DRAM channel."""
+    left, right = synthetic_pair(720, 1280)
+    lines = ["| `dram.model` | slot | slots a round (read + write-back) | bandwidth of the "
+             "read slots | stall cycles of a memory source (NNA) | stall cycles of the sink "
+             "(SVA) | utilisation | sustained fps |",
+             "|---|---|---|---|---|---|---|---|"]
+    for model in ("none", "tdm"):
+        rep = run_stream([(left, right)] * 3, config=load_config(
+            overrides={"sva.disparities": 128, "dram.model": model})).report
+        fps = f"{rep['stream']['sustained_fps']:.3f}"
+        if model == "none":
+            lines.append(f"| none | | | | | | | {fps} |")
+            continue
+        dram, clients = rep["dram"], rep["dram"]["clients"]
+        lines.append(
+            f"| tdm | {dram['slot_ns']:.3f} ns | {dram['round_slots']} "
+            f"({clients['read']['slots_per_round']} + "
+            f"{clients['write_back']['slots_per_round']}) | "
+            f"{clients['read']['slot_gbps']:.1f} GB/s | {dram['stall_cycles']['memory_left']} | "
+            f"{dram['stall_cycles']['sink']} | {100 * dram['utilisation']:.2f} % | {fps} |")
+    return lines
+
+
+def requant_example() -> list[str]:
+    """docs/quantization.md, "Worked example": the multiply-shift searched for the wanted ratio
+    1/256 over the accumulators -5000..40000, at z = 8 and z = 4."""
+    acc = np.arange(-5000, 40001)
+    lines = ["| z | (m, h) | m / 2^h | mean error |", "|---|---|---|---|"]
+    for z_bits in (8, 4):
+        m, h, err = search_mul_shift(acc, acc / 256, z_bits=z_bits)
+        lines.append(f"| {z_bits} | ({m}, {h}) | {m / 2**h:.6f} | {err:.3f} |")
+    return lines
+
+
 FIGURES = {
     "calibration": Figure("architecture.md", calibration),
+    "row-windows": Figure("architecture.md", row_windows),
+    "splits": Figure("architecture.md", splits),
+    "layers": Figure("architecture.md", layers),
+    "energy-720p": Figure("energy.md", energy_720p),
+    "dram-defaults": Figure("dram.md", dram_defaults),
+    "requant-example": Figure("quantization.md", requant_example),
 }
 
 # The blocks other scripts write (slow: accuracy over the Middlebury scenes, sweeps), by name:

@@ -46,3 +46,33 @@ def test_the_pages_hold_what_the_cheap_figures_measure_today():
     done = subprocess.run([sys.executable, str(SCRIPT), "--check"], capture_output=True,
                           text=True, timeout=600, check=False, cwd=ROOT)
     assert done.returncode == 0, done.stdout + done.stderr
+
+
+def _middeval3_robustness() -> dict[str, dict[str, tuple[str, str]]]:
+    """docs/ablation.md's robustness block, its MiddEval3 table: condition -> descriptor ->
+    (totbad, bad2) as the page prints them."""
+    text = (ROOT / "docs" / "ablation.md").read_text()
+    block = text.split("<!-- robustness:begin -->", 1)[1].split("<!-- robustness:end -->", 1)[0]
+    table = block.split("**MiddEval3", 1)[1].split("\n\n", 2)[1]
+    lines = [line.strip().strip("|").split("|") for line in table.splitlines()]
+    head = [cell.strip() for cell in lines[0]]
+    rows = {}
+    for cells in lines[2:]:
+        pairs = [re.fullmatch(r"\**([\d.]+) \(([\d.]+)\)\**", c.strip()) for c in cells[1:]]
+        rows[cells[0].strip()] = {name: m.groups() for name, m in zip(head[1:], pairs)}
+    return rows
+
+
+def test_the_readme_quotes_the_robustness_table_as_it_stands():
+    """README.md's figures for the learned descriptor against the census (totbad and bad2 on
+    clean MiddEval3, totbad with noise of sigma 8) are those of docs/ablation.md's robustness
+    block, which benchmarks/robustness.py writes."""
+    rows = _middeval3_robustness()
+    readme = " ".join((ROOT / "README.md").read_text().split())
+    clean, noisy = rows["clean"], rows["noise 8"]
+    for cnn, census in ((clean["cnn"][0], clean["census"][0]),
+                        (clean["cnn"][1], clean["census"][1]),
+                        (noisy["cnn"][0], noisy["census"][0])):
+        assert f"({cnn} vs {census})" in readme, f"README.md does not quote ({cnn} vs {census})"
+    gap = float(noisy["census"][0]) - float(noisy["cnn"][0])
+    assert f"{gap:.1f} points less totbad with noise of sigma 8" in readme
