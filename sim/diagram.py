@@ -6,9 +6,11 @@ both read off a :class:`~sim.cycle.plan.ChipPlan` (nothing here knows the topolo
 :func:`plan_text` lists every domain (frequency, period, blocks), every block (kind, domain,
 items, cycles per item, latency, buffers) and every FIFO as ``producer --name--> consumer`` with
 its depth, width, configuration key and, for a crossing, the edges after which data and free
-slots are seen; :func:`plan_png` draws the blocks as boxes coloured by domain in pipeline
-columns (source, NNA, merge, SVA, sink) with the FIFOs as arrows (dashed where they cross
-domains). docs/architecture.md opens with both, for the default chip.
+slots are seen, then the SRAM and the run's cycle budget per clock domain; :func:`plan_png`
+draws the blocks as boxes coloured by domain in pipeline columns (source, NNA, merge, SVA, sink)
+with the FIFOs as arrows (dashed where they cross domains), each FIFO's label on its arrow where
+it overlaps no block and no other label. docs/architecture.md opens with both, for the default
+chip.
 """
 
 from __future__ import annotations
@@ -54,7 +56,8 @@ def _block_line(plan: ChipPlan, b: BlockPlan) -> str:
 
 
 def plan_text(plan: ChipPlan) -> str:
-    """The plan as a deterministic text listing (domains, blocks, FIFOs, budget)."""
+    """The plan as a deterministic text listing (domains, blocks, FIFOs, SRAM, and the cycle
+    budget: the cycles of each clock domain a run may take before it stops)."""
     cfg = plan.cfg
     h, w = plan.shape
     lines = [f"chip plan: {w}x{h}, {cfg.nna.descriptor} descriptor ({plan.descriptor_bits} "
@@ -77,9 +80,19 @@ def plan_text(plan: ChipPlan) -> str:
         lines.append(f"  {f.producer} --{f.name}--> {f.consumer}: {f.depth} x {f.width_bits} "
                      f"bits, {f.key}; {seen}")
     total = sum(sram_bits(plan).values())
-    lines.append(f"SRAM per instance: {total:,} bits over {len(sram_bits(plan))} buffers; "
-                 "budget: " + ", ".join(f"{k} {v:,}" for k, v in sorted(plan.budget.items())))
+    lines.append(f"SRAM per instance: {total:,} bits over {len(sram_bits(plan))} buffers")
+    how = "sim.max_cycles" if plan.cfg.sim.max_cycles else "automatic, sim.max_cycles = 0"
+    lines.append(f"cycle budget ({how}; a run stops after this many cycles of each clock): "
+                 + ", ".join(f"{k} {v:,} cycles" for k, v in sorted(plan.budget.items())))
     return "\n".join(lines) + "\n"
+
+
+COLUMN_STEP = 4.0  # plot units between pipeline columns (a box is BOX_W wide)
+ROW_STEP = 1.6
+BOX_W, BOX_H = 1.7, 0.75
+# where along its arrow a FIFO's label may sit (0: the producer's edge, 1: the consumer's),
+# in the order tried
+LABEL_SPOTS = (0.5, 0.35, 0.65, 0.2, 0.8, 0.1, 0.9)
 
 
 def _positions(plan: ChipPlan) -> dict[str, tuple[float, float]]:
@@ -95,12 +108,23 @@ def _positions(plan: ChipPlan) -> dict[str, tuple[float, float]]:
             y = b.side * plan.parts + plan.tiles.index(b.tile)
         else:
             y = b.side * plan.parts + (plan.parts - 1) / 2
-        pos[b.name] = (x * 3.2, -y * 1.6)
+        pos[b.name] = (x * COLUMN_STEP, -y * ROW_STEP)
     return pos
 
 
-def plan_png(plan: ChipPlan) -> bytes:
-    """The plan drawn: blocks coloured by clock domain, FIFOs as labelled arrows."""
+def _box(extent) -> tuple[float, float, float, float]:
+    return (extent.x0, extent.y0, extent.x1, extent.y1)
+
+
+def _overlap(a, b) -> bool:
+    return a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]
+
+
+def _draw(plan: ChipPlan):
+    """The plan's figure, and the display boxes (x0, y0, x1, y1 in pixels) of its blocks and
+    of its FIFO labels, by name. Each label sits on its arrow at the first of
+    :data:`LABEL_SPOTS` where it overlaps no block and no label placed before it (else at the
+    middle)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -110,24 +134,17 @@ def plan_png(plan: ChipPlan) -> bytes:
     plt.rcParams.update({"svg.hashsalt": "stereosim", "path.simplify": False})
     pos = _positions(plan)
     n_rows = 2 * plan.parts
-    fig, ax = plt.subplots(figsize=(13, 1.9 + 1.25 * n_rows), dpi=100)
-    bw, bh = 1.7, 0.75
+    fig, ax = plt.subplots(figsize=(15, 1.9 + 1.25 * n_rows), dpi=100)
+    bw, bh = BOX_W, BOX_H
+    patches = {}
     for b in plan.blocks:
         x, y = pos[b.name]
-        ax.add_patch(FancyBboxPatch((x - bw / 2, y - bh / 2), bw, bh,
-                                    boxstyle="round,pad=0.05",
-                                    fc=DOMAIN_COLOURS.get(b.domain, "#dddddd"), ec="black"))
+        patches[b.name] = ax.add_patch(FancyBboxPatch(
+            (x - bw / 2, y - bh / 2), bw, bh, boxstyle="round,pad=0.05",
+            fc=DOMAIN_COLOURS.get(b.domain, "#dddddd"), ec="black"))
         detail = f"{b.items:,} items" + (f", {b.cycles} cyc" if b.kind in ("nna", "sva") else "")
         ax.text(x, y + 0.12, b.name, ha="center", va="center", fontsize=9, weight="bold")
         ax.text(x, y - 0.17, detail, ha="center", va="center", fontsize=7)
-    for f in plan.fifos:
-        (x0, y0), (x1, y1) = pos[f.producer], pos[f.consumer]
-        ax.annotate("", xy=(x1 - bw / 2 - 0.05, y1), xytext=(x0 + bw / 2 + 0.05, y0),
-                    arrowprops=dict(arrowstyle="-|>", lw=1.2, color="black",
-                                    linestyle="--" if f.crossing else "-"))
-        label = f"{f.name}\n{f.depth} x {f.width_bits} b" + (" (CDC)" if f.crossing else "")
-        ax.text((x0 + x1) / 2, (y0 + y1) / 2 + 0.08, label, ha="center", va="bottom",
-                fontsize=6.5, bbox=dict(fc="white", ec="none", alpha=0.8, pad=0.5))
     legend = [Patch(fc=DOMAIN_COLOURS.get(d.name, "#dddddd"), ec="black",
                     label=f"{d.name} domain, {d.freq_hz / 1e6:g} MHz")
               for d in plan.domains.values()]
@@ -138,9 +155,50 @@ def plan_png(plan: ChipPlan) -> bytes:
                  f"D = {plan.cfg.sva.disparities}, {plan.parts} NNA submodule"
                  f"{'s' if plan.parts > 1 else ''} per camera "
                  f"(dashed: FIFO crossing clock domains)", fontsize=10, pad=22)
-    ax.set_xlim(-1.2, 4 * 3.2 + 1.2)
-    ax.set_ylim(-(n_rows - 1) * 1.6 - 0.9, 1.0)
+    ax.set_xlim(-1.2, 4 * COLUMN_STEP + 1.2)
+    ax.set_ylim(-(n_rows - 1) * ROW_STEP - 0.9, 1.0)
     ax.axis("off")
+    renderer = fig.canvas.get_renderer()
+    blocks = {name: _box(p.get_window_extent(renderer)) for name, p in patches.items()}
+    labels: dict[str, tuple[float, float, float, float]] = {}
+    for f in plan.fifos:
+        (x0, y0), (x1, y1) = pos[f.producer], pos[f.consumer]
+        start, end = (x0 + bw / 2 + 0.05, y0), (x1 - bw / 2 - 0.05, y1)
+        ax.annotate("", xy=end, xytext=start,
+                    arrowprops=dict(arrowstyle="-|>", lw=1.2, color="black",
+                                    linestyle="--" if f.crossing else "-"))
+        label = f"{f.name}\n{f.depth} x {f.width_bits} b" + (" (CDC)" if f.crossing else "")
+        chosen = None
+        for t in LABEL_SPOTS:
+            text = ax.text(start[0] + t * (end[0] - start[0]), start[1] + t * (end[1] - start[1]),
+                           label, ha="center", va="center", fontsize=6.5, zorder=3,
+                           bbox=dict(fc="white", ec="none", alpha=0.85, pad=0.5))
+            box = _box(text.get_window_extent(renderer))
+            clear = not any(_overlap(box, o) for o in [*blocks.values(), *labels.values()])
+            if clear or chosen is None:
+                if chosen is not None:
+                    chosen[0].remove()
+                chosen = (text, box)
+            else:
+                text.remove()
+            if clear:
+                break
+        labels[f.name] = chosen[1]
+    return plt, fig, blocks, labels
+
+
+def picture_boxes(plan: ChipPlan) -> tuple[dict, dict]:
+    """The display boxes of the picture's blocks and FIFO labels (see :func:`_draw`), by
+    name: what a test checks for overlaps."""
+    plt, fig, blocks, labels = _draw(plan)
+    plt.close(fig)
+    return blocks, labels
+
+
+def plan_png(plan: ChipPlan) -> bytes:
+    """The plan drawn: blocks coloured by clock domain, FIFOs as labelled arrows, each label
+    on its arrow where it overlaps no block and no other label."""
+    plt, fig, _, _ = _draw(plan)
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=100, bbox_inches="tight", metadata={"Software": None})
     plt.close(fig)

@@ -4,10 +4,17 @@
 column; rows with the same hue and x (several scenes, say) are averaged and the legend says so.
 Axes print plain numbers (no offset, no scientific notation) and may be logarithmic; a column
 of nanoseconds or femtoseconds is drawn in us, ms or s, whichever reads best, and the label
-says which. :func:`pareto_plot` shows SRAM bits against fps, coloured by accuracy, with the
-Pareto-optimal points ringed and every point labelled by its configuration (the swept keys). :func:`sweep_plots` makes the built-in plots a sweep's columns allow. PNGs are
-rendered with the Agg backend at a fixed size and DPI and without the ``Software`` metadata
-entry, so the same CSV gives the same bytes.
+says which; a frame-rate column says which rate it is (:data:`RATE_KINDS`: measured, or a work
+bound). :func:`pareto_plot` shows SRAM bits against fps, coloured by accuracy, with the
+Pareto-optimal points ringed and every point labelled by its configuration (the swept keys),
+the labels placed where they overlap neither one another nor the points. :func:`sweep_plots`
+makes the built-in plots a sweep's columns allow; they use the rate the runs measured wherever
+they measured one (:func:`rate_column`: a cycle sweep's ``throughput.fps_measured``), since the
+work bound can be far from it (column tiles behind shallow merge FIFOs), and
+:func:`rate_gaps` names the points where the two differ by more than :data:`RATE_GAP`. Both
+plotting functions return the data they drew (:func:`xy_data`, :class:`ParetoData`), so a test
+can hold a plot to the CSV. PNGs are rendered with the Agg backend at a fixed size and DPI and
+without the ``Software`` metadata entry, so the same CSV gives the same bytes.
 """
 
 from __future__ import annotations
@@ -15,6 +22,7 @@ from __future__ import annotations
 import io
 import math
 from collections import defaultdict
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from stereosim.sim.errors import InputError
@@ -22,6 +30,17 @@ from stereosim.sim.outputs import atomic_write_bytes
 
 FIGSIZE = (6.4, 4.2)
 DPI = 100
+
+MEASURED_RATE = "throughput.fps_measured"
+BOUND_RATE = "throughput.fps_bound"
+# the frame-rate columns of a sweep, in the order the plots prefer them, and what each is
+RATE_KINDS = {
+    MEASURED_RATE: "measured, one frame alone",
+    BOUND_RATE: "work bound",
+    "estimate.throughput.fps_bound": "work bound, analytic estimate",
+}
+# a measured rate this far (as a share of the bound) from the work bound is worth a note
+RATE_GAP = 0.03
 
 
 def _number(text):
@@ -58,9 +77,10 @@ def _figure():
     return plt, *plt.subplots(figsize=FIGSIZE, dpi=DPI)
 
 
-def _png_bytes(plt, fig) -> bytes:
+def _png_bytes(plt, fig, *, layout: bool = True) -> bytes:
     buf = io.BytesIO()
-    fig.tight_layout()
+    if layout:
+        fig.tight_layout()
     fig.savefig(buf, format="png", dpi=DPI, metadata={"Software": None})
     plt.close(fig)
     return buf.getvalue()
@@ -124,15 +144,75 @@ def _check_log(rows: list[dict], col: str, flag: str, source: str) -> None:
                          f"{bad[0]!r}: drop {flag} or filter those rows")
 
 
-def plot_xy(rows: list[dict], x: str, y: str, png: str | Path, *, hue: str | None = None,
-            title: str | None = None, source: str = "the results", logx: bool = False,
-            logy: bool = False) -> None:
-    """``y`` against ``x`` (numbers, or categories in order of appearance), a line per hue;
-    ``logx`` / ``logy``: logarithmic axes (their values must be positive)."""
+def rate_label(column: str) -> str:
+    """A frame-rate column named with the rate it is (:data:`RATE_KINDS`); others as they are."""
+    return f"{column} ({RATE_KINDS[column]})" if column in RATE_KINDS else column
+
+
+def _axis_label(column: str, values) -> tuple[float, str]:
+    """(factor, label) of an axis: :func:`time_scale`'s, a rate's kind on a second line."""
+    factor, label = time_scale(column, values)
+    if column in RATE_KINDS:
+        label = f"{column}\n({RATE_KINDS[column]})"
+    return factor, label
+
+
+def rate_column(rows: list[dict]) -> str | None:
+    """The frame rate a sweep's plots use: the first of :data:`RATE_KINDS` that every
+    successful row has -- the measured rate of a cycle sweep, else the work bound (an estimate
+    sweep's; a functional sweep's analytic one). None when no column has one for every row."""
+    ok = _ok_rows(rows)
+    return next((c for c in RATE_KINDS if ok and all(_number(r.get(c)) is not None for r in ok)),
+                None)
+
+
+def rate_gaps(rows: list[dict]) -> list[dict]:
+    """The successful rows whose measured rate and work bound differ by more than
+    :data:`RATE_GAP` of the bound, the largest gap first (stable: then in row order)."""
+    gaps = []
+    for r in _ok_rows(rows):
+        measured, bound = _number(r.get(MEASURED_RATE)), _number(r.get(BOUND_RATE))
+        if measured is not None and bound and abs(measured / bound - 1) > RATE_GAP:
+            gaps.append((-abs(measured / bound - 1), len(gaps), r))
+    return [r for *_, r in sorted(gaps, key=lambda g: g[:2])]
+
+
+def _hue_order(key: str) -> tuple:
+    """Hue values in order: numbers by value, before text; a value of several keys
+    ("288 / 64") part by part."""
+    return tuple((_number(part) is None, _number(part) or 0.0, part)
+                 for part in key.split(" / "))
+
+
+def xy_data(rows: list[dict], x: str, y: str, *, hue: str | None = None,
+            source: str = "the results") -> dict[str, list[tuple[float | str, float]]]:
+    """What :func:`plot_xy` draws: per hue value (sorted; "" without ``hue``), the points
+    (x, mean of ``y`` over the rows with that hue and x), in x order; categorical x values keep
+    the order they first appear in."""
     check_columns(rows, (x, y, hue), source)
     rows = [r for r in _ok_rows(rows) if r.get(x, "") != "" and _number(r.get(y)) is not None]
     if not rows:
         raise InputError(f"no successful rows with values in '{x}' and '{y}' in {source}")
+    numeric_x = all(_number(r[x]) is not None for r in rows)
+    categories = list(dict.fromkeys(r[x] for r in rows))
+    groups: dict[str, dict] = defaultdict(lambda: defaultdict(list))
+    for r in rows:
+        key = r.get(hue, "") if hue else ""
+        xv = _number(r[x]) if numeric_x else categories.index(r[x])
+        groups[str(key)][xv].append(_number(r[y]))
+    order = sorted(groups, key=_hue_order)
+    return {key: [(xv if numeric_x else categories[xv], sum(v) / len(v))
+                  for xv, v in sorted(groups[key].items())] for key in order}
+
+
+def plot_xy(rows: list[dict], x: str, y: str, png: str | Path, *, hue: str | None = None,
+            title: str | None = None, source: str = "the results", logx: bool = False,
+            logy: bool = False) -> dict[str, list[tuple[float | str, float]]]:
+    """``y`` against ``x`` (numbers, or categories in order of appearance), a line per hue;
+    ``logx`` / ``logy``: logarithmic axes (their values must be positive). Returns what it
+    drew (:func:`xy_data`)."""
+    data = xy_data(rows, x, y, hue=hue, source=source)
+    rows = [r for r in _ok_rows(rows) if r.get(x, "") != "" and _number(r.get(y)) is not None]
     numeric_x = all(_number(r[x]) is not None for r in rows)
     if logx and not numeric_x:
         raise InputError(f"--logx needs numbers, but '{x}' in {source} has categories: drop "
@@ -141,40 +221,36 @@ def plot_xy(rows: list[dict], x: str, y: str, png: str | Path, *, hue: str | Non
         _check_log(rows, x, "--logx", source)
     if logy:
         _check_log(rows, y, "--logy", source)
-    x_factor, x_label = time_scale(x, [_number(r[x]) for r in rows]) if numeric_x else (1.0, x)
-    y_factor, y_label = time_scale(y, [_number(r[y]) for r in rows])
+    x_factor, x_label = _axis_label(x, [_number(r[x]) for r in rows]) if numeric_x else (1.0, x)
+    y_factor, y_label = _axis_label(y, [_number(r[y]) for r in rows])
     categories = list(dict.fromkeys(r[x] for r in rows))
-    groups: dict[str, dict] = defaultdict(lambda: defaultdict(list))
+    counts: dict[tuple, int] = defaultdict(int)
     for r in rows:
-        key = r.get(hue, "") if hue else ""
-        xv = _number(r[x]) * x_factor if numeric_x else categories.index(r[x])
-        groups[str(key)][xv].append(_number(r[y]) * y_factor)
+        counts[(str(r.get(hue, "")) if hue else "", r[x])] += 1
+    averaged = any(n > 1 for n in counts.values())
     plt, fig, ax = _figure()
-    averaged = False
-    order = sorted(groups, key=lambda k: (_number(k) is None, _number(k) or 0.0, k))
-    for key in order:
-        pts = sorted(groups[key].items())
-        averaged |= any(len(v) > 1 for _, v in pts)
-        xs = [p for p, _ in pts]
-        ys = [sum(v) / len(v) for _, v in pts]
+    for key, pts in data.items():
+        xs = [p * x_factor if numeric_x else categories.index(p) for p, _ in pts]
+        ys = [v * y_factor for _, v in pts]
         ax.plot(xs, ys, marker="o", label=f"{hue} = {key}" if hue else None)
     if not numeric_x:
         ax.set_xticks(range(len(categories)), categories, rotation=20)
     if logx:
-        _log_axis(ax, "x", [v for g in groups.values() for v in g])
+        _log_axis(ax, "x", [p * x_factor for pts in data.values() for p, _ in pts])
     elif numeric_x:
         _plain_numbers(ax, "x")
     if logy:
-        _log_axis(ax, "y", [sum(v) / len(v) for g in groups.values() for v in g.values()])
+        _log_axis(ax, "y", [v * y_factor for pts in data.values() for _, v in pts])
     else:
         _plain_numbers(ax, "y")
     ax.set_xlabel(x_label)
-    ax.set_ylabel(f"{y_label} (mean over rows)" if averaged else y_label)
+    ax.set_ylabel(f"{y_label}, mean over rows" if averaged else y_label)
     if hue:
         ax.legend(fontsize="small")
     ax.grid(True, alpha=0.3)
     ax.set_title(title or f"{y} vs {x}", fontsize="medium")
     _write(png, _png_bytes(plt, fig))
+    return data
 
 
 def pareto_front(points: list[tuple[float, float, float]]) -> list[bool]:
@@ -190,10 +266,9 @@ def pareto_front(points: list[tuple[float, float, float]]) -> list[bool]:
     return front
 
 
-def point_labels(rows: list[dict], keys) -> dict[str, str]:
-    """Each point's label: its values of those ``keys`` that differ between points, as
-    ``name=value`` (the key's last dotted part when that is unambiguous); the point's number
-    when no key varies."""
+def _label_parts(rows: list[dict], keys) -> dict[str, list[tuple[str, str]]]:
+    """Each point's (name, value) of those ``keys`` that differ between points; the name is
+    the key's last dotted part when that is unambiguous."""
     first: dict[str, dict] = {}
     for r in rows:
         first.setdefault(r.get("point", ""), r)
@@ -201,15 +276,54 @@ def point_labels(rows: list[dict], keys) -> dict[str, str]:
     short = {k: k.rsplit(".", 1)[-1] for k in varying}
     if len(set(short.values())) < len(short):
         short = {k: k for k in varying}
-    return {p: ", ".join(f"{short[k]}={r.get(k, '')}" for k in varying) or f"point {p}"
-            for p, r in first.items()}
+    return {p: [(short[k], str(r.get(k, ""))) for k in varying] for p, r in first.items()}
 
 
-def pareto_plot(rows: list[dict], png: str | Path, *, sram: str = "sram_bits",
-                fps: str = "throughput.fps_bound", error: str | None = None,
-                source: str = "the results", label_keys=()) -> None:
-    """SRAM bits vs fps per point (averaged over scenes), coloured by ``error`` if given; each
-    point labelled by its values of ``label_keys`` (the sweep's axes, :func:`point_labels`)."""
+def point_labels(rows: list[dict], keys) -> dict[str, str]:
+    """Each point's label: its values of those ``keys`` that differ between points, as
+    ``name=value`` (the key's last dotted part when that is unambiguous); the point's number
+    when no key varies."""
+    return {p: ", ".join(f"{k}={v}" for k, v in parts) or f"point {p}"
+            for p, parts in _label_parts(rows, keys).items()}
+
+
+@dataclass(frozen=True)
+class ParetoPoint:
+    """One point of a Pareto view: its label (the swept keys), SRAM bits, frame rate and
+    error, averaged over its scenes, and whether it is Pareto-optimal."""
+
+    point: str
+    label: str
+    sram: float
+    fps: float
+    error: float | None
+    optimal: bool
+    parts: tuple[tuple[str, str], ...] = ()  # the label's (name, value) pairs
+
+
+@dataclass
+class ParetoData:
+    """What a Pareto view shows: the columns it reads and its points in point order;
+    ``label_boxes`` (display pixels, x0, y0, x1, y1) once drawn: one per label, and points
+    at the same place share one label; ``key`` when the labels are the points' numbers."""
+
+    sram: str
+    fps: str
+    error: str | None
+    points: list[ParetoPoint]
+    label_boxes: list[tuple[float, float, float, float]] = field(default_factory=list)
+    key: list[str] = field(default_factory=list)  # "numbers: label", when numbers label it
+
+    @property
+    def front(self) -> list[ParetoPoint]:
+        return [p for p in self.points if p.optimal]
+
+
+def pareto_data(rows: list[dict], *, sram: str = "sram_bits", fps: str = BOUND_RATE,
+                error: str | None = None, source: str = "the results",
+                label_keys=()) -> ParetoData:
+    """The points of a Pareto view: SRAM bits, ``fps`` and ``error`` (if given) per point,
+    averaged over its scenes; the front computed on those very values."""
     check_columns(rows, (sram, fps, error), source)
     acc: dict[str, list] = defaultdict(list)
     kept = []
@@ -223,36 +337,196 @@ def pareto_plot(rows: list[dict], png: str | Path, *, sram: str = "sram_bits",
         raise InputError(f"no successful rows with '{sram}' and '{fps}' in {source}")
     keys = sorted(acc, key=lambda k: (_number(k) is None, _number(k) or 0.0, k))
     pts = [tuple(sum(v[i] for v in acc[k]) / len(acc[k]) for i in range(3)) for k in keys]
-    front = pareto_front(pts)
-    plt, fig, ax = _figure()
-    xs, ys, cs = zip(*pts)
-    colour = {"c": cs, "cmap": "viridis_r"} if error else {}
-    sc = ax.scatter(xs, ys, s=40, zorder=3, **colour)
-    fx = [p for p, on in zip(pts, front) if on]
-    ax.scatter([p[0] for p in fx], [p[1] for p in fx], s=160, facecolors="none",
-               edgecolors="red", zorder=4, label="Pareto-optimal")
     labels = point_labels(kept, label_keys)
-    for k, (sx, sy, _) in zip(keys, pts):
-        ax.annotate(labels[k], (sx, sy), fontsize="x-small", xytext=(3, 3),
-                    textcoords="offset points")
-    if error:
-        fig.colorbar(sc, ax=ax, label=f"{error} (lower is better)")
+    parts = _label_parts(kept, label_keys)
+    return ParetoData(sram, fps, error, [
+        ParetoPoint(k, labels[k], s, f, e if error else None, on, tuple(parts[k]))
+        for k, (s, f, e), on in zip(keys, pts, pareto_front(pts))
+    ])
+
+
+def _shared_labels(points: list[ParetoPoint]) -> list[tuple[tuple[float, float], str, str]]:
+    """One label per place (sram, fps): the place, its label -- a key per line, the values of
+    the points drawn there joined by " / " (in point order); a point without varying keys is
+    named by its number -- and the numbers of its points."""
+    places: dict[tuple[float, float], list[ParetoPoint]] = {}
+    for p in points:
+        places.setdefault((p.sram, p.fps), []).append(p)
+    out = []
+    for where, group in places.items():
+        numbers = ", ".join(p.point for p in group)
+        if not group[0].parts:
+            out.append((where, ", ".join(p.label for p in group), numbers))
+            continue
+        lines = []
+        for i, (name, _) in enumerate(group[0].parts):
+            values = list(dict.fromkeys(p.parts[i][1] for p in group))
+            lines.append(f"{name}={' / '.join(values)}")
+        out.append((where, "\n".join(lines), numbers))
+    return out
+
+
+# label offsets tried around a point, in points: the directions (x, y), then farther out
+_DIRECTIONS = ((1, 1), (1, -1), (-1, 1), (-1, -1), (1, 0), (-1, 0), (0, 1), (0, -1))
+_DISTANCES = (4, 10, 18, 30, 45, 65, 90)
+_MARKER_PT = 7.0  # half the ring's size: a label keeps off every marker by this much
+_MAX_PLACED = 200  # more labels than this are placed beside their points unchecked
+
+
+def _area(a, b) -> float:
+    """The area two boxes (x0, y0, x1, y1) share."""
+    return max(0.0, min(a[2], b[2]) - max(a[0], b[0])) * max(0.0, min(a[3], b[3]) - max(a[1], b[1]))
+
+
+def _gap(box, point) -> float:
+    """The distance from a point to a box (0 inside it)."""
+    dx = max(box[0] - point[0], 0.0, point[0] - box[2])
+    dy = max(box[1] - point[1], 0.0, point[1] - box[3])
+    return math.hypot(dx, dy)
+
+
+def _place_labels(fig, ax, anchors, texts) -> tuple[list[tuple[float, float, float, float]],
+                                                     bool]:
+    """Annotate each anchor (data coordinates) with its text at the first offset around it
+    (:data:`_DIRECTIONS` x :data:`_DISTANCES`) where the text lies inside the axes, overlaps
+    neither a label placed before it nor a marker, and is nearer its own point than any other;
+    if none is, at the offset that overlaps least (nearer another point if it must). Offsets
+    beyond the nearest get a leader line. Returns the labels' boxes in display pixels and
+    whether every label found a place without overlap. Deterministic: the same order, the same
+    places."""
+    renderer = fig.canvas.get_renderer()
+    frame = ax.get_window_extent(renderer)
+    inside = (frame.x0, frame.y0, frame.x1, frame.y1)
+    r = _MARKER_PT * fig.dpi / 72.0
+    points = [tuple(p) for p in ax.transData.transform(anchors)]
+    marks = [(x - r, y - r, x + r, y + r) for x, y in points]
+    placed: list[tuple[float, float, float, float]] = []
+    clear = True
+    offsets = [(dx * d, dy * d) for d in _DISTANCES for dx, dy in _DIRECTIONS]
+    if len(texts) > _MAX_PLACED:
+        offsets = offsets[:1]
+    def note(anchor, text, ox, oy, leader: bool):
+        return ax.annotate(
+            text, anchor, xytext=(ox, oy), textcoords="offset points", fontsize="x-small",
+            zorder=5, ha="left" if ox > 0 else "right" if ox < 0 else "center",
+            va="bottom" if oy > 0 else "top" if oy < 0 else "center",
+            arrowprops={"arrowstyle": "-", "lw": 0.7, "color": "0.35"} if leader else None)
+
+    for anchor, own, text in zip(anchors, points, texts):
+        best = None
+        for ox, oy in offsets:
+            trial = note(anchor, text, ox, oy, False)  # measured without its leader line
+            e = trial.get_window_extent(renderer)
+            trial.remove()
+            box = (e.x0, e.y0, e.x1, e.y1)
+            outside = (box[2] - box[0]) * (box[3] - box[1]) - _area(box, inside)
+            cost = outside + sum(_area(box, b) for b in placed + marks)
+            # a label nearer another point than its own reads as that point's: a place to
+            # avoid, though not an overlap (areas are in square pixels)
+            cost += 0.5 * any(_gap(box, q) < _gap(box, own) for q in points if q != own)
+            if best is None or cost < best[0]:
+                best = (cost, ox, oy, box)
+            if cost <= 0:
+                break
+        cost, ox, oy, box = best
+        note(anchor, text, ox, oy, max(abs(ox), abs(oy)) > _DISTANCES[0])
+        placed.append(box)
+        clear = clear and cost < 1.0
+    return placed, clear
+
+
+def _bits_unit(data: ParetoData) -> tuple[float, str]:
+    """(bits per unit, unit) for the SRAM axis: M bits, k bits or bits, whichever keeps its
+    largest value at least 1 (eight-digit tick labels run into each other)."""
+    top = max(p.sram for p in data.points)
+    return next(((size, name) for size, name in ((1e6, "M bits"), (1e3, "k bits"))
+                 if top >= size), (1.0, "bits"))
+
+
+def _pareto_axes(data: ParetoData, key: list[str] | None):
+    """The Pareto view without its labels; with a ``key`` (lines "numbers: label"), a wider
+    figure with the key to the right of the plot. Laid out before the labels are placed (a
+    layout moves the axes)."""
+    plt, fig, ax = _figure()
+    if key:
+        fig.set_size_inches(FIGSIZE[0] + 3.8, max(FIGSIZE[1], 0.14 * len(key) + 1.4))
+    scale, unit = _bits_unit(data)
+    xs = [p.sram / scale for p in data.points]
+    ys = [p.fps for p in data.points]
+    colour = {"c": [p.error for p in data.points], "cmap": "viridis_r"} if data.error else {}
+    sc = ax.scatter(xs, ys, s=40, zorder=3, **colour)
+    ax.scatter([p.sram / scale for p in data.front], [p.fps for p in data.front], s=160,
+               facecolors="none", edgecolors="red", zorder=4)
+    if data.error:
+        fig.colorbar(sc, ax=ax, label=f"{data.error} (lower is better)")
     _plain_numbers(ax, "both")
-    ax.set_xlabel(f"{sram} (chip SRAM)")
-    ax.set_ylabel(fps + (" (work bound)" if fps.endswith("fps_bound") else ""))
-    ax.legend(fontsize="small")
+    ax.margins(x=0.25, y=0.2)
+    ax.set_xlabel(f"{data.sram} (chip SRAM, in {unit})")
+    ax.set_ylabel(_axis_label(data.fps, ys)[1])
     ax.grid(True, alpha=0.3)
-    ax.set_title("Pareto view: SRAM vs fps" + (f" vs {error}" if error else "")
-                 + " (labels: the swept keys)", fontsize="medium")
-    _write(png, _png_bytes(plt, fig))
+    ax.set_title("Pareto view: SRAM vs fps" + (f" vs {data.error}" if data.error else "")
+                 + "\nringed: Pareto-optimal; "
+                 + ("numbers: the points (key on the right)" if key else
+                    "labels: the swept keys"), fontsize="medium")
+    if key:
+        fig.tight_layout(rect=(0, 0, 0.62, 1))
+        fig.text(0.64, 0.97, "\n".join(key), va="top", ha="left", fontsize="x-small")
+    else:
+        fig.tight_layout()
+    return plt, fig, ax
+
+
+def pareto_plot(rows: list[dict], png: str | Path, *, sram: str = "sram_bits",
+                fps: str = BOUND_RATE, error: str | None = None,
+                source: str = "the results", label_keys=()) -> ParetoData:
+    """SRAM bits vs ``fps`` per point (averaged over scenes), coloured by ``error`` if given;
+    the Pareto-optimal points (on the plotted values) ringed; each point labelled by its values
+    of ``label_keys`` (the sweep's axes, :func:`point_labels`) where the labels overlap neither
+    one another nor the points -- or, where they cannot, by its number, with a key beside the
+    plot (``ParetoData.key``). Returns what it drew (:func:`pareto_data`, with the labels'
+    boxes)."""
+    data = pareto_data(rows, sram=sram, fps=fps, error=error, source=source,
+                       label_keys=label_keys)
+    places = _shared_labels(data.points)
+    scale = _bits_unit(data)[0]
+    anchors = [(sram / scale, fps) for (sram, fps), _, _ in places]
+    key = [f"{numbers}: {text.replace(chr(10), ', ')}" for _, text, numbers in places]
+    plt, fig, ax = _pareto_axes(data, None)
+    boxes, clear = _place_labels(fig, ax, anchors, [text for _, text, _ in places])
+    if not clear:
+        plt.close(fig)
+        plt, fig, ax = _pareto_axes(data, key)
+        boxes, _ = _place_labels(fig, ax, anchors, [numbers for _, _, numbers in places])
+        data.key = key
+    data.label_boxes = boxes
+    _write(png, _png_bytes(plt, fig, layout=False))
+    return data
 
 
 def _varies(rows: list[dict], col: str) -> bool:
     return len({r.get(col) for r in rows if r.get(col, "") != ""}) > 1
 
 
+def _totbad(cols) -> str | None:
+    return next((c for c in ("metrics.nonocc.totbad", "metrics.all.totbad") if c in cols), None)
+
+
+def sweep_pareto(rows: list[dict], axes: list[str]) -> ParetoData | None:
+    """The Pareto view a sweep's plots show (None when its columns allow none): chip SRAM
+    against the rate :func:`rate_column` picks, coloured by totbad when the scenes are scored,
+    each point labelled by the swept keys that vary."""
+    ok = _ok_rows(rows)
+    cols = set().union(*(r.keys() for r in ok)) if ok else set()
+    varying = [a for a in axes if _varies(ok, a)]
+    fps = rate_column(ok)
+    if "sram_bits" not in cols or not fps or not varying:
+        return None
+    return pareto_data(ok, fps=fps, error=_totbad(cols), label_keys=varying)
+
+
 def sweep_plots(rows: list[dict], axes: list[str], out_dir: str | Path) -> list[Path]:
-    """The built-in plots the sweep's columns allow; returns the files written."""
+    """The built-in plots the sweep's columns allow; returns the files written. Frame rates
+    are the measured ones where the runs measured them (:func:`rate_column`)."""
     out = Path(out_dir)
     ok = _ok_rows(rows)
     if not ok:
@@ -261,33 +535,39 @@ def sweep_plots(rows: list[dict], axes: list[str], out_dir: str | Path) -> list[
     varying = [a for a in axes if _varies(ok, a)]
     written = []
 
-    def other(*used):
+    def other(*used) -> tuple[list[dict], str | None]:
+        """The rows and the hue beside the plotted keys: the one other swept key that varies,
+        or all of them together (a column added to the rows), never an average over one."""
         rest = [a for a in varying if a not in used]
-        return rest[0] if rest else None
+        if len(rest) < 2:
+            return ok, rest[0] if rest else None
+        name = " / ".join(rest)
+        return [{**r, name: " / ".join(str(r.get(a, "")) for a in rest)} for r in ok], name
 
-    totbad = next((c for c in ("metrics.nonocc.totbad", "metrics.all.totbad") if c in cols), None)
-    if "nna.stereo_submodules" in varying and "throughput.fps_bound" in cols:
+    totbad = _totbad(cols)
+    fps = rate_column(ok)
+    if "nna.stereo_submodules" in varying and fps:
         p = out / "fps_vs_submodules.png"
-        plot_xy(ok, "nna.stereo_submodules", "throughput.fps_bound", p,
-                hue=other("nna.stereo_submodules"), title="fps vs NNA submodules (stereo pair)")
+        hued, hue = other("nna.stereo_submodules")
+        plot_xy(hued, "nna.stereo_submodules", fps, p, hue=hue,
+                title="fps vs NNA submodules (stereo pair)")
         written.append(p)
     high = "fifos.nna_left_to_sva.max_producer_occupancy"
     if "fifo.nna_to_sva_depth" in varying and high in cols:
         p = out / "fifo_highwater_vs_depth.png"
-        plot_xy(ok, "fifo.nna_to_sva_depth", high, p, hue=other("fifo.nna_to_sva_depth"),
+        hued, hue = other("fifo.nna_to_sva_depth")
+        plot_xy(hued, "fifo.nna_to_sva_depth", high, p, hue=hue,
                 title="NNA->SVA FIFO high-water vs depth")
         written.append(p)
     if totbad and ("sva.disparities" in varying or "sva.paths" in varying):
         x = "sva.disparities" if "sva.disparities" in varying else "sva.paths"
-        hue = "sva.paths" if x == "sva.disparities" and "sva.paths" in varying else other(x)
         p = out / "totbad_vs_d_and_paths.png"
-        plot_xy(ok, x, totbad, p, hue=hue, title=f"accuracy: {totbad} vs {x}")
+        hued, hue = other(x)
+        plot_xy(hued, x, totbad, p, hue=hue, title=f"accuracy: {totbad} vs {x}")
         written.append(p)
-    # functional sweeps have no measured rate: the analytic one (exact for it) stands in
-    fps = next((c for c in ("throughput.fps_bound", "estimate.throughput.fps_bound")
-                if c in cols), None)
-    if "sram_bits" in cols and fps and len(varying) > 0:
-        p = out / ("pareto_sram_fps_totbad.png" if totbad else "pareto_sram_fps.png")
-        pareto_plot(ok, p, fps=fps, error=totbad, label_keys=varying)
+    view = sweep_pareto(ok, axes)
+    if view is not None:
+        p = out / ("pareto_sram_fps_totbad.png" if view.error else "pareto_sram_fps.png")
+        pareto_plot(ok, p, fps=view.fps, error=view.error, label_keys=varying)
         written.append(p)
     return written

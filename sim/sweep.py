@@ -49,10 +49,13 @@ last whole row and ends the sweep with a one-line error. Readers ignore a torn l
 final newline), and the next append removes it. Appends are not flushed to disk one by one (a
 crash of stereosim loses no row; a power cut may lose the last ones, which a rerun redoes). At the
 end, under the lock, the file is rewritten once, flushed to disk, in a fixed order: this sweep's rows in plan order, then the other rows in file order, one
-row per ``point_id`` (its last ok row, else its last row). An interrupted sweep (Ctrl-C) cancels
+row per ``point_id`` (its last ok row, else its last row), and ``columns.md`` beside it says what
+each column is (:mod:`sim.columns`). An interrupted sweep (Ctrl-C) cancels
 its tasks, closes the cluster within seconds and leaves every finished row; a rerun skips every
 row with ``status`` ok and retries the failed ones. A failing task is recorded with ``status``
 error and a one-line ``error`` without stopping the others; the command then exits with status 2.
+While the tasks run, a progress bar counts them on stderr, only when stderr is a terminal
+(:mod:`sim.progress`; ``progress=False``, the command's ``--quiet``: none).
 """
 
 from __future__ import annotations
@@ -78,6 +81,7 @@ from typing import Any
 import numpy as np
 
 from stereosim.sim.api import prepare_pair, run
+from stereosim.sim.columns import guide_text
 from stereosim.sim.config import load_config, read_toml
 from stereosim.sim.cycle.estimate import estimate
 from stereosim.sim.datasets import (
@@ -90,11 +94,13 @@ from stereosim.sim.datasets import (
 )
 from stereosim.sim.errors import ConfigError, InputError, UserError
 from stereosim.sim.outputs import atomic_write_bytes, describe_os_error, folder_lock
+from stereosim.sim.progress import progress_bar
 
 MODES = ("cycle", "functional", "estimate")
 SWEEP_KEYS = ("mode", "scenes", "config", "set", "grid", "zip")
 LEAD_COLUMNS = ("point", "scene", "status", "error", "point_id")
 CSV_NAME = "results.csv"
+GUIDE_NAME = "columns.md"  # what each column of results.csv is (sim/columns.py), beside it
 MAX_POINTS = 10_000  # default cap on a sweep's points (grid x zip); max_points / --max-points
 IN_FLIGHT_PER_WORKER = 4  # tasks submitted and not yet written, per worker thread
 CLOSE_TIMEOUT_S = 3.0  # closing the client and the local cluster, also after Ctrl-C
@@ -369,8 +375,8 @@ def _run(task: Task) -> dict[str, Any]:
                      masks=data.get("masks")).report
     flat = flatten(report)
     flat["sram_bits"] = sum(est["sram_bits_total"][k] for k in ("nna_stereo", "sva", "fifos"))
-    for key in ("throughput.fps_bound", "throughput.bottleneck", "latency.first_output_us",
-                "latency.frame_ms"):
+    for key in ("throughput.fps_bound", "throughput.bottleneck", "throughput.merge_depth_needed",
+                "latency.first_output_us", "latency.frame_ms"):
         flat[f"estimate.{key}"] = flatten(est)[key]
     return flat
 
@@ -587,15 +593,22 @@ def _in_order(rows: list[dict], tasks: list[Task]) -> list[dict]:
 
 def finish_results(path: Path, tasks: list[Task], axes: list[str]) -> None:
     """Under the folder's lock, rewrite the results file once in its final order (see
-    :func:`_in_order`), so the same sweep gives the same bytes however its tasks finished."""
+    :func:`_in_order`), so the same sweep gives the same bytes however its tasks finished, and
+    write the guide to its columns beside it (:data:`GUIDE_NAME`,
+    :func:`sim.columns.guide_text`)."""
     with folder_lock(path.parent):
         data = _read_results(path)
         if data is None:
             return
         header, rows = _parse(data, path)
         _check_header(header, path)
+        columns = column_order(header, axes)
+        ordered = _in_order(rows, tasks)
         # flushed to disk, then renamed over the appended file
-        atomic_write_bytes(path, _csv_bytes(column_order(header, axes), _in_order(rows, tasks)))
+        atomic_write_bytes(path, _csv_bytes(columns, ordered))
+        fixed = sorted({k for t in tasks for k in t.overrides} - set(axes))
+        guide = guide_text(columns, [r for r in ordered if r.get("status") == "ok"], axes, fixed)
+        atomic_write_bytes(path.parent / GUIDE_NAME, guide.encode())
 
 
 # ----------------------------------------------------------------------------------------------
@@ -733,8 +746,6 @@ def run_sweep(sweep: Sweep, out_dir: str | Path, *, scheduler: str | None = None
     (KeyboardInterrupt) cancels the outstanding tasks, closes the cluster and propagates; the
     CSV then holds every row finished so far.
     """
-    from tqdm import tqdm
-
     out = Path(out_dir)
     try:
         out.mkdir(parents=True, exist_ok=True)
@@ -756,8 +767,9 @@ def run_sweep(sweep: Sweep, out_dir: str | Path, *, scheduler: str | None = None
             if client is None:
                 client = stack.enter_context(_dask_client(scheduler, workers, verbose))
             limit = in_flight or IN_FLIGHT_PER_WORKER * _worker_threads(client, workers)
-            bar = stack.enter_context(tqdm(total=len(todo), desc="sweep", unit="run",
-                                           disable=not progress or None))
+            # on stderr, and only when it is a terminal (sim/progress.py)
+            bar = stack.enter_context(progress_bar(len(todo), "sweep", "run",
+                                                   quiet=not progress))
 
             def on_row(task: Task, row: dict) -> None:
                 append_rows(csv_path, [row], sweep.axes)

@@ -13,15 +13,82 @@ from pathlib import Path
 from stereosim.sim.cycle.estimate import estimate, format_estimate, parse_size
 from stereosim.sim.errors import InputError, UserError
 from stereosim.sim.outputs import json_text
-from stereosim.sim.plot import plot_xy, sweep_plots
+from stereosim.sim.plot import (
+    BOUND_RATE,
+    MEASURED_RATE,
+    RATE_GAP,
+    plot_xy,
+    point_labels,
+    rate_gaps,
+    rate_label,
+    sweep_pareto,
+    sweep_plots,
+)
 from stereosim.sim.sweep import (
     CSV_NAME,
+    GUIDE_NAME,
     MAX_POINTS,
     load_scene_spec,
     load_sweep,
     read_rows,
     run_sweep,
 )
+
+BEST_SHOWN = 10  # Pareto-optimal points the sweep's summary lists
+
+
+def _mean(rows: list[dict], column: str) -> float | None:
+    values = []
+    for r in rows:
+        try:
+            values.append(float(r[column]))
+        except (KeyError, TypeError, ValueError):
+            return None
+    return sum(values) / len(values) if values else None
+
+
+def sweep_summary(rows: list[dict], axes: list[str]) -> list[str]:
+    """The lines a sweep prints about its results: the best points (the Pareto-optimal ones
+    in chip SRAM, frame rate and accuracy when scored -- the same as the Pareto plot, on the
+    measured rate when the runs measured one) named by their swept keys, with their rate
+    (averaged over scenes), its work bound, SRAM and accuracy; then a note when a measured rate
+    is more than :data:`~sim.plot.RATE_GAP` off its work bound."""
+    view = sweep_pareto(rows, axes)
+    lines = []
+    if view is not None:
+        by_point: dict[str, list[dict]] = {}
+        for r in rows:
+            if r.get("status") == "ok":
+                by_point.setdefault(r.get("point", ""), []).append(r)
+        best = sorted(view.front, key=lambda p: (-p.fps, p.sram))
+        judged = "chip SRAM, " + rate_label(view.fps) + (f" and {view.error}" if view.error
+                                                        else "")
+        lines.append(f"best points (Pareto-optimal in {judged}): {len(best)} of "
+                     f"{len(view.points)}")
+        for p in best[:BEST_SHOWN]:
+            bound = _mean(by_point[p.point], BOUND_RATE) if view.fps == MEASURED_RATE else None
+            parts = [f"{p.fps:,.1f} fps" + (f" (bound {bound:,.1f})" if bound else ""),
+                     f"SRAM {p.sram:,.0f} bits"]
+            if p.error is not None:
+                parts.append(f"{view.error.rsplit('.', 1)[-1]} {p.error:.2f}")
+            lines.append(f"  {p.label}: " + ", ".join(parts))
+        if len(best) > BEST_SHOWN:
+            lines.append(f"  ... and {len(best) - BEST_SHOWN} more (the Pareto plot shows all)")
+    gaps = rate_gaps(rows)
+    if gaps:
+        worst = gaps[0]
+        label = point_labels(rows, axes).get(worst.get("point", ""), "")
+        measured, bound = float(worst[MEASURED_RATE]), float(worst[BOUND_RATE])
+        why = ("blocks wait on each other: see its blocks.*.blocked columns" if measured < bound
+               else "one frame alone skips what paces a stream, such as a camera's blanking")
+        ok = sum(r.get("status") == "ok" for r in rows)
+        lines.append(
+            f"note: {len(gaps)} of {ok} runs measured a frame rate more than "
+            f"{RATE_GAP:.0%} off the work bound; the most: {label} ({worst.get('scene')}) ran "
+            f"at {measured:,.1f} fps against a bound of {bound:,.1f} ({why}). The plots and "
+            f"the best points use the measured rate ({MEASURED_RATE})"
+        )
+    return lines
 
 
 def register(sub, add_config_options, scene_config) -> None:
@@ -70,9 +137,14 @@ def register(sub, add_config_options, scene_config) -> None:
         plots = sweep_plots(rows, sweep.axes, out)
         print(f"{counts['tasks']} runs ({len(sweep.points)} points x {len(sweep.scenes)} scenes): "
               f"{counts['skipped']} already done, {counts['ok']} ok, {counts['error']} failed")
-        print(f"wrote {out / CSV_NAME}" + "".join(f", {p.name}" for p in plots))
         planned = {t.point_id for t in sweep.tasks}
-        failed = [r for r in rows if r.get("point_id") in planned and r.get("status") != "ok"]
+        mine = [r for r in rows if r.get("point_id") in planned]
+        for line in sweep_summary(mine, sweep.axes):
+            print(line)
+        n_columns = len(rows[0]) if rows else 0
+        print(f"wrote {out / CSV_NAME} ({n_columns} columns: {GUIDE_NAME} beside it says what "
+              "each is)" + "".join(f", {p.name}" for p in plots))
+        failed = [r for r in mine if r.get("status") != "ok"]
         for r in failed[:5]:
             print(f"  point {r['point']} {r['scene']}: {r['error']}")
         if failed:

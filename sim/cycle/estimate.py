@@ -35,6 +35,9 @@ work) and applies the timing rules of :mod:`sim.cycle.rules` per image row inste
   -> free seen by the producer): ``(latency + 1)`` cycles in one domain, about
   ``(latency + sync - 1.5) T_consumer + (sync - 0.5) T_producer`` across domains (half a period
   for the edge alignment on average). A link slower than its producer stretches the stream.
+- **Merge FIFOs.** Column tiles reach the work bound only if their FIFOs to the merge hold
+  what a tile computes while the merge serves the others: :func:`merge_depth_needed`
+  (``throughput.merge_depth_needed``) is the least depth that does, to the entry.
 - **Memory, traffic, work.** SRAM bits per buffer, per-action counts and the FIFOs (names,
   depths, widths, beats per frame) come from the plan -- the numbers the simulator reports.
 """
@@ -170,6 +173,62 @@ def block_work(plan: ChipPlan) -> dict[str, tuple[int, float]]:
             busy = max(n, memory_first_cycle(n - 1, hz, b.bytes_per_s) + 1)
         out[b.name] = (plan.work_cycles(b, busy), plan.domains[b.domain].freq_hz)
     return out
+
+
+def merge_depth_needed(plan: ChipPlan) -> int | None:
+    """The least ``fifo.nna_to_merge_depth`` at which column tiles keep the frame rate the
+    blocks' work allows (``fps_bound``); None without a merge of column tiles.
+
+    The merge drains a camera's tiles in raster order: row y of tile 0, of tile 1, ..., then
+    row y + 1. In the steady state each row takes T NNA cycles (the slowest block's work per
+    row; a camera streaming into the NNA: its line), of which the merge serves tile t for
+    G_t >= w_t a cycles (w_t the tile's width, a = max(1, II_sva f_nna / f_sva) cycles a
+    descriptor at the SVA's pace), sum_t G_t = T. Meanwhile tile t goes on computing one
+    descriptor per c cycles, less the slack T - w_t c it has each row, so its FIFO must hold
+    P_t = w_t - G_t / c descriptors. The tiles settle (by blocking) into the sharing that
+    minimises the largest P_t: P with sum_t max(w_t a, c (w_t - P)) = T (P = 0 if T leaves room
+    for all), L = P c cycles -- equal tiles of width w at the NNA's bound: P = w (k - 1) / k.
+    A FIFO of depth d and the descriptor in the MAC array cover (d + 1) c cycles, which must
+    reach L plus the FIFO's round trip (``data_edges + space_edges``) plus one cycle:
+    d = ceil((L + round trip + 1) / c) - 1, at least 1.
+
+    The criterion is the cycle model's sustained rate over a stream (``stream.sustained_fps``)
+    reaching ``fps_bound``: at this depth it does, one entry less it does not
+    (tests/sim/test_estimate.py; frames from memory). A camera streaming into the NNA staggers
+    the tiles by itself (each receives its part of a line later than the one to its left), so
+    there the figure is an upper bound (1-2 entries over where measured). At this depth tiles
+    still wait a little while they settle, so the frame latency can be a few cycles per row
+    above this estimate's."""
+    if plan.cfg.nna.split != "columns" or plan.parts < 2:
+        return None
+    h = plan.shape[0]
+    subs = [b for b in plan.blocks_of("nna") if b.side == 0]  # one camera's tiles
+    c = subs[0].cycles
+    f_nna = plan.domains["nna"].freq_hz
+    sva = plan.block("sva")
+    a = max(1.0, sva.cycles * f_nna / plan.domains["sva"].freq_hz)
+    work = block_work(plan)
+    row_s = max(cycles / hz for name, (cycles, hz) in work.items()
+                if plan.block(name).kind != "camera") / h
+    if plan.camera_direct:
+        camera = plan.blocks_of("camera")[0]
+        row_s = max(row_s, camera.line_clocks / plan.domains["camera"].freq_hz)
+    period = row_s * f_nna
+    widths = sorted((b.tile.x1 - b.tile.x0 for b in subs), reverse=True)
+    # sum_t max(w_t a, c (w_t - P)) falls as P grows while P < w_t (1 - a / c): solve it for P
+    # over the n widest tiles, the others at w_t a, for the first n whose solution is still
+    # above the next tile's turning point (the sum never exceeds T at P = w_max (1 - a / c))
+    share = 0.0
+    for n in range(1, len(widths) + 1):
+        p = (c * sum(widths[:n]) + a * sum(widths[n:]) - period) / (c * n)
+        turn = widths[n] * (1 - a / c) if n < len(widths) else 0.0
+        if p >= turn:
+            share = max(0.0, p)
+            break
+    link = plan.fifo(subs[0].outputs[0])
+    round_trip = link.data_edges + link.space_edges
+    depth = math.ceil((share * c + round_trip + 1) / c - 1e-9) - 1
+    return max(1, depth)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -418,19 +477,16 @@ def estimate(cfg: ChipConfig, shape: tuple[int, int]) -> dict:
                 "the NNA needs more time per row than the camera gives it: the camera will "
                 "overflow the source FIFO (more nna.stereo_submodules, nna.macs or clocks.nna_mhz)"
             )
-    merge_fifos = [f for f in plan.fifos if plan.block(f.consumer).kind == "merge"]
-    if merge_fifos and cfg.nna.split == "columns":
-        depth = merge_fifos[0].depth
-        key = merge_fifos[0].key
-        if depth < widest:
-            warnings.append(
-                f"the merge FIFOs ({key}={depth}) hold less than a tile row ({widest} "
-                "descriptors): the merge drains the tiles in raster order, so each tile waits "
-                "for the others and a frame takes longer than this latency estimate (its fps "
-                "is an upper bound"
-                + ("; a camera can overflow while they do" if plan.camera else "")
-                + f"); run the cycle model, or use a depth of at least {widest}"
-            )
+    merge_depth = merge_depth_needed(plan)
+    if merge_depth is not None and cfg.fifo.nna_to_merge_depth < merge_depth:
+        warnings.append(
+            f"the merge FIFOs (fifo.nna_to_merge_depth={cfg.fifo.nna_to_merge_depth}) are "
+            f"shallower than the {merge_depth} the column tiles need: the merge drains the "
+            "tiles in raster order, so each tile waits for the others and frames come slower "
+            "than the work bound and this latency estimate say (both are upper bounds"
+            + ("; a camera can overflow while they do" if plan.camera else "")
+            + f"); set fifo.nna_to_merge_depth={merge_depth} or more, or run the cycle model"
+        )
     if subs[0].rows < 2 * subs[0].half + 2:
         warnings.append(
             "nna.line_buffer_rows holds only the window: a row waits for the window to move "
@@ -453,6 +509,8 @@ def estimate(cfg: ChipConfig, shape: tuple[int, int]) -> dict:
             "fifo_items_per_s": {n: round(v, 1) for n, v in sorted(fifo_rate.items())},
             # a camera's real frame rate: its whole raster, vertical blanking included
             "camera_fps": camera_fps,
+            # the least fifo.nna_to_merge_depth that keeps column tiles at fps_bound
+            "merge_depth_needed": merge_depth,
         },
         "latency": {
             "first_output_us": tl["first_output_cycle"] * p_sva / 1e9,
@@ -508,6 +566,12 @@ def format_estimate(est: dict) -> str:
         ),
         f"MACs per frame (both cameras): {est['macs_per_frame']}",
     ]
+    if thr["merge_depth_needed"] is not None:
+        lines.append(
+            f"merge FIFOs: fifo.nna_to_merge_depth = "
+            f"{est['config']['fifo']['nna_to_merge_depth']}; the column tiles reach the work "
+            f"bound from {thr['merge_depth_needed']} on"
+        )
     p = est["paper"]
     lines.append(
         f"paper: MACs/frame four 3x3 layers {p['macs_per_frame']['four_layer_3x3']:.4g} vs one 9x9 "

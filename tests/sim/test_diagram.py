@@ -4,10 +4,12 @@ docs/architecture.md, deterministic, bad input refused with one line."""
 import re
 from pathlib import Path
 
+import pytest
+
 from stereosim.sim.cli import main
 from stereosim.sim.config import load_config
 from stereosim.sim.cycle.plan import build_plan
-from stereosim.sim.diagram import plan_png, plan_text
+from stereosim.sim.diagram import picture_boxes, plan_png, plan_text
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "architecture.md"
 
@@ -64,3 +66,35 @@ def test_config_plan_refuses_bad_input_with_one_line(tmp_path, capsys):
         assert code == 2, args
         assert len(err.strip().splitlines()) == 1 and err.startswith("stereosim: error: ")
     assert not (tmp_path / "missing").exists()
+
+
+def test_the_budget_says_what_it_is_and_its_unit():
+    plan = build_plan(load_config(overrides={"sva.disparities": 32}), (40, 120))
+    cycles = ", ".join(f"{d} {n:,} cycles" for d, n in sorted(plan.budget.items()))
+    assert (f"\ncycle budget (automatic, sim.max_cycles = 0; a run stops after this many cycles "
+            f"of each clock): {cycles}\n") in plan_text(plan)
+    plan = build_plan(load_config(overrides={"sva.disparities": 32, "sim.max_cycles": 5000}),
+                      (40, 120))
+    assert plan_text(plan).endswith(
+        "cycle budget (sim.max_cycles; a run stops after this many cycles of each clock): "
+        "nna 5,000 cycles, sva 5,000 cycles\n")
+
+
+def _apart(a, b) -> bool:
+    return a[2] <= b[0] or b[2] <= a[0] or a[3] <= b[1] or b[3] <= a[1]
+
+
+@pytest.mark.parametrize("over", [
+    {}, {"nna.stereo_submodules": 4}, {"nna.stereo_submodules": 6},
+    {"nna.stereo_submodules": 10, "source.kind": "camera"},
+    {"nna.stereo_submodules": 8, "nna.split": "rows"},
+], ids=["one per camera", "2 tiles", "3 tiles", "5 tiles, camera", "4 row bands"])
+def test_fifo_labels_overlap_no_block_and_no_other_label(over):
+    plan = build_plan(load_config(overrides={"nna.descriptor": "cnn", **over}), (720, 1280))
+    blocks, labels = picture_boxes(plan)
+    assert set(labels) == {f.name for f in plan.fifos} and set(blocks) == {
+        b.name for b in plan.blocks}
+    named = list(labels.items())
+    for i, (name, box) in enumerate(named):
+        for other, other_box in named[i + 1:] + list(blocks.items()):
+            assert _apart(box, other_box), (name, other)

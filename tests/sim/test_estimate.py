@@ -9,7 +9,7 @@ within a beat of its round trip), and within 1 % everywhere in the grid.
 import numpy as np
 import pytest
 
-from stereosim.sim.api import run
+from stereosim.sim.api import run, run_stream
 from stereosim.sim.config import load_config
 from stereosim.sim.cycle.estimate import estimate, paper_analysis, parse_size
 from stereosim.sim.errors import InputError
@@ -135,14 +135,67 @@ def test_camera_overflow_risk_is_warned():
     cfg = load_config(overrides={"nna.descriptor": "cnn", "source.kind": "camera"})
     assert any("overflow" in w for w in estimate(cfg, (720, 1280))["warnings"])
     # two column tiles per camera keep up with the camera only if the merge FIFOs let them
-    # work at once (the cycle model overflows at the default depth 64, runs at 60 fps at 1024)
-    cfg = load_config(overrides={"nna.descriptor": "cnn", "source.kind": "camera",
-                                 "nna.stereo_submodules": 4})
-    (warning,) = estimate(cfg, (720, 1280))["warnings"]
-    assert "merge FIFOs" in warning and "overflow" in warning and "at least 640" in warning
-    cfg = load_config(overrides={"nna.descriptor": "cnn", "source.kind": "camera",
-                                 "nna.stereo_submodules": 4, "fifo.nna_to_merge_depth": 640})
+    # work at once (the cycle model overflows at the default depth 64, runs at 60 fps at 71)
+    over = {"nna.descriptor": "cnn", "source.kind": "camera", "nna.stereo_submodules": 4}
+    est = estimate(load_config(overrides=over), (720, 1280))
+    need = est["throughput"]["merge_depth_needed"]
+    assert need == 72  # an upper bound behind a camera: the cycle model's least is 71
+    (warning,) = est["warnings"]
+    assert "merge FIFOs" in warning and "overflow" in warning
+    assert f"fifo.nna_to_merge_depth={need} or more" in warning
+    cfg = load_config(overrides={**over, "fifo.nna_to_merge_depth": need})
     assert not estimate(cfg, (720, 1280))["warnings"]
+
+
+# Merge FIFO depths (merge_depth_needed), frames from memory: (H, W), overrides. The widths make
+# the share P of the docstring whole or fractional, tiles equal or not (410 / 4: 102, 103, ...).
+MERGE_CASES = [
+    ((40, 300), {"nna.stereo_submodules": 6}),  # the NNA's bound: w (k - 1) / k = 66.7
+    ((40, 410), {"nna.stereo_submodules": 8}),  # unequal tiles: P = 76.75
+    ((40, 303), {"nna.stereo_submodules": 8, "nna.macs": 162, "fifo.latency_cycles": 4}),
+    ((40, 384), {"nna.stereo_submodules": 6, "nna.macs": 576}),  # the SVA's bound
+    ((40, 384), {"nna.stereo_submodules": 6, "source.memory_gbps": 0.1}),  # the memory's
+    ((40, 384), {"nna.stereo_submodules": 4, "nna.descriptor": "census"}),  # round trip: 2
+]
+
+
+def _sustained_ratio(shape, over, depth) -> float:
+    """The cycle model's sustained rate over three frames as a share of the work bound."""
+    cfg = load_config(overrides={"nna.descriptor": "cnn", **over,
+                                 "fifo.nna_to_merge_depth": depth})
+    rep = run_stream([_pair(shape, 3)] * 3, config=cfg).report
+    return rep["stream"]["sustained_fps"] / rep["throughput"]["fps_bound"]
+
+
+# the sustained rate is measured between SVA edges and rounded: equal to the bound within this
+AT_BOUND = 1 - 1e-4
+
+
+@pytest.mark.parametrize("shape, over", MERGE_CASES,
+                         ids=[f"{c[0][1]}x{c[0][0]} {c[1]}" for c in MERGE_CASES])
+def test_the_merge_depth_estimate_is_the_least_that_reaches_the_bound(shape, over):
+    cfg = load_config(overrides={"nna.descriptor": "cnn", **over})
+    need = estimate(cfg, shape)["throughput"]["merge_depth_needed"]
+    assert need > 1
+    assert _sustained_ratio(shape, over, need) >= AT_BOUND
+    assert _sustained_ratio(shape, over, need - 1) < AT_BOUND
+
+
+def test_the_merge_depth_estimate_is_enough_behind_a_camera():
+    """A camera staggers the tiles by itself: the estimate is an upper bound there."""
+    shape = (40, 384)
+    over = {"nna.stereo_submodules": 6, "source.kind": "camera", "clocks.camera_mhz": 100.0,
+            "source.camera_hblank": 50}
+    need = estimate(load_config(overrides={"nna.descriptor": "cnn", **over}),
+                    shape)["throughput"]["merge_depth_needed"]
+    assert need == 54  # the cycle model's least is 52
+    assert _sustained_ratio(shape, over, need) >= AT_BOUND
+
+
+def test_no_merge_depth_without_column_tiles():
+    for over in ({}, {"nna.stereo_submodules": 4, "nna.split": "rows"}):
+        cfg = load_config(overrides={"sva.disparities": 32, **over})
+        assert estimate(cfg, (40, 120))["throughput"]["merge_depth_needed"] is None
 
 
 @pytest.mark.parametrize("text", ["1280", "axb", "1x1", "0x5", "12x-3"])

@@ -2,6 +2,7 @@
 (appended under the folder lock, torn lines, full disks, the final order), the point cap, Ctrl-C,
 exit statuses, Dask's chatter and the plots."""
 
+import io
 import logging
 import os
 import resource
@@ -18,9 +19,17 @@ import pytest
 from stereosim.sim.cli import main
 from stereosim.sim.datasets import shared_data_dir
 from stereosim.sim.errors import ConfigError
-from stereosim.sim.plot import sweep_plots
+from stereosim.sim.plot import (
+    pareto_front,
+    pareto_plot,
+    rate_gaps,
+    sweep_pareto,
+    sweep_plots,
+    xy_data,
+)
 from stereosim.sim.sweep import (
     CSV_NAME,
+    GUIDE_NAME,
     LEAD_COLUMNS,
     MAX_POINTS,
     Task,
@@ -33,6 +42,7 @@ from stereosim.sim.sweep import (
     synthetic_pair,
     write_rows,
 )
+from stereosim.sim.whatif_cli import sweep_summary
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -260,6 +270,103 @@ def test_built_in_plots(tmp_path):
     written = sweep_plots(read_rows(csv_path), sweep.axes, tmp_path)
     assert [p.name for p in written] == ["fps_vs_submodules.png", "pareto_sram_fps.png"]
     assert all(p.stat().st_size > 1000 for p in written)
+
+
+# The issue's 720p study (nna.stereo_submodules 2/4/6 x fifo.nna_to_merge_depth 64/640) on a
+# small frame: 8 entries are too few for 100-column tiles (the estimate needs 66 for 6), 300 are
+# enough.
+MERGE_STUDY = """
+mode = "cycle"
+scenes = ["300x40"]
+[set]
+"nna.descriptor" = "cnn"
+"sva.disparities" = 32
+[grid]
+"nna.stereo_submodules" = [2, 4, 6]
+"fifo.nna_to_merge_depth" = [8, 300]
+"""
+
+
+def _boxes_apart(boxes) -> bool:
+    return not any(a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]
+                   for i, a in enumerate(boxes) for b in boxes[i + 1:])
+
+
+def test_a_tiles_and_merge_depths_study_plots_and_ranks_the_measured_rate(tmp_path, client):
+    sweep = load_sweep(_write(tmp_path, MERGE_STUDY))
+    out = tmp_path / "out"
+    run_sweep(sweep, out, client=client, progress=False)
+    rows = read_rows(out / CSV_NAME)
+    assert [r["status"] for r in rows] == ["ok"] * 6
+    written = sweep_plots(rows, sweep.axes, out)
+    assert [p.name for p in written] == ["fps_vs_submodules.png", "pareto_sram_fps.png"]
+    measured = {r["point"]: float(r["throughput.fps_measured"]) for r in rows}
+    bound = {r["point"]: float(r["throughput.fps_bound"]) for r in rows}
+    point = {(r["nna.stereo_submodules"], r["fifo.nna_to_merge_depth"]): r["point"]
+             for r in rows}
+    # six tiles behind 8-deep merge FIFOs take turns: far below their work bound
+    shallow, deep = point["6", "8"], point["6", "300"]
+    assert measured[shallow] < 0.6 * bound[shallow] and bound[shallow] == bound[deep]
+    # the Pareto view plots the measured rate and rings the points optimal on it
+    view = sweep_pareto(rows, sweep.axes)
+    assert view.fps == "throughput.fps_measured"
+    assert {p.point: p.fps for p in view.points} == measured
+    front = pareto_front([(p.sram, measured[p.point], 0.0) for p in view.points])
+    assert [p.optimal for p in view.points] == front
+    assert not next(p for p in view.points if p.point == shallow).optimal
+    # fps vs submodules: the measured rate, so the two depths part at 4 and 6 submodules
+    lines = xy_data(rows, "nna.stereo_submodules", "throughput.fps_measured",
+                    hue="fifo.nna_to_merge_depth")
+    assert lines["8"][-1] == (6.0, measured[shallow]) and lines["300"][-1] == (6.0, measured[deep])
+    # the labels (one per place: the two 2-submodule points coincide) overlap no other label
+    drawn = pareto_plot(rows, tmp_path / "p.png", fps=view.fps, label_keys=sweep.axes)
+    assert len(drawn.label_boxes) == 5 and _boxes_apart(drawn.label_boxes)
+    # the summary names the best points by their swept keys, and notes the gap once
+    summary = sweep_summary(rows, sweep.axes)
+    assert summary[0] == ("best points (Pareto-optimal in chip SRAM, throughput.fps_measured "
+                          f"(measured, one frame alone)): {sum(front)} of 6")
+    assert summary[1].startswith(f"  stereo_submodules=6, nna_to_merge_depth=300: "
+                                 f"{measured[deep]:,.1f} fps (bound {bound[deep]:,.1f}), SRAM ")
+    notes = [line for line in summary if line.startswith("note: ")]
+    worst = rate_gaps(rows)[0]
+    assert len(notes) == 1 and f"{len(rate_gaps(rows))} of 6 runs" in notes[0]
+    assert (f"stereo_submodules={worst['nna.stereo_submodules']}, nna_to_merge_depth="
+            f"{worst['fifo.nna_to_merge_depth']} (300x40) ran at") in notes[0]
+    # and the guide to the columns lies beside the CSV
+    assert "`throughput.fps_measured` | frames/s, **measured**" in (out / GUIDE_NAME).read_text()
+
+
+def test_pareto_labels_never_overlap_crowded_points_get_numbers_and_a_key(tmp_path):
+    def rows(n, spread):
+        return [{"point": str(i), "status": "ok", "sram_bits": 1000 + spread * (i % 5),
+                 "throughput.fps_bound": 50 + spread * (i // 5), "nna.macs": 288 + i,
+                 "sva.paths": 1 + i % 4, "fifo.nna_to_merge_depth": 64 * (i + 1)}
+                for i in range(n)]
+
+    keys = ["nna.macs", "sva.paths", "fifo.nna_to_merge_depth"]
+    few = pareto_plot(rows(5, 100), tmp_path / "few.png", label_keys=keys)
+    assert few.key == [] and len(few.label_boxes) == 5 and _boxes_apart(few.label_boxes)
+    crowd = pareto_plot(rows(40, 1), tmp_path / "crowd.png", label_keys=keys)
+    assert len(crowd.label_boxes) == 40 and _boxes_apart(crowd.label_boxes)
+    assert crowd.key[5] == "5: macs=293, paths=2, nna_to_merge_depth=384"
+
+
+class _Terminal(io.StringIO):
+    def isatty(self) -> bool:
+        return True
+
+
+def test_a_sweep_counts_its_runs_on_a_terminal_only(tmp_path, client, monkeypatch):
+    sweep = load_sweep(_write(tmp_path, _estimate([16, 32])))
+    monkeypatch.delenv("TQDM_DISABLE", raising=False)
+    for name, stream, progress, shown in (("tty", _Terminal(), True, True),
+                                          ("piped", io.StringIO(), True, False),
+                                          ("quiet", _Terminal(), False, False)):
+        monkeypatch.setattr(sys, "stderr", stream)
+        run_sweep(sweep, tmp_path / name, client=client, progress=progress)
+        assert ("sweep: 100%" in stream.getvalue() and "2/2" in stream.getvalue()) == shown, name
+        if not shown:
+            assert stream.getvalue() == "", name
 
 
 # ----------------------------------------------------------------------------------------------
@@ -517,6 +624,8 @@ def test_a_quiet_sweep_writes_nothing_on_stderr_and_failures_exit_2(tmp_path, po
     done = _stereosim(["sweep", good, "--out", "good", "--quiet", "--workers", "2"], tmp_path)
     assert (done.returncode, done.stderr) == (0, "")
     assert done.stdout.startswith("2 runs (2 points x 1 scenes): 0 already done, 2 ok, 0 failed")
+    assert f"columns: {GUIDE_NAME} beside it says what each is)" in done.stdout
+    assert (tmp_path / "good" / GUIDE_NAME).is_file()
     bad = _write(tmp_path, _estimate([128, 256]), "bad.toml")  # neither D is below 64
     done = _stereosim(["sweep", bad, "--out", "bad", "--quiet", "--workers", "1"], tmp_path)
     assert done.returncode == 2
