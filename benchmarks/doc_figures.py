@@ -2,7 +2,8 @@
 
 A generated block sits between two marker comments, ``<!-- NAME:begin -->`` and
 ``<!-- NAME:end -->``. Every block of docs/ is listed here with the command that writes it:
-the blocks of this script (:data:`FIGURES`, cheap: a few 720p frames of the cycle model) and the
+the blocks of this script (:data:`FIGURES`, cheap: a few 720p frames of the cycle model, the
+traced runs of reading-traces.md's default scene) and the
 blocks other scripts write (:data:`ELSEWHERE`: accuracy tables, sweeps, minutes to hours).
 ``tests/benchmarks/test_doc_figures.py`` re-runs this script's blocks and requires the pages
 to hold exactly what they print, and requires every block of docs/ to be listed here with a
@@ -21,8 +22,10 @@ import difflib
 import sys
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 
+import reading_traces
 from markers import write_between
 
 from stereosim.sim.api import run
@@ -69,6 +72,10 @@ def calibration() -> list[str]:
 
 FIGURES = {
     "calibration": Figure("architecture.md", calibration),
+    # reading-traces.md: the instants its pictures show, found in traced runs of the default
+    # scene (a few seconds; docs/make_trace_pictures.py draws the pictures from the same runs)
+    **{name: Figure(reading_traces.DOC, partial(reading_traces.block, name))
+       for name in reading_traces.SECTIONS},
 }
 
 # The blocks other scripts write (slow: accuracy over the Middlebury scenes, sweeps), by name:
