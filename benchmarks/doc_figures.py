@@ -3,7 +3,8 @@
 A generated block sits between two marker comments, ``<!-- NAME:begin -->`` and
 ``<!-- NAME:end -->``. Every block of docs/ is listed here with the command that writes it:
 the blocks of this script (:data:`FIGURES`, cheap: a few 720p and 1080p frames of the cycle
-model, a multiply-shift search, the import layers of pyproject.toml) and the
+model, a multiply-shift search, the import layers of pyproject.toml, the traced runs of
+reading-traces.md's default scene) and the
 blocks other scripts write (:data:`ELSEWHERE`: accuracy tables, sweeps, minutes to hours).
 ``tests/benchmarks/test_doc_figures.py`` re-runs this script's blocks and requires the pages
 to hold exactly what they print, and requires every block of docs/ to be listed here with a
@@ -27,11 +28,13 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import reading_traces
 from markers import write_between
 
 from stereosim.quant.quantizer import search_mul_shift
 from stereosim.sim.api import run, run_stream
 from stereosim.sim.config import load_config
+from stereosim.sim.cycle.estimate import estimate
 from stereosim.sim.sweep import synthetic_pair
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -69,16 +72,20 @@ RUNS_720P = (("defaults (CNN descriptor)", {}),
 def calibration() -> list[str]:
     """docs/architecture.md, "Calibration": the default chip (CNN descriptor) and the census
     one at 720p -- cycles, first output, the frame's span, the work bound and the measured
-    rate, the bottleneck."""
+    rate, the bottleneck -- and the analytic estimate's first output and frame beside them."""
     lines = ["| run | cycles (nna / sva) | first output | frame (first input pixel to last "
-             "word) | fps (work bound) | fps (measured) | bottleneck |",
-             "|---|---|---|---|---|---|---|"]
+             "word) | estimate: first output, frame | fps (work bound) | fps (measured) | "
+             "bottleneck |",
+             "|---|---|---|---|---|---|---|---|"]
     for name, over in RUNS_720P:
         rep = _run_720p(over)
+        est = estimate(load_config(overrides={"sva.disparities": 128, **over}),
+                       (720, 1280))["latency"]
         cycles, thr, lat = rep["cycles"]["total"], rep["throughput"], rep["latency"]
         lines.append(
             f"| {name} | {cycles['nna']:,} / {cycles['sva']:,} | "
-            f"{lat['first_output_us']:.1f} us | {lat['frame_ms']:.3f} ms | "
+            f"{lat['first_output_us']:.3f} us | {lat['frame_ms']:.6f} ms | "
+            f"{est['first_output_us']:.3f} us, {est['frame_ms']:.6f} ms | "
             f"{thr['fps_bound']:.3f} | {thr['fps_measured']:.3f} | {thr['bottleneck']} |")
     return lines
 
@@ -104,15 +111,19 @@ def row_windows() -> list[str]:
 
 def splits() -> list[str]:
     """docs/architecture.md, "Splits": a 1920x1080 frame on 6 NNA submodules (3 column tiles a
-    camera) with the default merge FIFOs and with FIFOs of two thirds of a tile row."""
+    camera) with the default merge FIFOs and with the depth ``stereosim estimate`` says the
+    tiles need (``throughput.merge_depth_needed``)."""
+    six = (("nna.stereo_submodules", 6),)
+    need = estimate(load_config(overrides={"sva.disparities": 128, **dict(six)}),
+                    (1080, 1920))["throughput"]["merge_depth_needed"]
     lines = ["| `fifo.nna_to_merge_depth` | frame (first input pixel to last word) | "
              "fps (measured) | fps (work bound) | bottleneck |",
              "|---|---|---|---|---|"]
-    for depth in (64, 428):
-        rep = _run_frame((1080, 1920), (("fifo.nna_to_merge_depth", depth),
-                                        ("nna.stereo_submodules", 6)))
+    for depth in (64, need):
+        rep = _run_frame((1080, 1920), (("fifo.nna_to_merge_depth", depth), *six))
         thr = rep["throughput"]
-        lines.append(f"| {depth} | {rep['latency']['frame_ms']:.3f} ms | "
+        label = f"{depth} (the estimate's need)" if depth == need else f"{depth} (default)"
+        lines.append(f"| {label} | {rep['latency']['frame_ms']:.3f} ms | "
                      f"{thr['fps_measured']:.3f} | {thr['fps_bound']:.3f} | "
                      f"{thr['bottleneck']} |")
     return lines
@@ -192,6 +203,10 @@ FIGURES = {
     "energy-720p": Figure("energy.md", energy_720p),
     "dram-defaults": Figure("dram.md", dram_defaults),
     "requant-example": Figure("quantization.md", requant_example),
+    # reading-traces.md: the instants its pictures show, found in traced runs of the default
+    # scene (a few seconds; docs/make_trace_pictures.py draws the pictures from the same runs)
+    **{name: Figure(reading_traces.DOC, functools.partial(reading_traces.block, name))
+       for name in reading_traces.SECTIONS},
 }
 
 # The blocks other scripts write (slow: accuracy over the Middlebury scenes, sweeps), by name:

@@ -1,10 +1,16 @@
-"""Regenerate the pictures of docs/reading-traces.md with the project's own commands.
+"""Regenerate the pictures and figures of docs/reading-traces.md with the project's own commands.
 
     python docs/make_trace_pictures.py
 
-Each picture is one `stereosim run ... --vcd` on the embedded default scene (Middlebury 2014
-Motorcycle, 741x500) followed by one `stereosim wave`; the commands are printed as they run, so
-any of them can be repeated by hand. The VCDs go to a temporary folder, the PNGs to docs/img/.
+The windows are not typed in: ``benchmarks/reading_traces.py`` runs the chip on the embedded
+default scene (Middlebury 2014 Motorcycle, 741x500), finds the instants each section is about
+(the line buffer full, the first ready row, the first stall of a shallow FIFO, the first output
+word) and gives each picture its ``stereosim run --trace-window`` and ``stereosim wave
+--window``. Each picture is then one ``stereosim run ... --vcd`` (shared by the pictures of one
+run) followed by one ``stereosim wave``; the commands are printed as they run, so any of them
+can be repeated by hand. The VCDs go to a temporary folder, the PNGs to docs/img/. Last, the
+figures the page quotes are written into its generated blocks
+(``python benchmarks/doc_figures.py --write trace-...``, measured on the same runs).
 """
 
 from __future__ import annotations
@@ -17,40 +23,10 @@ import tempfile
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 IMG = os.path.join(HERE, "img")
+sys.path.insert(0, os.path.join(os.path.dirname(HERE), "benchmarks"))
 
-# (picture, run options, wave signals, wave window)
-PICTURES = [
-    (
-        "trace_line_buffer_fill.png",
-        ["--set", "nna.descriptor=cnn", "--trace-window", "rows:0:1"],
-        "top.memory_left.status,top.fifo.src_left_to_nna.occupancy,"
-        "top.nna.left.sub0.line_buffer.*,top.nna.left.sub0.status,top.nna.left.sub0.mac.row,"
-        "top.nna.left.sub0.out.valid,top.sva.status",
-        "0:40us",
-    ),
-    (
-        "trace_sva_row_delay.png",
-        ["--set", "nna.descriptor=cnn", "--trace-window", "rows:0:3"],
-        "top.sva.input.row,top.sva.input.rows_ready,top.sva.status,top.sva.output.row,"
-        "top.sva.output.valid,top.sva.lr_check.reject,top.sink.count",
-        "",
-    ),
-    (
-        "trace_stall.png",
-        ["--descriptor", "census", "--set", "fifo.nna_to_sva_depth=4", "--trace-window",
-         "sva:31152:31192"],
-        "clocks.*,top.nna.left.sub0.status,top.nna.left.sub0.out.valid,"
-        "top.fifo.nna_left_to_sva.*,top.sva.status,top.sva.output.valid",
-        "",
-    ),
-    (
-        "trace_sva_stages.png",
-        ["--descriptor", "census", "--trace-window", "sva:4750:4790"],
-        "top.sva.pipeline.*,top.sva.stage.*.words,top.sva.stage.sgm.status,"
-        "top.sva.output.valid",
-        "",
-    ),
-]
+import doc_figures  # noqa: E402  (benchmarks/ is a folder of scripts, not a package)
+import reading_traces  # noqa: E402
 
 
 def sh(args: list[str]) -> None:
@@ -62,14 +38,20 @@ def main() -> int:
     os.makedirs(IMG, exist_ok=True)
     exe = [sys.executable, "-m", "stereosim.sim.cli"]
     with tempfile.TemporaryDirectory() as tmp:
-        for png, run_opts, signals, window in PICTURES:
-            vcd = os.path.join(tmp, png.replace(".png", ".vcd"))
-            sh([*exe, "run", "--out", os.path.join(tmp, "out"), "--vcd", vcd, *run_opts])
-            wave = [*exe, "wave", vcd, "--signals", signals, "--png", os.path.join(IMG, png)]
-            if window:
-                wave += ["--window", window]
+        dumps = {}  # (chip, run window) -> its VCD: one run for the pictures that share it
+        for pic in reading_traces.pictures():
+            key = (pic.overrides, pic.run_window)
+            if key not in dumps:
+                dumps[key] = os.path.join(tmp, f"run{len(dumps)}.vcd")
+                sh([*exe, "run", "--out", os.path.join(tmp, "out"), "--vcd", dumps[key],
+                    *reading_traces.set_options(pic.overrides),
+                    "--trace-window", pic.run_window])
+            wave = [*exe, "wave", dumps[key], "--signals", pic.signals,
+                    "--png", os.path.join(IMG, pic.png), "--title", pic.title]
+            if pic.wave_window:
+                wave += ["--window", pic.wave_window]
             sh(wave)
-    return 0
+    return doc_figures.main([*reading_traces.SECTIONS, "--write"])
 
 
 if __name__ == "__main__":

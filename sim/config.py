@@ -283,8 +283,9 @@ class FifoConfig:
     source_to_nna_depth: int = param(16, "pixels the source-to-NNA FIFO holds", lo=1, hi=1 << 24)
     nna_to_sva_depth: int = param(64, "descriptors each NNA-to-SVA FIFO holds", lo=1, hi=1 << 24)
     nna_to_merge_depth: int = param(
-        64, "descriptors each submodule-to-merge FIFO of a split frame holds (a column tile "
-        "overlaps its neighbours only if this holds most of a tile row)", lo=1, hi=1 << 24
+        64, "descriptors each submodule-to-merge FIFO of a split frame holds (column tiles "
+        "work side by side only if this holds what a tile computes while the merge serves the "
+        "others: stereosim estimate gives the depth)", lo=1, hi=1 << 24
     )
     sva_to_sink_depth: int = param(16, "disparities the SVA-to-sink FIFO holds", lo=1, hi=1 << 24)
     latency_cycles: int = param(1, "FIFO latency in consumer cycles (>= 1)", lo=1, hi=1024)

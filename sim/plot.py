@@ -39,7 +39,8 @@ RATE_KINDS = {
     BOUND_RATE: "work bound",
     "estimate.throughput.fps_bound": "work bound, analytic estimate",
 }
-# a measured rate this far (as a share of the bound) from the work bound is worth a note
+# a measured rate this far (as a share of the bound) from the work bound is worth a note, in a
+# sweep's summary and in run's (sim/summary.py)
 RATE_GAP = 0.03
 
 
