@@ -389,7 +389,9 @@ def run_stream(pairs, *, mode: str = "cycle", config: ChipConfig | str | None = 
     (as :func:`run` takes them) score every frame -- the ground truth of a pair repeated, or of
     a scene that does not move. ``sink_stall``: a periodic pattern ``(period, allowed_phase)``
     for the sink. Mistakes raise a :class:`sim.errors.UserError` before any kernel runs (a
-    frame of another size, when it is read)."""
+    frame of another size, when it is read). A stream that stops early raises
+    :class:`~sim.cycle.clock.RunStopped` as :func:`run` does (its ``report`` adds ``frames``;
+    its ``plan`` and ``supply`` let :func:`sim.tracing.run_traced` trace it up to the stop)."""
     if mode not in MODES:
         raise ConfigError(f"mode must be one of {', '.join(MODES)}; got {mode!r}")
     table = _energy_table(energy, mode)
@@ -410,12 +412,17 @@ def run_stream(pairs, *, mode: str = "cycle", config: ChipConfig | str | None = 
     }
     words = None
     if mode == "cycle":
-        if cfg.sim.engine == "readable":
-            words = {}
-            frame = simulate(plan, supply, sink_stall=sink_stall,
-                             on_frame=lambda f, fixed: words.__setitem__(f, fixed.copy()))
-        else:
-            frame = simulate(plan, supply, sink_stall=sink_stall, words=False)
+        try:
+            if cfg.sim.engine == "readable":
+                words = {}
+                frame = simulate(plan, supply, sink_stall=sink_stall,
+                                 on_frame=lambda f, fixed: words.__setitem__(f, fixed.copy()))
+            else:
+                frame = simulate(plan, supply, sink_stall=sink_stall, words=False)
+        except RunStopped as stop:
+            stop.report = stopped_report(plan, stop) | {"frames": supply.count}
+            stop.plan, stop.supply = plan, supply  # to trace it up to the stop
+            raise
         report.update(frame.report)
         if table is not None:
             report["energy"] = energy_report(plan, frame.stats,

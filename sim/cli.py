@@ -288,7 +288,8 @@ def cmd_run(args) -> int:
         planned.append((args.html, "--html"))
     inputs = [(getattr(args, name), f"--{name.replace('_', '-')}") for name in RUN_INPUTS]
     scenes = [find_scene(args.scene, gt_scale=args.gt_scale)] if args.scene else []
-    check_outputs(planned, inputs + scene_files(scenes))  # before any work, none an input
+    inputs += scene_files(scenes)
+    check_outputs(planned, inputs)  # before any work, none an input
     if args.left_video or args.right_video or (args.frames or 1) > 1 or args.save_every:
         if saving.formats:
             raise InputError("--save-as writes one frame's files: drop --frames and the videos")
@@ -305,7 +306,7 @@ def cmd_run(args) -> int:
         if not video and args.frames is None:
             raise InputError("--save-every needs a stream: give --frames N or the videos")
         cfg = _scene_config(args, None if data is None else data.get("ndisp"))
-        return cmd_run_stream(args, request, data, cfg)
+        return cmd_run_stream(args, request, data, cfg, inputs)
     data = _load_run_inputs(args)
     saving.check_size(data["left"].shape)
     cfg = _scene_config(args, data.get("ndisp"))

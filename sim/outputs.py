@@ -164,6 +164,15 @@ def _pairs(paths) -> list[tuple]:
     return list(paths.items() if isinstance(paths, Mapping) else paths)
 
 
+def _file_id(path: str) -> tuple[int, int] | None:
+    """(device, inode) of an existing file, None otherwise."""
+    try:
+        st = os.stat(path)
+    except (OSError, ValueError):
+        return None
+    return (st.st_dev, st.st_ino)
+
+
 def check_outputs(paths: Mapping[str | os.PathLike, str] | Iterable[tuple],
                   inputs: Mapping[str | os.PathLike, str] | Iterable[tuple] = ()) -> None:
     """Refuse, before anything is computed, a set of output files that cannot all be written.
@@ -171,13 +180,15 @@ def check_outputs(paths: Mapping[str | os.PathLike, str] | Iterable[tuple],
     ``paths``: ``(path, label)`` pairs (or a mapping path -> label), the label being what the user
     knows the file as (e.g. ``"--vcd"``); ``inputs`` the same for the files the command reads
     (None or empty paths are skipped). Checks: no two outputs on one path, and none is the
-    folder of another; none is an input (same real path: an output never replaces what the
-    command reads); none is an existing folder; the nearest existing ancestor of each folder is
+    folder of another; none is an input (same real path or a hard link to one: an output never
+    replaces what the command reads); none is an existing folder; the nearest existing ancestor of each folder is
     a folder we may write into (missing folders are created at publish time); every name fits
     the file system's limits.
     """
     read = {os.path.realpath(p): (p, label) for p, label in _pairs(inputs)
             if p is not None and os.fspath(p) != ""}
+    read_ids = {ident: entry for ident, entry in ((_file_id(r), e) for r, e in read.items())
+                if ident is not None}  # a hard link to an input is that input too
     seen: dict[str, tuple[str, Path]] = {}
     for raw, label in _pairs(paths):
         p = Path(raw)
@@ -188,8 +199,8 @@ def check_outputs(paths: Mapping[str | os.PathLike, str] | Iterable[tuple],
             raise InputError(
                 f"{seen[real][0]} and {label} would both write {p}: give them different paths"
             )
-        if real in read:
-            source, what = read[real]
+        if real in read or _file_id(real) in read_ids:
+            source, what = read[real] if real in read else read_ids[_file_id(real)]
             raise InputError(f"{label} path {path_text(p)} is the input {what} "
                              f"{path_text(source)}: write it elsewhere")
         seen[real] = (label, p)
@@ -386,7 +397,7 @@ def publish(files: Mapping[str | os.PathLike, object], *,
             manifest: str | os.PathLike | None = None) -> list[str]:
     """Write a set of files (path -> bytes-like, the :class:`~pathlib.Path` of a file written
     already on the same file system, which is moved, or None: the file is removed, if it
-    exists) as one transaction; returns the paths.
+    exists, and its folder too if that leaves it empty) as one transaction; returns the paths.
 
     Either every file is replaced by its new content or (on any error, interrupt or signal) every
     old file is left as it was and no temporary file remains. Missing destination folders are
@@ -446,6 +457,9 @@ def publish(files: Mapping[str | os.PathLike, object], *,
                 created = []
                 signals.note_published()
                 _remove_stages(stages, primary)
+                for folder in {t.parent for t, b in zip(targets, blobs) if b is None}:
+                    with contextlib.suppress(OSError):
+                        folder.rmdir()  # a folder the removals emptied (only if empty)
         return [str(t) for t in targets]
     finally:
         with signals.held():

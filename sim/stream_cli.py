@@ -25,13 +25,15 @@ import time
 from pathlib import Path
 
 from stereosim.sim.api import run_stream
+from stereosim.sim.cycle.clock import RunStopped
 from stereosim.sim.cycle.frames import check_frame_count
 from stereosim.sim.errors import InputError
 from stereosim.sim.io import disparity_to_colour, encode_png, pfm_bytes
 from stereosim.sim.outputs import check_outputs, json_text, new_stage, publish
 from stereosim.sim.progress import progress_bar
+from stereosim.sim.run_files import publish_stop
 from stereosim.sim.summary import print_summary
-from stereosim.sim.tracing import run_traced, trace_files, trace_paths
+from stereosim.sim.tracing import run_traced, trace_files, trace_paths, trace_section
 from stereosim.sim.video import VideoPair
 
 
@@ -73,7 +75,24 @@ def _frame_files(names: tuple[str, str], disparity, dmax: float) -> dict[str, by
             names[1]: encode_png(disparity_to_colour(disparity, dmax))}
 
 
-def cmd_run_stream(args, request, data: dict | None, cfg) -> int:
+def _publish_stop(stop: RunStopped, request, out_dir: Path, planned: list, scene: dict):
+    """A stream that stopped early publishes what a single frame's stop does
+    (:func:`sim.run_files.publish_stop`): its report marked ``stopped`` and, when asked for, the
+    trace up to the stop (a second, traced pass of the same stream stops at the same cycle);
+    returns the one line the command exits with."""
+    if request is not None:
+        try:
+            run_traced(stop.plan, stop.supply, None, request)
+        except RunStopped as traced:
+            stop.trace, stop.outputs_in_window = traced.trace, traced.outputs_in_window
+            if traced.trace is not None:
+                stop.report["trace"] = trace_section(traced.trace, traced.outputs_in_window)
+    return publish_stop(stop, request, out_dir, planned, scene)
+
+
+def cmd_run_stream(args, request, data: dict | None, cfg, inputs: list = ()) -> int:
+    """``stereosim run`` on a stream; ``inputs``: ``(path, label)`` of every file the run reads
+    (no output, the saved frames included, may replace one)."""
     out_dir = Path(args.out)
     save_every = args.save_every
     planned = [(out_dir / name, f"--out {name}") for name in
@@ -87,18 +106,22 @@ def cmd_run_stream(args, request, data: dict | None, cfg) -> int:
                     for nm in _frame_names(f, p, cfg.sva.pairs)]
     if request is not None:
         planned += trace_paths(request)
-    check_outputs(planned)  # before any work
+    check_outputs(planned, inputs)  # before any work, none an input
     out_dir.mkdir(parents=True, exist_ok=True)
     staging = new_stage(out_dir)
     try:
         t0 = time.perf_counter()
         gt, masks = (None, None) if data is None else (data.get("gt"), data.get("masks"))
-        with progress_bar(n * cfg.sva.pairs, "timing pass", "frame",
-                          quiet=args.json or args.mode != "cycle") as bar:
-            stream = run_stream(pairs, mode=args.mode, config=cfg,
-                                max_pixels=args.max_pixels or None, energy=args.energy, gt=gt,
-                                masks=masks)
-            bar.update(bar.total)  # the compiled pass is one call: done at once
+        try:
+            with progress_bar(n * cfg.sva.pairs, "timing pass", "frame",
+                              quiet=args.json or args.mode != "cycle") as bar:
+                stream = run_stream(pairs, mode=args.mode, config=cfg,
+                                    max_pixels=args.max_pixels or None, energy=args.energy,
+                                    gt=gt, masks=masks)
+                bar.update(bar.total)  # the compiled pass is one call: done at once
+        except RunStopped as stop:
+            raise _publish_stop(stop, request, out_dir, planned,
+                                {"name": name, "source": source}) from None
         dmax = float(cfg.sva.disparities)
         files: dict[Path, object] = {}
         digests: dict[str, str] = {}

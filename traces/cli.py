@@ -10,10 +10,8 @@ after it has been drawn.
 from __future__ import annotations
 
 import argparse
-import os
 from pathlib import Path
 
-from stereosim.sim.errors import InputError
 from stereosim.sim.outputs import atomic_write_bytes, check_outputs
 from stereosim.traces.dumpread import read_dump
 from stereosim.traces.log import parse_patterns
@@ -56,24 +54,10 @@ def add_wave_parser(subparsers) -> argparse.ArgumentParser:
     return w
 
 
-def check_not_input(out: str | os.PathLike, dump: str | os.PathLike) -> None:
-    """InputError if writing ``out`` would replace the dump ``dump``."""
-    same = os.path.realpath(out) == os.path.realpath(dump)
-    if not same and os.path.exists(out) and os.path.exists(dump):
-        try:
-            same = os.path.samefile(out, dump)
-        except OSError:
-            same = False
-    if same:
-        raise InputError(f"--png {out} is the dump being read ({dump}): write the picture to "
-                         "another file")
-
-
 def cmd_wave(args) -> int:
     patterns = parse_patterns(args.signals)  # () = the overview
     out = Path(args.png)
-    check_outputs({out: "--png"})
-    check_not_input(out, args.dump)
+    check_outputs({out: "--png"}, {args.dump: "dump"})  # never the dump it reads
     parse_wave_window(args.window)  # a bad window fails before the dump is read
     chosen = []
 

@@ -61,6 +61,8 @@ class RunStopped(UserError):
         self.outputs_in_window = 0
         self.engine: str | None = None
         self.report: dict | None = None
+        self.plan = None  # a stream's ChipPlan and FrameSupply, from stereosim.run_stream
+        self.supply = None
 
 
 class DeadlockError(RunStopped):

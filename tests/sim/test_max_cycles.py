@@ -185,6 +185,26 @@ def test_a_deadlocked_run_publishes_its_report_and_the_trace_up_to_the_stop(tmp_
     assert stop["fifos"]["sva_to_sink"]["state"] == "full"
 
 
+def test_a_stopped_stream_publishes_its_report_and_the_trace_up_to_the_stop(tmp_path, capsys):
+    """A stream (``--frames 3``) stopped by ``--max-cycles`` in its second frame leaves what a
+    single frame's stop does: one line, the dump up to the stop, the report marked stopped (with
+    the stream's frame count) -- and no saved frame or last-frame map of an earlier run."""
+    args = _inputs(tmp_path, 40, 64) + ["--frames", "3", "--save-every", "1"]
+    out = tmp_path / "out"
+    dump = out / "t.vcd"
+    assert main(args + ["--out", str(out)]) == 0  # a whole stream first
+    assert (out / "frames" / "disparity_00002.pfm").is_file()
+    capsys.readouterr()
+    limit = 12000  # beyond one 40x64 frame (about 5,700 SVA cycles), short of three
+    assert main(args + ["--out", str(out), "--vcd", str(dump), "--max-cycles", str(limit)]) == 2
+    err = capsys.readouterr().err
+    assert f"stopped by sim.max_cycles = {limit}" in err
+    cfg = load_config(overrides={"sva.disparities": 16, "sim.max_cycles": limit})
+    report = _stopped_set(out, err, dump, build_plan(cfg, (40, 64), 3))
+    assert report["frames"] == 3 and report["stopped"]["reason"] == "max_cycles"
+    assert not (out / "frames").exists()
+
+
 def test_version_is_the_installed_one(capsys):
     with pytest.raises(SystemExit) as done:
         main(["--version"])

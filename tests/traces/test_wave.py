@@ -245,7 +245,7 @@ def test_wave_never_writes_over_the_dump(dumped, tmp_path, capsys, link):
         os.link(dump, png)
     assert _main(["wave", str(dump), "--signals", "clocks.*", "--png", str(png)]) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "is the dump being read" in err
+    assert err.count("\n") == 1 and "is the input dump" in err
     assert dump.read_bytes() == before
 
 
