@@ -16,7 +16,7 @@ import os
 from pathlib import Path
 
 from stereosim.sim.cycle.clock import RunStopped
-from stereosim.sim.errors import UserError
+from stereosim.sim.errors import ConfigError, UserError
 from stereosim.sim.outputs import json_text, publish
 from stereosim.sim.tracing import TraceRequest, trace_files
 
@@ -39,13 +39,17 @@ def publish_stop(stop: RunStopped, request: TraceRequest | None, out_dir: Path, 
     everything the run would have written). Returns the one line the command exits with: the
     stop's, and where to look."""
     stop.report["scene"] = scene
-    blobs, waves = {}, []
+    blobs, waves, refused = {}, [], ""
     if request is not None and stop.trace is not None:
-        blobs = {Path(p): data for p, data in trace_files(stop.trace, request).items()}
-        waves = [p for p in (request.vcd, request.timeline) if p]
+        try:
+            blobs = {Path(p): data for p, data in trace_files(stop.trace, request).items()}
+            waves = [p for p in (request.vcd, request.timeline) if p]
+        except ConfigError as exc:  # above --trace-limit: the report alone, and why
+            stop.report["trace"]["refused"] = str(exc)
+            refused = f" (no trace: {exc})"
     blobs = with_report(out_dir, stop.report, blobs)
     stale = {Path(p): None for p, _ in planned if Path(p) not in blobs and Path(p).exists()}
     publish(blobs | stale, manifest=out_dir / "report.json")
-    also = f" and the trace up to the stop in {', '.join(waves)}" if waves else ""
+    also = f" and the trace up to the stop in {', '.join(waves)}" if waves else refused
     return UserError(f"{stop}; see {out_dir / 'report.json'} for every block's and FIFO's "
                      f"state{also}")

@@ -205,6 +205,21 @@ def test_a_stopped_stream_publishes_its_report_and_the_trace_up_to_the_stop(tmp_
     assert not (out / "frames").exists()
 
 
+def test_a_stop_whose_trace_is_above_the_limit_still_publishes_its_report(tmp_path, capsys):
+    """The trace up to a stop is held to ``--trace-limit`` like any other: above it, the stop's
+    report is published alone, and the one line and the report say why there is no trace."""
+    out = tmp_path / "out"
+    args = _inputs(tmp_path, 40, 64) + ["--out", str(out), "--vcd", str(out / "t.vcd"),
+                                        "--trace-limit", "0.001", "--max-cycles", "5000"]
+    assert main(args) == 2
+    err = _one_line(capsys.readouterr().err)
+    assert "stopped by sim.max_cycles = 5000" in err and "(no trace: the VCD would be" in err
+    report = json.loads((out / "report.json").read_text())
+    assert report["stopped"]["reason"] == "max_cycles"
+    assert "--trace-limit" in report["trace"]["refused"] and report["files"] == {}
+    assert sorted(os.listdir(out)) == ["report.json"]
+
+
 def test_version_is_the_installed_one(capsys):
     with pytest.raises(SystemExit) as done:
         main(["--version"])
