@@ -3,8 +3,9 @@
 A generated block sits between two marker comments, ``<!-- NAME:begin -->`` and
 ``<!-- NAME:end -->``. Every block of docs/ is listed here with the command that writes it:
 the blocks of this script (:data:`FIGURES`, cheap: a few 720p and 1080p frames of the cycle
-model, a multiply-shift search, the import layers of pyproject.toml, the traced runs of
-reading-traces.md's default scene) and the
+model, short 720p streams, the points of two 720p sweeps, a multiply-shift search, the import
+layers of pyproject.toml, the traced runs of reading-traces.md's default scene, what
+``stereosim run`` prints for a 64 x 24 pair) and the
 blocks other scripts write (:data:`ELSEWHERE`: accuracy tables, sweeps, minutes to hours).
 ``tests/benchmarks/test_doc_figures.py`` re-runs this script's blocks and requires the pages
 to hold exactly what they print, and requires every block of docs/ to be listed here with a
@@ -19,9 +20,13 @@ command its page names.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import difflib
 import functools
+import io
 import sys
+import tempfile
+import textwrap
 import tomllib
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -33,9 +38,20 @@ from markers import write_between
 
 from stereosim.quant.quantizer import search_mul_shift
 from stereosim.sim.api import run, run_stream
+from stereosim.sim.cli import main as stereosim_main
 from stereosim.sim.config import load_config
+from stereosim.sim.cycle.clock import ClockDomain
 from stereosim.sim.cycle.estimate import estimate
-from stereosim.sim.sweep import synthetic_pair
+from stereosim.sim.cycle.plan import build_plan
+from stereosim.sim.cycle.stops import CameraOverflow
+from stereosim.sim.io import encode_png
+from stereosim.sim.plot import rate_gaps
+from stereosim.sim.sweep import load_sweep, read_rows, run_task, synthetic_pair, write_rows
+from stereosim.sim.whatif_cli import sweep_summary
+from stereosim.traces.fst import fst_bytes
+from stereosim.traces.log import Clock, Signal, TraceLog
+from stereosim.traces.synthetic import synthetic_log
+from stereosim.traces.vcd import vcd_bytes
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
@@ -195,6 +211,271 @@ def requant_example() -> list[str]:
     return lines
 
 
+# ---- what a command prints (report.md, reliability.md, streams.md) ---------------------------
+
+
+class OutcomeChanged(RuntimeError):
+    """A command no longer ends as the page that quotes it says (a run that should stop
+    completes, say): the page's prose needs rewriting, not only its block."""
+
+
+@contextlib.contextmanager
+def _scratch():
+    """A fresh temporary folder as the working directory: the quoted commands name their
+    files relatively (``--out out``), as a reader types them."""
+    with tempfile.TemporaryDirectory() as tmp, contextlib.chdir(tmp):
+        yield
+
+
+def _stereosim(argv: list[str]) -> tuple[int, str, str]:
+    """``stereosim ARGV`` run in this process: its exit status, stdout and stderr."""
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        status = stereosim_main(argv)
+    return status, out.getvalue(), err.getvalue()
+
+
+def _prose(text: str) -> list[str]:
+    """A sentence of a block, wrapped as the pages wrap their prose."""
+    return textwrap.wrap(text, 96, break_long_words=False, break_on_hyphens=False)
+
+
+def _error_line(argv: list[str]) -> str:
+    """The one line ``stereosim ARGV`` refuses with (exit status 2)."""
+    status, _, err = _stereosim(argv)
+    lines = [line for line in err.splitlines() if line.startswith("stereosim: error:")]
+    if status != 2 or len(lines) != 1:
+        raise OutcomeChanged(f"stereosim {' '.join(argv)} exited {status}, not 2 with one line")
+    return lines[0]
+
+
+# The small pair of the pages' examples: l.png and r.png, 64 x 24 (synthetic_pair(24, 64)).
+SMALL_RUN = ["run", "--left", "l.png", "--right", "r.png", "--disparities", "16"]
+
+
+def _small_pair() -> None:
+    for name, image in zip(("l.png", "r.png"), synthetic_pair(24, 64)):
+        Path(name).write_bytes(encode_png(image))
+
+
+def run_summary() -> list[str]:
+    """docs/report.md, "The summary": what ``stereosim run`` prints, piped, for the 64 x 24
+    pair at D = 16 -- its throughput and blocks tables, the right camera's rows left out."""
+    with _scratch():
+        _small_pair()
+        status, out, _ = _stereosim([*SMALL_RUN, "--out", "out"])
+    if status != 0:
+        raise OutcomeChanged(f"stereosim {' '.join(SMALL_RUN)} exited {status}")
+    tables = [t for t in out.split("\n\n")
+              if t.startswith(("throughput and latency", "blocks ("))]
+    lines = [line for line in "\n\n".join(tables).splitlines() if "_right " not in line]
+    return ["```", *lines, "```", "",
+            *_prose(f"(`stereosim {' '.join(SMALL_RUN)} --out out | cat` on a 64 x 24 pair, "
+                    "`stereosim.sim.sweep.synthetic_pair(24, 64)` written as PNGs; the run "
+                    "table above these, the energy below them and the right camera's rows "
+                    "left out.)")]
+
+
+STOP_RUN = [*SMALL_RUN, "--set", "nna.descriptor=census", "--max-cycles", "2000",
+            "--vcd", "out/t.vcd", "--out", "out"]
+
+
+def stop_line() -> list[str]:
+    """docs/reliability.md, "Stops you can inspect": the line of a run stopped by
+    ``--max-cycles`` (the 64 x 24 pair, census), wrapped for the page."""
+    with _scratch():
+        _small_pair()
+        line = _error_line(STOP_RUN)
+    return ["```", *_prose(line), "```", "",
+            *_prose(f"(one line in reality; `stereosim {' '.join(STOP_RUN)}` on a 64 x 24 "
+                    "pair, `stereosim.sim.sweep.synthetic_pair(24, 64)` written as PNGs.)")]
+
+
+def frame_cap() -> list[str]:
+    """docs/streams.md, "How long a stream may be": the line refusing 10^9 frames."""
+    with _scratch():
+        return ["```", _error_line(["run", "--frames", "1000000000", "--out", "out"]), "```"]
+
+
+# The 720p streams of docs/streams.md: the defaults (a memory source), a CEA-861 720p60 camera
+# straight into the NNA, the same camera into two frame buffers (the paper-720p preset), and
+# two NNA submodules per camera behind the camera with deep and default merge FIFOs.
+CAMERA = {"source.kind": "camera"}
+STREAMS_720P = (
+    ("defaults (a memory source)", {}, 3),
+    ("`source.kind=camera`", CAMERA, 3),
+    ("`source.kind=camera`, `source.frame_buffers=2`, `source.on_overflow=drop_frame` "
+     "(`--config paper-720p`)",
+     {**CAMERA, "source.frame_buffers": 2, "source.on_overflow": "drop_frame"}, 30),
+    ("`source.kind=camera`, `nna.stereo_submodules=4`, `fifo.nna_to_merge_depth=1024`",
+     {**CAMERA, "nna.stereo_submodules": 4, "fifo.nna_to_merge_depth": 1024}, 5),
+    ("`source.kind=camera`, `nna.stereo_submodules=4` (merge FIFOs at the default 64)",
+     {**CAMERA, "nna.stereo_submodules": 4}, 5),
+)
+
+
+def stream_720p() -> list[str]:
+    """docs/streams.md, "Cost" and the camera paragraph: short 720p streams of the pair
+    repeated (cycle counts do not depend on the pixels), D = 128 -- what each sustains, its
+    drops and latencies, or where it stops."""
+    left, right = synthetic_pair(720, 1280)
+    lines = ["| `--set` (1280x720, D = 128) | frames | taken | dropped (camera frame) | "
+             "sustained fps | work bound (bottleneck) | latency min / median / max |",
+             "|---|---|---|---|---|---|---|"]
+    for name, over, frames in STREAMS_720P:
+        cfg = load_config(overrides={"sva.disparities": 128, **over})
+        try:
+            rep = run_stream([(left, right)] * frames, config=cfg).report
+        except CameraOverflow as stop:
+            first = str(stop).split(";")[0].split(": ")[0]
+            lines.append(f"| {name} | {frames} | stops: {first} | | | | |")
+            continue
+        st, thr = rep["stream"], rep["throughput"]
+        lat = st["latency_ms"]
+        dropped = f"{st['frames_dropped']}"
+        if st["dropped_frames"]:
+            dropped += f" ({', '.join(map(str, st['dropped_frames']))})"
+        lines.append(
+            f"| {name} | {frames} | {st['frames_completed']} | {dropped} | "
+            f"{st['sustained_fps']:.3f} | {thr['fps_bound']:.3f} ({thr['bottleneck']}) | "
+            f"{lat['min']:.2f} / {lat['median']:.2f} / {lat['max']:.2f} ms |")
+    return lines
+
+
+# ---- traces.md -------------------------------------------------------------------------------
+
+
+def vcd_example() -> list[str]:
+    """docs/traces.md, "VCD": the whole dump of a small log -- the chip's NNA and SVA clocks,
+    a 1-bit valid, a line-buffer fill that is 9 at the window's start and a FIFO occupancy,
+    over 4.4 ns."""
+    cfg = load_config()
+    clocks = [Clock(name, dom.period_fs, dom.phase_fs)
+              for name, dom in (("nna", ClockDomain("nna", cfg.clocks.nna_mhz * 1e6)),
+                                ("sva", ClockDomain("sva", cfg.clocks.sva_mhz * 1e6)))]
+    nna, sva = clocks[0].period_fs, clocks[1].period_fs
+    log = TraceLog(
+        signals=[Signal("top.nna.left.valid", 1, "nna"), Signal("top.nna.left.fill", 16, "nna"),
+                 Signal("top.fifo.a_to_b.occupancy", 5, "sva")],
+        clocks=clocks, start_fs=0, end_fs=4_400_000,
+        initial=np.zeros(3, np.uint64),
+        times_fs=np.array([0, nna, nna, 2 * sva], np.int64),
+        ids=np.array([1, 0, 1, 2], np.int32),
+        values=np.array([9, 1, 10, 3], np.uint64))
+    return ["```", *vcd_bytes(log).decode("ascii").splitlines(), "```"]
+
+
+def trace_signals() -> list[str]:
+    """docs/traces.md, "Signal names": how many signals the chip plan traces."""
+    counts = [len(build_plan(load_config(overrides=over), (720, 1280)).signals)
+              for over in ({}, {"nna.stereo_submodules": 4})]
+    return _prose(f"`ChipPlan.signals` lists {counts[0]} signals for the default chip, "
+                  f"{counts[1]} with two submodules per camera (`nna.stereo_submodules = 4`).")
+
+
+def fst_size() -> list[str]:
+    """docs/traces.md, "FST": the VCD and the FST of one synthetic log."""
+    log = synthetic_log(2000, seed=0)
+    vcd, fst = len(vcd_bytes(log)), len(fst_bytes(log))
+    return _prose(f"For the synthetic 2,000-SVA-cycle log of "
+                  f"`traces.synthetic.synthetic_log(2000)`: {vcd / 1e3:,.0f} kB of VCD, "
+                  f"{fst / 1e3:,.0f} kB of FST ({vcd / fst:.1f} times smaller).")
+
+
+# ---- whatif.md -------------------------------------------------------------------------------
+
+
+@functools.cache
+def _study(name: str) -> tuple[list[dict], list[str]]:
+    """The rows ``stereosim sweep docs/studies/NAME.toml`` computes (each point run in this
+    process by the sweep's own ``run_task``, read back through its CSV) and its swept keys."""
+    sweep = load_sweep(DOCS / "studies" / f"{name}.toml")
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "results.csv"
+        write_rows(path, [run_task(task) for task in sweep.tasks], sweep.axes)
+        return read_rows(path), sweep.axes
+
+
+def study_fifo() -> list[str]:
+    """docs/whatif.md, study 2: the NNA->SVA FIFO at each depth behind a 720p60 camera
+    (census); depths that give the same figures share a row, the least that never fills is
+    bold."""
+    rows, _ = _study("fifo_720p")
+    fifo = "fifos.nna_left_to_sva"
+    cols = (f"{fifo}.max_producer_occupancy", f"{fifo}.cycles_full", "latency.frame_ms",
+            "estimate.latency.frame_ms", "throughput.fps_measured")
+    groups: list[tuple[list[str], tuple]] = []
+    for r in rows:
+        key = tuple(r[c] for c in cols)
+        if groups and groups[-1][1] == key:
+            groups[-1][0].append(r["fifo.nna_to_sva_depth"])
+        else:
+            groups.append(([r["fifo.nna_to_sva_depth"]], key))
+    lines = ["| depth | high-water (producer view) | cycles the NNA saw it full | frame latency | "
+             "frame latency, estimate | fps, measured (one frame) |", "|---|---|---|---|---|---|"]
+    answer = next(i for i, (_, key) in enumerate(groups) if int(key[1]) == 0)
+    for i, (depths, (high, full, frame, est, fps)) in enumerate(groups):
+        depth, full = ", ".join(depths), f"{int(full):,}"
+        if i == answer:
+            depth, full = f"**{depth}**", f"**{full}**"
+        lines.append(f"| {depth} | {high} | {full} | {float(frame):.4f} ms | "
+                     f"{float(est):.4f} ms | {float(fps):.1f} |")
+    return lines
+
+
+def study_merge() -> list[str]:
+    """docs/whatif.md, study 4: column tiles and their merge FIFOs at 720p; a measured rate
+    more than the sweep's RATE_GAP off its work bound is bold."""
+    rows, _ = _study("merge_720p")
+    gaps = {r["point_id"] for r in rate_gaps(rows)}
+    lines = ["| stereo submodules | merge FIFOs | fps, work bound | fps, measured (one frame) | "
+             "frame | merge FIFOs needed (estimate) | chip SRAM (bits) |",
+             "|---|---|---|---|---|---|---|"]
+    unsplit = set()
+    for r in rows:
+        need = r["estimate.throughput.merge_depth_needed"]
+        subs = r["nna.stereo_submodules"]
+        if not need:  # no column tiles, no merge: one row whatever the merge depth
+            if subs in unsplit:
+                continue
+            unsplit.add(subs)
+            subs, depth, need = f"{subs} (no merge)", "--", "--"
+        else:
+            depth = r["fifo.nna_to_merge_depth"]
+        fps = f"{float(r['throughput.fps_measured']):.1f}"
+        if r["point_id"] in gaps:
+            fps = f"**{fps}**"
+        lines.append(f"| {subs} | {depth} | {float(r['throughput.fps_bound']):.1f} | {fps} | "
+                     f"{float(r['latency.frame_ms']):.3f} ms | {need} | "
+                     f"{int(r['sram_bits']):,} |")
+    return lines
+
+
+def study_merge_summary() -> list[str]:
+    """docs/whatif.md, "What a sweep plots and prints": what ``stereosim sweep`` prints of
+    study 4's rows after its count line (``sweep_summary``, the function it calls)."""
+    rows, axes = _study("merge_720p")
+    return ["```", *sweep_summary(rows, axes), "```"]
+
+
+def row_bands() -> list[str]:
+    """docs/whatif.md, row bands: a 16x48 CNN frame (D = 16) on one submodule per camera, on
+    two row bands and on two column tiles -- work bound and last word."""
+    left, right = synthetic_pair(16, 48)
+    lines = ["| 16x48 CNN frame, D = 16 | fps (work bound) | last word (SVA cycle) |",
+             "|---|---|---|"]
+    for name, over in (("one submodule per camera", {}),
+                       ("two row bands (`nna.stereo_submodules=4`, `nna.split=rows`)",
+                        {"nna.stereo_submodules": 4, "nna.split": "rows"}),
+                       ("two column tiles (`nna.stereo_submodules=4`)",
+                        {"nna.stereo_submodules": 4})):
+        cfg = load_config(overrides={"nna.descriptor": "cnn", "sva.disparities": 16, **over})
+        rep = run(left, right, mode="cycle", config=cfg).report
+        lines.append(f"| {name} | {rep['throughput']['fps_bound']:,.1f} | "
+                     f"{rep['cycles']['last_output']['sva']:,} |")
+    return lines
+
+
 FIGURES = {
     "calibration": Figure("architecture.md", calibration),
     "row-windows": Figure("architecture.md", row_windows),
@@ -203,6 +484,17 @@ FIGURES = {
     "energy-720p": Figure("energy.md", energy_720p),
     "dram-defaults": Figure("dram.md", dram_defaults),
     "requant-example": Figure("quantization.md", requant_example),
+    "run-summary": Figure("report.md", run_summary),
+    "stop-line": Figure("reliability.md", stop_line),
+    "frame-cap": Figure("streams.md", frame_cap),
+    "stream-720p": Figure("streams.md", stream_720p),
+    "vcd-example": Figure("traces.md", vcd_example),
+    "trace-signals": Figure("traces.md", trace_signals),
+    "fst-size": Figure("traces.md", fst_size),
+    "study-fifo": Figure("whatif.md", study_fifo),
+    "study-merge": Figure("whatif.md", study_merge),
+    "study-merge-summary": Figure("whatif.md", study_merge_summary),
+    "row-bands": Figure("whatif.md", row_bands),
     # reading-traces.md: the instants its pictures show, found in traced runs of the default
     # scene (a few seconds; docs/make_trace_pictures.py draws the pictures from the same runs)
     **{name: Figure(reading_traces.DOC, functools.partial(reading_traces.block, name))
@@ -222,7 +514,7 @@ ELSEWHERE = {
     "robustness": ("ablation.md",
                    "python benchmarks/robustness.py --seed 0 --write docs/ablation.md"),
     "spill-study": ("energy.md", "python benchmarks/descriptor_dram_study.py --write"),
-    "shared-sva": ("streams.md", "python benchmarks/shared_sva.py --frames 60"),
+    "shared-sva": ("streams.md", "python benchmarks/shared_sva.py --frames 60 --write"),
     "protocol-results": ("tuning.md", "python benchmarks/tuning_report.py --write docs/tuning.md"),
 }
 
