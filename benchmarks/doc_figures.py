@@ -40,10 +40,10 @@ from stereosim.quant.quantizer import search_mul_shift
 from stereosim.sim.api import run, run_stream
 from stereosim.sim.cli import main as stereosim_main
 from stereosim.sim.config import load_config
-from stereosim.sim.cycle.clock import ClockDomain
+from stereosim.sim.cycle.rules import ClockDomain
 from stereosim.sim.cycle.estimate import estimate
 from stereosim.sim.cycle.plan import build_plan
-from stereosim.sim.cycle.stops import CameraOverflow
+from stereosim.sim.cycle.contract import CameraOverflow
 from stereosim.sim.io import encode_png
 from stereosim.sim.plot import rate_gaps
 from stereosim.sim.sweep import load_sweep, read_rows, run_task, synthetic_pair, write_rows
@@ -149,7 +149,7 @@ def layers() -> list[str]:
     """docs/architecture.md, "Layers": the layers contract of pyproject.toml, top to bottom
     (a module may import only from the lines below its own)."""
     contracts = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["importlinter"]
-    (layered,) = [c for c in contracts["contracts"] if c["type"] == "layers"]
+    (layered,) = [c for c in contracts["contracts"] if c["id"] == "layers"]
     return ["```", *(", ".join(m.strip() for m in layer.split(":"))
                      for layer in layered["layers"]), "```"]
 

@@ -29,7 +29,7 @@ import cv2
 
 from stereosim.sim.api import run
 from stereosim.sim.config import load_config
-from stereosim.sim.cycle.engine.run import run_compiled
+from stereosim.sim.cycle.compiled.run import run_compiled
 from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.datasets import default_scene
 from stereosim.sim.io import to_grey

@@ -19,9 +19,9 @@ from stereosim.sim.cycle.frames import FrameSupply, check_frame_count, functiona
 from stereosim.sim.cycle.energy import energy_report, energy_table
 from stereosim.sim.cycle.plan import ChipPlan, architecture_report, build_plan
 from stereosim.sim.cycle.report import power_basis
-from stereosim.sim.cycle.clock import RunStopped
+from stereosim.sim.cycle.contract import RunStopped
 from stereosim.sim.cycle.simulate import simulate
-from stereosim.sim.cycle.stops import stop_report
+from stereosim.sim.cycle.contract import stop_report
 from stereosim.sim.errors import ConfigError, InputError
 from stereosim.sim.io import MAX_PIXELS, check_gt_values, pixel_cap, to_grey
 from stereosim.sim.metrics import check_truth, evaluate, mean_metrics, undefined_metrics
@@ -142,7 +142,7 @@ def run(
     ``energy`` section instead of stereosim's 45 nm default.
     Every mistake raises a :class:`sim.errors.UserError` before any kernel runs. A cycle run
     that stops early (``sim.max_cycles``, the automatic budget, a deadlock, a camera's
-    overflow) raises a :class:`~sim.cycle.clock.RunStopped` whose ``report`` is the stopped
+    overflow) raises a :class:`~sim.cycle.contract.RunStopped` whose ``report`` is the stopped
     run's report (:func:`stopped_report`) and whose ``trace`` is the log up to the stop (with
     ``trace``; None otherwise or when the window starts after the stop).
     """
@@ -236,7 +236,7 @@ def build_report(plan: ChipPlan, mode: str, fixed: np.ndarray | None) -> dict:
 
 def stopped_report(plan: ChipPlan, stop: RunStopped) -> dict:
     """The report of a cycle run that stopped: what every run reports of itself, the engine,
-    the ``stopped`` section (:func:`sim.cycle.stops.stop_report`: the reason, the instant, the
+    the ``stopped`` section (:func:`sim.cycle.contract.stop_report`: the reason, the instant, the
     cycles per clock domain, every FIFO's and block's state) and, for a traced run, the
     ``trace`` section -- and nothing that belongs to a complete frame (no output, metrics,
     throughput or fps)."""
@@ -390,7 +390,7 @@ def run_stream(pairs, *, mode: str = "cycle", config: ChipConfig | str | None = 
     a scene that does not move. ``sink_stall``: a periodic pattern ``(period, allowed_phase)``
     for the sink. Mistakes raise a :class:`sim.errors.UserError` before any kernel runs (a
     frame of another size, when it is read). A stream that stops early raises
-    :class:`~sim.cycle.clock.RunStopped` as :func:`run` does (its ``report`` adds ``frames``;
+    :class:`~sim.cycle.contract.RunStopped` as :func:`run` does (its ``report`` adds ``frames``;
     its ``plan`` and ``supply`` let :func:`sim.tracing.run_traced` trace it up to the stop)."""
     if mode not in MODES:
         raise ConfigError(f"mode must be one of {', '.join(MODES)}; got {mode!r}")

@@ -47,7 +47,7 @@ from stereosim.sim.config import (
     parse_set_options,
     read_toml,
 )
-from stereosim.sim.cycle.clock import RunStopped
+from stereosim.sim.cycle.contract import RunStopped
 from stereosim.sim.cycle.estimate import parse_size
 from stereosim.sim.cycle.frames import MAX_FRAMES
 from stereosim.sim.cycle.plan import build_plan

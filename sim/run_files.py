@@ -15,7 +15,7 @@ import hashlib
 import os
 from pathlib import Path
 
-from stereosim.sim.cycle.clock import RunStopped
+from stereosim.sim.cycle.contract import RunStopped
 from stereosim.sim.errors import ConfigError, UserError
 from stereosim.sim.outputs import json_text, publish
 from stereosim.sim.tracing import TraceRequest, trace_files

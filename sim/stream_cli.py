@@ -25,7 +25,7 @@ import time
 from pathlib import Path
 
 from stereosim.sim.api import run_stream
-from stereosim.sim.cycle.clock import RunStopped
+from stereosim.sim.cycle.contract import RunStopped
 from stereosim.sim.cycle.frames import check_frame_count
 from stereosim.sim.errors import InputError
 from stereosim.sim.io import disparity_to_colour, encode_png, pfm_bytes

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from stereosim.sim.cycle.clock import RunStopped
+from stereosim.sim.cycle.contract import RunStopped
 from stereosim.sim.cycle.plan import ChipPlan
 from stereosim.sim.cycle.simulate import simulate
 from stereosim.sim.errors import ConfigError
@@ -99,7 +99,7 @@ def run_traced(plan: ChipPlan, left: np.ndarray, right: np.ndarray, request: Tra
     """Simulate one frame with a trace: ``(frame result, log)``; raises ConfigError (nothing
     written) for a window outside the run or a trace above the size limit. Either engine
     records it (sim.engine; the same signals and values). A run that stops raises its
-    :class:`~sim.cycle.clock.RunStopped` with ``trace`` the log of the window up to the stop
+    :class:`~sim.cycle.contract.RunStopped` with ``trace`` the log of the window up to the stop
     (the request's signals; None when the window starts after it)."""
     row_times = None
     if parse_window(request.window).kind == ROWS:

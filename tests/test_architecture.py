@@ -40,7 +40,7 @@ def _contracts() -> list[dict]:
 
 
 def _layer_members() -> list[set[str]]:
-    (layers,) = [c["layers"] for c in _contracts() if c["type"] == "layers"]
+    (layers,) = [c["layers"] for c in _contracts() if c["id"] == "layers"]
     return [{m.strip() for m in layer.replace("|", ":").split(":")} for layer in layers]
 
 
@@ -71,10 +71,10 @@ def test_the_contracts_forbid_the_circles_the_old_code_had():
         (i,) = [i for i, members in enumerate(layers) if _covered(module, members)]
         return i
 
-    assert level("sim.api") < level("sim.cycle.chip") < level("nna.census") < level("sim.config")
+    assert level("sim.api") < level("sim.cycle.readable.chip") < level("nna.census") < level("sim.config")
     assert level("sim.tracing") < level("traces.vcd") < level("sim.cycle") < level("traces.log")
     assert level("quant.quantizer") < level("nna.weights") < level("quant.artifact")
-    assert level("sim.cycle.chip") < level("sva.pipeline")
+    assert level("sim.cycle.readable.chip") < level("sva.pipeline")
     (acyclic,) = [c for c in _contracts() if c["type"] == "acyclic_siblings"]
     assert {_relative(a) for a in acyclic["ancestors"]} == set(PACKAGES)
 
@@ -167,7 +167,7 @@ def _jitted(node) -> bool:
 
 def test_no_kernel_takes_more_than_8_parameters():
     """Numba kernels take named structures (the chip plan serialised into record arrays and
-    NamedTuples: sim.cycle.engine.layout), not long positional lists."""
+    NamedTuples: sim.cycle.compiled.layout), not long positional lists."""
     found = []
     for path in _modules().values():
         for node in ast.walk(ast.parse(path.read_text())):

@@ -331,7 +331,7 @@ def select(log: TraceLog, patterns: Iterable[str]) -> TraceLog:
 class TraceRecorder:
     """Accumulates value changes from Python callbacks into a :class:`TraceLog`.
 
-    An instance is a valid ``trace`` hook of :class:`sim.cycle.clock.Simulator`:
+    An instance is a valid ``trace`` hook of :class:`sim.cycle.readable.kernel.Simulator`:
     ``recorder(time_fs, {domain: cycle}, {name: value})``. ``names`` gives the hook's key for
     each signal (default: the signal's path). Changes before ``start_fs`` only update the state
     that becomes ``initial``; changes at or after ``end_fs`` are ignored, so a run can be scoped

@@ -1,7 +1,7 @@
 """A synthetic but realistic trace log, for the writer benchmark, tests and examples.
 
 It mimics what the engines record for a stereo frame: the three clocks of the chip (camera
-74.25 MHz, NNA 460 MHz, SVA 465 MHz, periods rounded as :class:`sim.cycle.clock.ClockDomain` does), two
+74.25 MHz, NNA 460 MHz, SVA 465 MHz, periods rounded as :class:`sim.cycle.rules.ClockDomain` does), two
 cameras, two NNA instances of two submodules each, the FIFOs between them and the SVA stages, with
 the signals an architect looks at -- ``status`` (0 idle, 1 busy, 2 starved, 3 blocked), valid and
 ready bits, row and column counters, line-buffer fill, FIFO occupancy / push / pop / full / empty,
@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from stereosim.sim.cycle.clock import ClockDomain
+from stereosim.sim.cycle.rules import ClockDomain
 from stereosim.traces.log import Clock, Signal, TraceLog
 
 CHIP_CLOCKS_MHZ = {"camera": 74.25, "nna": 460.0, "sva": 465.0}

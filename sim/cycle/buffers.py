@@ -122,6 +122,6 @@ def buffer_report(plan: ChipPlan, windows: list[tuple[int, int]],
 
 def windows_of(plan: ChipPlan, occ: np.ndarray) -> list[tuple[int, int]]:
     """(peak, cycle) of every row window from whole arrays of row instants (the readable
-    kernel's :meth:`~sim.cycle.chip.Chip.window_rows`)."""
+    kernel's :meth:`~sim.cycle.readable.chip.Chip.window_rows`)."""
     return [window_peaks(occ[slot], occ[slot + 1], offset, in_rows, out_rows)
             for _, _, _, _, slot, offset, in_rows, out_rows in tracked(plan)]

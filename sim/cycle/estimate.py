@@ -21,7 +21,7 @@ work) and applies the timing rules of :mod:`sim.cycle.rules` per image row inste
   H - 1), r box and m median radius); its first word leaves ``max(ready + latency, previous
   word + II)`` and the rest of the row follows at the II. FIFOs add their visibility delay,
   ``first_edge_after(push instant) + latency + (sync - 1 if crossing) - 1`` consumer cycles,
-  computed on the same femtosecond grid as :class:`sim.cycle.clock.ClockDomain`. The line buffer's
+  computed on the same femtosecond grid as :class:`sim.cycle.rules.ClockDomain`. The line buffer's
   room rule and the SVA's look-ahead window (row y_in enters once the last word of output row
   y_in - r - m - 2 has entered the SVA's pipeline) are applied. Exact (to the cycle) when no FIFO fills; see docs/whatif.md for
   what is approximated when one does. The NNA -> SVA FIFO is exact either way: when it is
@@ -93,7 +93,7 @@ def fills(f: FifoPlan, plan: ChipPlan) -> bool:
 
 
 class LinkWalk:
-    """A FIFO's handshake beat by beat, with the FIFO's own rules (:mod:`sim.cycle.fifo`): the
+    """A FIFO's handshake beat by beat, with the FIFO's own rules (:mod:`sim.cycle.readable.fifo`): the
     producer pushes beat k once it is made (its row's unobstructed times, and ``step`` cycles
     after its previous push: a blocked producer resumes from its push) and it sees the slot of
     beat k - depth freed (:func:`seen_from` of that pop, ``space_edges``); the consumer pops

@@ -4,8 +4,8 @@ A :class:`ChipPlan` names every clock domain, FIFO (depth, width, producer and c
 domains, the visibility and free-slot delays, the configuration key that sizes it), block (kind,
 domain, ports, tile, cycles per item, windows, look-ahead, latency, buffers with their capacity
 in bits), the traced signals and the run's cycle budget. The readable kernel instantiates it
-(:mod:`sim.cycle.chip`), the compiled engine serialises it into arrays
-(:mod:`sim.cycle.engine`), the analytic model walks it (:mod:`sim.cycle.estimate`), and reports
+(:mod:`sim.cycle.readable.chip`), the compiled engine serialises it into arrays
+(:mod:`sim.cycle.compiled`), the analytic model walks it (:mod:`sim.cycle.estimate`), and reports
 and traces take their names from it. A derived constant or a topology fact is computed here and
 nowhere else.
 
@@ -38,7 +38,7 @@ from stereosim.nna.geometry import (
     window_rows,
 )
 from stereosim.sim.config import ChipConfig, check_config
-from stereosim.sim.cycle.clock import ClockDomain
+from stereosim.sim.cycle.rules import ClockDomain
 from stereosim.sim.cycle.rules import fifo_edges, period_fs
 from stereosim.sim.cycle.stages import (
     BufferPlan,

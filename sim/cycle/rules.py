@@ -13,7 +13,12 @@ chip plan (:mod:`sim.cycle.plan`).
 
 from __future__ import annotations
 
+import math
+from dataclasses import dataclass
+
 from numba.extending import register_jitable
+
+from stereosim.sim.errors import ConfigError
 
 FS_PER_S = 10**15
 
@@ -344,3 +349,51 @@ def sink_next_allowed(cycle, stall_period, stall_phase):
         return cycle
     return cycle + (stall_phase - cycle) % stall_period
 
+
+def check_int(what: str, value, lo: int, fix: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise ConfigError(f"{what} must be an integer; got {value!r} ({fix})")
+    if value < lo:
+        raise ConfigError(f"{what} must be >= {lo}; got {value} ({fix})")
+    return value
+
+
+@dataclass(frozen=True, slots=True)
+class ClockDomain:
+    """A clock: edge ``k`` (its cycle index) is at ``phase_fs + k * period_fs`` femtoseconds,
+    with ``period_fs = round(1e15 / freq_hz)``."""
+
+    name: str
+    freq_hz: float
+    phase_fs: int = 0
+
+    def __post_init__(self):
+        if not isinstance(self.name, str) or not self.name:
+            raise ConfigError(f"clock domain name must be a non-empty string; got {self.name!r}")
+        f = self.freq_hz
+        if isinstance(f, bool) or not isinstance(f, (int, float)) or not math.isfinite(f) or f <= 0:
+            raise ConfigError(
+                f"clock domain '{self.name}': freq_hz must be a positive number; got {f!r}"
+            )
+        if period_fs(f) < 1:
+            raise ConfigError(
+                f"clock domain '{self.name}': freq_hz {f!r} gives a period below 1 fs; "
+                "use at most 1e15 Hz"
+            )
+        check_int(
+            f"clock domain '{self.name}': phase_fs", self.phase_fs, 0, "the first edge's time in fs"
+        )
+
+    @property
+    def period_fs(self) -> int:
+        return period_fs(self.freq_hz)
+
+    def edge_fs(self, k: int) -> int:
+        """The instant of edge ``k``."""
+        return self.phase_fs + k * self.period_fs
+
+    def first_edge_after(self, t_fs: int) -> int:
+        """Index of the first edge strictly after the instant ``t_fs``."""
+        if t_fs < self.phase_fs:
+            return 0
+        return (t_fs - self.phase_fs) // self.period_fs + 1

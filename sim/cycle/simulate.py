@@ -1,8 +1,8 @@
 """One frame of the cycle model on the engine ``sim.engine`` selects -- the one place that
 decides which engine runs.
 
-- ``readable``: the reference kernel (:mod:`sim.cycle.chip`), edge by edge, ~1e5 cycles/s;
-- ``fast``: the compiled engine (:mod:`sim.cycle.engine`), millions of cycles/s: completing
+- ``readable``: the reference kernel (:mod:`sim.cycle.readable.chip`), edge by edge, ~1e5 cycles/s;
+- ``fast``: the compiled engine (:mod:`sim.cycle.compiled`), millions of cycles/s: completing
   runs, traces and runs that stop, with the readable kernel's words, report, statistics,
   traces and messages;
 - ``auto`` (the default): the compiled engine, unless the run asks for what only the readable
@@ -13,15 +13,16 @@ decides which engine runs.
 The first frame after an install or an edit compiles the numba kernels it uses; one line on
 stderr says so when the first one starts, and one more how long it took
 (:func:`sim.progress.compile_notice`). The readable kernel draws a progress bar on stderr when
-it is a terminal. A run that stops raises its :class:`~sim.cycle.clock.RunStopped` with
+it is a terminal. A run that stops raises its :class:`~sim.cycle.contract.RunStopped` with
 ``engine`` set (and, with ``window``, the trace up to the stop).
 """
 
 from __future__ import annotations
 
-from stereosim.sim.cycle.chip import FrameResult, run_readable
-from stereosim.sim.cycle.clock import RunStopped
-from stereosim.sim.cycle.engine.run import run_compiled
+from stereosim.sim.cycle.contract import FrameResult
+from stereosim.sim.cycle.readable.chip import run_readable
+from stereosim.sim.cycle.contract import RunStopped
+from stereosim.sim.cycle.compiled.run import run_compiled
 from stereosim.sim.cycle.plan import ChipPlan
 from stereosim.sim.errors import ConfigError
 from stereosim.sim.progress import compile_notice

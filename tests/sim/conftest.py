@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from stereosim.sim.cycle.chip import run_readable
-from stereosim.sim.cycle.engine.run import run_compiled
+from stereosim.sim.cycle.readable.chip import run_readable
+from stereosim.sim.cycle.compiled.run import run_compiled
 
 
 @pytest.fixture

@@ -11,12 +11,12 @@ import dataclasses
 import numpy as np
 import pytest
 
-import stereosim.sim.cycle.blocks.nna as nna_block
-import stereosim.sim.cycle.blocks.sva as sva_block
+import stereosim.sim.cycle.readable.blocks.nna as nna_block
+import stereosim.sim.cycle.readable.blocks.sva as sva_block
 from stereosim.sim.config import load_config
 from stereosim.sim.cycle.buffers import BufferOverflow, window_peaks
-from stereosim.sim.cycle.chip import run_readable
-from stereosim.sim.cycle.engine.run import run_compiled
+from stereosim.sim.cycle.readable.chip import run_readable
+from stereosim.sim.cycle.compiled.run import run_compiled
 from stereosim.sim.cycle.plan import build_plan
 
 CNN = {"nna.descriptor": "cnn", "sva.disparities": 16}  # the NNA (9 cycles) is the bottleneck

@@ -11,7 +11,7 @@ import pytest
 
 from stereosim.sim.config import load_config
 from stereosim.sim.cycle.energy import DEFAULT_TABLE, energy_report, energy_table, popcount_bit_adds
-from stereosim.sim.cycle.engine.run import run_compiled
+from stereosim.sim.cycle.compiled.run import run_compiled
 from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.errors import ConfigError
 

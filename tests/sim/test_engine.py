@@ -1,4 +1,4 @@
-"""The compiled engine (sim/cycle/engine) against the readable kernel (sim/cycle/chip.py): same
+"""The compiled engine (sim/cycle/engine) against the readable kernel (sim/cycle/readable/chip.py): same
 words, same cycle report, same kernel statistics, same errors with the same state of every FIFO
 and block."""
 
@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 
 from stereosim.sim.config import load_config
-from stereosim.sim.cycle.chip import run_cycle
-from stereosim.sim.cycle.clock import BudgetExceeded, DeadlockError
-from stereosim.sim.cycle.engine.run import run_compiled
+from stereosim.sim.cycle.readable.chip import run_cycle
+from stereosim.sim.cycle.contract import BudgetExceeded, DeadlockError
+from stereosim.sim.cycle.compiled.run import run_compiled
 from stereosim.sim.cycle.plan import build_plan
-from stereosim.sim.cycle.stops import CameraOverflow
+from stereosim.sim.cycle.contract import CameraOverflow
 
 
 def run_cycle_fast(left, right, cfg, sink_stall=None):
@@ -115,7 +115,7 @@ def test_deadlock_is_reported_with_the_same_message():
 
 
 def test_cycle_budget_is_enforced_with_the_same_message():
-    """Without a watchdog a sink that never pops runs into the cycle budget of sim.cycle.chip (equal
+    """Without a watchdog a sink that never pops runs into the cycle budget of sim.cycle.readable.chip (equal
     clocks: one step per cycle keeps the readable run short)."""
     left, right = _pair(3, 20, seed=10)
     cfg = load_config(overrides={**SAME_CLOCKS, **CENSUS, "sim.watchdog_cycles": 1 << 40})

@@ -11,8 +11,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from stereosim.sim.config import load_config
-from stereosim.sim.cycle.chip import run_readable
-from stereosim.sim.cycle.engine.run import run_compiled
+from stereosim.sim.cycle.readable.chip import run_readable
+from stereosim.sim.cycle.compiled.run import run_compiled
 from stereosim.sim.cycle.frames import functional_words
 from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.cycle.rules import (
@@ -22,7 +22,7 @@ from stereosim.sim.cycle.rules import (
     camera_in_lines,
     camera_pixels_streamed,
 )
-from stereosim.sim.cycle.stops import CameraOverflow
+from stereosim.sim.cycle.contract import CameraOverflow
 from stereosim.sim.errors import ConfigError
 
 H, W = 16, 40

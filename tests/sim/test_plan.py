@@ -11,7 +11,7 @@ from stereosim.sim.config import load_config
 from stereosim.sim.cycle.estimate import estimate
 from stereosim.sim.cycle.plan import build_plan, sram_bits
 from stereosim.sim.cycle.simulate import simulate
-from stereosim.sim.cycle.stops import CameraOverflow
+from stereosim.sim.cycle.contract import CameraOverflow
 from stereosim.sim.errors import ConfigError
 from stereosim.sim.io import encode_png
 

@@ -16,8 +16,8 @@ from tqdm import tqdm
 from stereosim.quant.quantizer import FloatModel, QuantizerConfig, quantize
 from stereosim.sim import progress
 from stereosim.sim.config import load_config
-from stereosim.sim.cycle import kernel
-from stereosim.sim.cycle.chip import run_cycle
+from stereosim.sim.cycle.readable import kernel
+from stereosim.sim.cycle.readable.chip import run_cycle
 from stereosim.sim.progress import (
     COMPILE_MESSAGE,
     compile_notice,

@@ -16,8 +16,8 @@ from stereosim.sim import api, progress
 from stereosim.sim.api import run, run_stream
 from stereosim.sim.cli import main
 from stereosim.sim.config import load_config
-from stereosim.sim.cycle.chip import run_readable
-from stereosim.sim.cycle.engine.run import run_compiled
+from stereosim.sim.cycle.readable.chip import run_readable
+from stereosim.sim.cycle.compiled.run import run_compiled
 from stereosim.sim.cycle.frames import MAX_FRAMES, FrameSupply, check_frame_count
 from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.errors import ConfigError, InputError

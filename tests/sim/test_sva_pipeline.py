@@ -1,4 +1,4 @@
-"""The SVA as a lock-step pipeline (sim/cycle/blocks/sva.py, sim/cycle/engine/pipeline.py):
+"""The SVA as a lock-step pipeline (sim/cycle/readable/blocks/sva.py, sim/cycle/compiled/pipeline.py):
 a stall freezes every word in flight and the next issue with them, its stages' words and status
 are traced, and a stage that needs more SRAM accesses than its ports allow shows in the trace.
 Cycles are checked against the rules written out by hand here."""
@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from stereosim.sim.config import load_config
-from stereosim.sim.cycle.chip import run_cycle, run_readable
-from stereosim.sim.cycle.engine.run import run_compiled
+from stereosim.sim.cycle.readable.chip import run_cycle, run_readable
+from stereosim.sim.cycle.compiled.run import run_compiled
 from stereosim.sim.cycle.plan import build_plan
 from stereosim.traces.log import changes_of
 

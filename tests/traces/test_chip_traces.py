@@ -13,9 +13,9 @@ import vcdvcd
 
 from stereosim.sim.cli import main
 from stereosim.sim.config import load_config
-from stereosim.sim.cycle.chip import build_chip
-from stereosim.sim.cycle.clock import BudgetExceeded
-from stereosim.sim.cycle.engine.run import run_compiled
+from stereosim.sim.cycle.readable.chip import build_chip
+from stereosim.sim.cycle.contract import BudgetExceeded
+from stereosim.sim.cycle.compiled.run import run_compiled
 from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.io import read_pfm
 from stereosim.sim.tracing import TraceRequest, run_traced, write_traces

@@ -12,7 +12,7 @@ import vcdvcd
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from stereosim.sim.cycle.clock import ClockDomain
+from stereosim.sim.cycle.rules import ClockDomain
 from stereosim.sim.errors import ConfigError
 from stereosim.traces.log import Clock, Signal, TraceLog, select, window
 from stereosim.traces.synthetic import synthetic_log

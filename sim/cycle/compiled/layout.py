@@ -17,7 +17,7 @@ Event streams (the cycle of every beat of a FIFO's producer or consumer, in beat
   cycles, not a cycle -- so the replay's cursors skip it);
 - ``R``: through the DRAM channel, the first source cycle the stereo pair's read burst r is in
   the chip; ``W``: the first sink cycle write-back burst u has left the write buffer
-  (:class:`~sim.cycle.blocks.sources.DramChannel`; empty without the channel).
+  (:class:`~sim.cycle.readable.blocks.sources.DramChannel`; empty without the channel).
 
 The SVA's stages (``stages``, in stream order): offset and latency in ticks, the words their
 registers hold, and what the walker counts (the most words held, busy and blocked cycles; the
@@ -45,7 +45,7 @@ F_SRC, F_MERGE, F_TO_SVA, F_SINK = range(4)
 K_MEMORY, K_CAMERA, K_NNA, K_MERGE, K_SVA, K_SINK = range(6)
 KIND_CODES = {"memory": K_MEMORY, "camera": K_CAMERA, "nna": K_NNA, "merge": K_MERGE,
               "sva": K_SVA, "sink": K_SINK}
-# activities, in the order of sim.cycle.clock.ACTIVITIES
+# activities, in the order of sim.cycle.contract.ACTIVITIES
 A_BUSY, A_STARVED, A_BLOCKED, A_IDLE = range(4)
 # run outcome
 END_DONE, END_STUCK, END_CAP, END_OVERFLOW, END_WATCHDOG = range(5)

@@ -20,21 +20,21 @@ from numba import njit
 
 from stereosim.nna.descriptor import compute_descriptor
 from stereosim.sim.cycle.buffers import buffer_report
-from stereosim.sim.cycle.chip import FrameResult, trace_clocks, trace_signals
-from stereosim.sim.cycle.clock import (
+from stereosim.sim.cycle.contract import FrameResult, trace_clocks, trace_signals
+from stereosim.sim.cycle.contract import (
     ACTIVITIES,
-    BudgetExceeded,
-    DeadlockError,
-    RunStopped,
     activity_counts,
     budget_message,
+    BudgetExceeded,
     count_instants,
+    DeadlockError,
     fifo_counts,
+    RunStopped,
     stop_message,
     watchdog_message,
 )
 from stereosim.sim.cycle.rules import camera_busy_cycles, camera_frame_start, seen_from
-from stereosim.sim.cycle.engine.layout import (
+from stereosim.sim.cycle.compiled.layout import (
     END_DONE,
     END_OVERFLOW,
     ERR_GAPS,
@@ -45,7 +45,7 @@ from stereosim.sim.cycle.engine.layout import (
     ring_capacity,
     serialise,
 )
-from stereosim.sim.cycle.engine.replay import (
+from stereosim.sim.cycle.compiled.replay import (
     DRAM,
     FRAME_BUFFERS,
     block_status,
@@ -55,17 +55,17 @@ from stereosim.sim.cycle.engine.replay import (
     record_window,
     sample,
 )
-from stereosim.sim.cycle.engine.replay import fifo_counts as fifo_state
-from stereosim.sim.cycle.engine.reads import decide_until, note_source_wait
-from stereosim.sim.cycle.engine.streams import run_pass
-from stereosim.sim.cycle.engine.walkers import finish_fifos, note_camera, pop_cycle
+from stereosim.sim.cycle.compiled.replay import fifo_counts as fifo_state
+from stereosim.sim.cycle.compiled.reads import decide_until, note_source_wait
+from stereosim.sim.cycle.compiled.streams import run_pass
+from stereosim.sim.cycle.compiled.walkers import finish_fifos, note_camera, pop_cycle
 from stereosim.sim.cycle.frames import FrameSupply, camera_frames
 from stereosim.sim.cycle.plan import ChipPlan
 from stereosim.sim.cycle.report import cycle_report
-from stereosim.sim.cycle.stops import (
+from stereosim.sim.cycle.contract import (
     CameraOverflow,
-    FrameBufferFull,
     frame_buffer_message,
+    FrameBufferFull,
     overflow_message,
 )
 from stereosim.sva.pipeline import sva_stream
@@ -474,7 +474,7 @@ def run_compiled(plan: ChipPlan, left, right=None, *, sink_stall=None,
     frame). ``timings`` (a dict) receives the CPU seconds of the event streams and statistics
     (``engine_s``), the NNA's descriptors (``nna_kernels_s``) and the SVA's stream
     (``sva_kernels_s``). A run that stops raises the readable kernel's
-    :class:`~sim.cycle.clock.RunStopped`, with the row instants reached by then
+    :class:`~sim.cycle.contract.RunStopped`, with the row instants reached by then
     (``row_times``) and the trace of ``window`` up to the stop (``trace``,
     ``outputs_in_window``)."""
     supply = FrameSupply.of(left, right)

@@ -1,7 +1,7 @@
 """Reading the event rings and noting busy instants: the few helpers every loop of the compiled
 engine shares (:mod:`.streams` writes the rings, :mod:`.walkers` follows them).
 
-They take arrays and integers, never the :class:`~sim.cycle.engine.layout.Net`: unpacking it per
+They take arrays and integers, never the :class:`~sim.cycle.compiled.layout.Net`: unpacking it per
 call costs more than the work (numba then keeps a stream's state in registers and emits no
 reference counting in the loops).
 """

@@ -11,7 +11,7 @@ them (docs/compiled-engine.md, "statistics"):
   domains, of the producer's (the largest occupancy it sees, its cycles full);
 - **busy instants** for the watchdog: each block's gaps between busy instants longer than the
   watchdog's time are kept (``Net.gaps``); the run's quiet stretches are where every block has
-  one (:func:`sim.cycle.engine.run.first_quiet`).
+  one (:func:`sim.cycle.compiled.run.first_quiet`).
 
 A walker settles a beat only once every event it needs is known (and no unknown event can come
 before one it processes), so it runs behind the streams and finishes when they do. Like the
@@ -22,7 +22,7 @@ from __future__ import annotations
 
 from numba import njit
 
-from stereosim.sim.cycle.engine.layout import (
+from stereosim.sim.cycle.compiled.layout import (
     ERR_GAPS,
     ERR_RING,
     F_MERGE,
@@ -32,8 +32,8 @@ from stereosim.sim.cycle.engine.layout import (
     K_SVA,
     S_T,
 )
-from stereosim.sim.cycle.engine.pipeline import arrival, cycle_of, issued_before, words_between
-from stereosim.sim.cycle.engine.ring import busy, rd, view
+from stereosim.sim.cycle.compiled.pipeline import arrival, cycle_of, issued_before, words_between
+from stereosim.sim.cycle.compiled.ring import busy, rd, view
 from stereosim.sim.cycle.rules import (
     camera_frame_start,
     nna_last_input_row,
@@ -84,7 +84,7 @@ def _pops_in(ring, pops, ptr, lo, hi, long, gaps, state):
     """Count the pops in cycles [lo, hi) (skipping those before lo); inside an interval longer
     than the watchdog's time (``long``) each is a busy instant to note. ``pops`` = (ring offset,
     mask, known events) of the pop stream; ``state`` = (block, n_gaps, last busy, period,
-    watchdog) of :func:`~sim.cycle.engine.ring.busy`. Returns (pointer past them, count,
+    watchdog) of :func:`~sim.cycle.compiled.ring.busy`. Returns (pointer past them, count,
     n_gaps, last busy)."""
     off, mask, limit = pops
     blk, n_gaps, last_busy, per, g = state
@@ -203,7 +203,7 @@ def walk_sva(net, blk, p_s, final):
     """Settle the SVA's activity for the words whose every event is known (``final``: the
     streams have stopped; a pending word waits for its row, the pipeline, then a slot). Word j,
     the next to leave, makes the block starved until its row is ready (unless a pair is popped),
-    busy until it reaches the output register (:func:`~sim.cycle.engine.pipeline.arrival`:
+    busy until it reaches the output register (:func:`~sim.cycle.compiled.pipeline.arrival`:
     the pipeline is working or waiting out the II), then blocked -- the pipeline stalled --
     until it is pushed. Gaps in its busy instants can only lie in a wait for a row or for a
     slot. The stages' counts follow (:func:`_walk_stages`)."""

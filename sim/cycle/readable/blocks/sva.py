@@ -50,7 +50,9 @@ from collections import deque
 import numpy as np
 
 from stereosim.sim.config import SvaConfig
-from stereosim.sim.cycle.clock import ACTIVITIES, Block, ClockDomain
+from stereosim.sim.cycle.contract import ACTIVITIES
+from stereosim.sim.cycle.readable.clock import Block
+from stereosim.sim.cycle.rules import ClockDomain
 from stereosim.sim.cycle.plan import STATUS_CODES, BlockPlan
 from stereosim.sim.cycle.rules import (
     frame_row,

@@ -1,5 +1,5 @@
 """The readable kernel's chip: the plan instantiated as clocked blocks and FIFOs, run edge by
-edge on the two-phase kernel (:mod:`sim.cycle.kernel`). It is the specification every other
+edge on the two-phase kernel (:mod:`sim.cycle.readable.kernel`). It is the specification every other
 engine is held to (docs/clock-kernel.md, docs/architecture.md).
 
 :func:`run_cycle` simulates one stereo frame and returns the output words with the cycle report
@@ -10,37 +10,39 @@ and can record a trace window.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
 
 import numpy as np
 
 from stereosim.sim.config import ChipConfig
-from stereosim.sim.cycle.blocks.nna import Merge, NnaSubmodule
+from stereosim.sim.cycle.readable.blocks.nna import Merge, NnaSubmodule
 from stereosim.sim.cycle.buffers import buffer_report, windows_of
-from stereosim.sim.cycle.blocks.sources import (
+from stereosim.sim.cycle.readable.blocks.sources import (
     CameraSource,
     DramChannel,
     FrameBuffers,
     MemorySource,
     Sink,
 )
-from stereosim.sim.cycle.blocks.sva import SvaBlock
-from stereosim.sim.cycle.clock import RunStopped
-from stereosim.sim.cycle.fifo import Fifo
+from stereosim.sim.cycle.readable.blocks.sva import SvaBlock
+from stereosim.sim.cycle.readable.fifo import Fifo
 from stereosim.sim.cycle.frames import FrameSupply, camera_frames
-from stereosim.sim.cycle.kernel import Simulator
+from stereosim.sim.cycle.readable.kernel import Simulator
 from stereosim.sim.cycle.plan import ChipPlan, build_plan
 from stereosim.sim.cycle.report import cycle_report
 from stereosim.sim.cycle.rules import camera_frame_start, sink_may_pop
-from stereosim.sim.cycle.stops import (
+from stereosim.sim.cycle.contract import (
     CameraOverflow,
     FrameBufferFull,
+    FrameResult,
+    RunStopped,
     frame_buffer_message,
     overflow_message,
+    trace_clocks,
+    trace_signals,
 )
 from stereosim.sim.errors import UserError
 from stereosim.sim.progress import poller, progress_bar
-from stereosim.traces.log import Clock, Signal, TraceLog, TraceRecorder
+from stereosim.traces.log import TraceRecorder
 
 
 class Chip:
@@ -149,7 +151,7 @@ def build_chip(left, right, cfg: ChipConfig | ChipPlan, *, order_seed=None, sink
     """The readable chip of ``cfg`` (or of a plan) for this pair -- or stream of pairs: (N, H,
     W) stacks or a :class:`~sim.cycle.frames.FrameSupply`, whose count a plan must have.
     ``on_frame(f, words)`` receives each frame's output words as the sink completes it;
-    ``trace`` (a :class:`~sim.cycle.clock.Simulator` trace hook) sees no step at or after
+    ``trace`` (a :class:`~sim.cycle.readable.kernel.Simulator` trace hook) sees no step at or after
     ``trace_end_fs``."""
     supply = FrameSupply.of(left, right)
     plan = cfg if isinstance(cfg, ChipPlan) else build_plan(cfg, supply.shape, supply.count)
@@ -247,31 +249,6 @@ def _run(chip: Chip) -> tuple[dict, dict]:
 # ---- the dispatcher's entry: the same frame, optionally with a trace window ---------------------
 
 
-@dataclass
-class FrameResult:
-    """What a cycle engine returns for one frame or a stream: the (last) frame's output words,
-    the cycle report, the kernel statistics, the first frame's row instants
-    (:meth:`Chip.row_times`), each frame's first-input and last-output instants
-    (:meth:`Chip.frame_times`) and, for a traced run, the trace of the window with the words
-    the SVA pushed in it."""
-
-    words: np.ndarray
-    report: dict
-    stats: dict
-    row_times: np.ndarray
-    frame_times: np.ndarray | None = None
-    trace: TraceLog | None = None
-    outputs_in_window: int = 0
-
-
-def trace_signals(plan: ChipPlan) -> list[Signal]:
-    return [Signal(s.path, s.width, s.domain) for s in plan.signals]
-
-
-def trace_clocks(plan: ChipPlan) -> list[Clock]:
-    return [Clock(d.name, d.period_fs, 0) for d in plan.domains.values()]
-
-
 class _WindowCounter:
     """A trace hook around a recorder that also counts the words the SVA pushed into the
     sink's FIFO during the window (after the steps before it, and up to its end)."""
@@ -299,7 +276,7 @@ def run_readable(plan: ChipPlan, left, right=None, *, sink_stall=None,
     end_fs) records every signal of the plan in it (the trace ends one femtosecond after the
     run's last step at the latest). ``trace`` is None when the window starts after the run
     ended. ``on_frame(f, words)`` receives each frame's words as it completes. A run that
-    stops raises its :class:`~sim.cycle.clock.RunStopped` with the row instants reached by
+    stops raises its :class:`~sim.cycle.contract.RunStopped` with the row instants reached by
     then (``row_times``) and the trace of the window up to the stop (``trace``,
     ``outputs_in_window``)."""
     hook = None

@@ -13,23 +13,23 @@ lists the recurrences; the rules themselves are :mod:`sim.cycle.rules`):
 - merge move ``m = max(m_prev + 1, visible(e_owner[j]), free)``;
 - SVA pop ``p[j] = max(p[j-1] + 1, visible(left[j]), visible(right[j]), issued(window) + 1)``;
   its lock-step pipeline's issue ticks ``t[j]`` and pushes ``o[j] = max(arrival(j), q[j -
-  depth] + 1)`` (:mod:`sim.cycle.engine.pipeline`); sink pop ``q[j]`` the first allowed cycle
+  depth] + 1)`` (:mod:`sim.cycle.compiled.pipeline`); sink pop ``q[j]`` the first allowed cycle
   from ``max(q[j-1] + 1, visible(o[j]))``.
 
 Each event depends on earlier events of its own stream and on events of other streams that are
 strictly earlier in time, so :func:`run_pass` advances the streams in turn, each as far as what
 it needs is known, until the sink has the frame or no stream can move (a deadlock, or the cap:
 events at instants from ``prm.cap_fs`` on are not computed). Events live in rings
-(:mod:`sim.cycle.engine.layout`); a read of an event its ring no longer holds sets
+(:mod:`sim.cycle.compiled.layout`); a read of an event its ring no longer holds sets
 ``prm.error`` and the caller reruns with larger rings.
 
 The statistics the readable kernel accumulates edge by edge are taken on the way: here the
 sources', the merges' and the FIFOs' empty counts and the busy instants of the blocks whose
 events are all they do; the MAC arrays', the SVA's and every FIFO's occupancy walk in
-:mod:`sim.cycle.engine.walkers`, run behind the streams.
+:mod:`sim.cycle.compiled.walkers`, run behind the streams.
 
 (Speed: the helpers take arrays and integers, never the whole
-:class:`~sim.cycle.engine.layout.Net`, and the loops read the rings through local offsets and
+:class:`~sim.cycle.compiled.layout.Net`, and the loops read the rings through local offsets and
 masks: numba then keeps a stream's state in registers and emits no reference counting in the
 loops, ~70 times faster than the first version.)
 """
@@ -39,7 +39,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from stereosim.sim.cycle.engine.layout import (
+from stereosim.sim.cycle.compiled.layout import (
     END_CAP,
     END_DONE,
     END_OVERFLOW,
@@ -48,10 +48,10 @@ from stereosim.sim.cycle.engine.layout import (
     ERR_RING,
     INF,
 )
-from stereosim.sim.cycle.engine.pipeline import advance_sva_out_and_sink
-from stereosim.sim.cycle.engine.reads import decide_frame, reader_first
-from stereosim.sim.cycle.engine.ring import busy, ratio, rd, view
-from stereosim.sim.cycle.engine.walkers import walk_all
+from stereosim.sim.cycle.compiled.pipeline import advance_sva_out_and_sink
+from stereosim.sim.cycle.compiled.reads import decide_frame, reader_first
+from stereosim.sim.cycle.compiled.ring import busy, ratio, rd, view
+from stereosim.sim.cycle.compiled.walkers import walk_all
 from stereosim.sim.cycle.rules import (
     camera_cycle,
     memory_first_cycle,

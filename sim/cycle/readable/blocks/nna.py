@@ -38,7 +38,8 @@ import numpy as np
 
 from stereosim.nna.descriptor import compute_descriptor
 from stereosim.sim.config import NnaConfig
-from stereosim.sim.cycle.clock import Block, ClockDomain
+from stereosim.sim.cycle.readable.clock import Block
+from stereosim.sim.cycle.rules import ClockDomain
 from stereosim.sim.cycle.plan import STATUS_CODES, BlockPlan
 from stereosim.sim.cycle.rules import frame_row, nna_last_input_row, nna_rows_started_before_input
 

@@ -1,6 +1,6 @@
 """The readable scheduler: runs the blocks and FIFOs of a model edge by edge, in two phases.
 
-The rules of time, steps, phases, activity and progress are those of :mod:`sim.cycle.clock`
+The rules of time, steps, phases, activity and progress are those of :mod:`sim.cycle.readable.clock`
 (docs/clock-kernel.md): at each instant with a clock edge every block of every ticking domain
 evaluates from committed state, then everything commits.
 """
@@ -10,18 +10,16 @@ from __future__ import annotations
 import random
 from collections.abc import Callable
 
-from stereosim.sim.cycle.clock import (
-    Block,
-    BudgetExceeded,
-    ClockDomain,
-    DeadlockError,
-    KernelError,
+from stereosim.sim.cycle.contract import (
     budget_message,
-    check_int,
+    BudgetExceeded,
+    DeadlockError,
     stop_message,
     watchdog_message,
 )
-from stereosim.sim.cycle.fifo import Fifo
+from stereosim.sim.cycle.readable.clock import Block, KernelError
+from stereosim.sim.cycle.rules import check_int, ClockDomain
+from stereosim.sim.cycle.readable.fifo import Fifo
 from stereosim.sim.errors import ConfigError
 
 # Steps between two calls of Simulator.run's on_progress (some tens per second).
@@ -160,7 +158,7 @@ class Simulator:
         return fifos, blocks
 
     def stop(self, cls, message: str):
-        """A :class:`~sim.cycle.clock.RunStopped` of class ``cls`` with ``message`` and the
+        """A :class:`~sim.cycle.contract.RunStopped` of class ``cls`` with ``message`` and the
         state after the last executed step (for a stop the model decides, such as a camera's
         overflow)."""
         fifos, blocks = self._state()

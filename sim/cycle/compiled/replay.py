@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from numba import njit
 
-from stereosim.sim.cycle.engine.layout import (
+from stereosim.sim.cycle.compiled.layout import (
     A_BLOCKED,
     A_BUSY,
     A_IDLE,
@@ -29,9 +29,9 @@ from stereosim.sim.cycle.engine.layout import (
     K_SVA,
     S_T,
 )
-from stereosim.sim.cycle.engine.pipeline import arrival, issued_before, words_between
-from stereosim.sim.cycle.engine.ring import rd
-from stereosim.sim.cycle.engine.walkers import tile_input_before, tile_output_before
+from stereosim.sim.cycle.compiled.pipeline import arrival, issued_before, words_between
+from stereosim.sim.cycle.compiled.ring import rd
+from stereosim.sim.cycle.compiled.walkers import tile_input_before, tile_output_before
 from stereosim.sim.cycle.rules import (
     burst_of,
     camera_cycle,

@@ -23,7 +23,9 @@ from __future__ import annotations
 
 from collections import deque
 
-from stereosim.sim.cycle.clock import ClockDomain, KernelError, check_int, fifo_counts
+from stereosim.sim.cycle.contract import fifo_counts
+from stereosim.sim.cycle.readable.clock import KernelError
+from stereosim.sim.cycle.rules import check_int, ClockDomain
 from stereosim.sim.cycle.rules import fifo_edges
 from stereosim.sim.errors import ConfigError
 

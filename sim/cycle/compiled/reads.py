@@ -1,6 +1,6 @@
 """What the memory sources read: a camera's frame buffers and the DRAM channel, in the
-compiled engine (the readable kernel's :class:`~sim.cycle.blocks.sources.FrameBuffers` and
-:class:`~sim.cycle.blocks.sources.DramChannel`; the rules are :mod:`sim.cycle.rules`).
+compiled engine (the readable kernel's :class:`~sim.cycle.readable.blocks.sources.FrameBuffers` and
+:class:`~sim.cycle.readable.blocks.sources.DramChannel`; the rules are :mod:`sim.cycle.rules`).
 
 - which camera frame the stream's g-th frame is (:func:`decide_frame`: a frame is taken at its
   start when its pair's buffer is free, else dropped or the run stops);
@@ -14,8 +14,8 @@ from __future__ import annotations
 
 from numba import njit
 
-from stereosim.sim.cycle.engine.layout import END_OVERFLOW, INF, K_MEMORY
-from stereosim.sim.cycle.engine.ring import busy, ratio
+from stereosim.sim.cycle.compiled.layout import END_OVERFLOW, INF, K_MEMORY
+from stereosim.sim.cycle.compiled.ring import busy, ratio
 from stereosim.sim.cycle.rules import (
     burst_last,
     burst_of,
@@ -94,7 +94,7 @@ def fb_first_cycle(net, g, x, y, per_src, rat):
 def dram_ready(net, k, own_side, own_count):
     """(cycle, ok, ring error): the first source cycle pixel k may leave through the DRAM
     channel -- its read burst's R event, computed here for the burst after the last known
-    (:class:`~sim.cycle.blocks.sources.DramChannel`: requested when both sources sent the last
+    (:class:`~sim.cycle.readable.blocks.sources.DramChannel`: requested when both sources sent the last
     pixel of the burst ``prefetch`` before, and a camera wrote the burst's last pixel); not ok
     while a push it needs is not known (``own_count``: the pushes ``own_side`` knows)."""
     prm = net.prm[0]

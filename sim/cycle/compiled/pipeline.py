@@ -1,6 +1,6 @@
 """The SVA's lock-step pipeline on the event streams: when each word is issued, reaches the
 output register and is pushed, found in closed form from the readable kernel's rules
-(:mod:`sim.cycle.rules`, :class:`sim.cycle.blocks.sva.SvaBlock`).
+(:mod:`sim.cycle.rules`, :class:`sim.cycle.readable.blocks.sva.SvaBlock`).
 
 The pipeline's tick counts the cycles in which it advanced; it stalls only while the word in
 its output register waits for a free slot. So between one push and the next word's arrival it
@@ -26,8 +26,8 @@ from __future__ import annotations
 
 from numba import njit
 
-from stereosim.sim.cycle.engine.layout import ERR_GAPS, ERR_RING, INF
-from stereosim.sim.cycle.engine.ring import busy, rd, view
+from stereosim.sim.cycle.compiled.layout import ERR_GAPS, ERR_RING, INF
+from stereosim.sim.cycle.compiled.ring import busy, rd, view
 from stereosim.sim.cycle.rules import (
     burst_of,
     dram_slot,

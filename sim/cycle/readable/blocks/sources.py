@@ -15,7 +15,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from stereosim.sim.cycle.clock import Block, ClockDomain
+from stereosim.sim.cycle.readable.clock import Block
+from stereosim.sim.cycle.rules import ClockDomain
 from stereosim.sim.cycle.plan import STATUS_CODES, BlockPlan, DramPlan
 from stereosim.sim.cycle.rules import (
     burst_last,
@@ -275,7 +276,7 @@ class CameraSource(_FrameSource):
 
     - Straight into the NNA (no ``buffers``): each pixel is pushed into the source FIFOs as it
       arrives; a full FIFO when a pixel is due is recorded in ``overflow`` and the chip stops
-      the run after the step (:class:`~sim.cycle.stops.CameraOverflow`).
+      the run after the step (:class:`~sim.cycle.contract.CameraOverflow`).
     - Into frame buffers in DRAM (:class:`FrameBuffers`): the left camera decides at each
       frame's first pixel whether the pair takes the frame; a frame that finds no free buffer
       is dropped (``drop_frame``) or stops the run (``fb_overflow``). The memory sources read

@@ -1,2 +1,2 @@
 """The compiled cycle engine: the readable kernel's results from the event streams of a frame
-(docs/compiled-engine.md). :func:`sim.cycle.engine.run.run_compiled` is its entry."""
+(docs/compiled-engine.md). :func:`sim.cycle.compiled.run.run_compiled` is its entry."""
