@@ -1,7 +1,7 @@
 """What the SVA's stages imply for the rows it must hold and the width of its output word.
 
-Facts of the stage, used by the chip plan (``sim.cycle.plan``), the clocked SVA block and the
-analytic estimate alike.
+Facts of the stage, used by the chip plan (``sim.cycle.plan``), the functional pipeline
+(:mod:`sva.pipeline`), the clocked SVA block and the analytic estimate alike.
 """
 
 from __future__ import annotations
@@ -9,6 +9,19 @@ from __future__ import annotations
 import math
 
 from stereosim.sim.config import SvaConfig
+from stereosim.sim.errors import ConfigError, UserError
+
+
+def check_disparity_range(cfg: SvaConfig, width: int, error: type[UserError] = ConfigError
+                          ) -> None:
+    """Refuse a disparity range D that is not below the image ``width`` (``error``, one line):
+    every disparity d in [0, D) must leave a column of the right view to compare with. The
+    rule of the chip plan, the SVA's entry points and the tools that size a frame."""
+    if cfg.disparities >= width:
+        raise error(
+            f"sva.disparities={cfg.disparities} is not smaller than the image width {width}: "
+            "use a smaller disparity range (--disparities) or a wider image"
+        )
 
 
 def box_radius(cfg: SvaConfig) -> int:

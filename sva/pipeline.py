@@ -26,6 +26,7 @@ from stereosim.sva.cost import (
     hamming_cost_ref,
     reverse_row,
 )
+from stereosim.sva.geometry import box_radius, check_disparity_range, median_radius
 from stereosim.sva.lr_check import (
     diagonal_finish,
     diagonal_start,
@@ -41,24 +42,24 @@ from stereosim.sva.sgm import new_path_buffers, sgm, sgm_params, sgm_pixel, sgm_
 from stereosim.sva.wta import disparity_index, subpixel_mode_code, wta, wta_pixel, wta_ref
 
 
-def check_inputs(desc_l, desc_r, img_l, cfg: SvaConfig, bits: int) -> None:
+def check_inputs(desc_l, desc_r, img_l, cfg: SvaConfig, bits: int) -> SvaConfig:
+    """The checks of the SVA's entry points before a kernel sees anything: the descriptor pair
+    and the left image alike in shape, D below the width, the descriptor's bits, and the
+    section's values (returned checked; a section of a checked configuration is trusted)."""
     check_descriptor_pair(desc_l, desc_r)
     h, w = desc_l.shape
     if img_l.shape != (h, w) or img_l.dtype != np.uint8:
         raise InputError(f"the left grey image must be uint8 {h}x{w} like the descriptors")
-    if cfg.disparities >= w:
-        raise InputError(
-            f"disparity range D={cfg.disparities} is not smaller than the image width {w}: "
-            f"use a wider image or a smaller --disparities"
-        )
+    cfg = check_section(cfg, "sva.")
+    check_disparity_range(cfg, w, InputError)
     if not 1 <= bits <= 64:
         raise InputError(f"descriptor width must be 1..64 bits, got {bits}")
-    check_section(cfg, "sva.")  # every value in its declared range, however cfg was built
+    return cfg
 
 
 def sva_ref(desc_l, desc_r, img_l, cfg: SvaConfig, bits: int) -> np.ndarray:
     """Output words (H, W) int32 (-1 invalid) from the naive references, stage by stage."""
-    check_inputs(desc_l, desc_r, img_l, cfg, bits)
+    cfg = check_inputs(desc_l, desc_r, img_l, cfg, bits)
     cost = hamming_cost_ref(desc_l, desc_r, cfg.disparities, bits)
     agg = box_filter_ref(cost, cfg.box_size, cfg.cost_bits)
     s = sgm_ref(
@@ -167,7 +168,7 @@ class SvaStream:
     """
 
     def __init__(self, desc_l, desc_r, img_l, cfg: SvaConfig, bits: int):
-        check_inputs(desc_l, desc_r, img_l, cfg, bits)
+        cfg = check_inputs(desc_l, desc_r, img_l, cfg, bits)
         h, w = desc_l.shape
         dn = cfg.disparities
         self.cfg = cfg
@@ -188,7 +189,8 @@ class SvaStream:
             new_diagonal_buffers(w, dn),
         )
         self._colsum = np.zeros((w, dn), np.uint16)
-        self._m = cfg.median // 2 if cfg.median > 1 else 0
+        self._r = box_radius(cfg)
+        self._m = median_radius(cfg)
         self.q = np.empty((h, w), np.int32)
         # the words after WTA, sub-pixel and the LR check: with the median off they are final
         # and go to q; with it on, to a ring that keeps the rows the median still needs
@@ -199,7 +201,7 @@ class SvaStream:
 
     def advance(self, rows_in: int) -> int:
         h = self.height
-        r = self.cfg.box_size // 2
+        r = self._r
         m = self._m
         # output row y is computable once rows up to min(y + r, h - 1) are in
         stop = h if rows_in >= h else max(0, rows_in - r)
@@ -238,7 +240,7 @@ def sva_cost_volume(cost, img_l, cfg: SvaConfig) -> np.ndarray:
     ``benchmarks/ablation.py``). Given the Hamming volume of two descriptors it equals
     :func:`sva_stream` bit for bit (tested).
     """
-    check_section(cfg, "sva.")
+    cfg = check_section(cfg, "sva.")
     if not isinstance(cost, np.ndarray) or cost.ndim != 3 or cost.dtype != np.uint8:
         raise InputError("the cost volume must be a uint8 array (H, W, D)")
     h, w, dn = cost.shape

@@ -1,23 +1,28 @@
 """A synthetic but realistic trace log, for the writer benchmark, tests and examples.
 
-It mimics what the engines record for a stereo frame: the three clocks of the chip (camera
-74.25 MHz, NNA 460 MHz, SVA 465 MHz, periods rounded as :class:`sim.cycle.rules.ClockDomain` does), two
-cameras, two NNA instances of two submodules each, the FIFOs between them and the SVA stages, with
-the signals an architect looks at -- ``status`` (0 idle, 1 busy, 2 starved, 3 blocked), valid and
-ready bits, row and column counters, line-buffer fill, FIFO occupancy / push / pop / full / empty,
-32-bit descriptors that change every cycle, the disparity out and LR-check rejects. Each signal
-changes on rising edges of its domain's clock with a fixed probability per cycle; values are drawn
-from a seeded generator, so a (cycles, seed) pair always gives the same log.
+It mimics what the engines record for a stereo frame: the three clocks of the chip at their
+configured defaults (``clocks.camera_mhz``, ``nna_mhz``, ``sva_mhz``; periods rounded as
+:class:`sim.cycle.rules.ClockDomain` does), two cameras, two NNA instances of two submodules
+each, the FIFOs between them and the SVA stages, with the signals an architect looks at --
+``status`` (0 idle, 1 busy, 2 starved, 3 blocked), valid and ready bits, row and column
+counters, line-buffer fill, FIFO occupancy / push / pop / full / empty, 32-bit descriptors that
+change every cycle, the disparity out and LR-check rejects. Each signal changes on rising edges
+of its domain's clock with a fixed probability per cycle; values are drawn from a seeded
+generator, so a (cycles, seed) pair always gives the same log.
 """
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
+from stereosim.sim.config import ClockConfig
 from stereosim.sim.cycle.rules import ClockDomain
 from stereosim.traces.log import Clock, Signal, TraceLog
 
-CHIP_CLOCKS_MHZ = {"camera": 74.25, "nna": 460.0, "sva": 465.0}
+# the default clocks of the chip, by domain: clocks.camera_mhz -> "camera", ...
+CHIP_CLOCKS_MHZ = {f.name.removesuffix("_mhz"): f.default for f in dataclasses.fields(ClockConfig)}
 
 # (path, width, domain, kind, changes per cycle)
 _COUNTER, _RANDOM, _TOGGLE, _STATUS, _LEVEL = "counter", "random", "toggle", "status", "level"

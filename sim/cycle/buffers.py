@@ -34,6 +34,7 @@ from __future__ import annotations
 import numpy as np
 
 from stereosim.sim.cycle.plan import ChipPlan
+from stereosim.sva.geometry import box_radius, median_radius
 
 
 class BufferOverflow(RuntimeError):
@@ -54,9 +55,9 @@ def tracked(plan: ChipPlan) -> list[tuple[str, str, int, int, int, int, int, int
     sva = plan.block("sva")
     buf = next(x for x in sva.buffers if x.name == "sva.descriptor_rows")
     s = plan.cfg.sva
-    m = s.median // 2 if s.median > 1 else 0
     h = plan.shape[0]
-    out.append(("sva", buf.name, buf.rows, buf.bits, 2 * len(nna), m - s.box_size // 2, h, h))
+    out.append(("sva", buf.name, buf.rows, buf.bits, 2 * len(nna),
+                median_radius(s) - box_radius(s), h, h))
     return out
 
 

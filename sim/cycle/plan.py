@@ -6,8 +6,11 @@ domain, ports, tile, cycles per item, windows, look-ahead, latency, buffers with
 in bits), the traced signals and the run's cycle budget. The readable kernel instantiates it
 (:mod:`sim.cycle.readable.chip`), the compiled engine serialises it into arrays
 (:mod:`sim.cycle.compiled`), the analytic model walks it (:mod:`sim.cycle.estimate`), and reports
-and traces take their names from it. A derived constant or a topology fact is computed here and
-nowhere else.
+and traces take their names from it. A constant derived from the configuration and the frame
+shape, or a topology fact, is computed here and nowhere else. The keys the configuration works
+out itself when they are left unset -- the SVA's register widths, the descriptor's tuned back
+end -- are filled in where it is loaded (:mod:`sim.config.loader`, so that ``stereosim config
+show`` prints them) and read from it here like any other key.
 
 Topology (the order is the readable kernel's: it fixes the order of FIFOs and blocks in the
 stop messages)::
@@ -37,7 +40,7 @@ from stereosim.nna.geometry import (
     split_frame,
     window_rows,
 )
-from stereosim.sim.config import ChipConfig, check_config
+from stereosim.sim.config import AUTO_BUDGET_FACTOR, ChipConfig, check_config
 from stereosim.sim.cycle.rules import ClockDomain
 from stereosim.sim.cycle.rules import fifo_edges, period_fs
 from stereosim.sim.cycle.stages import (
@@ -49,7 +52,7 @@ from stereosim.sim.cycle.stages import (
     sva_stages,
 )
 from stereosim.sim.errors import ConfigError
-from stereosim.sva.geometry import output_word_bits, row_lookahead
+from stereosim.sva.geometry import check_disparity_range, output_word_bits, row_lookahead
 
 SIDES = ("left", "right")
 STATUS_CODES = {"idle": 0, "busy": 1, "starved": 2, "blocked": 3}  # as traced
@@ -385,8 +388,8 @@ class ChipPlan:
         if self.cfg.sim.max_cycles:
             return (f"stopped by sim.max_cycles = {self.cfg.sim.max_cycles} (--max-cycles N); "
                     "raise it or give 0 for the automatic budget")
-        return ("the automatic budget (20x the expected run) ran out: give a cycle limit with "
-                "--max-cycles N (sim.max_cycles)")
+        return (f"the automatic budget ({AUTO_BUDGET_FACTOR}x the expected run) ran out: give a "
+                "cycle limit with --max-cycles N (sim.max_cycles)")
 
     def work_cycles(self, block: BlockPlan, busy: int) -> int:
         """A block's work per frame, the cycles its critical resource is occupied: the MAC
@@ -416,7 +419,8 @@ def frame_budget(cfg: ChipConfig, shape: tuple[int, int], freqs: dict[str, float
                  cpd: int, sva_ii: int, frames: int = 1, dram: DramPlan | None = None
                  ) -> dict[str, int]:
     """The cycles each domain may run: ``sim.max_cycles`` for every domain when set, else a
-    generous budget of 20x the frames at the slowest block's rate. Through the DRAM channel a
+    generous budget of :data:`~sim.config.AUTO_BUDGET_FACTOR` times the frames at the slowest
+    block's rate. Through the DRAM channel a
     memory source reads no faster than its read slots give, nor than its prefetch window per
     round trip (``read_prefetch_bursts`` bursts per access latency), and every frame's first
     burst waits the channel's longest wait."""
@@ -438,7 +442,8 @@ def frame_budget(cfg: ChipConfig, shape: tuple[int, int], freqs: dict[str, float
     if camera and frames > 1:  # the vertical blanking between frames
         frame_s += (cfg.source.camera_vblank * (w + cfg.source.camera_hblank)
                     / (cfg.clocks.camera_mhz * 1e6))
-    return {name: int(20 * frames * frame_s * f) + 100_000 for name, f in freqs.items()}
+    return {name: int(AUTO_BUDGET_FACTOR * frames * frame_s * f) + 100_000
+            for name, f in freqs.items()}
 
 
 # ---- buffers -----------------------------------------------------------------------------------
@@ -467,30 +472,22 @@ def nna_buffers(cfg: ChipConfig, width: int) -> tuple[BufferPlan, ...]:
 def build_plan(cfg: ChipConfig, shape: tuple[int, int], frames: int = 1) -> ChipPlan:
     """The plan of ``cfg`` for a stream of ``frames`` frames of ``shape`` = (H, W), back to back
     -- per camera pair: with ``sva.pairs`` = P pairs sharing the chip the stream has P x
-    ``frames`` camera frames, frame f pair f % P's (f // P)-th (``ChipPlan.frames``). Raises ConfigError for a chip that cannot be built (a line buffer smaller than the
-    descriptor window, more tiles than rows or columns, D not below the width) or a stream
-    without frames."""
-    cfg = check_config(cfg)  # however it was built, the same checks as load_config
+    ``frames`` camera frames, frame f pair f % P's (f // P)-th (``ChipPlan.frames``). Raises
+    ConfigError for a chip that cannot be built (a line buffer smaller than the descriptor
+    window, more tiles than rows or columns, D not below the width) or a stream without
+    frames."""
+    cfg = check_config(cfg)  # a configuration built by hand is checked; a checked one trusted
     h, w = shape
     if isinstance(frames, bool) or not isinstance(frames, int) or frames < 1:
         raise ConfigError(f"a stream needs at least one frame, got frames={frames!r}")
     n = h * w
     check_line_buffer(cfg.nna)
-    if cfg.sva.disparities >= w:
-        raise ConfigError(
-            f"sva.disparities={cfg.sva.disparities} is not smaller than the image width {w}: "
-            "use a smaller disparity range (--disparities) or a wider image"
-        )
+    check_disparity_range(cfg.sva, w)
     parts = cfg.nna.stereo_submodules // 2
     tiles = tuple(split_frame(shape, parts, cfg.nna.split, cfg.nna))
     camera = cfg.source.kind == "camera"
     buffered = camera and cfg.source.frame_buffers > 0
     src_dom = "camera" if camera and not buffered else "nna"
-    if cfg.source.on_overflow == "drop_frame" and not buffered:
-        raise ConfigError(
-            "source.on_overflow=drop_frame needs a camera with frame buffers "
-            "(--set source.kind=camera --set source.frame_buffers=2): a camera streaming "
-            "straight into the NNA cannot take back a frame it has started sending")
     freqs = {"nna": cfg.clocks.nna_mhz * 1e6, "sva": cfg.clocks.sva_mhz * 1e6}
     if camera:
         freqs["camera"] = cfg.clocks.camera_mhz * 1e6

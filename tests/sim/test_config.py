@@ -1,3 +1,4 @@
+import dataclasses
 import itertools
 
 import numpy as np
@@ -8,17 +9,25 @@ from stereosim.nna.descriptor import compute_descriptor, descriptor_bits
 from stereosim.nna.weights import save_weights
 from stereosim.sim.api import run
 from stereosim.sim.config import (
+    AUTO_BUDGET_FACTOR,
     DESCRIPTOR_DEFAULTS,
     ChipConfig,
+    check,
+    check_config,
+    check_section,
     config_diff,
     config_to_toml,
+    is_checked,
     load_config,
     parse_set_options,
     sgm_widths,
 )
+from stereosim.sim.cycle import plan as plan_module
+from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.errors import ConfigError
 from stereosim.sva.aggregation import box_filter
 from stereosim.sva.cost import hamming_cost
+from stereosim.sva.pipeline import SvaStream
 
 
 def test_defaults_round_trip_through_toml(tmp_path):
@@ -174,3 +183,48 @@ def test_default_sgm_registers_never_saturate(descriptor):
                                              path_bits=cfg.path_bits + 2,
                                              sum_bits=cfg.sum_bits + 2))
     assert not np.array_equal(shipped, disparity(path_bits=8, sum_bits=8))  # saturation shows
+
+
+def test_a_configuration_is_checked_where_it_enters_and_trusted_after(monkeypatch):
+    """load_config checks once and marks the configuration (and its sections) checked;
+    stereosim.run, build_plan and the stages' entry points trust it -- not one more value check
+    on its way to the kernels, in either mode -- and check any other object, such as the new
+    one dataclasses.replace makes."""
+    cfg = load_config(overrides={"sva.disparities": 16, "nna.descriptor": "census",
+                                 "nna.submodules": 2})
+    checked = []
+    build = check._build
+    monkeypatch.setattr(check, "_build", lambda cls, data, prefix: (
+        checked.append(cls.__name__), build(cls, data, prefix))[1])
+    rng = np.random.default_rng(3)
+    left = rng.integers(0, 256, (24, 64), dtype=np.uint8)
+    for mode in ("functional", "cycle"):
+        run(left, np.roll(left, -2, axis=1), mode=mode, config=cfg)
+    assert checked == []
+    assert check_config(cfg) is cfg and check_section(cfg.sva, "sva.") is cfg.sva
+    bad = dataclasses.replace(cfg, sva=dataclasses.replace(cfg.sva, paths=5))
+    desc = compute_descriptor(left, cfg.nna)
+    for entry in (lambda: build_plan(bad, left.shape),
+                  lambda: SvaStream(desc, desc, left, bad.sva, 32),
+                  lambda: compute_descriptor(left, dataclasses.replace(cfg.nna, macs=0))):
+        with pytest.raises(ConfigError, match=r"must be in \[1, "):
+            entry()
+    assert checked
+    numpy_p1 = dataclasses.replace(cfg, sva=dataclasses.replace(cfg.sva, p1=np.int64(9)))
+    fixed = check_config(numpy_p1)
+    assert not is_checked(numpy_p1) and is_checked(fixed) and is_checked(fixed.sva)
+    assert type(fixed.sva.p1) is int and check_config(fixed) is fixed
+
+
+def test_the_budget_factor_is_quoted_from_its_constant(monkeypatch):
+    """The automatic budget's factor is one constant: the help of sim.max_cycles and the line of
+    a run that exhausts it quote it, and the budget scales with it."""
+    cfg = load_config(overrides={"sva.disparities": 16})
+    plan = build_plan(cfg, (24, 64))
+    assert f"({AUTO_BUDGET_FACTOR}x the expected run) ran out" in plan.budget_remedy
+    (max_cycles,) = [f for f in dataclasses.fields(cfg.sim) if f.name == "max_cycles"]
+    assert f"budget of {AUTO_BUDGET_FACTOR}x the expected run" in max_cycles.metadata["help"]
+    monkeypatch.setattr(plan_module, "AUTO_BUDGET_FACTOR", 2 * AUTO_BUDGET_FACTOR)
+    doubled = build_plan(cfg, (24, 64)).budget
+    for domain, cycles in plan.budget.items():
+        assert abs((doubled[domain] - 100_000) - 2 * (cycles - 100_000)) <= 1

@@ -12,8 +12,9 @@ from stereosim.sim.cycle.estimate import estimate
 from stereosim.sim.cycle.plan import build_plan, sram_bits
 from stereosim.sim.cycle.simulate import simulate
 from stereosim.sim.cycle.contract import CameraOverflow
-from stereosim.sim.errors import ConfigError
+from stereosim.sim.errors import ConfigError, InputError
 from stereosim.sim.io import encode_png
+from stereosim.sva.pipeline import SvaStream
 
 SMALL = {"sva.disparities": 16}
 
@@ -49,6 +50,23 @@ def test_short_line_buffer_is_refused_by_the_estimate(capsys):
     _, stderr = capsys.readouterr()
     assert code == 2
     assert stderr.strip() == f"stereosim: error: {WANT}"
+
+
+def test_d_not_below_the_width_is_one_rule_with_one_line(capsys):
+    """The plan, the estimate's command and the SVA's own entry point refuse D >= W with the
+    same line (sva.geometry.check_disparity_range)."""
+    want = ("sva.disparities=64 is not smaller than the image width 57: use a smaller disparity "
+            "range (--disparities) or a wider image")
+    cfg = load_config(overrides={"sva.disparities": 64})
+    with pytest.raises(ConfigError) as err:
+        build_plan(cfg, (21, 57))
+    assert str(err.value) == want
+    assert main(["estimate", "--size", "57x21", "--disparities", "64"]) == 2
+    assert capsys.readouterr().err.strip() == f"stereosim: error: {want}"
+    desc = np.zeros((21, 57), np.uint32)
+    with pytest.raises(InputError) as err:
+        SvaStream(desc, desc, np.zeros((21, 57), np.uint8), cfg.sva, 32)
+    assert str(err.value) == want
 
 
 def test_a_line_buffer_of_exactly_the_window_is_built():

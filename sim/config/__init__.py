@@ -1,0 +1,50 @@
+"""The one configuration object of the chip.
+
+Frozen dataclasses, one per block, nested in :class:`ChipConfig`. Every field declares its type,
+its legal range or choices and a one-line help text; :func:`load_config` builds the object from
+the defaults, an optional TOML file and dotted-key overrides, and rejects unknown keys and bad
+values with the key's dotted name. ``stereosim config show`` prints the result as TOML.
+
+The package's modules, bottom up: :mod:`~sim.config.widths` (the rule of the automatic register
+widths), :mod:`~sim.config.schema` (the declarations), :mod:`~sim.config.check` (the checks,
+run once where a configuration enters), :mod:`~sim.config.loader` (TOML file and overrides)
+and :mod:`~sim.config.writer` (TOML out, diffs). Their public names are imported from here.
+"""
+
+from stereosim.sim.config.check import check_config, check_section, is_checked
+from stereosim.sim.config.loader import (
+    descriptor_width,
+    keys_set,
+    load_config,
+    parse_set_options,
+    read_toml,
+)
+from stereosim.sim.config.schema import (
+    AUTO_BUDGET_FACTOR,
+    DEFAULT_DESCRIPTOR,
+    DESCRIPTOR_DEFAULTS,
+    LEGAL_DISPARITIES,
+    SECTIONS,
+    CensusConfig,
+    ChipConfig,
+    ClockConfig,
+    CnnConfig,
+    DramConfig,
+    FifoConfig,
+    NnaConfig,
+    SimConfig,
+    SourceConfig,
+    SvaConfig,
+    param,
+)
+from stereosim.sim.config.widths import CNN_BITS, sgm_widths
+from stereosim.sim.config.writer import config_diff, config_to_dict, config_to_toml
+
+__all__ = [
+    "AUTO_BUDGET_FACTOR", "CNN_BITS", "DEFAULT_DESCRIPTOR", "DESCRIPTOR_DEFAULTS",
+    "LEGAL_DISPARITIES", "SECTIONS", "CensusConfig", "ChipConfig", "ClockConfig", "CnnConfig",
+    "DramConfig", "FifoConfig", "NnaConfig", "SimConfig", "SourceConfig", "SvaConfig",
+    "check_config", "check_section", "config_diff", "config_to_dict", "config_to_toml",
+    "descriptor_width", "is_checked", "keys_set", "load_config", "param", "parse_set_options",
+    "read_toml", "sgm_widths",
+]

@@ -1,0 +1,223 @@
+"""The checks of a configuration, run once where it enters.
+
+One rule set for every configuration, however it was built: each value against its declaration
+in :mod:`sim.config.schema` (type, range, choices, oddness), then the rules that
+involve several keys (:func:`check_combinations`). :func:`sim.config.load_config` runs them on
+the tree it read, :func:`check_config` on a :class:`ChipConfig` built by hand or with
+``dataclasses.replace``, :func:`check_section` on one section given to a stage's entry point.
+
+A configuration (and each of its sections) that passed is remembered, by identity and weak
+reference: the entry points -- ``stereosim.run``, ``build_plan``, the SVA's and the NNA's --
+each call :func:`check_config` or :func:`check_section`, which return a remembered object at
+once, so a configuration is checked where it enters and trusted on its way to the kernels, while
+an object built any other way is still checked before a kernel sees it. Frozen objects cannot
+change after the check; a new one (``dataclasses.replace``) is a different object.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+import numbers
+import typing
+import weakref
+from typing import Any
+
+import numpy as np
+
+from stereosim.sim.config.schema import SECTIONS, ChipConfig
+from stereosim.sim.errors import ConfigError
+
+# id -> the object that passed the checks; an entry goes with its object
+_CHECKED: weakref.WeakValueDictionary = weakref.WeakValueDictionary()
+
+
+def is_checked(obj) -> bool:
+    """Did ``obj`` itself (not an equal copy) pass the checks?"""
+    return _CHECKED.get(id(obj)) is obj
+
+
+def _remember(obj):
+    """Mark ``obj`` and every section nested in it as checked; return it."""
+    _CHECKED[id(obj)] = obj
+    for f in dataclasses.fields(obj):
+        value = getattr(obj, f.name)
+        if dataclasses.is_dataclass(value):
+            _remember(value)
+    return obj
+
+
+def checked_chip(tree: dict) -> ChipConfig:
+    """The checked configuration of the nested dict ``tree`` (every value, then the
+    combinations); raises :class:`ConfigError` naming the first bad key."""
+    return _remember(check_combinations(_build(ChipConfig, tree, "")))
+
+
+def check_config(cfg) -> ChipConfig:
+    """The same checks as :func:`sim.config.load_config` for a configuration built any other
+    way (by hand, with ``dataclasses.replace``): every section of the right class, every value of
+    its declared type and in range, every combination legal. Returns the checked configuration
+    (values normalised: numpy scalars become Python numbers, lists become tuples) -- ``cfg``
+    itself when it has passed already; raises :class:`ConfigError` naming the first bad key."""
+    if is_checked(cfg) and type(cfg) is ChipConfig:
+        return cfg
+    if not isinstance(cfg, ChipConfig):
+        raise ConfigError("a chip configuration must be a sim.ChipConfig; got "
+                          f"{type(cfg).__name__}")
+    return checked_chip(_tree_of(cfg, ChipConfig, ""))
+
+
+def check_section(section, prefix: str):
+    """:func:`check_config` for one section (``prefix`` ``"sva."``, ``"nna."``, ...): the check a
+    stage's entry point runs before any kernel sees the values. Returns the checked section
+    (``section`` itself when it has passed already, alone or in a checked configuration)."""
+    cls = SECTIONS[prefix]
+    if is_checked(section) and type(section) is cls:
+        return section
+    return _remember(_build(cls, _tree_of(section, cls, prefix), prefix))
+
+
+def _is_config_class(tp) -> bool:
+    return isinstance(tp, type) and dataclasses.is_dataclass(tp)
+
+
+@functools.lru_cache(maxsize=None)
+def _field_types(cls) -> dict[str, Any]:
+    return typing.get_type_hints(cls)  # slow, and the same for every configuration
+
+
+def _coerce(dotted: str, value, tp, meta) -> Any:
+    """Check one leaf value against its declared type and rules; return the typed value."""
+    origin = typing.get_origin(tp)
+    if origin is tuple:
+        args = typing.get_args(tp)
+        if not isinstance(value, (list, tuple)) or len(value) != len(args):
+            raise ConfigError(
+                f"config key '{dotted}' must be a list of {len(args)} values, e.g. "
+                f"{dotted} = [9, 7]; got {value!r}"
+            )
+        return tuple(_coerce(dotted, v, a, meta) for v, a in zip(value, args))
+    if tp is bool:
+        if isinstance(value, np.bool_):
+            value = bool(value)
+        if not isinstance(value, bool):
+            raise ConfigError(f"config key '{dotted}' must be true or false; got {value!r}")
+        return value
+    if tp is int:
+        if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+            raise ConfigError(f"config key '{dotted}' must be an integer; got {value!r}")
+        value = int(value)
+    elif tp is float:
+        if isinstance(value, bool) or not isinstance(value, numbers.Real):
+            raise ConfigError(f"config key '{dotted}' must be a number; got {value!r}")
+        value = float(value)
+        if not math.isfinite(value):
+            raise ConfigError(f"config key '{dotted}' must be a finite number; got {value!r}")
+    elif tp is str:
+        if not isinstance(value, str):
+            raise ConfigError(f"config key '{dotted}' must be a string; got {value!r}")
+    choices = meta.get("choices")
+    if choices is not None and value not in choices:
+        shown = ", ".join(str(c) for c in choices)
+        raise ConfigError(f"config key '{dotted}' must be one of {shown}; got {value!r}")
+    lo, hi = meta.get("lo"), meta.get("hi")
+    if lo is not None and value < lo or hi is not None and value > hi:
+        raise ConfigError(f"config key '{dotted}' must be in [{lo}, {hi}]; got {value!r}")
+    if meta.get("odd") and value % 2 == 0:
+        raise ConfigError(f"config key '{dotted}' must be odd; got {value!r}")
+    return value
+
+
+def _build(cls, data: dict, prefix: str):
+    """An instance of the config class ``cls`` from the nested dict ``data`` (the keys under
+    ``prefix``), every value checked against its declaration; unset keys take their defaults."""
+    hints = _field_types(cls)
+    names = {f.name: f for f in dataclasses.fields(cls)}
+    for key in data:
+        if key not in names:
+            dotted = f"{prefix}{key}"
+            known = ", ".join(f"{prefix}{n}" for n in names)
+            raise ConfigError(f"unknown config key '{dotted}' (known here: {known})")
+    kwargs = {}
+    for name, f in names.items():
+        tp = hints[name]
+        dotted = f"{prefix}{name}"
+        if _is_config_class(tp):
+            sub = data.get(name, {})
+            if not isinstance(sub, dict):
+                raise ConfigError(f"config key '{dotted}' is a table; set its keys, e.g. "
+                                  f"{dotted}.<key>")
+            kwargs[name] = _build(tp, sub, dotted + ".")
+        elif name in data:
+            if isinstance(data[name], dict):
+                raise ConfigError(f"config key '{dotted}' is a value, not a table")
+            kwargs[name] = _coerce(dotted, data[name], tp, f.metadata)
+    return cls(**kwargs)
+
+
+def _tree_of(obj, cls, prefix: str) -> dict:
+    """The nested dict of a config object, checking that every section has its class."""
+    if type(obj) is not cls:
+        raise ConfigError(
+            f"config section '{prefix.rstrip('.') or 'chip'}' must be a {cls.__name__}; got "
+            f"{type(obj).__name__}"
+        )
+    hints = _field_types(cls)
+    tree = {}
+    for f in dataclasses.fields(cls):
+        value = getattr(obj, f.name)
+        if _is_config_class(hints[f.name]):
+            tree[f.name] = _tree_of(value, hints[f.name], f"{prefix}{f.name}.")
+        else:
+            tree[f.name] = value
+    return tree
+
+
+def check_combinations(cfg: ChipConfig) -> ChipConfig:
+    """Rules that involve more than one key."""
+    nna = cfg.nna
+    if nna.stereo_submodules % 2:
+        raise ConfigError(
+            f"nna.stereo_submodules={nna.stereo_submodules} must be even (half per camera)"
+        )
+    if nna.stereo_submodules > nna.submodules:
+        raise ConfigError(
+            f"nna.stereo_submodules={nna.stereo_submodules} exceeds nna.submodules="
+            f"{nna.submodules}: raise nna.submodules or use fewer for the stereo pair"
+        )
+    if nna.stereo_submodules + nna.lent_submodules > nna.submodules:
+        raise ConfigError(
+            f"nna.lent_submodules={nna.lent_submodules} with nna.stereo_submodules="
+            f"{nna.stereo_submodules} exceeds nna.submodules={nna.submodules}: lend at most "
+            f"{nna.submodules - nna.stereo_submodules}"
+        )
+    if cfg.source.on_overflow == "drop_frame" and (cfg.source.kind != "camera"
+                                                   or cfg.source.frame_buffers == 0):
+        raise ConfigError(
+            "source.on_overflow=drop_frame needs a camera with frame buffers "
+            "(--set source.kind=camera --set source.frame_buffers=2): a camera streaming "
+            "straight into the NNA cannot take back a frame it has started sending")
+    if cfg.sva.pairs > 1 and (cfg.source.kind != "camera" or cfg.source.frame_buffers == 0):
+        raise ConfigError(
+            f"sva.pairs={cfg.sva.pairs} shares the chip between camera pairs frame by frame, "
+            "which needs each pair's frames in DRAM frame buffers: add --set source.kind=camera "
+            "--set source.frame_buffers=2 (or use sva.pairs=1)"
+        )
+    d = cfg.dram
+    if d.model == "none" and (d.spill != "none" or d.lent_gbps > 0):
+        what = "dram.spill" if d.spill != "none" else "dram.lent_gbps"
+        raise ConfigError(
+            f"{what} needs the DRAM channel: add --set dram.model=tdm"
+        )
+    if d.lent_gbps > 0 and nna.lent_submodules == 0:
+        raise ConfigError(
+            f"dram.lent_gbps={d.lent_gbps} is the traffic of a network on lent NNA submodules, "
+            "but none is lent: add --set nna.lent_submodules=N (or drop dram.lent_gbps)"
+        )
+    if d.lent_gbps >= d.gbps:
+        raise ConfigError(
+            f"dram.lent_gbps={d.lent_gbps} is not below the channel's dram.gbps={d.gbps}: the "
+            "stereo pair would get no slot; lower it or widen the channel"
+        )
+    return cfg

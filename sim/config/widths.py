@@ -1,0 +1,23 @@
+"""The rule behind the SVA's automatic register widths.
+
+The cost, path and sum registers (``sva.cost_bits``, ``path_bits``, ``sum_bits``) are keys of
+the configuration: a user may set them, and ``stereosim config show`` prints the ones left unset
+as "auto". So they are worked out when the configuration is loaded (:mod:`sim.config.loader`),
+before any chip plan exists, from this one rule; the schema's defaults use it too, and the plan
+and the stages read the widths from the configuration.
+"""
+
+from __future__ import annotations
+
+#: Output channels (descriptor bits) of the shipped 9x9x32 layer: the default of
+#: ``nna.cnn.channels``, which the automatic register widths follow.
+CNN_BITS = 32
+
+
+def sgm_widths(p2: int, box: int = 5, bits: int = CNN_BITS, paths: int = 4) -> dict:
+    """The narrowest cost, path and sum registers that never saturate: a box-filtered cost stays
+    below ``box^2 * bits``, a path cost below that plus P2, the sum below ``paths`` path costs."""
+    top = box * box * bits
+    path_bits = (top + p2).bit_length()
+    return {"cost_bits": top.bit_length(), "path_bits": path_bits,
+            "sum_bits": (paths * ((1 << path_bits) - 1)).bit_length()}
