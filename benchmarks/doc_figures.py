@@ -46,7 +46,8 @@ from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.cycle.contract import CameraOverflow
 from stereosim.sim.io import encode_png
 from stereosim.sim.plot import rate_gaps
-from stereosim.sim.sweep import load_sweep, read_rows, run_task, synthetic_pair, write_rows
+from stereosim.sim.sweep import load_sweep, run_task, synthetic_pair
+from stereosim.sim.sweep_results import read_rows, write_rows
 from stereosim.sim.whatif_cli import sweep_summary
 from stereosim.traces.fst import fst_bytes
 from stereosim.traces.log import Clock, Signal, TraceLog

@@ -29,7 +29,8 @@ from distributed import Client, LocalCluster
 
 import stereosim
 from stereosim.sim.config import LEGAL_DISPARITIES
-from stereosim.sim.sweep import CSV_NAME, load_sweep, read_rows, run_sweep, run_task
+from stereosim.sim.sweep import load_sweep, run_sweep, run_task
+from stereosim.sim.sweep_results import CSV_NAME, read_rows
 
 SIZES = {100: (10, 10), 1600: (100, 16)}  # points: (FIFO depths, disparities)
 

@@ -4,12 +4,12 @@ whether a rate is a work bound or a measurement.
 ``results.csv`` flattens one report per point x scene (docs/report.md lists the report's keys;
 :func:`sim.sweep.flatten`), so it has hundreds of columns. :func:`guide_text` describes the
 columns of a header, grouped, as Markdown; a sweep writes it beside the CSV as ``columns.md``
-(:data:`sim.sweep.GUIDE_NAME`). Each column is described by the first rule of :data:`RULES` its
-name matches, with the block's or FIFO's clock domain read from the rows themselves; a
-configuration key gets the help text it is declared with (:mod:`sim.config`). A column no rule
-describes is listed under "not described" -- tests/sim/test_columns.py runs small sweeps of
-every mode and requires that none is, and that every rule still describes some column, so the
-guide cannot drift from the keys the reports have.
+(:data:`sim.sweep_results.GUIDE_NAME`). Each column is described by the first rule of
+:data:`RULES` its name matches, with the block's or FIFO's clock domain read from the rows
+themselves; a configuration key gets the help text it is declared with (:mod:`sim.config`). A
+column no rule describes is listed under "not described" -- tests/sim/test_columns.py runs small
+sweeps of every mode and requires that none is, and that every rule still describes some column,
+so the guide cannot drift from the keys the reports have.
 """
 
 from __future__ import annotations

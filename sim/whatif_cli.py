@@ -24,15 +24,8 @@ from stereosim.sim.plot import (
     sweep_pareto,
     sweep_plots,
 )
-from stereosim.sim.sweep import (
-    CSV_NAME,
-    GUIDE_NAME,
-    MAX_POINTS,
-    load_scene_spec,
-    load_sweep,
-    read_rows,
-    run_sweep,
-)
+from stereosim.sim.sweep import MAX_POINTS, load_scene_spec, load_sweep, run_sweep
+from stereosim.sim.sweep_results import CSV_NAME, GUIDE_NAME, read_rows
 
 BEST_SHOWN = 10  # Pareto-optimal points the sweep's summary lists
 

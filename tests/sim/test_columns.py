@@ -8,7 +8,8 @@ import pytest
 
 from stereosim.sim.columns import RULES, config_help, describe, guide_text, rule_of
 from stereosim.sim.io import encode_png, pfm_bytes
-from stereosim.sim.sweep import CSV_NAME, GUIDE_NAME, Task, finish_results, run_task, write_rows
+from stereosim.sim.sweep import Task, run_task
+from stereosim.sim.sweep_results import CSV_NAME, GUIDE_NAME, finish_results, write_rows
 
 AXES = ["nna.stereo_submodules"]
 

@@ -27,19 +27,14 @@ from stereosim.sim.plot import (
     sweep_plots,
     xy_data,
 )
-from stereosim.sim.sweep import (
+from stereosim.sim.sweep import MAX_POINTS, Task, load_sweep, run_sweep, run_task, synthetic_pair
+from stereosim.sim.sweep_results import (
     CSV_NAME,
     GUIDE_NAME,
     LEAD_COLUMNS,
-    MAX_POINTS,
-    Task,
     append_rows,
     finish_results,
-    load_sweep,
     read_rows,
-    run_sweep,
-    run_task,
-    synthetic_pair,
     write_rows,
 )
 from stereosim.sim.whatif_cli import sweep_summary
