@@ -37,7 +37,8 @@ from pathlib import Path
 import numpy as np
 
 from stereosim.nna.census import census
-from stereosim.nna.train import VARIANTS, load_float_model
+from stereosim.nna.floatmodel import load_float_model
+from stereosim.nna.trainconfig import VARIANTS
 from stereosim.quant.artifact import load_quantized
 from stereosim.quant.intconv import int_forward
 from stereosim.quant.quantizer import float_forward

@@ -3,7 +3,7 @@
 The protocol (docs/tuning.md), enforced here:
 
 * **Tuning scenes**: Middlebury 2005 (without Art, which is MiddEval3's ArtL) and 2006,
-  third size -- the scenes the descriptor is trained on (``nna.train.training_scene_dirs``).
+  third size -- the scenes the descriptor is trained on (``nna.traindata.training_scene_dirs``).
   ``--data`` names the shared data folder; the script reads nothing else for a choice.
 * **Held out**: MiddEval3 trainingQ and the 2003 scenes. They are never used for a choice:
   ``--heldout`` scores the chosen point on them *after* the choice, and prints them as a
@@ -44,7 +44,7 @@ from pathlib import Path
 import numpy as np
 from robustness import CONDITIONS, degrade
 
-from stereosim.nna.train import cv_folds, training_scene_dirs
+from stereosim.nna.traindata import cv_folds, training_scene_dirs
 from stereosim.sim.api import run
 from stereosim.sim.datasets import find_scene, find_scenes, legal_disparities, load_scene, shared_data_dir
 from stereosim.sim.errors import UserError

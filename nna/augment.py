@@ -1,5 +1,5 @@
 """What training does to each view so that the descriptor learns to ignore what differs between
-two real cameras (:mod:`nna.train`).
+two real cameras (:mod:`nna.traindata`, :mod:`nna.train`).
 
 Every sample of a batch (a patch or a strip crop, shape (rows, cols)) gets its own draw of:
 

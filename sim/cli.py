@@ -19,14 +19,13 @@ from pathlib import Path
 import numpy as np
 
 from stereosim.nna.augment import RECIPES
-from stereosim.nna.train import (
-    TrainConfig,
+from stereosim.nna.floatmodel import load_float_model, save_float_model
+from stereosim.nna.train import train
+from stereosim.nna.trainconfig import TrainConfig
+from stereosim.nna.traindata import (
     calibration_images,
     calibration_scene_dirs,
     leave_fold_out,
-    load_float_model,
-    save_float_model,
-    train,
     training_scene_dirs,
 )
 from stereosim.nna.trainrun import (

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from stereosim.nna.augment import RECIPES, photometric, rows_at, vertical_offsets
-from stereosim.nna.train import TrainConfig
+from stereosim.nna.trainconfig import TrainConfig
 from stereosim.sim.errors import ConfigError
 
 

@@ -20,27 +20,26 @@ import torch  # in the test extra: the smoke epoch must run in CI
 from numpy.testing import assert_array_equal
 
 from stereosim.nna.conv import cnn_descriptor
-from stereosim.nna.train import (
-    PATCH,
-    VARIANTS,
-    TrainConfig,
-    bit_regularisers,
-    build_network,
+from stereosim.nna.floatmodel import load_float_model, save_float_model
+from stereosim.nna.train import train
+from stereosim.nna.trainconfig import PATCH, VARIANTS, TrainConfig
+from stereosim.nna.traindata import (
     calibration_scene_dirs,
-    cost_curves,
-    curve_loss,
     cv_folds,
     leave_fold_out,
-    load_float_model,
     load_strip_set,
     load_training_set,
-    relaxed_bits,
     sample_batch,
     sample_strips,
-    save_float_model,
     strip_reach,
-    train,
     training_scene_dirs,
+)
+from stereosim.nna.trainloss import (
+    bit_regularisers,
+    build_network,
+    cost_curves,
+    curve_loss,
+    relaxed_bits,
 )
 from stereosim.nna.weights import SHIPPED_WEIGHTS, default_weights, load_layer
 from stereosim.quant.artifact import load_quantized, to_nna_weights

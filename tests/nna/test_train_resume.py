@@ -12,7 +12,9 @@ import torch  # the test extra (train imports it)
 from numpy.testing import assert_array_equal
 
 import stereosim.nna.train as train_module
-from stereosim.nna.train import TrainConfig, train, training_scene_dirs
+from stereosim.nna.train import train
+from stereosim.nna.trainconfig import TrainConfig
+from stereosim.nna.traindata import training_scene_dirs
 from stereosim.nna.trainrun import (
     checkpoint_path,
     load_checkpoint,

@@ -1,0 +1,118 @@
+"""The settings of a training run of the learned descriptor, and the networks it can train.
+
+Three variants, all with a 9x9 receptive field and 32 output channels (one descriptor bit each):
+``mccnn4`` (four 3x3 convolutions, channels 1, 32, 32, 32, 32: MC-CNN-fast), ``mccnn4-slim``
+(four 3x3 convolutions, channels 1, 4, 4, 8, 32) and ``single9x9`` (one 9x9 convolution,
+1 -> 32: the network the chip ships). :class:`TrainConfig` checks every setting when it is
+built (one line naming it).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+from stereosim.sim.errors import ConfigError
+
+# (C_in, C_out, K) per layer
+VARIANTS = {
+    "mccnn4": ((1, 32, 3), (32, 32, 3), (32, 32, 3), (32, 32, 3)),
+    "mccnn4-slim": ((1, 4, 3), (4, 4, 3), (4, 8, 3), (8, 32, 3)),
+    "single9x9": ((1, 32, 9),),
+}
+PATCH = 9  # receptive field of every variant
+SIMILARITIES = ("cosine", "tanh", "both")
+OBJECTIVES = ("curve", "triplet")
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class TrainConfig:
+    """Settings of one training run (all recorded in the output file)."""
+
+    variant: str = "single9x9"
+    objective: str = "curve"
+    epochs: int = 20
+    steps_per_epoch: int = 1000
+    lr: float = 0.004
+    seed: int = 0
+    # objective "curve": strips of the reference view against every candidate disparity
+    strips: int = 32
+    strip_width: int = 64
+    disparities: int = 96
+    box: int = 5
+    temperature: float = 1.0
+    scale_start: float = 1.0
+    scale_end: float = 12.0
+    sign_fraction: float = 0.3
+    balance: float = 1.0
+    decorrelate: float = 0.5
+    # objective "triplet": one positive and one negative right patch per left pixel
+    batch: int = 256
+    pos_offset: float = 0.5
+    neg_low: float = 1.5
+    neg_high: float = 6.0
+    margin: float = 0.2
+    similarity: str = "tanh"
+    aggregate: int = 1
+    gain: float = 0.2
+    offset: float = 20.0
+    noise_max: float = 2.0
+    # more of what differs between two cameras (nna.augment; 0 = off)
+    gamma: float = 0.0
+    shot_noise: float = 0.0
+    blur_max: float = 0.0
+    vshift_max: float = 0.0
+    input_offset: int = 128
+    input_scale: float = 1.0 / 64.0
+    threads: int = 0  # torch CPU threads; 0 = auto (nna.trainrun.pick_threads)
+
+    def __post_init__(self):
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            if f.type in ("int", "float") and (
+                isinstance(value, bool) or not isinstance(value, (int, float))
+            ):
+                raise ConfigError(f"{f.name} must be a number, got {value!r}")
+            if f.type == "float" and not math.isfinite(value):
+                raise ConfigError(f"{f.name} must be a finite number, got {value!r}")
+        if self.variant not in VARIANTS:
+            raise ConfigError(
+                f"unknown variant {self.variant!r}; choose one of {', '.join(VARIANTS)}"
+            )
+        if self.objective not in OBJECTIVES:
+            raise ConfigError(
+                f"unknown objective {self.objective!r}; choose one of {', '.join(OBJECTIVES)}"
+            )
+        if self.similarity not in SIMILARITIES:
+            raise ConfigError(
+                f"unknown similarity {self.similarity!r}; choose one of {', '.join(SIMILARITIES)}"
+            )
+        for name in ("aggregate", "box"):
+            if getattr(self, name) < 1 or getattr(self, name) % 2 == 0:
+                raise ConfigError(f"{name} must be odd and >= 1, got {getattr(self, name)}")
+        for name in ("epochs", "steps_per_epoch", "batch", "strips", "strip_width"):
+            if getattr(self, name) < 1:
+                raise ConfigError(f"{name} must be at least 1, got {getattr(self, name)}")
+        if self.threads < 0:
+            raise ConfigError(f"threads must be 0 (auto) or more, got {self.threads}")
+        if not 0 <= self.pos_offset < self.neg_low <= self.neg_high:
+            raise ConfigError(
+                "offsets must satisfy 0 <= pos_offset < neg_low <= neg_high, got "
+                f"{self.pos_offset}, {self.neg_low}, {self.neg_high}"
+            )
+        if not 0 <= self.input_offset <= 255 or not self.input_scale > 0:
+            raise ConfigError("input_offset must be in 0..255 and input_scale positive")
+        if self.lr <= 0 or min(self.margin, self.gain, self.offset, self.noise_max, self.gamma,
+                               self.shot_noise, self.blur_max, self.vshift_max) < 0:
+            raise ConfigError("lr must be positive; margin, gain, offset, noise_max, gamma, "
+                              "shot_noise, blur_max and vshift_max non-negative")
+        if self.disparities < 2:
+            raise ConfigError(f"disparities must be at least 2, got {self.disparities}")
+        if not (self.temperature > 0 and 0 < self.scale_start <= self.scale_end):
+            raise ConfigError(
+                "temperature must be positive and 0 < scale_start <= scale_end, got "
+                f"{self.temperature}, {self.scale_start}, {self.scale_end}"
+            )
+        if not 0 <= self.sign_fraction <= 1 or min(self.balance, self.decorrelate) < 0:
+            raise ConfigError("sign_fraction must be in [0, 1]; balance, decorrelate >= 0")
