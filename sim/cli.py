@@ -166,7 +166,8 @@ def _add_config_options(p: argparse.ArgumentParser) -> None:
         "--set", metavar="KEY=VALUE", action="append", default=[],
         help="override one configuration key, e.g. --set sva.p1=10 (repeatable)",
     )
-    p.add_argument("--disparities", type=int, metavar="N", help="disparity range D (sva.disparities)")
+    p.add_argument("--disparities", type=int, metavar="N",
+                   help="disparity range D (sva.disparities)")
     p.add_argument(
         "--descriptor", choices=("census", "cnn"), help="per-pixel descriptor (nna.descriptor)"
     )
@@ -555,7 +556,16 @@ def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="stereosim", description="Simulator of an edge stereo-vision SoC.")
     p.add_argument("--version", action="version", version=version_text())
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    for add in (_add_run_parser, _add_eval_parser, _add_train_parser, _add_quantize_parser,
+                _add_config_parser):
+        add(sub)
+    whatif_cli.register(sub, _add_config_options, _scene_config)
+    add_wave_parser(sub)
+    return p
 
+
+def _add_run_parser(sub) -> None:
+    """``stereosim run``: one frame or a stream, its traces and the formats other tools read."""
     r = sub.add_parser("run", help="simulate one stereo frame")
     r.add_argument("scene", nargs="?", help="a Middlebury scene folder (im0/im1/disp0GT/...)")
     r.add_argument("--left", help="left image (PNG etc.; RGB is converted to grey)")
@@ -609,8 +619,12 @@ def build_parser() -> argparse.ArgumentParser:
     _add_config_options(r)
     r.set_defaults(func=cmd_run)
 
+
+def _add_eval_parser(sub) -> None:
+    """``stereosim eval``: every scene of a folder, scored."""
     e = sub.add_parser("eval", help="run and score every scene of a Middlebury-layout folder")
-    e.add_argument("dataset", help="folder of scenes (e.g. ../shared/data/middlebury2014_trainingQ)")
+    e.add_argument("dataset",
+                   help="folder of scenes (e.g. ../shared/data/middlebury2014_trainingQ)")
     e.add_argument("--gt-scale", type=finite_float, help="GT PNG scale for non-standard sizes")
     e.add_argument("--mode", default="cycle", choices=("functional", "cycle"),
                    help="cycle (default, as in run): scores plus fps, latency and bottleneck per "
@@ -627,6 +641,9 @@ def build_parser() -> argparse.ArgumentParser:
     _add_config_options(e)
     e.set_defaults(func=cmd_eval)
 
+
+def _add_train_parser(sub) -> None:
+    """``stereosim train``: the learned descriptor (needs torch)."""
     t = sub.add_parser("train", help="train a siamese descriptor network (needs torch)")
     t.add_argument("--variant", default="single9x9", choices=("mccnn4", "mccnn4-slim", "single9x9"))
     t.add_argument("--data", metavar="DIR", help="shared data folder holding "
@@ -635,8 +652,10 @@ def build_parser() -> argparse.ArgumentParser:
                    "softmax over the box-filtered cost of every candidate disparity of strips of "
                    "pixels; triplet: MC-CNN's hinge on one positive and one negative patch")
     t.add_argument("--epochs", type=positive_int, metavar="N", help="default 20")
-    t.add_argument("--steps", type=positive_int, metavar="N", help="batches per epoch (default 1000)")
-    t.add_argument("--strips", type=positive_int, metavar="N", help="strips per batch, curve (default 32)")
+    t.add_argument("--steps", type=positive_int, metavar="N",
+                   help="batches per epoch (default 1000)")
+    t.add_argument("--strips", type=positive_int, metavar="N",
+                   help="strips per batch, curve (default 32)")
     t.add_argument("--batch", type=positive_int, metavar="N", help="triplets per batch, triplet "
                    "(default 256)")
     t.add_argument("--lr", type=finite_float, help="Adam learning rate, decaying linearly to 0 "
@@ -671,6 +690,9 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--quiet", action="store_true", help="no progress bar")
     t.set_defaults(func=cmd_train)
 
+
+def _add_quantize_parser(sub) -> None:
+    """``stereosim quantize``: a trained model to the NNA's int8 weights."""
     q = sub.add_parser("quantize", help="int8-quantise a trained model for the NNA")
     q.add_argument("model", help="float model .npz written by 'stereosim train'")
     q.add_argument("--calib", required=True, metavar="DIR", help="calibration scenes: the "
@@ -682,7 +704,8 @@ def build_parser() -> argparse.ArgumentParser:
                    "hist_rms"), help="distance that picks the last layer's scales")
     q.add_argument("--hidden-distance", default="rms", choices=("hamming", "rms", "l1", "kl",
                    "hist_rms"), help="distance that picks the other layers' scales (default rms)")
-    q.add_argument("--act-quantile", type=finite_float, default=0.9999, metavar="Q", help="multi-layer: "
+    q.add_argument("--act-quantile", type=finite_float, default=0.9999, metavar="Q",
+                   help="multi-layer: "
                    "each hidden layer's int8 activations map this quantile of its ReLU outputs "
                    "to 127 (default 0.9999; lower clips more and rounds finer)")
     q.add_argument("--steps", type=int, default=1000, metavar="N",
@@ -694,6 +717,9 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--quiet", action="store_true", help="no progress bar")
     q.set_defaults(func=cmd_quantize)
 
+
+def _add_config_parser(sub) -> None:
+    """``stereosim config show | plan | diff``."""
     c = sub.add_parser("config", help="show or compare configurations")
     csub = c.add_subparsers(dest="config_command", required=True, parser_class=_Parser)
     cs = csub.add_parser("show", help="print the effective configuration as TOML")
@@ -708,14 +734,10 @@ def build_parser() -> argparse.ArgumentParser:
     cp.set_defaults(func=cmd_config_plan)
     cd = csub.add_parser("diff", help="keys that differ between two configurations (TOML files "
                          "or presets)")
-    cd.add_argument("a", metavar="A", type=config_file, help="TOML file or preset (e.g. paper-720p)")
+    cd.add_argument("a", metavar="A", type=config_file,
+                    help="TOML file or preset (e.g. paper-720p)")
     cd.add_argument("b", metavar="B", type=config_file, help="TOML file or preset (e.g. 1080p60)")
     cd.set_defaults(func=cmd_config_diff)
-
-
-    whatif_cli.register(sub, _add_config_options, _scene_config)
-    add_wave_parser(sub)
-    return p
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -238,12 +238,70 @@ def wave_figure(data: VcdData, variables: list[VcdVar], a: int, b: int, *,
     n = len(variables)
     row_in, bottom_in = 0.42, 0.55
     statuses = [v for v in variables if v.path.endswith(STATUS_SUFFIX) and v.width > 1]
-    black, red, polys, faces = [], [], [], []
-    labels = []  # (x, y, text)
     names = [_row_name(v) for v in variables]
     width_px = width_in * 100
     label_w = min(0.45, 0.0062 * max(len(s) for s in names) + 0.025)
     px_per_unit = width_px * (0.98 - label_w) / max(b - a, 1)
+    black, red, polys, faces, labels = _row_shapes(data, variables, a, b, k, px_per_unit)
+
+    legend = []
+    if statuses:
+        legend += [Patch(facecolor=to_rgba(c, STATUS_ALPHA) if c else "white", edgecolor="0.3",
+                         linewidth=0.6, label=name)
+                   for name, c in zip(STATUS_NAMES, STATUS_COLOURS)]
+    if red:
+        legend.append(Line2D([], [], color=UNKNOWN_COLOUR, linewidth=1.2, label="unknown (x/z)"))
+    top_in = 0.2 + (0.3 if title else 0) + (0.32 if legend else 0) + (0.4 if clock else 0)
+    height_in = top_in + row_in * n + bottom_in
+    fig = Figure(figsize=(width_in, height_in), dpi=100)
+    ax = fig.add_axes((label_w, bottom_in / height_in, 0.98 - label_w, row_in * n / height_in))
+    ax.set_xlim(a * k, b * k)
+    ax.set_ylim(-0.2, n)
+    if polys:
+        ax.add_collection(PolyCollection(polys, facecolors=faces, edgecolors="none"))
+    ax.add_collection(LineCollection(black, colors="black", linewidths=0.8))
+    if red:
+        ax.add_collection(LineCollection(red, colors=UNKNOWN_COLOUR, linewidths=0.8))
+    for x, y, text in labels:
+        ax.text(x, y, text, ha="center", va="center", fontsize=7.5, family="DejaVu Sans Mono")
+    ax.set_yticks([n - 1 - r + 0.45 for r in range(n)])
+    ax.set_yticklabels(names, fontsize=8, family="DejaVu Sans Mono")
+    ax.tick_params(axis="y", length=0)
+    ax.tick_params(axis="x", labelsize=8)
+    ax.set_xlabel(f"time ({unit})", fontsize=8)
+    ax.grid(axis="x", color="0.85", linewidth=0.5)
+    for side in ("top", "right", "left"):
+        ax.spines[side].set_visible(False)
+    if clock is not None:
+        def to_cycles(x):
+            return (np.asarray(x) / k - clock.phase) / clock.period
+
+        def to_time(c):
+            return (np.asarray(c) * clock.period + clock.phase) * k
+
+        top = ax.secondary_xaxis("top", functions=(to_cycles, to_time))
+        top.xaxis.set_major_locator(MaxNLocator(integer=True))
+        top.tick_params(labelsize=8)
+        top.set_xlabel(f"{clock.name} cycle", fontsize=8)
+    if title:
+        fig.suptitle(title, fontsize=10, y=1 - 0.08 / height_in, va="top")
+    if legend:
+        y_in = height_in - 0.2 - (0.3 if title else 0)
+        fig.legend(handles=legend, loc="upper right", bbox_to_anchor=(0.98, y_in / height_in),
+                   ncol=len(legend), fontsize=8, frameon=False, handlelength=1.6,
+                   columnspacing=1.2)
+    return fig
+
+
+def _row_shapes(data: VcdData, variables: list[VcdVar], a: int, b: int, k: float,
+                px_per_unit: float) -> tuple[list, list, list, list, list]:
+    """What :func:`wave_figure` draws of each row, top row first, in plotted units (``k`` per
+    dump unit): the black and the red (unknown) polylines, the status blocks' polygons and
+    their fills, and the value labels ``(x, y, text)`` that fit their segment."""
+    from matplotlib.colors import to_rgba
+
+    n = len(variables)
+    black, red, polys, faces, labels = [], [], [], [], []
     for row, var in enumerate(variables):
         y = n - 1 - row
         lo, hi = y + 0.15, y + 0.75
@@ -295,50 +353,4 @@ def wave_figure(data: VcdData, variables: list[VcdVar], a: int, b: int, *,
             if (e - s) * px_per_unit > 7 * len(text) + 6:
                 labels.append(((s + e) / 2 * k, mid, text))
 
-    legend = []
-    if statuses:
-        legend += [Patch(facecolor=to_rgba(c, STATUS_ALPHA) if c else "white", edgecolor="0.3",
-                         linewidth=0.6, label=name)
-                   for name, c in zip(STATUS_NAMES, STATUS_COLOURS)]
-    if red:
-        legend.append(Line2D([], [], color=UNKNOWN_COLOUR, linewidth=1.2, label="unknown (x/z)"))
-    top_in = 0.2 + (0.3 if title else 0) + (0.32 if legend else 0) + (0.4 if clock else 0)
-    height_in = top_in + row_in * n + bottom_in
-    fig = Figure(figsize=(width_in, height_in), dpi=100)
-    ax = fig.add_axes((label_w, bottom_in / height_in, 0.98 - label_w, row_in * n / height_in))
-    ax.set_xlim(a * k, b * k)
-    ax.set_ylim(-0.2, n)
-    if polys:
-        ax.add_collection(PolyCollection(polys, facecolors=faces, edgecolors="none"))
-    ax.add_collection(LineCollection(black, colors="black", linewidths=0.8))
-    if red:
-        ax.add_collection(LineCollection(red, colors=UNKNOWN_COLOUR, linewidths=0.8))
-    for x, y, text in labels:
-        ax.text(x, y, text, ha="center", va="center", fontsize=7.5, family="DejaVu Sans Mono")
-    ax.set_yticks([n - 1 - r + 0.45 for r in range(n)])
-    ax.set_yticklabels(names, fontsize=8, family="DejaVu Sans Mono")
-    ax.tick_params(axis="y", length=0)
-    ax.tick_params(axis="x", labelsize=8)
-    ax.set_xlabel(f"time ({unit})", fontsize=8)
-    ax.grid(axis="x", color="0.85", linewidth=0.5)
-    for side in ("top", "right", "left"):
-        ax.spines[side].set_visible(False)
-    if clock is not None:
-        def to_cycles(x):
-            return (np.asarray(x) / k - clock.phase) / clock.period
-
-        def to_time(c):
-            return (np.asarray(c) * clock.period + clock.phase) * k
-
-        top = ax.secondary_xaxis("top", functions=(to_cycles, to_time))
-        top.xaxis.set_major_locator(MaxNLocator(integer=True))
-        top.tick_params(labelsize=8)
-        top.set_xlabel(f"{clock.name} cycle", fontsize=8)
-    if title:
-        fig.suptitle(title, fontsize=10, y=1 - 0.08 / height_in, va="top")
-    if legend:
-        y_in = height_in - 0.2 - (0.3 if title else 0)
-        fig.legend(handles=legend, loc="upper right", bbox_to_anchor=(0.98, y_in / height_in),
-                   ncol=len(legend), fontsize=8, frameon=False, handlelength=1.6,
-                   columnspacing=1.2)
-    return fig
+    return black, red, polys, faces, labels
