@@ -397,8 +397,8 @@ def no_work(monkeypatch):
     def refuse(*a, **k):
         raise AssertionError("the work started before the outputs were checked")
 
-    for name in ("run", "train", "quantize"):
-        monkeypatch.setattr(f"stereosim.sim.cli.{name}", refuse)
+    for name in ("cli.run", "train_cli.train", "train_cli.quantize"):
+        monkeypatch.setattr(f"stereosim.sim.{name}", refuse)
 
 
 def _inputs(tmp_path):

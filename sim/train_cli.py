@@ -1,0 +1,210 @@
+"""The learned descriptor's subcommands of ``stereosim``: ``train`` and ``quantize``.
+
+Registered by :func:`register` from :func:`sim.cli.build_parser`; errors follow the CLI's rule
+(one line, exit status 2, nothing half-written: the one output is checked before the work
+starts and written atomically at the end).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+from stereosim.nna.augment import RECIPES
+from stereosim.nna.floatmodel import load_float_model, save_float_model
+from stereosim.nna.train import train
+from stereosim.nna.trainconfig import TrainConfig
+from stereosim.nna.traindata import (
+    calibration_images,
+    calibration_scene_dirs,
+    leave_fold_out,
+    training_scene_dirs,
+)
+from stereosim.nna.trainrun import (
+    box_width,
+    check_checkpoint_option,
+    checkpoint_path,
+    parse_threads,
+)
+from stereosim.quant.artifact import save_quantized
+from stereosim.quant.quantizer import QuantizerConfig, quantize
+from stereosim.sim.argtypes import check_single_output, finite_float, nonnegative_int, positive_int
+from stereosim.sim.datasets import scene_files, shared_data_dir
+from stereosim.sim.errors import InputError, UserError
+from stereosim.sim.outputs import check_outputs
+
+
+def register(sub) -> None:
+    """Add ``train`` and ``quantize`` to ``sub`` (the parser's subparsers)."""
+    _add_train_parser(sub)
+    _add_quantize_parser(sub)
+
+
+def parse_fold(text: str) -> tuple[int, int]:
+    """argparse type: ``K/N``, fold K (0-based) of N cross-validation folds."""
+    fold, _, folds = text.partition("/")
+    if not (fold.strip().isdigit() and folds.strip().isdigit()):
+        raise argparse.ArgumentTypeError(f"{text!r} is not K/N (fold K of N, e.g. 0/5)")
+    return int(fold), int(folds)
+
+
+def _import_torch():
+    try:
+        import torch  # noqa: F401
+    except ImportError:
+        raise UserError(
+            "training needs torch, which is not installed: pip install 'stereosim[train]'"
+        ) from None
+
+
+def cmd_train(args) -> int:
+    # options left unset keep TrainConfig's defaults (the shipped recipe)
+    given = {
+        "variant": args.variant, "objective": args.objective, "epochs": args.epochs,
+        "steps_per_epoch": args.steps, "batch": args.batch, "strips": args.strips,
+        "lr": args.lr, "seed": args.seed, "similarity": args.similarity,
+        "noise_max": args.noise_max, "blur_max": args.blur_max, "aggregate": args.aggregate,
+        "box": args.box, "threads": args.threads,
+    }
+    recipe = dict(RECIPES[args.augment])  # then the options given on their own win
+    cfg = TrainConfig(**{**recipe, **{k: v for k, v in given.items() if v is not None}})
+    out = Path(args.out or f"{args.variant}.npz")
+    check_single_output(out, "--out")
+    data = args.data or shared_data_dir()
+    if data is None:
+        raise InputError("no training data found: give --data DIR (the shared Middlebury folder)")
+    dirs = training_scene_dirs(data)
+    if args.leave_out_fold is not None:
+        dirs = leave_fold_out(dirs, *args.leave_out_fold)
+    ckpt = checkpoint_path(out) if args.checkpoint_every or args.resume else None
+    check_outputs([(out, "--out"), *([(ckpt, "the checkpoint")] if ckpt else [])],
+                  scene_files(dirs))
+    if ckpt is not None:
+        check_checkpoint_option(ckpt, args.resume)
+    _import_torch()
+    t0 = time.perf_counter()
+    result = train(cfg, dirs, progress=not args.quiet, checkpoint=ckpt,
+                   checkpoint_every=args.checkpoint_every, resume=args.resume,
+                   log=lambda line: print(line, file=sys.stderr))
+    save_float_model(out, result)
+    if ckpt is not None:
+        ckpt.unlink(missing_ok=True)  # the model is written: the checkpoint is spent
+    print(
+        f"trained {args.variant} on {len(result['scenes'])} scenes ({result['samples']} pixels) in "
+        f"{time.perf_counter() - t0:.0f} s; final loss {result['loss_per_epoch'][-1]:.4f}; "
+        f"wrote {out}"
+    )
+    return 0
+
+
+def cmd_quantize(args) -> int:
+    check_single_output(Path(args.out), "--out", [(args.model, "model")])
+    model, variant, _ = load_float_model(args.model)
+    qcfg = QuantizerConfig(
+        n_steps=args.steps, z_bits=args.z_bits, n_samples=args.samples, seed=args.seed,
+        distance=args.distance, hidden_distance=args.hidden_distance,
+        act_quantile=args.act_quantile,
+    )
+    out = Path(args.out)
+    dirs = calibration_scene_dirs(args.calib)
+    check_outputs([(out, "--out")], scene_files(dirs))
+    images, names = calibration_images(dirs, args.calib_scenes)
+    calibration = (
+        f"{len(images)} views (left+right) of {', '.join(names)}; {qcfg.n_samples} sampled "
+        f"pixels, seed {qcfg.seed}, {qcfg.n_steps} scale steps, z={qcfg.z_bits}, "
+        f"distance {qcfg.distance}"
+        + (
+            f", hidden layers: distance {qcfg.hidden_distance}, activation quantile "
+            f"{qcfg.act_quantile}"
+            if len(model.weights) > 1
+            else ""
+        )
+    )
+    t0 = time.perf_counter()
+    qm = quantize(model, images, qcfg, variant=variant, calibration=calibration,
+                  progress=not args.quiet)
+    save_quantized(out, qm)
+    print(
+        f"quantized {variant} ({qm.n_layers} layer(s)) on {len(images)} calibration views in "
+        f"{time.perf_counter() - t0:.0f} s: {100 * qm.sign_agreement:.3f}% of descriptor bits "
+        f"agree with the float signs, accumulator RMS error {qm.acc_rms:.2f}; wrote {out}"
+    )
+    return 0
+
+
+def _add_train_parser(sub) -> None:
+    """``stereosim train``: the learned descriptor (needs torch)."""
+    t = sub.add_parser("train", help="train a siamese descriptor network (needs torch)")
+    t.add_argument("--variant", default="single9x9", choices=("mccnn4", "mccnn4-slim", "single9x9"))
+    t.add_argument("--data", metavar="DIR", help="shared data folder holding "
+                   "middlebury2005_third/ and middlebury2006_third/ (default: ../shared/data)")
+    t.add_argument("--objective", choices=("curve", "triplet"), help="curve (default): "
+                   "softmax over the box-filtered cost of every candidate disparity of strips of "
+                   "pixels; triplet: MC-CNN's hinge on one positive and one negative patch")
+    t.add_argument("--epochs", type=positive_int, metavar="N", help="default 20")
+    t.add_argument("--steps", type=positive_int, metavar="N",
+                   help="batches per epoch (default 1000)")
+    t.add_argument("--strips", type=positive_int, metavar="N",
+                   help="strips per batch, curve (default 32)")
+    t.add_argument("--batch", type=positive_int, metavar="N", help="triplets per batch, triplet "
+                   "(default 256)")
+    t.add_argument("--lr", type=finite_float, help="Adam learning rate, decaying linearly to 0 "
+                   "(default 0.004)")
+    t.add_argument("--seed", type=nonnegative_int, default=0, metavar="S")
+    t.add_argument("--similarity", choices=("cosine", "tanh", "both"), help="triplet: hinge on "
+                   "cosine (MC-CNN), on the tanh relaxation of the Hamming comparison (default), "
+                   "or both")
+    t.add_argument("--augment", default="basic", choices=sorted(RECIPES),
+                   help="what training does to the views: basic (gain, offset, noise up to "
+                   "sigma 2), robust (noise up to 10 with shot noise, gamma, defocus, 0.5 px "
+                   "vertical misalignment) or mild (half those ranges); nna/augment.py")
+    t.add_argument("--noise-max", type=finite_float, metavar="SIGMA",
+                   help="augmentation noise: sigma ~ U(0, SIGMA) grey levels per view (default 2)")
+    t.add_argument("--blur-max", type=finite_float, metavar="SIGMA",
+                   help="augmentation defocus: Gaussian blur of sigma ~ U(0, SIGMA) px per view "
+                   "(default: the recipe's; basic has none)")
+    t.add_argument("--box", type=box_width, metavar="K", help="curve: the K x K box filter "
+                   "of the cost the loss sees (odd, in sva.box_size's range; default 5)")
+    t.add_argument("--leave-out-fold", type=parse_fold, metavar="K/N", help="train without "
+                   "fold K of N of the tuning scenes (scene i of the sorted names is in fold "
+                   "i mod N, as in benchmarks/tune_defaults.py), to cross-validate a recipe")
+    t.add_argument("--aggregate", type=box_width, metavar="A", help="triplet: average the "
+                   "similarity over A x A neighbouring descriptors, as the box filter does (odd)")
+    t.add_argument("--threads", type=parse_threads, default=0, metavar="N", help="torch CPU "
+                   "threads (default auto: 1 up to 2 CPUs, else half the CPUs, at most 4)")
+    t.add_argument("--checkpoint-every", type=nonnegative_int, default=200, metavar="N",
+                   help="write OUT.ckpt.pt every N steps (default 200; 0 = never)")
+    t.add_argument("--resume", action="store_true", help="continue from OUT.ckpt.pt, the "
+                   "checkpoint of an interrupted run with the same options")
+    t.add_argument("--out", metavar="FILE", help="float model .npz (default: VARIANT.npz)")
+    t.add_argument("--quiet", action="store_true", help="no progress bar")
+    t.set_defaults(func=cmd_train)
+
+
+def _add_quantize_parser(sub) -> None:
+    """``stereosim quantize``: a trained model to the NNA's int8 weights."""
+    q = sub.add_parser("quantize", help="int8-quantise a trained model for the NNA")
+    q.add_argument("model", help="float model .npz written by 'stereosim train'")
+    q.add_argument("--calib", required=True, metavar="DIR", help="calibration scenes: the "
+                   "shared data folder (its training scenes), a collection or one scene")
+    q.add_argument("--out", required=True, metavar="WEIGHTS", help="quantized artifact .npz")
+    q.add_argument("--calib-scenes", type=positive_int, default=8, metavar="N",
+                   help="use the views of at most N scenes, spread evenly (default 8)")
+    q.add_argument("--distance", default="hamming", choices=("hamming", "rms", "l1", "kl",
+                   "hist_rms"), help="distance that picks the last layer's scales")
+    q.add_argument("--hidden-distance", default="rms", choices=("hamming", "rms", "l1", "kl",
+                   "hist_rms"), help="distance that picks the other layers' scales (default rms)")
+    q.add_argument("--act-quantile", type=finite_float, default=0.9999, metavar="Q",
+                   help="multi-layer: "
+                   "each hidden layer's int8 activations map this quantile of its ReLU outputs "
+                   "to 127 (default 0.9999; lower clips more and rounds finer)")
+    q.add_argument("--steps", type=int, default=1000, metavar="N",
+                   help="scale candidates per channel (>= 1000)")
+    q.add_argument("--z-bits", type=int, default=8, metavar="Z", help="m, h in [0, 2^Z - 1]")
+    q.add_argument("--samples", type=positive_int, default=20000, metavar="N",
+                   help="sampled pixels for the search")
+    q.add_argument("--seed", type=nonnegative_int, default=0, metavar="S")
+    q.add_argument("--quiet", action="store_true", help="no progress bar")
+    q.set_defaults(func=cmd_quantize)
