@@ -12,8 +12,8 @@ file is read and checked in full by :func:`load_layer`.
 
 :func:`default_weights` is the shipped layer, ``nna/single9x9.npz``: the ``single9x9`` network
 trained with ``stereosim train`` and quantised with ``stereosim quantize`` (docs/ablation.md).
-:func:`placeholder_weights` is the deterministic random layer used before trained weights existed
-(kept for tests that need a layer independent of training).
+:func:`placeholder_weights` is a deterministic random layer, for tests that need a layer
+independent of training.
 """
 
 from __future__ import annotations

@@ -58,13 +58,12 @@ def test_the_import_contracts_hold():
     assert "BROKEN" not in out.stdout and "broken" in out.stdout  # "N kept, 0 broken"
 
 
-def test_the_contracts_forbid_the_circles_the_old_code_had():
-    """The contracts name the directions that the old circles broke: the cycle model and the
-    application above the stages (nna.blocks -> sim.clock, sva.blocks -> sim.clock), the traces
-    writers above the cycle model and the trace log (the format both engines fill) in the core
-    (sim <-> traces), the quantizer tool above the NNA's weights (nna.weights <->
-    quant.quantizer), and no circle among any package's modules (chip <-> fast <-> schedule,
-    clock <-> fifo)."""
+def test_the_contracts_set_the_directions_that_keep_circles_out():
+    """The contracts name the directions that keep circles out: the cycle model and the
+    application above the stages (a stage never imports the clocked kernel), the trace writers
+    above the cycle model and the trace log (the format both engines fill) in the core, the
+    quantizer tool above the NNA's weights, the stages below the clocked blocks that run them,
+    and no circle among any package's modules."""
     layers = _layer_members()
 
     def level(module):

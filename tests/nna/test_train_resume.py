@@ -154,7 +154,7 @@ def test_the_train_command_checkpoints_and_resumes(data_root, tmp_path, monkeypa
     assert not ckpt.exists()
 
 
-# ---------------------------------------------------------------- issue 31: crafted checkpoints
+# ---------------------------------------------------------------- crafted checkpoints
 
 
 @pytest.fixture(scope="module")

@@ -193,7 +193,7 @@ def test_impossible_channels_are_refused_in_one_line(over, needle):
     assert "\n" not in str(err.value)
 
 
-# ---- the watchdog and the automatic budget allow the channel's latency (issue 31, item 9) ----
+# ---- the watchdog and the automatic budget allow the channel's latency -----------------------
 
 
 def test_the_longest_legal_latency_completes_under_the_automatic_limits():

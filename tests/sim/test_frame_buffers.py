@@ -1,4 +1,4 @@
-"""A camera writing its frames into DRAM frame buffers, read by the memory sources (issue 16):
+"""A camera writing its frames into DRAM frame buffers, read by the memory sources:
 each frame is taken or dropped when it starts, by the rule in sim/cycle/rules.py, the same in
 both engines; a frame that finds no free buffer stops the run (policy error) or is skipped and
 counted (drop_frame)."""

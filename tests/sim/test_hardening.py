@@ -1,4 +1,4 @@
-"""Issue 14's hostile-user cases, one test each: every way in is checked (exit 2 and one line
+"""Hostile-user cases, one test each: every way in is checked (exit 2 and one line
 from the CLI, a UserError from the API), every way out is whole (old outputs intact, nothing
 half-written, no traceback, no death by signal)."""
 
@@ -132,8 +132,8 @@ def test_impossible_gt_values_are_refused(value, message):
 
 
 def test_no_cap_reads_the_file_it_has(tmp_path, capfd):
-    """--max-pixels 0 (no cap) once made the reader ask for a buffer of the cap's size (a
-    MemoryError on every image; found by the CLI property test's long run)."""
+    """--max-pixels 0 (no cap) reads the image it has: the reader must not ask for a buffer of
+    the cap's size (a MemoryError on every image)."""
     left, right = _write_pair(tmp_path / "in")
     code, _, err = _cli(["run", "--mode", "functional", "--left", left, "--right", right,
                          "--disparities", "16", "--max-pixels", "0", "--out", tmp_path / "o"],
@@ -198,8 +198,8 @@ def test_outputs_are_checked_before_the_run(old_run, tmp_path, capfd, monkeypatc
 
 
 def test_an_empty_out_is_refused(tmp_path, capfd, monkeypatch):
-    """--out '' once wrote the set into the working directory (found when a property-test run
-    left disparity.pfm, disparity.png and report.json in the repository)."""
+    """--out '' is refused: it would write the set (disparity.pfm, disparity.png, report.json)
+    into the working directory."""
     left, right = _write_pair(tmp_path / "in")
     monkeypatch.chdir(tmp_path)
     code, _, err = _cli(["run", "--mode", "functional", "--left", left, "--right", right,
@@ -387,7 +387,7 @@ def test_an_unreadable_or_too_long_config_is_one_line(tmp_path, capfd):
 
 
 
-# ---------------------------------------------------------------- issue 31: outputs never replace inputs
+# ---------------------------------------------------------------- outputs never replace inputs
 
 
 @pytest.fixture
@@ -433,8 +433,8 @@ def _inputs(tmp_path):
      r"--out path .*x is a folder --save writes into"),
 ])
 def test_an_output_never_replaces_an_input(argv, message, tmp_path, capfd, no_work):
-    """Issue 31: `run --html L.png`, `quantize m.npz --out m.npz`, ... once overwrote what they
-    read; now one line before any work, and every input as it was."""
+    """`run --html L.png`, `quantize m.npz --out m.npz`, ...: an output that would overwrite
+    what the command reads is one line before any work, and every input stays as it was."""
     left, right, _ = _inputs(tmp_path)
     (tmp_path / "in" / "disparity_kitti.png").write_bytes(left.read_bytes())
     (tmp_path / "out").mkdir()
@@ -450,7 +450,7 @@ def test_an_output_never_replaces_an_input(argv, message, tmp_path, capfd, no_wo
 
 @pytest.mark.parametrize("option", ["--html", "--vcd", "--timeline", "--energy", "--gt"])
 def test_an_empty_file_option_is_refused(option, tmp_path, capfd, no_work):
-    """`--html ''` was ignored silently (an unset shell variable, say): now one line."""
+    """`--html ''` (an unset shell variable, say) is one line, not silently ignored."""
     left, right = _write_pair(tmp_path / "in")
     code, _, err = _cli(["run", "--left", left, "--right", right, option, "", "--out",
                          tmp_path / "o"], capfd)
@@ -459,7 +459,7 @@ def test_an_empty_file_option_is_refused(option, tmp_path, capfd, no_work):
 
 
 def test_a_deeply_nested_toml_value_is_one_line(tmp_path, capfd):
-    """3,000 nested arrays (or inline tables) once gave a RecursionError traceback."""
+    """3,000 nested arrays (or inline tables) are one line, not a RecursionError traceback."""
     deep = "[" * 3000 + "1" + "]" * 3000
     (tmp_path / "deep.toml").write_text(f"[sva]\np1 = {deep}\n")
     (tmp_path / "plain.toml").write_text("[sva]\np1 = 200\n")
@@ -478,8 +478,8 @@ def test_a_deeply_nested_toml_value_is_one_line(tmp_path, capfd):
 
 
 def test_a_closed_stdout_is_refused_before_any_work(tmp_path):
-    """`stereosim estimate --json >&-` gave an AttributeError traceback; `run` got there only
-    after publishing."""
+    """`stereosim estimate --json >&-` is one line, not an AttributeError traceback; `run` says
+    so before any work, not after publishing."""
     left, right = _write_pair(tmp_path / "in")
     for argv in (["estimate", "--json"],
                  ["run", "--left", str(left), "--right", str(right), "--disparities", "16",
@@ -493,7 +493,7 @@ def test_a_closed_stdout_is_refused_before_any_work(tmp_path):
 
 
 def test_an_unreadable_video_is_one_line(tmp_path, capfd):
-    """FFmpeg's own log line once came out beside ours: now its last line is part of ours."""
+    """FFmpeg's own log line does not come out beside ours: its last line is part of ours."""
     (tmp_path / "bad.mp4").write_bytes(bytes(range(256)) * 12)
     code, _, err = _cli(["run", "--left-video", tmp_path / "bad.mp4", "--right-video",
                          tmp_path / "bad.mp4", "--disparities", "16", "--out", tmp_path / "o"],
@@ -511,7 +511,7 @@ def test_max_pixels_zero_means_no_cap_in_the_api_as_on_the_command_line():
             run(left, right, overrides={"sva.disparities": 16}, max_pixels=bad)
 
 
-# ---------------------------------------------------------------- issue 31: signals
+# ---------------------------------------------------------------- signals
 
 
 def test_sigterm_during_start_up_is_one_line(tmp_path):
@@ -534,7 +534,7 @@ def test_sigterm_during_start_up_is_one_line(tmp_path):
 
 def test_a_signal_after_the_outputs_are_written_says_so(old_run, capfd, monkeypatch):
     """A signal once the new set is published exits 130/143 with a line that says the outputs
-    are complete (it once said only "interrupted", or left the staging folder)."""
+    are complete (not only "interrupted", and no staging folder left behind)."""
     left, right, out, _ = old_run
 
     def summary_then_signal(*a, **k):

@@ -136,7 +136,7 @@ def _stopped_set(out, err, dump, plan) -> dict:
 @pytest.mark.parametrize("engine, dump", [("fast", "t.vcd"), ("readable", "t.fst")])
 def test_a_stopped_run_publishes_its_report_and_the_trace_up_to_the_stop(tmp_path, capsys,
                                                                           engine, dump):
-    """Issue 31's acceptance 3: ``--max-cycles 5000 --vcd t.vcd`` exits 2 with one line and
+    """``--max-cycles 5000 --vcd t.vcd`` exits 2 with one line and
     leaves the dump up to the stop and a report marked stopped -- replacing a complete run's
     set in the same folder, whose disparity maps and page go (they are not this run's)."""
     args = _inputs(tmp_path, 40, 64) + ["--set", f"sim.engine={engine}"]

@@ -1,4 +1,4 @@
-"""Camera pairs sharing the chip frame by frame (``sva.pairs``, issue 16): pair p's cameras run
+"""Camera pairs sharing the chip frame by frame (``sva.pairs``): pair p's cameras run
 pair 0's raster p/P of a frame period later, each pair writes into its own frame buffers, and
 the chip reads the frames in the order they start. The rules by hand and against brute force,
 then whole runs whose outcome follows from the rules, in both engines."""

@@ -1,6 +1,6 @@
-"""The chip plan: what it refuses, what it sizes, and the behaviours issue 13 fixed on the way
-(every engine and the estimate refuse the same chips, the merge FIFO's own key, the tile's
-line-buffer SRAM, both cameras named when they overflow together, one dispatcher)."""
+"""The chip plan: what it refuses, what it sizes, and what follows from one plan (every engine
+and the estimate refuse the same chips, the merge FIFO's own key, the tile's line-buffer SRAM,
+both cameras named when they overflow together, one dispatcher)."""
 
 import numpy as np
 import pytest

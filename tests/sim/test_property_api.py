@@ -7,7 +7,7 @@ random mode. The oracle is ``load_config`` given the same values as overrides: w
 ``sim.run`` must raise a ConfigError with the same line; when it accepts, ``sim.run`` either
 returns a whole result or raises a UserError (an impossible chip, e.g. D not below the width) --
 never another exception, never a crash. STEREOSIM_PROPERTY_EXAMPLES sets the number of examples
-(CI: the default below; the closing note of issue 14 reports a longer local run).
+(CI: the default below; a longer local run takes a larger number).
 """
 
 from __future__ import annotations

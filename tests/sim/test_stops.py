@@ -1,4 +1,4 @@
-"""Stops you can inspect (issue 31, item 3): a run stopped by the cycle budget, the watchdog, a
+"""Stops you can inspect: a run stopped by the cycle budget, the watchdog, a
 camera's overflow or a frame buffer it cannot get gives, on both cycle engines, the same
 exception -- message, instant, cycles, every FIFO's and block's state, the rows reached -- the
 same stop report and the same trace up to the stop; ``stereosim.run`` carries the stopped run's

@@ -1,4 +1,4 @@
-"""Streams of frames (issue 16): frames back to back through the chip, overlapping in the
+"""Streams of frames: frames back to back through the chip, overlapping in the
 pipeline as the blocks allow, in both engines -- every frame's words equal the functional
 model's for that frame, and the cycles follow the formulas written out here by hand."""
 
@@ -178,7 +178,7 @@ def test_the_cli_runs_a_stream_with_a_trace_across_frames(tmp_path):
     assert (out / "t.vcd").read_text().count("#") > 100
 
 
-# ---- accuracy, progress and the length of a stream (issue 31) -----------------------------------
+# ---- accuracy, progress and the length of a stream ---------------------------------------------
 
 TINY = {"nna.descriptor": "census", "sva.disparities": 16}
 

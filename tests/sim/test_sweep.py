@@ -267,9 +267,9 @@ def test_built_in_plots(tmp_path):
     assert all(p.stat().st_size > 1000 for p in written)
 
 
-# The issue's 720p study (nna.stereo_submodules 2/4/6 x fifo.nna_to_merge_depth 64/640) on a
-# small frame: 8 entries are too few for 100-column tiles (the estimate needs 66 for 6), 300 are
-# enough.
+# The 720p study of docs/whatif.md (nna.stereo_submodules 2/4/6 x fifo.nna_to_merge_depth
+# 64/640) on a small frame: 8 entries are too few for 100-column tiles (the estimate needs 66 for
+# 6), 300 are enough.
 MERGE_STUDY = """
 mode = "cycle"
 scenes = ["300x40"]

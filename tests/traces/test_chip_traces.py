@@ -1,4 +1,4 @@
-"""Traces of the chip (issue 5 acceptance): the compiled engine's trace read back by two
+"""Traces of the chip: the compiled engine's trace read back by two
 independent VCD readers equals the readable kernel's own state; tracing changes nothing; the
 output-valid pulses count the disparities; two runs give identical files; bad trace options
 fail cleanly."""

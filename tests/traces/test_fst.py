@@ -1,4 +1,4 @@
-"""FST output (issue 17): the same signals and changes as the VCD of the same log, both read
+"""FST output: the same signals and changes as the VCD of the same log, both read
 back by pywellen (Surfer's backend), from the writer and from ``stereosim run --vcd x.fst``."""
 
 from __future__ import annotations

@@ -1,8 +1,8 @@
 """GTKWave (the Debian package) under Xvfb opens the .gtkw that `stereosim run --vcd` writes:
-the view is zoomed to fit the trace window and every row has a unique, readable name (issue 17,
-acceptance 1). GTKWave's Tcl interface reports what it shows; a picture of its window shows
-signal transitions across the whole width of the wave pane. docs/make_gtkwave_screenshot.py
-starts the programs; this test skips when one of them is not installed."""
+the view is zoomed to fit the trace window and every row has a unique, readable name. GTKWave's
+Tcl interface reports what it shows; a picture of its window shows signal transitions across
+the whole width of the wave pane. docs/make_gtkwave_screenshot.py starts the programs; this
+test skips when one of them is not installed."""
 
 import importlib.util
 from itertools import pairwise
@@ -106,7 +106,8 @@ def test_gtkwave_shows_the_window_zoomed_to_fit_with_unique_names(display, trace
 
 
 def test_the_picture_check_fails_on_a_flat_view(display, traced, tmp_path):
-    """The same save file zoomed to about 2 fs, as GTKWave opened the old one: flat traces."""
+    """The same save file zoomed to about 2 fs: flat traces, which the picture check must
+    refuse."""
     tmp, _ = traced
     text = (tmp / "t.gtkw").read_text().splitlines()
     k = next(i for i, ln in enumerate(text) if ln.startswith("*"))

@@ -1,4 +1,4 @@
-"""``stereosim wave`` on FST dumps (issue 31, item 4): the FST reader gives what the VCD reader
+"""``stereosim wave`` on FST dumps: the FST reader gives what the VCD reader
 gives for the same log, corrupt FSTs fail with one line, and the round trip ``run --vcd t.fst``
 then ``wave t.fst`` works at the command line, with cycle windows resolved as ``run`` resolves
 them."""
