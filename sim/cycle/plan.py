@@ -429,9 +429,9 @@ def frame_budget(cfg: ChipConfig, shape: tuple[int, int], freqs: dict[str, float
     h, w = shape
     camera = cfg.source.kind == "camera"
     per_pixel_s = max(
-        cpd / (cfg.clocks.nna_mhz * 1e6),
-        sva_ii / (cfg.clocks.sva_mhz * 1e6),
-        (w + cfg.source.camera_hblank) / w / (cfg.clocks.camera_mhz * 1e6) if camera else 0.0,
+        cpd / freqs["nna"],
+        sva_ii / freqs["sva"],
+        (w + cfg.source.camera_hblank) / w / freqs["camera"] if camera else 0.0,
         dram.round_fs / dram.read_pixels / 1e15 if dram is not None else 0.0,
         (dram.longest_wait_fs / (dram.prefetch * dram.read_pixels) / 1e15
          if dram is not None else 0.0),
@@ -440,8 +440,7 @@ def frame_budget(cfg: ChipConfig, shape: tuple[int, int], freqs: dict[str, float
     if dram is not None:
         frame_s += dram.longest_wait_fs / 1e15
     if camera and frames > 1:  # the vertical blanking between frames
-        frame_s += (cfg.source.camera_vblank * (w + cfg.source.camera_hblank)
-                    / (cfg.clocks.camera_mhz * 1e6))
+        frame_s += cfg.source.camera_vblank * (w + cfg.source.camera_hblank) / freqs["camera"]
     return {name: int(AUTO_BUDGET_FACTOR * frames * frame_s * f) + 100_000
             for name, f in freqs.items()}
 
