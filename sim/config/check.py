@@ -192,12 +192,6 @@ def check_combinations(cfg: ChipConfig) -> ChipConfig:
             f"{nna.stereo_submodules} exceeds nna.submodules={nna.submodules}: lend at most "
             f"{nna.submodules - nna.stereo_submodules}"
         )
-    if cfg.source.on_overflow == "drop_frame" and (cfg.source.kind != "camera"
-                                                   or cfg.source.frame_buffers == 0):
-        raise ConfigError(
-            "source.on_overflow=drop_frame needs a camera with frame buffers "
-            "(--set source.kind=camera --set source.frame_buffers=2): a camera streaming "
-            "straight into the NNA cannot take back a frame it has started sending")
     if cfg.sva.pairs > 1 and (cfg.source.kind != "camera" or cfg.source.frame_buffers == 0):
         raise ConfigError(
             f"sva.pairs={cfg.sva.pairs} shares the chip between camera pairs frame by frame, "
@@ -220,4 +214,10 @@ def check_combinations(cfg: ChipConfig) -> ChipConfig:
             f"dram.lent_gbps={d.lent_gbps} is not below the channel's dram.gbps={d.gbps}: the "
             "stereo pair would get no slot; lower it or widen the channel"
         )
+    if cfg.source.on_overflow == "drop_frame" and (cfg.source.kind != "camera"
+                                                   or cfg.source.frame_buffers == 0):
+        raise ConfigError(
+            "source.on_overflow=drop_frame needs a camera with frame buffers "
+            "(--set source.kind=camera --set source.frame_buffers=2): a camera streaming "
+            "straight into the NNA cannot take back a frame it has started sending")
     return cfg
