@@ -1,10 +1,10 @@
 """The checks of a configuration, run once where it enters.
 
 One rule set for every configuration, however it was built: each value against its declaration
-in :mod:`sim.config.schema` (type, range, choices, oddness), then the rules that
-involve several keys (:func:`check_combinations`). :func:`sim.config.load_config` runs them on
-the tree it read, :func:`check_config` on a :class:`ChipConfig` built by hand or with
-``dataclasses.replace``, :func:`check_section` on one section given to a stage's entry point.
+in :mod:`sim.config.schema` (type, range, choices, oddness), then the rules that involve several
+keys (:func:`check_combinations`). :func:`sim.config.load_config` runs them on the tree it read,
+:func:`check_config` on a :class:`ChipConfig` built by hand or with ``dataclasses.replace``,
+:func:`check_section` on one section given to a stage's entry point.
 
 A configuration (and each of its sections) that passed is remembered, by identity and weak
 reference: the entry points -- ``stereosim.run``, ``build_plan``, the SVA's and the NNA's --
