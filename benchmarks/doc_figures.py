@@ -44,6 +44,7 @@ from stereosim.sim.cycle.rules import ClockDomain
 from stereosim.sim.cycle.estimate import estimate
 from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.cycle.contract import CameraOverflow
+from stereosim.sim.cycle.readable.beats import BEATS
 from stereosim.sim.io import encode_png
 from stereosim.sim.plot import rate_gaps
 from stereosim.sim.sweep import load_sweep, run_task, synthetic_pair
@@ -153,6 +154,17 @@ def layers() -> list[str]:
     (layered,) = [c for c in contracts["contracts"] if c["id"] == "layers"]
     return ["```", *(", ".join(m.strip() for m in layer.split(":"))
                      for layer in layered["layers"]), "```"]
+
+
+def beats() -> list[str]:
+    """docs/architecture.md, "Beats": the kinds of beat the readable chip's FIFOs carry, from
+    their types (sim/cycle/readable/beats.py)."""
+    lines = ["| beat | what, from where to where | pushed by (block kind) | fields | on the wire "
+             "(the FIFO's width) |", "|---|---|---|---|---|"]
+    for beat in BEATS:
+        lines.append(f"| `{beat.__name__}` | {' '.join(beat.__doc__.split())} | "
+                     f"{', '.join(beat.pushed_by)} | `{', '.join(beat._fields)}` | {beat.wire} |")
+    return lines
 
 
 def energy_720p() -> list[str]:
@@ -482,6 +494,7 @@ FIGURES = {
     "row-windows": Figure("architecture.md", row_windows),
     "splits": Figure("architecture.md", splits),
     "layers": Figure("architecture.md", layers),
+    "beats": Figure("architecture.md", beats),
     "energy-720p": Figure("energy.md", energy_720p),
     "dram-defaults": Figure("dram.md", dram_defaults),
     "requant-example": Figure("quantization.md", requant_example),

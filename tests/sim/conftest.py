@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from stereosim.sim.cycle.readable.chip import run_readable
 from stereosim.sim.cycle.compiled.run import run_compiled
+from stereosim.sim.cycle.readable.chip import build_chip, run_readable
 
 
 @pytest.fixture
@@ -29,3 +29,21 @@ def engines_agree():
         return slow, got["slow"]
 
     return check
+
+
+def _run_cycle(left, right, cfg, *, order_seed=None, sink_stall=None, trace=None,
+               on_frame=None):
+    """One frame (or a stream: see ``build_chip``) of ``cfg`` (or a plan) on the readable
+    kernel: (the last frame's output words (H, W) int32, cycle report, the chip -- its blocks,
+    FIFOs and simulator, for tests that look inside)."""
+    chip = build_chip(left, right, cfg, order_seed=order_seed, sink_stall=sink_stall,
+                      trace=trace, on_frame=on_frame)
+    _, report = chip.run()
+    return chip.sink.words.copy(), report, chip
+
+
+@pytest.fixture(scope="session")
+def run_cycle():
+    """The readable kernel's run with its chip: ``run_cycle(left, right, cfg, *, order_seed,
+    sink_stall, trace, on_frame) -> (words, report, chip)``."""
+    return _run_cycle

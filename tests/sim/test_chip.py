@@ -5,10 +5,12 @@ import pytest
 
 from stereosim.sim.api import run
 from stereosim.sim.config import load_config
-from stereosim.sim.cycle.readable.chip import run_cycle
 from stereosim.sim.cycle.contract import DeadlockError
 from stereosim.sim.cycle.compiled.run import run_compiled
 from stereosim.sim.cycle.plan import build_plan
+from stereosim.sim.cycle.readable.blocks.nna import NnaSubmodule
+from stereosim.sim.cycle.readable.clock import KernelError
+from stereosim.sim.cycle.readable.fifo import Fifo
 from stereosim.sim.cycle.contract import CameraOverflow
 
 # Equal NNA and SVA clocks make the crossing easy to count by hand: an item pushed at NNA cycle
@@ -24,7 +26,7 @@ def _pair(h, w, seed=0, shift=3):
     return base[:, :w].copy(), base[:, shift:].copy()
 
 
-def _frame(engine, left, right, cfg):
+def _frame(engine, run_cycle, left, right, cfg):
     """(words, report, sink's first and last pop cycle) on the readable kernel or on the
     compiled engine (sim/cycle/engine), which computes the same cycles from the event
     streams."""
@@ -38,7 +40,7 @@ def _frame(engine, left, right, cfg):
 
 @pytest.mark.parametrize("engine", ["readable", "compiled"])
 @pytest.mark.parametrize("h, w", [(11, 53), (7, 57), (5, 64)])
-def test_census_first_and_last_output_cycles(h, w, engine):
+def test_census_first_and_last_output_cycles(h, w, engine, run_cycle):
     """Census (1 cycle per descriptor, window half-height 1), memory at one pixel per cycle.
 
     Source pixel k leaves in cycle k and is popped by the NNA in cycle k + 1. NNA output row 0
@@ -52,7 +54,7 @@ def test_census_first_and_last_output_cycles(h, w, engine):
     """
     left, right = _pair(h, w)
     cfg = load_config(overrides=SAME_CLOCKS)
-    words, report, first, last = _frame(engine, left, right, cfg)
+    words, report, first, last = _frame(engine, run_cycle, left, right, cfg)
     lat = build_plan(cfg, (h, w)).block("sva").latency  # tests/sim/test_stages.py checks it
     assert first == 6 * w + 4 + lat
     assert last == 6 * w + 4 + lat + 2 * (h * w - 1)
@@ -63,7 +65,7 @@ def test_census_first_and_last_output_cycles(h, w, engine):
 
 @pytest.mark.parametrize("engine", ["readable", "compiled"])
 @pytest.mark.parametrize("h, w", [(11, 37), (7, 41), (5, 33)])
-def test_cnn_first_and_last_output_cycles(h, w, engine):
+def test_cnn_first_and_last_output_cycles(h, w, engine, run_cycle):
     """CNN: ceil(81 * 32 / 288) = 9 cycles per descriptor, window half-height 4.
 
     NNA output row 0 needs input row 4 (popped in cycle 5W): it starts in 5W + 1 and pushes
@@ -75,7 +77,7 @@ def test_cnn_first_and_last_output_cycles(h, w, engine):
     """
     left, right = _pair(h, w, seed=1)
     cfg = load_config(overrides={**SAME_CLOCKS, "nna.descriptor": "cnn"})
-    words, report, first, last = _frame(engine, left, right, cfg)
+    words, report, first, last = _frame(engine, run_cycle, left, right, cfg)
     lat = build_plan(cfg, (h, w)).block("sva").latency
     assert first == 41 * w + 4 + lat
     assert last == (9 * h + 5) * w + 3 + lat + 2 * (4 * w - 1) + 1
@@ -100,7 +102,7 @@ def test_cnn_first_and_last_output_cycles(h, w, engine):
         {"source.memory_gbps": 0.1, "clocks.nna_mhz": 300, "clocks.sva_mhz": 700},
     ],
 )
-def test_cycle_model_is_bit_exact_with_the_functional_model(over):
+def test_cycle_model_is_bit_exact_with_the_functional_model(over, run_cycle):
     left, right = _pair(13, 45, seed=len(over))
     cfg = load_config(overrides={"sva.disparities": 16, "nna.descriptor": "census", **over})
     words, _, _ = run_cycle(left, right, cfg)
@@ -108,7 +110,7 @@ def test_cycle_model_is_bit_exact_with_the_functional_model(over):
     np.testing.assert_array_equal(words, functional)
 
 
-def test_backpressure_from_a_stalling_sink_keeps_data_exact():
+def test_backpressure_from_a_stalling_sink_keeps_data_exact(run_cycle):
     left, right = _pair(9, 35, seed=5)
     cfg = load_config(overrides={**SAME_CLOCKS, "fifo.sva_to_sink_depth": 1})
     words, report, chip = run_cycle(left, right, cfg, sink_stall=lambda c: c % 3 != 0)
@@ -119,7 +121,7 @@ def test_backpressure_from_a_stalling_sink_keeps_data_exact():
     assert chip.sink.last_cycle - chip.sink.first_cycle >= 3 * (9 * 35 - 1)
 
 
-def test_deeper_fifo_removes_the_nna_stalls():
+def test_deeper_fifo_removes_the_nna_stalls(run_cycle):
     """Census NNA (1 per cycle) feeds the SVA (2 per cycle, bounded look-ahead): a shallow
     NNA-to-SVA FIFO blocks the NNA; one that holds the whole frame never does."""
     left, right = _pair(9, 35, seed=6)
@@ -132,7 +134,7 @@ def test_deeper_fifo_removes_the_nna_stalls():
     assert blocked == sorted(blocked, reverse=True) and blocked[0] > 0 and blocked[-1] == 0
 
 
-def test_evaluation_order_does_not_change_anything():
+def test_evaluation_order_does_not_change_anything(run_cycle):
     left, right = _pair(7, 29, seed=7)
     cfg = load_config(overrides={"sva.disparities": 16, "nna.descriptor": "cnn"})
     results = [run_cycle(left, right, cfg, order_seed=seed) for seed in (None, 1, 2, 3)]
@@ -141,7 +143,7 @@ def test_evaluation_order_does_not_change_anything():
         assert report == results[0][1]
 
 
-def test_a_sink_that_never_drains_is_reported_as_a_deadlock():
+def test_a_sink_that_never_drains_is_reported_as_a_deadlock(run_cycle):
     left, right = _pair(7, 29, seed=8)
     cfg = load_config(overrides={"sva.disparities": 16, "nna.descriptor": "census",
                                  "sim.watchdog_cycles": 500})
@@ -154,7 +156,7 @@ def test_a_sink_that_never_drains_is_reported_as_a_deadlock():
     assert exc.value.blocks["sva"]["status"] == "blocked"
 
 
-def test_a_camera_faster_than_the_nna_overflows():
+def test_a_camera_faster_than_the_nna_overflows(run_cycle):
     left, right = _pair(25, 29, seed=9)  # taller than the 10-row line buffer
     cfg = load_config(overrides={"sva.disparities": 16, "source.kind": "camera",
                                  "nna.descriptor": "cnn", "clocks.camera_mhz": 400,
@@ -174,7 +176,7 @@ def test_a_camera_faster_than_the_nna_overflows():
         {"nna.stereo_submodules": 4, "source.kind": "camera", "clocks.camera_mhz": 30},
     ],
 )
-def test_split_frames_are_bit_exact(over):
+def test_split_frames_are_bit_exact(over, run_cycle):
     """Column tiles and row bands with their halos, merged back into raster order, give the
     functional model's words: the halo and border handling of every tile is right."""
     left, right = _pair(19, 45, seed=11)
@@ -186,7 +188,7 @@ def test_split_frames_are_bit_exact(over):
     assert {f"nna_left{t}" for t in range(parts)} <= set(report["blocks"])
 
 
-def test_column_tiles_speed_up_an_nna_bound_frame():
+def test_column_tiles_speed_up_an_nna_bound_frame(run_cycle):
     """CNN descriptors (9 cycles each) make the NNA the bottleneck; two column tiles per camera
     share the work, so the frame ends sooner and the busiest submodule does about half."""
     left, right = _pair(15, 64, seed=12)
@@ -203,7 +205,7 @@ def test_column_tiles_speed_up_an_nna_bound_frame():
     assert busiest[1] < 0.6 * busiest[0]
 
 
-def test_bad_split_configurations_are_refused():
+def test_bad_split_configurations_are_refused(run_cycle):
     from stereosim.sim.errors import ConfigError
 
     with pytest.raises(ConfigError, match="must be even"):
@@ -215,3 +217,19 @@ def test_bad_split_configurations_are_refused():
                                  "nna.split": "rows"})
     with pytest.raises(ConfigError, match="cannot split 4 rows into 5 parts"):
         run_cycle(left, right, cfg)
+
+
+def test_a_block_handed_fifos_its_plan_entry_does_not_name_is_refused():
+    """A chip block takes its ports' FIFOs from the parent in the order its plan entry names
+    them; anything else is a wiring bug."""
+    plan = build_plan(load_config(overrides=SAME_CLOCKS), (6, 40))
+    entry = plan.block("nna_left")
+    fifos = {f.name: Fifo(f.name, f.depth, f.width_bits, src=plan.domains[f.src].clock(),
+                          dst=plan.domains[f.dst].clock()) for f in plan.fifos}
+    inp, out = fifos["src_left_to_nna"], fifos["nna_left_to_sva"]
+    assert NnaSubmodule(plan, entry, [inp], [out]).name == "nna_left"
+    with pytest.raises(KernelError, match="'nna_left' was handed inputs \\['src_right_to_nna'\\]; "
+                       "its plan entry names \\['src_left_to_nna'\\]"):
+        NnaSubmodule(plan, entry, [fifos["src_right_to_nna"]], [out])
+    with pytest.raises(KernelError, match="handed outputs"):
+        NnaSubmodule(plan, entry, [inp], [out, fifos["nna_right_to_sva"]])

@@ -4,7 +4,7 @@ watchdog, the cycle budget, order independence and the trace hook -- all in exac
 import pytest
 
 from stereosim.sim.cycle.contract import BudgetExceeded, count_instants, DeadlockError
-from stereosim.sim.cycle.readable.clock import Block, KernelError, Register
+from stereosim.sim.cycle.readable.clock import Block, KernelError
 from stereosim.sim.cycle.rules import ClockDomain
 from stereosim.sim.cycle.readable.fifo import Fifo
 from stereosim.sim.cycle.readable.kernel import Simulator
@@ -16,37 +16,50 @@ P = 10_000_000  # 100 MHz in fs
 class Source(Block):
     """Pushes 0, 1, ..., n-1 into ``out``, one per cycle whenever ``can_push()``.
     Ports: out. Busy in a push cycle, blocked while it has items and ``out`` is full, idle when
-    done. Register ``sent`` (items pushed)."""
+    done. Traces ``sent`` (items pushed, committed)."""
 
     def __init__(self, name, domain, out, n):
         super().__init__(name, domain)
         self.out = out
         self.n = n
-        self.sent = self.register("sent", 16)
+        self.sent = 0
+        self._pushed = False
 
     def evaluate(self, now_cycle):
-        k = self.sent.value
+        k = self.sent
         if k >= self.n:
             self.idle()
         elif self.out.can_push():
             self.out.push(k)
-            self.sent.next = k + 1
+            self._pushed = True
             self.busy()
         else:
             self.blocked(self.out)
+
+    def commit(self):
+        if self._pushed:
+            self.sent += 1
+            self._pushed = False
+
+    def signals(self):
+        return [("sent", 16)]
+
+    def signal_values(self):
+        return {"sent": self.sent}
 
 
 class Sink(Block):
     """Pops one visible item per cycle, except in cycles where ``stall(cycle)`` is true.
     Ports: inp. Busy in a pop cycle, idle when stalled, starved when nothing is visible.
-    Register ``received``; the items are collected in ``items`` at commit."""
+    Traces ``received`` (items popped, committed); the items are collected in ``items`` at
+    commit."""
 
     def __init__(self, name, domain, inp, stall=None):
         super().__init__(name, domain)
         self.inp = inp
         self.stall = stall
         self.items = []
-        self.received = self.register("received", 16)
+        self.received = 0
         self._got = None
 
     def evaluate(self, now_cycle):
@@ -54,7 +67,6 @@ class Sink(Block):
             self.idle()
         elif self.inp.can_pop():
             self._got = self.inp.pop()
-            self.received.next = self.received.value + 1
             self.busy()
         else:
             self.starved(self.inp)
@@ -62,7 +74,14 @@ class Sink(Block):
     def commit(self):
         if self._got is not None:
             self.items.append(self._got)
+            self.received += 1
             self._got = None
+
+    def signals(self):
+        return [("received", 16)]
+
+    def signal_values(self):
+        return {"received": self.received}
 
 
 class Stage(Block):
@@ -82,7 +101,7 @@ class Stage(Block):
         self.slots = -(-lat // ii)
         self.inflight = []  # (cycle the result is ready, result), committed
         self.next_accept = 0  # committed
-        self.accepts = self.register("accepts", 16)
+        self.accepts = 0  # committed
         self._staged = None
 
     def evaluate(self, now_cycle):
@@ -99,9 +118,8 @@ class Stage(Block):
         if now_cycle >= next_accept and len(flight) < self.slots and self.inp.can_pop():
             flight.append((now_cycle + self.lat, self.f(self.inp.pop())))
             next_accept = now_cycle + self.ii
-            self.accepts.next = self.accepts.value + 1
             accepted = True
-        self._staged = (flight, next_accept)
+        self._staged = (flight, next_accept, self.accepts + accepted)
         if pushed or accepted:
             self.busy()
         elif stuck:
@@ -112,7 +130,13 @@ class Stage(Block):
             self.starved(self.inp)
 
     def commit(self):
-        self.inflight, self.next_accept = self._staged
+        self.inflight, self.next_accept, self.accepts = self._staged
+
+    def signals(self):
+        return [("accepts", 16)]
+
+    def signal_values(self):
+        return {"accepts": self.accepts}
 
 
 class Window3(Block):
@@ -171,17 +195,28 @@ def test_bad_domains_raise_config_errors(kw, words):
 
 
 class Counter(Block):
-    """Counts its cycles in a register and records the cycle indices it was given."""
+    """Counts its cycles (``count``, committed and traced) and records the cycle indices it was
+    given."""
 
     def __init__(self, name, domain):
         super().__init__(name, domain)
-        self.count = self.register("count", 32)
+        self.count = 0
         self.seen = []
+        self._next = 0
 
     def evaluate(self, now_cycle):
         self.seen.append(now_cycle)
-        self.count.next = self.count.value + 1
+        self._next = self.count + 1
         self.busy()
+
+    def commit(self):
+        self.count = self._next
+
+    def signals(self):
+        return [("count", 32)]
+
+    def signal_values(self):
+        return {"count": self.count}
 
 
 def test_steps_visit_every_edge_in_time_order_and_ties_tick_together():
@@ -206,7 +241,7 @@ def test_steps_visit_every_edge_in_time_order_and_ties_tick_together():
     ]
     assert sim.cycles == {"a": 6, "b": 4, "c": 6}
     assert [b.seen for b in blocks] == [list(range(6)), list(range(4)), list(range(6))]
-    assert [b.count.value for b in blocks] == [6, 4, 6]
+    assert [b.count for b in blocks] == [6, 4, 6]
 
 
 def test_registers_commit_only_after_every_block_evaluated():
@@ -216,12 +251,16 @@ def test_registers_commit_only_after_every_block_evaluated():
     class Swap(Block):
         def __init__(self, name, domain, reset):
             super().__init__(name, domain)
-            self.r = self.register("r", 8, reset)
+            self.r = reset  # committed
+            self._next = reset
             self.other = None
 
         def evaluate(self, now_cycle):
-            self.r.next = self.other.r.value
+            self._next = self.other.r
             self.busy()
+
+        def commit(self):
+            self.r = self._next
 
     clk = ClockDomain("clk", 100e6)
     for seed in (None, 1, 2, 3):
@@ -231,7 +270,7 @@ def test_registers_commit_only_after_every_block_evaluated():
         values = []
         for _ in range(3):
             sim.step()
-            values.append((x.r.value, y.r.value))
+            values.append((x.r, y.r))
         assert values == [(2, 1), (1, 2), (2, 1)]
 
 
@@ -428,8 +467,8 @@ def test_a_second_run_continues_and_budgets_count_from_its_start():
     clk = ClockDomain("clk", 100e6)
     sim = _sim(clk)
     c = sim.add_block(Counter("c", clk))
-    sim.run(lambda: c.count.value == 5, budget_cycles=5)
-    stats = sim.run(lambda: c.count.value == 10, budget_cycles=5)
+    sim.run(lambda: c.count == 5, budget_cycles=5)
+    stats = sim.run(lambda: c.count == 10, budget_cycles=5)
     assert stats["cycles"] == {"clk": 10} and stats["end_time_fs"] == 9 * P
     assert stats["blocks"] == {"c": {"blocked": 0, "busy": 10, "idle": 0, "starved": 0}}
 
@@ -592,15 +631,6 @@ def test_activity_must_be_reported_exactly_once():
         sim.add_block(cls("x", clk))
         with pytest.raises(KernelError, match=words):
             sim.step()
-
-
-def test_register_width_is_checked_at_commit():
-    reg = Register("r", 4, 15)
-    reg.next = 16
-    with pytest.raises(KernelError, match="register 'r' \\(4 bits\\) cannot hold 16"):
-        reg.commit()
-    with pytest.raises(ConfigError, match="width_bits must be >= 1"):
-        Register("r", 0)
 
 
 def test_wiring_errors():

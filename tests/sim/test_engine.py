@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 
 from stereosim.sim.config import load_config
-from stereosim.sim.cycle.readable.chip import run_cycle
 from stereosim.sim.cycle.contract import BudgetExceeded, DeadlockError
 from stereosim.sim.cycle.compiled.run import run_compiled
 from stereosim.sim.cycle.plan import build_plan
@@ -36,7 +35,7 @@ def _stall_fn(stall):
     return lambda c: c % period != phase
 
 
-def _assert_same(h, w, over, seed=0, stall=None):
+def _assert_same(run_cycle, h, w, over, seed=0, stall=None):
     """The compiled engine equals the readable kernel."""
     left, right = _pair(h, w, seed=seed)
     cfg = load_config(overrides={**CENSUS, **over})
@@ -75,8 +74,8 @@ def _assert_same(h, w, over, seed=0, stall=None):
                   "nna.line_buffer_rows": 5, "sva.box_size": 1}),
     ],
 )
-def test_fast_engine_equals_the_readable_engine(h, w, over):
-    _assert_same(h, w, over, seed=h + w)
+def test_fast_engine_equals_the_readable_engine(h, w, over, run_cycle):
+    _assert_same(run_cycle, h, w, over, seed=h + w)
 
 
 @pytest.mark.parametrize(
@@ -89,16 +88,17 @@ def test_fast_engine_equals_the_readable_engine(h, w, over):
          "nna.descriptor": "cnn", "clocks.nna_mhz": 460, "clocks.sva_mhz": 465},
     ],
 )
-def test_fast_engine_equals_the_readable_engine_with_a_camera(over):
-    _assert_same(13, 45, over, seed=7)
+def test_fast_engine_equals_the_readable_engine_with_a_camera(over, run_cycle):
+    _assert_same(run_cycle, 13, 45, over, seed=7)
 
 
 @pytest.mark.parametrize("stall, depth", [((3, 0), 1), ((4, 2), 2), ((2, 1), 16)])
-def test_a_periodically_stalling_sink_gives_the_same_backpressure(stall, depth):
-    _assert_same(9, 35, {**SAME_CLOCKS, "fifo.sva_to_sink_depth": depth}, seed=5, stall=stall)
+def test_a_periodically_stalling_sink_gives_the_same_backpressure(stall, depth, run_cycle):
+    _assert_same(run_cycle, 9, 35, {**SAME_CLOCKS, "fifo.sva_to_sink_depth": depth}, seed=5,
+                 stall=stall)
 
 
-def test_deadlock_is_reported_with_the_same_message():
+def test_deadlock_is_reported_with_the_same_message(run_cycle):
     left, right = _pair(7, 29, seed=8)
     cfg = load_config(overrides={**CENSUS, "sim.watchdog_cycles": 500})
     never = (1 << 40, (1 << 40) - 1)  # the sink would pop first in cycle 2^40 - 1
@@ -114,7 +114,7 @@ def test_deadlock_is_reported_with_the_same_message():
     assert fast.value.time_fs == slow.value.time_fs
 
 
-def test_cycle_budget_is_enforced_with_the_same_message():
+def test_cycle_budget_is_enforced_with_the_same_message(run_cycle):
     """Without a watchdog a sink that never pops runs into the cycle budget of sim.cycle.readable.chip (equal
     clocks: one step per cycle keeps the readable run short)."""
     left, right = _pair(3, 20, seed=10)
@@ -128,7 +128,7 @@ def test_cycle_budget_is_enforced_with_the_same_message():
     assert fast.value.blocks == slow.value.blocks
 
 
-def test_camera_overflow_has_the_same_message():
+def test_camera_overflow_has_the_same_message(run_cycle):
     left, right = _pair(25, 29, seed=9)
     cfg = load_config(overrides={"sva.disparities": 16, "source.kind": "camera",
                                  "nna.descriptor": "cnn", "clocks.camera_mhz": 400,
@@ -150,7 +150,7 @@ def test_camera_overflow_has_the_same_message():
           "nna.descriptor": "cnn", "clocks.camera_mhz": 400, "source.camera_hblank": 0}, None),
     ],
 )
-def test_split_frames_stop_with_the_same_message(over, stall):
+def test_split_frames_stop_with_the_same_message(over, stall, run_cycle):
     """Split frames stop as whole ones do: the same exception, message and state."""
     left, right = _pair(25, 40, seed=18)
     cfg = load_config(overrides={**CENSUS, **over})

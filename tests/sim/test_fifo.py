@@ -31,17 +31,16 @@ class Producer(Block):
         self.out = out
         self.n = n
         self.stall = stall
-        self.sent = self.register("sent", 16)
+        self.sent = 0  # items pushed (committed)
         self.push_fs = []
         self._staged = None
 
     def evaluate(self, now_cycle):
-        k = self.sent.value
+        k = self.sent
         if k >= self.n or (self.stall is not None and self.stall(now_cycle)):
             self.idle()
         elif self.out.can_push():
             self.out.push(k)
-            self.sent.next = k + 1
             self._staged = self.domain.edge_fs(now_cycle)
             self.busy()
         else:
@@ -49,6 +48,7 @@ class Producer(Block):
 
     def commit(self):
         if self._staged is not None:
+            self.sent += 1
             self.push_fs.append(self._staged)
             self._staged = None
 

@@ -16,7 +16,6 @@ import pywellen
 from stereosim.sim import tracing
 from stereosim.sim.cli import main
 from stereosim.sim.config import load_config
-from stereosim.sim.cycle.readable.chip import run_cycle
 from stereosim.sim.cycle.contract import BudgetExceeded
 from stereosim.sim.cycle.compiled.run import run_compiled
 from stereosim.sim.cycle.plan import STATUS_CODES, build_plan
@@ -34,7 +33,7 @@ def _pair(h, w, seed=0, shift=3):
 
 @pytest.mark.parametrize("clocks, share", [((400, 400), 0.5), ((460, 465), 0.3),
                                             ((300, 500), 0.77)])
-def test_the_run_stops_at_the_limit_of_its_fastest_domain(clocks, share):
+def test_the_run_stops_at_the_limit_of_its_fastest_domain(clocks, share, run_cycle):
     """With N = sim.max_cycles every domain may run N cycles: the fastest clock gets there first,
     so the run stops with that domain at exactly N cycles and the others at the cycles their
     clock fits into the same time; both engines agree on the message and the state."""
@@ -59,7 +58,7 @@ def test_the_run_stops_at_the_limit_of_its_fastest_domain(clocks, share):
     assert f"stopped by sim.max_cycles = {limit} (--max-cycles N)" in str(fast.value)
 
 
-def test_a_limit_the_run_does_not_reach_changes_nothing():
+def test_a_limit_the_run_does_not_reach_changes_nothing(run_cycle):
     left, right = _pair(6, 40)
     free = load_config(overrides=CENSUS)
     words, report, _ = run_cycle(left, right, free)

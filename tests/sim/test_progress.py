@@ -17,7 +17,6 @@ from stereosim.quant.quantizer import FloatModel, QuantizerConfig, quantize
 from stereosim.sim import progress
 from stereosim.sim.config import load_config
 from stereosim.sim.cycle.readable import kernel
-from stereosim.sim.cycle.readable.chip import run_cycle
 from stereosim.sim.progress import (
     COMPILE_MESSAGE,
     compile_notice,
@@ -66,7 +65,8 @@ def _pair(h, w, shift=3):
     return base[:, :w].copy(), base[:, shift:].copy()
 
 
-def test_the_readable_kernel_reports_rows_without_changing_the_run(monkeypatch, capsys):
+def test_the_readable_kernel_reports_rows_without_changing_the_run(monkeypatch, capsys,
+                                                                  run_cycle):
     left, right = _pair(9, 35)
     cfg = load_config(overrides={"sva.disparities": 16, "nna.descriptor": "census"})
     words, report, chip = run_cycle(left, right, cfg)

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from stereosim.sim.config import load_config
-from stereosim.sim.cycle.readable.chip import run_cycle, run_readable
+from stereosim.sim.cycle.readable.chip import run_readable
 from stereosim.sim.cycle.compiled.run import run_compiled
 from stereosim.sim.cycle.plan import build_plan
 from stereosim.traces.log import changes_of
@@ -25,7 +25,7 @@ def _pair(h, w, seed=0):
     return base[:, 3:].copy(), base[:, :w].copy()
 
 
-def test_a_stall_freezes_the_words_in_flight_and_the_next_rows_issue():
+def test_a_stall_freezes_the_words_in_flight_and_the_next_rows_issue(run_cycle):
     """Rows arrive slowly (the memory gives a pixel every 3 cycles), so row 1 becomes ready
     while the last words of row 0 are still in the pipeline. The sink (FIFO depth 1) refuses
     to pop while row 1 becomes ready: word W - k waits in the output register and the pipeline

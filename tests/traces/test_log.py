@@ -87,15 +87,26 @@ def test_select_names_some_signals_when_a_pattern_matches_nothing():
 
 
 class _Counter(Block):
-    """Counts its cycles in a register, wrapping at 4, and is busy every cycle."""
+    """Counts its cycles in ``count`` (committed, traced, 2 bits), wrapping at 4, and is busy
+    every cycle."""
 
     def __init__(self, name, domain):
         super().__init__(name, domain)
-        self.count = self.register("count", 2)
+        self.count = 0
+        self._next = 0
 
     def evaluate(self, now_cycle):
-        self.count.next = (self.count.value + 1) % 4
+        self._next = (self.count + 1) % 4
         self.busy()
+
+    def commit(self):
+        self.count = self._next
+
+    def signals(self):
+        return [("count", 2)]
+
+    def signal_values(self):
+        return {"count": self.count}
 
 
 def test_recorder_is_the_simulator_hook():

@@ -2,9 +2,9 @@
 edge on the two-phase kernel (:mod:`sim.cycle.readable.kernel`). It is the specification every other
 engine is held to (docs/clock-kernel.md, docs/architecture.md).
 
-:func:`run_cycle` simulates one stereo frame and returns the output words with the cycle report
-and the chip; :func:`run_readable` does the same for the dispatcher (:mod:`sim.cycle.simulate`)
-and can record a trace window.
+:func:`build_chip` builds the chip of a plan for a pair (or a stream of pairs) and
+:meth:`Chip.run` runs it to the end; :func:`run_readable`, the dispatcher's entry
+(:mod:`sim.cycle.simulate`), does both and can record a trace window.
 """
 
 from __future__ import annotations
@@ -14,22 +14,7 @@ from collections.abc import Callable
 import numpy as np
 
 from stereosim.sim.config import ChipConfig
-from stereosim.sim.cycle.readable.blocks.nna import Merge, NnaSubmodule
 from stereosim.sim.cycle.buffers import buffer_report, windows_of
-from stereosim.sim.cycle.readable.blocks.sources import (
-    CameraSource,
-    DramChannel,
-    FrameBuffers,
-    MemorySource,
-    Sink,
-)
-from stereosim.sim.cycle.readable.blocks.sva import SvaBlock
-from stereosim.sim.cycle.readable.fifo import Fifo
-from stereosim.sim.cycle.frames import FrameSupply, camera_frames
-from stereosim.sim.cycle.readable.kernel import Simulator
-from stereosim.sim.cycle.plan import ChipPlan, build_plan
-from stereosim.sim.cycle.report import cycle_report
-from stereosim.sim.cycle.rules import camera_frame_start, sink_may_pop
 from stereosim.sim.cycle.contract import (
     CameraOverflow,
     FrameBufferFull,
@@ -40,6 +25,21 @@ from stereosim.sim.cycle.contract import (
     trace_clocks,
     trace_signals,
 )
+from stereosim.sim.cycle.frames import FrameSupply, camera_frames
+from stereosim.sim.cycle.plan import ChipPlan, build_plan
+from stereosim.sim.cycle.readable.blocks.nna import Merge, NnaSubmodule
+from stereosim.sim.cycle.readable.blocks.sources import (
+    CameraSource,
+    DramChannel,
+    FrameBuffers,
+    MemorySource,
+    Sink,
+)
+from stereosim.sim.cycle.readable.blocks.sva import SvaBlock
+from stereosim.sim.cycle.readable.fifo import Fifo
+from stereosim.sim.cycle.readable.kernel import Simulator
+from stereosim.sim.cycle.report import cycle_report
+from stereosim.sim.cycle.rules import camera_frame_start, sink_may_pop
 from stereosim.sim.errors import UserError
 from stereosim.sim.progress import poller, progress_bar
 from stereosim.traces.log import TraceRecorder
@@ -49,7 +49,7 @@ class Chip:
     """The blocks, FIFOs and domains of one frame's simulation (built by :func:`build_chip`)."""
 
     def __init__(self, plan: ChipPlan, sim: Simulator, domains: dict, fifos: dict,
-                 blocks: dict, sink: Sink, frame_buffers: FrameBuffers | None = None,
+                 blocks: dict, frame_buffers: FrameBuffers | None = None,
                  dram: DramChannel | None = None):
         self.plan = plan
         self.dram = dram
@@ -57,7 +57,7 @@ class Chip:
         self.domains = domains
         self.fifos = fifos
         self.blocks = blocks
-        self.sink = sink
+        self.sink: Sink = blocks["sink"]
         self.frame_buffers = frame_buffers
         self.cameras = [b for b in blocks.values() if isinstance(b, CameraSource)]
 
@@ -88,9 +88,9 @@ class Chip:
         occ = np.full((2 * len(nna) + 2, self.plan.frames * self.plan.shape[0] + 1), -1,
                       np.int64)
         for t, b in enumerate([*nna, self.plan.block("sva")]):
-            blk = self.blocks[b.name]
-            occ[2 * t, :len(blk.rows_entered)] = blk.rows_entered
-            occ[2 * t + 1, :len(blk.rows_done)] = blk.rows_done
+            entered, done = self.blocks[b.name].row_window()
+            occ[2 * t, :len(entered)] = entered
+            occ[2 * t + 1, :len(done)] = done
         return occ
 
     def row_times(self) -> np.ndarray:
@@ -105,7 +105,8 @@ class Chip:
             cycles = []
             for b in self.plan.blocks:
                 if b.kind == "nna" and b.side == 0 and b.tile.in_y0 <= y < b.tile.in_y1:
-                    cycles.append(int(self.blocks[b.name].row_cycles[y - b.tile.in_y0]))
+                    line_buffer = self.blocks[b.name].line_buffer
+                    cycles.append(int(line_buffer.row_cycles[y - b.tile.in_y0]))
             if min(cycles) >= 0:
                 out[0, y + 1] = max(cycles) * p_nna
         sink = self.sink.row_cycles
@@ -136,6 +137,29 @@ class Chip:
         out[1][last >= 0] = last[last >= 0] * plan.domains["sva"].period_fs
         return out
 
+    def run(self) -> tuple[dict, dict]:
+        """Run the chip to the end of the stream: (statistics, cycle report). A row window that
+        overflowed raises BufferOverflow, before any stop the run ended in."""
+        plan, sink = self.plan, self.sink
+        sva = self.blocks["sva"]
+        bar = progress_bar(sink.total // sink.width, "readable engine", "row")
+        try:
+            stats = self.sim.run(self.done, budget_cycles=plan.budget,
+                                 on_progress=poller(bar, lambda: sink.received // sink.width),
+                                 budget_remedy=plan.budget_remedy,
+                                 watchdog_cycles=plan.watchdog_cycles,
+                                 watchdog_remedy=plan.watchdog_remedy)
+        except UserError:
+            buffer_report(plan, windows_of(plan, self.window_rows()), sva.stage_peaks())
+            raise
+        finally:
+            bar.close()
+        buffers = buffer_report(plan, windows_of(plan, self.window_rows()), sva.stage_peaks())
+        if self.dram is not None:
+            stats["dram"] = self.dram.stats()
+        return stats, cycle_report(plan, sink.first_cycle, sink.last_cycle, stats, buffers,
+                                   self.frame_times())
+
 
 def _stall_function(sink_stall) -> Callable | None:
     """The sink's stall: a function of the cycle (True: refuse to pop), or a periodic pattern
@@ -146,19 +170,22 @@ def _stall_function(sink_stall) -> Callable | None:
     return lambda c: not sink_may_pop(c, period, phase)
 
 
+def _view(supply: FrameSupply, side: int) -> Callable[[int], np.ndarray]:
+    """One camera's frames: frame f's image of ``side`` (0 left, 1 right)."""
+    return lambda f: supply.pair(f)[side]
+
+
 def build_chip(left, right, cfg: ChipConfig | ChipPlan, *, order_seed=None, sink_stall=None,
                trace=None, on_frame=None, trace_end_fs=None) -> Chip:
     """The readable chip of ``cfg`` (or of a plan) for this pair -- or stream of pairs: (N, H,
     W) stacks or a :class:`~sim.cycle.frames.FrameSupply`, whose count a plan must have.
     ``on_frame(f, words)`` receives each frame's output words as the sink completes it;
     ``trace`` (a :class:`~sim.cycle.readable.kernel.Simulator` trace hook) sees no step at or after
-    ``trace_end_fs``."""
+    ``trace_end_fs``. The chip creates the plan's domains, FIFOs and the state the blocks share
+    (frame buffers, DRAM channel) and hands each block its entry and its ports' FIFOs."""
     supply = FrameSupply.of(left, right)
     plan = cfg if isinstance(cfg, ChipPlan) else build_plan(cfg, supply.shape, supply.count)
     supply = camera_frames(supply, plan)  # every camera pair sees the stream
-    cfg = plan.cfg
-    shape = plan.shape
-    frames = plan.frames
     sim = Simulator(order_seed=order_seed, trace=trace, trace_end_fs=trace_end_fs)
     domains = {name: sim.add_domain(d.clock()) for name, d in plan.domains.items()}
     fifos = {}
@@ -166,84 +193,35 @@ def build_chip(left, right, cfg: ChipConfig | ChipPlan, *, order_seed=None, sink
         fifos[f.name] = sim.add_fifo(Fifo(f.name, f.depth, f.width_bits, f.latency_cycles,
                                           src=domains[f.src], dst=domains[f.dst],
                                           sync_cycles=f.sync_cycles, handshake_signals=True))
+    fb = FrameBuffers(plan) if plan.frame_buffered else None
+    if fb is not None and on_frame is not None:  # the sink counts the frames taken: give the
+        taken_on_frame = on_frame  # camera's
+
+        def on_frame(g, words):
+            taken_on_frame(fb.taken[g], words)
+    dram = DramChannel(plan, fb) if plan.dram is not None else None
     blocks = {}
-    sink = None
-    fb = None
-    if plan.frame_buffered:
-        cam = plan.block("camera_left")
-        fb = FrameBuffers(frames, cfg.source.frame_buffers,
-                          cfg.source.on_overflow == "drop_frame", cam.line_clocks,
-                          cam.frame_clocks, plan.domains["camera"].period_fs,
-                          plan.domains["nna"].period_fs, plan.pairs)
-        if on_frame is not None:  # the sink counts the frames taken: give the camera's
-            taken_on_frame = on_frame
-
-            def on_frame(g, words):
-                taken_on_frame(fb.taken[g], words)
-    dram = None
-    if plan.dram is not None:
-        dram = DramChannel(plan.dram, shape, plan.domains[plan.source_domain].period_fs,
-                           plan.domains["sva"].period_fs, fb)
-    for b in plan.blocks:
-        dom = domains[b.domain]
-        if b.kind in ("memory", "camera"):
-            outs = [(fifos[name], tile) for name, tile in zip(b.outputs, plan.tiles)]
-            image = (lambda f, s=b.side: supply.pair(f)[s])
-            if b.kind == "camera":
-                block = CameraSource(b, dom, image, shape, frames, outs, buffers=fb)
+    for entry in plan.blocks:
+        ins = [fifos[name] for name in entry.inputs]
+        outs = [fifos[name] for name in entry.outputs]
+        kind = entry.kind
+        if kind in ("memory", "camera"):
+            image = _view(supply, entry.side)
+            if kind == "camera":
+                block = CameraSource(plan, entry, outs, image=image, buffers=fb)
             else:
-                block = MemorySource(b, dom, image, shape, frames, outs, buffers=fb, dram=dram)
-        elif b.kind == "nna":
-            block = NnaSubmodule(b, dom, shape, fifos[b.inputs[0]], fifos[b.outputs[0]],
-                                 cfg.nna, frames)
-        elif b.kind == "merge":
-            block = Merge(b, dom, shape, [fifos[name] for name in b.inputs], plan.tiles,
-                          fifos[b.outputs[0]], frames)
-        elif b.kind == "sva":
-            block = SvaBlock(b, dom, shape, fifos[b.inputs[0]], fifos[b.inputs[1]],
-                             fifos[b.outputs[0]], cfg.sva, plan.descriptor_bits,
-                             plan.word_bits, frames)
+                block = MemorySource(plan, entry, outs, image=image, buffers=fb, dram=dram)
+        elif kind == "nna":
+            block = NnaSubmodule(plan, entry, ins, outs)
+        elif kind == "merge":
+            block = Merge(plan, entry, ins, outs)
+        elif kind == "sva":
+            block = SvaBlock(plan, entry, ins, outs)
         else:
-            block = sink = Sink(b.name, dom, fifos[b.inputs[0]], shape, frames,
-                                stall=_stall_function(sink_stall), on_frame=on_frame,
-                                dram=dram)
-        blocks[b.name] = sim.add_block(block)
-    return Chip(plan, sim, domains, fifos, blocks, sink, fb, dram)
-
-
-def run_cycle(left, right, cfg: ChipConfig | ChipPlan, *, order_seed=None, sink_stall=None,
-              trace=None, on_frame=None) -> tuple[np.ndarray, dict, Chip]:
-    """Simulate one frame (or a stream: see :func:`build_chip`); returns (the last frame's output
-    words (H, W) int32, cycle report, the chip)."""
-    chip = build_chip(left, right, cfg, order_seed=order_seed, sink_stall=sink_stall,
-                      trace=trace, on_frame=on_frame)
-    _, report = _run(chip)
-    return chip.sink.words.copy(), report, chip
-
-
-def _run(chip: Chip) -> tuple[dict, dict]:
-    """Run the chip to the end of the frame: (statistics, cycle report). A row window that
-    overflowed raises BufferOverflow, before any stop the run ended in."""
-    plan = chip.plan
-    sva = chip.blocks["sva"]
-    sink = chip.sink
-    bar = progress_bar(sink.total // sink.width, "readable engine", "row")
-    try:
-        stats = chip.sim.run(chip.done, budget_cycles=plan.budget,
-                             on_progress=poller(bar, lambda: sink.received // sink.width),
-                             budget_remedy=plan.budget_remedy,
-                             watchdog_cycles=plan.watchdog_cycles,
-                             watchdog_remedy=plan.watchdog_remedy)
-    except UserError:
-        buffer_report(plan, windows_of(plan, chip.window_rows()), sva.stage_peaks())
-        raise
-    finally:
-        bar.close()
-    buffers = buffer_report(plan, windows_of(plan, chip.window_rows()), sva.stage_peaks())
-    if chip.dram is not None:
-        stats["dram"] = chip.dram.stats()
-    return stats, cycle_report(plan, chip.sink.first_cycle, chip.sink.last_cycle, stats,
-                               buffers, chip.frame_times())
+            block = Sink(plan, entry, ins, stall=_stall_function(sink_stall), on_frame=on_frame,
+                         dram=dram)
+        blocks[entry.name] = sim.add_block(block)
+    return Chip(plan, sim, domains, fifos, blocks, fb, dram)
 
 
 # ---- the dispatcher's entry: the same frame, optionally with a trace window ---------------------
@@ -291,7 +269,7 @@ def run_readable(plan: ChipPlan, left, right=None, *, sink_stall=None,
     if hook is not None:
         hook.fifo = chip.fifos["sva_to_sink"]
     try:
-        stats, report = _run(chip)
+        stats, report = chip.run()
     except RunStopped as stop:
         stop.row_times = chip.row_times()
         if hook is not None:

@@ -1,4 +1,4 @@
-"""The readable kernel's clocked blocks and registers, on the clock domains of
+"""The readable kernel's clocked blocks, on the clock domains of
 :class:`sim.cycle.rules.ClockDomain`; the two-phase scheduler is :mod:`sim.cycle.readable.kernel`.
 
 This is the reference engine that defines what a cycle means in stereosim; a compiled engine is
@@ -10,9 +10,10 @@ checked against it cycle for cycle. docs/clock-kernel.md states the rules with t
   the earliest next edge of all domains; every domain with an edge at that instant ticks in that
   step (simultaneous edges are simultaneous, not ordered).
 * **Two phases.** In a step every block of every ticking domain first ``evaluate()``\\ s, reading
-  only committed state (register values, FIFO contents as committed by earlier steps) and staging
-  writes (register ``next`` values, FIFO pushes and pops); then everything commits. Evaluation
-  order therefore cannot change a result; ``Simulator(order_seed=...)`` shuffles it to prove so.
+  only committed state (its own committed attributes, FIFO contents as committed by earlier
+  steps) and staging writes (the next values of its attributes, FIFO pushes and pops); then
+  everything commits (a block's ``commit()`` applies what it staged). Evaluation order therefore
+  cannot change a result; ``Simulator(order_seed=...)`` shuffles it to prove so.
 * **Activity.** In each of its cycles a block reports exactly one of ``busy``, ``starved``
   (waits for data from an input FIFO), ``blocked`` (waits for space in an output FIFO) or
   ``idle``. A step makes **progress** if a FIFO pushed or popped or a block was busy; a run raises
@@ -24,7 +25,7 @@ checked against it cycle for cycle. docs/clock-kernel.md states the rules with t
 from __future__ import annotations
 
 from stereosim.sim.cycle.contract import ACTIVITIES, activity_counts
-from stereosim.sim.cycle.rules import ClockDomain, check_int
+from stereosim.sim.cycle.rules import ClockDomain
 from stereosim.sim.errors import ConfigError
 
 
@@ -34,42 +35,14 @@ class KernelError(RuntimeError):
     touching a FIFO outside its domain's edge, reporting no or two activities in a cycle."""
 
 
-class Register:
-    """A clocked register: ``value`` is the committed value every block reads during evaluation,
-    ``next`` the value staged for the coming commit (it holds ``value`` unless written).
-
-    Values are unsigned integers of ``width_bits`` bits, checked at commit. Registers created by
-    :meth:`Block.register` are committed by the kernel and traced automatically.
-    """
-
-    __slots__ = ("name", "next", "value", "width_bits")
-
-    def __init__(self, name: str, width_bits: int, reset: int = 0):
-        check_int(f"register '{name}': width_bits", width_bits, 1, "its width in bits")
-        self.name = name
-        self.width_bits = width_bits
-        self.value = reset
-        self.next = reset
-        self._check(reset)
-
-    def _check(self, v) -> None:
-        if isinstance(v, bool) or not isinstance(v, int) or v < 0 or v >> self.width_bits:
-            raise KernelError(f"register '{self.name}' ({self.width_bits} bits) cannot hold {v!r}")
-
-    def commit(self) -> None:
-        v = self.next
-        if v != self.value:
-            self._check(v)
-            self.value = v
-
-
 class Block:
     """Base class of a clocked block.
 
     Subclasses implement :meth:`evaluate` (read committed state, stage writes, report exactly one
-    activity with :meth:`busy`, :meth:`starved`, :meth:`blocked` or :meth:`idle`) and, for state
-    that is not kept in :class:`Register`\\ s, :meth:`commit`. The parent hands FIFOs to the
-    block's constructor; a block never wires itself.
+    activity with :meth:`busy`, :meth:`starved`, :meth:`blocked` or :meth:`idle`) and
+    :meth:`commit` (apply the staged writes), and name what they trace in :meth:`signals` and
+    :meth:`signal_values`. The parent hands FIFOs to the block's constructor; a block never
+    wires itself.
     """
 
     def __init__(self, name: str, domain: ClockDomain):
@@ -81,7 +54,6 @@ class Block:
         self.domain = domain
         self.status: str | None = None
         self.waiting_on: tuple[str, str] | None = None
-        self._registers: list[Register] = []
         self._counts = dict.fromkeys(ACTIVITIES, 0)
         self._status: str | None = None
         self._waiting: tuple[str, str] | None = None
@@ -94,25 +66,17 @@ class Block:
         raise NotImplementedError(f"block '{self.name}' must implement evaluate()")
 
     def commit(self) -> None:
-        """Apply staged non-register state. Registers commit by themselves after this hook."""
+        """Apply the state staged by this cycle's :meth:`evaluate` (phase 2)."""
 
     def signals(self) -> list[tuple[str, int]]:
-        """Traced signals as ``(name, width_bits)``; default: the block's registers."""
-        return [(r.name, r.width_bits) for r in self._registers]
+        """Traced signals as ``(name, width_bits)``; default: none."""
+        return []
 
     def signal_values(self) -> dict:
         """Committed values of :meth:`signals`."""
-        return {r.name: r.value for r in self._registers}
+        return {}
 
     # ---- helpers for subclasses --------------------------------------------------------------
-
-    def register(self, name: str, width_bits: int, reset: int = 0) -> Register:
-        """A register owned by this block (committed and traced by the kernel)."""
-        if any(r.name == name for r in self._registers):
-            raise ConfigError(f"block '{self.name}' already has a register named '{name}'")
-        reg = Register(name, width_bits, reset)
-        self._registers.append(reg)
-        return reg
 
     def busy(self) -> None:
         """This cycle did useful work (moved data or advanced internal state)."""
@@ -165,8 +129,3 @@ class Block:
         self.status = status
         self.waiting_on = self._waiting
         return status == "busy"
-
-    def _commit_all(self) -> None:
-        self.commit()
-        for reg in self._registers:
-            reg.commit()

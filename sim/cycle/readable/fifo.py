@@ -25,8 +25,7 @@ from collections import deque
 
 from stereosim.sim.cycle.contract import fifo_counts
 from stereosim.sim.cycle.readable.clock import KernelError
-from stereosim.sim.cycle.rules import check_int, ClockDomain
-from stereosim.sim.cycle.rules import fifo_edges
+from stereosim.sim.cycle.rules import ClockDomain, check_int, fifo_edges
 from stereosim.sim.errors import ConfigError
 
 

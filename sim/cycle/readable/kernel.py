@@ -11,15 +11,15 @@ import random
 from collections.abc import Callable
 
 from stereosim.sim.cycle.contract import (
-    budget_message,
     BudgetExceeded,
     DeadlockError,
+    budget_message,
     stop_message,
     watchdog_message,
 )
 from stereosim.sim.cycle.readable.clock import Block, KernelError
-from stereosim.sim.cycle.rules import check_int, ClockDomain
 from stereosim.sim.cycle.readable.fifo import Fifo
+from stereosim.sim.cycle.rules import ClockDomain, check_int
 from stereosim.sim.errors import ConfigError
 
 # Steps between two calls of Simulator.run's on_progress (some tens per second).
@@ -205,7 +205,7 @@ class Simulator:
         if rng is not None:
             rng.shuffle(blocks)
         for b in blocks:
-            b._commit_all()
+            b.commit()
         for f in fifos:
             if f._commit(t):
                 progress = True

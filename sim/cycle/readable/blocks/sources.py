@@ -1,9 +1,10 @@
 """Frame sources (memory, camera) and the disparity sink of the readable cycle model.
 
-Beats are tuples: a source pushes ``(f, x, y, pixel)`` -- frame f of the stream, in raster
-order, frame after frame; the sink pops ``(f, x, y, word)``. A source feeds one FIFO per
-submodule of its camera: each pixel goes to every FIFO whose tile takes it (the tile's input
-region), to all of them in the same cycle (a joint push that waits until each has space).
+A source pushes :class:`~sim.cycle.readable.beats.PixelBeat`\\ s -- in raster order, frame
+after frame; the sink pops :class:`~sim.cycle.readable.beats.WordBeat`\\ s. A source feeds one
+FIFO per submodule of its camera: each pixel goes to every FIFO whose submodule's tile takes it
+(the tile's input region), to all of them in the same cycle (a joint push that waits until
+each has space).
 
 Traced signals (:mod:`sim.cycle.plan`): ``status``, ``sent`` (pixels pushed); the sink's
 ``status``, ``count`` (words received) and ``valid`` (it popped in its last cycle).
@@ -15,9 +16,10 @@ from collections.abc import Callable
 
 import numpy as np
 
-from stereosim.sim.cycle.readable.clock import Block
-from stereosim.sim.cycle.rules import ClockDomain
-from stereosim.sim.cycle.plan import STATUS_CODES, BlockPlan, DramPlan
+from stereosim.sim.cycle.plan import BlockPlan, ChipPlan, DramPlan
+from stereosim.sim.cycle.readable.beats import PixelBeat
+from stereosim.sim.cycle.readable.blocks.base import ChipBlock
+from stereosim.sim.cycle.readable.fifo import Fifo
 from stereosim.sim.cycle.rules import (
     burst_last,
     burst_of,
@@ -32,20 +34,19 @@ from stereosim.sim.cycle.rules import (
 )
 
 
-class _FrameSource(Block):
+class _FrameSource(ChipBlock):
     """What both sources share: the frames (``image(f)``: frame f's image), the output FIFOs
-    with their tiles, the pixel count, the cycle of each frame's first pixel."""
+    with the tiles of the submodules they feed, the pixel count, the cycle of each frame's
+    first pixel."""
 
-    def __init__(self, plan: BlockPlan, domain: ClockDomain, image: Callable[[int], np.ndarray],
-                 shape: tuple[int, int], frames: int, outs):
-        super().__init__(plan.name, domain)
-        self.plan = plan
+    def __init__(self, plan: ChipPlan, entry: BlockPlan, outputs: list[Fifo],
+                 image: Callable[[int], np.ndarray]):
+        super().__init__(plan, entry, outputs=outputs)
         self.image = image
-        self.height, self.width = shape
-        self.frames = frames
-        self.outs = outs  # [(fifo, tile)]
+        self.height, self.width = plan.shape
+        self.outs = [(fifo, plan.block(plan.fifo(fifo.name).consumer).tile) for fifo in outputs]
         self.sent = 0
-        self.first_cycles = np.full(frames, -1, np.int64)  # each frame's first pixel
+        self.first_cycles = np.full(self.frames, -1, np.int64)  # each frame's first pixel
         self.buffers: FrameBuffers | None = None  # a camera's frame buffers in DRAM
         self.dram: DramChannel | None = None  # the DRAM channel a memory source reads through
         self._pushed = False
@@ -60,8 +61,9 @@ class _FrameSource(Block):
         if f != self._frame:  # (f: the frame of the stream; its camera frame if buffered)
             source = f if self.buffers is None else self.buffers.taken[f]
             self._pixels, self._frame = self.image(source), f
+        beat = PixelBeat(f, x, y, int(self._pixels[y, x]))
         for fifo in targets:
-            fifo.push((f, x, y, int(self._pixels[y, x])))
+            fifo.push(beat)
         self._pushed = True
 
     def commit(self) -> None:
@@ -72,20 +74,21 @@ class _FrameSource(Block):
             self.sent += 1
             fb = self.buffers
             if fb is not None and self.sent % n == 0:
-                fb.read_end[self.plan.side].append(self._cycle * self.domain.period_fs)
+                fb.read_end[self.entry.side].append(self._cycle * self.domain.period_fs)
             if self.dram is not None:
-                self.dram.pushed(self.plan.side, self.sent - 1, self._cycle * self.domain.period_fs)
+                self.dram.pushed(self.entry.side, self.sent - 1,
+                                 self._cycle * self.domain.period_fs)
             self._pushed = False
 
     def signal_values(self):
-        return {"status": STATUS_CODES.get(self.status, 0), "sent": self.sent}
+        return {"status": self.status_code, "sent": self.sent}
 
 
 class FrameBuffers:
     """The camera pairs' frame buffers in DRAM, shared by the cameras that write them and the
-    two memory sources that read them (the readable kernel's; the plan's ``frame_buffers``,
-    that many per pair; ``pairs`` pairs sharing the chip frame by frame, camera frame f pair
-    f % pairs's).
+    two memory sources that read them (the readable kernel's; ``source.frame_buffers`` of the
+    plan's configuration, that many per pair; the plan's ``pairs`` pairs sharing the chip frame
+    by frame, camera frame f pair f % pairs's; the cameras' raster is ``camera_left``'s).
 
     The left camera decides at each frame's first pixel, from the committed state, whether
     its pair takes the frame (:func:`~sim.cycle.rules.frame_buffer_admits`: the pair's frame
@@ -95,13 +98,16 @@ class FrameBuffers:
     the stream's indices of pair p's; ``dropped``: the frames skipped; ``read_end[side][g]``:
     the instant a reader finished the g-th."""
 
-    def __init__(self, count: int, buffers: int, drop: bool, line_clocks: int,
-                 frame_clocks: int, camera_period_fs: int, nna_period_fs: int, pairs: int = 1):
-        self.count, self.buffers, self.drop = count, buffers, drop
-        self.line_clocks, self.frame_clocks, self.pairs = line_clocks, frame_clocks, pairs
-        self.camera_period_fs, self.nna_period_fs = camera_period_fs, nna_period_fs
+    def __init__(self, plan: ChipPlan):
+        source, cam = plan.cfg.source, plan.block("camera_left")
+        self.count, self.buffers = plan.frames, source.frame_buffers
+        self.drop = source.on_overflow == "drop_frame"
+        self.line_clocks, self.frame_clocks = cam.line_clocks, cam.frame_clocks
+        self.pairs = plan.pairs
+        self.camera_period_fs = plan.domains["camera"].period_fs
+        self.nna_period_fs = plan.domains["nna"].period_fs
         self.taken: list[int] = []
-        self.pair_taken: list[list[int]] = [[] for _ in range(pairs)]
+        self.pair_taken: list[list[int]] = [[] for _ in range(self.pairs)]
         self.dropped: list[int] = []
         self.decided = 0  # camera frames decided
         self.read_end: list[list[int]] = [[], []]
@@ -144,13 +150,16 @@ class DramChannel:
     Write-back: burst u of disparity words is requested when the sink took its last word and
     written in the next write slot; word j may be taken once burst ``u(j) - write_buffer``
     has been written (:func:`~sim.cycle.rules.dram_write_done_fs`, the first sink edge at or
-    after). ``read_stalls[side]``, ``write_stalls``: the cycles a source or the sink waited."""
+    after). ``read_stalls[side]``, ``write_stalls``: the cycles a source or the sink waited.
+    The channel is the plan's (``ChipPlan.dram``), the sources' clock the plan's source domain,
+    the sink's the SVA's."""
 
-    def __init__(self, plan: DramPlan, shape: tuple[int, int], source_period_fs: int,
-                 sink_period_fs: int, frame_buffers: FrameBuffers | None = None):
-        self.plan, self.n, self.width = plan, shape[0] * shape[1], shape[1]
+    def __init__(self, plan: ChipPlan, frame_buffers: FrameBuffers | None = None):
+        self.dram_plan: DramPlan = plan.dram
+        self.n, self.width = plan.shape[0] * plan.shape[1], plan.shape[1]
         self.frame_buffers = frame_buffers
-        self.source_period_fs, self.sink_period_fs = source_period_fs, sink_period_fs
+        self.source_period_fs = plan.domains[plan.source_domain].period_fs
+        self.sink_period_fs = plan.domains["sva"].period_fs
         self.last_push: list[dict[int, int]] = [{}, {}]  # per side: burst -> its last push (fs)
         self.read_ready: list[int] = []  # per read burst: the first source cycle it is in
         self.read_slot = -1
@@ -160,13 +169,13 @@ class DramChannel:
         self.write_stalls = 0
 
     def pushed(self, side: int, k: int, t_fs: int) -> None:
-        b, last = burst_of(k, self.n, self.plan.read_pixels)
+        b, last = burst_of(k, self.n, self.dram_plan.read_pixels)
         if k == last:
             self.last_push[side][b] = t_fs
 
     def read_ready_cycle(self, k: int) -> int | None:
         """The first source cycle pixel k may leave (None: its burst is not requested yet)."""
-        d = self.plan
+        d = self.dram_plan
         b, _ = burst_of(k, self.n, d.read_pixels)
         while len(self.read_ready) <= b:
             r = len(self.read_ready)
@@ -194,13 +203,13 @@ class DramChannel:
 
     def write_room(self, j: int, now_cycle: int) -> bool:
         """May the sink take word j (over the stream) in ``now_cycle``?"""
-        u, _ = burst_of(j, self.n, self.plan.write_words)
-        v = u - self.plan.write_buffer
+        u, _ = burst_of(j, self.n, self.dram_plan.write_words)
+        v = u - self.dram_plan.write_buffer
         return v < 0 or self.write_free[v] <= now_cycle
 
     def took(self, j: int, now_cycle: int) -> None:
         """The sink took word j in ``now_cycle``: a full burst is requested."""
-        d = self.plan
+        d = self.dram_plan
         u, last = burst_of(j, self.n, d.write_words)
         if j == last:
             wb = d.write_back
@@ -220,7 +229,7 @@ class MemorySource(_FrameSource):
     """Reads the frames from memory in raster order, one pixel (one byte) per beat, the next
     frame's first pixel right after the last one's.
 
-    Port: the source FIFOs. Bandwidth: a token bucket filled at ``bytes_per_s``; pixel k (from
+    Ports: ``outputs`` = the source FIFOs (one per submodule of its camera). Bandwidth: a token bucket filled at ``bytes_per_s``; pixel k (from
     0, over the stream) may leave from cycle :func:`~sim.cycle.rules.memory_first_cycle` on, at
     most one pixel per cycle -- or, through the DRAM channel (``dram``), once its burst is in
     (:class:`DramChannel`). Activity: busy while pixels remain (waiting for the token bucket
@@ -229,10 +238,10 @@ class MemorySource(_FrameSource):
     last frame has left.
     """
 
-    def __init__(self, plan: BlockPlan, domain: ClockDomain, image, shape, frames, outs,
+    def __init__(self, plan: ChipPlan, entry: BlockPlan, outputs: list[Fifo], *, image,
                  buffers: FrameBuffers | None = None, dram: DramChannel | None = None):
-        super().__init__(plan, domain, image, shape, frames, outs)
-        self.freq_hz = round(domain.freq_hz)
+        super().__init__(plan, entry, outputs, image)
+        self.freq_hz = round(self.domain.freq_hz)
         self.buffers = buffers  # a camera's frame buffers it reads (None: frames in memory)
         self.dram = dram  # the DRAM channel it reads through (None: the token bucket)
 
@@ -253,10 +262,10 @@ class MemorySource(_FrameSource):
         if self.dram is not None:
             ready = self.dram.read_ready_cycle(self.sent)
             if ready is None or now_cycle < ready:
-                self.dram.read_stalls[self.plan.side] += 1
+                self.dram.read_stalls[self.entry.side] += 1
                 self.starved("dram")  # its burst is not in the chip yet
                 return
-        elif now_cycle < memory_first_cycle(self.sent, self.freq_hz, self.plan.bytes_per_s):
+        elif now_cycle < memory_first_cycle(self.sent, self.freq_hz, self.entry.bytes_per_s):
             self.busy()
             return
         targets = self._targets(x, y)
@@ -287,9 +296,9 @@ class CameraSource(_FrameSource):
     blanking included), idle in the vertical blanking and after the last frame.
     """
 
-    def __init__(self, plan: BlockPlan, domain: ClockDomain, image, shape, frames, outs,
+    def __init__(self, plan: ChipPlan, entry: BlockPlan, outputs: list[Fifo], *, image,
                  buffers: FrameBuffers | None = None):
-        super().__init__(plan, domain, image, shape, frames, outs)
+        super().__init__(plan, entry, outputs, image)
         self.buffers = buffers
         # (camera, FIFO, x, row over the stream, cycle) of an overflow
         self.overflow: tuple[str, str, int, int, int] | None = None
@@ -329,7 +338,7 @@ class CameraSource(_FrameSource):
             active = True
             if col < self.width:
                 assert fb.camera_cycle(f, col, line) == now_cycle
-                if self.plan.side == 0 and line == 0 and col == 0:
+                if self.entry.side == 0 and line == 0 and col == 0:
                     self._decide(f, now_cycle)
                 self._pushed += 1  # streamed (into a buffer, or dropped)
         if active:
@@ -343,14 +352,14 @@ class CameraSource(_FrameSource):
         if self.buffers is not None:
             self._evaluate_buffered(now_cycle)
             return
-        f, c = divmod(now_cycle, self.plan.frame_clocks)
-        line, col = divmod(c, self.plan.line_clocks)
+        f, c = divmod(now_cycle, self.entry.frame_clocks)
+        line, col = divmod(c, self.entry.line_clocks)
         if f >= self.frames or line >= self.height:
             self.idle()
             return
         if col < self.width:
-            assert camera_cycle(f, col, line, self.plan.line_clocks,
-                                self.plan.frame_clocks, 1) == now_cycle
+            assert camera_cycle(f, col, line, self.entry.line_clocks,
+                                self.entry.frame_clocks, 1) == now_cycle
             targets = self._targets(col, line)
             full = next((fifo for fifo in targets if not fifo.can_push()), None)
             if full is not None:
@@ -376,9 +385,10 @@ class CameraSource(_FrameSource):
         super().commit()
 
 
-class Sink(Block):
+class Sink(ChipBlock):
     """Collects the disparity words: pops one beat per cycle whenever one is visible (and,
     writing back through the DRAM channel ``dram``, its write buffer has room: else blocked).
+    Port: ``inputs`` = [the SVA's FIFO].
 
     ``stall`` (optional): a function of the cycle returning True on cycles the sink refuses to
     pop (back-pressure tests; the plan's periodic pattern is one such function). Records the
@@ -386,15 +396,15 @@ class Sink(Block):
     every frame; ``on_frame(f, words)`` (optional) receives each frame's words as it completes.
     """
 
-    def __init__(self, name: str, domain: ClockDomain, inp, shape: tuple[int, int],
-                 frames: int = 1, stall=None, on_frame=None, dram: DramChannel | None = None):
-        super().__init__(name, domain)
-        self.inp = inp
+    def __init__(self, plan: ChipPlan, entry: BlockPlan, inputs: list[Fifo], *, stall=None,
+                 on_frame=None, dram: DramChannel | None = None):
+        super().__init__(plan, entry, inputs=inputs)
+        (self.inp,) = inputs
         self.dram = dram  # the DRAM channel it writes back through (None: an ideal sink)
-        self.shape = shape
+        self.shape = shape = plan.shape
         self.words = np.full(shape, -1, np.int32)  # the frame being received (then the last)
         self.n = shape[0] * shape[1]
-        self.total = frames * self.n
+        self.total = self.frames * self.n
         self.width = shape[1]
         self.received = 0
         self.stall = stall
@@ -402,7 +412,7 @@ class Sink(Block):
         self.first_cycle: int | None = None
         self.last_cycle: int | None = None
         self.row_cycles = np.full(shape[0], -1, np.int64)  # cycle of each row's last pop
-        self.frame_cycles = np.full(frames, -1, np.int64)  # cycle of each frame's last pop
+        self.frame_cycles = np.full(self.frames, -1, np.int64)  # cycle of each frame's last pop
         self.popped = False
         self._beat = None
         self._cycle = 0
@@ -428,11 +438,11 @@ class Sink(Block):
 
     def commit(self) -> None:
         self.popped = self._beat is not None
-        if self._beat is not None:
-            f, x, y, word = self._beat
+        beat = self._beat
+        if beat is not None:
             if self.received % self.n == 0 and self.received > 0:
                 self.words = np.full(self.shape, -1, np.int32)
-            self.words[y, x] = word
+            self.words[beat.y, beat.x] = beat.word
             if self.dram is not None:
                 self.dram.took(self.received, self._cycle)
             self.received += 1
@@ -442,9 +452,9 @@ class Sink(Block):
             if self.received <= self.n and self.received % self.width == 0:
                 self.row_cycles[self.received // self.width - 1] = self._cycle
             if self.received % self.n == 0:
-                self.frame_cycles[f] = self._cycle
+                self.frame_cycles[beat.frame] = self._cycle
                 if self.on_frame is not None:
-                    self.on_frame(f, self.words)
+                    self.on_frame(beat.frame, self.words)
             self._beat = None
 
     @property
@@ -452,5 +462,4 @@ class Sink(Block):
         return self.received >= self.total
 
     def signal_values(self):
-        return {"status": STATUS_CODES.get(self.status, 0), "count": self.received,
-                "valid": int(self.popped)}
+        return {"status": self.status_code, "count": self.received, "valid": int(self.popped)}

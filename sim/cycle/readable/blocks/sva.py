@@ -1,9 +1,10 @@
 """The SVA as a clocked block of the readable kernel: row buffers in front of a lock-step
 pipeline of stages.
 
-Ports: ``in_left``, ``in_right`` (descriptor beats ``(f, x, y, descriptor, pixel)`` in raster
-order, frame after frame), ``out`` (output words ``(f, x, y, word)`` in raster order). Rows,
-words and counters run over the stream of frames: output row r is row r % H of frame r // H.
+Ports: ``in_left``, ``in_right`` (:class:`~sim.cycle.readable.beats.DescriptorBeat`\\ s in
+raster order, frame after frame), ``out`` (:class:`~sim.cycle.readable.beats.WordBeat`\\ s in
+raster order). Rows, words and counters run over the stream of frames: output row r is row
+r % H of frame r // H.
 
 - **Input** (the row buffers): pops one left/right pair per cycle when both are visible (a joint
   pop) and the row being received fits the row buffers
@@ -49,11 +50,11 @@ from collections import deque
 
 import numpy as np
 
-from stereosim.sim.config import SvaConfig
 from stereosim.sim.cycle.contract import ACTIVITIES
-from stereosim.sim.cycle.readable.clock import Block
-from stereosim.sim.cycle.rules import ClockDomain
-from stereosim.sim.cycle.plan import STATUS_CODES, BlockPlan
+from stereosim.sim.cycle.plan import STATUS_CODES, BlockPlan, ChipPlan
+from stereosim.sim.cycle.readable.beats import WordBeat
+from stereosim.sim.cycle.readable.blocks.base import ChipBlock
+from stereosim.sim.cycle.readable.fifo import Fifo
 from stereosim.sim.cycle.rules import (
     frame_row,
     rows_ready_in_frame,
@@ -67,30 +68,35 @@ from stereosim.sva.pipeline import SvaStream
 NEVER = -(1 << 40)  # "the previous issue tick" before the first word
 
 
-class SvaBlock(Block):
-    def __init__(self, plan: BlockPlan, domain: ClockDomain, shape: tuple[int, int], in_left,
-                 in_right, out, cfg: SvaConfig, bits: int, word_bits: int, frames: int = 1):
-        super().__init__(plan.name, domain)
-        self.height, self.width = shape
-        self.in_left, self.in_right, self.out = in_left, in_right, out
-        self.cfg = cfg
-        self.lookahead = plan.lookahead
-        self.latency = plan.latency
-        self.ii = plan.cycles
-        self.stages = plan.stages
-        self.offsets = stage_offsets(plan.stages)
-        self.frames = frames
+class SvaBlock(ChipBlock):
+    """The SVA of the plan entry ``entry`` (look-ahead, stages, latency, II): the module
+    docstring's rules. Ports: ``inputs`` = [``in_left``, ``in_right``], ``outputs`` =
+    [``out``]; its data path is the plan's configuration (``sva``) over descriptors of the
+    plan's ``descriptor_bits``, its words ``word_bits`` wide."""
+
+    def __init__(self, plan: ChipPlan, entry: BlockPlan, inputs: list[Fifo],
+                 outputs: list[Fifo]):
+        super().__init__(plan, entry, inputs, outputs)
+        self.height, self.width = plan.shape
+        self.in_left, self.in_right = inputs
+        (self.out,) = outputs
+        self.cfg = plan.cfg.sva
+        self.lookahead = entry.lookahead
+        self.latency = entry.latency
+        self.ii = entry.cycles
+        self.stages = entry.stages
+        self.offsets = stage_offsets(entry.stages)
         self.n = self.height * self.width
-        self.bits = bits
+        self.bits = plan.descriptor_bits
         # per frame in flight: the descriptors and pixels received, and the functional
         # streaming kernels over them
         self.data: dict[int, tuple] = {}
-        self.word_mask = (1 << word_bits) - 1
+        self.word_mask = (1 << plan.word_bits) - 1
         self.received = 0
         self.issued = 0
         self.emitted = 0
         self.rows_ready = 0
-        rows = frames * self.height
+        rows = self.frames * self.height
         self.ready_cycle = np.full(rows, -1, np.int64)  # cycle each output row got ready
         self.ready_tick = np.full(rows, -1, np.int64)  # the pipeline's tick then
         # the descriptor rows' window (sim.cycle.buffers): the cycle each input row started to
@@ -164,7 +170,7 @@ class SvaBlock(Block):
             stream.advance(self._rows_complete(f))
             y, x = divmod(j, w)
             self._word = int(stream.q[y, x])
-            self.out.push((f, x, y, self._word))
+            self.out.push(WordBeat(f, x, y, self._word))
             moved = True
         # issue: the next word enters when the pipeline advances, its row is ready, and the
         # tick has reached the issue rule's
@@ -225,11 +231,11 @@ class SvaBlock(Block):
         if self._advance:
             self.tick += 1
         if self._pair is not None:
-            (f, x, y, dl, pixel), (fr, xr, yr, dr, _) = self._pair
-            d_l, d_r, img, _ = self._frame(f)
-            d_l[y, x] = dl
-            self._frame(fr)[1][yr, xr] = dr
-            img[y, x] = pixel
+            left, right = self._pair
+            d_l, _, img, _ = self._frame(left.frame)
+            d_l[left.y, left.x] = left.descriptor
+            img[left.y, left.x] = left.pixel
+            self._frame(right.frame)[1][right.y, right.x] = right.descriptor
             self.received += 1
             self._pair = None
             if self.received % w == 0:
@@ -254,10 +260,16 @@ class SvaBlock(Block):
     def stage_peaks(self) -> dict[str, int]:
         return {st.name: self.stage_peak[s] for s, st in enumerate(self.stages)}
 
+    def row_window(self) -> tuple[np.ndarray, np.ndarray]:
+        """The descriptor rows' window (:mod:`sim.cycle.buffers`), rows over the stream: the
+        cycle each input row started to enter, the cycle each output row's last word was
+        issued."""
+        return self.rows_entered, self.rows_done
+
     def signal_values(self):
         w = self.width
         out = {
-            "status": STATUS_CODES.get(self.status, 0),
+            "status": self.status_code,
             "input.row": frame_row(self.received // w, self.height, self.frames)[1],
             "input.col": self.received % w,
             "input.rows_ready": rows_ready_in_frame(self.received // w, self.height,
