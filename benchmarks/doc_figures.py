@@ -34,6 +34,7 @@ from pathlib import Path
 
 import numpy as np
 import reading_traces
+import rule_table
 from markers import write_between
 
 from stereosim.quant.quantizer import search_mul_shift
@@ -494,6 +495,7 @@ FIGURES = {
     "row-windows": Figure("architecture.md", row_windows),
     "splits": Figure("architecture.md", splits),
     "layers": Figure("architecture.md", layers),
+    "rules": Figure("architecture.md", rule_table.table),
     "beats": Figure("architecture.md", beats),
     "energy-720p": Figure("energy.md", energy_720p),
     "dram-defaults": Figure("dram.md", dram_defaults),

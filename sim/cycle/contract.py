@@ -285,8 +285,11 @@ class FrameResult:
 
 
 def trace_signals(plan: ChipPlan) -> list[Signal]:
+    """The signals a trace of ``plan`` records (path, width, clock domain), as both engines
+    record them."""
     return [Signal(s.path, s.width, s.domain) for s in plan.signals]
 
 
 def trace_clocks(plan: ChipPlan) -> list[Clock]:
+    """The clocks of a trace of ``plan`` (name, period, first edge at t = 0)."""
     return [Clock(d.name, d.period_fs, 0) for d in plan.domains.values()]

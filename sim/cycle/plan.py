@@ -264,6 +264,9 @@ def dram_plan(cfg: ChipConfig, reads: bool, camera_writes: bool, beat_bits: int,
 
 @dataclass(frozen=True)
 class ChipPlan:
+    """The chip of a configuration at a frame size: clock domains, blocks, FIFOs, buffers,
+    signals and the derived constants every engine, the estimate and the reports read."""
+
     cfg: ChipConfig
     shape: tuple[int, int]
     domains: dict[str, DomainPlan]

@@ -351,6 +351,8 @@ def sink_next_allowed(cycle, stall_period, stall_phase):
 
 
 def check_int(what: str, value, lo: int, fix: str) -> int:
+    """``value`` if it is a whole number of at least ``lo``; else ConfigError naming ``what``
+    and ``fix``."""
     if isinstance(value, bool) or not isinstance(value, int):
         raise ConfigError(f"{what} must be an integer; got {value!r} ({fix})")
     if value < lo:
