@@ -46,9 +46,9 @@ from stereosim.sim.config import load_config
 from stereosim.sim.datasets import find_scenes, legal_disparities, load_scene, shared_data_dir
 from stereosim.sim.errors import UserError
 from stereosim.sim.io import to_grey
+from stereosim.sim.metrics import evaluate
 from stereosim.sim.outputs import atomic_write_bytes
 from stereosim.sim.progress import progress_bar
-from stereosim.sim.metrics import evaluate
 from stereosim.sva.cost import cosine_cost
 from stereosim.sva.pipeline import sva_cost_volume, sva_stream
 from stereosim.sva.wta import to_float

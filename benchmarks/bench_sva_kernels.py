@@ -211,8 +211,12 @@ def main() -> None:
         mode=cv2.STEREO_SGBM_MODE_SGBM,
     )
     # the fused pipeline and OpenCV alternate, so both see the same (noisy) machine state
-    run_sva = lambda: sva_stream(desc_l, desc_r, grey_l, cfg, BITS)
-    run_cv = lambda: sgbm.compute(grey_l, grey_r)
+    def run_sva():
+        return sva_stream(desc_l, desc_r, grey_l, cfg, BITS)
+
+    def run_cv():
+        return sgbm.compute(grey_l, grey_r)
+
     run_sva()
     run_cv()
     times = {"sva": [], "cv": []}

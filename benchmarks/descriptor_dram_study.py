@@ -26,10 +26,10 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
+from markers import write_between
 
 from stereosim.sim.api import run_stream
 from stereosim.sim.sweep import synthetic_pair
-from markers import write_between
 
 ROOT = Path(__file__).resolve().parents[1]
 DOC = ROOT / "docs" / "energy.md"

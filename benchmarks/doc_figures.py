@@ -41,11 +41,11 @@ from stereosim.quant.quantizer import search_mul_shift
 from stereosim.sim.api import run, run_stream
 from stereosim.sim.cli import main as stereosim_main
 from stereosim.sim.config import load_config
-from stereosim.sim.cycle.rules import ClockDomain
+from stereosim.sim.cycle.contract import CameraOverflow
 from stereosim.sim.cycle.estimate import estimate
 from stereosim.sim.cycle.plan import build_plan
-from stereosim.sim.cycle.contract import CameraOverflow
 from stereosim.sim.cycle.readable.beats import BEATS
+from stereosim.sim.cycle.rules import ClockDomain
 from stereosim.sim.io import encode_png
 from stereosim.sim.plot import rate_gaps
 from stereosim.sim.sweep import load_sweep, run_task, synthetic_pair

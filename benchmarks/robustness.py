@@ -33,9 +33,9 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-
 from accuracy_vs_opencv import opencv_sgbm
 from markers import write_between
+
 from stereosim.sim.api import run
 from stereosim.sim.config import parse_set_options
 from stereosim.sim.datasets import find_scenes, legal_disparities, load_scene, shared_data_dir

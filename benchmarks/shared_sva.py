@@ -20,9 +20,9 @@ import time
 from pathlib import Path
 
 import cv2
+from markers import write_between
 
 import stereosim
-from markers import write_between
 from stereosim.sim.datasets import default_scene
 
 DOC = Path(__file__).resolve().parent.parent / "docs" / "streams.md"

@@ -1,8 +1,8 @@
 """Speed of the cycle-accurate model on a 1280x720 frame against OpenCV StereoSGBM, same run.
 
-stereosim: `stereosim.run(mode="cycle")` with the CNN int8 descriptor, D = 128, 4 SGM paths, LR check
-(the issue's benchmark configuration); it prints the wall time, the simulated cycles per second
-(all clock domains together) and the peak resident memory of a fresh process that runs one
+stereosim: `stereosim.run(mode="cycle")` with the CNN int8 descriptor, D = 128, 4 SGM paths, LR
+check (the issue's benchmark configuration); it prints the wall time, the simulated cycles per
+second (all clock domains together) and the peak resident memory of a fresh process that runs one
 frame. OpenCV: StereoSGBM MODE_SGBM, D = 128, blockSize 5, single-threaded, on the same pair,
 timed in this process right after each stereosim frame (the two alternate, so a change in the
 machine's load shows in both).

@@ -19,10 +19,11 @@ import itertools
 import sys
 from pathlib import Path
 
+from markers import write_between
+
 from stereosim.sim.api import run
 from stereosim.sim.config import load_config
 from stereosim.sim.sweep import synthetic_pair
-from markers import write_between
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "architecture.md"
 BEGIN, END = "<!-- sva-whatif:begin -->", "<!-- sva-whatif:end -->"
@@ -48,7 +49,8 @@ def measure() -> list[str]:
         lines.append(
             f"| {d} | {lanes} | {paths} | {'on' if lr else 'off'} | "
             f"{pipe['initiation_interval']} | {pipe['latency']} | "
-            f"{thr['fps_bound_per_block']['sva']:.1f} | {census['throughput']['fps_measured']:.1f} | "
+            f"{thr['fps_bound_per_block']['sva']:.1f} | "
+            f"{census['throughput']['fps_measured']:.1f} | "
             f"{thr['fps_bound']:.1f} ({thr['bottleneck']}) | "
             f"{rep['latency']['first_output_us']:.1f} | "
             f"{rep['architecture']['sram_bits_total']['sva'] / 1e3:.0f} | "

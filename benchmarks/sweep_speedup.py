@@ -3,7 +3,8 @@
 Each worker is warmed up first (imports and the numba cache load once per process), so the
 figure is the sweep's own scaling: wall time on 1 worker / wall time on 2 workers (target
 >= 1.7x). For reference it also times the same runs on a plain process pool, which shows how
-much parallelism the machine offers at the moment (on a shared machine, less than its CPUs). Every point is a cycle-model run of a synthetic 960x540 frame with the CNN descriptor.
+much parallelism the machine offers at the moment (on a shared machine, less than its CPUs). Every
+point is a cycle-model run of a synthetic 960x540 frame with the CNN descriptor.
 
     python benchmarks/sweep_speedup.py [--points 16]
 """

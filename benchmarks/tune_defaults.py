@@ -46,7 +46,13 @@ from robustness import CONDITIONS, degrade
 
 from stereosim.nna.traindata import cv_folds, training_scene_dirs
 from stereosim.sim.api import run
-from stereosim.sim.datasets import find_scene, find_scenes, legal_disparities, load_scene, shared_data_dir
+from stereosim.sim.datasets import (
+    find_scene,
+    find_scenes,
+    legal_disparities,
+    load_scene,
+    shared_data_dir,
+)
 from stereosim.sim.errors import UserError
 from stereosim.sim.io import to_grey
 from stereosim.sim.progress import progress_bar

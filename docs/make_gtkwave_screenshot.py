@@ -161,8 +161,8 @@ def main() -> int:
         return 1
     with tempfile.TemporaryDirectory() as tmp:
         vcd = Path(tmp) / "t.vcd"
-        run = [sys.executable, "-m", "stereosim.sim.cli", "run", "--out", str(Path(tmp) / "out"), "--vcd",
-               str(vcd), "--trace-window", "rows:0:2", "--signals", SIGNALS]
+        run = [sys.executable, "-m", "stereosim.sim.cli", "run", "--out", str(Path(tmp) / "out"),
+               "--vcd", str(vcd), "--trace-window", "rows:0:2", "--signals", SIGNALS]
         print("$ " + " ".join(shlex.quote(a) for a in run), flush=True)
         subprocess.run(run, check=True)
         with xvfb() as display:

@@ -95,7 +95,8 @@ def load_weights(path) -> tuple[np.ndarray, np.ndarray, int]:
     one-line reason.
     """
     name = os.fspath(path)
-    archive = open_npz(name, "weight file", f"write it with nna.save_weights (keys {', '.join(KEYS)})")
+    how = f"write it with nna.save_weights (keys {', '.join(KEYS)})"
+    archive = open_npz(name, "weight file", how)
     with archive:
         missing = [k for k in KEYS if k not in archive.files]
         if missing:

@@ -306,7 +306,7 @@ def _sample_positions(shapes, n_samples, seed):
         flat = np.sort(np.random.default_rng(seed).choice(total, size=n_samples, replace=False))
     starts = np.concatenate([[0], np.cumsum(sizes)])
     out = []
-    for i, (h, w) in enumerate(shapes):
+    for i, (_h, w) in enumerate(shapes):
         local = flat[(flat >= starts[i]) & (flat < starts[i + 1])] - starts[i]
         out.append((local // w, local % w))
     return out

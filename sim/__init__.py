@@ -10,8 +10,8 @@ stage imports (:mod:`sim.errors`, :mod:`sim.config`, :mod:`sim.io`), the cycle m
 (:mod:`sim.cycle`: the chip plan, the readable kernel, the compiled engine, the estimate) and
 the application (:mod:`sim.api`, :mod:`sim.cli`, sweeps, traces, datasets, metrics). Python runs
 this file before any module of the package, so it imports only the core; ``run`` and
-``Result`` (and the stream's names) are resolved on first use (PEP 562) -- importing the API here would make every
-``import stereosim.nna.census`` load the whole application.
+``Result`` (and the stream's names) are resolved on first use (PEP 562) -- importing the API here
+would make every ``import stereosim.nna.census`` load the whole application.
 """
 
 from stereosim.sim.config import ChipConfig, load_config

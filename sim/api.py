@@ -15,13 +15,12 @@ import numpy as np
 
 from stereosim.nna.descriptor import compute_descriptor
 from stereosim.sim.config import ChipConfig, check_config, config_to_dict, load_config
-from stereosim.sim.cycle.frames import FrameSupply, check_frame_count, functional_words
+from stereosim.sim.cycle.contract import RunStopped, stop_report
 from stereosim.sim.cycle.energy import energy_report, energy_table
+from stereosim.sim.cycle.frames import FrameSupply, check_frame_count, functional_words
 from stereosim.sim.cycle.plan import ChipPlan, architecture_report, build_plan
 from stereosim.sim.cycle.report import power_basis
-from stereosim.sim.cycle.contract import RunStopped
 from stereosim.sim.cycle.simulate import simulate
-from stereosim.sim.cycle.contract import stop_report
 from stereosim.sim.errors import ConfigError, InputError
 from stereosim.sim.io import MAX_PIXELS, check_gt_values, pixel_cap, to_grey
 from stereosim.sim.metrics import check_truth, evaluate, mean_metrics, undefined_metrics
@@ -79,7 +78,8 @@ def prepare_pair(left, right, max_pixels: int | None = MAX_PIXELS) -> tuple[np.n
         )
     h, w = gl.shape
     if h < 1 or w < 2:
-        raise InputError(f"the images are {w}x{h}: a stereo pair needs at least 2 columns and 1 row")
+        raise InputError(
+            f"the images are {w}x{h}: a stereo pair needs at least 2 columns and 1 row")
     cap = pixel_cap(max_pixels)
     if h * w > cap:
         raise InputError(

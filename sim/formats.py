@@ -302,8 +302,8 @@ class SaveRequest:
         h, w = shape[:2]
         if (c.width is not None and c.width != w) or (c.height is not None and c.height != h):
             raise InputError(
-                f"{self.calib_source} is for {c.width or '?'}x{c.height or '?'} images but the pair is "
-                f"{w}x{h}: give the calib.txt of this image size (--calib)"
+                f"{self.calib_source} is for {c.width or '?'}x{c.height or '?'} images but the "
+                f"pair is {w}x{h}: give the calib.txt of this image size (--calib)"
             )
 
     def files(self, out_dir: Path, disp, left) -> dict[Path, bytes]:

@@ -10,9 +10,9 @@ Everything here works on plain numpy arrays with fixed dtypes:
 - masks are ``uint8`` ``(H, W)`` grey levels.
 
 Anything wrong with a file the user handed in (missing, unreadable, a folder, a path too long,
-corrupt, too large, wrong bit depth or format) raises :class:`sim.errors.InputError` with one line naming the
-file and saying how to fix it: no ``OSError`` gets out, and what OpenCV, libpng, libjpeg (and
-FFmpeg, for videos) print on stderr is caught (:func:`native_stderr_caught`). Every read is
+corrupt, too large, wrong bit depth or format) raises :class:`sim.errors.InputError` with one line
+naming the file and saying how to fix it: no ``OSError`` gets out, and what OpenCV, libpng, libjpeg
+(and FFmpeg, for videos) print on stderr is caught (:func:`native_stderr_caught`). Every read is
 bounded before memory is committed: an image, GT or mask holds at most ``max_pixels`` pixels
 (:data:`MAX_PIXELS`), read from the PNG or JPEG header before decoding (other formats: after);
 a PFM's declared size is checked the same way.
@@ -43,9 +43,9 @@ from stereosim.sim.outputs import atomic_write_bytes, describe_os_error, path_te
 # Integer BT.601 luma weights in 1/256: 77 + 150 + 29 == 256, so white stays 255.
 _LUMA_R, _LUMA_G, _LUMA_B = 77, 150, 29
 
-# The largest image (in pixels) `stereosim run`/`eval` and `stereosim.run` accept unless told otherwise
-# (--max-pixels / max_pixels=): 4096 x 4096, about twice 4K UHD. A cycle-model frame of 4K UHD
-# peaks at ~354 MiB; the cap keeps a small file that claims a huge image from taking gigabytes.
+# The largest image (in pixels) `stereosim run`/`eval` and `stereosim.run` accept unless told
+# otherwise (--max-pixels / max_pixels=): 4096 x 4096, about twice 4K UHD. A cycle-model frame of 4K
+# UHD peaks at ~354 MiB; the cap keeps a small file that claims a huge image from taking gigabytes.
 MAX_PIXELS = 1 << 24
 # The cap of "no cap" (--max-pixels 0, max_pixels=None or 0): more pixels than any image has.
 NO_PIXEL_CAP = 1 << 40

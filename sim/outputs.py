@@ -181,9 +181,9 @@ def check_outputs(paths: Mapping[str | os.PathLike, str] | Iterable[tuple],
     knows the file as (e.g. ``"--vcd"``); ``inputs`` the same for the files the command reads
     (None or empty paths are skipped). Checks: no two outputs on one path, and none is the
     folder of another; none is an input (same real path or a hard link to one: an output never
-    replaces what the command reads); none is an existing folder; the nearest existing ancestor of each folder is
-    a folder we may write into (missing folders are created at publish time); every name fits
-    the file system's limits.
+    replaces what the command reads); none is an existing folder; the nearest existing ancestor of
+    each folder is a folder we may write into (missing folders are created at publish time); every
+    name fits the file system's limits.
     """
     read = {os.path.realpath(p): (p, label) for p, label in _pairs(inputs)
             if p is not None and os.fspath(p) != ""}
@@ -471,7 +471,7 @@ def publish(files: Mapping[str | os.PathLike, object], *,
 
 def _remove_stages(stages: dict[Path, Path], primary: Path) -> None:
     """The staging folders of a set, the primary (which may hold the journal) last."""
-    for folder, stage in sorted(stages.items(), key=lambda item: item[0] == primary):
+    for _folder, stage in sorted(stages.items(), key=lambda item: item[0] == primary):
         shutil.rmtree(stage, ignore_errors=True)
 
 

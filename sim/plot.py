@@ -64,7 +64,8 @@ def check_columns(rows: list[dict], columns, source: str) -> None:
         if col is not None and col not in known:
             shown = ", ".join(sorted(known)[:12])
             raise InputError(
-                f"column '{col}' is not in {source} (columns include: {shown}{', ...' if len(known) > 12 else ''})"
+                f"column '{col}' is not in {source} "
+                f"(columns include: {shown}{', ...' if len(known) > 12 else ''})"
             )
 
 

@@ -238,7 +238,7 @@ def print_summary(report: dict, seconds: float) -> None:
     sys.stdout.write(summary_text(report, seconds))
 
 
-# ---- stereosim eval ---------------------------------------------------------------------------------
+# ---- stereosim eval ------------------------------------------------------------------------------
 
 
 def eval_timing(report: dict) -> dict | None:

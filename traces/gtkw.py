@@ -169,7 +169,7 @@ def gtkw_text(log: TraceLog, dumpfile: str, filter_file: str | None = None) -> s
         group = CLOCK_SCOPE if path.startswith(CLOCK_SCOPE + ".") else block_of(path, blocks)
         groups.setdefault(group, []).append((path, width, alias))
     group_names = aliases(list(groups))
-    for (group, members), label in zip(groups.items(), group_names):
+    for members, label in zip(groups.values(), group_names):
         with save.group(label):
             for path, width, alias in members:
                 status = path.endswith(STATUS_SUFFIX) and width > 1

@@ -15,8 +15,8 @@ end (of the frame for ``run``, of the dump for ``wave``).
   ``run``, the dump's time unit (fs for stereosim's dumps) for ``wave``.
 
 :func:`parse_window` turns the text into a :class:`Window`; each command resolves it against
-what it knows (a chip plan's clocks, a dump's time unit and clock wires). Errors are one-line ConfigErrors that
-name the option and show valid examples.
+what it knows (a chip plan's clocks, a dump's time unit and clock wires). Errors are one-line
+ConfigErrors that name the option and show valid examples.
 """
 
 from __future__ import annotations

@@ -33,7 +33,6 @@ from stereosim.sim.cycle.plan import ChipPlan
 from stereosim.sim.errors import UserError
 from stereosim.traces.log import Clock, Signal, TraceLog
 
-
 ACTIVITIES = ("busy", "starved", "blocked", "idle")
 
 
@@ -262,9 +261,9 @@ def frame_buffer_message(camera: str, frame: int, busy_frame: int, cycle: int, c
     pair = f" of pair {frame % pairs} (its frame {frame // pairs})" if pairs > 1 else ""
     return (f"camera '{camera}' found no free frame buffer for frame {frame}{pair}, cycle "
             f"{cycle}: the NNA still reads frame {busy_frame} from the buffer it needs "
-            f"({source.frame_buffers} buffer(s){' per pair' if pairs > 1 else ''}); drop such frames "
-            "(source.on_overflow=drop_frame), add buffers (source.frame_buffers) or more NNA "
-            "throughput (nna.stereo_submodules, clocks.nna_mhz)")
+            f"({source.frame_buffers} buffer(s){' per pair' if pairs > 1 else ''}); "
+            "drop such frames (source.on_overflow=drop_frame), add buffers "
+            "(source.frame_buffers) or more NNA throughput (nna.stereo_submodules, clocks.nna_mhz)")
 
 
 @dataclass

@@ -4,17 +4,19 @@
 with before running the cycle model: the frame rate each block sustains and the bottleneck, the
 first-output and whole-frame latency of one frame, SRAM bits per buffer and per FIFO, bytes per
 frame through each FIFO, MACs per frame, and the paper's own arithmetic (four 3x3 layers vs one
-9x9 layer; float vs binary descriptors). It walks the chip plan (:mod:`sim.cycle.plan`: the same blocks, FIFOs, windows and
-work) and applies the timing rules of :mod:`sim.cycle.rules` per image row instead of per cycle:
+9x9 layer; float vs binary descriptors). It walks the chip plan (:mod:`sim.cycle.plan`: the same
+blocks, FIFOs, windows and work) and applies the timing rules of :mod:`sim.cycle.rules` per image
+row instead of per cycle:
 
 - **Throughput.** A block's *work* per frame is the cycles its critical resource is busy --
-  the figure the cycle report ranks (:meth:`ChipPlan.work_cycles`): descriptors x ``ceil(K*K*C / macs)`` per NNA
-  submodule (census: 1 cycle), words x the SVA's II (:mod:`sim.cycle.stages`) for the SVA, one beat per pixel for a
-  merge, ``max(N, ceil(N f / B))`` cycles for a memory source (N pixels, f its clock, B its
-  bandwidth in bytes/s; through the DRAM channel, its read bursts' rounds) and ``H (W + hblank)`` pixel clocks for a camera. The block with
-  the largest work time sets the frame rate. Exact (the same integers the simulator counts),
-  except a bandwidth-limited memory source that is also back-pressured (its tokens pile up
-  while blocked, so it works less than the formula says; it is then not the bottleneck).
+  the figure the cycle report ranks (:meth:`ChipPlan.work_cycles`): descriptors x ``ceil(K*K*C /
+  macs)`` per NNA submodule (census: 1 cycle), words x the SVA's II (:mod:`sim.cycle.stages`) for
+  the SVA, one beat per pixel for a merge, ``max(N, ceil(N f / B))`` cycles for a memory source (N
+  pixels, f its clock, B its bandwidth in bytes/s; through the DRAM channel, its read bursts'
+  rounds) and ``H (W + hblank)`` pixel clocks for a camera. The block with the largest work time
+  sets the frame rate. Exact (the same integers the simulator counts), except a bandwidth-limited
+  memory source that is also back-pressured (its tokens pile up while blocked, so it works less than
+  the formula says; it is then not the bottleneck).
 - **Latency.** Times are carried per image row: the cycle each stage receives the first and the
   last beat of a row. A stage's output row y is ready the cycle after the input row it needs is
   complete (NNA: row min(y + h, H - 1), h the window's half height; SVA: row min(y + r + m,
@@ -23,11 +25,11 @@ work) and applies the timing rules of :mod:`sim.cycle.rules` per image row inste
   ``first_edge_after(push instant) + latency + (sync - 1 if crossing) - 1`` consumer cycles,
   computed on the same femtosecond grid as :class:`sim.cycle.rules.ClockDomain`. The line buffer's
   room rule and the SVA's look-ahead window (row y_in enters once the last word of output row
-  y_in - r - m - 2 has entered the SVA's pipeline) are applied. Exact (to the cycle) when no FIFO fills; see docs/whatif.md for
-  what is approximated when one does. The NNA -> SVA FIFO is exact either way: when it is
-  within a beat of its round trip (:func:`fills`) its handshake is walked beat by beat
-  (:class:`LinkWalk`, with the FIFO's own visibility and free-slot rules), as its mean rate
-  puts a row's last pop up to a cycle off and the rows add up (exact when its producer's row
+  y_in - r - m - 2 has entered the SVA's pipeline) are applied. Exact (to the cycle) when no FIFO
+  fills; see docs/whatif.md for what is approximated when one does. The NNA -> SVA FIFO is exact
+  either way: when it is within a beat of its round trip (:func:`fills`) its handshake is walked
+  beat by beat (:class:`LinkWalk`, with the FIFO's own visibility and free-slot rules), as its mean
+  rate puts a row's last pop up to a cycle off and the rows add up (exact when its producer's row
   times are: one submodule per camera). Through the DRAM channel a memory source's pixel is
   taken to leave once read burst b is in from round b (a lower bound: the prefetch never
   waits).
@@ -93,8 +95,8 @@ def fills(f: FifoPlan, plan: ChipPlan) -> bool:
 
 
 class LinkWalk:
-    """A FIFO's handshake beat by beat, with the FIFO's own rules (:mod:`sim.cycle.readable.fifo`): the
-    producer pushes beat k once it is made (its row's unobstructed times, and ``step`` cycles
+    """A FIFO's handshake beat by beat, with the FIFO's own rules (:mod:`sim.cycle.readable.fifo`):
+    the producer pushes beat k once it is made (its row's unobstructed times, and ``step`` cycles
     after its previous push: a blocked producer resumes from its push) and it sees the slot of
     beat k - depth freed (:func:`seen_from` of that pop, ``space_edges``); the consumer pops
     it once visible (``data_edges``), a cycle after its previous pop and not before its row is

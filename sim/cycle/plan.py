@@ -41,8 +41,7 @@ from stereosim.nna.geometry import (
     window_rows,
 )
 from stereosim.sim.config import AUTO_BUDGET_FACTOR, ChipConfig, check_config
-from stereosim.sim.cycle.rules import ClockDomain
-from stereosim.sim.cycle.rules import fifo_edges, period_fs
+from stereosim.sim.cycle.rules import ClockDomain, fifo_edges, period_fs
 from stereosim.sim.cycle.stages import (
     BufferPlan,
     StagePlan,
@@ -406,7 +405,8 @@ class ChipPlan:
             d = self.dram
             h, w = self.shape
             per = self.domains[block.domain].period_fs
-            return -(-(-(-h * w // d.read_pixels)) * d.round_fs // per)
+            bursts = -(-h * w // d.read_pixels)
+            return -(-bursts * d.round_fs // per)
         if block.kind == "memory":
             return busy // self.frames  # measured over the stream: its share of a frame
         if block.kind == "camera":  # pairs sharing the chip start a frame every 1/P period

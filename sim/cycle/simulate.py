@@ -19,11 +19,10 @@ it is a terminal. A run that stops raises its :class:`~sim.cycle.contract.RunSto
 
 from __future__ import annotations
 
-from stereosim.sim.cycle.contract import FrameResult
-from stereosim.sim.cycle.readable.chip import run_readable
-from stereosim.sim.cycle.contract import RunStopped
 from stereosim.sim.cycle.compiled.run import run_compiled
+from stereosim.sim.cycle.contract import FrameResult, RunStopped
 from stereosim.sim.cycle.plan import ChipPlan
+from stereosim.sim.cycle.readable.chip import run_readable
 from stereosim.sim.errors import ConfigError
 from stereosim.sim.progress import compile_notice
 

@@ -126,7 +126,8 @@ def test_threshold_at_the_largest_tap_sums(k_size):
     img = np.zeros((4, 5), dtype=np.uint8)
     acc = cnn_accumulators(img, weights, bias, 255)
     assert_array_equal(acc[0, 0], [0, 1, -1, 0, 1, -1])
-    assert_array_equal(cnn_descriptor(img, weights, bias, 255), np.full((4, 5), 0b010010, np.uint32))
+    expected = np.full((4, 5), 0b010010, np.uint32)
+    assert_array_equal(cnn_descriptor(img, weights, bias, 255), expected)
     assert_array_equal(cnn_descriptor(img, weights, bias, 255),
                        cnn_descriptor_ref(img, weights, bias, 255))
 
@@ -359,7 +360,8 @@ def test_a_weight_file_is_read_within_bounds(tmp_path):
         archive.writestr("weights.npy", header.getvalue() + bytes(64))
         archive.writestr("bias.npy", b"")
     for load in (load_weights, load_layer):
-        with pytest.raises(ConfigError, match=r"weight file '.*lying.npz' .*claims \(10000000000000,\)"):
+        claim = r"weight file '.*lying.npz' .*claims \(10000000000000,\)"
+        with pytest.raises(ConfigError, match=claim):
             load(path)
     empty = tmp_path / "empty.npz"
     empty.write_bytes(b"")

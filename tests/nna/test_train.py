@@ -162,7 +162,7 @@ def test_train_and_quantize_commands(data_root, tmp_path, capsys):
     out = tmp_path / "out"
     left = data_root / "middlebury2006_third" / "Aloe"
     code = main(["run", str(left), "--mode", "functional", "--descriptor", "cnn", "--set",
-                 f"nna.cnn.weights={weights}", "--disparities", "16", "--out", str(out)])  # fmt: skip
+                 f"nna.cnn.weights={weights}", "--disparities", "16", "--out", str(out)])
     assert code == 0 and (out / "disparity.pfm").is_file()
 
 
@@ -326,7 +326,7 @@ def test_cost_curves_are_the_chips_box_filtered_hamming_costs(data_root):
     # the chip's volumes: left reference directly; right reference on mirrored images with
     # the mirrored network (conv of a mirrored image by a mirrored kernel = mirrored output)
     mirrored = FloatModel(weights=(model.weights[0][..., ::-1],), biases=model.biases,
-                          input_offset=model.input_offset, input_scale=model.input_scale)  # fmt: skip
+                          input_offset=model.input_offset, input_scale=model.input_scale)
     volumes = {}
     for i in range(len(ss.views)):
         view, partner = ss.views[i].astype(np.uint8), ss.views[i ^ 1].astype(np.uint8)
@@ -424,7 +424,8 @@ def _float_model_file(path: Path, **changes) -> Path:
         ({}, None),
         ({"training": np.array("{not json")}, "its training record is not JSON"),
         ({"training": None}, "lacks the field 'training'"),
-        ({"input_offset": np.zeros(3, np.int32)}, r"input_offset must be a scalar, got int32 \(3,\)"),
+        ({"input_offset": np.zeros(3, np.int32)},
+         r"input_offset must be a scalar, got int32 \(3,\)"),
         ({"input_scale": np.array("big")}, "input_scale must be a scalar, got <U3"),
         ({"format": np.zeros(2)}, "format must be a scalar"),
         ({"weights_0": np.full((32, 1, 9, 9), "w")}, r"layer 0 of single9x9 must be float"),

@@ -8,7 +8,16 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
-from stereosim.quant.distances import DISTANCES, get_distance, hamming, hist_rms, histograms, kl, l1, rms
+from stereosim.quant.distances import (
+    DISTANCES,
+    get_distance,
+    hamming,
+    hist_rms,
+    histograms,
+    kl,
+    l1,
+    rms,
+)
 from stereosim.sim.errors import ConfigError
 
 F = np.array([1.0, -2.0, 0.5, 3.0])

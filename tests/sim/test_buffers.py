@@ -15,9 +15,9 @@ import stereosim.sim.cycle.readable.blocks.nna as nna_block
 import stereosim.sim.cycle.readable.blocks.sva as sva_block
 from stereosim.sim.config import load_config
 from stereosim.sim.cycle.buffers import BufferOverflow, window_peaks
-from stereosim.sim.cycle.readable.chip import run_readable
 from stereosim.sim.cycle.compiled.run import run_compiled
 from stereosim.sim.cycle.plan import build_plan
+from stereosim.sim.cycle.readable.chip import run_readable
 
 CNN = {"nna.descriptor": "cnn", "sva.disparities": 16}  # the NNA (9 cycles) is the bottleneck
 # the SVA (II 2) is the bottleneck; the 5x5 box pinned for the k + 1 = 6 rows derived below

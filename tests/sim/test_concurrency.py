@@ -32,7 +32,7 @@ def test_two_concurrent_runs_into_one_out_leave_a_whole_set(tmp_path):
     (tmp_path / "r.png").write_bytes(encode_png(base[:, :-4].copy()))
     out = tmp_path / "out"
     winners = []
-    for trial in range(TRIALS):
+    for _trial in range(TRIALS):
         procs = [
             subprocess.Popen(
                 [sys.executable, "-m", "stereosim.sim.cli", "run", "--mode", "functional", "--left",

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from stereosim.sim.config import load_config
-from stereosim.sim.cycle.energy import DEFAULT_TABLE, energy_report, energy_table, popcount_bit_adds
 from stereosim.sim.cycle.compiled.run import run_compiled
+from stereosim.sim.cycle.energy import DEFAULT_TABLE, energy_report, energy_table, popcount_bit_adds
 from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.errors import ConfigError
 

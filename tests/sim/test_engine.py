@@ -1,15 +1,14 @@
-"""The compiled engine (sim/cycle/engine) against the readable kernel (sim/cycle/readable/chip.py): same
-words, same cycle report, same kernel statistics, same errors with the same state of every FIFO
+"""The compiled engine (sim/cycle/engine) against the readable kernel (sim/cycle/readable/chip.py):
+same words, same cycle report, same kernel statistics, same errors with the same state of every FIFO
 and block."""
 
 import numpy as np
 import pytest
 
 from stereosim.sim.config import load_config
-from stereosim.sim.cycle.contract import BudgetExceeded, DeadlockError
 from stereosim.sim.cycle.compiled.run import run_compiled
+from stereosim.sim.cycle.contract import BudgetExceeded, CameraOverflow, DeadlockError
 from stereosim.sim.cycle.plan import build_plan
-from stereosim.sim.cycle.contract import CameraOverflow
 
 
 def run_cycle_fast(left, right, cfg, sink_stall=None):
@@ -115,8 +114,8 @@ def test_deadlock_is_reported_with_the_same_message(run_cycle):
 
 
 def test_cycle_budget_is_enforced_with_the_same_message(run_cycle):
-    """Without a watchdog a sink that never pops runs into the cycle budget of sim.cycle.readable.chip (equal
-    clocks: one step per cycle keeps the readable run short)."""
+    """Without a watchdog a sink that never pops runs into the cycle budget of
+    sim.cycle.readable.chip (equal clocks: one step per cycle keeps the readable run short)."""
     left, right = _pair(3, 20, seed=10)
     cfg = load_config(overrides={**SAME_CLOCKS, **CENSUS, "sim.watchdog_cycles": 1 << 40})
     never = (1 << 40, (1 << 40) - 1)

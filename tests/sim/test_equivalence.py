@@ -1,7 +1,7 @@
 """The two engines are one model: the compiled engine (sim/cycle/engine) equals the readable
-kernel (sim/cycle/readable/chip.py) on random configurations -- words, report, statistics, row instants,
-the VCD of a trace window, or the same error with the same message -- and its helper kernels
-equal naive references."""
+kernel (sim/cycle/readable/chip.py) on random configurations -- words, report, statistics, row
+instants, the VCD of a trace window, or the same error with the same message -- and its helper
+kernels equal naive references."""
 
 import itertools
 
@@ -11,11 +11,11 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from stereosim.sim.config import load_config
-from stereosim.sim.cycle.readable.chip import run_readable
 from stereosim.sim.cycle.compiled.layout import INF, serialise
 from stereosim.sim.cycle.compiled.replay import count_le
 from stereosim.sim.cycle.compiled.run import first_quiet, run_compiled
 from stereosim.sim.cycle.plan import build_plan
+from stereosim.sim.cycle.readable.chip import run_readable
 from stereosim.sim.errors import UserError
 from stereosim.traces.vcd import vcd_bytes
 

@@ -1,4 +1,5 @@
-"""The analytic model (sim/cycle/estimate.py) against the cycle model, over a grid of configurations.
+"""The analytic model (sim/cycle/estimate.py) against the cycle model, over a grid of
+configurations.
 
 Throughput (the work-based frame rate and bottleneck), FIFO traffic and SRAM must agree exactly;
 first-output and frame latency to the cycle where the model is exact (see docs/whatif.md: no
@@ -112,7 +113,8 @@ def test_a_fifo_too_shallow_for_its_round_trip_is_seen_by_the_estimate():
 def test_720p_calibration_matches_the_paper_figures():
     cnn = estimate(load_config(overrides={"nna.descriptor": "cnn"}), (720, 1280))
     assert cnn["throughput"]["bottleneck"] == "nna_left"
-    assert cnn["throughput"]["fps_bound"] == pytest.approx(460e6 / (9 * 921_600), abs=1e-3)  # ~55 (rounded to 3 decimals)
+    # ~55 fps, rounded to 3 decimals
+    assert cnn["throughput"]["fps_bound"] == pytest.approx(460e6 / (9 * 921_600), abs=1e-3)
     census = estimate(load_config(overrides={"nna.descriptor": "census"}), (720, 1280))
     assert census["throughput"]["fps_bound_per_block"]["sva"] == pytest.approx(
         465e6 / (2 * 921_600), abs=1e-3)  # ~250

@@ -8,9 +8,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from stereosim.sim.cycle.readable.clock import Block, KernelError
-from stereosim.sim.cycle.rules import ClockDomain
 from stereosim.sim.cycle.readable.fifo import Fifo
 from stereosim.sim.cycle.readable.kernel import Simulator
+from stereosim.sim.cycle.rules import ClockDomain
 from stereosim.sim.errors import ConfigError
 
 

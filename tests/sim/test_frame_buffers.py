@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 from stereosim.sim.config import load_config
-from stereosim.sim.cycle.readable.chip import run_readable
 from stereosim.sim.cycle.compiled.run import run_compiled
-from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.cycle.contract import CameraOverflow
+from stereosim.sim.cycle.plan import build_plan
+from stereosim.sim.cycle.readable.chip import run_readable
 from stereosim.sim.errors import ConfigError
 
 H, W, N = 16, 40, 6

@@ -252,8 +252,9 @@ def test_sigterm_during_a_run_leaves_the_old_set_and_no_temporary_files(old_run,
     the start of the work, during the simulation, or while the files are written."""
     _, _, out, before = old_run
     left, right = _write_pair(tmp_path / "big", h=120, w=300, seed=2)
-    cmd = [sys.executable, "-m", "stereosim.sim.cli", "run", "--left", str(left), "--right", str(right),
-           "--disparities", "32", "--out", str(out), "--vcd", str(out / "t.vcd"), "--force"]
+    cmd = [sys.executable, "-m", "stereosim.sim.cli", "run", "--left", str(left),
+           "--right", str(right), "--disparities", "32", "--out", str(out),
+           "--vcd", str(out / "t.vcd"), "--force"]
     # as from a shell: no signal blocked (the test process may hold some, and hand them down)
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             preexec_fn=lambda: signal.pthread_sigmask(signal.SIG_SETMASK, set()))
@@ -272,7 +273,8 @@ def test_sigterm_during_a_run_leaves_the_old_set_and_no_temporary_files(old_run,
     else:
         # a first run may note first that it compiles the kernels (killed during it, it will
         # say so again next time): that line, then the one that says what happened
-        lines = [ln for ln in err.decode().splitlines() if not ln.startswith("stereosim: compiling")]
+        lines = [ln for ln in err.decode().splitlines()
+                 if not ln.startswith("stereosim: compiling")]
         assert proc.returncode == 143 and len(lines) == 1
         if lines[0] != "stereosim: terminated":  # after the publish: then the new set is whole
             assert lines == ["stereosim: terminated after writing its outputs (they are "
@@ -285,8 +287,8 @@ def test_sigterm_during_a_run_leaves_the_old_set_and_no_temporary_files(old_run,
 
 def test_stdout_on_a_full_device_is_one_line(tmp_path):
     with open("/dev/full", "w") as full:
-        proc = subprocess.run([sys.executable, "-m", "stereosim.sim.cli", "config", "show"], stdout=full,
-                              stderr=subprocess.PIPE, timeout=120)
+        proc = subprocess.run([sys.executable, "-m", "stereosim.sim.cli", "config", "show"],
+                              stdout=full, stderr=subprocess.PIPE, timeout=120)
     assert proc.returncode == 2
     assert proc.stderr.decode().splitlines() == [
         "stereosim: error: cannot write to standard output (No space left on device): check "

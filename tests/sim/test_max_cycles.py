@@ -16,8 +16,8 @@ import pywellen
 from stereosim.sim import tracing
 from stereosim.sim.cli import main
 from stereosim.sim.config import load_config
-from stereosim.sim.cycle.contract import BudgetExceeded
 from stereosim.sim.cycle.compiled.run import run_compiled
+from stereosim.sim.cycle.contract import BudgetExceeded
 from stereosim.sim.cycle.plan import STATUS_CODES, build_plan
 from stereosim.sim.cycle.simulate import simulate
 from stereosim.sim.io import encode_png

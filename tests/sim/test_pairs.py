@@ -11,10 +11,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from stereosim.sim.config import load_config
-from stereosim.sim.cycle.readable.chip import run_readable
 from stereosim.sim.cycle.compiled.run import run_compiled
+from stereosim.sim.cycle.contract import CameraOverflow
 from stereosim.sim.cycle.frames import functional_words
 from stereosim.sim.cycle.plan import build_plan
+from stereosim.sim.cycle.readable.chip import run_readable
 from stereosim.sim.cycle.rules import (
     camera_busy_cycles,
     camera_cycle,
@@ -22,7 +23,6 @@ from stereosim.sim.cycle.rules import (
     camera_in_lines,
     camera_pixels_streamed,
 )
-from stereosim.sim.cycle.contract import CameraOverflow
 from stereosim.sim.errors import ConfigError
 
 H, W = 16, 40
@@ -109,10 +109,10 @@ def test_pairs_far_apart_each_get_the_latency_of_a_lone_pair(run):
 @pytest.mark.parametrize("run", [run_readable, run_compiled])
 def test_two_pairs_with_a_buffer_each_are_a_pair_with_two_buffers_until_a_drop(run):
     """Two pairs of 8,000-cycle frames, 4,000 apart, one buffer each, against one pair of
-    4,000-cycle frames into two buffers (lines of 200 cycles in both): the frames start at the same instants (4,000 f), and
-    while the pairs' frames alternate, the buffer a pair's next frame needs holds the frame
-    taken two before -- the lone pair's rule with two buffers. The chip falls behind by
-    5,760 - 4,000 cycles a frame; the first drop is the same frame, and with six frames it is
+    4,000-cycle frames into two buffers (lines of 200 cycles in both): the frames start at the same
+    instants (4,000 f), and while the pairs' frames alternate, the buffer a pair's next frame needs
+    holds the frame taken two before -- the lone pair's rule with two buffers. The chip falls behind
+    by 5,760 - 4,000 cycles a frame; the first drop is the same frame, and with six frames it is
     the only one: the same frames, instants and words."""
     shared = _plan(3, **{"source.camera_hblank": 160, "source.camera_vblank": 24,
                          "source.frame_buffers": 1, "sva.pairs": 2})

@@ -8,10 +8,10 @@ import pytest
 from stereosim.sim.api import run
 from stereosim.sim.cli import main
 from stereosim.sim.config import load_config
+from stereosim.sim.cycle.contract import CameraOverflow
 from stereosim.sim.cycle.estimate import estimate
 from stereosim.sim.cycle.plan import build_plan, sram_bits
 from stereosim.sim.cycle.simulate import simulate
-from stereosim.sim.cycle.contract import CameraOverflow
 from stereosim.sim.errors import ConfigError, InputError
 from stereosim.sim.io import encode_png
 from stereosim.sva.pipeline import SvaStream

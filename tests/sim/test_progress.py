@@ -6,8 +6,8 @@ import io
 import os
 import re
 import subprocess
-import time
 import sys
+import time
 
 import numpy as np
 import pytest

@@ -11,11 +11,18 @@ import pytest
 
 from stereosim.sim.api import run
 from stereosim.sim.config import load_config
-from stereosim.sim.cycle.readable.chip import run_readable
-from stereosim.sim.cycle.contract import BudgetExceeded, DeadlockError, RunStopped, stop_message
 from stereosim.sim.cycle.compiled.run import run_compiled
+from stereosim.sim.cycle.contract import (
+    BudgetExceeded,
+    CameraOverflow,
+    DeadlockError,
+    FrameBufferFull,
+    RunStopped,
+    stop_message,
+    stop_report,
+)
 from stereosim.sim.cycle.plan import build_plan
-from stereosim.sim.cycle.contract import CameraOverflow, FrameBufferFull, stop_report
+from stereosim.sim.cycle.readable.chip import run_readable
 from stereosim.sim.tracing import TraceRequest, run_traced
 from stereosim.traces.log import TraceLog
 from stereosim.traces.vcd import vcd_bytes

@@ -16,10 +16,10 @@ from stereosim.sim import api, progress
 from stereosim.sim.api import run, run_stream
 from stereosim.sim.cli import main
 from stereosim.sim.config import load_config
-from stereosim.sim.cycle.readable.chip import run_readable
 from stereosim.sim.cycle.compiled.run import run_compiled
 from stereosim.sim.cycle.frames import MAX_FRAMES, FrameSupply, check_frame_count
 from stereosim.sim.cycle.plan import build_plan
+from stereosim.sim.cycle.readable.chip import run_readable
 from stereosim.sim.errors import ConfigError, InputError
 from stereosim.sim.io import encode_png, pfm_bytes
 from stereosim.sva.pipeline import sva_stream
@@ -163,8 +163,9 @@ def test_the_cli_runs_a_stream_with_a_trace_across_frames(tmp_path):
     """stereosim run --frames 3 on the default scene (RGB, made grey): the report's stream, a
     VCD window in the second frame, the saved frames, one set."""
     out = tmp_path / "out"
-    cmd = [sys.executable, "-m", "stereosim.sim.cli", "run", "--frames", "3", "--descriptor", "census",
-           "--disparities", "32", "--save-every", "2", "--vcd", str(out / "t.vcd"),
+    cmd = [sys.executable, "-m", "stereosim.sim.cli", "run", "--frames", "3",
+           "--descriptor", "census", "--disparities", "32", "--save-every", "2",
+           "--vcd", str(out / "t.vcd"),
            "--trace-window", "sva:700000:700400", "--out", str(out)]
     done = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr

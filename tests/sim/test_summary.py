@@ -304,7 +304,7 @@ def test_config_show_keeps_penalties_the_user_set(tmp_path, capsys):
         DESCRIPTOR_DEFAULTS["census"]["p1"]
 
 
-# ---- plot ------------------------------------------------------------------------------------------
+# ---- plot ----------------------------------------------------------------------------------------
 
 
 def _csv(tmp_path, rows):

@@ -1,7 +1,7 @@
-"""The SVA as a lock-step pipeline (sim/cycle/readable/blocks/sva.py, sim/cycle/compiled/pipeline.py):
-a stall freezes every word in flight and the next issue with them, its stages' words and status
-are traced, and a stage that needs more SRAM accesses than its ports allow shows in the trace.
-Cycles are checked against the rules written out by hand here."""
+"""The SVA as a lock-step pipeline (sim/cycle/readable/blocks/sva.py,
+sim/cycle/compiled/pipeline.py): a stall freezes every word in flight and the next issue with them,
+its stages' words and status are traced, and a stage that needs more SRAM accesses than its ports
+allow shows in the trace. Cycles are checked against the rules written out by hand here."""
 
 from __future__ import annotations
 
@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from stereosim.sim.config import load_config
-from stereosim.sim.cycle.readable.chip import run_readable
 from stereosim.sim.cycle.compiled.run import run_compiled
 from stereosim.sim.cycle.plan import build_plan
+from stereosim.sim.cycle.readable.chip import run_readable
 from stereosim.traces.log import changes_of
 
 # the 3x3 median and 5x5 box of tests/sim/test_chip.py's derivation (latency 49 at D = 16)

@@ -430,8 +430,9 @@ def test_two_sweep_processes_into_one_out_lose_no_row(tmp_path):
                     "a.toml"),
              _write(tmp_path, _estimate([32], extra=f'"fifo.nna_to_sva_depth" = {depths}\n'),
                     "b.toml")]
-    procs = [subprocess.Popen([sys.executable, "-m", "stereosim.sim.cli", "sweep", str(f), "--out", "out",
-                               "--quiet", "--workers", "1"], cwd=tmp_path, env=_env(),
+    procs = [subprocess.Popen([sys.executable, "-m", "stereosim.sim.cli", "sweep", str(f),
+                               "--out", "out", "--quiet", "--workers", "1"],
+                              cwd=tmp_path, env=_env(),
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
              for f in files]
     for proc in procs:
@@ -796,8 +797,8 @@ def test_ctrl_c_stops_a_sweep_within_seconds_and_leaves_a_valid_csv(tmp_path):
     path = _write(tmp_path, 'mode = "cycle"\nscenes = ["640x200"]\n[set]\n'
                   f'"sva.disparities" = 32\n[grid]\n"fifo.nna_to_sva_depth" = {depths}\n')
     csv_path = tmp_path / "out" / CSV_NAME
-    proc = subprocess.Popen([sys.executable, "-m", "stereosim.sim.cli", "sweep", str(path), "--out", "out",
-                             "--quiet", "--workers", "2"], cwd=tmp_path, env=_env(),
+    proc = subprocess.Popen([sys.executable, "-m", "stereosim.sim.cli", "sweep", str(path),
+                             "--out", "out", "--quiet", "--workers", "2"], cwd=tmp_path, env=_env(),
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             start_new_session=True, preexec_fn=_default_sigint)
     try:

@@ -7,7 +7,13 @@ from hypothesis import strategies as st
 from numpy.testing import assert_array_equal
 
 from stereosim.sim.errors import InputError
-from stereosim.sva.cost import cost_row_add, cost_row_update, hamming_cost, hamming_cost_ref, reverse_row
+from stereosim.sva.cost import (
+    cost_row_add,
+    cost_row_update,
+    hamming_cost,
+    hamming_cost_ref,
+    reverse_row,
+)
 
 SHAPES = [(1, 1), (1, 17), (19, 1), (7, 13), (9, 21)]
 

@@ -13,10 +13,10 @@ import vcdvcd
 
 from stereosim.sim.cli import main
 from stereosim.sim.config import load_config
-from stereosim.sim.cycle.readable.chip import build_chip
-from stereosim.sim.cycle.contract import BudgetExceeded
 from stereosim.sim.cycle.compiled.run import run_compiled
+from stereosim.sim.cycle.contract import BudgetExceeded
 from stereosim.sim.cycle.plan import build_plan
+from stereosim.sim.cycle.readable.chip import build_chip
 from stereosim.sim.io import read_pfm
 from stereosim.sim.tracing import TraceRequest, run_traced, write_traces
 
@@ -70,8 +70,8 @@ SPLIT_ROWS = {**CONFIG, "nna.stereo_submodules": 6, "nna.split": "rows",
 def test_trace_values_equal_the_readable_kernels_state_at_sampled_instants(tmp_path, over):
     """At SVA cycles k, the readable kernel stopped by a budget of k SVA cycles reports every
     FIFO's occupancy and every block's status after its last step; the VCD of the compiled
-    engine, read by pywellen and by vcdvcd at that step, says the same -- for a whole frame and for frames
-    split into column tiles or row bands (with their merges)."""
+    engine, read by pywellen and by vcdvcd at that step, says the same -- for a whole frame and for
+    frames split into column tiles or row bands (with their merges)."""
     cfg = load_config(overrides=over)
     left, right = _pair()
     _, _, log, req = _traced(tmp_path, cfg, left, right)

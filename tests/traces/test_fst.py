@@ -22,7 +22,11 @@ def _read(path) -> tuple[str, str, dict]:
     out = {}
     for var in wave.all_vars():
         changes = []
-        wave.stream_changes(lambda t, _sid, value: changes.append((t, value)), [var])
+
+        def note(t, _sid, value, changes=changes):
+            changes.append((t, value))
+
+        wave.stream_changes(note, [var])
         out[var.full_name] = (var.bitwidth, changes)
     return wave.file_format, str(wave.timescale), out
 

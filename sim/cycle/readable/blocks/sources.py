@@ -229,13 +229,13 @@ class MemorySource(_FrameSource):
     """Reads the frames from memory in raster order, one pixel (one byte) per beat, the next
     frame's first pixel right after the last one's.
 
-    Ports: ``outputs`` = the source FIFOs (one per submodule of its camera). Bandwidth: a token bucket filled at ``bytes_per_s``; pixel k (from
-    0, over the stream) may leave from cycle :func:`~sim.cycle.rules.memory_first_cycle` on, at
-    most one pixel per cycle -- or, through the DRAM channel (``dram``), once its burst is in
-    (:class:`DramChannel`). Activity: busy while pixels remain (waiting for the token bucket
-    counts as busy: the transfer is under way), starved while the frame buffers or the DRAM
-    channel have not delivered the pixel, blocked when a target FIFO is full, idle once the
-    last frame has left.
+    Ports: ``outputs`` = the source FIFOs (one per submodule of its camera). Bandwidth: a token
+    bucket filled at ``bytes_per_s``; pixel k (from 0, over the stream) may leave from cycle
+    :func:`~sim.cycle.rules.memory_first_cycle` on, at most one pixel per cycle -- or, through the
+    DRAM channel (``dram``), once its burst is in (:class:`DramChannel`). Activity: busy while
+    pixels remain (waiting for the token bucket counts as busy: the transfer is under way), starved
+    while the frame buffers or the DRAM channel have not delivered the pixel, blocked when a target
+    FIFO is full, idle once the last frame has left.
     """
 
     def __init__(self, plan: ChipPlan, entry: BlockPlan, outputs: list[Fifo], *, image,
