@@ -168,6 +168,33 @@ def beats() -> list[str]:
     return lines
 
 
+SVA_STAGE_POINTS = (
+    ("the defaults (D = 128, 128 lanes, 4 paths, LR check, 1r1w SRAM)", {}),
+    ("`--set sva.lanes=64 --set sva.sram_ports=1rw`", {"sva.lanes": 64, "sva.sram_ports": "1rw"}),
+)
+
+
+def sva_stages_table() -> list[str]:
+    """docs/architecture.md, "The SVA's stages": each stage's II, latency, the arithmetic behind
+    both and its SRAM, as the plan builds them (:func:`sim.cycle.stages.sva_stages`) for a
+    1280x720 CNN frame, at the defaults and with half the lanes on single-port SRAM."""
+    lines = []
+    for title, over in SVA_STAGE_POINTS:
+        plan = build_plan(load_config(overrides=over), (720, 1280))
+        sva = next(b for b in plan.blocks if b.kind == "sva")
+        lines += [f"**{title}**: II {max(st.ii for st in sva.stages)}, latency "
+                  f"{sum(st.latency for st in sva.stages)} cycles", "",
+                  "| stage | II | latency | how (the plan's formula) | SRAM and registers |",
+                  "|---|---|---|---|---|"]
+        for st in sva.stages:
+            store = "; ".join(f"`{b.name}` {b.bits:,} bits"
+                              + (f" ({b.ports}: {b.reads} r + {b.writes} w per pixel)"
+                                 if b.ports else "") for b in st.buffers)
+            lines.append(f"| {st.name} | {st.ii} | {st.latency} | {st.formula} | {store} |")
+        lines.append("")
+    return lines[:-1]
+
+
 def energy_720p() -> list[str]:
     """docs/energy.md, "What is counted": the energy of a 720p frame at the defaults and with
     the paper's 2-path option, by block, the SGM's previous-row SRAM apart."""
@@ -497,6 +524,7 @@ FIGURES = {
     "layers": Figure("architecture.md", layers),
     "rules": Figure("architecture.md", rule_table.table),
     "beats": Figure("architecture.md", beats),
+    "sva-stages": Figure("architecture.md", sva_stages_table),
     "energy-720p": Figure("energy.md", energy_720p),
     "dram-defaults": Figure("dram.md", dram_defaults),
     "requant-example": Figure("quantization.md", requant_example),
