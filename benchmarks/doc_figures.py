@@ -157,6 +157,41 @@ def layers() -> list[str]:
                      for layer in layered["layers"]), "```"]
 
 
+def _modules(package: Path) -> list[str]:
+    """The modules of a sub-package of sim/cycle, a sub-folder's as ``folder/name``."""
+    names = [p.stem for p in sorted(package.glob("*.py")) if p.stem != "__init__"]
+    for sub in sorted(d for d in package.iterdir() if (d / "__init__.py").exists()):
+        names += [f"{sub.name}/{p.stem}" for p in sorted(sub.glob("*.py"))
+                  if p.stem != "__init__"]
+    return names
+
+
+def engines() -> list[str]:
+    """docs/architecture.md, "Two engines": the layers of the import contract ``engines`` of
+    pyproject.toml (sim/cycle, top to bottom: a line imports only from the lines below it;
+    ``|`` joins siblings that import neither each other), the engines with their modules read
+    off their folders."""
+    contracts = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["importlinter"]
+    (layered,) = [c for c in contracts["contracts"] if c["id"] == "engines"]
+    cycle = ROOT / "sim" / "cycle"
+    col = 38
+    rows = []
+    for layer in layered["layers"]:
+        if "|" in layer:
+            parts = [m.strip() for m in layer.split("|")]
+            columns = [[f"{m}/"] + [f"  {name}" for name in _modules(cycle / m)] for m in parts]
+            rows += ["      /" + " " * (col - 4) + "\\"]
+            for i in range(max(map(len, columns))):
+                cells = [c[i] if i < len(c) else "" for c in columns]
+                rows.append("  " + "".join(cell.ljust(col) for cell in cells).rstrip())
+            rows += ["      \\" + " " * (col - 4) + "/   (neither imports the other)"]
+        else:
+            rows += ["  " + "   ".join(m.strip() for m in layer.split(":")), "        |"]
+    if rows[-1].strip() == "|":
+        rows.pop()
+    return ["```", *rows, "```"]
+
+
 def beats() -> list[str]:
     """docs/architecture.md, "Beats": the kinds of beat the readable chip's FIFOs carry, from
     their types (sim/cycle/readable/beats.py)."""
@@ -522,6 +557,7 @@ FIGURES = {
     "row-windows": Figure("architecture.md", row_windows),
     "splits": Figure("architecture.md", splits),
     "layers": Figure("architecture.md", layers),
+    "engines": Figure("architecture.md", engines),
     "rules": Figure("architecture.md", rule_table.table),
     "beats": Figure("architecture.md", beats),
     "sva-stages": Figure("architecture.md", sva_stages_table),
