@@ -1,4 +1,4 @@
-"""Camera pairs sharing one chip (issue 16): two 720p 60 fps camera pairs, frame by frame.
+"""Camera pairs sharing one chip: two 720p 60 fps camera pairs, frame by frame.
 
     python benchmarks/shared_sva.py [--frames 30] [--write]
 

@@ -7,7 +7,7 @@ For each length N a child process runs ``stereosim.run_stream`` on the embedded 
 1280x720 (the pair repeated N times; cycle counts do not depend on the pixels), iterates over
 every frame's disparities as the CLI does, and prints the stream's measured figures, its CPU
 per frame and its peak RSS; then OpenCV StereoSGBM (MODE_SGBM, D = 128, block 5, one thread)
-runs the same pair 5 times in the same child for the ratio. Target (issue 16): peak RSS of 60
+runs the same pair 5 times in the same child for the ratio. Targets: peak RSS of 60
 and 600 frames within 10 % of each other; per-frame cost <= 1.3 x OpenCV's.
 """
 

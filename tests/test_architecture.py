@@ -58,6 +58,37 @@ def test_the_import_contracts_hold():
     assert "BROKEN" not in out.stdout and "broken" in out.stdout  # "N kept, 0 broken"
 
 
+def test_ruff_finds_nothing():
+    """``ruff check`` with the project's configuration (pyproject.toml, ``[tool.ruff]``) over the
+    whole repository: pycodestyle, pyflakes, import order and bugbear."""
+    exe = shutil.which("ruff") or str(Path(sys.executable).with_name("ruff"))
+    out = subprocess.run([exe, "check", "--no-cache", "--output-format", "concise", "."], cwd=ROOT,
+                         capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-2000:]
+
+
+MAX_MODULE_LINES = 800
+MAX_FUNCTION_LINES = 120
+
+
+def test_no_module_or_function_grows_past_one_concern():
+    """No module over 800 lines and no function over 120 lines (from its ``def`` to its last line)
+    in the five packages."""
+    found = []
+    for pkg in PACKAGES:
+        for path in sorted((ROOT / pkg).rglob("*.py")):
+            text = path.read_text()
+            name = path.relative_to(ROOT)
+            if text.count("\n") > MAX_MODULE_LINES:
+                found.append(f"{name}: {text.count(chr(10))} lines")
+            for node in ast.walk(ast.parse(text)):
+                if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                    size = node.end_lineno - node.lineno + 1
+                    if size > MAX_FUNCTION_LINES:
+                        found.append(f"{name}:{node.lineno} {node.name}() has {size} lines")
+    assert not found, "\n".join(found)
+
+
 def test_the_contracts_set_the_directions_that_keep_circles_out():
     """The contracts name the directions that keep circles out: the cycle model and the
     application above the stages (a stage never imports the clocked kernel), the trace writers
@@ -70,7 +101,8 @@ def test_the_contracts_set_the_directions_that_keep_circles_out():
         (i,) = [i for i, members in enumerate(layers) if _covered(module, members)]
         return i
 
-    assert level("sim.api") < level("sim.cycle.readable.chip") < level("nna.census") < level("sim.config")
+    assert (level("sim.api") < level("sim.cycle.readable.chip") < level("nna.census")
+            < level("sim.config"))
     assert level("sim.tracing") < level("traces.vcd") < level("sim.cycle") < level("traces.log")
     assert level("quant.quantizer") < level("nna.weights") < level("quant.artifact")
     assert level("sim.cycle.readable.chip") < level("sva.pipeline")
