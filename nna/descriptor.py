@@ -7,30 +7,32 @@ from functools import lru_cache
 import numpy as np
 
 from stereosim.nna.census import census, census_bits
-from stereosim.nna.conv import cnn_descriptor
-from stereosim.nna.weights import default_weights, load_layer
+from stereosim.nna.conv import network_descriptor
+from stereosim.nna.weights import SHIPPED_WEIGHTS, load_network
+from stereosim.quant.intconv import IntNetwork
 from stereosim.sim.config import NnaConfig, check_section
 from stereosim.sim.errors import ConfigError
 
 
 @lru_cache(maxsize=8)
-def _layer(weights: str):
-    return default_weights() if weights == "default" else load_layer(weights)
+def _network(weights: str) -> IntNetwork:
+    return load_network(SHIPPED_WEIGHTS if weights == "default" else weights)
 
 
-def layer(cfg: NnaConfig) -> tuple[np.ndarray, np.ndarray, int]:
-    """(int8 weights, int32 bias, input offset) of the CNN descriptor the config names.
+def network(cfg: NnaConfig) -> IntNetwork:
+    """The integer network of the CNN descriptor the config names (``nna.cnn.weights``: a
+    weight file of one layer or a quantized artifact of 1..4 layers).
 
-    The layer must have ``nna.cnn.channels`` output channels -- the SVA's register widths were
-    worked out for that many bits -- else :class:`ConfigError` says which value to set."""
-    weights, bias, offset = _layer(cfg.cnn.weights)
-    if weights.shape[0] != cfg.cnn.channels:
+    Its last layer must have ``nna.cnn.channels`` output channels -- the SVA's register widths
+    were worked out for that many bits -- else :class:`ConfigError` says which value to set."""
+    net = _network(cfg.cnn.weights)
+    if net.channels != cfg.cnn.channels:
         raise ConfigError(
-            f"the CNN layer {cfg.cnn.weights!r} has {weights.shape[0]} output channels but "
+            f"the CNN {cfg.cnn.weights!r} has {net.channels} output channels but "
             f"nna.cnn.channels is {cfg.cnn.channels}: set nna.cnn.channels = "
-            f"{weights.shape[0]} (the SVA's automatic register widths follow it)"
+            f"{net.channels} (the SVA's automatic register widths follow it)"
         )
-    return weights, bias, offset
+    return net
 
 
 def descriptor_bits(cfg: NnaConfig) -> int:
@@ -38,7 +40,7 @@ def descriptor_bits(cfg: NnaConfig) -> int:
     if cfg.descriptor == "census":
         c = cfg.census
         return census_bits(c.window, c.kind, c.stride)
-    return int(layer(cfg)[0].shape[0])  # = nna.cnn.channels (layer() checks it)
+    return network(cfg).channels  # = nna.cnn.channels (network() checks it)
 
 
 def compute_descriptor(img: np.ndarray, cfg: NnaConfig) -> np.ndarray:
@@ -47,5 +49,4 @@ def compute_descriptor(img: np.ndarray, cfg: NnaConfig) -> np.ndarray:
     if cfg.descriptor == "census":
         c = cfg.census
         return census(img, c.window, c.kind, c.stride)
-    weights, bias, offset = layer(cfg)
-    return cnn_descriptor(img, weights, bias, offset)
+    return network_descriptor(img, network(cfg))

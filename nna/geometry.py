@@ -10,23 +10,25 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from stereosim.nna.descriptor import layer
+from stereosim.nna.descriptor import network
 from stereosim.sim.config import NnaConfig
 from stereosim.sim.errors import ConfigError
 
 
 def half_window(cfg: NnaConfig) -> int:
-    """Rows above and below a pixel that its descriptor reads: K // 2 (CNN), h // 2 (census)."""
+    """Rows above and below a pixel that its descriptor reads: the sum of the layers' K // 2
+    (CNN), h // 2 (census)."""
     if cfg.descriptor == "census":
         return cfg.census.window[1] // 2
-    return layer(cfg)[0].shape[1] // 2
+    return network(cfg).reach
 
 
 def half_window_width(cfg: NnaConfig) -> int:
-    """Columns left and right of a pixel that its descriptor reads: K // 2 or w // 2."""
+    """Columns left and right of a pixel that its descriptor reads: the sum of the layers'
+    K // 2, or w // 2."""
     if cfg.descriptor == "census":
         return cfg.census.window[0] // 2
-    return layer(cfg)[0].shape[2] // 2
+    return network(cfg).reach
 
 
 def window_rows(cfg: NnaConfig) -> int:
@@ -35,20 +37,19 @@ def window_rows(cfg: NnaConfig) -> int:
 
 
 def cycles_per_descriptor(cfg: NnaConfig) -> int:
-    """MAC-array cycles per descriptor: ceil(K*K*C / macs) for the CNN, 1 for the census unit."""
+    """MAC-array cycles per descriptor: ceil(MACs per descriptor / macs) for the CNN (one
+    layer: ceil(K*K*C / macs)), 1 for the census unit."""
     if cfg.descriptor == "census":
         return 1
-    weights = layer(cfg)[0]
-    c, k, _ = weights.shape
-    return math.ceil(k * k * c / cfg.macs)
+    return math.ceil(macs_per_descriptor(cfg) / cfg.macs)
 
 
 def macs_per_descriptor(cfg: NnaConfig) -> int:
-    """K*K*C multiply-accumulates of the CNN layer; census descriptors use no MACs."""
+    """Multiply-accumulates of one descriptor: the sum over the CNN's layers of K*K*C_in*C_out
+    (one layer: K*K*C); census descriptors use no MACs."""
     if cfg.descriptor == "census":
         return 0
-    c, k, _ = layer(cfg)[0].shape
-    return k * k * c
+    return sum(network(cfg).layer_macs)
 
 
 def check_line_buffer(cfg: NnaConfig) -> None:

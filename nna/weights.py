@@ -1,4 +1,4 @@
-"""Weights of the NNA descriptor layer: the shipped trained layer, a placeholder, .npz files.
+"""Weights of the NNA descriptor network: the shipped trained layer, a placeholder, .npz files.
 
 A weight file is an ``.npz`` archive with three arrays:
 
@@ -8,7 +8,8 @@ A weight file is an ``.npz`` archive with three arrays:
 
 A quantized artifact written by ``stereosim quantize`` (:func:`quant.artifact.save_quantized`) of a
 single-layer model carries these three keys too, plus everything else about the model; such a
-file is read and checked in full by :func:`load_layer`.
+file is read and checked in full by :func:`load_layer`. :func:`load_network` reads either kind
+as the network the NNA runs: a weight file as one layer, an artifact with all its layers.
 
 :func:`default_weights` is the shipped layer, ``nna/single9x9.npz``: the ``single9x9`` network
 trained with ``stereosim train`` and quantised with ``stereosim quantize`` (docs/ablation.md).
@@ -24,6 +25,7 @@ import numpy as np
 
 from stereosim.nna.conv import check_layer
 from stereosim.quant.artifact import load_quantized, to_nna_weights
+from stereosim.quant.intconv import IntNetwork, network
 from stereosim.sim.errors import ConfigError
 from stereosim.sim.npz import open_npz
 
@@ -55,6 +57,23 @@ def load_layer(path) -> tuple[np.ndarray, np.ndarray, int]:
     qm = load_quantized(name)
     try:
         return check_layer(*to_nna_weights(qm))
+    except ConfigError as err:
+        raise ConfigError(f"weight file {name!r}: {err}") from None
+
+
+def load_network(path) -> IntNetwork:
+    """The network a weight file or a quantized artifact of 1..4 layers holds (checked in full;
+    a damaged or inconsistent file raises :class:`ConfigError` naming it)."""
+    name = os.fspath(path)
+    fix = f"write it with nna.save_weights (keys {', '.join(KEYS)}) or stereosim quantize"
+    with open_npz(name, "weight file", fix) as archive:
+        is_artifact = "format" in archive.files
+    if not is_artifact:
+        weights, bias, offset = load_weights(name)
+        return network((weights[:, None],), (bias,), (), (), offset)
+    qm = load_quantized(name)
+    try:
+        return network(qm.weights, qm.biases, qm.mult, qm.shift, qm.input_offset, qm.z_bits)
     except ConfigError as err:
         raise ConfigError(f"weight file {name!r}: {err}") from None
 

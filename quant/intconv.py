@@ -26,12 +26,16 @@ is ``max(offset, 255 - offset)`` for the first layer and 127 after a requantisat
 network whose bound exceeds int32, so the int32 accumulators never wrap. The product
 ``acc * mult`` is formed in int64 (at most 31 + 16 bits for the largest allowed ``z``).
 
-Two implementations that must agree bit for bit: :func:`int_forward` (numba kernels, int32
-accumulators) and :func:`int_forward_ref` (numpy int64, a different loop order, checked to fit
-int32 after every layer).
+Two implementations that must agree bit for bit: :func:`int_forward_ref` (numpy int64, the
+definition tap by tap, checked to fit int32 after every layer) and the fast form
+:func:`int_forward` / :func:`int_signs` (numba kernels over row bands through every layer, in
+float lanes that are exact for the layer's worst case, :func:`lane_dtype`). The NNA's descriptor
+is :func:`int_signs`; its naive form ``signs_ref(int_forward_ref(...))``.
 """
 
 from __future__ import annotations
+
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -46,6 +50,55 @@ ACT_MAX = 127  # ReLU_127: the int8 activation between layers is clamped to 0..1
 # floor(v / 2**h) is 0 or -1 for every h >= 62 when |v| < 2**62 (|acc * m| < 2**47 here), so the
 # numpy form caps the shift at 62 (2**63 does not fit int64).
 _SHIFT_LIMIT = 62
+
+
+class IntNetwork(NamedTuple):
+    """A checked integer network (:func:`network`): per layer int8 ``weights`` (C_out, C_in, K,
+    K) and int32 ``biases``; ``mult``/``shift`` per non-last layer; the input's zero point and
+    the multiply-shift's bit width."""
+
+    weights: tuple
+    biases: tuple
+    mult: tuple
+    shift: tuple
+    input_offset: int
+    z_bits: int = 8
+
+    @property
+    def n_layers(self) -> int:
+        return len(self.weights)
+
+    @property
+    def halves(self) -> tuple[int, ...]:
+        """Each layer's half kernel r = K // 2."""
+        return tuple(int(w.shape[2]) // 2 for w in self.weights)
+
+    @property
+    def reach(self) -> int:
+        """Rows (and columns) on each side of a pixel its descriptor reads: the sum of the
+        layers' half kernels (the receptive field is 2 reach + 1 wide)."""
+        return sum(self.halves)
+
+    @property
+    def channels(self) -> int:
+        """The last layer's output channels: the descriptor's bits."""
+        return int(self.weights[-1].shape[0])
+
+    @property
+    def layer_macs(self) -> tuple[int, ...]:
+        """Multiply-accumulates per output pixel of each layer: K * K * C_in * C_out."""
+        return tuple(int(np.prod(w.shape)) for w in self.weights)
+
+    @property
+    def args(self) -> tuple:
+        """The positional arguments of :func:`int_forward`, :func:`int_signs` and the refs."""
+        return (self.weights, self.biases, self.mult, self.shift, self.input_offset, self.z_bits)
+
+
+def network(weights, biases, mult, shift, input_offset, z_bits=8) -> IntNetwork:
+    """:func:`check_network`'s checked network as an :class:`IntNetwork`."""
+    w, b, m, h, offset = check_network(weights, biases, mult, shift, input_offset, z_bits)
+    return IntNetwork(w, b, m, h, offset, int(z_bits))
 
 
 @njit(cache=True, inline="always")
@@ -168,77 +221,305 @@ def check_network(weights, biases, mult, shift, input_offset, z_bits=8):
     return tuple(out_w), tuple(out_b), tuple(out_m), tuple(out_h), input_offset
 
 
-@njit(cache=True)
-def _conv_kernel(xp, w, b, out):
-    """out[c, y, x] = b[c] + sum w[c, ci, ky, kx] * xp[ci, y + ky, x + kx], int32 throughout."""
-    c_out, c_in, k_size = w.shape[0], w.shape[1], w.shape[2]
-    height, width = out.shape[1], out.shape[2]
-    for c in range(c_out):
-        for y in range(height):
-            for x in range(width):
-                out[c, y, x] = b[c]
-        for ci in range(c_in):
-            for ky in range(k_size):
-                for kx in range(k_size):
-                    wv = w[c, ci, ky, kx]
-                    for y in range(height):
-                        row = xp[ci, y + ky]
-                        for x in range(width):
-                            out[c, y, x] += wv * row[x + kx]
+# ---- the fast form: row bands through every layer, exact float lanes ------------------------
+#
+# float32 holds every integer up to 2**24 exactly, float64 up to 2**53. A layer whose worst-case
+# tap sum ``max_c sum |w_c| * max|x|`` stays below that (:func:`lane_dtype`) computes every
+# product and partial sum exactly in those lanes, in any order, fused multiply-adds included;
+# the int32 bias is added after converting back. float32 lanes multiply-add about twice as fast
+# as int32 ones (vpmulld is slow); every shipped layer fits them (single9x9 at most 2,643,840,
+# a 3x3x32 layer of ReLU_127 inputs at most 4,681,728).
+F32_EXACT = 1 << 24
+F64_EXACT = 1 << 53
+# Output rows per band: each layer computes the band plus the rows the later layers read
+# around it (their half kernels), so a band of 32 rows costs a 4-layer 3x3 chain about 9 % more
+# than the frame's own rows.
+BAND_ROWS = 32
+# Kernel columns are zero-padded to a multiple of this (the innermost loop takes three taps).
+TAPS_PER_STEP = 3
+
+
+def tap_bound(weights: np.ndarray, x_max: int) -> int:
+    """The largest |sum over taps of w * x| of a layer whose inputs satisfy |x| <= x_max."""
+    return int(np.abs(weights.astype(np.int64)).sum(axis=(1, 2, 3)).max()) * int(x_max)
+
+
+def lane_dtype(weights: np.ndarray, x_max: int) -> np.dtype:
+    """float32 if the layer's tap sums are exact in it, else float64 (always exact: the sums
+    fit int32, :func:`check_network`)."""
+    return np.dtype(np.float32 if tap_bound(weights, x_max) < F32_EXACT else np.float64)
+
+
+@njit(cache=True, fastmath={"contract"})
+def _rows4(xp, w_pad, c, y, acc4):
+    """acc4[j, x] = tap sum of output channel c + j at row y, column x, for j = 0..3: each
+    input sample loaded feeds four channels' multiply-adds (the loop stays bound by arithmetic
+    rather than by loads), three taps per pass, vectorised along x; one accumulation per tap, so
+    that each is one fused multiply-add."""
+    c_in, k_rows, k_cols = w_pad.shape[1], w_pad.shape[2], w_pad.shape[3]
+    width = acc4.shape[1]
+    a0, a1, a2, a3 = acc4[0], acc4[1], acc4[2], acc4[3]
+    acc4[:] = 0
+    for ci in range(c_in):
+        for ky in range(k_rows):
+            row = xp[ci, y + ky]
+            for kx in range(0, k_cols, 3):
+                s0 = row[kx:kx + width]
+                s1 = row[kx + 1:kx + 1 + width]
+                s2 = row[kx + 2:kx + 2 + width]
+                u0, u1, u2 = w_pad[c, ci, ky, kx:kx + 3]
+                c1 = c + 1
+                v0, v1, v2 = w_pad[c1, ci, ky, kx:kx + 3]
+                c2 = c + 2
+                p0, p1, p2 = w_pad[c2, ci, ky, kx:kx + 3]
+                c3 = c + 3
+                q0, q1, q2 = w_pad[c3, ci, ky, kx:kx + 3]
+                for x in range(width):
+                    x0, x1, x2 = s0[x], s1[x], s2[x]
+                    a = a0[x]
+                    a += u0 * x0
+                    a += u1 * x1
+                    a += u2 * x2
+                    a0[x] = a
+                    b = a1[x]
+                    b += v0 * x0
+                    b += v1 * x1
+                    b += v2 * x2
+                    a1[x] = b
+                    e = a2[x]
+                    e += p0 * x0
+                    e += p1 * x1
+                    e += p2 * x2
+                    a2[x] = e
+                    f = a3[x]
+                    f += q0 * x0
+                    f += q1 * x1
+                    f += q2 * x2
+                    a3[x] = f
+
+
+@njit(cache=True, fastmath={"contract"})
+def _rows1(xp, w_pad, c, y, acc1):
+    """acc1[x] = tap sum of output channel c at row y, column x (the channels left over after
+    the groups of four)."""
+    c_in, k_rows, k_cols = w_pad.shape[1], w_pad.shape[2], w_pad.shape[3]
+    width = acc1.shape[0]
+    acc1[:] = 0
+    for ci in range(c_in):
+        for ky in range(k_rows):
+            row = xp[ci, y + ky]
+            for kx in range(0, k_cols, 3):
+                s0 = row[kx:kx + width]
+                s1 = row[kx + 1:kx + 1 + width]
+                s2 = row[kx + 2:kx + 2 + width]
+                u0, u1, u2 = w_pad[c, ci, ky, kx:kx + 3]
+                for x in range(width):
+                    a = acc1[x]
+                    a += u0 * s0[x]
+                    a += u1 * s1[x]
+                    a += u2 * s2[x]
+                    acc1[x] = a
 
 
 @njit(cache=True)
-def _requant_kernel(acc, m, h, out):
-    """out[c] = clamp(mul_shift(acc[c], m[c], h[c]), 0, 127)."""
-    c_out, height, width = acc.shape
+def _conv_rows(xp, w_pad, acc):
+    """acc[c, y, x] = sum over (ci, ky, kx) of w_pad[c, ci, ky, kx] * xp[ci, y + ky, x + kx],
+    without the bias. ``w_pad`` (C_out, C_in, K, Kp) has zeros beyond column K; ``xp`` and
+    ``acc`` are float lanes of one dtype."""
+    c_out = w_pad.shape[0]
+    rows, width = acc.shape[1], acc.shape[2]
+    acc4 = np.empty((4, width), dtype=acc.dtype)
+    acc1 = np.empty(width, dtype=acc.dtype)
+    for y in range(rows):
+        c = 0
+        while c + 4 <= c_out:
+            _rows4(xp, w_pad, c, y, acc4)
+            acc[c:c + 4, y, :] = acc4
+            c += 4
+        while c < c_out:
+            _rows1(xp, w_pad, c, y, acc1)
+            acc[c, y, :] = acc1
+            c += 1
+
+
+@njit(cache=True)
+def _requant_rows(acc, bias, m, h, out):
+    """out[c, y, x] = clamp(mul_shift(int32(acc) + bias[c], m[c], h[c]), 0, 127), in the lanes
+    of ``out`` (the next layer's input)."""
+    c_out, rows, width = acc.shape
     for c in range(c_out):
-        for y in range(height):
+        for y in range(rows):
             for x in range(width):
-                v = mul_shift(acc[c, y, x], m[c], h[c])
+                v = mul_shift(np.int32(acc[c, y, x]) + bias[c], m[c], h[c])
                 if v < 0:
                     v = 0
-                elif v > 127:
-                    v = 127
+                elif v > ACT_MAX:
+                    v = ACT_MAX
                 out[c, y, x] = v
 
 
-def int_layer(x_i32, weights, bias) -> np.ndarray:
-    """One integer conv layer (numba): x_i32 int32 (C_in, H, W) -> int32 accumulators (C_out, H, W).
+@njit(cache=True)
+def _sign_rows(acc, bias, masks, out):
+    """out[y, x] = OR of masks[c] over the channels with int32(acc[c, y, x]) + bias[c] > 0."""
+    c_out, rows, width = acc.shape
+    zero = masks[0] ^ masks[0]
+    for y in range(rows):
+        for x in range(width):
+            out[y, x] = zero
+    for c in range(c_out):
+        mask = masks[c]
+        limit = -bias[c]
+        for y in range(rows):
+            for x in range(width):
+                out[y, x] |= mask if np.int32(acc[c, y, x]) > limit else zero
 
-    The caller guarantees (via :func:`check_network`) that the accumulators fit int32.
-    """
-    r = weights.shape[2] // 2
-    xp = np.pad(np.ascontiguousarray(x_i32, dtype=np.int32), ((0, 0), (r, r), (r, r)), "edge")
-    out = np.empty((weights.shape[0],) + x_i32.shape[1:], dtype=np.int32)
-    _conv_kernel(xp, weights.astype(np.int32), bias.astype(np.int32), out)
+
+@njit(cache=True)
+def _acc_rows(acc, bias, out):
+    """out[y, x, c] = int32(acc[c, y, x]) + bias[c]: the last layer's accumulators."""
+    c_out, rows, width = acc.shape
+    for c in range(c_out):
+        for y in range(rows):
+            for x in range(width):
+                out[y, x, c] = np.int32(acc[c, y, x]) + bias[c]
+
+
+def _pad_taps(w: np.ndarray, dtype) -> np.ndarray:
+    """(C_out, C_in, K, Kp) in ``dtype``, the kernel columns zero-padded to a multiple of 3."""
+    k = w.shape[3]
+    k_cols = -(-k // TAPS_PER_STEP) * TAPS_PER_STEP
+    out = np.zeros(w.shape[:3] + (k_cols,), dtype=dtype)
+    out[..., :k] = w
     return out
+
+
+def band_ranges(halves: tuple[int, ...], height: int, y0: int, y1: int) -> list[tuple[int, int]]:
+    """For output rows [y0, y1) of the last layer: the rows [a, b) each layer must produce,
+    the input image's first (index 0, then layer 0's outputs ... the last layer's [y0, y1)).
+    A layer of half kernel r reads rows [a - r, b + r) of its input, clamped into the frame
+    (the replicate border repeats the frame's edge rows, which are computed anyway)."""
+    ranges = [(y0, y1)]
+    a, b = y0, y1
+    for r in reversed(halves):
+        a, b = max(0, a - r), min(height, b + r)
+        ranges.append((a, b))
+    return ranges[::-1]
+
+
+def _padded(x: np.ndarray, lo: int, height: int, a: int, b: int, r: int, k_cols: int, dtype):
+    """Layer input rows [a - r, b + r) and columns [-r, W + r + extra) with the replicate
+    border, from ``x`` (C, rows, W) holding frame rows [lo, lo + rows)."""
+    width = x.shape[2]
+    rows = np.clip(np.arange(a - r, b + r), 0, height - 1) - lo
+    cols = np.clip(np.arange(-r, width - r + k_cols - 1), 0, width - 1)
+    return np.ascontiguousarray(x[:, rows][:, :, cols], dtype=dtype)
+
+
+def forward_bands(img, net, finish, band_rows: int = BAND_ROWS) -> None:
+    """Run the checked network ``net`` = (weights, biases, mult, shift, input_offset) over
+    ``img`` band by band: ``finish(y0, y1, acc, bias)`` receives the last layer's tap sums
+    (C, y1 - y0, W) in float lanes for output rows [y0, y1), the bias apart."""
+    weights, biases, mult, shift, input_offset = net
+    height, width = img.shape
+    halves = tuple(w.shape[2] // 2 for w in weights)
+    x_max = max(input_offset, 255 - input_offset)
+    dtypes, taps = [], []
+    for w in weights:
+        dtypes.append(lane_dtype(w, x_max))
+        taps.append(_pad_taps(w, dtypes[-1]))
+        x_max = ACT_MAX
+    shifts = [(np.asarray(m, np.int64), np.asarray(h, np.int64)) for m, h in zip(mult, shift)]
+    for y0 in range(0, height, band_rows):
+        y1 = min(height, y0 + band_rows)
+        ranges = band_ranges(halves, height, y0, y1)
+        lo, hi = ranges[0]
+        x = (img[lo:hi].astype(np.int32) - np.int32(input_offset))[None].astype(np.float32)
+        for layer, w_pad in enumerate(taps):
+            a, b = ranges[layer + 1]
+            r = halves[layer]
+            xp = _padded(x, lo, height, a, b, r, w_pad.shape[3], dtypes[layer])
+            acc = np.empty((w_pad.shape[0], b - a, width), dtype=dtypes[layer])
+            _conv_rows(xp, w_pad, acc)
+            if layer == len(taps) - 1:
+                finish(y0, y1, acc, biases[layer])
+                break
+            x = np.empty(acc.shape, dtype=dtypes[layer + 1])
+            _requant_rows(acc, biases[layer], *shifts[layer], x)
+            lo = a
+
+
+def int_layer(x_i32, weights, bias) -> np.ndarray:
+    """One integer conv layer: x_i32 int32 (C_in, H, W) -> int32 accumulators (C_out, H, W),
+    in exact float lanes (the caller guarantees, via :func:`check_network`, that they fit
+    int32)."""
+    x_max = int(np.abs(x_i32).max()) if x_i32.size else 0
+    dtype = lane_dtype(weights, max(x_max, 1))
+    r = weights.shape[2] // 2
+    w_pad = _pad_taps(weights, dtype)
+    height = x_i32.shape[1]
+    xp = _padded(np.asarray(x_i32), 0, height, 0, height, r, w_pad.shape[3], dtype)
+    acc = np.empty((weights.shape[0],) + x_i32.shape[1:], dtype=dtype)
+    _conv_rows(xp, w_pad, acc)
+    out = np.empty(x_i32.shape[1:] + (weights.shape[0],), dtype=np.int32)
+    _acc_rows(acc, bias.astype(np.int32), out)
+    return np.ascontiguousarray(out.transpose(2, 0, 1))
 
 
 def requantize(acc_i32, mult, shift) -> np.ndarray:
-    """Per-channel ``clamp((acc * m) >> h, 0, 127)`` (numba) of int32 (C, H, W); returns int32."""
+    """Per-channel ``clamp((acc * m) >> h, 0, 127)`` of int32 (C, H, W); returns int32."""
     out = np.empty(acc_i32.shape, dtype=np.int32)
-    _requant_kernel(
-        np.ascontiguousarray(acc_i32, dtype=np.int32),
-        mult.astype(np.int64),
-        shift.astype(np.int64),
-        out,
-    )
+    zero = np.zeros(acc_i32.shape[0], dtype=np.int32)
+    _requant_rows(np.ascontiguousarray(acc_i32, dtype=np.int32), zero, mult.astype(np.int64),
+                  shift.astype(np.int64), out)
     return out
 
 
-def int_forward(img, weights, biases, mult, shift, input_offset, z_bits=8) -> np.ndarray:
-    """Integer inference (numba) of the network; returns the last layer's int32 (H, W, C_out)."""
+def int_forward(img, weights, biases, mult, shift, input_offset, z_bits=8, *,
+                band_rows: int = BAND_ROWS) -> np.ndarray:
+    """Integer inference of the network (the fast form: row bands, exact float lanes); returns
+    the last layer's int32 accumulators (H, W, C_out)."""
     img = _as_image(img)
-    weights, biases, mult, shift, input_offset = check_network(
-        weights, biases, mult, shift, input_offset, z_bits
-    )
-    x_i32 = (img.astype(np.int32) - np.int32(input_offset))[None]
-    for layer in range(len(weights)):
-        acc = int_layer(x_i32, weights[layer], biases[layer])
-        if layer == len(weights) - 1:
-            return np.ascontiguousarray(acc.transpose(1, 2, 0))
-        x_i32 = requantize(acc, mult[layer], shift[layer])
-    raise AssertionError("unreachable")
+    net = check_network(weights, biases, mult, shift, input_offset, z_bits)
+    out = np.empty(img.shape + (net[0][-1].shape[0],), dtype=np.int32)
+
+    def finish(y0, y1, acc, bias):
+        _acc_rows(acc, bias, out[y0:y1])
+
+    forward_bands(img, net, finish, band_rows)
+    return out
+
+
+def descriptor_dtype(n_channels: int) -> np.dtype:
+    """The descriptor's dtype: uint32 for up to 32 channels, else uint64."""
+    return np.dtype(np.uint32 if n_channels <= 32 else np.uint64)
+
+
+def int_signs(img, weights, biases, mult, shift, input_offset, z_bits=8, *,
+              band_rows: int = BAND_ROWS) -> np.ndarray:
+    """The descriptor: bit c of out[y, x] is ``acc[c] > 0`` of the last layer (LSB = channel
+    0); uint32 (H, W) for up to 32 channels, uint64 for up to 64. The fast form, band by band:
+    no frame of accumulators is ever held."""
+    img = _as_image(img)
+    net = check_network(weights, biases, mult, shift, input_offset, z_bits)
+    n_out = net[0][-1].shape[0]
+    dtype = descriptor_dtype(n_out)
+    masks = np.array([1 << c for c in range(n_out)], dtype=dtype)
+    out = np.empty(img.shape, dtype=dtype)
+
+    def finish(y0, y1, acc, bias):
+        _sign_rows(acc, bias, masks, out[y0:y1])
+
+    forward_bands(img, net, finish, band_rows)
+    return out
+
+
+def signs_ref(acc: np.ndarray) -> np.ndarray:
+    """The descriptor of accumulators (H, W, C): bit c set where acc[..., c] > 0."""
+    n_out = acc.shape[2]
+    out = np.zeros(acc.shape[:2], dtype=descriptor_dtype(n_out))
+    for c in range(n_out):
+        out |= (acc[..., c] > 0).astype(out.dtype) << out.dtype.type(c)
+    return out
 
 
 def _layer_ref(x_i64, w, b) -> np.ndarray:

@@ -30,7 +30,7 @@ import math
 from dataclasses import dataclass, field
 from functools import cached_property
 
-from stereosim.nna.descriptor import descriptor_bits, layer
+from stereosim.nna.descriptor import descriptor_bits, network
 from stereosim.nna.geometry import (
     Tile,
     check_line_buffer,
@@ -461,10 +461,16 @@ def nna_buffers(cfg: ChipConfig, width: int) -> tuple[BufferPlan, ...]:
                       rows=rows, banks=rows, word_bits=8, pixel_reads=window_rows(cfg.nna),
                       pixel_writes=1)]
     if cfg.nna.descriptor == "cnn":
-        c, k, _ = layer(cfg.nna)[0].shape
-        out.append(BufferPlan("nna.weights", k * k * c * 8 + c * 32,
-                              f"{k}x{k}x{c} int8 weights and {c} int32 biases (loaded into "
-                              "the MAC array's registers once: weight-stationary)"))
+        net = network(cfg.nna)
+        shapes = " + ".join(f"{w.shape[2]}x{w.shape[3]}x{w.shape[1]}x{w.shape[0]}"
+                            for w in net.weights)
+        outs = sum(w.shape[0] for w in net.weights)
+        requant = sum(int(m.size) for m in net.mult)
+        out.append(BufferPlan("nna.weights", 8 * sum(net.layer_macs) + 32 * outs
+                              + 2 * net.z_bits * requant,
+                              f"{shapes} int8 weights, {outs} int32 biases and {requant} "
+                              f"multiply-shift pairs of {net.z_bits} bits (loaded into the MAC "
+                              "array's registers once: weight-stationary)"))
     return tuple(out)
 
 
@@ -655,7 +661,8 @@ def action_counts(plan: ChipPlan) -> dict[str, dict[str, int]]:
     def accesses(block, attr):
         return sum(n * getattr(buf, attr) for buf in block.buffers)
 
-    requant = 0 if cfg.nna.descriptor == "census" else n * layer(cfg.nna)[0].shape[0]
+    requant = (0 if cfg.nna.descriptor == "census"
+               else n * sum(w.shape[0] for w in network(cfg.nna).weights))
     return {
         "nna_per_camera": {"macs": n * macs_per_descriptor(cfg.nna),
                            "requant_multiplies": requant,

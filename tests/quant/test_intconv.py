@@ -1,4 +1,8 @@
-"""Integer inference: numba kernels == numpy int64 emulation bit for bit; one layer == the NNA."""
+"""Integer inference: the fast form (row bands, exact float lanes) == the numpy int64 definition
+bit for bit, accumulators and descriptor signs, on random networks, odd sizes, band edges and the
+worst-case sums that float32 lanes still hold."""
+
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -7,12 +11,20 @@ from hypothesis import strategies as st
 from numpy.testing import assert_array_equal
 
 from stereosim.nna.conv import cnn_accumulators
+from stereosim.nna.weights import SHIPPED_WEIGHTS, load_network
 from stereosim.quant.intconv import (
+    F32_EXACT,
+    _conv_rows,
+    _pad_taps,
     check_network,
     int_forward,
     int_forward_ref,
+    int_signs,
+    lane_dtype,
     mul_shift,
     mul_shift_ref,
+    signs_ref,
+    tap_bound,
 )
 from stereosim.sim.errors import ConfigError
 
@@ -92,10 +104,77 @@ def test_numba_equals_numpy_hypothesis(n_layers, height, width, seed, offset, z_
 @pytest.mark.parametrize("shape", [(25, 31), (9, 9), (3, 40)])
 @pytest.mark.parametrize("offset", [0, 128, 255])
 def test_single_layer_equals_nna_accumulators(shape, offset):
+    """The network definition of one layer equals the NNA's fast one-layer accumulators."""
     weights, biases, _, _ = _network(11, (32,), (9,), bias_range=100000)
     img = _image(shape, 2)
-    ours = int_forward(img, weights, biases, [], [], offset)
+    ours = int_forward_ref(img, weights, biases, [], [], offset)
     assert_array_equal(ours, cnn_accumulators(img, weights[0][:, 0], biases[0], offset))
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    n_layers=st.integers(1, 4),
+    height=st.integers(1, 40),
+    width=st.integers(1, 40),
+    seed=st.integers(0, 2**16),
+    offset=st.integers(0, 255),
+    band_rows=st.sampled_from([1, 2, 3, 7, 32]),
+)
+def test_random_networks_descriptors_equal_the_definition(n_layers, height, width, seed, offset,
+                                                          band_rows):
+    """Networks of 1-4 layers, K in 1/3/5/7/9, 1-32 channels, on odd sizes (the replicate border
+    at every layer's input) and bands of any height (each layer's halo across band edges): the
+    fast descriptor and accumulators equal the int64 definition's."""
+    rng = np.random.default_rng(seed)
+    channels = tuple(int(c) for c in rng.integers(1, 33, size=n_layers))
+    k_sizes = tuple(int(k) for k in rng.choice([1, 3, 5, 7, 9], size=n_layers))
+    weights, biases, mult, shift = _network(seed, channels, k_sizes)
+    img = _image((height, width), seed + 1)
+    args = (weights, biases, mult, shift, offset)
+    ref = int_forward_ref(img, *args)
+    assert_array_equal(int_forward(img, *args, band_rows=band_rows), ref)
+    assert_array_equal(int_signs(img, *args, band_rows=band_rows), signs_ref(ref))
+
+
+@pytest.mark.parametrize("height", [31, 32, 33, 65])
+def test_shipped_networks_on_band_edges(height):
+    """The trained networks the repo ships, on frames a band longer or shorter than a band."""
+    models = Path(__file__).resolve().parents[2] / "benchmarks" / "models"
+    img = _image((height, 45), height)
+    for path in (SHIPPED_WEIGHTS, models / "mccnn4.int8.npz", models / "mccnn4-slim.int8.npz"):
+        net = load_network(path)
+        assert_array_equal(int_signs(img, *net.args), signs_ref(int_forward_ref(img, *net.args)))
+
+
+def test_float32_lanes_hold_the_worst_case_sums():
+    """Why the fast form may use float32: float32 holds every integer below 2**24, and a layer
+    whose worst-case |tap sum| (sum |w| x max|x|) stays below that gets float32 lanes -- every
+    product and partial sum is such an integer, in any order. At the bound's edge (all weights
+    -128, inputs at their extreme) the result is exact; past it a layer gets float64 lanes, and
+    float32 lanes would indeed round (the kernel run in float32 on such a layer is wrong)."""
+    # layer 1: 3 channels x 9 x 9 taps x 128 x 127 = 3,950,208 < 2**24 -> float32, exact
+    w = np.full((2, 3, 9, 9), -128, np.int8)
+    assert tap_bound(w, 127) < F32_EXACT and lane_dtype(w, 127) == np.float32
+    weights = [np.full((3, 1, 1, 1), 1, np.int8), w]
+    biases = [np.zeros(3, np.int32), np.zeros(2, np.int32)]
+    mult, shift = [np.full(3, 1, np.int32)], [np.zeros(3, np.int32)]
+    img = np.full((12, 12), 255, np.uint8)  # x = 255 - 0, requantised to 127
+    ref = int_forward_ref(img, weights, biases, mult, shift, 0)
+    assert int(ref.min()) == -128 * 127 * 3 * 81
+    assert_array_equal(int_forward(img, weights, biases, mult, shift, 0), ref)
+    # 7 channels x 81 taps x 128 x 255 > 2**24; the last tap's product is odd
+    big = np.full((1, 7, 9, 9), -128, np.int8)
+    big[0, -1, -1, -1] = -127
+    assert tap_bound(big, 255) >= F32_EXACT and lane_dtype(big, 255) == np.float64
+    exact = (7 * 81 - 1) * 128 * 255 + 127 * 255  # x = -255 everywhere
+    got = {}
+    for dtype in (np.float32, np.float64):
+        xp = np.full((7, 9, 9), -255, dtype)
+        acc = np.zeros((1, 1, 1), dtype)
+        _conv_rows(xp, _pad_taps(big, dtype), acc)
+        got[dtype] = int(acc[0, 0, 0])
+    assert got[np.float64] == exact
+    assert got[np.float32] != exact  # what float32 lanes would do: the reason for the rule
 
 
 def test_mul_shift_is_floor_division():

@@ -1,0 +1,100 @@
+"""The NNA runs any network the quantiser produces (nna.cnn.weights): the shipped mccnn4 and
+mccnn4-slim artifacts load, their descriptors are the signs of quant.int_forward_ref's last layer,
+and the cycle model's disparities equal the functional model's bit for bit."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from numpy.testing import assert_array_equal
+
+from stereosim.nna.descriptor import compute_descriptor, descriptor_bits, network
+from stereosim.nna.geometry import (
+    cycles_per_descriptor,
+    half_window,
+    macs_per_descriptor,
+    window_rows,
+)
+from stereosim.quant.artifact import load_quantized
+from stereosim.quant.intconv import int_forward, int_forward_ref, signs_ref
+from stereosim.sim.api import run
+from stereosim.sim.config import load_config
+from stereosim.sim.datasets import find_scene, load_scene, shared_data_dir
+from stereosim.sim.errors import ConfigError
+from stereosim.sim.io import to_grey
+
+MODELS = Path(__file__).resolve().parents[2] / "benchmarks" / "models"
+NETWORKS = ("mccnn4", "mccnn4-slim")
+DATA = shared_data_dir()
+
+
+def _cfg(name: str, **over):
+    return load_config(overrides={"nna.descriptor": "cnn",
+                                  "nna.cnn.weights": str(MODELS / f"{name}.int8.npz"), **over})
+
+
+def _pair(h, w, seed, shift=3):
+    rng = np.random.default_rng(seed)
+    base = rng.integers(0, 256, (h, w + shift)).astype(np.float64)
+    base = (base + np.roll(base, 1, 0) + np.roll(base, 1, 1)) / 3
+    base = base.astype(np.uint8)
+    return np.ascontiguousarray(base[:, shift:]), np.ascontiguousarray(base[:, :w])
+
+
+@pytest.mark.parametrize("name", NETWORKS)
+def test_the_artifact_is_the_network_the_nna_runs(name):
+    """Its layers, reach (the sum of the half kernels: 4 for four 3x3 layers, like 9x9) and MACs
+    per descriptor (sum of K*K*C_in*C_out) as the geometry reports them."""
+    qm = load_quantized(MODELS / f"{name}.int8.npz")
+    cfg = _cfg(name).nna
+    net = network(cfg)
+    assert net.n_layers == qm.n_layers == 4
+    assert half_window(cfg) == net.reach == sum(w.shape[2] // 2 for w in qm.weights) == 4
+    assert window_rows(cfg) == 9
+    macs = sum(int(np.prod(w.shape)) for w in qm.weights)
+    assert macs_per_descriptor(cfg) == macs
+    assert cycles_per_descriptor(cfg) == -(-macs // cfg.macs)
+    assert descriptor_bits(cfg) == qm.weights[-1].shape[0] == 32
+
+
+@pytest.mark.parametrize("name", NETWORKS)
+@pytest.mark.parametrize("shape", [(1, 1), (7, 5), (23, 41)])
+def test_descriptors_are_the_signs_of_the_integer_network(name, shape):
+    qm = load_quantized(MODELS / f"{name}.int8.npz")
+    img = np.random.default_rng(shape[0]).integers(0, 256, shape, dtype=np.uint8)
+    args = (qm.weights, qm.biases, qm.mult, qm.shift, qm.input_offset, qm.z_bits)
+    ref = int_forward_ref(img, *args)
+    assert_array_equal(int_forward(img, *args), ref)
+    assert_array_equal(compute_descriptor(img, _cfg(name).nna), signs_ref(ref))
+
+
+@pytest.mark.parametrize("name", NETWORKS)
+@pytest.mark.parametrize("over", [{}, {"nna.stereo_submodules": 4},
+                                  {"nna.stereo_submodules": 4, "nna.split": "rows"}])
+def test_cycle_model_equals_the_functional_model(name, over):
+    """Cycle and functional disparities equal bit for bit, whole frames and split ones."""
+    left, right = _pair(21, 47, seed=len(over))
+    cfg = _cfg(name, **{"sva.disparities": 16, **over})
+    cycle = run(left, right, mode="cycle", config=cfg)
+    functional = run(left, right, mode="functional", config=cfg)
+    assert_array_equal(cycle.disparity_fixed, functional.disparity_fixed)
+    assert cycle.report["throughput"]["bottleneck"].startswith("nna")
+
+
+def test_a_network_with_other_descriptor_bits_names_the_key_to_set():
+    with pytest.raises(ConfigError, match="nna.cnn.channels = 32"):
+        network(_cfg("mccnn4", **{"nna.cnn.channels": 16}).nna)
+
+
+@pytest.mark.skipif(DATA is None, reason="shared Middlebury data not found (../shared/data)")
+@pytest.mark.parametrize("name", NETWORKS)
+def test_middlebury_descriptors_equal_the_definition(name):
+    """On a real scene (MiddEval3 trainingQ Motorcycle, both views): the chip's descriptors are
+    the signs of the int64 definition."""
+    scene = load_scene(find_scene(DATA / "middlebury2014_trainingQ" / "Motorcycle"))
+    qm = load_quantized(MODELS / f"{name}.int8.npz")
+    args = (qm.weights, qm.biases, qm.mult, qm.shift, qm.input_offset, qm.z_bits)
+    for view in ("left", "right"):
+        img = to_grey(scene[view])
+        assert_array_equal(compute_descriptor(img, _cfg(name).nna),
+                           signs_ref(int_forward_ref(img, *args)))
