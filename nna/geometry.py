@@ -1,5 +1,23 @@
 """What the NNA's descriptor window and MAC array imply for a frame: the window's reach, the MAC
-cycles per descriptor, and how a frame is shared by several submodules (tiles with halos).
+cycles per descriptor, how a frame is shared by several submodules (tiles with halos), and the
+layer pipeline of a submodule -- one stage per layer of the network (the census unit: one stage),
+each with its MAC share, its cycles per output pixel, its line buffer's rows and its regions.
+
+The layer rules (L layers, layer l of kernel K_l, half kernel h_l = K_l // 2, C_in,l input and
+C_out,l output channels):
+
+- MACs per output pixel m_l = K_l^2 C_in,l C_out,l; the MAC share macs_l: ``nna.layer_macs``
+  when given, else ``nna.macs`` split in proportion to m_l by largest remainder, each at least
+  1 (:func:`mac_shares`); cycles per output pixel cpp_l = ceil(m_l / macs_l)
+  (:func:`layer_cycles`);
+- line buffer rows: layer 0 holds ``nna.line_buffer_rows`` rows (at least K_0), layer l >= 1
+  K_l plus the same slack (:func:`layer_rows`);
+- regions: layer l's output region is the tile's output region widened by R_l = h_{l+1} + ...
+  + h_{L-1} (clipped to the frame), its input region the tile's widened by R_l + h_l -- layer
+  l - 1's output region; layer 0's input region is the tile's (:func:`layer_tiles`).
+
+One layer (and the census) gives one stage with today's figures: macs_0 = ``nna.macs``,
+cpp_0 = ceil(K^2 C / macs), rows_0 = ``nna.line_buffer_rows``, the tile's own regions.
 
 These are facts of the stage, used by the chip plan (``sim.cycle.plan``), the clocked blocks and
 the analytic estimate alike.
@@ -52,13 +70,83 @@ def macs_per_descriptor(cfg: NnaConfig) -> int:
     return sum(network(cfg).layer_macs)
 
 
+def layer_halves(cfg: NnaConfig) -> tuple[int, ...]:
+    """Each layer's half kernel h_l = K_l // 2 (rows above and below an output pixel that it
+    reads of its input); the census unit is one stage of half height h // 2."""
+    if cfg.descriptor == "census":
+        return (half_window(cfg),)
+    return network(cfg).halves
+
+
+def layer_macs_per_pixel(cfg: NnaConfig) -> tuple[int, ...]:
+    """Multiply-accumulates of one output pixel of each layer: m_l = K_l^2 C_in,l C_out,l
+    (census: one stage of no MACs, 0)."""
+    if cfg.descriptor == "census":
+        return (0,)
+    return network(cfg).layer_macs
+
+
+def mac_shares(cfg: NnaConfig) -> tuple[int, ...]:
+    """The MAC units of each layer's stage: ``nna.layer_macs`` when given (one per layer,
+    summing to at most ``nna.macs``), else ``nna.macs`` = M split in proportion to the layers'
+    MACs per pixel m_l by largest remainder -- floor(M m_l / sum m) each, the units left over
+    one each to the largest remainders (the earlier layer first on ties) -- then a layer left
+    with none takes one from the layer with the most (the earlier on ties), so each has at
+    least 1. Fewer MACs than layers, or a ``nna.layer_macs`` of the wrong length or sum, is a
+    ConfigError. One layer (and the census): (M,)."""
+    m = layer_macs_per_pixel(cfg)
+    n, total = len(m), cfg.macs
+    if cfg.layer_macs:
+        if len(cfg.layer_macs) != n or sum(cfg.layer_macs) > total:
+            raise ConfigError(
+                f"nna.layer_macs={list(cfg.layer_macs)} must give one MAC share per layer "
+                f"({n}) summing to at most nna.macs={total}: fix it or leave it empty (the "
+                "proportional split)")
+        return tuple(cfg.layer_macs)
+    if total < n:
+        raise ConfigError(f"nna.macs={total} cannot give each of the network's {n} layers a "
+                          f"MAC unit: use at least {n}")
+    weight = sum(m) or 1
+    shares = [total * x // weight for x in m]
+    order = sorted(range(n), key=lambda i: (-(total * m[i] % weight), i))
+    for i in order[:total - sum(shares)]:
+        shares[i] += 1
+    for i in range(n):
+        if shares[i] == 0:
+            richest = max(range(n), key=lambda j: (shares[j], -j))
+            shares[richest] -= 1
+            shares[i] = 1
+    return tuple(shares)
+
+
+def layer_cycles(cfg: NnaConfig) -> tuple[int, ...]:
+    """Cycles each layer's MAC array spends on one output pixel: cpp_l = ceil(m_l / macs_l)
+    (:func:`mac_shares`); the census unit: 1. One layer: :func:`cycles_per_descriptor`."""
+    if cfg.descriptor == "census":
+        return (1,)
+    return tuple(-(-m // share) for m, share in zip(layer_macs_per_pixel(cfg), mac_shares(cfg),
+                                                      strict=True))
+
+
+def layer_rows(cfg: NnaConfig) -> tuple[int, ...]:
+    """Input rows each layer's line buffer holds: layer 0 ``nna.line_buffer_rows``, layer
+    l >= 1 K_l + (``nna.line_buffer_rows`` - K_0) -- its window and the same slack."""
+    halves = layer_halves(cfg)
+    slack = cfg.line_buffer_rows - (2 * halves[0] + 1)
+    return tuple(cfg.line_buffer_rows if i == 0 else 2 * r + 1 + slack
+                 for i, r in enumerate(halves))
+
+
 def check_line_buffer(cfg: NnaConfig) -> None:
-    """A line buffer must hold the descriptor window's rows (ConfigError otherwise)."""
-    need = window_rows(cfg)
+    """A line buffer must hold its layer's window: layer 0's K_0 rows, the descriptor window
+    for a network of one layer (ConfigError otherwise)."""
+    need = 2 * layer_halves(cfg)[0] + 1
     if cfg.line_buffer_rows < need:
+        what = ("descriptor window" if len(layer_halves(cfg)) == 1
+                else "window of the network's first layer")
         raise ConfigError(
             f"nna.line_buffer_rows={cfg.line_buffer_rows} cannot hold the {need}-row "
-            f"descriptor window: use at least {need}"
+            f"{what}: use at least {need}"
         )
 
 
@@ -97,6 +185,39 @@ class Tile:
     def top_halo(self) -> int:
         """Input rows above the output region."""
         return self.y0 - self.in_y0
+
+
+def widened(tile: Tile, reach_out: int, reach_in: int, shape: tuple[int, int]) -> Tile:
+    """The tile's output region widened by ``reach_out`` rows and columns on each side as an
+    output region, and by ``reach_in`` as its input region, both clipped to the frame."""
+    h, w = shape
+
+    def grow(a, b, r, n):
+        return max(0, a - r), min(n, b + r)
+
+    x0, x1 = grow(tile.x0, tile.x1, reach_out, w)
+    y0, y1 = grow(tile.y0, tile.y1, reach_out, h)
+    ix0, ix1 = grow(tile.x0, tile.x1, reach_in, w)
+    iy0, iy1 = grow(tile.y0, tile.y1, reach_in, h)
+    return Tile(x0, x1, y0, y1, ix0, ix1, iy0, iy1)
+
+
+def layer_tiles(tile: Tile, cfg: NnaConfig, shape: tuple[int, int]) -> tuple[Tile, ...]:
+    """Each layer's regions within a submodule serving ``tile``: layer l's output region is the
+    tile's widened by R_l = the half kernels of the layers after l, its input region the tile's
+    widened by R_l + h_l (layer l - 1's output region), clipped to the frame; layer 0's input
+    region is the tile's own (one layer: the tile itself)."""
+    halves = layer_halves(cfg)
+    out = []
+    for i in range(len(halves)):
+        after = sum(halves[i + 1:])
+        if i == 0:
+            t = widened(tile, after, 0, shape)
+            out.append(Tile(t.x0, t.x1, t.y0, t.y1, tile.in_x0, tile.in_x1, tile.in_y0,
+                            tile.in_y1))
+        else:
+            out.append(widened(tile, after, after + halves[i], shape))
+    return tuple(out)
 
 
 def whole_frame(shape: tuple[int, int]) -> Tile:

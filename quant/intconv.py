@@ -448,6 +448,40 @@ def forward_bands(img, net, finish, band_rows: int = BAND_ROWS) -> None:
             lo = a
 
 
+def int_layer_rows(net: IntNetwork, layer: int, x, lo: int, a: int, b: int) -> np.ndarray:
+    """Output rows [a, b) of layer ``layer`` of the checked network ``net``, computed from the
+    input rows a line buffer received: ``x`` holds the layer's input rows [lo, lo + n) over the
+    columns of its region -- the uint8 image rows (n, W) for layer 0, the int32 activations
+    (C_in, n, W) of the layer before otherwise. The replicate border clamps into the rows and
+    columns given, so a caller gives the frame's edge rows where a window leaves the frame and
+    keeps only the outputs whose window lies within the columns given. Returns, for a layer
+    before the last, its requantised activations int32 (C_out, b - a, W); for the last, the
+    descriptors (b - a, W) (bit c: ``acc[c] > 0``, as :func:`int_signs`)."""
+    weights, biases, mult, shift, offset, _ = net.args
+    w = weights[layer]
+    if layer == 0:
+        x = (np.asarray(x, np.int32) - np.int32(offset))[None]
+        x_max = max(offset, 255 - offset)
+    else:
+        x_max = ACT_MAX
+    dtype = lane_dtype(w, x_max)
+    w_pad = _pad_taps(w, dtype)
+    xp = _padded(np.asarray(x), 0, x.shape[1], a - lo, b - lo, w.shape[2] // 2, w_pad.shape[3],
+                 dtype)
+    acc = np.empty((w.shape[0], b - a, x.shape[2]), dtype=dtype)
+    _conv_rows(xp, w_pad, acc)
+    if layer == len(weights) - 1:
+        out_dtype = descriptor_dtype(w.shape[0])
+        masks = np.array([1 << c for c in range(w.shape[0])], dtype=out_dtype)
+        out = np.empty(acc.shape[1:], dtype=out_dtype)
+        _sign_rows(acc, biases[layer], masks, out)
+        return out
+    out = np.empty(acc.shape, dtype=np.int32)
+    _requant_rows(acc, biases[layer], np.asarray(mult[layer], np.int64),
+                  np.asarray(shift[layer], np.int64), out)
+    return out
+
+
 def int_layer(x_i32, weights, bias) -> np.ndarray:
     """One integer conv layer: x_i32 int32 (C_in, H, W) -> int32 accumulators (C_out, H, W),
     in exact float lanes (the caller guarantees, via :func:`check_network`, that they fit

@@ -92,6 +92,11 @@ def _coerce(dotted: str, value, tp, meta) -> Any:
     origin = typing.get_origin(tp)
     if origin is tuple:
         args = typing.get_args(tp)
+        if len(args) == 2 and args[1] is Ellipsis:  # a list of any length
+            if not isinstance(value, (list, tuple)):
+                raise ConfigError(f"config key '{dotted}' must be a list, e.g. {dotted} = "
+                                  f"[1, 2]; got {value!r}")
+            return tuple(_coerce(dotted, v, args[0], meta) for v in value)
         if not isinstance(value, (list, tuple)) or len(value) != len(args):
             raise ConfigError(
                 f"config key '{dotted}' must be a list of {len(args)} values, e.g. "

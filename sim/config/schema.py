@@ -94,6 +94,11 @@ class NnaConfig:
         10, "input rows a submodule's line buffer holds (9 = the window; 10 lets a row arrive "
         "while the window computes; at least the descriptor window's height)", lo=3, hi=64,
     )
+    layer_macs: tuple[int, ...] = param(
+        (), "MAC units of each layer's stage (one per layer of the network, summing to at most "
+        "nna.macs; empty: nna.macs split in proportion to the layers' MACs per pixel)",
+        lo=1, hi=2592,
+    )
     submodules: int = param(10, "NNA submodules on the chip", lo=1, hi=256)
     stereo_submodules: int = param(
         2, "submodules serving the stereo pair (even: half per camera; the rest are free for "

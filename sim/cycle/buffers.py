@@ -4,8 +4,11 @@ what an engine did, and checked against their capacity.
 Two buffers hold a sliding window of image rows:
 
 - an NNA submodule's **line buffer** (``nna.line_buffer``, ``nna.line_buffer_rows`` rows of its
-  tile's input width): when the MAC array's next output row is y (tile rows), it still reads
-  input rows from ``y + top_halo - half``; a row arriving is held with them;
+  tile's input width; with a network of several layers one per layer,
+  ``nna.layer<l>.line_buffer``, of the rows and input region of :class:`~sim.cycle.stages.
+  LayerPlan`): when the layer's MAC array's next output row is y (rows of its output region),
+  it still reads input rows from ``y + top_halo - half`` (the layer's); a row arriving is held
+  with them;
 - the SVA's **descriptor rows** (``sva.descriptor_rows``, k + 1 rows of each view, k the box
   size): the box filter runs m rows ahead of the output (the median needs m output rows below),
   so with output row y next it still reads rows from ``y + m - r`` (r box and m median radius);
@@ -47,16 +50,17 @@ def tracked(plan: ChipPlan) -> list[tuple[str, str, int, int, int, int, int, int
     offset, input rows per frame, output rows per frame)`` of every row window, in plan order
     (NNA submodules side-major, then the SVA)."""
     out = []
-    nna = plan.blocks_of("nna")
-    for t, b in enumerate(nna):
-        buf = next(x for x in b.buffers if x.name == "nna.line_buffer")
-        out.append((b.name, buf.name, buf.rows, buf.bits, 2 * t, b.tile.top_halo - b.half,
-                    b.tile.in_shape[0], b.tile.shape[0]))
+    for b in plan.blocks_of("nna"):
+        for lay in b.layers:  # one line buffer per layer (one layer: nna.line_buffer)
+            buf = next(x for x in b.buffers if x.name == lay.buffer.name)
+            t = lay.tile
+            out.append((b.name, buf.name, buf.rows, buf.bits, 2 * len(out),
+                        t.top_halo - lay.half, t.in_shape[0], t.shape[0]))
     sva = plan.block("sva")
     buf = next(x for x in sva.buffers if x.name == "sva.descriptor_rows")
     s = plan.cfg.sva
     h = plan.shape[0]
-    out.append(("sva", buf.name, buf.rows, buf.bits, 2 * len(nna),
+    out.append(("sva", buf.name, buf.rows, buf.bits, 2 * len(out),
                 median_radius(s) - box_radius(s), h, h))
     return out
 

@@ -36,6 +36,7 @@ from stereosim.nna.geometry import (
     check_line_buffer,
     cycles_per_descriptor,
     half_window,
+    layer_tiles,
     macs_per_descriptor,
     split_frame,
     window_rows,
@@ -44,7 +45,9 @@ from stereosim.sim.config import AUTO_BUDGET_FACTOR, ChipConfig, check_config
 from stereosim.sim.cycle.rules import ClockDomain, fifo_edges, period_fs
 from stereosim.sim.cycle.stages import (
     BufferPlan,
+    LayerPlan,
     StagePlan,
+    nna_layers,
     nna_stages,
     pipeline_ii,
     pipeline_latency,
@@ -112,7 +115,10 @@ class BlockPlan:
     - camera: ``line_clocks`` = W + hblank, ``frame_clocks`` = (H + vblank)(W + hblank); with
       frame buffers it writes into DRAM (no FIFO) and admits or drops each frame;
     - nna: ``tile``, ``half`` (window rows above/below), ``rows`` (line buffer), ``cycles`` per
-      descriptor (the MAC array's initiation interval and latency);
+      descriptor (the MAC array's initiation interval and latency; a network of several
+      layers: the slowest layer's cycles per output pixel), ``layers`` (the layer pipeline,
+      :class:`~sim.cycle.stages.LayerPlan`: one stage per layer, one for a single layer or
+      the census);
     - merge: ``items`` descriptors moved, one per cycle;
     - sva: ``lookahead`` rows (box + median radius), ``stages`` (its pipeline,
       :mod:`sim.cycle.stages`), ``latency`` (row ready -> first word: the stages' latencies),
@@ -141,6 +147,7 @@ class BlockPlan:
     stages: tuple[StagePlan, ...] = ()
     feed: str = ""  # memory: the camera whose frame buffers it reads ("": frames in memory)
     frame_buffers: int = 0  # memory fed by a camera: the frame buffers in DRAM
+    layers: tuple[LayerPlan, ...] = ()  # nna: its layer stages
 
 
 @dataclass(frozen=True)
@@ -411,6 +418,8 @@ class ChipPlan:
             return busy // self.frames  # measured over the stream: its share of a frame
         if block.kind == "camera":  # pairs sharing the chip start a frame every 1/P period
             return block.frame_clocks // self.pairs
+        if block.kind == "nna":  # its busiest layer's MAC array (one layer: items x cycles)
+            return max(lay.items * lay.cycles for lay in block.layers)
         return block.items * block.cycles
 
 
@@ -451,15 +460,10 @@ def frame_budget(cfg: ChipConfig, shape: tuple[int, int], freqs: dict[str, float
 # ---- buffers -----------------------------------------------------------------------------------
 
 
-def nna_buffers(cfg: ChipConfig, width: int) -> tuple[BufferPlan, ...]:
-    """SRAM of one NNA submodule serving input rows ``width`` pixels wide."""
-    rows = cfg.nna.line_buffer_rows
-    out = [BufferPlan("nna.line_buffer", rows * width * 8,
-                      f"{rows} input rows x {width} pixels x 8 bits (a bank per row: per "
-                      "descriptor the window's next column read, one pixel from each of its "
-                      "rows' banks; per pixel one written)",
-                      rows=rows, banks=rows, word_bits=8, pixel_reads=window_rows(cfg.nna),
-                      pixel_writes=1)]
+def nna_buffers(cfg: ChipConfig, layers: tuple[LayerPlan, ...]) -> tuple[BufferPlan, ...]:
+    """SRAM of one NNA submodule: its layers' line buffers (:func:`~sim.cycle.stages.
+    nna_layers`) and the network's weights."""
+    out = [lay.buffer for lay in layers]
     if cfg.nna.descriptor == "cnn":
         net = network(cfg.nna)
         shapes = " + ".join(f"{w.shape[2]}x{w.shape[3]}x{w.shape[1]}x{w.shape[0]}"
@@ -514,7 +518,11 @@ def build_plan(cfg: ChipConfig, shape: tuple[int, int], frames: int = 1) -> Chip
                               f.latency_cycles, f.sync_cycles, beats))
         return name
 
-    widest_in = max(t.in_x1 - t.in_x0 for t in tiles)
+    tile_layers = [layer_tiles(t, cfg.nna, shape) for t in tiles]
+    widths = tuple(max(lt[i].in_shape[1] for lt in tile_layers)
+                   for i in range(len(tile_layers[0])))
+    layers = [nna_layers(cfg, t, shape, widths) for t in tiles]
+    cycles = cpd if len(layers[0]) == 1 else max(lay.cycles for lay in layers[0])
     for s, side in enumerate(SIDES):
         src = f"camera_{side}" if camera and not buffered else f"memory_{side}"
         subs = [f"nna_{side}" if parts == 1 else f"nna_{side}{t}" for t in range(parts)]
@@ -550,10 +558,10 @@ def build_plan(cfg: ChipConfig, shape: tuple[int, int], frames: int = 1) -> Chip
         for t, tile in enumerate(tiles):
             blocks.append(BlockPlan(
                 subs[t], "nna", "nna", s, (src_fifos[t],), (sub_outs[t],),
-                f"top.nna.{side}.sub{t}", tile.shape[0] * tile.shape[1], cycles=cpd,
+                f"top.nna.{side}.sub{t}", tile.shape[0] * tile.shape[1], cycles=cycles,
                 tile=tile, half=half, rows=cfg.nna.line_buffer_rows,
-                buffers=nna_buffers(cfg, widest_in),
-                stages=nna_stages(cfg, 2 * half + 1, cpd, macs_per_descriptor(cfg.nna))))
+                buffers=nna_buffers(cfg, layers[t]), stages=nna_stages(cfg, layers[t]),
+                layers=layers[t]))
         if parts > 1:
             blocks.append(BlockPlan(merge, "merge", "nna", s, tuple(sub_outs), (to_sva,),
                                     f"top.nna.{side}.merge", n))
@@ -574,7 +582,7 @@ def build_plan(cfg: ChipConfig, shape: tuple[int, int], frames: int = 1) -> Chip
                          bits, freqs.get("camera", 0.0), w / (w + cfg.source.camera_hblank))
     plan = ChipPlan(cfg=cfg, shape=(h, w), domains=domains, fifos=tuple(fifos),
                     blocks=tuple(blocks), tiles=tiles,
-                    budget=frame_budget(cfg, shape, freqs, cpd, sva_ii,
+                    budget=frame_budget(cfg, shape, freqs, cycles, sva_ii,
                                         frames * cfg.sva.pairs, dram),
                     descriptor_bits=bits, beat_bits=beat_bits, word_bits=word_bits,
                     frames=frames * cfg.sva.pairs, dram=dram)
@@ -597,11 +605,15 @@ def _signals(plan: ChipPlan) -> list[SignalPlan]:
         if b.kind in ("memory", "camera"):
             sig(b.name, b.scope, "sent", _nb(plan.frames * h * w), d)
         elif b.kind == "nna":
-            sig(b.name, b.scope, "line_buffer.row_in", _nb(h), d)
-            sig(b.name, b.scope, "line_buffer.fill", _nb(b.rows), d)
-            sig(b.name, b.scope, "mac.phase", _nb(b.cycles), d)
-            sig(b.name, b.scope, "mac.row", _nb(h), d)
-            sig(b.name, b.scope, "mac.col", _nb(w), d)
+            for lay in b.layers:  # one layer: no prefix, no status of its own
+                pre = "" if len(b.layers) == 1 else f"layer{lay.index}."
+                if pre:
+                    sig(b.name, b.scope, f"{pre}status", 2, d)
+                sig(b.name, b.scope, f"{pre}line_buffer.row_in", _nb(h), d)
+                sig(b.name, b.scope, f"{pre}line_buffer.fill", _nb(lay.rows), d)
+                sig(b.name, b.scope, f"{pre}mac.phase", _nb(lay.cycles), d)
+                sig(b.name, b.scope, f"{pre}mac.row", _nb(h), d)
+                sig(b.name, b.scope, f"{pre}mac.col", _nb(w), d)
             sig(b.name, b.scope, "out.valid", 1, d)
             sig(b.name, b.scope, "out.descriptor", plan.descriptor_bits, d)
         elif b.kind == "merge":
@@ -649,8 +661,11 @@ def action_counts(plan: ChipPlan) -> dict[str, dict[str, int]]:
     the buffers' declared accesses (:class:`~sim.cycle.stages.BufferPlan`: per output pixel).
 
     NNA: K*K*C MACs and (CNN) C requantising multiplies per descriptor; its line buffer writes
-    each pixel once and reads the window's next column (2h + 1 pixels) per descriptor. SVA: D
-    Hamming costs per pixel, and its SRAM banks' accesses per pixel.
+    each pixel once and reads the window's next column (2h + 1 pixels) per descriptor. A
+    network of several layers: per layer m_l MACs and C_out,l multiplies per output pixel of
+    its region (a split frame's halos computed by every tile that needs them; per layer in
+    ``nna_layers``), each line buffer's accesses per pixel. SVA: D Hamming costs per pixel, and
+    its SRAM banks' accesses per pixel.
     """
     cfg = plan.cfg
     h, w = plan.shape
@@ -663,11 +678,21 @@ def action_counts(plan: ChipPlan) -> dict[str, dict[str, int]]:
 
     requant = (0 if cfg.nna.descriptor == "census"
                else n * sum(w.shape[0] for w in network(cfg.nna).weights))
+    layers = {}
+    if len(nna.layers) > 1:  # each layer over its regions, one camera's tiles
+        subs = [b for b in plan.blocks_of("nna") if b.side == 0]
+        for i, lay in enumerate(nna.layers):
+            items = sum(b.layers[i].items for b in subs)
+            layers[f"layer{i}"] = {"macs": items * lay.macs_per_pixel,
+                                   "requant_multiplies": items * lay.channels_out}
+    per_camera = {"macs": n * macs_per_descriptor(cfg.nna), "requant_multiplies": requant}
+    if layers:
+        per_camera = {k: sum(lay[k] for lay in layers.values()) for k in per_camera}
     return {
-        "nna_per_camera": {"macs": n * macs_per_descriptor(cfg.nna),
-                           "requant_multiplies": requant,
+        "nna_per_camera": {**per_camera,
                            "sram_writes": accesses(nna, "pixel_writes"),
                            "sram_reads": accesses(nna, "pixel_reads")},
+        **({"nna_layers": layers} if layers else {}),
         "sva": {
             "hamming_costs": n * cfg.sva.disparities,
             "sram_writes": accesses(sva, "pixel_writes"),
@@ -695,7 +720,24 @@ def architecture_report(plan: ChipPlan) -> dict:
         "nna_pipeline": [{"name": st.name, "ii": st.ii, "latency": st.latency,
                           "formula": st.formula} for st in plan.blocks_of("nna")[0].stages],
         "nna_submodules": submodule_report(plan),
+        **({"nna_layers": layer_report(plan)} if len(plan.blocks_of("nna")[0].layers) > 1
+           else {}),
     }
+
+
+def layer_report(plan: ChipPlan) -> list[dict]:
+    """The layer pipeline of the (first) NNA submodule (a network of several layers): per
+    layer its kernel and channels, MACs per output pixel, MAC share, cycles per output pixel,
+    its line buffer (rows, bits) and its output region per frame."""
+    out = []
+    for lay in plan.blocks_of("nna")[0].layers:
+        out.append({"layer": lay.index, "kernel": 2 * lay.half + 1,
+                    "channels_in": lay.channels_in, "channels_out": lay.channels_out,
+                    "macs_per_pixel": lay.macs_per_pixel, "mac_share": lay.macs,
+                    "cycles_per_pixel": lay.cycles, "line_buffer": lay.buffer.name,
+                    "line_buffer_rows": lay.rows, "line_buffer_bits": lay.buffer.bits,
+                    "output_pixels": lay.items})
+    return out
 
 
 def submodule_report(plan: ChipPlan) -> dict:

@@ -6,9 +6,11 @@ decides which engine runs.
   runs, traces and runs that stop, with the readable kernel's words, report, statistics,
   traces and messages;
 - ``auto`` (the default): the compiled engine, unless the run asks for what only the readable
-  kernel does -- a shuffled evaluation order, or a sink stall given as a Python function rather
-  than a periodic pattern; then the readable kernel, and the report's ``engine_reason`` says
-  why.
+  kernel does -- a shuffled evaluation order, a sink stall given as a Python function rather
+  than a periodic pattern, or an NNA network of more than one layer (the compiled engine times
+  the NNA as one stage; the readable kernel as a pipeline of layer stages); then the readable
+  kernel, and the report's ``engine_reason`` says why. ``fast`` refuses such a run with one
+  line.
 
 The first frame after an install or an edit compiles the numba kernels it uses; one line on
 stderr says so when the first one starts, and one more how long it took
@@ -29,7 +31,11 @@ from stereosim.sim.progress import compile_notice
 ENGINES = ("auto", "fast", "readable")
 
 
-def _needs_readable(sink_stall, order_seed) -> str | None:
+def _needs_readable(plan: ChipPlan, sink_stall, order_seed) -> str | None:
+    layers = len(plan.blocks_of("nna")[0].layers)
+    if layers > 1:
+        return (f"an NNA network of {layers} layers runs on the readable kernel (the compiled "
+                "engine does not time the layer pipeline yet)")
     if order_seed is not None:
         return "a shuffled evaluation order (order_seed) runs on the readable kernel"
     if callable(sink_stall):
@@ -50,7 +56,7 @@ def simulate(plan: ChipPlan, left, right=None, *, sink_stall=None,
     ``words=False``: the compiled engine computes no words (``words`` is None; the readable
     kernel moves them anyway)."""
     engine = plan.cfg.sim.engine
-    reason = _needs_readable(sink_stall, order_seed)
+    reason = _needs_readable(plan, sink_stall, order_seed)
     if engine == "fast" and reason is not None:
         raise ConfigError(f"sim.engine=fast: {reason}; use sim.engine=auto or readable")
     ran = "readable" if engine == "readable" or reason is not None else "fast"

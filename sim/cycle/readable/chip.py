@@ -80,15 +80,17 @@ class Chip:
             self.plan.shape[1]
 
     def window_rows(self) -> np.ndarray:
-        """The row windows' instants (rows counted over the stream): per NNA submodule (plan
-        order) the cycle each input row started to enter and each output row was done, then
-        the same for the SVA (an output row is done with its rows when its last word is
-        issued)."""
-        nna = [b for b in self.plan.blocks if b.kind == "nna"]
-        occ = np.full((2 * len(nna) + 2, self.plan.frames * self.plan.shape[0] + 1), -1,
+        """The row windows' instants (rows counted over the stream), in the order of
+        :func:`sim.cycle.buffers.tracked`: per NNA submodule (plan order) and per layer of it
+        the cycle each input row started to enter its line buffer and each output row of the
+        layer was done, then the same for the SVA (an output row is done with its rows when
+        its last word is issued)."""
+        windows = [w for b in self.plan.blocks_of("nna")
+                   for w in self.blocks[b.name].row_windows()]
+        windows.append(self.blocks["sva"].row_window())
+        occ = np.full((2 * len(windows), self.plan.frames * self.plan.shape[0] + 1), -1,
                       np.int64)
-        for t, b in enumerate([*nna, self.plan.block("sva")]):
-            entered, done = self.blocks[b.name].row_window()
+        for t, (entered, done) in enumerate(windows):
             occ[2 * t, :len(entered)] = entered
             occ[2 * t + 1, :len(done)] = done
         return occ
