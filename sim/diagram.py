@@ -52,7 +52,15 @@ def _block_line(plan: ChipPlan, b: BlockPlan) -> str:
     buffers = ", ".join(f"{buf.name} {buf.bits:,} b" for buf in b.buffers)
     if buffers:
         parts.append(f"SRAM: {buffers}")
-    return f"  {b.name:<14} [{b.domain}] " + "; ".join(parts)
+    lines = [f"  {b.name:<14} [{b.domain}] " + "; ".join(parts)]
+    if len(b.layers) > 1:  # the layer pipeline, one stage a layer
+        for lay in b.layers:
+            k, t = 2 * lay.half + 1, lay.tile
+            lines.append(f"    layer {lay.index}: {k}x{k}x{lay.channels_in}x{lay.channels_out}, "
+                         f"{lay.macs_per_pixel} MACs/pixel on {lay.macs} MACs, {lay.cycles} "
+                         f"cycles/pixel; line buffer {lay.rows} rows; output x {t.x0}..{t.x1 - 1}"
+                         f", y {t.y0}..{t.y1 - 1}")
+    return "\n".join(lines)
 
 
 def plan_text(plan: ChipPlan) -> str:

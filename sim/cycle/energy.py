@@ -171,10 +171,13 @@ def energy_items(plan: ChipPlan, table: EnergyTable, stats: dict) -> list[dict]:
                           "unit": unit, "pj_each": pj_each})
 
     nna = counts["nna_per_camera"]
-    add("nna", "mac", "int8 multiply-accumulates, both cameras", 2 * nna["macs"], "MAC",
-        table.mac_int8_pj)
-    add("nna", "multiply", "requantising multiplies, both cameras",
-        2 * nna["requant_multiplies"], "32-bit multiply", table.mult32_pj)
+    # one layer: the submodule's; several: each layer's, over its region
+    for layer, c in counts.get("nna_layers", {"": nna}).items():
+        of = f"{layer}: " if layer else ""
+        add("nna", "mac", f"{of}int8 multiply-accumulates, both cameras", 2 * c["macs"], "MAC",
+            table.mac_int8_pj)
+        add("nna", "multiply", f"{of}requantising multiplies, both cameras",
+            2 * c["requant_multiplies"], "32-bit multiply", table.mult32_pj)
     if cfg.nna.descriptor == "census":
         ww, wh = cfg.nna.census.window
         add("nna", "logic", "census comparisons (8-bit), both cameras", 2 * n * ww * wh * 8,

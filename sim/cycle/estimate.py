@@ -50,7 +50,14 @@ import math
 
 from stereosim.nna.geometry import Tile
 from stereosim.sim.config import ChipConfig, config_to_dict
-from stereosim.sim.cycle.plan import ChipPlan, FifoPlan, action_counts, build_plan, sram_bits
+from stereosim.sim.cycle.plan import (
+    ChipPlan,
+    FifoPlan,
+    action_counts,
+    build_plan,
+    layer_report,
+    sram_bits,
+)
 from stereosim.sim.cycle.rules import (
     camera_cycle,
     dram_read_ready_fs,
@@ -256,8 +263,9 @@ def _tile_rows(plan: ChipPlan, sub) -> dict[int, tuple[float, float]]:
     """NNA cycles of the first and last descriptor push of every output row of one submodule
     (``sub``: its block in the plan)."""
     h_img, w_img = plan.shape
-    tile: Tile = sub.tile
-    half, c, rows = sub.half, sub.cycles, sub.rows
+    first_layer = sub.layers[0]
+    tile: Tile = first_layer.tile
+    half, c, rows = first_layer.half, first_layer.cycles, first_layer.rows
     tw_in = tile.in_x1 - tile.in_x0
     tw = tile.x1 - tile.x0
     src = plan.fifo(sub.inputs[0])
@@ -291,7 +299,26 @@ def _tile_rows(plan: ChipPlan, sub) -> dict[int, tuple[float, float]]:
             out[next_out] = (first, last)
             prev_out_last = last
             next_out += 1
-    return out
+    return _later_layers(sub, out, h_img)
+
+
+def _later_layers(sub, rows: dict[int, tuple[float, float]], h_img: int
+                  ) -> dict[int, tuple[float, float]]:
+    """The rows of a submodule's last layer from its first layer's (``rows``: first and last
+    output of each row): layer l's row y starts once layer l - 1's row min(y + h_l, H - 1) is
+    out and its own row before has ended, and takes W_l cpp_l cycles (no room wait: exact while
+    each layer's line buffer has a row of slack and no later layer is faster than one before,
+    else a lower bound)."""
+    for lay in sub.layers[1:]:
+        t, c = lay.tile, lay.cycles
+        out = {}
+        prev = -1.0
+        for y in range(t.y0, t.y1):
+            start = max(rows[nna_last_input_row(y, lay.half, h_img)][1], prev) + 1
+            out[y] = (start + c - 1, start + (t.x1 - t.x0) * c - 1)
+            prev = out[y][1]
+        rows = out
+    return rows
 
 
 def _merged_rows(plan: ChipPlan, side: int):
@@ -531,6 +558,7 @@ def estimate(cfg: ChipConfig, shape: tuple[int, int]) -> dict:
         "fifo_bytes_per_frame": {f.name: f.beats * f.width_bits // 8 for f in fifos},
         "actions": actions,
         "macs_per_frame": 2 * actions["nna_per_camera"]["macs"],
+        **({"nna_layers": layer_report(plan)} if len(subs[0].layers) > 1 else {}),
         "paper": paper_analysis(shape),
         "warnings": warnings,
     }
@@ -568,6 +596,12 @@ def format_estimate(est: dict) -> str:
         ),
         f"MACs per frame (both cameras): {est['macs_per_frame']}",
     ]
+    for lay in est.get("nna_layers", ()):
+        lines.append(
+            f"NNA layer {lay['layer']}: {lay['kernel']}x{lay['kernel']}x{lay['channels_in']}"
+            f"x{lay['channels_out']}, {lay['macs_per_pixel']} MACs a pixel on "
+            f"{lay['mac_share']} MACs: {lay['cycles_per_pixel']} cycles a pixel; line buffer "
+            f"{lay['line_buffer_rows']} rows, {lay['line_buffer_bits']} bits")
     if thr["merge_depth_needed"] is not None:
         lines.append(
             f"merge FIFOs: fifo.nna_to_merge_depth = "

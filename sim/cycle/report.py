@@ -115,6 +115,8 @@ def cycle_report(plan: ChipPlan, first_cycle: int, last_cycle: int, stats: dict,
     if plan.dram is not None:
         taken = int(np.count_nonzero(np.asarray(frame_times[2]) >= 0))
         extra["dram"] = dram_report(plan, stats, last_fs, taken)
+    if "nna_layers" in stats:
+        extra["nna_layers"] = nna_layer_report(plan, stats["nna_layers"], buffers)
     return {
         **extra,
         "cycles": {
@@ -137,6 +139,26 @@ def cycle_report(plan: ChipPlan, first_cycle: int, last_cycle: int, stats: dict,
 
 
 ACTIVITY_ORDER = ("busy", "starved", "blocked", "idle")
+
+
+def nna_layer_report(plan: ChipPlan, layers: dict, buffers: dict) -> dict:
+    """Per NNA submodule, per layer of its pipeline (a network of several layers): MACs per
+    output pixel, MAC share, cycles per output pixel, its MAC array's cycles busy, starved (on
+    its input rows), blocked (a finished output waiting for room in the next line buffer or
+    the output FIFO) and idle, the cycles its first and last output left (NNA cycles: the
+    first is the layer's first-row latency) and its line buffer's capacity and peak."""
+    out = {}
+    for name in sorted(layers):
+        entry = plan.block(name)
+        out[name] = [{
+            "layer": lay.index, "macs_per_pixel": lay.macs_per_pixel, "mac_share": lay.macs,
+            "cycles_per_pixel": lay.cycles, "output_pixels": lay.items,
+            **{a: counts[a] for a in ACTIVITY_ORDER},
+            "first_output_cycle": counts["first_output_cycle"],
+            "last_output_cycle": counts["last_output_cycle"],
+            "line_buffer": {"name": lay.buffer.name, **buffers[name][lay.buffer.name]},
+        } for lay, counts in zip(entry.layers, layers[name], strict=True)]
+    return out
 
 
 def _mhz(plan: ChipPlan, domain: str) -> float:

@@ -19,6 +19,7 @@ S_L-1(y0) + cpp_L-1 - 1 and the last in D_L-1(y1 - 1). One layer: the first in a
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -44,7 +45,7 @@ from stereosim.sim.cycle.readable.chip import build_chip, run_readable
 from stereosim.sim.cycle.simulate import simulate
 from stereosim.sim.errors import ConfigError
 
-MODELS = __import__("pathlib").Path(__file__).resolve().parents[2] / "benchmarks" / "models"
+MODELS = Path(__file__).resolve().parents[2] / "benchmarks" / "models"
 # equal clocks, a 16-disparity SVA (II 2) and 64 MACs: the NNA, at 3 or more cycles a
 # descriptor, never waits for the SVA
 BASE = {"nna.descriptor": "cnn", "sva.disparities": 16, "clocks.sva_mhz": 460.0,
@@ -192,7 +193,7 @@ def test_a_layer_of_received_rows_is_the_definition(weights):
     assert_array_equal(x, signs_ref(int_forward_ref(img, *net.args)))
 
 
-# ---- timing: exact cycles -------------------------------------------------------------------------
+# ---- timing: exact cycles -----------------------------------------------------------------------
 
 
 def _expected(plan, block):
@@ -267,7 +268,7 @@ def test_the_first_descriptor_waits_for_the_receptive_field_not_the_layers(weigh
     assert first == _expected(plan, "nna_left")[0] == 5 * w + 3 * w + 1
 
 
-# ---- data: cycle == functional ---------------------------------------------------------------------
+# ---- data: cycle == functional ------------------------------------------------------------------
 
 SPLITS = [{}, {"nna.stereo_submodules": 4}, {"nna.stereo_submodules": 4, "nna.split": "rows"},
           {"nna.stereo_submodules": 6}]
@@ -305,7 +306,7 @@ def test_shipped_networks_descriptors_leave_the_chip_bit_exact(name):
     assert_array_equal(seen, compute_descriptor(left, cfg.nna).astype(np.uint64))
 
 
-# ---- engines -------------------------------------------------------------------------------------
+# ---- engines ------------------------------------------------------------------------------------
 
 
 def test_engines_auto_runs_layers_on_the_readable_kernel_and_fast_refuses(weights):
@@ -320,7 +321,7 @@ def test_engines_auto_runs_layers_on_the_readable_kernel_and_fast_refuses(weight
         simulate(fast, left, right)
 
 
-# ---- mutants: each must be caught ------------------------------------------------------------------
+# ---- mutants: each must be caught ---------------------------------------------------------------
 
 
 def _short(plan, block, buffer):

@@ -157,6 +157,9 @@ class Chip:
         finally:
             bar.close()
         buffers = buffer_report(plan, windows_of(plan, self.window_rows()), sva.stage_peaks())
+        if len(plan.blocks_of("nna")[0].layers) > 1:  # the layer pipeline's own counts
+            stats["nna_layers"] = {b.name: self.blocks[b.name].layer_stats()
+                                   for b in plan.blocks_of("nna")}
         if self.dram is not None:
             stats["dram"] = self.dram.stats()
         return stats, cycle_report(plan, sink.first_cycle, sink.last_cycle, stats, buffers,
