@@ -384,3 +384,30 @@ def test_a_room_rule_one_row_late_is_caught(weights, monkeypatch):
                         rule(r, rows + 1, half, top, out_rows, in_rows))
     with pytest.raises(BufferOverflow, match="buffer nna_left.nna.layer1.line_buffer held"):
         run_readable(plan, left, right)
+
+
+def test_layers_are_traced_and_reported_per_layer(weights):
+    """Per layer: signals (layer<l>.line_buffer.fill, layer<l>.mac.phase, ...), the report's
+    nna_layers (activity adds up to the NNA's cycles; the first row's latency as the formula
+    has it) and energy lines; one layer keeps today's names."""
+    path, _ = weights["two3x3"]
+    h, w = 16, 24
+    plan = build_plan(_cfg(path, **{"nna.layer_macs": [9, 12]}), (h, w))
+    names = {s.path for s in plan.signals}
+    for key in ("status", "line_buffer.row_in", "line_buffer.fill", "mac.phase", "mac.row",
+                "mac.col"):
+        assert f"top.nna.left.sub0.layer1.{key}" in names
+    assert "top.nna.left.sub0.line_buffer.fill" not in names
+    single = {s.path for s in build_plan(load_config(overrides=BASE), (h, w)).signals}
+    assert "top.nna.left.sub0.line_buffer.fill" in single
+    result = simulate(plan, *_pair(h, w), window=(0, 10**12))
+    assert result.trace is not None
+    rep = result.report["nna_layers"]["nna_left"]
+    total = result.report["cycles"]["total"]["nna"]
+    for lay in rep:
+        assert sum(lay[a] for a in ("busy", "starved", "blocked", "idle")) == total
+    assert [lay["cycles_per_pixel"] for lay in rep] == [4, 24]
+    assert rep[1]["first_output_cycle"] == _expected(plan, "nna_left")[0]
+    assert rep[0]["blocked"] > 0 and rep[1]["line_buffer"]["peak_rows"] == 10  # layer 1 slow
+    what = [i["what"] for i in result.report["energy"]["items"] if i["block"] == "nna"]
+    assert "layer1: int8 multiply-accumulates, both cameras" in what
