@@ -25,7 +25,6 @@ the analytic estimate alike.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 from stereosim.nna.descriptor import network
@@ -55,11 +54,10 @@ def window_rows(cfg: NnaConfig) -> int:
 
 
 def cycles_per_descriptor(cfg: NnaConfig) -> int:
-    """MAC-array cycles per descriptor: ceil(MACs per descriptor / macs) for the CNN (one
-    layer: ceil(K*K*C / macs)), 1 for the census unit."""
-    if cfg.descriptor == "census":
-        return 1
-    return math.ceil(macs_per_descriptor(cfg) / cfg.macs)
+    """The submodule's initiation interval, cycles per descriptor: its slowest layer's cycles
+    per output pixel, max_l cpp_l (:func:`layer_cycles`; one layer: ceil(K*K*C / macs)), 1 for
+    the census unit."""
+    return max(layer_cycles(cfg))
 
 
 def macs_per_descriptor(cfg: NnaConfig) -> int:

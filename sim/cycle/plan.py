@@ -522,7 +522,6 @@ def build_plan(cfg: ChipConfig, shape: tuple[int, int], frames: int = 1) -> Chip
     widths = tuple(max(lt[i].in_shape[1] for lt in tile_layers)
                    for i in range(len(tile_layers[0])))
     layers = [nna_layers(cfg, t, shape, widths) for t in tiles]
-    cycles = cpd if len(layers[0]) == 1 else max(lay.cycles for lay in layers[0])
     for s, side in enumerate(SIDES):
         src = f"camera_{side}" if camera and not buffered else f"memory_{side}"
         subs = [f"nna_{side}" if parts == 1 else f"nna_{side}{t}" for t in range(parts)]
@@ -558,7 +557,7 @@ def build_plan(cfg: ChipConfig, shape: tuple[int, int], frames: int = 1) -> Chip
         for t, tile in enumerate(tiles):
             blocks.append(BlockPlan(
                 subs[t], "nna", "nna", s, (src_fifos[t],), (sub_outs[t],),
-                f"top.nna.{side}.sub{t}", tile.shape[0] * tile.shape[1], cycles=cycles,
+                f"top.nna.{side}.sub{t}", tile.shape[0] * tile.shape[1], cycles=cpd,
                 tile=tile, half=half, rows=cfg.nna.line_buffer_rows,
                 buffers=nna_buffers(cfg, layers[t]), stages=nna_stages(cfg, layers[t]),
                 layers=layers[t]))
@@ -582,7 +581,7 @@ def build_plan(cfg: ChipConfig, shape: tuple[int, int], frames: int = 1) -> Chip
                          bits, freqs.get("camera", 0.0), w / (w + cfg.source.camera_hblank))
     plan = ChipPlan(cfg=cfg, shape=(h, w), domains=domains, fifos=tuple(fifos),
                     blocks=tuple(blocks), tiles=tiles,
-                    budget=frame_budget(cfg, shape, freqs, cycles, sva_ii,
+                    budget=frame_budget(cfg, shape, freqs, cpd, sva_ii,
                                         frames * cfg.sva.pairs, dram),
                     descriptor_bits=bits, beat_bits=beat_bits, word_bits=word_bits,
                     frames=frames * cfg.sva.pairs, dram=dram)

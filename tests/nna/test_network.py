@@ -12,6 +12,7 @@ from stereosim.nna.descriptor import compute_descriptor, descriptor_bits, networ
 from stereosim.nna.geometry import (
     cycles_per_descriptor,
     half_window,
+    layer_cycles,
     macs_per_descriptor,
     window_rows,
 )
@@ -53,7 +54,7 @@ def test_the_artifact_is_the_network_the_nna_runs(name):
     assert window_rows(cfg) == 9
     macs = sum(int(np.prod(w.shape)) for w in qm.weights)
     assert macs_per_descriptor(cfg) == macs
-    assert cycles_per_descriptor(cfg) == -(-macs // cfg.macs)
+    assert cycles_per_descriptor(cfg) == max(layer_cycles(cfg)) >= -(-macs // cfg.macs)
     assert descriptor_bits(cfg) == qm.weights[-1].shape[0] == 32
 
 
