@@ -15,7 +15,7 @@ from pathlib import Path
 from stereosim.nna.augment import RECIPES
 from stereosim.nna.floatmodel import load_float_model, save_float_model
 from stereosim.nna.train import train
-from stereosim.nna.trainconfig import TrainConfig
+from stereosim.nna.trainconfig import VARIANTS, TrainConfig
 from stereosim.nna.traindata import (
     calibration_images,
     calibration_scene_dirs,
@@ -137,7 +137,7 @@ def cmd_quantize(args) -> int:
 def _add_train_parser(sub) -> None:
     """``stereosim train``: the learned descriptor (needs torch)."""
     t = sub.add_parser("train", help="train a siamese descriptor network (needs torch)")
-    t.add_argument("--variant", default="single9x9", choices=("mccnn4", "mccnn4-slim", "single9x9"))
+    t.add_argument("--variant", default="single9x9", choices=tuple(VARIANTS))
     t.add_argument("--data", metavar="DIR", help="shared data folder holding "
                    "middlebury2005_third/ and middlebury2006_third/ (default: ../shared/data)")
     t.add_argument("--objective", choices=("curve", "triplet"), help="curve (default): "
