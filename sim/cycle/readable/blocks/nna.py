@@ -31,6 +31,9 @@ received), ``line_buffer.fill`` (rows held for the next output row), ``mac.phase
 spent on the current descriptor; ``cycles`` while a finished one waits), ``mac.row`` /
 ``mac.col`` (the next descriptor), ``out.valid`` (pushed in its last cycle) and
 ``out.descriptor`` (the last pushed).
+
+Compiled twins: ``sim/cycle/compiled/nna.py`` (the submodule) and
+``sim/cycle/compiled/merge.py`` (the merge).
 """
 
 from __future__ import annotations
