@@ -61,14 +61,16 @@ def advance_sva_and_sink(net):
     pops (:func:`.sink.pops`) taken in turn (an issue needs the rows' pops and the pushes
     before it, a push its issue and the pop of the word a FIFO depth before, a pop the push of
     its word)."""
-    ki, issue = sva.issues_begin(net)
-    ks, pop = sink.pops_begin(net)
+    ki, ai, issue = sva.issues_begin(net)
+    kp = sva.pushes_begin(net)
+    ks, a_s, pop = sink.pops_begin(net)
+    ring = net.ring
     ko = net.streams[net.ids[0].sva_push].count
     start = (issue[0], ko, pop[0])
     while True:
-        issue, issued = sva.issues(net, ki, issue, ko)
-        ko, pushed = sva.pushes(net, ko, issue[0], pop[0])
-        pop, popped = sink.pops(net, ks, pop, ko)
+        issue, issued = sva.issues(ki, ai, issue, ko)
+        ko, pushed = sva.pushes(kp, ring, ko, issue[0], pop[0])
+        pop, popped = sink.pops(ks, a_s, pop, ko)
         if not (issued or pushed or popped):
             break
     sva.issues_end(net, issue)

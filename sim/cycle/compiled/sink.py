@@ -40,9 +40,10 @@ from stereosim.sim.cycle.rules import (
 
 @njit(cache=True, inline="always")
 def pops_begin(net):
-    """What :func:`pops` reads: the constants of its loop and its cursor (pops known, the last
-    pop, its column, write-back bursts known, DRAM wait, the FIFO's empty cycles, the first
-    pop (-1: not in this pass), n_gaps, last busy, a ring error)."""
+    """What :func:`pops` reads: the constants of its loop, the arrays it writes (taken from the
+    Net once, not per turn) and its cursor (pops known, the last pop, its column, write-back
+    bursts known, DRAM wait, the FIFO's empty cycles, the first pop (-1: not in this pass),
+    n_gaps, last busy, a ring error)."""
     prm = net.prm[0]
     ids = net.ids[0]
     streams = net.streams
@@ -52,23 +53,25 @@ def pops_begin(net):
     sq = streams[ids.sink_pop]
     fi = net.fifos[ids.fifo_sink]
     acc = net.acc[sq.block]
-    k = (q_off, q_mask, o_off, o_mask, w_off, w_mask, fi.data_edges, sq.period, sq.block)
+    k = (q_off, q_mask, o_off, o_mask, w_off, w_mask, fi.data_edges, sq.period, sq.block,
+         (prm.stall_period, prm.stall_phase, prm.dram, prm.cap_fs, prm.w, prm.n, prm.stats,
+          prm.watchdog_fs, prm.d_wwords, prm.d_wbuf, prm.d_slot, prm.d_round, prm.d_wfirst,
+          prm.d_wcount))
+    arrays = (net.ring, net.gaps, net.rows[1], net.frame_fs[1], net.state[0])
     q_prev = rd(net.ring, q_off, q_mask, kq - 1) if kq > 0 else -1
-    return k, (kq, q_prev, kq % prm.w, kw, 0, 0, -1, acc.gaps, acc.last_busy, False)
+    return k, arrays, (kq, q_prev, kq % prm.w, kw, 0, 0, -1, acc.gaps, acc.last_busy, False)
 
 
 @njit(cache=True, inline="always")
-def pops(net, k, cur, ko):
+def pops(k, arrays, cur, ko):
     """The sink's next pops of the words pushed (``ko`` known): the first allowed cycle from the
     word's visibility (and, writing back through the DRAM channel, once the write buffer has
     room). Returns (cursor, moved)."""
-    prm = net.prm[0]
-    state = net.state[0]
-    ring, gaps = net.ring, net.gaps
-    row_fs, frame_out = net.rows[1], net.frame_fs[1]
-    q_off, q_mask, o_off, o_mask, w_off, w_mask, de, per, blk = k
+    ring, gaps, row_fs, frame_out, state = arrays
+    q_off, q_mask, o_off, o_mask, w_off, w_mask, de, per, blk, consts = k
+    (period, phase, dram, cap, w, n, stats, g, d_wwords, d_wbuf, d_slot, d_round, d_wfirst,
+     d_wcount) = consts
     kq, q_prev, xq, kw, d_wait, empty, first, n_gaps, last_busy, err = cur
-    period, phase, dram, cap, w = prm.stall_period, prm.stall_phase, prm.dram, prm.cap_fs, prm.w
     moved = False
     while kq < ko:
         vis = rd(ring, o_off, o_mask, kq) + de
@@ -76,10 +79,10 @@ def pops(net, k, cur, ko):
         wait = 0
         last = -1
         if dram == 1:
-            u, last = burst_of(kq, prm.n, prm.d_wwords)
-            if u >= prm.d_wbuf:
-                err |= u - prm.d_wbuf <= kw - 1 - w_mask
-                room = rd(ring, w_off, w_mask, u - prm.d_wbuf)
+            u, last = burst_of(kq, n, d_wwords)
+            if u >= d_wbuf:
+                err |= u - d_wbuf <= kw - 1 - w_mask
+                room = rd(ring, w_off, w_mask, u - d_wbuf)
                 if room > q:
                     q0 = q
                     q = sink_next_allowed(room, period, phase)
@@ -88,29 +91,26 @@ def pops(net, k, cur, ko):
             break
         d_wait += wait
         if dram == 1 and kq == last:  # a full burst: written in the next write slot
-            slot = dram_slot(q * per, state.d_wslot, prm.d_slot, prm.d_round, prm.d_wfirst,
-                             prm.d_wcount)
+            slot = dram_slot(q * per, state.d_wslot, d_slot, d_round, d_wfirst, d_wcount)
             state.d_wslot = slot
-            ring[w_off + (kw & w_mask)] = first_edge_at(dram_write_done_fs(slot, prm.d_slot),
-                                                        per)
+            ring[w_off + (kw & w_mask)] = first_edge_at(dram_write_done_fs(slot, d_slot), per)
             kw += 1
         empty += max(0, vis - q_prev - 1)
         ring[q_off + (kq & q_mask)] = q
         if kq == 0:
             first = q
-        if prm.stats == 1:
-            n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy, q * per, q * per,
-                                     prm.watchdog_fs)
+        if stats == 1:
+            n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy, q * per, q * per, g)
         q_prev = q
         kq += 1
         moved = True
         xq += 1
         if xq == w:
             xq = 0
-            if kq <= prm.n:  # the first frame's rows
+            if kq <= n:  # the first frame's rows
                 row_fs[kq // w] = q * per
-            if kq % prm.n == 0:
-                frame_out[kq // prm.n - 1] = q * per
+            if kq % n == 0:
+                frame_out[kq // n - 1] = q * per
     return (kq, q_prev, xq, kw, d_wait, empty, first, n_gaps, last_busy, err), moved
 
 

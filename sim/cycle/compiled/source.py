@@ -389,6 +389,8 @@ def whole_pushes(net, k, cur, kb):
     a_off, a_mask, b_off, b_mask, depth, se, p_src, p_nna, rat_back, n, blk, side, rat_cam = k
     ka, a_prev, xa, ya, fa, blocked, starved, d_wait, n_gaps, last_busy, err, over = cur
     w, h, cap, camera, fb = prm.w, prm.h, prm.cap_fs, prm.camera, prm.fb
+    line_clocks, frame_clocks, pairs = prm.line_clocks, prm.frame_clocks, prm.pairs
+    stats, clock = prm.stats, (p_src, prm.watchdog_fs)
     bucket = (prm.mem_hz, prm.mem_bps)
     moved = False
     while ka < n and ka - depth < kb:
@@ -396,7 +398,7 @@ def whole_pushes(net, k, cur, kb):
         if ka >= depth:
             free = seen_from_scaled(rd(ring, b_off, b_mask, ka - depth), p_nna, p_src,
                                     rat_back, se)
-        c = camera_cycle(fa, xa, ya - fa * h, prm.line_clocks, prm.frame_clocks, prm.pairs)
+        c = camera_cycle(fa, xa, ya - fa * h, line_clocks, frame_clocks, pairs)
         if camera == 1:
             if c * p_src >= cap:
                 break
@@ -418,10 +420,9 @@ def whole_pushes(net, k, cur, kb):
             d_wait += wait
             if a * p_src >= cap:
                 break
-            if prm.stats == 1:
+            if stats == 1:
                 more_starved, more_blocked, n_gaps, last_busy = note_memory_push(
-                    gaps, blk, (n_gaps, last_busy), a_prev, first, lo, a,
-                    (p_src, prm.watchdog_fs))
+                    gaps, blk, (n_gaps, last_busy), a_prev, first, lo, a, clock)
                 starved += more_starved
                 blocked += more_blocked
         ring[a_off + (ka & a_mask)] = a

@@ -242,7 +242,8 @@ def advance_sva_pops(net):
 
 @njit(cache=True, inline="always")
 def issues_begin(net):
-    """What :func:`issues` reads: the constants of its loop and its cursor (issue ticks known,
+    """What :func:`issues` reads: the constants of its loop, the arrays it writes (taken from
+    the Net once, not per turn) and its cursor (issue ticks known,
     the last one, the next word's row and column, the first issued word exiting at or after
     the next issue's tick (-1: search), the row whose readiness is known, its ready cycle and
     tick, a ring error)."""
@@ -253,23 +254,23 @@ def issues_begin(net):
     o_off, o_mask, _, _ = view(streams, ids.sva_push)
     t_off, t_mask, kt, _ = view(streams, ids.sva_issue)
     st = streams[ids.sva_issue]
-    k = (p, o_off, o_mask, t_off, t_mask, st.n, st.period)
+    k = (p, o_off, o_mask, t_off, t_mask, st.n, st.period,
+         (prm.w, prm.h, prm.cap_fs, prm.lookahead, prm.pipe_latency, prm.cpp))
+    arrays = (net.ring, net.occ[ids.occ_sva_out])
     t_prev = rd(net.ring, t_off, t_mask, kt - 1) if kt > 0 else NEVER
     yt = kt // prm.w
-    return k, (kt, t_prev, yt, kt - yt * prm.w, -1, -1, 0, 0, False, False)
+    return k, arrays, (kt, t_prev, yt, kt - yt * prm.w, -1, -1, 0, 0, False, False)
 
 
 @njit(cache=True, inline="always")
-def issues(net, k, cur, ko):
+def issues(k, arrays, cur, ko):
     """The next words issued, each once its row is ready and the pipeline reaches its tick
     (``ko``: the pushes known). Returns (cursor, moved)."""
-    prm = net.prm[0]
-    ring = net.ring
-    issue_rows = net.occ[net.ids[0].occ_sva_out]
-    p, o_off, o_mask, t_off, t_mask, n, per = k
+    ring, issue_rows = arrays
+    p, o_off, o_mask, t_off, t_mask, n, per, consts = k
     p_off, p_mask, npop, p_lo = p
+    w, h, cap, la, lat, cpp = consts
     kt, t_prev, yt, xt, kx, ready_row, ready, ready_tick, ready_known, err = cur
-    w, h, cap, la, lat, cpp = prm.w, prm.h, prm.cap_fs, prm.lookahead, prm.pipe_latency, prm.cpp
     o = (o_off, o_mask, ko - 1 - o_mask)
     t = (t_off, t_mask, kt - 1 - t_mask)
     moved = False
@@ -325,17 +326,23 @@ def issues_end(net, cur):
 
 
 @njit(cache=True, inline="always")
-def pushes(net, ko, kt, kq):
-    """The next words pushed, each an issued word (``kt`` known) at its arrival, once the slot
-    a FIFO depth back is free (``kq``: the sink's pops known). Returns (pushes known, moved)."""
-    prm = net.prm[0]
+def pushes_begin(net):
+    """What :func:`pushes` reads: the pushes' and the issues' rings, the sink's pops' ring, the
+    sink FIFO's depth, the clock period, the cap and the pipeline's latency."""
     ids = net.ids[0]
-    ring, streams = net.ring, net.streams
+    streams = net.streams
     o_off, o_mask, _, _ = view(streams, ids.sva_push)
     q_off, q_mask, _, _ = view(streams, ids.sink_pop)
     t_off, t_mask, _, _ = view(streams, ids.sva_issue)
-    depth, per = net.fifos[ids.fifo_sink].depth, streams[ids.sva_push].period
-    cap, lat = prm.cap_fs, prm.pipe_latency
+    return (o_off, o_mask, q_off, q_mask, t_off, t_mask, net.fifos[ids.fifo_sink].depth,
+            streams[ids.sva_push].period, net.prm[0].cap_fs, net.prm[0].pipe_latency)
+
+
+@njit(cache=True, inline="always")
+def pushes(k, ring, ko, kt, kq):
+    """The next words pushed, each an issued word (``kt`` known) at its arrival, once the slot
+    a FIFO depth back is free (``kq``: the sink's pops known). Returns (pushes known, moved)."""
+    o_off, o_mask, q_off, q_mask, t_off, t_mask, depth, per, cap, lat = k
     o = (o_off, o_mask, ko - 1 - o_mask)
     t = (t_off, t_mask, kt - 1 - t_mask)
     moved = False
