@@ -230,14 +230,14 @@ def _source_tables(tiles, fifos, streams, side, parts, tab):
 
 
 @njit(cache=True, inline="always")
-def _tiles_free(ring, tab, parts, fno, x, y, rat, camera, c):
-    """(the first cycle every tile that takes pixel (x, y) of frame ``fno`` has a free slot,
-    known, ring error, the first tile whose slot a camera's pixel of cycle c finds full or
-    -1)."""
+def _tiles_free(ring, tab, fno, x, y, rat, camera, c):
+    """(the first cycle every tile (of ``tab``, :func:`_source_tables`) that takes pixel (x, y)
+    of frame ``fno`` has a free slot, known, ring error, the first tile whose slot a camera's
+    pixel of cycle c finds full or -1)."""
     free = 0
     err = False
     full_tile = -1
-    for t in range(parts):
+    for t in range(tab.shape[0]):
         r = tab[t]
         if not (r.x0 <= x < r.x1 and r.y0 <= y < r.y1):
             continue
@@ -294,7 +294,7 @@ def advance_source(net, side):
             if decide_frame(net, fno, acc, prm.cap_fs) != 1:
                 break
         c = camera_cycle(fno, x, y, line_clocks, frame_clocks, prm.pairs)
-        free, ok, bad, full = _tiles_free(ring, tab, parts, fno, x, y, rat, camera, c)
+        free, ok, bad, full = _tiles_free(ring, tab, fno, x, y, rat, camera, c)
         err |= bad
         if full_tile < 0:
             full_tile = full
