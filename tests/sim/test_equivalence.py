@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from stereosim.sim.config import load_config
 from stereosim.sim.cycle.compiled.layout import INF, serialise
-from stereosim.sim.cycle.compiled.replay import count_le
+from stereosim.sim.cycle.compiled.ring import count_le
 from stereosim.sim.cycle.compiled.run import first_quiet, run_compiled
 from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.cycle.readable.chip import run_readable

@@ -1,7 +1,7 @@
-"""The SVA as a lock-step pipeline (sim/cycle/readable/blocks/sva.py,
-sim/cycle/compiled/pipeline.py): a stall freezes every word in flight and the next issue with them,
-its stages' words and status are traced, and a stage that needs more SRAM accesses than its ports
-allow shows in the trace. Cycles are checked against the rules written out by hand here."""
+"""The SVA as a lock-step pipeline (sim/cycle/readable/blocks/sva.py, sim/cycle/compiled/sva.py):
+a stall freezes every word in flight and the next issue with them, its stages' words and status
+are traced, and a stage that needs more SRAM accesses than its ports allow shows in the trace.
+Cycles are checked against the rules written out by hand here."""
 
 from __future__ import annotations
 

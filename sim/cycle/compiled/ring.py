@@ -1,5 +1,5 @@
-"""Reading the event rings and noting busy instants: the few helpers every loop of the compiled
-engine shares (:mod:`.streams` writes the rings, :mod:`.walkers` follows them).
+"""Reading the event rings: the few helpers every block's loops, walkers and samplers share
+(each block's file writes its streams' rings and reads the others' through these).
 
 They take arrays and integers, never the :class:`~sim.cycle.compiled.layout.Net`: unpacking it per
 call costs more than the work (numba then keeps a stream's state in registers and emits no
@@ -9,6 +9,10 @@ reference counting in the loops).
 from __future__ import annotations
 
 from numba import njit
+
+from stereosim.sim.cycle.compiled.layout import INF, SVA_ISSUE
+
+NEVER = -(1 << 40)  # the previous issue tick before the SVA's first word
 
 
 @njit(cache=True, inline="always")
@@ -42,3 +46,142 @@ def busy(gaps, blk, n_gaps, last_busy, u, v, g):
 def ratio(per_from, per_to):
     """Two clock periods' ratio (for :func:`~sim.cycle.rules.seen_from_scaled`)."""
     return per_from / per_to
+
+
+@njit(cache=True, inline="always")
+def first_at_least(ring, off, mask, lo, hi, v):
+    """The first index in [lo, hi) whose (increasing) event is >= v (hi if none)."""
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if ring[off + (mid & mask)] >= v:
+            hi = mid
+        else:
+            lo = mid + 1
+    return lo
+
+
+# ---- what the walkers share: pops inside a block's waits ----------------------------------------
+
+
+@njit(cache=True, inline="always")
+def skip(ring, off, mask, ptr, limit, c):
+    """The first of the known events ptr .. limit - 1 (increasing) at or after cycle c:
+    galloping from ptr, then bisecting (cheap when the answer is near ptr)."""
+    if ptr >= limit or ring[off + (ptr & mask)] >= c:
+        return ptr
+    step = 1
+    hi = ptr + 1
+    while hi < limit and ring[off + (hi & mask)] < c:
+        ptr = hi
+        step *= 2
+        hi = ptr + step
+    if hi > limit:
+        hi = limit
+    # event ptr < c; the answer is in (ptr, hi]
+    while hi - ptr > 1:
+        mid = (ptr + hi) // 2
+        if ring[off + (mid & mask)] < c:
+            ptr = mid
+        else:
+            hi = mid
+    return hi
+
+
+@njit(cache=True, inline="always")
+def catch_up(ring, off, mask, ptr, lowest, lo):
+    """A pointer into a ring that has moved on: jump to the ``lowest`` event it still holds if
+    everything before it is earlier than cycle ``lo`` (then nothing uncounted was lost).
+    Returns (pointer, lost: the ring was too small)."""
+    if ptr >= lowest:
+        return ptr, False
+    return lowest, ring[off + (lowest & mask)] > lo
+
+
+@njit(cache=True, inline="always")
+def pops_in(ring, pops, ptr, lo, hi, long, gaps, state):
+    """Count the pops in cycles [lo, hi) (skipping those before lo); inside an interval longer
+    than the watchdog's time (``long``) each is a busy instant to note. ``pops`` = (ring offset,
+    mask, known events) of the pop stream; ``state`` = (block, n_gaps, last busy, period,
+    watchdog) of :func:`busy`. Returns (pointer past them, count, n_gaps, last busy)."""
+    off, mask, limit = pops
+    blk, n_gaps, last_busy, per, g = state
+    ptr = skip(ring, off, mask, ptr, limit, lo)
+    first = ptr
+    if long:
+        while ptr < limit:
+            c = ring[off + (ptr & mask)]
+            if c >= hi:
+                break
+            n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy, c * per, c * per, g)
+            ptr += 1
+    else:
+        ptr = skip(ring, off, mask, ptr, limit, hi)
+    return ptr, ptr - first, n_gaps, last_busy
+
+
+# ---- what the samplers share: the events up to an instant ---------------------------------------
+
+
+@njit(cache=True, inline="always")
+def at(ring, st, i):
+    """Event i of the stream whose record is ``st`` (the ring holds it)."""
+    return ring[st.off + (i & st.mask)]
+
+
+@njit(cache=True, inline="always")
+def event(ring, st, i):
+    """Event i of the stream ``st``, or INF if the streams do not hold it (later than asked)."""
+    if i < st.count:
+        return ring[st.off + (i & st.mask)]
+    return INF
+
+
+@njit(cache=True, inline="always")
+def lt_at(ring, st, le, c):
+    """(events of stream ``st`` before cycle c, is there one at c), c being the cycle of the
+    cursors' instant in the stream's domain and ``le`` the stream's cursor."""
+    at_c = le > 0 and ring[st.off + ((le - 1) & st.mask)] == c
+    return le - (1 if at_c else 0), at_c
+
+
+@njit(cache=True)
+def count_le(net, s, c):
+    """Known events of stream s at cycles <= c (the ring holds the ones asked about)."""
+    ring = net.ring
+    st = net.streams[s]
+    hi = st.count
+    lo = max(0, hi - st.mask - 1)
+    if hi == 0 or at(ring, st, hi - 1) <= c:
+        return hi
+    if at(ring, st, lo) > c:
+        return lo
+    # events lo .. hi - 1 increase; find the first > c
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if at(ring, st, mid) <= c:
+            lo = mid
+        else:
+            hi = mid
+    return hi
+
+
+@njit(cache=True)
+def cursors_at(net, t, init):
+    """Set ``net.cursors[s]`` to the number of events of stream s at cycles <= t // P_s (its
+    domain's last edge at or before the instant t) -- searched (``init``) or moved forward from
+    their values at an earlier instant."""
+    cur = net.cursors
+    ring = net.ring
+    streams = net.streams
+    for s in range(streams.shape[0]):
+        st = streams[s]
+        if st.kind == SVA_ISSUE:
+            continue  # ticks, not cycles: the SVA's sampler reads them by tick
+        c = t // st.period
+        if init:
+            cur[s] = count_le(net, s, c)
+        else:
+            i = cur[s]
+            while i < st.count and ring[st.off + (i & st.mask)] <= c:
+                i += 1
+            cur[s] = i

@@ -1,14 +1,15 @@
-"""The compiled engine's driver: one frame from the plan, with the readable kernel's results.
+"""The compiled engine's driver: one frame from the plan, with the readable kernel's results
+(its twin is the readable kernel's :mod:`sim.cycle.readable.chip`).
 
-:func:`run_compiled` computes the event streams of the frame (:mod:`.streams`) with the
-statistics behind them (:mod:`.walkers`), decides how the run ends -- the sink has the frame, a
-camera overflows, the cycle budget runs out, or the watchdog fires in a stretch in which no
-block is busy (the intersection of every block's long gaps) -- and returns the words, the report
-and the statistics the readable kernel gives, or raises the exception it raises with the same
-one-line message and the same state of every FIFO and block (recomputed by a second pass that
-stops at that instant; :mod:`.replay` reads the state off the events). A traced window is
-recorded the same way: a pass that stops at the window's end keeps every event of the window
-and :func:`.replay.record_window` samples every signal at every clock edge in it.
+:func:`run_compiled` computes the event streams of the frame with the statistics behind them
+(:func:`.schedule.run_pass`), decides how the run ends -- the sink has the frame, a camera
+overflows, the cycle budget runs out, or the watchdog fires in a stretch in which no block is
+busy (the intersection of every block's long gaps) -- and returns the words, the report and the
+statistics the readable kernel gives, or raises the exception it raises with the same one-line
+message and the same state of every FIFO and block (recomputed by a second pass that stops at
+that instant; :mod:`.sampler` reads the state off the events). A traced window is recorded the
+same way: a pass that stops at the window's end keeps every event of the window and
+:func:`.sampler.record_window` samples every signal at every clock edge in it.
 """
 
 from __future__ import annotations
@@ -20,20 +21,8 @@ from numba import njit
 
 from stereosim.nna.descriptor import compute_descriptor
 from stereosim.sim.cycle.buffers import buffer_report
-from stereosim.sim.cycle.contract import FrameResult, trace_clocks, trace_signals
-from stereosim.sim.cycle.contract import (
-    ACTIVITIES,
-    activity_counts,
-    budget_message,
-    BudgetExceeded,
-    count_instants,
-    DeadlockError,
-    fifo_counts,
-    RunStopped,
-    stop_message,
-    watchdog_message,
-)
-from stereosim.sim.cycle.rules import camera_busy_cycles, camera_frame_start, seen_from
+from stereosim.sim.cycle.compiled.fifo import fifo_counts as fifo_state
+from stereosim.sim.cycle.compiled.fifo import finish_fifos, pop_cycle
 from stereosim.sim.cycle.compiled.layout import (
     END_DONE,
     END_OVERFLOW,
@@ -45,29 +34,39 @@ from stereosim.sim.cycle.compiled.layout import (
     ring_capacity,
     serialise,
 )
-from stereosim.sim.cycle.compiled.replay import (
+from stereosim.sim.cycle.compiled.ring import count_le, cursors_at
+from stereosim.sim.cycle.compiled.sampler import block_status, next_instant, record_window, sample
+from stereosim.sim.cycle.compiled.schedule import run_pass
+from stereosim.sim.cycle.compiled.source import (
     DRAM,
     FRAME_BUFFERS,
-    block_status,
-    count_le,
-    cursors_at,
-    next_instant,
-    record_window,
-    sample,
+    decide_until,
+    note_camera,
+    note_source_wait,
 )
-from stereosim.sim.cycle.compiled.replay import fifo_counts as fifo_state
-from stereosim.sim.cycle.compiled.reads import decide_until, note_source_wait
-from stereosim.sim.cycle.compiled.streams import run_pass
-from stereosim.sim.cycle.compiled.walkers import finish_fifos, note_camera, pop_cycle
+from stereosim.sim.cycle.contract import (
+    ACTIVITIES,
+    BudgetExceeded,
+    CameraOverflow,
+    DeadlockError,
+    FrameBufferFull,
+    FrameResult,
+    RunStopped,
+    activity_counts,
+    budget_message,
+    count_instants,
+    fifo_counts,
+    frame_buffer_message,
+    overflow_message,
+    stop_message,
+    trace_clocks,
+    trace_signals,
+    watchdog_message,
+)
 from stereosim.sim.cycle.frames import FrameSupply, camera_frames
 from stereosim.sim.cycle.plan import ChipPlan
 from stereosim.sim.cycle.report import cycle_report
-from stereosim.sim.cycle.contract import (
-    CameraOverflow,
-    frame_buffer_message,
-    FrameBufferFull,
-    overflow_message,
-)
+from stereosim.sim.cycle.rules import camera_busy_cycles, camera_frame_start, seen_from
 from stereosim.sva.pipeline import sva_stream
 from stereosim.traces.log import TraceLog
 
@@ -126,11 +125,8 @@ def _pass(plan: ChipPlan, sink_stall, cap_fs: int, stats: bool, capacity: int | 
             for i, b in enumerate(plan.blocks):
                 if b.kind == "camera":
                     note_camera(net, i, plan.shape[0], b.line_clocks, b.frame_clocks)
-        ids = np.array([names["p"], names["fifo_index"]["nna_left_to_sva"],
-                        names["fifo_index"]["nna_right_to_sva"],
-                        names["fifo_index"]["sva_to_sink"]], np.int64)
-        run_pass(net, ids)
-        error = net.prm[0]["error"]
+        run_pass(net)
+        error = net.state[0]["error"]
         if error == ERR_NONE:
             return net, names
         if error == ERR_GAPS:
@@ -169,7 +165,7 @@ def _stats(plan: ChipPlan, net: Net, names: dict, t_end: int) -> dict:
     prm = net.prm[0]
     # the frames the chip took: all of them, but for a camera's dropped ones -- whose beats the
     # blocks after the source wait for in vain (starved, not idle, to the end of the run)
-    taken = int(prm["fb_taken"]) if plan.frame_buffered else plan.frames
+    taken = int(net.state[0]["fb_taken"]) if plan.frame_buffered else plan.frames
     short = taken < plan.frames
     n = taken * h * w
     per = {name: d.period_fs for name, d in plan.domains.items()}
@@ -185,7 +181,7 @@ def _stats(plan: ChipPlan, net: Net, names: dict, t_end: int) -> dict:
         if mirrored and b.side == 1:
             blocks[b.name] = blocks[_left(b.name)]
         elif b.kind == "memory":
-            active = _last(net, names["a"][b.side]) + 1 if n else 0
+            active = _last(net, names["source_push"][b.side]) + 1 if n else 0
             starved = int(acc["starved"])
             if plan.frame_buffered:  # it waits for the camera until the last frame's decision
                 last = camera_frame_start(plan.frames - 1, b.frame_clocks, plan.pairs)
@@ -200,20 +196,20 @@ def _stats(plan: ChipPlan, net: Net, names: dict, t_end: int) -> dict:
             blocks[b.name] = activity_counts(busy, 0, 0, c_d - busy)
         elif b.kind in ("nna", "sva"):
             s = net.blocks[i]
-            stream = (names["e"][b.side, max(0, int(s["tile"]))] if b.kind == "nna"
-                      else names["p"] + 1)
+            stream = (names["mac_push"][b.side, max(0, int(s["tile"]))] if b.kind == "nna"
+                      else int(net.ids[0]["sva_push"]))
             active = _last(net, stream) + 1
             tail = c_d - active
             blocks[b.name] = activity_counts(active - acc["starved"] - acc["blocked"],
                                              acc["starved"] + (tail if short else 0),
                                              acc["blocked"], 0 if short else tail)
         elif b.kind == "merge":
-            active = _last(net, names["m"][b.side]) + 1
+            active = _last(net, names["merge_move"][b.side]) + 1
             tail = c_d - active
             blocks[b.name] = activity_counts(n, acc["starved"] + (tail if short else 0),
                                              acc["blocked"], 0 if short else tail)
         else:
-            q_last = _last(net, names["p"] + 2)
+            q_last = _last(net, int(net.ids[0]["sink_pop"]))
             period, phase = int(prm["stall_period"]), int(prm["stall_phase"])
             allowed = c_d if period == 0 else (q_last - phase) // period + 1 \
                 if q_last >= phase else 0
@@ -323,13 +319,13 @@ def _raise_stop(plan: ChipPlan, net: Net, names: dict, sink_stall, t_end: int) -
     if plan.frame_buffered:  # the frames that start before the run would stop
         t_dog, _ = first_quiet(net, _periods(plan), min(t_end, t_budget))
         _settle(plan, net, min(t_end, t_budget, t_dog))
-    if net.prm[0]["end"] == END_OVERFLOW and plan.frame_buffered:  # no free frame buffer
+    if net.state[0]["end"] == END_OVERFLOW and plan.frame_buffered:  # no free frame buffer
         acc = net.acc[[b.name for b in plan.blocks].index("memory_left")]
         cycle = int(acc["over_cycle"])
         t_over = cycle * plan.domains["camera"].period_fs
         fb_message = frame_buffer_message("camera_left", int(acc["over_k"]),
                                           int(acc["over_tile"]), cycle, plan.cfg)
-    elif net.prm[0]["end"] == END_OVERFLOW:
+    elif net.state[0]["end"] == END_OVERFLOW:
         index = {b.name: i for i, b in enumerate(plan.blocks)}
         mirrored = int(net.prm[0]["sides"]) == 1
         for b in plan.blocks:
@@ -375,6 +371,10 @@ def _trace(plan: ChipPlan, sink_stall, window: tuple[int, int], t_end: int, data
     span = (end - start) // int(periods.min()) + 16
     cap = ring_capacity(plan) + span
     net, names = _pass(plan, sink_stall, end, False, capacity=1 << int(cap - 1).bit_length())
+    if plan.dram is not None and not plan.frame_buffered:
+        # a source held past the window's end has asked the channel for its next read burst
+        # (the readable MemorySource does so whenever it evaluates): its DRAM_READ event
+        note_source_wait(net)
     n_sig = len(plan.signals)
     initial = np.zeros(n_sig, np.uint64)
     done = np.full((len(plan.blocks) + len(plan.fifos), 2), -1)
@@ -399,7 +399,7 @@ def _trace(plan: ChipPlan, sink_stall, window: tuple[int, int], t_end: int, data
                    end_fs=end, initial=initial, times_fs=times[:k].copy(), ids=ids[:k].copy(),
                    values=values[:k].copy())
     per_sva = plan.domains["sva"].period_fs
-    o_s = names["p"] + 1
+    o_s = int(net.ids[0]["sva_push"])
     first = -(-start // per_sva)
     outputs = count_le(net, o_s, (end - 1) // per_sva) - (count_le(net, o_s, first - 1)
                                                           if first > 0 else 0)
@@ -482,8 +482,9 @@ def run_compiled(plan: ChipPlan, left, right=None, *, sink_stall=None,
     t0 = time.process_time()
     net, names = _pass(plan, sink_stall, _budget_instant(plan), True)
     t_end = INF
-    if net.prm[0]["end"] == END_DONE:
-        t_end = _last(net, names["p"] + 2) * plan.domains["sva"].period_fs
+    q_s = int(net.ids[0]["sink_pop"])
+    if net.state[0]["end"] == END_DONE:
+        t_end = _last(net, q_s) * plan.domains["sva"].period_fs
     # an overflow before any stop
     buffers = buffer_report(plan, _windows(plan, net), _stage_peaks(plan, net))
     try:
@@ -498,7 +499,7 @@ def run_compiled(plan: ChipPlan, left, right=None, *, sink_stall=None,
         raise
     stats = _stats(plan, net, names, t_end)
     frame_fs = net.frame_fs.copy()
-    report = cycle_report(plan, int(net.prm[0]["first_pop"]), _last(net, names["p"] + 2),
+    report = cycle_report(plan, int(net.state[0]["first_pop"]), _last(net, q_s),
                           stats, buffers, frame_fs)
     t1 = time.process_time()
     traced = _window_frames(plan, frame_fs, window) if window is not None else range(0)

@@ -17,6 +17,8 @@ applied at the commit of the step. The rules (docs/clock-kernel.md has timing di
 Consequences in one domain with latency 1: depth 1 moves one item every 2 cycles, depth 2 one
 item per cycle; in general a FIFO sustains ``min(1, depth / (latency_cycles + 1))`` items per
 cycle.
+
+Compiled twin: ``sim/cycle/compiled/fifo.py``.
 """
 
 from __future__ import annotations

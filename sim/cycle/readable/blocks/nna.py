@@ -42,6 +42,9 @@ spent on the current output; ``cycles`` while a finished one waits), ``mac.row``
 (the next output) -- with several layers, per layer, prefixed ``layer<l>.``, with the layer's
 own ``layer<l>.status`` --, ``out.valid`` (pushed in its last cycle) and ``out.descriptor`` (the
 last pushed).
+
+Compiled twins: ``sim/cycle/compiled/nna.py`` (the submodule) and
+``sim/cycle/compiled/merge.py`` (the merge).
 """
 
 from __future__ import annotations

@@ -8,6 +8,9 @@ each has space).
 
 Traced signals (:mod:`sim.cycle.plan`): ``status``, ``sent`` (pixels pushed); the sink's
 ``status``, ``count`` (words received) and ``valid`` (it popped in its last cycle).
+
+Compiled twins: ``sim/cycle/compiled/source.py`` (the sources, frame buffers, the DRAM
+channel's reads) and ``sim/cycle/compiled/sink.py`` (the sink, the write-back).
 """
 
 from __future__ import annotations

@@ -41,6 +41,8 @@ in its last cycle), ``output.disparity`` (the last word pushed), ``lr_check.reje
 is invalid), ``pipeline.issue`` (a word entered this cycle), ``pipeline.stall``,
 ``pipeline.words`` (words in the pipeline), and per stage ``stage.<name>.status`` and
 ``stage.<name>.words``.
+
+Compiled twin: ``sim/cycle/compiled/sva.py``.
 """
 
 from __future__ import annotations

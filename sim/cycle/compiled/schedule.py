@@ -1,0 +1,162 @@
+"""The pass: every block's event stream advanced in turn, each as far as what it needs is known
+(the readable kernel's :class:`~sim.cycle.readable.chip.Chip` steps every block every edge;
+docs/compiled-engine.md lists the recurrences, each block's file its own).
+
+Each event depends on earlier events of its own stream and on events of other streams that are
+strictly earlier in time, so :func:`run_pass` advances the streams in turn -- the sources and
+line buffers (:mod:`.source`, :mod:`.nna`), the MAC arrays (:mod:`.nna`), the merges
+(:mod:`.merge`), the SVA's pops (:mod:`.sva`), its issues and pushes with the sink's pops
+(:mod:`.sva`, :mod:`.sink`) -- until the sink has the frame or no stream can move (a deadlock,
+or the cap: events at instants from ``prm.cap_fs`` on are not computed). Events live in rings
+(:mod:`.layout`); a read of an event its ring no longer holds sets ``state.error`` and the
+caller reruns with larger rings. The statistics the loops do not take on the way are walked
+behind the streams (:func:`walk_all`).
+
+Two pairs of streams that wait on each other item by item are taken in turn in one loop, each
+as far as the other allows, without a call per turn: a whole-frame side's source pushes and
+line-buffer pops (:func:`advance_whole_side`), and the SVA's issues and pushes with the sink's
+pops (:func:`advance_sva_and_sink`); each block's part of the loop is in its own file.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from stereosim.sim.cycle.compiled import fifo, merge, nna, sink, source, sva
+from stereosim.sim.cycle.compiled.layout import (
+    END_CAP,
+    END_DONE,
+    END_OVERFLOW,
+    END_STUCK,
+    INF,
+    SVA_ISSUE,
+)
+from stereosim.sim.cycle.compiled.ring import rd, view
+from stereosim.sim.cycle.compiled.windows import walk_windows
+
+
+@njit(cache=True)
+def advance_whole_side(net, side):
+    """A camera served by one submodule: its source's pushes (:func:`.source.whole_pushes`) and
+    its line buffer's pops (:func:`.nna.whole_pops`) taken in turn (a push needs the pop of
+    the item a FIFO depth before, a pop the push of its item) -- the same events as
+    :func:`.source.advance_source` and :func:`.nna.advance_line_pops`."""
+    kp, push = source.whole_pushes_begin(net, side)
+    kl, pop = nna.whole_pops_begin(net, side)
+    start_a, start_b = push[0], pop[0]
+    while True:
+        pop, popped = nna.whole_pops(net, kl, pop, push[0])
+        push, pushed = source.whole_pushes(net, kp, push, pop[0])
+        if push[11] or not (popped or pushed):  # a camera overflowed, or nothing moved
+            break
+    nna.whole_pops_end(net, kl, pop)
+    source.whole_pushes_end(net, kp, push)
+    return push[0] > start_a or pop[0] > start_b
+
+
+@njit(cache=True)
+def advance_sva_and_sink(net):
+    """The SVA's issues (:func:`.sva.issues`), its pushes (:func:`.sva.pushes`) and the sink's
+    pops (:func:`.sink.pops`) taken in turn (an issue needs the rows' pops and the pushes
+    before it, a push its issue and the pop of the word a FIFO depth before, a pop the push of
+    its word)."""
+    ki, ai, issue = sva.issues_begin(net)
+    kp = sva.pushes_begin(net)
+    ks, a_s, pop = sink.pops_begin(net)
+    ring = net.ring
+    ko = net.streams[net.ids[0].sva_push].count
+    start = (issue[0], ko, pop[0])
+    while True:
+        issue, issued = sva.issues(ki, ai, issue, ko)
+        ko, pushed = sva.pushes(kp, ring, ko, issue[0], pop[0])
+        pop, popped = sink.pops(ks, a_s, pop, ko)
+        if not (issued or pushed or popped):
+            break
+    sva.issues_end(net, issue)
+    net.streams[net.ids[0].sva_push].count = ko
+    sink.pops_end(net, ks, pop)
+    return issue[0] > start[0] or ko > start[1] or pop[0] > start[2]
+
+
+@njit(cache=True)
+def walk_all(net, final):
+    """Run every walker as far as it can (``final``: the streams are done or stopped; the FIFO
+    walks are finished by :func:`.fifo.finish_fifos` once the run's length is known)."""
+    prm = net.prm[0]
+    state = net.state[0]
+    horizon = 0
+    streams, ring = net.streams, net.ring
+    for s in range(streams.shape[0]):
+        off, mask, count, _ = view(streams, s)
+        if count > 0 and streams[s].kind != SVA_ISSUE:  # issues are ticks, not cycles
+            t = rd(ring, off, mask, count - 1) * streams[s].period
+            if t > horizon:
+                horizon = t
+    state.horizon_fs = horizon
+    for ti in range(prm.sides * prm.parts):
+        nna.walk_nna(net, ti, final)
+    sva.walk_sva(net, final)
+    walk_windows(net, final)
+    if not final:
+        for f in range(net.fifos.shape[0]):
+            if net.fifos[f].side < prm.sides:
+                fifo.walk_fifo(net, f, False, -1)
+                if net.fifos[f].crossing == 1:
+                    fifo.walk_fifo(net, f, True, -1)
+
+
+@njit(cache=True)
+def run_pass(net):
+    """Advance every stream in turn until the sink has the frame, nothing can move, a camera
+    overflows or a ring error stops the pass; the walkers follow whenever a stream has gone a
+    quarter of its ring ahead of them, and at the end. Sets ``state.end``."""
+    prm = net.prm[0]
+    state = net.state[0]
+    streams = net.streams
+    q_s = net.ids[0].sink_pop
+    sides = prm.sides  # 1: the right side's events are the left's
+    n_tiles = sides * prm.parts
+    n_streams = streams.shape[0]
+    walked = np.zeros(n_streams, np.int64)
+    while True:
+        state.iterations += 1
+        moved = False
+        if prm.parts == 1:
+            for side in range(sides):
+                moved |= advance_whole_side(net, side)
+        else:
+            for side in range(sides):
+                moved |= source.advance_source(net, side)
+            for ti in range(n_tiles):
+                moved |= nna.advance_line_pops(net, ti)
+        for ti in range(n_tiles):
+            moved |= nna.advance_mac_pushes(net, ti)
+        if prm.merge == 1:
+            for side in range(sides):
+                moved |= merge.advance_merge(net, side)
+        moved |= sva.advance_sva_pops(net)
+        moved |= advance_sva_and_sink(net)
+        if state.error != 0:
+            return
+        if prm.stats == 1:
+            due = False
+            for s in range(n_streams):
+                if streams[s].count - walked[s] > (streams[s].mask + 1) // 4:
+                    due = True
+            if due:
+                walk_all(net, False)
+                for s in range(n_streams):
+                    walked[s] = streams[s].count
+        if streams[q_s].count >= state.target:  # every frame taken is out
+            state.end = END_DONE
+            break
+        if not moved:
+            if state.end != END_OVERFLOW:
+                for side in range(sides):
+                    source.pending_overflow(net, side)
+            if state.end != END_OVERFLOW:
+                state.end = END_STUCK if prm.cap_fs >= INF else END_CAP
+            break
+    if prm.stats == 1:
+        walk_all(net, True)

@@ -1,0 +1,169 @@
+"""The disparity sink on the compiled engine, with the DRAM channel's write-back (twin of the
+readable kernel's :class:`~sim.cycle.readable.blocks.sources.Sink` and the write side of
+:class:`~sim.cycle.readable.blocks.sources.DramChannel`, in
+:mod:`sim.cycle.readable.blocks.sources`; the rules are :mod:`sim.cycle.rules`).
+
+Stream ``SINK_POP``: the sink pops word j in the first cycle its stall pattern allows
+(:func:`~sim.cycle.rules.sink_next_allowed`) at or after ``max(q[j-1] + 1, vis(o[j]))`` -- and,
+writing back through the DRAM channel, once the write buffer has room: the burst a write buffer
+back has left (``DRAM_WRITE``, the first sink cycle write-back burst u has left the buffer, a
+full burst being written in the next write slot). Its statistics are taken on the way (busy at
+each pop, blocked while the write buffer is full, the FIFO's empty cycles), and what it reports
+at an instant is read off the same events.
+"""
+
+from __future__ import annotations
+
+from numba import njit
+
+from stereosim.sim.cycle.compiled.layout import (
+    A_BLOCKED,
+    A_BUSY,
+    A_IDLE,
+    A_STARVED,
+    ERR_GAPS,
+    ERR_RING,
+)
+from stereosim.sim.cycle.compiled.ring import busy, event, lt_at, rd, view
+from stereosim.sim.cycle.compiled.source import DRAM
+from stereosim.sim.cycle.rules import (
+    burst_of,
+    dram_slot,
+    dram_write_done_fs,
+    first_edge_at,
+    seen_from,
+    sink_allowed_between,
+    sink_may_pop,
+    sink_next_allowed,
+)
+
+
+@njit(cache=True, inline="always")
+def pops_begin(net):
+    """What :func:`pops` reads: the constants of its loop, the arrays it writes (taken from the
+    Net once, not per turn) and its cursor (pops known, the last pop, its column, write-back
+    bursts known, DRAM wait, the FIFO's empty cycles, the first pop (-1: not in this pass),
+    n_gaps, last busy, a ring error)."""
+    prm = net.prm[0]
+    ids = net.ids[0]
+    streams = net.streams
+    q_off, q_mask, kq, _ = view(streams, ids.sink_pop)
+    o_off, o_mask, _, _ = view(streams, ids.sva_push)
+    w_off, w_mask, kw, _ = view(streams, ids.dram_write)
+    sq = streams[ids.sink_pop]
+    fi = net.fifos[ids.fifo_sink]
+    acc = net.acc[sq.block]
+    k = (q_off, q_mask, o_off, o_mask, w_off, w_mask, fi.data_edges, sq.period, sq.block,
+         (prm.stall_period, prm.stall_phase, prm.dram, prm.cap_fs, prm.w, prm.n, prm.stats,
+          prm.watchdog_fs, prm.d_wwords, prm.d_wbuf, prm.d_slot, prm.d_round, prm.d_wfirst,
+          prm.d_wcount))
+    arrays = (net.ring, net.gaps, net.rows[1], net.frame_fs[1], net.state[0])
+    q_prev = rd(net.ring, q_off, q_mask, kq - 1) if kq > 0 else -1
+    return k, arrays, (kq, q_prev, kq % prm.w, kw, 0, 0, -1, acc.gaps, acc.last_busy, False)
+
+
+@njit(cache=True, inline="always")
+def pops(k, arrays, cur, ko):
+    """The sink's next pops of the words pushed (``ko`` known): the first allowed cycle from the
+    word's visibility (and, writing back through the DRAM channel, once the write buffer has
+    room). Returns (cursor, moved)."""
+    ring, gaps, row_fs, frame_out, state = arrays
+    q_off, q_mask, o_off, o_mask, w_off, w_mask, de, per, blk, consts = k
+    (period, phase, dram, cap, w, n, stats, g, d_wwords, d_wbuf, d_slot, d_round, d_wfirst,
+     d_wcount) = consts
+    kq, q_prev, xq, kw, d_wait, empty, first, n_gaps, last_busy, err = cur
+    moved = False
+    while kq < ko:
+        vis = rd(ring, o_off, o_mask, kq) + de
+        q = sink_next_allowed(max(q_prev + 1, vis), period, phase)
+        wait = 0
+        last = -1
+        if dram == 1:
+            u, last = burst_of(kq, n, d_wwords)
+            if u >= d_wbuf:
+                err |= u - d_wbuf <= kw - 1 - w_mask
+                room = rd(ring, w_off, w_mask, u - d_wbuf)
+                if room > q:
+                    q0 = q
+                    q = sink_next_allowed(room, period, phase)
+                    wait = sink_allowed_between(q0, q, period, phase)
+        if q * per >= cap:
+            break
+        d_wait += wait
+        if dram == 1 and kq == last:  # a full burst: written in the next write slot
+            slot = dram_slot(q * per, state.d_wslot, d_slot, d_round, d_wfirst, d_wcount)
+            state.d_wslot = slot
+            ring[w_off + (kw & w_mask)] = first_edge_at(dram_write_done_fs(slot, d_slot), per)
+            kw += 1
+        empty += max(0, vis - q_prev - 1)
+        ring[q_off + (kq & q_mask)] = q
+        if kq == 0:
+            first = q
+        if stats == 1:
+            n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy, q * per, q * per, g)
+        q_prev = q
+        kq += 1
+        moved = True
+        xq += 1
+        if xq == w:
+            xq = 0
+            if kq <= n:  # the first frame's rows
+                row_fs[kq // w] = q * per
+            if kq % n == 0:
+                frame_out[kq // n - 1] = q * per
+    return (kq, q_prev, xq, kw, d_wait, empty, first, n_gaps, last_busy, err), moved
+
+
+@njit(cache=True, inline="always")
+def pops_end(net, k, cur):
+    """Store what :func:`pops` did: the pops and write-back bursts known, the statistics."""
+    state = net.state[0]
+    ids = net.ids[0]
+    kq, _, _, kw, d_wait, empty, first, n_gaps, last_busy, err = cur
+    net.streams[ids.sink_pop].count = kq
+    net.streams[ids.dram_write].count = kw
+    acc = net.acc[k[8]]
+    acc.blocked += d_wait
+    acc.dram += d_wait
+    if first >= 0:
+        state.first_pop = first
+    acc.last_busy, acc.gaps = last_busy, n_gaps
+    net.acc[len(net.blocks) + ids.fifo_sink].empty += empty
+    if err:
+        state.error = ERR_RING
+    if n_gaps > net.gaps.shape[1]:
+        state.error = ERR_GAPS
+
+
+# ---- at an instant ------------------------------------------------------------------------------
+
+
+@njit(cache=True)
+def status_sink(ring, streams, cursors, prm, tables, b, c):
+    """(activity, FIFO waited on, DRAM or -1) the sink ``b`` (its record) reports in its cycle
+    c (the readable ``Sink.evaluate``)."""
+    fifos, ids = tables[1], tables[3]
+    q_s, o_s = ids.sink_pop, ids.sva_push
+    received, at_c = lt_at(ring, streams[q_s], cursors[q_s], c)
+    if received >= prm.frames * prm.n:
+        return A_IDLE, -1
+    if not sink_may_pop(c, prm.stall_period, prm.stall_phase):
+        return A_IDLE, -1
+    if at_c:
+        return A_BUSY, -1
+    if prm.dram == 1 and received < streams[o_s].count:  # its word is visible: the write
+        fi = fifos[b.fifo_in]  # buffer is full
+        if seen_from(event(ring, streams[o_s], received), fi.per_src, fi.per_dst,
+                     fi.data_edges) <= c:
+            return A_BLOCKED, DRAM
+    return A_STARVED, b.fifo_in
+
+
+@njit(cache=True, inline="always")
+def sample_sink(ring, streams, cursors, ids, c, out):
+    """The sink's traced values besides its status, after its cycle c, into out[0:2]: the words
+    received and whether it popped one in that cycle."""
+    q_s = ids.sink_pop
+    got, at_c = lt_at(ring, streams[q_s], cursors[q_s], c)
+    out[0] = got + (1 if at_c else 0)
+    out[1] = 1 if at_c else 0

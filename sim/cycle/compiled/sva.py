@@ -1,0 +1,633 @@
+"""The SVA on the compiled engine: its joint pops, its lock-step pipeline in closed form and its
+pushes (twin of the readable kernel's :class:`~sim.cycle.readable.blocks.sva.SvaBlock`, in
+:mod:`sim.cycle.readable.blocks.sva`; the rules are :mod:`sim.cycle.rules`).
+
+Streams:
+
+- ``SVA_POP``: the SVA pops pair j (input row y) ``p[j] = max(p[j-1] + 1, vis(left[j]),
+  vis(right[j]), e[last word of output row sva_rows_done_before_input(y) - 1] + 1)``, e the
+  cycle a word is issued;
+- ``SVA_ISSUE``: the *tick* t_j at which word j is issued; ``SVA_PUSH``: the cycle o_j it is
+  pushed.
+
+The pipeline's tick counts the cycles in which it advanced; it stalls only while the word in
+its output register waits for a free slot. So between one push and the next word's arrival it
+advances every cycle, and everything follows from the issue ticks, the pushes and the exit
+ticks x_j = t_j + L:
+
+- the tick at the start of cycle c, with k words pushed before c:
+  ``T(c) = min(x_{k-1} + c - o_{k-1}, x_k)`` (``sva_tick_at``; before any push o = x = 0);
+- word j reaches the output register in cycle ``a_j = o_{j-1} + x_j - x_{j-1}``
+  (``sva_cycle_of_tick`` of its exit tick) and is pushed at ``o_j = max(a_j, q[j - depth] +
+  1)``, q the sink's pops;
+- word j is issued at tick ``t_j = max(T(ready_j), t_{j-1} + II)`` (``sva_issue_tick``), in the
+  first advancing cycle with that tick: ``o_k`` if it is word k's exit tick (the pipeline
+  resumes with that push), else ``sva_cycle_of_tick(t_j, o_{k-1}, x_{k-1})`` with k the first
+  word whose exit tick is above it.
+
+Each of these needs only pushes that come before it in time; a value that needs a push not yet
+known waits (the helpers return ok = False) and the loop moves on to the pushes. The helpers
+read the rings through ``(offset, mask, lowest held index)`` triples; reading below the lowest
+held index sets the ring error (the caller reruns with larger rings).
+
+Here also: the SVA's statistics and its stages' (:func:`walk_sva`), and what it reports at an
+instant (status, traced signals, its stages').
+"""
+
+from __future__ import annotations
+
+from numba import njit
+
+from stereosim.sim.cycle.compiled.layout import (
+    A_BLOCKED,
+    A_BUSY,
+    A_IDLE,
+    A_STARVED,
+    ERR_GAPS,
+    ERR_RING,
+    INF,
+)
+from stereosim.sim.cycle.compiled.ring import (
+    NEVER,
+    busy,
+    catch_up,
+    event,
+    first_at_least,
+    lt_at,
+    pops_in,
+    ratio,
+    rd,
+    view,
+)
+from stereosim.sim.cycle.rules import (
+    frame_row,
+    rows_ready_in_frame,
+    seen_from,
+    seen_from_scaled,
+    sva_cycle_of_tick,
+    sva_issue_tick,
+    sva_last_input_row,
+    sva_rows_done_before_input,
+    sva_tick_at,
+)
+
+# ---- the pipeline in closed form ----------------------------------------------------------------
+
+
+@njit(cache=True, inline="always")
+def arrival(ring, o, t, lat, j):
+    """The cycle word j reaches the output register (its push o_{j-1} and both issue ticks
+    known)."""
+    x = rd(ring, t[0], t[1], j) + lat
+    if j == 0:
+        return sva_cycle_of_tick(x, 0, 0)
+    return sva_cycle_of_tick(x, rd(ring, o[0], o[1], j - 1), rd(ring, t[0], t[1], j - 1) + lat)
+
+
+
+@njit(cache=True, inline="always")
+def tick_at(ring, o, t, lat, ko, kt, c):
+    """(T(c), ok, ring error): the pipeline's tick at the start of cycle c from the ``ko``
+    pushes and ``kt`` issue ticks known; not ok while a push not yet known may come before c.
+    ``o``, ``t``: (offset, mask, lowest held index) of the push and issue rings."""
+    if ko > 0 and rd(ring, o[0], o[1], ko - 1) >= c:
+        lo = max(0, o[2] + 1)
+        k = first_at_least(ring, o[0], o[1], lo, ko, c)
+        err = k == lo and lo > 0  # the answer may lie in what the ring no longer holds
+    else:
+        k = ko
+        err = False
+        if ko < kt and c > arrival(ring, o, t, lat, ko):
+            return 0, False, err  # word ko waits in the output register: its push decides
+    if k == 0:
+        last_push, last_exit = 0, 0
+    else:
+        last_push, last_exit = rd(ring, o[0], o[1], k - 1), rd(ring, t[0], t[1], k - 1) + lat
+    nxt = rd(ring, t[0], t[1], k) + lat if k < kt else INF
+    err = err or (k > 0 and (k - 1 <= o[2] or k - 1 <= t[2]))
+    return sva_tick_at(c, last_push, last_exit, nxt), True, err
+
+
+
+@njit(cache=True, inline="always")
+def exiting_from(ring, t, lat, kt, tick):
+    """The first of the ``kt`` issued words whose exit tick is >= ``tick`` (``kt`` if none),
+    and a ring error."""
+    if kt == 0 or rd(ring, t[0], t[1], kt - 1) + lat < tick:
+        return kt, False
+    lo = max(0, t[2] + 1)
+    k = first_at_least(ring, t[0], t[1], lo, kt, tick - lat)
+    return k, k == lo and lo > 0  # the answer may lie in what the ring no longer holds
+
+
+
+@njit(cache=True, inline="always")
+def cycle_of_after(ring, o, t, lat, ko, kt, tick, k):
+    """(cycle, ok): the first advancing cycle whose tick is ``tick``, k being the first issued
+    word whose exit tick is >= ``tick`` (:func:`exiting_from`), from the ``ko`` pushes and
+    ``kt`` issue ticks known; not ok while it depends on a push not yet known."""
+    if k < kt and rd(ring, t[0], t[1], k) + lat == tick:
+        if k < ko:
+            return rd(ring, o[0], o[1], k), True  # the pipeline resumes with k's push
+        return 0, False
+    if k == 0:
+        return sva_cycle_of_tick(tick, 0, 0), True
+    if k - 1 < ko:
+        return sva_cycle_of_tick(tick, rd(ring, o[0], o[1], k - 1),
+                                 rd(ring, t[0], t[1], k - 1) + lat), True
+    return 0, False
+
+
+
+@njit(cache=True, inline="always")
+def cycle_of(ring, o, t, lat, ko, kt, tick):
+    """(cycle, ok, ring error): :func:`cycle_of_after` with the word found by search."""
+    k, err = exiting_from(ring, t, lat, kt, tick)
+    e, ok = cycle_of_after(ring, o, t, lat, ko, kt, tick, k)
+    return e, ok, err or (k > 0 and (k - 1 <= o[2] or k - 1 <= t[2]))
+
+
+
+@njit(cache=True, inline="always")
+def issued_before(ring, t, kt, tick):
+    """Words (of the ``kt`` whose issue ticks are known) issued at ticks below ``tick``."""
+    return first_at_least(ring, t[0], t[1], max(0, t[2] + 1), kt, tick)
+
+
+
+@njit(cache=True, inline="always")
+def words_between(ring, t, kt, lo_tick, hi_tick):
+    """Issued words (of the ``kt`` known) with issue tick in [lo_tick, hi_tick)."""
+    first = max(0, t[2] + 1)
+    a = first_at_least(ring, t[0], t[1], first, kt, lo_tick)
+    b = first_at_least(ring, t[0], t[1], a, kt, hi_tick)
+    return b - a
+
+
+
+# ---- the pops -----------------------------------------------------------------------------------
+
+
+@njit(cache=True, inline="always")
+def advance_sva_pops(net):
+    """The SVA's joint pops (the readable ``SvaBlock.evaluate``'s input), as far as both
+    descriptor streams and its row window (released as output rows are issued) allow."""
+    prm = net.prm[0]
+    ids = net.ids[0]
+    p_s, f_left, f_right = ids.sva_pop, ids.fifo_sva_left, ids.fifo_sva_right
+    state = net.state[0]
+    ring, streams = net.ring, net.streams
+    fl, fr = net.fifos[f_left], net.fifos[f_right]
+    l_off, l_mask, nl, l_lo = view(streams, fl.push)
+    r_off, r_mask, nr, r_lo = view(streams, fr.push)
+    p_off, p_mask, j, _ = view(streams, p_s)
+    n_issued = streams[ids.sva_issue].count
+    st = streams[p_s]
+    n, w, per, cap, la = st.n, prm.w, st.period, prm.cap_fs, prm.lookahead
+    l_src, l_dst, l_de = fl.per_src, fl.per_dst, fl.data_edges
+    r_src, r_dst, r_de = fr.per_src, fr.per_dst, fr.data_edges
+    l_rat, r_rat = ratio(l_src, l_dst), ratio(r_src, r_dst)
+    err = False
+    start = j
+    p_prev = rd(ring, p_off, p_mask, j - 1) if j > 0 else -1
+    window_row = -1
+    window = 0
+    empty_l = 0
+    empty_r = 0
+    occ = net.occ
+    occ_in, occ_out = ids.occ_sva_in, ids.occ_sva_out
+    known = min(n, nl, nr)
+    y = j // w
+    x = j - y * w
+    while j < known:
+        if y != window_row:
+            done = sva_rows_done_before_input(y, la)
+            if done > 0:
+                if done * w > n_issued:
+                    break
+                # the cycle after its last issue
+                window = occ[occ_out, (done - 1) & (occ.shape[1] - 1)] + 1
+            else:
+                window = 0
+            window_row = y
+        err |= j <= l_lo or j <= r_lo
+        vl = seen_from_scaled(rd(ring, l_off, l_mask, j), l_src, l_dst, l_rat, l_de)
+        vr = seen_from_scaled(rd(ring, r_off, r_mask, j), r_src, r_dst, r_rat, r_de)
+        p = max(p_prev + 1, vl, vr, window)
+        if p * per >= cap:
+            break
+        empty_l += max(0, vl - p_prev - 1)
+        empty_r += max(0, vr - p_prev - 1)
+        ring[p_off + (j & p_mask)] = p
+        if x == 0:
+            occ[occ_in, y & (occ.shape[1] - 1)] = p
+        p_prev = p
+        j += 1
+        x += 1
+        if x == w:
+            x = 0
+            y += 1
+    st.count = j
+    nb = len(net.blocks)
+    net.acc[nb + f_left].empty += empty_l
+    net.acc[nb + f_right].empty += empty_r
+    if err:
+        state.error = ERR_RING
+    return j > start
+
+
+
+# ---- the issues and the pushes (taken in turn with the sink's pops) ------------------------------
+
+
+@njit(cache=True, inline="always")
+def issues_begin(net):
+    """What :func:`issues` reads: the constants of its loop, the arrays it writes (taken from
+    the Net once, not per turn) and its cursor (issue ticks known,
+    the last one, the next word's row and column, the first issued word exiting at or after
+    the next issue's tick (-1: search), the row whose readiness is known, its ready cycle and
+    tick, a ring error)."""
+    prm = net.prm[0]
+    ids = net.ids[0]
+    streams = net.streams
+    p = view(streams, ids.sva_pop)
+    o_off, o_mask, _, _ = view(streams, ids.sva_push)
+    t_off, t_mask, kt, _ = view(streams, ids.sva_issue)
+    st = streams[ids.sva_issue]
+    k = (p, o_off, o_mask, t_off, t_mask, st.n, st.period,
+         (prm.w, prm.h, prm.cap_fs, prm.lookahead, prm.pipe_latency, prm.cpp))
+    arrays = (net.ring, net.occ[ids.occ_sva_out])
+    t_prev = rd(net.ring, t_off, t_mask, kt - 1) if kt > 0 else NEVER
+    yt = kt // prm.w
+    return k, arrays, (kt, t_prev, yt, kt - yt * prm.w, -1, -1, 0, 0, False, False)
+
+
+@njit(cache=True, inline="always")
+def issues(k, arrays, cur, ko):
+    """The next words issued, each once its row is ready and the pipeline reaches its tick
+    (``ko``: the pushes known). Returns (cursor, moved)."""
+    ring, issue_rows = arrays
+    p, o_off, o_mask, t_off, t_mask, n, per, consts = k
+    p_off, p_mask, npop, p_lo = p
+    w, h, cap, la, lat, cpp = consts
+    kt, t_prev, yt, xt, kx, ready_row, ready, ready_tick, ready_known, err = cur
+    o = (o_off, o_mask, ko - 1 - o_mask)
+    t = (t_off, t_mask, kt - 1 - t_mask)
+    moved = False
+    while kt < n:
+        if yt != ready_row:
+            ft = yt // h  # the frame of output row yt: its rows up to the look-ahead's
+            need = (ft * h + sva_last_input_row(yt - ft * h, la, h) + 1) * w
+            if need > npop:
+                break
+            err |= need - 1 <= p_lo
+            ready = rd(ring, p_off, p_mask, need - 1) + 1
+            ready_row = yt
+            ready_known = False
+        if xt == 0:
+            if not ready_known:
+                ready_tick, ok, bad = tick_at(ring, o, t, lat, ko, kt, ready)
+                err |= bad
+                if not ok:
+                    break
+                ready_known = True
+            tick = sva_issue_tick(ready_tick, t_prev, cpp)
+        else:  # the row was ready when its first word was issued: T(ready) <= t_prev
+            tick = sva_issue_tick(NEVER, t_prev, cpp)
+        # the first issued word exiting at or after the tick: it only moves forward
+        if kx < 0:
+            kx, bad = exiting_from(ring, t, lat, kt, tick)
+            err |= bad
+        while kx < kt and rd(ring, t_off, t_mask, kx) + lat < tick:
+            kx += 1
+        err |= kx > 0 and (kx - 1 <= o[2] or kx - 1 <= t[2])
+        e, ok = cycle_of_after(ring, o, t, lat, ko, kt, tick, kx)
+        if not ok or e * per >= cap:
+            break
+        ring[t_off + (kt & t_mask)] = tick
+        t_prev = tick
+        kt += 1
+        t = (t_off, t_mask, kt - 1 - t_mask)
+        moved = True
+        xt += 1
+        if xt == w:
+            issue_rows[yt & (issue_rows.shape[0] - 1)] = e
+            xt = 0
+            yt += 1
+    return (kt, t_prev, yt, xt, kx, ready_row, ready, ready_tick, ready_known, err), moved
+
+
+@njit(cache=True, inline="always")
+def issues_end(net, cur):
+    """Store what :func:`issues` did: the issue ticks known."""
+    net.streams[net.ids[0].sva_issue].count = cur[0]
+    if cur[9]:
+        net.state[0].error = ERR_RING
+
+
+@njit(cache=True, inline="always")
+def pushes_begin(net):
+    """What :func:`pushes` reads: the pushes' and the issues' rings, the sink's pops' ring, the
+    sink FIFO's depth, the clock period, the cap and the pipeline's latency."""
+    ids = net.ids[0]
+    streams = net.streams
+    o_off, o_mask, _, _ = view(streams, ids.sva_push)
+    q_off, q_mask, _, _ = view(streams, ids.sink_pop)
+    t_off, t_mask, _, _ = view(streams, ids.sva_issue)
+    return (o_off, o_mask, q_off, q_mask, t_off, t_mask, net.fifos[ids.fifo_sink].depth,
+            streams[ids.sva_push].period, net.prm[0].cap_fs, net.prm[0].pipe_latency)
+
+
+@njit(cache=True, inline="always")
+def pushes(k, ring, ko, kt, kq):
+    """The next words pushed, each an issued word (``kt`` known) at its arrival, once the slot
+    a FIFO depth back is free (``kq``: the sink's pops known). Returns (pushes known, moved)."""
+    o_off, o_mask, q_off, q_mask, t_off, t_mask, depth, per, cap, lat = k
+    o = (o_off, o_mask, ko - 1 - o_mask)
+    t = (t_off, t_mask, kt - 1 - t_mask)
+    moved = False
+    while ko < kt and ko - depth < kq:
+        free = rd(ring, q_off, q_mask, ko - depth) + 1 if ko >= depth else 0
+        out = max(arrival(ring, o, t, lat, ko), free)
+        if out * per >= cap:
+            break
+        ring[o_off + (ko & o_mask)] = out
+        ko += 1
+        o = (o_off, o_mask, ko - 1 - o_mask)
+        moved = True
+    return ko, moved
+
+
+
+# ---- statistics ---------------------------------------------------------------------------------
+
+
+@njit(cache=True)
+def walk_sva(net, final):
+    """Settle the SVA's activity for the words whose every event is known (``final``: the
+    streams have stopped; a pending word waits for its row, the pipeline, then a slot). Word j,
+    the next to leave, makes the block starved until its row is ready (unless a pair is popped),
+    busy until it reaches the output register (:func:`arrival`:
+    the pipeline is working or waiting out the II), then blocked -- the pipeline stalled --
+    until it is pushed. Gaps in its busy instants can only lie in a wait for a row or for a
+    slot. The stages' counts follow (:func:`_walk_stages`)."""
+    prm = net.prm[0]
+    state = net.state[0]
+    ring = net.ring
+    gaps = net.gaps
+    ids = net.ids[0]
+    blk, p_s = ids.block_sva, ids.sva_pop
+    a = net.acc[blk]
+    p_off, p_mask, npop, p_lo = view(net.streams, p_s)
+    p_pops = (p_off, p_mask, npop)
+    o_off, o_mask, no, o_lo = view(net.streams, ids.sva_push)
+    t_off, t_mask, kt, t_lo = view(net.streams, ids.sva_issue)
+    o, t = (o_off, o_mask, o_lo), (t_off, t_mask, t_lo)
+    n, w, h, la = net.streams[p_s].n, prm.w, prm.h, prm.lookahead
+    lat, g = prm.pipe_latency, prm.watchdog_fs
+    per = net.blocks[blk].period
+    j, ptr, prev = a.walk, a.ptr, a.prev
+    if j == 0:
+        prev = NEVER
+    last_busy, n_gaps = a.last_busy, a.gaps
+    # after the last pop known no other comes (every pop is in, or the streams have stopped)
+    known_until = INF if npop >= n or final else (rd(ring, p_off, p_mask, npop - 1) + 1
+                                                  if npop > 0 else 0)
+    # issues after the last one known come at ticks from t[kt - 1] + II on
+    next_tick = INF if kt >= n or final else (rd(ring, t_off, t_mask, kt - 1) + prm.cpp
+                                              if kt > 0 else 0)
+    err = (j < no and j <= o_lo) or (j < kt and j - 1 <= t_lo and j > 0)
+    starved = 0
+    blocked = 0
+    y = j // w
+    x = j - y * w
+    ready_row = -1
+    ready = INF
+    never = INF // per  # a cycle no run reaches (keeps instants in range)
+    while j < n:
+        if y != ready_row:
+            fr = y // h
+            need = (fr * h + sva_last_input_row(y - fr * h, la, h) + 1) * w
+            ready = rd(ring, p_off, p_mask, need - 1) + 1 if need <= npop else INF
+            ready_row = y
+        lo = max(prev + 1, 0)
+        arrive = arrival(ring, o, t, lat, j) if j < kt else never
+        if j >= no:
+            if final:
+                ptr, lost = catch_up(ring, p_off, p_mask, ptr, p_lo + 1, lo)
+                err |= lost
+                long = ready == INF or (ready - lo) * per > g
+                ptr, _, n_gaps, last_busy = pops_in(ring, p_pops, ptr, lo, ready, long, gaps,
+                                                     (blk, n_gaps, last_busy, per, g))
+                if ready < INF:
+                    if arrive > max(lo, ready):
+                        n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy,
+                                                  max(lo, ready) * per, (arrive - 1) * per, g)
+                    _, _, n_gaps, last_busy = pops_in(ring, p_pops, ptr, arrive, INF, True,
+                                                       gaps, (blk, n_gaps, last_busy, per, g))
+            break
+        out = rd(ring, o_off, o_mask, j)
+        if out > known_until:
+            break  # a pop before the push may still come
+        if out > arrive and next_tick < rd(ring, t_off, t_mask, j) + lat:
+            break  # a stall: the words in the stages then may not all be issued yet
+        if ready > lo:  # waiting for the word's row
+            ptr, lost = catch_up(ring, p_off, p_mask, ptr, p_lo + 1, lo)
+            err |= lost
+            long = (ready - lo) * per > g
+            ptr, cnt, n_gaps, last_busy = pops_in(ring, p_pops, ptr, lo, ready, long, gaps,
+                                                   (blk, n_gaps, last_busy, per, g))
+            starved += ready - lo - cnt
+            if arrive > ready:
+                n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy, ready * per,
+                                          (arrive - 1) * per, g)
+        elif arrive > lo:  # the pipeline works (or waits out the II), lo .. arrive - 1
+            if (arrive - lo) * per > g:
+                n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy, lo * per,
+                                          (arrive - 1) * per, g)
+            elif (arrive - 1) * per > last_busy:  # too short to hide a gap: just move on
+                last_busy = (arrive - 1) * per
+        if out > arrive:  # the pipeline stalled: the word waits for a free slot
+            ptr, lost = catch_up(ring, p_off, p_mask, ptr, p_lo + 1, arrive)
+            err |= lost
+            long = (out - arrive) * per > g
+            ptr, cnt, n_gaps, last_busy = pops_in(ring, p_pops, ptr, arrive, out, long, gaps,
+                                                   (blk, n_gaps, last_busy, per, g))
+            blocked += out - arrive - cnt
+            n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy, out * per, out * per, g)
+        err |= _walk_stages(prm, state, net.stages, ring, t, kt, j, out - arrive)
+        last_busy = out * per
+        prev = out
+        j += 1
+        x += 1
+        if x == w:
+            x = 0
+            y += 1
+    if j == state.target and a.walk < j:  # every word settled: when the last left each stage
+        for s in range(net.stages.shape[0]):
+            st = net.stages[s]
+            st.busy += state.sva_regular * min(st.lat, prm.cpp) + st.lat
+            tick = rd(ring, t_off, t_mask, j - 1) + st.off + st.lat
+            st.done, _, bad = cycle_of(ring, o, t, lat, no, kt, tick)
+            err |= bad
+    a.walk, a.ptr, a.prev = j, ptr, prev
+    a.starved += starved
+    a.blocked += blocked
+    a.last_busy, a.gaps = last_busy, n_gaps
+    if err:
+        state.error = ERR_RING
+    if n_gaps > gaps.shape[1]:
+        state.error = ERR_GAPS
+
+
+
+@njit(cache=True, inline="always")
+def _walk_stages(prm, state, stages, ring, t, kt, j, stall):
+    """Count word j into every stage: the ticks it adds to the stage's busy ones (up to the
+    next word's entry), the words the stage holds when j enters it (the most: its peak), and,
+    when the pipeline stalled ``stall`` cycles with j in the output register, those cycles as
+    blocked for every stage holding a word then. A word issued II ticks after the previous one
+    without a stall (most of them) is only counted (``state.sva_regular``: it adds min(l, II)
+    busy ticks to a stage of latency l, which holds at most ceil(l / II) words then); the
+    peaks are searched until a stage holds that many. Returns a ring error."""
+    err = False
+    t_off, t_mask, t_lo = t
+    tj = rd(ring, t_off, t_mask, j)
+    lat, ii = prm.pipe_latency, prm.cpp
+    gap = tj - rd(ring, t_off, t_mask, j - 1) if j > 0 else -1
+    if j > 0 and j - 1 <= t_lo:
+        err = True
+    regular = gap == ii and stall == 0
+    if regular:
+        state.sva_regular += 1
+        if state.sva_peaks_full == 1:
+            return err
+    full = 1
+    for s in range(stages.shape[0]):
+        st = stages[s]
+        if st.lat == 0:
+            continue
+        if not regular and j > 0:
+            st.busy += min(st.lat, gap)
+        most = (st.lat + ii - 1) // ii
+        if st.peak < most or not regular:
+            held = j + 1 - issued_before(ring, t, kt, tj - st.lat + 1)
+            if held > st.peak:
+                st.peak = held
+        if st.peak < most:
+            full = 0
+        if stall > 0:
+            x = tj + lat
+            if words_between(ring, t, kt, x - st.off - st.lat, x - st.off) > 0:
+                st.blocked += stall
+    state.sva_peaks_full = full
+    return err
+
+
+
+# ---- at an instant ------------------------------------------------------------------------------
+
+
+@njit(cache=True, inline="always")
+def _pipeline(streams, ids):
+    """(push ring, issue ring, issue ticks known) of the SVA: (offset, mask, lowest held
+    index) of its ``SVA_PUSH`` and ``SVA_ISSUE`` streams."""
+    so, st = streams[ids.sva_push], streams[ids.sva_issue]
+    return ((so.off, so.mask, so.count - 1 - so.mask), (st.off, st.mask, st.count - 1 - st.mask),
+            st.count)
+
+
+
+@njit(cache=True, inline="always")
+def _tick(ring, o, t, kt, lat, k, c):
+    """The SVA pipeline's tick at the start of cycle c, k words pushed before it."""
+    if k == 0:
+        last_push, last_exit = 0, 0
+    else:
+        last_push, last_exit = rd(ring, o[0], o[1], k - 1), rd(ring, t[0], t[1], k - 1) + lat
+    nxt = rd(ring, t[0], t[1], k) + lat if k < kt else INF
+    return sva_tick_at(c, last_push, last_exit, nxt)
+
+
+
+@njit(cache=True)
+def status_sva(ring, streams, cursors, prm, tables, b, c):
+    """(activity, FIFO waited on or -1) the SVA ``b`` (its record) reports in its cycle c."""
+    fifos, ids = tables[1], tables[3]
+    p_s, o_s = ids.sva_pop, ids.sva_push
+    n, w, h = prm.frames * prm.n, prm.w, prm.h
+    o, t, kt = _pipeline(streams, ids)
+    received, pop_at = lt_at(ring, streams[p_s], cursors[p_s], c)
+    emitted, push_at = lt_at(ring, streams[o_s], cursors[o_s], c)
+    issued = issued_before(ring, t, kt, _tick(ring, o, t, kt, prm.pipe_latency, emitted, c))
+    wait = -1
+    if received < n and not pop_at and issued // w >= sva_rows_done_before_input(
+            received // w, prm.lookahead):
+        for f in (b.fifo_in, b.fifo_in2):
+            fi = fifos[f]
+            e = event(ring, streams[fi.push], received)
+            if e == INF or seen_from(e, fi.per_src, fi.per_dst, fi.data_edges) > c:
+                wait = f
+                break
+    if pop_at or push_at:
+        return A_BUSY, -1
+    if emitted < n:
+        if emitted < kt and c >= arrival(ring, o, t, prm.pipe_latency, emitted):
+            return A_BLOCKED, b.fifo_out  # the pipeline stalls
+        y = emitted // w
+        fr = y // h
+        ready = event(ring, streams[p_s],
+                       (fr * h + sva_last_input_row(y - fr * h, prm.lookahead, h) + 1) * w - 1)
+        if ready != INF and ready + 1 <= c:
+            return A_BUSY, -1  # words in the pipeline, or a ready row waiting out the II
+        return A_STARVED, wait if wait >= 0 else b.fifo_in
+    return A_IDLE, -1
+
+
+
+@njit(cache=True)
+def sample_sva(ring, streams, cursors, prm, sva, data, c, out):
+    """The SVA's signals after its cycle c into out[0:11 + 2 S]; ``sva`` = (its ids, its
+    stages)."""
+    ids, stages = sva
+    w, h, n, lat = prm.w, prm.h, prm.frames * prm.n, prm.pipe_latency
+    o, t, kt = _pipeline(streams, ids)
+    received = cursors[ids.sva_pop]
+    emitted, push_at = lt_at(ring, streams[ids.sva_push], cursors[ids.sva_push], c)
+    tick = _tick(ring, o, t, kt, lat, emitted, c)  # during cycle c
+    stall = (not push_at and emitted < n and emitted < kt
+             and c >= arrival(ring, o, t, lat, emitted))
+    if push_at:
+        emitted += 1
+    after = _tick(ring, o, t, kt, lat, emitted, c + 1)  # after it
+    issued = issued_before(ring, t, kt, tick)
+    rows = received // w
+    out[0] = frame_row(rows, h, prm.frames)[1]
+    out[1] = received - rows * w
+    out[2] = rows_ready_in_frame(rows, h, prm.lookahead, prm.frames)
+    out[3] = frame_row(emitted // w, h, prm.frames)[1]
+    out[4] = emitted % w
+    out[5] = 1 if push_at else 0
+    word = 0
+    if emitted > 0:
+        fr = (emitted - 1) // prm.n
+        j = emitted - 1 - fr * prm.n
+        word = data.words[fr - data.frame0, j // w, j % w]
+    out[6] = word & data.word_mask
+    out[7] = 1 if push_at and word < 0 else 0
+    out[8] = 1 if not stall and issued < kt and rd(ring, t[0], t[1], issued) == tick else 0
+    out[9] = 1 if stall else 0
+    out[10] = issued_before(ring, t, kt, after) - emitted
+    last = rd(ring, t[0], t[1], n - 1) if issued == n else 0
+    for s in range(stages.shape[0]):
+        st = stages[s]
+        held = words_between(ring, t, kt, tick - st.off - st.lat, tick - st.off)
+        if held > 0:
+            code = 3 if stall else 1  # blocked, busy
+        elif issued == n and tick - last > st.off + st.lat:
+            code = 0  # idle
+        else:
+            code = 2  # starved
+        out[11 + 2 * s] = code
+        out[12 + 2 * s] = words_between(ring, t, kt, after - st.off - st.lat, after - st.off)
+
