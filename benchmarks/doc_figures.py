@@ -20,10 +20,12 @@ command its page names.
 from __future__ import annotations
 
 import argparse
+import ast
 import contextlib
 import difflib
 import functools
 import io
+import re
 import sys
 import tempfile
 import textwrap
@@ -189,7 +191,27 @@ def engines() -> list[str]:
             rows += ["  " + "   ".join(m.strip() for m in layer.split(":")), "        |"]
     if rows[-1].strip() == "|":
         rows.pop()
-    return ["```", *rows, "```"]
+    return ["```", *rows, "```", "", *twins()]
+
+
+TWIN = re.compile(r"twin (?:of|is) the readable kernel's\s+:(?:mod|class):`~?([\w.]+)`")
+
+
+def twins() -> list[str]:
+    """Each compiled module beside the readable module its docstring names as its twin."""
+    lines = ["| compiled engine | its readable twin | what the compiled module holds |",
+             "|---|---|---|"]
+    for path in sorted((ROOT / "sim" / "cycle" / "compiled").glob("*.py")):
+        doc = ast.get_docstring(ast.parse(path.read_text())) or ""
+        found = TWIN.search(" ".join(doc.split()))
+        if found is None:
+            continue
+        parts = found.group(1).removeprefix("sim.cycle.readable.").split(".")
+        cls = f": {parts.pop()}" if parts[-1][0].isupper() else ""
+        first = " ".join(doc.split("\n\n")[0].split())
+        lines.append(f"| `compiled/{path.name}` | `readable/{'/'.join(parts)}.py{cls}` | "
+                     f"{first.split(' (')[0].rstrip('.')} |")
+    return lines
 
 
 def beats() -> list[str]:
