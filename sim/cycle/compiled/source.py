@@ -183,16 +183,14 @@ def reader_first(net, k, side, a_prev, per, rat_cam):
 
 
 @njit(cache=True, inline="always")
-def memory_push(net, k, side, a_prev, free, per, rat_cam, bucket):
-    """(first, lo, a, DRAM wait, ok, ring error): the cycle ``a`` a memory source pushes pixel
-    k (the readable ``MemorySource.evaluate``): from ``first`` (:func:`reader_first`) and its
-    token bucket's cycle (``bucket`` = (memory clock Hz, bytes/s)), ``lo``, once every slot it
-    needs is free (``free``); not ok while its read burst is not known."""
-    first, wait, ok, bad = reader_first(net, k, side, a_prev, per, rat_cam)
-    if not ok:
-        return first, first, first, wait, False, bad
+def memory_push(k, first, free, bucket):
+    """(lo, a): the cycle ``a`` a memory source pushes pixel k (the readable
+    ``MemorySource.evaluate``): from ``first`` (:func:`reader_first`) and its token bucket's
+    cycle (``bucket`` = (memory clock Hz, bytes/s)), ``lo``, once every slot it needs is free
+    (``free``). (Scalars only: it runs per pixel, and an array or the Net handed to an inlined
+    function in a loop costs a reference count per call.)"""
     lo = max(first, memory_first_cycle(k, bucket[0], bucket[1]))
-    return first, lo, max(lo, free), wait, True, bad
+    return lo, max(lo, free)
 
 
 @njit(cache=True, inline="always")
@@ -287,6 +285,7 @@ def advance_source(net, side):
     y -= fno * h
     fb = prm.fb
     rat_cam = ratio(prm.per_cam, per) if fb > 0 else 1.0
+    reads = fb > 0 or prm.dram == 1
     starved = 0
     d_wait = 0
     while k < n:
@@ -308,12 +307,14 @@ def advance_source(net, side):
             if full_tile >= 0:
                 break
         else:
-            first, lo, a, wait, ok, bad = memory_push(net, k, side, a_prev, free, per, rat_cam,
-                                                      bucket)
-            err |= bad
-            if not ok:
-                break
-            d_wait += wait
+            first = a_prev + 1
+            if reads:  # frame buffers or the DRAM channel (the Net only on that path)
+                first, wait, ok, bad = reader_first(net, k, side, a_prev, per, rat_cam)
+                err |= bad
+                if not ok:
+                    break
+                d_wait += wait
+            lo, a = memory_push(k, first, free, bucket)
             if a * per >= cap:
                 break
             if stats == 1:
@@ -389,6 +390,7 @@ def whole_pushes(net, k, cur, kb):
     a_off, a_mask, b_off, b_mask, depth, se, p_src, p_nna, rat_back, n, blk, side, rat_cam = k
     ka, a_prev, xa, ya, fa, blocked, starved, d_wait, n_gaps, last_busy, err, over = cur
     w, h, cap, camera, fb = prm.w, prm.h, prm.cap_fs, prm.camera, prm.fb
+    reads = fb > 0 or prm.dram == 1
     line_clocks, frame_clocks, pairs = prm.line_clocks, prm.frame_clocks, prm.pairs
     stats, clock = prm.stats, (p_src, prm.watchdog_fs)
     bucket = (prm.mem_hz, prm.mem_bps)
@@ -412,12 +414,14 @@ def whole_pushes(net, k, cur, kb):
                 if decide_frame(net, fa, net.acc[blk], prm.cap_fs) != 1:
                     over = state.end == END_OVERFLOW
                     break
-            first, lo, a, wait, ok, bad = memory_push(net, ka, side, a_prev, free, p_src,
-                                                      rat_cam, bucket)
-            err |= bad
-            if not ok:
-                break
-            d_wait += wait
+            first = a_prev + 1
+            if reads:  # frame buffers or the DRAM channel (the Net only on that path)
+                first, wait, ok, bad = reader_first(net, ka, side, a_prev, p_src, rat_cam)
+                err |= bad
+                if not ok:
+                    break
+                d_wait += wait
+            lo, a = memory_push(ka, first, free, bucket)
             if a * p_src >= cap:
                 break
             if stats == 1:
