@@ -146,7 +146,7 @@ def _run(fn, *args, **kw):
 @settings(max_examples=320, deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 @given(configurations())
-def test_the_compiled_engine_equals_the_readable_kernel(case, network_file):
+def test_the_compiled_engine_equals_the_readable_kernel(network_file, case):
     """Either both runs stop with the same error (type, message, the state of every FIFO and
     block) or they give the same words, report, statistics, row instants and trace (the VCD of
     the window, and the words pushed in it)."""

@@ -1,22 +1,28 @@
-"""An NNA submodule (one tile of a camera) on the compiled engine: its line buffer's pops and its
-MAC array's pushes (twin of the readable kernel's :mod:`sim.cycle.readable.blocks.nna`:
+"""An NNA submodule (one tile of a camera) on the compiled engine: a pipeline of layers, each a
+line buffer and a MAC array (twin of the readable kernel's :mod:`sim.cycle.readable.blocks.nna`:
 :class:`~sim.cycle.readable.blocks.nna.LineBuffer`,
 :class:`~sim.cycle.readable.blocks.nna.MacArray`,
 :class:`~sim.cycle.readable.blocks.nna.NnaSubmodule`; the rules are :mod:`sim.cycle.rules`).
+One layer (and the census) is one stage: the same streams, loops and walker as ever.
 
-Streams, per tile:
+Streams, per tile (layer l of L, its record ``Net.layers``: regions, h_l, rows_l, cpp_l):
 
-- ``LINE_POP``: the line buffer pops input pixel i (row r of the tile's input region)
-  ``b[i] = max(b[i-1] + 1, vis(a[k]), room(r))``, ``room(r)`` the cycle after the MAC array
-  pushed the last descriptor of the output rows that must have started before row r
-  (:func:`~sim.cycle.rules.nna_rows_started_before_input`);
-- ``MAC_PUSH``: the MAC array pushes descriptor j (output row y) ``e[j] = max(s_j + cpd - 1,
-  free(p[j - depth]))``, started at ``s_j = max(e[j-1] + 1, b[last pixel of
-  nna_last_input_row(y)] + 1)`` (cpd the cycles per descriptor).
+- ``LINE_POP``: layer 0's line buffer pops input pixel i (row r of the tile's input region)
+  ``b[i] = max(b[i-1] + 1, vis(a[k]), room_0(r))``, ``room_l(r)`` the cycle after layer l's
+  MAC array let the last output of the output rows that must have started before row r leave
+  (:func:`~sim.cycle.rules.nna_rows_started_before_input`, :func:`line_room`);
+- ``LAYER_PUSH`` (l < L - 1) and ``MAC_PUSH`` (the last layer): layer l's output k (output row
+  y) starts at ``s_k = max(e[k-1] + 1, in_l[last item of nna_last_input_row(y, h_l)] + 1)``
+  (``in_l``: layer 0's pops, else layer l - 1's outputs), finishes at ``f_k = s_k + cpp_l - 1``
+  and leaves at ``e[k] = max(f_k, room_l+1(k // W_l))`` into the next layer's line buffer, or,
+  the last layer, ``max(f_k, free(p[k - depth]))`` into the tile's FIFO
+  (:func:`advance_layer`, layer after layer).
 
-Here also: the submodule's statistics (:func:`walk_nna`: the MAC array waits for input rows --
-starved -- and holds a finished descriptor -- blocked; a pop in such a cycle makes it busy), and
-what it reports at an instant (status, traced signals).
+Here also: the submodule's statistics -- one layer: :func:`walk_nna` (the MAC array waits for
+input rows -- starved -- and holds a finished descriptor -- blocked; a pop in such a cycle
+makes it busy); several: each layer's busy and blocked cycles counted by its loop and
+:func:`walk_layers` for the submodule --, and what it reports at an instant (status, traced
+signals, per layer).
 """
 
 from __future__ import annotations
