@@ -487,9 +487,9 @@ def walk_layers(net, ti, final):
             if not final:
                 front = min(front, e_last + 1)
             else:
-                s, f, ok = pending_start(ring, streams, lr, h, st.count)
-                if ok:
-                    end = max(end, f + 1)
+                s = layer_start(ring, streams, lr, h, st.count)  # works, then waits
+                if s < INF:
+                    end = max(end, s + lr.cpd)
     stop = min(front, end)
     c0 = a.walk
     chunk = 1 << 14
@@ -524,9 +524,9 @@ def walk_layers(net, ti, final):
                     break
                 k += 1
             if k == st.count and k < st.n and final:
-                s, f, ok = pending_start(ring, streams, lr, h, k)
-                if ok:
-                    mark(bm, c0, c1, s, f, 1)
+                s = layer_start(ring, streams, lr, h, k)
+                if s < INF:
+                    mark(bm, c0, c1, s, s + lr.cpd - 1, 1)
             lr.wk = k
         for i in range(c1 - c0):
             v = bm[i]
@@ -552,14 +552,6 @@ def walk_layers(net, ti, final):
         state.error = ERR_RING
     if n_gaps > gaps.shape[1]:
         state.error = ERR_GAPS
-
-
-@njit(cache=True, inline="always")
-def pending_start(ring, streams, lr, h, k):
-    """(start, finish, known) of layer ``lr``'s output k that has not left: known once the
-    previous one has left and its input rows are in."""
-    s = layer_start(ring, streams, lr, h, k)
-    return s, s + lr.cpd - 1, s < INF
 
 
 # ---- at an instant ------------------------------------------------------------------------------
@@ -617,10 +609,12 @@ def status_nna(ring, streams, cursors, prm, tl, layers, c):
 
 
 @njit(cache=True)
-def sample_nna(ring, streams, cursors, prm, tl, layers, data, c, out):
+def sample_nna(ring, streams, cursors, prm, tile, data, c, out):
     """The NNA's signals after its cycle c into ``out`` (per layer, its status with several
     layers, line_buffer.row_in, line_buffer.fill, mac.phase, mac.row, mac.col; then out.valid,
-    out.descriptor); ``data``: the traced frames' descriptors."""
+    out.descriptor); ``tile`` = (its record, the layers' records), ``data``: the traced frames'
+    descriptors."""
+    tl, layers = tile
     k = 0
     push_at = False
     emitted = 0

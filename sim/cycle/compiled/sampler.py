@@ -35,10 +35,11 @@ from stereosim.sim.cycle.compiled.sva import sample_sva, status_sva
 
 
 @njit(cache=True)
-def _block_status(ring, streams, cursors, prm, state, tables, layers, b, c):
+def _block_status(events, prm, state, tables, layers, b, c):
     """(activity, FIFO waited on or a code of :mod:`.source`, or -1) that block ``b`` (its
-    record) reports in its cycle c; ``tables`` = (tiles, FIFOs, frame instants, ids),
-    ``layers`` the NNA tiles' layers."""
+    record) reports in its cycle c; ``events`` = (ring, streams, cursors), ``tables`` =
+    (tiles, FIFOs, frame instants, ids), ``layers`` the NNA tiles' layers."""
+    ring, streams, cursors = events
     kind = b.kind
     if kind == K_MEMORY:
         return status_memory(ring, streams, cursors, prm, state, tables, b, c)
@@ -58,7 +59,7 @@ def _block_status(ring, streams, cursors, prm, state, tables, layers, b, c):
 def block_status(net, blk, c):
     """(activity, FIFO waited on or -1) that block ``blk`` reports in its cycle c (after
     :func:`.ring.cursors_at` for the instant)."""
-    return _block_status(net.ring, net.streams, net.cursors, net.prm[0], net.state[0],
+    return _block_status((net.ring, net.streams, net.cursors), net.prm[0], net.state[0],
                          (net.tiles, net.fifos, net.frame_fs, net.ids[0]), net.layers,
                          net.blocks[blk], c)
 
@@ -98,15 +99,15 @@ def sample(net, data, t, out, done):
             k += m + 1
             continue
         done[blk, 0] = c
-        st, _ = _block_status(ring, streams, cursors, prm, net.state[0], tables, net.layers, b,
-                              c)
+        st, _ = _block_status((ring, streams, cursors), prm, net.state[0], tables, net.layers,
+                              b, c)
         out[k] = (st + 1) % 4  # idle 0, busy 1, starved 2, blocked 3
         k += 1
         if b.kind == K_MEMORY or b.kind == K_CAMERA:
             out[k] = sample_source(prm, cursors, b, c)
         elif b.kind == K_NNA:
-            sample_nna(ring, streams, cursors, prm, tiles[b.side * prm.parts + b.tile],
-                       net.layers, data, c, out[k:k + m])
+            sample_nna(ring, streams, cursors, prm, (tiles[b.side * prm.parts + b.tile],
+                                                     net.layers), data, c, out[k:k + m])
         elif b.kind == K_MERGE:
             sample_merge(ring, streams, cursors, fifos, b, c, out[k:k + m])
         elif b.kind == K_SVA:
