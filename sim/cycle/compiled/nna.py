@@ -228,35 +228,27 @@ def whole_pops_end(net, k, cur):
 # ---- the MAC arrays' outputs --------------------------------------------------------------------
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def advance_layer(net, ti, li):
-    """Outputs of layer ``li`` (its record) of tile ``ti``, as far as its input rows and the
-    room after it allow: the last layer's pushes into the tile's FIFO (free slots), a layer
-    before it writing into the next layer's line buffer (:func:`line_room` of that layer)."""
+    """Outputs of layer ``li`` (its record) of tile ``ti``, a layer before the last, as far as
+    its input rows and the room in the next layer's line buffer (:func:`line_room` of that
+    layer) allow: each written into that line buffer."""
     prm = net.prm[0]
     state = net.state[0]
     ring, streams = net.ring, net.streams
-    tl = net.tiles[ti]
     lr = net.layers[li]
     b_off, b_mask, nb, b_lo = view(streams, lr.in_stream)
     e_off, e_mask, j, _ = view(streams, lr.out_stream)
     st = streams[lr.out_stream]
-    last = lr.last == 1
-    f = net.fifos[tl.out_fifo]
-    p_off, p_mask, npop, p_lo = view(streams, f.pop)
-    depth, per_src, per_dst, se = f.depth, f.per_src, f.per_dst, f.space_edges
-    rat = ratio(per_dst, per_src)
-    per, cap, w, h, n = st.period, prm.cap_fs, prm.w, prm.h, prm.n
+    per, cap, h = st.period, prm.cap_fs, prm.h
     cpd, half = lr.cpd, lr.half
-    ow, iw, y0, x0, iy0, n_out, n_in = lr.ow, lr.iw, lr.y0, lr.x0, lr.iy0, lr.n_out, lr.n_in
+    ow, iw, y0, iy0, n_in = lr.ow, lr.iw, lr.y0, lr.iy0, lr.n_in
     out_rows = lr.y1 - lr.y0
-    merge = prm.merge == 1
-    # the next layer (a layer before the last): its outputs make room in its line buffer
-    nx = net.layers[li + 1 if not last else li]
+    nx = net.layers[li + 1]  # its outputs make room in its line buffer
     nxt = view(streams, nx.out_stream)
     geometry = (nx.rows, nx.half, nx.top_halo, nx.y1 - nx.y0, out_rows, nx.ow)
-    occ_next = nx.occ_in
-    busy_n, blocked_n = 0, 0
+    occ = net.occ
+    occ_in, occ_out, occ_mask = nx.occ_in, lr.occ_out, occ.shape[1] - 1
     err = False
     start = j
     e_prev = rd(ring, e_off, e_mask, j - 1) if j > 0 else -1
@@ -274,14 +266,76 @@ def advance_layer(net, ti, li):
                 break
             err |= need - 1 <= b_lo
             rows_in = rd(ring, b_off, b_mask, need - 1) + 1
-            if not last:  # the row it writes into the next layer's line buffer
-                room, ok, bad = line_room(ring, nxt, r, geometry)
-                if not ok:
-                    break
-                err |= bad
+            room, ok, bad = line_room(ring, nxt, r, geometry)  # the row it writes
+            if not ok:
+                break
+            err |= bad
             rows_row = r
-        free = room
-        if last and j >= depth:
+        done = max(e_prev + 1, rows_in) + cpd - 1
+        e = max(done, room)
+        if e * per >= cap:
+            break
+        ring[e_off + (j & e_mask)] = e
+        if c == 0:  # the next layer's input row starts to enter
+            occ[occ_in, r & occ_mask] = e
+        e_prev = e
+        j += 1
+        c += 1
+        if c == ow:
+            occ[occ_out, r & occ_mask] = e
+            c = 0
+            r += 1
+            rl += 1
+            if rl == out_rows:
+                rl = 0
+                fr += 1
+    st.count = j
+    if err:
+        state.error = ERR_RING
+    return j > start
+
+
+@njit(cache=True, inline="always")
+def advance_last_layer(net, ti, li):
+    """Pushes of tile ``ti``'s last layer (record ``li``) into its FIFO, as far as its input
+    rows and the free slots allow."""
+    prm = net.prm[0]
+    state = net.state[0]
+    ring, streams = net.ring, net.streams
+    tl = net.tiles[ti]
+    lr = net.layers[li]
+    b_off, b_mask, nb, b_lo = view(streams, lr.in_stream)
+    e_off, e_mask, j, _ = view(streams, tl.mac_push)
+    st = streams[tl.mac_push]
+    f = net.fifos[tl.out_fifo]
+    p_off, p_mask, npop, p_lo = view(streams, f.pop)
+    depth, per_src, per_dst, se = f.depth, f.per_src, f.per_dst, f.space_edges
+    rat = ratio(per_dst, per_src)
+    per, cap, w, cpd, half, h = st.period, prm.cap_fs, prm.w, lr.cpd, lr.half, prm.h
+    ow, iw, y0, x0, iy0, n_out, n_in = tl.ow, tl.iw, tl.y0, tl.x0, tl.iy0, tl.n_out, tl.n_in
+    if li != tl.layer0:  # a layer after the first: its input region is the layer before's
+        iw, iy0, n_in = lr.iw, lr.iy0, lr.n_in
+    out_rows, n = tl.y1 - tl.y0, prm.n
+    merge = prm.merge == 1
+    err = False
+    start = j
+    e_prev = rd(ring, e_off, e_mask, j - 1) if j > 0 else -1
+    rows_row = -1
+    rows_in = 0
+    r = j // ow  # the tile's output row over the stream: row rl of frame fr
+    c = j - r * ow
+    fr = r // out_rows
+    rl = r - fr * out_rows
+    while j < st.n:
+        if r != rows_row:
+            need = fr * n_in + (nna_last_input_row(y0 + rl, half, h) - iy0 + 1) * iw
+            if need > nb:
+                break
+            err |= need - 1 <= b_lo
+            rows_in = rd(ring, b_off, b_mask, need - 1) + 1
+            rows_row = r
+        free = 0
+        if j >= depth:
             jj = j - depth
             if merge:  # its raster index in the merge
                 fj = jj // n_out
@@ -293,22 +347,15 @@ def advance_layer(net, ti, li):
             err |= jj <= p_lo
             free = seen_from_scaled(rd(ring, p_off, p_mask, jj), per_dst, per_src, rat, se)
         s_j = max(e_prev + 1, rows_in)
-        done = s_j + cpd - 1
-        e = max(done, free)
+        e = max(s_j + cpd - 1, free)
         if e * per >= cap:
             break
         ring[e_off + (j & e_mask)] = e
-        busy_n += cpd + (1 if e > done else 0)
-        blocked_n += max(0, e - done - 1)
-        if j == 0:
-            lr.first = e
-        if not last and c == 0:  # the next layer's input row starts to enter
-            net.occ[occ_next, r & (net.occ.shape[1] - 1)] = e
         e_prev = e
         j += 1
         c += 1
         if c == ow:
-            net.occ[lr.occ_out, r & (net.occ.shape[1] - 1)] = e
+            net.occ[tl.occ_out, r & (net.occ.shape[1] - 1)] = e
             c = 0
             r += 1
             rl += 1
@@ -316,8 +363,6 @@ def advance_layer(net, ti, li):
                 rl = 0
                 fr += 1
     st.count = j
-    lr.busy += busy_n
-    lr.blocked += blocked_n
     if err:
         state.error = ERR_RING
     return j > start
@@ -325,12 +370,15 @@ def advance_layer(net, ti, li):
 
 @njit(cache=True, inline="always")
 def advance_mac_pushes(net, ti):
-    """The MAC arrays' outputs of tile ``ti``, layer after layer (:func:`advance_layer`)."""
+    """The MAC arrays' outputs of tile ``ti``, layer after layer: the layers before the last
+    into the next one's line buffer (:func:`advance_layer`), the last into the tile's FIFO
+    (:func:`advance_last_layer`)."""
     tl = net.tiles[ti]
+    last = tl.layer0 + tl.n_layers - 1
     moved = False
-    for li in range(tl.layer0, tl.layer0 + tl.n_layers):
+    for li in range(tl.layer0, last):
         moved |= advance_layer(net, ti, li)
-    return moved
+    return advance_last_layer(net, ti, last) | moved
 
 
 # ---- statistics ---------------------------------------------------------------------------------
@@ -522,6 +570,11 @@ def walk_layers(net, ti, final):
                     mark(bm, c0, c1, f + 1, e - 1, 2)
                 if e >= c1:
                     break
+                # the layer's own activity: busy over [s, f] and at e, blocked over (f, e)
+                lr.busy += lr.cpd + (1 if e > f else 0)
+                lr.blocked += max(0, e - f - 1)
+                if k == 0:
+                    lr.first = e
                 k += 1
             if k == st.count and k < st.n and final:
                 s = layer_start(ring, streams, lr, h, k)
