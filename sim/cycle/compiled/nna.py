@@ -16,13 +16,13 @@ Streams, per tile (layer l of L, its record ``Net.layers``: regions, h_l, rows_l
   (``in_l``: layer 0's pops, else layer l - 1's outputs), finishes at ``f_k = s_k + cpp_l - 1``
   and leaves at ``e[k] = max(f_k, room_l+1(k // W_l))`` into the next layer's line buffer, or,
   the last layer, ``max(f_k, free(p[k - depth]))`` into the tile's FIFO
-  (:func:`advance_layer`, layer after layer).
+  (:func:`advance_layer` for the layers before the last, :func:`advance_last_layer`, layer
+  after layer).
 
 Here also: the submodule's statistics -- one layer: :func:`walk_nna` (the MAC array waits for
 input rows -- starved -- and holds a finished descriptor -- blocked; a pop in such a cycle
-makes it busy); several: each layer's busy and blocked cycles counted by its loop and
-:func:`walk_layers` for the submodule --, and what it reports at an instant (status, traced
-signals, per layer).
+makes it busy); several: :func:`walk_layers`, for each layer and the submodule --, and what it
+reports at an instant (status, traced signals, per layer).
 """
 
 from __future__ import annotations
