@@ -8,11 +8,14 @@ timed in this process right after each stereosim frame (the two alternate, so a 
 machine's load shows in both).
 
     python benchmarks/speed_cycle.py [--repeat 3] [--engine fast|readable] [--split]
+                                     [--set KEY=VALUE ...]
 
 ``--engine readable`` is the reference kernel (about 1e5 cycles/s: minutes per frame); ``--engine
 fast`` or the default is the compiled engine (sim/cycle/engine). ``--split`` runs one more frame
 in the child and prints where its CPU time goes: the compiled engine's event streams and
 statistics, and the data kernels (the NNA's descriptors, the SVA's stream and median).
+``--set`` changes the configuration, e.g. ``--set nna.cnn.weights=benchmarks/models/mccnn4.int8.npz
+--set nna.cnn.channels=32`` for a network of four layers (docs/performance.md).
 """
 
 from __future__ import annotations
@@ -29,6 +32,7 @@ import cv2
 
 from stereosim.sim.api import run
 from stereosim.sim.config import load_config
+from stereosim.sim.config.loader import parse_set_options
 from stereosim.sim.cycle.compiled.run import run_compiled
 from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.datasets import default_scene
@@ -55,10 +59,11 @@ def _split_frame(left, right, over) -> dict:
     return acc
 
 
-def one_frame_child(engine: str, split: bool) -> None:
+def one_frame_child(engine: str, split: bool, sets: list[str]) -> None:
     """Run one frame and print the wall time, cycles and peak RSS (MiB) as JSON."""
     left, right = frame()
     over = dict(CONFIG, **({"sim.engine": engine} if engine else {}))
+    over.update(parse_set_options(sets))
     run(left[:48, :256], right[:48, :256], mode="cycle",
         overrides=dict(over, **{"sva.disparities": 64}))
     t0 = time.perf_counter()
@@ -80,10 +85,12 @@ def main(argv=None):
     ap.add_argument("--engine", default="", help="sim.engine override (default: the config's)")
     ap.add_argument("--split", action="store_true",
                     help="also print the CPU split: event loop vs data kernels")
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                    help="a configuration override (repeatable)")
     ap.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.child:
-        one_frame_child(args.engine, args.split)
+        one_frame_child(args.engine, args.split, args.set)
         return
     left, right = frame()
     cv2.setNumThreads(1)
@@ -95,7 +102,8 @@ def main(argv=None):
     runs, cv_times = [], []
     for _ in range(args.repeat):
         out = subprocess.run([sys.executable, __file__, "--child", "--engine", args.engine]
-                             + (["--split"] if args.split else []),
+                             + (["--split"] if args.split else [])
+                             + [f"--set={item}" for item in args.set],
                              capture_output=True, text=True, check=True, env=env)
         runs.append(json.loads(out.stdout.strip().splitlines()[-1]))
         t0 = time.perf_counter()

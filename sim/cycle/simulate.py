@@ -6,10 +6,9 @@ decides which engine runs.
   runs, traces and runs that stop, with the readable kernel's words, report, statistics,
   traces and messages;
 - ``auto`` (the default): the compiled engine, unless the run asks for what only the readable
-  kernel does -- a shuffled evaluation order, a sink stall given as a Python function rather
-  than a periodic pattern, or an NNA network of more than one layer (the compiled engine times
-  the NNA as one stage; the readable kernel as a pipeline of layer stages); then the readable
-  kernel, and the report's ``engine_reason`` says why. ``fast`` refuses such a run with one
+  kernel does -- a shuffled evaluation order, or a sink stall given as a Python function rather
+  than a periodic pattern; then the readable kernel, and the report's ``engine_reason`` says
+  why. ``fast`` refuses such a run with one
   line.
 
 The first frame after an install or an edit compiles the numba kernels it uses; one line on
@@ -32,10 +31,6 @@ ENGINES = ("auto", "fast", "readable")
 
 
 def _needs_readable(plan: ChipPlan, sink_stall, order_seed) -> str | None:
-    layers = len(plan.blocks_of("nna")[0].layers)
-    if layers > 1:
-        return (f"an NNA network of {layers} layers runs on the readable kernel (the compiled "
-                "engine does not time the layer pipeline yet)")
     if order_seed is not None:
         return "a shuffled evaluation order (order_seed) runs on the readable kernel"
     if callable(sink_stall):

@@ -31,7 +31,9 @@ def _pair(h, w, seed=0, shift=3):
 @st.composite
 def configurations(draw):
     """A small frame and a configuration drawn over every timing parameter of the chip: sizes,
-    D, paths, LR check, median, every FIFO depth (1 included), latency and synchroniser,
+    D, paths, LR check, median, the NNA's descriptor (census, the shipped CNN or a random
+    network of 1 to 4 layers of 1x1, 3x3 or 5x5 kernels and 1 to 8 channels, with MAC shares
+    given or split), every FIFO depth (1 included), latency and synchroniser,
     clocks, memory or camera sources with blanking, frames split over two or three submodules
     per camera (column tiles or row bands), periodic sink stalls and watchdogs that fire,
     streams of one to three frames, camera pairs sharing the chip, reads and write-back through
@@ -61,6 +63,23 @@ def configurations(draw):
         "nna.line_buffer_rows": draw(st.integers(9 if descriptor == "cnn" else 3, 11)),
         "nna.macs": draw(st.sampled_from([288, 500, 2592])),
     }
+    net = None
+    if descriptor == "cnn" and draw(st.booleans()):  # a network of 1 to 4 layers
+        shapes, c_in = [], 1
+        for _ in range(draw(st.integers(1, 4))):
+            shapes.append((draw(st.sampled_from([1, 3, 5])), c_in, draw(st.integers(1, 8))))
+            c_in = shapes[-1][2]
+        net = (tuple(shapes), draw(st.integers(0, 3)))
+        macs = [k * k * ci * co for k, ci, co in shapes]
+        over["nna.cnn.channels"] = c_in
+        over["nna.line_buffer_rows"] = draw(st.integers(max(3, shapes[0][0]), shapes[0][0] + 2))
+        if draw(st.booleans()):  # MAC shares given (a few to a dozen cycles an output)
+            over["nna.layer_macs"] = [draw(st.integers(max(1, m // 12), min(m, 600)))
+                                      for m in macs]
+            over["nna.macs"] = sum(over["nna.layer_macs"]) + draw(st.integers(0, 5))
+        else:  # nna.macs split in proportion
+            over["nna.macs"] = draw(st.integers(max(len(macs), min(2592, sum(macs) // 10)),
+                                                min(2592, max(len(macs), sum(macs)))))
     parts = draw(st.sampled_from([1, 1, 2, 3]))
     if parts > 1:
         split = draw(st.sampled_from(["columns", "rows"]))
@@ -114,7 +133,7 @@ def configurations(draw):
     p_sva = round(1e15 / (over["clocks.sva_mhz"] * 1e6))
     start = draw(st.integers(0, 1500 * frames)) * p_sva
     window = (start, start + draw(st.integers(1, 3000)) * p_sva)
-    return h, w, over, stall, draw(st.integers(0, 99)), window, frames
+    return h, w, over, stall, draw(st.integers(0, 99)), window, frames, net
 
 
 def _run(fn, *args, **kw):
@@ -127,11 +146,13 @@ def _run(fn, *args, **kw):
 @settings(max_examples=320, deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 @given(configurations())
-def test_the_compiled_engine_equals_the_readable_kernel(case):
+def test_the_compiled_engine_equals_the_readable_kernel(network_file, case):
     """Either both runs stop with the same error (type, message, the state of every FIFO and
     block) or they give the same words, report, statistics, row instants and trace (the VCD of
     the window, and the words pushed in it)."""
-    h, w, over, stall, seed, window, frames = case
+    h, w, over, stall, seed, window, frames, net = case
+    if net is not None:  # a random network of layers, written as a quantised artifact
+        over = {**over, "nna.cnn.weights": network_file(*net)[0]}
     pairs = [_pair(h, w, seed=seed + f) for f in range(frames)]
     left, right = np.stack([p[0] for p in pairs]), np.stack([p[1] for p in pairs])
     if frames == 1:

@@ -35,15 +35,20 @@ from stereosim.nna.geometry import (
     mac_shares,
     split_frame,
 )
-from stereosim.quant.artifact import QuantizedModel, save_quantized
-from stereosim.quant.intconv import int_forward_ref, int_layer_rows, network, signs_ref
+from stereosim.quant.intconv import int_forward_ref, int_layer_rows, signs_ref
 from stereosim.sim.api import run
 from stereosim.sim.config import load_config
 from stereosim.sim.cycle.buffers import BufferOverflow
+from stereosim.sim.cycle.compiled.layout import INF
+from stereosim.sim.cycle.compiled.run import _last as compiled_last
+from stereosim.sim.cycle.compiled.run import _pass as compiled_pass
+from stereosim.sim.cycle.compiled.run import run_compiled
+from stereosim.sim.cycle.contract import BudgetExceeded
 from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.cycle.readable.chip import build_chip, run_readable
 from stereosim.sim.cycle.simulate import simulate
 from stereosim.sim.errors import ConfigError
+from stereosim.traces.vcd import vcd_bytes
 
 MODELS = Path(__file__).resolve().parents[2] / "benchmarks" / "models"
 # equal clocks, a 16-disparity SVA (II 2) and 64 MACs: the NNA, at 3 or more cycles a
@@ -52,32 +57,7 @@ BASE = {"nna.descriptor": "cnn", "sva.disparities": 16, "clocks.sva_mhz": 460.0,
         "nna.macs": 64}
 
 
-def _random_network(shapes, seed):
-    """A checked network of layers (K, C_in, C_out) with weights and requantisation that keep
-    the activations spread over 0..127."""
-    rng = np.random.default_rng(seed)
-    weights, biases, mult, shift = [], [], [], []
-    for i, (k, c_in, c_out) in enumerate(shapes):
-        weights.append(rng.integers(-20, 21, (c_out, c_in, k, k)).astype(np.int8))
-        biases.append(rng.integers(-500, 500, c_out).astype(np.int32))
-        if i < len(shapes) - 1:
-            mult.append(rng.integers(1, 256, c_out).astype(np.int32))
-            shift.append(np.full(c_out, 10 + (i > 0) * 2, np.int32))
-    return network(tuple(weights), tuple(biases), tuple(mult), tuple(shift), 128)
-
-
-def _artifact(path, net):
-    """Write ``net`` as a quantised artifact (the scales are placeholders: the NNA reads only
-    the integer network)."""
-    n = net.n_layers
-    save_quantized(path, QuantizedModel(
-        weights=net.weights, biases=net.biases, mult=net.mult, shift=net.shift,
-        input_offset=net.input_offset, input_scale=1.0, z_bits=net.z_bits,
-        weight_scales=tuple(np.ones(w.shape[0]) for w in net.weights),
-        act_scales=np.ones(n), distances=("rms",) * n, sign_agreement=1.0, acc_rms=0.0))
-    return str(path)
-
-
+ENGINES = ["readable", "fast"]
 NETS = {
     "one5x5": ((5, 1, 8),),
     "two3x3": ((3, 1, 4), (3, 4, 8)),
@@ -87,14 +67,9 @@ NETS = {
 
 
 @pytest.fixture(scope="module")
-def weights(tmp_path_factory):
+def weights(network_file):
     """name -> (artifact path, network) of the random networks of NETS."""
-    root = tmp_path_factory.mktemp("nets")
-    out = {}
-    for i, (name, shapes) in enumerate(NETS.items()):
-        net = _random_network(shapes, seed=i)
-        out[name] = (_artifact(root / f"{name}.int8.npz", net), net)
-    return out
+    return {name: network_file(shapes, seed=i) for i, (name, shapes) in enumerate(NETS.items())}
 
 
 def _cfg(path, **over):
@@ -231,28 +206,47 @@ CHAINS = [
 ]
 
 
+def _layer_outputs(plan, engine, left, right):
+    """Per NNA submodule, per layer: the cycles its first and last output left, on ``engine``
+    (the compiled engine reports them with several layers; with one, its MAC array's first
+    and last push are read off its event stream)."""
+    subs = plan.blocks_of("nna")
+    if engine == "readable":
+        chip = build_chip(left, right, plan)
+        chip.run()
+        return {e.name: [(s["first_output_cycle"], s["last_output_cycle"])
+                         for s in chip.blocks[e.name].layer_stats()] for e in subs}
+    if len(subs[0].layers) > 1:
+        stats = run_compiled(plan, left, right).stats["nna_layers"]
+        return {name: [(s["first_output_cycle"], s["last_output_cycle"]) for s in layers]
+                for name, layers in stats.items()}
+    net, names = compiled_pass(plan, None, INF, False)
+    out = {}
+    for e in subs:
+        s = names["mac_push"][e.side, plan.tiles.index(e.tile) if plan.parts > 1 else 0]
+        out[e.name] = [(int(net.ring[net.streams[s]["off"]]), compiled_last(net, s))]
+    return out
+
+
+@pytest.mark.parametrize("engine", ENGINES)
 @pytest.mark.parametrize("split", [1, 2])
 @pytest.mark.parametrize("name,over", CHAINS)
-def test_first_and_last_descriptor_in_exact_cycles(weights, name, over, split):
+def test_first_and_last_descriptor_in_exact_cycles(weights, name, over, split, engine):
     path, _ = weights[name]
     h, w = 11, 40
     plan = build_plan(_cfg(path, **{"nna.stereo_submodules": 2 * split, **over}), (h, w))
-    left, right = _pair(h, w)
-    chip = build_chip(left, right, plan)
-    chip.run()
+    outputs = _layer_outputs(plan, engine, *_pair(h, w))
     for entry in plan.blocks_of("nna"):
-        stats = chip.blocks[entry.name].layer_stats()[-1]
-        got = (stats["first_output_cycle"], stats["last_output_cycle"])
-        assert got == _expected(plan, entry.name), entry.name
+        assert outputs[entry.name][-1] == _expected(plan, entry.name), entry.name
     if split == 1 and len(plan.block("nna_left").layers) > 1:
         # the receptive field decides the first descriptor: 2 reach + 1 rows, whatever the
         # layers (here: the first descriptor needs input row `reach`)
         lay0 = plan.block("nna_left").layers[0]
-        assert chip.blocks["nna_left"].layer_stats()[0]["first_output_cycle"] == (
-            (lay0.half + 1) * w + lay0.cycles)
+        assert outputs["nna_left"][0][0] == (lay0.half + 1) * w + lay0.cycles
 
 
-def test_the_first_descriptor_waits_for_the_receptive_field_not_the_layers(weights):
+@pytest.mark.parametrize("engine", ENGINES)
+def test_the_first_descriptor_waits_for_the_receptive_field_not_the_layers(weights, engine):
     """Four 3x3 layers and one 9x9 read the same 9 rows: with one cycle a layer's output (the
     1044 MACs of the four layers, each its own m_l), the first descriptor leaves after row 4 is
     in plus one row of each of layers 0..2 and the last layer's cycle."""
@@ -260,9 +254,7 @@ def test_the_first_descriptor_waits_for_the_receptive_field_not_the_layers(weigh
     h, w = 12, 40
     plan = build_plan(_cfg(path, **{"nna.macs": 1044}), (h, w))
     assert [lay.cycles for lay in plan.block("nna_left").layers] == [1, 1, 1, 1]
-    chip = build_chip(*_pair(h, w), plan)
-    chip.run()
-    first = chip.blocks["nna_left"].layer_stats()[-1]["first_output_cycle"]
+    first = _layer_outputs(plan, engine, *_pair(h, w))["nna_left"][-1][0]
     # input row 4 (the receptive field's last) is complete in 5W; then layers 0..2 each
     # finish one more row of W cycles (the row the next layer's first row reads below it)
     assert first == _expected(plan, "nna_left")[0] == 5 * w + 3 * w + 1
@@ -283,7 +275,7 @@ def test_random_networks_cycle_equals_functional(weights, name, over):
     cycle = run(left, right, mode="cycle", config=cfg)
     functional = run(left, right, mode="functional", config=cfg)
     assert_array_equal(cycle.disparity_fixed, functional.disparity_fixed)
-    assert cycle.report["engine"] == "readable"
+    assert cycle.report["engine"] == "fast"
 
 
 @pytest.mark.parametrize("name", ["mccnn4", "mccnn4-slim"])
@@ -309,16 +301,56 @@ def test_shipped_networks_descriptors_leave_the_chip_bit_exact(name):
 # ---- engines ------------------------------------------------------------------------------------
 
 
-def test_engines_auto_runs_layers_on_the_readable_kernel_and_fast_refuses(weights):
+def test_engines_auto_and_fast_run_layers_on_the_compiled_engine(weights):
     path, _ = weights["two3x3"]
-    plan = build_plan(_cfg(path), (9, 24))
     left, right = _pair(9, 24)
-    result = simulate(plan, left, right)
-    assert result.report["engine"] == "readable"
-    assert "an NNA network of 2 layers" in result.report["engine_reason"]
-    fast = build_plan(_cfg(path, **{"sim.engine": "fast"}), (9, 24))
-    with pytest.raises(ConfigError, match=r"^sim.engine=fast: an NNA network of 2 layers"):
-        simulate(fast, left, right)
+    for engine in ("auto", "fast"):
+        result = simulate(build_plan(_cfg(path, **{"sim.engine": engine}), (9, 24)), left, right)
+        assert result.report["engine"] == "fast" and "engine_reason" not in result.report
+
+
+SHIPPED = [{}, {"nna.stereo_submodules": 4}, {"nna.stereo_submodules": 4, "nna.split": "rows"}]
+
+
+@pytest.mark.parametrize("over", SHIPPED)
+@pytest.mark.parametrize("name", ["mccnn4", "mccnn4-slim"])
+def test_shipped_networks_equal_on_both_engines(name, over, engines_agree):
+    """mccnn4 and mccnn4-slim on a small frame (whole, column tiles, row bands): words, report
+    (nna_layers included), statistics and frame instants equal; the row instants too."""
+    cfg = load_config(overrides={**BASE, "nna.cnn.weights": str(MODELS / f"{name}.int8.npz"),
+                                 "nna.cnn.channels": 32, "nna.macs": 400, **over})
+    left, right = _pair(14, 36, seed=3)
+    plan = build_plan(cfg, left.shape)
+    slow, _ = engines_agree(plan, left, right)
+    assert len(slow.report["nna_layers"][plan.blocks_of("nna")[0].name]) == 4
+    assert_array_equal(run_compiled(plan, left, right).row_times, slow.row_times)
+
+
+@pytest.mark.parametrize("name", ["mccnn4", "mccnn4-slim"])
+def test_shipped_networks_stop_and_trace_alike(name):
+    """A run stopped by sim.max_cycles raises the same error (message, every FIFO's and block's
+    state) on both engines, with the same trace up to the stop; a traced window of a run that
+    completes has the same VCD."""
+    over = {**BASE, "nna.cnn.weights": str(MODELS / f"{name}.int8.npz"),
+            "nna.cnn.channels": 32, "nna.macs": 400, "nna.stereo_submodules": 4}
+    left, right = _pair(12, 34, seed=4)
+    p_nna = build_plan(load_config(overrides=over), left.shape).domains["nna"].period_fs
+    window = (300 * p_nna, 2500 * p_nna)
+    stopped = build_plan(load_config(overrides={**over, "sim.max_cycles": 2000}), left.shape)
+    errors = []
+    for fn in (run_readable, run_compiled):
+        with pytest.raises(BudgetExceeded) as err:
+            fn(stopped, left, right, window=window)
+        errors.append(err.value)
+    slow, fast = errors
+    assert str(fast) == str(slow)
+    for attr in ("blocks", "fifos", "cycles", "time_fs"):
+        assert getattr(fast, attr) == getattr(slow, attr)
+    assert vcd_bytes(fast.trace, version="t") == vcd_bytes(slow.trace, version="t")
+    plan = build_plan(load_config(overrides=over), left.shape)
+    slow, fast = (fn(plan, left, right, window=window) for fn in (run_readable, run_compiled))
+    assert vcd_bytes(fast.trace, version="t") == vcd_bytes(slow.trace, version="t")
+    assert fast.outputs_in_window == slow.outputs_in_window and fast.report == slow.report
 
 
 # ---- mutants: each must be caught ---------------------------------------------------------------
@@ -362,7 +394,7 @@ def test_a_row_started_one_row_early_is_caught(weights, monkeypatch):
     """A layer that starts an output row before its last input row is in reads rows its line
     buffer has not received: the descriptors, and the disparities, are wrong."""
     path, _ = weights["four3x3"]
-    cfg = _cfg(path)
+    cfg = _cfg(path, **{"sim.engine": "readable"})  # the mutant is the readable block's
     left, right = _pair(13, 30, seed=2)
     functional = run(left, right, mode="functional", config=cfg)
     early = nna_block.nna_last_input_row

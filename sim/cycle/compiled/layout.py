@@ -17,6 +17,9 @@ kind (``STREAM.kind``):
   input region);
 - :data:`MAC_PUSH` per tile: its MAC array pushes descriptor j (raster order of the tile's
   output region);
+- :data:`LAYER_PUSH` per tile and layer l < L - 1 of a network of L > 1 layers: layer l's MAC
+  array writes output k (raster order of its output region) into layer l + 1's line buffer
+  (the last layer's outputs are the tile's :data:`MAC_PUSH`);
 - :data:`MERGE_MOVE` per side, split frames only: the merge moves descriptor m (raster order);
 - :data:`SVA_POP`: the SVA pops pair j; :data:`SVA_PUSH`: it pushes word j; :data:`SINK_POP`:
   the sink pops word j;
@@ -46,7 +49,7 @@ INF = 1 << 62
 
 # stream kinds (``STREAM.kind``)
 (SOURCE_PUSH, LINE_POP, MAC_PUSH, MERGE_MOVE, SVA_POP, SVA_PUSH, SINK_POP, SVA_ISSUE, DRAM_READ,
- DRAM_WRITE) = range(10)
+ DRAM_WRITE, LAYER_PUSH) = range(11)
 # FIFO kinds (how its items map onto streams): source -> NNA tile, NNA tile -> merge,
 # NNA (or merge) -> SVA, SVA -> sink
 FIFO_TO_NNA, FIFO_TO_MERGE, FIFO_TO_SVA, FIFO_TO_SINK = range(4)
@@ -126,6 +129,23 @@ TILE = np.dtype([
     ("top_halo", np.int64), ("source_push", np.int64), ("line_pop", np.int64),
     ("mac_push", np.int64), ("merge_move", np.int64), ("src_fifo", np.int64),
     ("out_fifo", np.int64), ("block", np.int64), ("occ_in", np.int64), ("occ_out", np.int64),
+    ("layer0", np.int64), ("n_layers", np.int64),  # its layers' records in ``Net.layers``
+])
+
+# a layer stage of an NNA tile (:class:`~sim.cycle.stages.LayerPlan`; one per tile for a single
+# layer and the census): its half kernel, line buffer rows and cycles per output pixel, its
+# regions (output x0 .. x1, y0 .. y1, input ix0 .., iy0 ..; row widths and items per frame),
+# the streams of the items entering its line buffer (layer 0: the tile's pops; else the layer
+# before's outputs) and of its outputs, its rows of row instants in ``Net.occ``, and what its
+# loop counts (busy and blocked cycles, its first output) and the block's walker's cursor
+LAYER = np.dtype([
+    ("tile", np.int64), ("index", np.int64), ("last", np.int64), ("half", np.int64),
+    ("rows", np.int64), ("cpd", np.int64), ("top_halo", np.int64),
+    ("x0", np.int64), ("x1", np.int64), ("y0", np.int64), ("y1", np.int64), ("ix0", np.int64),
+    ("ix1", np.int64), ("iy0", np.int64), ("iy1", np.int64), ("iw", np.int64), ("ow", np.int64),
+    ("n_in", np.int64), ("n_out", np.int64), ("in_stream", np.int64), ("out_stream", np.int64),
+    ("occ_in", np.int64), ("occ_out", np.int64),
+    ("busy", np.int64), ("blocked", np.int64), ("first", np.int64), ("wk", np.int64),
 ])
 
 FIFO = np.dtype([
@@ -200,6 +220,7 @@ class Net(NamedTuple):
     streams: np.ndarray  # STREAM
     ring: np.ndarray  # int64: every stream's ring
     tiles: np.ndarray  # TILE, side-major
+    layers: np.ndarray  # LAYER: per tile (side-major) its layers in order
     fifos: np.ndarray  # FIFO, in plan order
     blocks: np.ndarray  # BLOCK, in plan order
     acc: np.ndarray  # ACC: per block (0 .. B-1), then per FIFO (B .. B+F-1)
@@ -210,8 +231,9 @@ class Net(NamedTuple):
     rows: np.ndarray  # int64 (2, H + 1): the first frame's row instants (Chip.row_times)
     occ: np.ndarray  # int64 (2 tiles + 2, R): a ring of R rows (row r at r % R) of the tracked
     # buffers' row instants over the stream, cycles of their block (sim.cycle.buffers): per
-    # tile (TILE.occ_in) the cycle its line buffer took the first pixel of each input row,
-    # (TILE.occ_out) the cycle it pushed the last descriptor of each output row;
+    # tile and layer (LAYER.occ_in) the cycle its line buffer took the first item of each input
+    # row, (LAYER.occ_out) the cycle it let the last output of each output row leave (a
+    # tile's TILE.occ_in / occ_out: its first layer's and its last layer's);
     # (IDS.occ_sva_in) the cycle the SVA took the first pair of each input row,
     # (IDS.occ_sva_out) the cycle it issued the last word of each output row (its rows read:
     # the row window's release, which the SVA's pops wait on); -1 where not reached
@@ -251,27 +273,32 @@ def _row_ring(plan: ChipPlan, capacity: int) -> int:
 
 
 def ring_capacity(plan: ChipPlan, scale: int = 1) -> int:
-    """Events each ring keeps: enough for every reader of a stream (the chip's storage -- line
-    buffer and SVA row windows, FIFO depths -- bounds how far one stream runs ahead of another);
-    a pass that still reads an overwritten event says so and is rerun with larger rings."""
+    """Events each ring keeps: enough for every reader of a stream (the chip's storage -- every
+    layer's line buffer and the SVA's row windows, FIFO depths -- bounds how far one stream runs
+    ahead of another); a pass that still reads an overwritten event says so and is rerun with
+    larger rings."""
     cfg = plan.cfg
     h, w = plan.shape
     half = max(b.half for b in plan.blocks_of("nna"))
     la = plan.block("sva").lookahead
     depths = sum(f.depth for f in plan.fifos)
     band = max(t.in_shape[0] for t in plan.tiles) if cfg.nna.split == "rows" else 0
-    rows = cfg.nna.line_buffer_rows + half + la + 6 + band
+    # the line buffers of every layer (one layer: nna.line_buffer_rows)
+    lines = sum(lay.rows for lay in plan.blocks_of("nna")[0].layers)
+    rows = lines + half + la + 6 + band
     return min(_pow2(scale * (2 * rows * w + 2 * depths + 4096)), _pow2(plan.frames * h * w + 1))
 
 
 def _stream_specs(plan: ChipPlan, sides: int, block_index: dict, fifo_index: dict):
     """Every event stream, (kind, side, tile, events, period, block) -- of the left side only
     when the right side's events are the same --, the stream ids per side and tile (by name:
-    ``source_push``, ``line_pop``, ``mac_push``, ``merge_move``) and the :data:`IDS` record."""
+    ``source_push``, ``line_pop``, ``mac_push``, ``merge_move``; ``layer_push``: per tile, each
+    layer's outputs) and the :data:`IDS` record."""
     h, w = plan.shape
     n, nf, doms, parts = h * w, plan.frames, plan.domains, plan.parts
     specs = []
     a_id, b_id, e_id, m_id = {}, {}, {}, {}  # source pushes, line pops, MAC pushes, merges
+    l_id = {}  # per tile, each layer's outputs (the last layer's: its MAC pushes)
     for s in range(sides):
         # the block that pushes the pixels: a camera straight into the NNA, or a memory
         # source (reading frames in memory or a camera's frame buffers)
@@ -291,6 +318,12 @@ def _stream_specs(plan: ChipPlan, sides: int, block_index: dict, fifo_index: dic
         e_id[b.side, t] = len(specs)
         specs.append((MAC_PUSH, b.side, t, nf * tile.shape[0] * tile.shape[1],
                       doms["nna"].period_fs, block_index[b.name]))
+        l_id[b.side, t] = []
+        for lay in b.layers[:-1]:  # a layer before the last: its outputs into the next one
+            l_id[b.side, t].append(len(specs))
+            specs.append((LAYER_PUSH, b.side, t, nf * lay.items, doms["nna"].period_fs,
+                          block_index[b.name]))
+        l_id[b.side, t].append(e_id[b.side, t])
     if parts > 1:
         for s in range(sides):
             m_id[s] = len(specs)
@@ -300,7 +333,7 @@ def _stream_specs(plan: ChipPlan, sides: int, block_index: dict, fifo_index: dic
         a_id[1] = a_id[0]
         m_id.update({1: m_id[0]} if parts > 1 else {})
         for t in range(parts):
-            b_id[1, t], e_id[1, t] = b_id[0, t], e_id[0, t]
+            b_id[1, t], e_id[1, t], l_id[1, t] = b_id[0, t], e_id[0, t], l_id[0, t]
     ids = np.zeros(1, IDS)
     idx = ids[0]
     for kind, field, blk in ((SVA_POP, "sva_pop", "sva"), (SVA_PUSH, "sva_push", "sva"),
@@ -319,27 +352,44 @@ def _stream_specs(plan: ChipPlan, sides: int, block_index: dict, fifo_index: dic
     idx["fifo_sva_right"] = fifo_index["nna_right_to_sva"]
     idx["fifo_sink"] = fifo_index["sva_to_sink"]
     idx["block_sva"], idx["block_sink"] = block_index["sva"], block_index["sink"]
-    idx["occ_sva_in"], idx["occ_sva_out"] = 4 * parts, 4 * parts + 1
-    names = {"source_push": a_id, "line_pop": b_id, "mac_push": e_id, "merge_move": m_id}
+    layers = len(plan.blocks_of("nna")[0].layers)
+    idx["occ_sva_in"], idx["occ_sva_out"] = 4 * parts * layers, 4 * parts * layers + 1
+    names = {"source_push": a_id, "line_pop": b_id, "mac_push": e_id, "merge_move": m_id,
+             "layer_push": l_id}
     return specs, names, ids
 
 
-def _tiles(plan: ChipPlan, names: dict, block_index: dict, fifo_index: dict) -> np.ndarray:
-    """The :data:`TILE` records, side-major."""
+def _tiles(plan: ChipPlan, names: dict, block_index: dict, fifo_index: dict
+           ) -> tuple[np.ndarray, np.ndarray]:
+    """The :data:`TILE` records, side-major, and their layers' :data:`LAYER` records."""
     parts = plan.parts
+    n_layers = len(plan.blocks_of("nna")[0].layers)
     tiles = np.zeros(2 * parts, TILE)
+    layers = np.zeros(2 * parts * n_layers, LAYER)
     for b in plan.blocks_of("nna"):
         t = plan.tiles.index(b.tile) if parts > 1 else 0
         tl = b.tile
         ti = b.side * parts + t
+        first = ti * n_layers
         tiles[ti] = (
             b.side, t, tl.x0, tl.x1, tl.y0, tl.y1, tl.in_x0, tl.in_x1, tl.in_y0, tl.in_y1,
             tl.in_x1 - tl.in_x0, tl.x1 - tl.x0, tl.in_shape[0] * tl.in_shape[1],
             tl.shape[0] * tl.shape[1], tl.top_halo, names["source_push"][b.side],
             names["line_pop"][b.side, t], names["mac_push"][b.side, t],
             names["merge_move"][b.side] if parts > 1 else -1, fifo_index[b.inputs[0]],
-            fifo_index[b.outputs[0]], block_index[b.name], 2 * ti, 2 * ti + 1)
-    return tiles
+            fifo_index[b.outputs[0]], block_index[b.name], 2 * first,
+            2 * (first + n_layers - 1) + 1, first, n_layers)
+        outs = names["layer_push"][b.side, t]
+        for lay in b.layers:
+            r = lay.tile
+            i = lay.index
+            layers[first + i] = (
+                ti, i, 1 if i == n_layers - 1 else 0, lay.half, lay.rows, lay.cycles,
+                r.top_halo, r.x0, r.x1, r.y0, r.y1, r.in_x0, r.in_x1, r.in_y0, r.in_y1,
+                r.in_x1 - r.in_x0, r.x1 - r.x0, r.in_shape[0] * r.in_shape[1],
+                r.shape[0] * r.shape[1], names["line_pop"][b.side, t] if i == 0 else outs[i - 1],
+                outs[i], 2 * (first + i), 2 * (first + i) + 1, 0, 0, -1, 0)
+    return tiles, layers
 
 
 def _fifos(plan: ChipPlan, names: dict, idx) -> np.ndarray:
@@ -433,16 +483,16 @@ def _constants(plan: ChipPlan, sides: int, sink_stall, cap_fs: int, stats: bool)
     return prm
 
 
-def _windows(plan: ChipPlan, tiles: np.ndarray, idx, sides: int) -> np.ndarray:
-    """The :data:`WINDOW` walks: the tiles computed (side-major), then the SVA's."""
+def _windows(plan: ChipPlan, layers: np.ndarray, idx, sides: int) -> np.ndarray:
+    """The :data:`WINDOW` walks: the tiles computed (side-major), per layer, then the SVA's."""
     w = plan.shape[1]
-    parts = plan.parts
-    win = np.zeros(sides * parts + 1, WINDOW)
+    n = sides * plan.parts * len(plan.blocks_of("nna")[0].layers)
+    win = np.zeros(n + 1, WINDOW)
     for i, (block, _, _, _, slot, offset, in_rows, out_rows) in enumerate(tracked(plan)):
-        if i < sides * parts:  # an NNA tile: its pops and pushes
-            tl = tiles[i]
-            win[i] = (slot, tl["line_pop"], tl["iw"], tl["mac_push"], tl["ow"], offset, in_rows,
-                      out_rows, 0, 0, 0, -1)
+        if i < n:  # a layer of an NNA tile: the items entering its line buffer, its outputs
+            lr = layers[i]
+            win[i] = (slot, lr["in_stream"], lr["iw"], lr["out_stream"], lr["ow"], offset,
+                      in_rows, out_rows, 0, 0, 0, -1)
         elif block == "sva":
             win[-1] = (slot, idx["sva_pop"], w, idx["sva_issue"], w, offset, in_rows, out_rows,
                        0, 0, 0, -1)
@@ -465,7 +515,7 @@ def serialise(plan: ChipPlan, *, sink_stall=None, cap_fs: int = INF, stats: bool
         streams[i] = (kind, side, tile, count, 0, size - 1, 0, period, blk)
     streams["off"][1:] = np.cumsum(streams["mask"] + 1)[:-1]
     ring = np.zeros(int((streams["mask"] + 1).sum()), np.int64)
-    tiles = _tiles(plan, names, block_index, fifo_index)
+    tiles, layers = _tiles(plan, names, block_index, fifo_index)
     state = np.zeros(1, STATE)
     state[0]["target"] = nf * h * w  # fewer once a camera drops frames
     state[0]["d_rslot"], state[0]["d_wslot"] = -1, -1
@@ -490,12 +540,12 @@ def serialise(plan: ChipPlan, *, sink_stall=None, cap_fs: int = INF, stats: bool
         stages[i] = (off, st.latency, st.slots, 0, 0, 0, -1)
     net = Net(
         prm=_constants(plan, sides, sink_stall, cap_fs, stats), state=state, ids=ids,
-        streams=streams, ring=ring, tiles=tiles, fifos=_fifos(plan, names, ids[0]),
+        streams=streams, ring=ring, tiles=tiles, layers=layers, fifos=_fifos(plan, names, ids[0]),
         blocks=_blocks(plan, names, fifo_index), acc=acc, walks=walks,
         hist=np.zeros(hoff, np.int64),
         gaps=np.zeros((len(plan.blocks), gap_capacity, 2), np.int64), rows=rows,
-        occ=np.full((2 * len(tiles) + 2, _row_ring(plan, cap)), -1, np.int64),
+        occ=np.full((2 * len(layers) + 2, _row_ring(plan, cap)), -1, np.int64),
         scratch=np.zeros(plan.parts, TABLE), cursors=np.zeros(len(specs), np.int64),
-        stages=stages, frame_fs=frame_fs, win=_windows(plan, tiles, ids[0], sides),
+        stages=stages, frame_fs=frame_fs, win=_windows(plan, layers, ids[0], sides),
         fbuf=np.full((2, nf), -1, np.int64))
     return net, dict(names, streams=specs, block_index=block_index, fifo_index=fifo_index)

@@ -1,26 +1,33 @@
-"""An NNA submodule (one tile of a camera) on the compiled engine: its line buffer's pops and its
-MAC array's pushes (twin of the readable kernel's :mod:`sim.cycle.readable.blocks.nna`:
+"""An NNA submodule (one tile of a camera) on the compiled engine: a pipeline of layers, each a
+line buffer and a MAC array (twin of the readable kernel's :mod:`sim.cycle.readable.blocks.nna`:
 :class:`~sim.cycle.readable.blocks.nna.LineBuffer`,
 :class:`~sim.cycle.readable.blocks.nna.MacArray`,
 :class:`~sim.cycle.readable.blocks.nna.NnaSubmodule`; the rules are :mod:`sim.cycle.rules`).
+One layer (and the census) is one stage: the same streams, loops and walker as ever.
 
-Streams, per tile:
+Streams, per tile (layer l of L, its record ``Net.layers``: regions, h_l, rows_l, cpp_l):
 
-- ``LINE_POP``: the line buffer pops input pixel i (row r of the tile's input region)
-  ``b[i] = max(b[i-1] + 1, vis(a[k]), room(r))``, ``room(r)`` the cycle after the MAC array
-  pushed the last descriptor of the output rows that must have started before row r
-  (:func:`~sim.cycle.rules.nna_rows_started_before_input`);
-- ``MAC_PUSH``: the MAC array pushes descriptor j (output row y) ``e[j] = max(s_j + cpd - 1,
-  free(p[j - depth]))``, started at ``s_j = max(e[j-1] + 1, b[last pixel of
-  nna_last_input_row(y)] + 1)`` (cpd the cycles per descriptor).
+- ``LINE_POP``: layer 0's line buffer pops input pixel i (row r of the tile's input region)
+  ``b[i] = max(b[i-1] + 1, vis(a[k]), room_0(r))``, ``room_l(r)`` the cycle after layer l's
+  MAC array let the last output of the output rows that must have started before row r leave
+  (:func:`~sim.cycle.rules.nna_rows_started_before_input`, :func:`line_room`);
+- ``LAYER_PUSH`` (l < L - 1) and ``MAC_PUSH`` (the last layer): layer l's output k (output row
+  y) starts at ``s_k = max(e[k-1] + 1, in_l[last item of nna_last_input_row(y, h_l)] + 1)``
+  (``in_l``: layer 0's pops, else layer l - 1's outputs), finishes at ``f_k = s_k + cpp_l - 1``
+  and leaves at ``e[k] = max(f_k, room_l+1(k // W_l))`` into the next layer's line buffer, or,
+  the last layer, ``max(f_k, free(p[k - depth]))`` into the tile's FIFO
+  (:func:`advance_layer` for the layers before the last, :func:`advance_last_layer`, layer
+  after layer).
 
-Here also: the submodule's statistics (:func:`walk_nna`: the MAC array waits for input rows --
-starved -- and holds a finished descriptor -- blocked; a pop in such a cycle makes it busy), and
-what it reports at an instant (status, traced signals).
+Here also: the submodule's statistics -- one layer: :func:`walk_nna` (the MAC array waits for
+input rows -- starved -- and holds a finished descriptor -- blocked; a pop in such a cycle
+makes it busy); several: :func:`walk_layers`, for each layer and the submodule --, and what it
+reports at an instant (status, traced signals, per layer).
 """
 
 from __future__ import annotations
 
+import numpy as np
 from numba import njit
 
 from stereosim.sim.cycle.compiled.layout import (
@@ -78,17 +85,17 @@ def advance_line_pops(net, ti):
     ring, streams = net.ring, net.streams
     tl = net.tiles[ti]
     b_off, b_mask, i, _ = view(streams, tl.line_pop)
-    e_off, e_mask, ne, e_lo = view(streams, tl.mac_push)
+    lr = net.layers[tl.layer0]  # the first layer: its outputs make room in its line buffer
+    e_off, e_mask, ne, e_lo = view(streams, lr.out_stream)
     a_off, a_mask, na, a_lo = view(streams, tl.source_push)
     st = streams[tl.line_pop]
     f = net.fifos[tl.src_fifo]
     per_src, per_dst, de = f.per_src, f.per_dst, f.data_edges
     rat = ratio(per_src, per_dst)
     per, cap, w, n = st.period, prm.cap_fs, prm.w, prm.n
-    rows, half, top_halo = prm.rows, prm.half, tl.top_halo
-    iw, ow, iy0, ix0, oh = tl.iw, tl.ow, tl.iy0, tl.ix0, tl.y1 - tl.y0
+    iw, iy0, ix0 = tl.iw, tl.iy0, tl.ix0
     in_rows = tl.iy1 - tl.iy0
-    geometry = (rows, half, top_halo, oh, in_rows, ow)
+    geometry = (lr.rows, lr.half, lr.top_halo, lr.y1 - lr.y0, in_rows, lr.ow)
     left = tl.side == 0
     row_fs = net.rows[0]
     per_nna = prm.per_nna
@@ -157,13 +164,14 @@ def whole_pops_begin(net, side):
     its row, the FIFO's empty cycles, a ring error)."""
     prm = net.prm[0]
     tl = net.tiles[side]
+    lr = net.layers[tl.layer0]  # the first layer: its outputs make room in its line buffer
     a_off, a_mask, _, _ = view(net.streams, tl.source_push)
     b_off, b_mask, kb, _ = view(net.streams, tl.line_pop)
-    e = view(net.streams, tl.mac_push)
+    e = view(net.streams, lr.out_stream)
     f = net.fifos[tl.src_fifo]
-    oh = tl.y1 - tl.y0
     k = (a_off, a_mask, b_off, b_mask, e, f.per_src, f.per_dst, ratio(f.per_src, f.per_dst),
-         f.data_edges, (prm.rows, prm.half, 0, oh, prm.h, prm.w), tl.occ_in, side)
+         f.data_edges, (lr.rows, lr.half, lr.top_halo, lr.y1 - lr.y0, prm.h, lr.ow), tl.occ_in,
+         side)
     b_prev = rd(net.ring, b_off, b_mask, kb - 1) if kb > 0 else -1
     return k, (kb, b_prev, kb % prm.w, kb // prm.w, -1, 0, 0, False)
 
@@ -217,25 +225,96 @@ def whole_pops_end(net, k, cur):
         net.state[0].error = ERR_RING
 
 
-# ---- the MAC array's pushes ---------------------------------------------------------------------
+# ---- the MAC arrays' outputs --------------------------------------------------------------------
+
+
+@njit(cache=True)
+def advance_layer(net, ti, li):
+    """Outputs of layer ``li`` (its record) of tile ``ti``, a layer before the last, as far as
+    its input rows and the room in the next layer's line buffer (:func:`line_room` of that
+    layer) allow: each written into that line buffer."""
+    prm = net.prm[0]
+    state = net.state[0]
+    ring, streams = net.ring, net.streams
+    lr = net.layers[li]
+    b_off, b_mask, nb, b_lo = view(streams, lr.in_stream)
+    e_off, e_mask, j, _ = view(streams, lr.out_stream)
+    st = streams[lr.out_stream]
+    per, cap, h = st.period, prm.cap_fs, prm.h
+    cpd, half = lr.cpd, lr.half
+    ow, iw, y0, iy0, n_in = lr.ow, lr.iw, lr.y0, lr.iy0, lr.n_in
+    out_rows = lr.y1 - lr.y0
+    nx = net.layers[li + 1]  # its outputs make room in its line buffer
+    nxt = view(streams, nx.out_stream)
+    geometry = (nx.rows, nx.half, nx.top_halo, nx.y1 - nx.y0, out_rows, nx.ow)
+    occ = net.occ
+    occ_in, occ_out, occ_mask = nx.occ_in, lr.occ_out, occ.shape[1] - 1
+    err = False
+    start = j
+    e_prev = rd(ring, e_off, e_mask, j - 1) if j > 0 else -1
+    rows_row = -1
+    rows_in = 0
+    room = 0
+    r = j // ow  # the layer's output row over the stream: row rl of frame fr
+    c = j - r * ow
+    fr = r // out_rows
+    rl = r - fr * out_rows
+    while j < st.n:
+        if r != rows_row:
+            need = fr * n_in + (nna_last_input_row(y0 + rl, half, h) - iy0 + 1) * iw
+            if need > nb:
+                break
+            err |= need - 1 <= b_lo
+            rows_in = rd(ring, b_off, b_mask, need - 1) + 1
+            room, ok, bad = line_room(ring, nxt, r, geometry)  # the row it writes
+            if not ok:
+                break
+            err |= bad
+            rows_row = r
+        done = max(e_prev + 1, rows_in) + cpd - 1
+        e = max(done, room)
+        if e * per >= cap:
+            break
+        ring[e_off + (j & e_mask)] = e
+        if c == 0:  # the next layer's input row starts to enter
+            occ[occ_in, r & occ_mask] = e
+        e_prev = e
+        j += 1
+        c += 1
+        if c == ow:
+            occ[occ_out, r & occ_mask] = e
+            c = 0
+            r += 1
+            rl += 1
+            if rl == out_rows:
+                rl = 0
+                fr += 1
+    st.count = j
+    if err:
+        state.error = ERR_RING
+    return j > start
 
 
 @njit(cache=True, inline="always")
-def advance_mac_pushes(net, ti):
-    """MAC-array pushes of tile ``ti``, as far as its input rows and the free slots allow."""
+def advance_last_layer(net, ti, li):
+    """Pushes of tile ``ti``'s last layer (record ``li``) into its FIFO, as far as its input
+    rows and the free slots allow."""
     prm = net.prm[0]
     state = net.state[0]
     ring, streams = net.ring, net.streams
     tl = net.tiles[ti]
-    b_off, b_mask, nb, b_lo = view(streams, tl.line_pop)
+    lr = net.layers[li]
+    b_off, b_mask, nb, b_lo = view(streams, lr.in_stream)
     e_off, e_mask, j, _ = view(streams, tl.mac_push)
     st = streams[tl.mac_push]
     f = net.fifos[tl.out_fifo]
     p_off, p_mask, npop, p_lo = view(streams, f.pop)
     depth, per_src, per_dst, se = f.depth, f.per_src, f.per_dst, f.space_edges
     rat = ratio(per_dst, per_src)
-    per, cap, w, cpd, half, h = st.period, prm.cap_fs, prm.w, prm.cpd, prm.half, prm.h
+    per, cap, w, cpd, half, h = st.period, prm.cap_fs, prm.w, lr.cpd, lr.half, prm.h
     ow, iw, y0, x0, iy0, n_out, n_in = tl.ow, tl.iw, tl.y0, tl.x0, tl.iy0, tl.n_out, tl.n_in
+    if li != tl.layer0:  # a layer after the first: its input region is the layer before's
+        iw, iy0, n_in = lr.iw, lr.iy0, lr.n_in
     out_rows, n = tl.y1 - tl.y0, prm.n
     merge = prm.merge == 1
     err = False
@@ -289,6 +368,18 @@ def advance_mac_pushes(net, ti):
     return j > start
 
 
+@njit(cache=True, inline="always")
+def advance_mac_pushes(net, ti):
+    """The MAC arrays' outputs of tile ``ti``, layer after layer: the layers before the last
+    into the next one's line buffer (:func:`advance_layer`), the last into the tile's FIFO
+    (:func:`advance_last_layer`)."""
+    tl = net.tiles[ti]
+    last = tl.layer0 + tl.n_layers - 1
+    moved = False
+    for li in range(tl.layer0, last):
+        moved |= advance_layer(net, ti, li)
+    return advance_last_layer(net, ti, last) | moved
+
 
 # ---- statistics ---------------------------------------------------------------------------------
 
@@ -304,12 +395,16 @@ def walk_nna(net, ti, final):
     ring = net.ring
     gaps = net.gaps
     tl = net.tiles[ti]
+    if tl.n_layers > 1:
+        walk_layers(net, ti, final)
+        return
     blk = tl.block
     a = net.acc[blk]
     b_off, b_mask, nb, b_lo = view(net.streams, tl.line_pop)
     b_pops = (b_off, b_mask, nb)
     e_off, e_mask, ne, e_lo = view(net.streams, tl.mac_push)
-    cpd, half, h, g = prm.cpd, prm.half, prm.h, prm.watchdog_fs
+    lr = net.layers[tl.layer0]
+    cpd, half, h, g = lr.cpd, lr.half, prm.h, prm.watchdog_fs
     per = net.blocks[blk].period
     ow, iw, y0, iy0, n_in = tl.ow, tl.iw, tl.y0, tl.iy0, tl.n_in
     out_rows = tl.y1 - tl.y0
@@ -385,73 +480,223 @@ def walk_nna(net, ti, final):
 
 
 
+@njit(cache=True, inline="always")
+def layer_interval(ring, streams, lr, h, k):
+    """(start, finish, leave, a ring error) of output k of layer ``lr``, known: it starts once
+    the previous one has left and its input rows are in, works ``cpd`` cycles and leaves when
+    there is room."""
+    b_off, b_mask, _, b_lo = view(streams, lr.in_stream)
+    e_off, e_mask, _, e_lo = view(streams, lr.out_stream)
+    r = k // lr.ow
+    out_rows = lr.y1 - lr.y0
+    fr = r // out_rows
+    need = fr * lr.n_in + (nna_last_input_row(lr.y0 + r - fr * out_rows, lr.half, h) - lr.iy0
+                           + 1) * lr.iw
+    prev = rd(ring, e_off, e_mask, k - 1) if k > 0 else -1
+    s = max(prev + 1, rd(ring, b_off, b_mask, need - 1) + 1)
+    err = need - 1 <= b_lo or (k > 0 and k - 1 <= e_lo)
+    return s, s + lr.cpd - 1, rd(ring, e_off, e_mask, k), err
+
+
+@njit(cache=True, inline="always")
+def mark(bm, c0, c1, lo, hi, flag):
+    """Set ``flag`` in the chunk's cycles [lo, hi] within [c0, c1)."""
+    for c in range(max(lo, c0), min(hi, c1 - 1) + 1):
+        bm[c - c0] |= flag
+
+
+@njit(cache=True)
+def walk_layers(net, ti, final):
+    """Settle the activity of tile ``ti``'s submodule with several layers, cycle by cycle over
+    the cycles every event of which is known (``final``: the streams have stopped; an output
+    pending whose rows are in works, then waits for ever): busy in a cycle with a pop or in
+    which any layer works on an output or lets one leave, blocked when only the last layer
+    holds a finished output, starved otherwise. The cycles are marked in chunks; the busy
+    ones are the block's busy instants (its long gaps)."""
+    prm = net.prm[0]
+    state = net.state[0]
+    ring, streams, gaps = net.ring, net.streams, net.gaps
+    tl = net.tiles[ti]
+    blk = tl.block
+    a = net.acc[blk]
+    per, g, h = net.blocks[blk].period, prm.watchdog_fs, prm.h
+    b_off, b_mask, nb, b_lo = view(streams, tl.line_pop)
+    # the cycles before `stop` are settled by the events known
+    end = rd(ring, b_off, b_mask, nb - 1) + 1 if nb > 0 else 0
+    front = INF
+    if nb < streams[tl.line_pop].n and not final:
+        front = end
+    for li in range(tl.layer0, tl.layer0 + tl.n_layers):
+        lr = net.layers[li]
+        st = streams[lr.out_stream]
+        e_last = rd(ring, st.off, st.mask, st.count - 1) if st.count > 0 else -1
+        end = max(end, e_last + 1)
+        if st.count < st.n:
+            if not final:
+                front = min(front, e_last + 1)
+            else:
+                s = layer_start(ring, streams, lr, h, st.count)  # works, then waits
+                if s < INF:
+                    end = max(end, s + lr.cpd)
+    stop = min(front, end)
+    c0 = a.walk
+    chunk = 1 << 14
+    bm = np.zeros(chunk, np.uint8)
+    starved, blocked = 0, 0
+    last_busy, n_gaps = a.last_busy, a.gaps
+    ptr = a.ptr
+    err = c0 < stop and ptr < nb and ptr <= b_lo
+    while c0 < stop:
+        c1 = min(stop, c0 + chunk)
+        bm[:c1 - c0] = 0
+        while ptr < nb:
+            c = rd(ring, b_off, b_mask, ptr)
+            if c >= c1:
+                break
+            bm[c - c0] = 1
+            ptr += 1
+        for li in range(tl.layer0, tl.layer0 + tl.n_layers):
+            lr = net.layers[li]
+            st = streams[lr.out_stream]
+            k = lr.wk
+            while k < st.count:
+                s, f, e, bad = layer_interval(ring, streams, lr, h, k)
+                err |= bad
+                if s >= c1:
+                    break
+                mark(bm, c0, c1, s, f, 1)
+                mark(bm, c0, c1, e, e, 1)
+                if lr.last == 1:
+                    mark(bm, c0, c1, f + 1, e - 1, 2)
+                if e >= c1:
+                    break
+                # the layer's own activity: busy over [s, f] and at e, blocked over (f, e)
+                lr.busy += lr.cpd + (1 if e > f else 0)
+                lr.blocked += max(0, e - f - 1)
+                if k == 0:
+                    lr.first = e
+                k += 1
+            if k == st.count and k < st.n and final:
+                s = layer_start(ring, streams, lr, h, k)
+                if s < INF:
+                    mark(bm, c0, c1, s, s + lr.cpd - 1, 1)
+            lr.wk = k
+        for i in range(c1 - c0):
+            v = bm[i]
+            if v & 1:
+                t = (c0 + i) * per
+                if t - last_busy > g:
+                    if n_gaps < gaps.shape[1]:
+                        gaps[blk, n_gaps, 0] = last_busy
+                        gaps[blk, n_gaps, 1] = t
+                    n_gaps += 1
+                last_busy = t
+            elif v & 2:
+                blocked += 1
+            else:
+                starved += 1
+        c0 = c1
+    a.walk = max(a.walk, c0)
+    a.ptr = ptr
+    a.starved += starved
+    a.blocked += blocked
+    a.last_busy, a.gaps = last_busy, n_gaps
+    if err:
+        state.error = ERR_RING
+    if n_gaps > gaps.shape[1]:
+        state.error = ERR_GAPS
+
+
 # ---- at an instant ------------------------------------------------------------------------------
 
 
 @njit(cache=True)
-def mac_start(ring, streams, prm, tl, j):
-    """The cycle the MAC array starts descriptor j of tile ``tl`` (INF: its rows are not in)."""
-    r = j // tl.ow
-    out_rows = tl.y1 - tl.y0
+def layer_start(ring, streams, lr, h, j):
+    """The cycle layer ``lr``'s MAC array starts output j (INF: its rows are not in)."""
+    r = j // lr.ow
+    out_rows = lr.y1 - lr.y0
     fr = r // out_rows
-    need = fr * tl.n_in + (nna_last_input_row(tl.y0 + r - fr * out_rows, prm.half, prm.h)
-                           - tl.iy0 + 1) * tl.iw
-    rows_in = event(ring, streams[tl.line_pop], need - 1)
+    need = fr * lr.n_in + (nna_last_input_row(lr.y0 + r - fr * out_rows, lr.half, h)
+                           - lr.iy0 + 1) * lr.iw
+    rows_in = event(ring, streams[lr.in_stream], need - 1)
     if rows_in == INF:
         return INF
-    prev = event(ring, streams[tl.mac_push], j - 1) if j > 0 else -1
+    prev = event(ring, streams[lr.out_stream], j - 1) if j > 0 else -1
     return max(prev + 1, rows_in + 1)
 
 
+@njit(cache=True)
+def layer_status(ring, streams, cursors, prm, lr, c):
+    """(activity, outputs before cycle c, one leaves at c) of layer ``lr``'s MAC array in its
+    cycle c: busy working on an output or letting one leave, blocked holding a finished one,
+    starved waiting for its rows, idle once through."""
+    emitted, push_at = lt_at(ring, streams[lr.out_stream], cursors[lr.out_stream], c)
+    if push_at:
+        return A_BUSY, emitted, push_at
+    if emitted >= prm.frames * lr.n_out:
+        return A_IDLE, emitted, push_at
+    s_j = layer_start(ring, streams, lr, prm.h, emitted)
+    if c < s_j:
+        return A_STARVED, emitted, push_at
+    if c <= s_j + lr.cpd - 1:
+        return A_BUSY, emitted, push_at
+    return A_BLOCKED, emitted, push_at
+
 
 @njit(cache=True)
-def status_nna(ring, streams, cursors, prm, tl, c):
+def status_nna(ring, streams, cursors, prm, tl, layers, c):
     received, pop_at = lt_at(ring, streams[tl.line_pop], cursors[tl.line_pop], c)
-    emitted, push_at = lt_at(ring, streams[tl.mac_push], cursors[tl.mac_push], c)
     moved = pop_at
-    mac_blocked = False
-    n_out, n_in = prm.frames * tl.n_out, prm.frames * tl.n_in
-    if emitted < n_out:
-        s_j = mac_start(ring, streams, prm, tl, emitted)
-        if c >= s_j:
-            if c <= s_j + prm.cpd - 1 or push_at:
-                moved = True
-            else:
-                mac_blocked = True
+    act = A_IDLE
+    emitted = 0
+    for li in range(tl.layer0, tl.layer0 + tl.n_layers):
+        act, emitted, _ = layer_status(ring, streams, cursors, prm, layers[li], c)
+        moved |= act == A_BUSY
     if moved:
         return A_BUSY, -1
-    if mac_blocked:
+    if act == A_BLOCKED:  # the last layer holds a finished descriptor
         return A_BLOCKED, tl.out_fifo
-    if emitted < n_out or received < n_in:
+    if emitted < prm.frames * tl.n_out or received < prm.frames * tl.n_in:
         return A_STARVED, tl.src_fifo
     return A_IDLE, -1
 
 
-
 @njit(cache=True)
-def sample_nna(ring, streams, cursors, prm, tl, data, c, out):
-    """The NNA's signals after its cycle c into out[0:7]; ``data``: the traced frames'
+def sample_nna(ring, streams, cursors, prm, tile, data, c, out):
+    """The NNA's signals after its cycle c into ``out`` (per layer, its status with several
+    layers, line_buffer.row_in, line_buffer.fill, mac.phase, mac.row, mac.col; then out.valid,
+    out.descriptor); ``tile`` = (its record, the layers' records), ``data``: the traced frames'
     descriptors."""
-    received = cursors[tl.line_pop]
-    emitted, push_at = lt_at(ring, streams[tl.mac_push], cursors[tl.mac_push], c)
-    if push_at:
-        emitted += 1
-    in_rows, out_rows = tl.iy1 - tl.iy0, tl.y1 - tl.y0
-    f_in, r_in = frame_row(received // tl.iw, in_rows, prm.frames)
-    f_out, r_out = frame_row(emitted // tl.ow, out_rows, prm.frames)
-    y_out = tl.y0 + r_out
-    oldest = f_out * in_rows + max(0, y_out - prm.half - tl.iy0)
-    phase = 0
-    if not push_at and emitted < prm.frames * tl.n_out:
-        s_j = mac_start(ring, streams, prm, tl, emitted)
-        if c >= s_j:
-            phase = c - s_j + 1 if c < s_j + prm.cpd - 1 else prm.cpd
-    out[0] = tl.iy0 + r_in
-    out[1] = max(0, f_in * in_rows + r_in - oldest)
-    out[2] = phase
-    out[3] = y_out
-    out[4] = tl.x0 + emitted % tl.ow
-    out[5] = 1 if push_at else 0
+    tl, layers = tile
+    k = 0
+    push_at = False
+    emitted = 0
+    for li in range(tl.layer0, tl.layer0 + tl.n_layers):
+        lr = layers[li]
+        act, emitted, push_at = layer_status(ring, streams, cursors, prm, lr, c)
+        if tl.n_layers > 1:
+            out[k] = (act + 1) % 4
+            k += 1
+        received = cursors[lr.in_stream]
+        if push_at:
+            emitted += 1
+        in_rows, out_rows = lr.iy1 - lr.iy0, lr.y1 - lr.y0
+        f_in, r_in = frame_row(received // lr.iw, in_rows, prm.frames)
+        f_out, r_out = frame_row(emitted // lr.ow, out_rows, prm.frames)
+        y_out = lr.y0 + r_out
+        oldest = f_out * in_rows + max(0, y_out - lr.half - lr.iy0)
+        phase = 0
+        if not push_at and emitted < prm.frames * lr.n_out:
+            s_j = layer_start(ring, streams, lr, prm.h, emitted)
+            if c >= s_j:
+                phase = c - s_j + 1 if c < s_j + lr.cpd - 1 else lr.cpd
+        out[k] = lr.iy0 + r_in
+        out[k + 1] = max(0, f_in * in_rows + r_in - oldest)
+        out[k + 2] = phase
+        out[k + 3] = y_out
+        out[k + 4] = lr.x0 + emitted % lr.ow
+        k += 5
+    out[k] = 1 if push_at else 0
     value = 0
     if emitted > 0:
         j = emitted - 1
@@ -459,5 +704,4 @@ def sample_nna(ring, streams, cursors, prm, tl, data, c, out):
         j -= fr * tl.n_out
         r = j // tl.ow
         value = data.desc[fr - data.frame0, tl.side, tl.y0 + r, tl.x0 + j - r * tl.ow]
-    out[6] = value
-
+    out[k + 1] = value

@@ -237,7 +237,7 @@ def _stats(plan: ChipPlan, net: Net, names: dict, t_end: int) -> dict:
                                              c_sva - int(rec["busy"]) - int(rec["blocked"]) - idle,
                                              int(rec["blocked"]), idle),
                            "peak_words": int(rec["peak"])}
-    out = {}
+    out = _layer_stats(plan, net, cycles["nna"], short)
     if plan.dram is not None:
         bi = names["block_index"]
         reads = [int(net.acc[bi[f"memory_{side}"] if not mirrored else bi["memory_left"]]["dram"])
@@ -253,6 +253,35 @@ def _stats(plan: ChipPlan, net: Net, names: dict, t_end: int) -> dict:
         "stages": {"sva": stages},
         "steps": count_instants([(0, per[name], cycles[name]) for name in per]),
     }
+
+
+def _layer_stats(plan: ChipPlan, net: Net, c_nna: int, short: bool) -> dict:
+    """``{"nna_layers": {submodule: [per layer: busy, starved, blocked, idle, first and last
+    output cycle]}}`` with a network of several layers (the readable ``layer_stats``): busy and
+    blocked as its loop counted them, idle after its last output (starved, with frames
+    dropped), starved the rest; {} with one layer."""
+    subs = plan.blocks_of("nna")
+    n_layers = len(subs[0].layers)
+    if n_layers == 1:
+        return {}
+    mirrored = int(net.prm[0]["sides"]) == 1
+    out = {}
+    for b in subs:
+        t = plan.tiles.index(b.tile) if plan.parts > 1 else 0
+        ti = (0 if mirrored else b.side) * plan.parts + t
+        first = int(net.tiles[ti]["layer0"])
+        counts = []
+        for lr in net.layers[first:first + n_layers]:
+            active = _last(net, int(lr["out_stream"])) + 1
+            busy, blocked = int(lr["busy"]), int(lr["blocked"])
+            tail = c_nna - active
+            counts.append({**activity_counts(busy, active - busy - blocked
+                                             + (tail if short else 0), blocked,
+                                             0 if short else tail),
+                           "first_output_cycle": int(lr["first"]),
+                           "last_output_cycle": active - 1})
+        out[b.name] = counts
+    return {"nna_layers": out}
 
 
 def _stage_peaks(plan: ChipPlan, net: Net) -> dict[str, int]:
@@ -413,11 +442,11 @@ def _windows(plan: ChipPlan, net: Net) -> list[tuple[int, int]]:
     """(peak, cycle) of every row window, in ``buffers.tracked`` order, from the window walks
     (a mirrored right side's are the left side's)."""
     walks = [(int(w["peak"]), int(w["at"])) for w in net.win]
-    parts = plan.parts
+    per_side = plan.parts * len(plan.blocks_of("nna")[0].layers)
     tiles = walks[:-1]
     if int(net.prm[0]["sides"]) == 1:
         tiles = tiles + tiles
-    return tiles[:2 * parts] + walks[-1:]
+    return tiles[:2 * per_side] + walks[-1:]
 
 
 def _window_frames(plan: ChipPlan, frame_fs: np.ndarray, window: tuple[int, int]) -> range:

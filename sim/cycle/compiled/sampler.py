@@ -35,9 +35,11 @@ from stereosim.sim.cycle.compiled.sva import sample_sva, status_sva
 
 
 @njit(cache=True)
-def _block_status(ring, streams, cursors, prm, state, tables, b, c):
+def _block_status(events, prm, state, tables, layers, b, c):
     """(activity, FIFO waited on or a code of :mod:`.source`, or -1) that block ``b`` (its
-    record) reports in its cycle c; ``tables`` = (tiles, FIFOs, frame instants, ids)."""
+    record) reports in its cycle c; ``events`` = (ring, streams, cursors), ``tables`` =
+    (tiles, FIFOs, frame instants, ids), ``layers`` the NNA tiles' layers."""
+    ring, streams, cursors = events
     kind = b.kind
     if kind == K_MEMORY:
         return status_memory(ring, streams, cursors, prm, state, tables, b, c)
@@ -45,7 +47,7 @@ def _block_status(ring, streams, cursors, prm, state, tables, b, c):
         return status_camera(prm, c)
     if kind == K_NNA:
         return status_nna(ring, streams, cursors, prm, tables[0][b.side * prm.parts + b.tile],
-                          c)
+                          layers, c)
     if kind == K_MERGE:
         return status_merge(ring, streams, cursors, prm, tables, b, c)
     if kind == K_SVA:
@@ -57,17 +59,18 @@ def _block_status(ring, streams, cursors, prm, state, tables, b, c):
 def block_status(net, blk, c):
     """(activity, FIFO waited on or -1) that block ``blk`` reports in its cycle c (after
     :func:`.ring.cursors_at` for the instant)."""
-    return _block_status(net.ring, net.streams, net.cursors, net.prm[0], net.state[0],
-                         (net.tiles, net.fifos, net.frame_fs, net.ids[0]), net.blocks[blk], c)
+    return _block_status((net.ring, net.streams, net.cursors), net.prm[0], net.state[0],
+                         (net.tiles, net.fifos, net.frame_fs, net.ids[0]), net.layers,
+                         net.blocks[blk], c)
 
 
 @njit(cache=True, inline="always")
-def _block_signals(kind, n_stages):
+def _block_signals(kind, n_stages, n_layers):
     """How many signals a block of this kind traces (its activity first)."""
     if kind == K_MEMORY or kind == K_CAMERA:
         return 2
-    if kind == K_NNA:
-        return 8
+    if kind == K_NNA:  # per layer 5 (and its status with several), out.valid, out.descriptor
+        return 3 + 5 * n_layers + (n_layers if n_layers > 1 else 0)
     if kind == K_SVA:
         return 12 + 2 * n_stages
     return 3
@@ -86,23 +89,25 @@ def sample(net, data, t, out, done):
     tables = (tiles, fifos, net.frame_fs, ids)
     blocks = net.blocks
     n_blocks = blocks.shape[0]
+    n_layers = tiles[0].n_layers
     k = 0
     for blk in range(n_blocks):
         b = blocks[blk]
         c = t // b.period
-        m = _block_signals(b.kind, prm.n_stages) - 1
+        m = _block_signals(b.kind, prm.n_stages, n_layers) - 1
         if done[blk, 0] == c:
             k += m + 1
             continue
         done[blk, 0] = c
-        st, _ = _block_status(ring, streams, cursors, prm, net.state[0], tables, b, c)
+        st, _ = _block_status((ring, streams, cursors), prm, net.state[0], tables, net.layers,
+                              b, c)
         out[k] = (st + 1) % 4  # idle 0, busy 1, starved 2, blocked 3
         k += 1
         if b.kind == K_MEMORY or b.kind == K_CAMERA:
             out[k] = sample_source(prm, cursors, b, c)
         elif b.kind == K_NNA:
-            sample_nna(ring, streams, cursors, prm, tiles[b.side * prm.parts + b.tile], data, c,
-                       out[k:k + m])
+            sample_nna(ring, streams, cursors, prm, (tiles[b.side * prm.parts + b.tile],
+                                                     net.layers), data, c, out[k:k + m])
         elif b.kind == K_MERGE:
             sample_merge(ring, streams, cursors, fifos, b, c, out[k:k + m])
         elif b.kind == K_SVA:
