@@ -23,8 +23,8 @@ exact integer value (which the reference computes with Python ints).
 
 :func:`cnn_descriptor_ref` is the one-layer definition read literally (a loop over pixels and
 channels, Python ints); :func:`cnn_descriptor` and :func:`network_descriptor` run the fast form of
-:mod:`quant.intconv` (:func:`~quant.intconv.int_signs`), which is tested equal to it and to
-``signs_ref(int_forward_ref(...))`` for networks.
+:mod:`quant.intconv` (:func:`~quant.intconv.int_signs`), which is tested equal to it and, for
+networks, to the signs of :func:`~quant.intconv.int_forward_ref` (``signs_ref``).
 """
 
 from __future__ import annotations
@@ -36,10 +36,8 @@ from stereosim.quant.intconv import (
     IntNetwork,
     descriptor_dtype,
     int_forward,
-    int_forward_ref,
     int_signs,
     network,
-    signs_ref,
 )
 from stereosim.sim.errors import ConfigError
 
@@ -166,9 +164,3 @@ def network_descriptor(img, net: IntNetwork) -> np.ndarray:
     """The descriptor of a checked network (:func:`quant.intconv.network`): the signs of its
     last layer, uint32 (H, W) for up to 32 channels, uint64 for up to 64."""
     return int_signs(as_image_u8(img), *net.args)
-
-
-def network_descriptor_ref(img, net: IntNetwork) -> np.ndarray:
-    """The naive form of :func:`network_descriptor`: the signs of
-    :func:`quant.intconv.int_forward_ref`'s int64 accumulators."""
-    return signs_ref(int_forward_ref(as_image_u8(img), *net.args))
