@@ -160,13 +160,13 @@ def median_rows(src, height: int, k: int, y0: int, y1: int, out) -> None:
 @njit(cache=True)
 def _median_network(q, k, network, out):
     """The whole frame ``q`` (H, W) through :func:`median_network_rows`."""
-    median_network_rows(q, q.shape[0], k, network, 0, q.shape[0], out)
+    median_network_rows(q, q.shape[0], k, network, np.int64(0), q.shape[0], out)
 
 
 @njit(cache=True)
 def _median3(q, out):
     """The whole frame ``q`` (H, W) through :func:`median3_rows`."""
-    median3_rows(q, q.shape[0], 0, q.shape[0], out)
+    median3_rows(q, q.shape[0], np.int64(0), q.shape[0], out)
 
 
 def median(q, k: int) -> np.ndarray:

@@ -207,3 +207,46 @@ def test_no_kernel_takes_more_than_8_parameters():
                 if n > 8:
                     found.append(f"{path.relative_to(ROOT)}:{node.lineno} {node.name}: {n}")
     assert not found, "\n".join(found)
+
+
+def _compiled_apart(node) -> bool:
+    """A kernel numba compiles on its own (``@njit`` without ``inline="always"``): called with a
+    literal argument, it is compiled once more for each literal value."""
+    for dec in node.decorator_list:
+        target = dec.func if isinstance(dec, ast.Call) else dec
+        name = target.attr if isinstance(target, ast.Attribute) else getattr(target, "id", "")
+        if name == "register_jitable":
+            return False
+        if isinstance(dec, ast.Call) and any(
+                k.arg == "inline" and getattr(k.value, "value", None) == "always"
+                for k in dec.keywords):
+            return False
+    return _jitted(node)
+
+
+def test_no_kernel_hands_another_a_literal_flag():
+    """A kernel calling another kernel with ``True``, ``False`` or a number typed in the call
+    makes numba compile the callee again for that literal value (a walker called with
+    ``final=True`` and ``final=False`` compiled twice: about a third of the engine's cold
+    compile). Such arguments are runtime values: ``np.bool_(True)``, ``np.int64(0)``."""
+    trees = [(p, ast.parse(p.read_text())) for p in _modules().values()]
+    apart = {n.name for _, t in trees for n in ast.walk(t)
+             if isinstance(n, ast.FunctionDef) and _compiled_apart(n)}
+    found = []
+    for path, tree in trees:
+        for fn in ast.walk(tree):
+            if not (isinstance(fn, ast.FunctionDef) and _jitted(fn)):
+                continue
+            for call in ast.walk(fn):
+                if not isinstance(call, ast.Call):
+                    continue
+                f = call.func
+                name = f.attr if isinstance(f, ast.Attribute) else getattr(f, "id", None)
+                if name not in apart:
+                    continue
+                for arg in [*call.args, *(k.value for k in call.keywords)]:
+                    v = arg.operand if isinstance(arg, ast.UnaryOp) else arg
+                    if isinstance(v, ast.Constant) and isinstance(v.value, (bool, int)):
+                        found.append(f"{path.relative_to(ROOT)}:{call.lineno} "
+                                     f"{name}(... {ast.unparse(arg)} ...)")
+    assert not found, "\n".join(found)

@@ -15,6 +15,7 @@ producer sees, its cycles full); and its counts at an instant (occupancy, traced
 
 from __future__ import annotations
 
+import numpy as np
 from numba import njit
 
 from stereosim.sim.cycle.compiled.layout import ERR_RING, FIFO_TO_MERGE, FIFO_TO_NNA, INF
@@ -237,9 +238,9 @@ def finish_fifos(net, cycles):
     consumer's domain, edges of its producer's)."""
     for f in range(net.fifos.shape[0]):
         if net.fifos[f].side < net.prm[0].sides:
-            walk_fifo(net, f, False, cycles[f, 0])
+            walk_fifo(net, f, np.bool_(False), cycles[f, 0])
             if net.fifos[f].crossing == 1:
-                walk_fifo(net, f, True, cycles[f, 1])
+                walk_fifo(net, f, np.bool_(True), cycles[f, 1])
 
 
 

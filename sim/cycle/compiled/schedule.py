@@ -16,6 +16,11 @@ Two pairs of streams that wait on each other item by item are taken in turn in o
 as far as the other allows, without a call per turn: a whole-frame side's source pushes and
 line-buffer pops (:func:`advance_whole_side`), and the SVA's issues and pushes with the sink's
 pops (:func:`advance_sva_and_sink`); each block's part of the loop is in its own file.
+
+Flags handed from one kernel to another are runtime values (``np.bool_(True)``, not ``True``):
+numba compiles a kernel once per literal argument value it is called with (a walker called with
+``final=True`` and ``final=False`` compiled twice; tests/test_architecture.py keeps literal flags
+out).
 """
 
 from __future__ import annotations
@@ -101,16 +106,33 @@ def walk_all(net, final):
     if not final:
         for f in range(net.fifos.shape[0]):
             if net.fifos[f].side < prm.sides:
-                fifo.walk_fifo(net, f, False, -1)
+                fifo.walk_fifo(net, f, np.bool_(False), np.int64(-1))
                 if net.fifos[f].crossing == 1:
-                    fifo.walk_fifo(net, f, True, -1)
+                    fifo.walk_fifo(net, f, np.bool_(True), np.int64(-1))
+
+
+def run_pass(net):
+    """Advance every stream in turn until the sink has the frame, nothing can move, a camera
+    overflows or a ring error stops the pass (:func:`advance_streams`); the walkers follow
+    whenever a stream has gone a quarter of its ring ahead of them, and at the end. Sets
+    ``state.end``.
+
+    The walkers are called from here, not from the compiled loop: numba re-optimises every
+    kernel a kernel calls inside the caller's own code, and the walkers inside the loop were a
+    third of the engine's cold compile. A 720p frame returns here a few dozen times."""
+    walked = np.zeros(net.streams.shape[0], np.int64)
+    while advance_streams(net, walked):
+        walk_all(net, False)
+        walked[:] = net.streams["count"]
+    if net.state[0]["error"] == 0 and net.prm[0]["stats"] == 1:
+        walk_all(net, True)
 
 
 @njit(cache=True)
-def run_pass(net):
-    """Advance every stream in turn until the sink has the frame, nothing can move, a camera
-    overflows or a ring error stops the pass; the walkers follow whenever a stream has gone a
-    quarter of its ring ahead of them, and at the end. Sets ``state.end``."""
+def advance_streams(net, walked):
+    """Advance every stream in turn until the pass ends (False; ``state.end`` or
+    ``state.error`` says how) or, with statistics, a stream has gone a quarter of its ring past
+    ``walked`` (its count when the walkers last ran): True, the walkers are due."""
     prm = net.prm[0]
     state = net.state[0]
     streams = net.streams
@@ -118,7 +140,6 @@ def run_pass(net):
     sides = prm.sides  # 1: the right side's events are the left's
     n_tiles = sides * prm.parts
     n_streams = streams.shape[0]
-    walked = np.zeros(n_streams, np.int64)
     while True:
         state.iterations += 1
         moved = False
@@ -138,25 +159,18 @@ def run_pass(net):
         moved |= sva.advance_sva_pops(net)
         moved |= advance_sva_and_sink(net)
         if state.error != 0:
-            return
-        if prm.stats == 1:
-            due = False
-            for s in range(n_streams):
-                if streams[s].count - walked[s] > (streams[s].mask + 1) // 4:
-                    due = True
-            if due:
-                walk_all(net, False)
-                for s in range(n_streams):
-                    walked[s] = streams[s].count
+            return False
         if streams[q_s].count >= state.target:  # every frame taken is out
             state.end = END_DONE
-            break
+            return False
         if not moved:
             if state.end != END_OVERFLOW:
                 for side in range(sides):
                     source.pending_overflow(net, side)
             if state.end != END_OVERFLOW:
                 state.end = END_STUCK if prm.cap_fs >= INF else END_CAP
-            break
-    if prm.stats == 1:
-        walk_all(net, True)
+            return False
+        if prm.stats == 1:
+            for s in range(n_streams):
+                if streams[s].count - walked[s] > (streams[s].mask + 1) // 4:
+                    return True
