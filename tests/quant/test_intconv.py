@@ -14,7 +14,7 @@ from stereosim.nna.conv import cnn_accumulators
 from stereosim.nna.weights import SHIPPED_WEIGHTS, load_network
 from stereosim.quant.intconv import (
     F32_EXACT,
-    _conv_rows,
+    _acc_layer,
     _pad_taps,
     check_network,
     int_forward,
@@ -170,8 +170,8 @@ def test_float32_lanes_hold_the_worst_case_sums():
     got = {}
     for dtype in (np.float32, np.float64):
         xp = np.full((7, 9, 9), -255, dtype)
-        acc = np.zeros((1, 1, 1), dtype)
-        _conv_rows(xp, _pad_taps(big, dtype), acc)
+        acc = np.zeros((1, 1, 1), np.int32)
+        _acc_layer(xp, _pad_taps(big, dtype), np.zeros(1, np.int32), acc)
         got[dtype] = int(acc[0, 0, 0])
     assert got[np.float64] == exact
     assert got[np.float32] != exact  # what float32 lanes would do: the reason for the rule
