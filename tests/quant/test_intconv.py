@@ -16,6 +16,7 @@ from stereosim.quant.intconv import (
     F32_EXACT,
     _acc_layer,
     _pad_taps,
+    _padded,
     check_network,
     int_forward,
     int_forward_ref,
@@ -144,6 +145,20 @@ def test_shipped_networks_on_band_edges(height):
     for path in (SHIPPED_WEIGHTS, models / "mccnn4.int8.npz", models / "mccnn4-slim.int8.npz"):
         net = load_network(path)
         assert_array_equal(int_signs(img, *net.args), signs_ref(int_forward_ref(img, *net.args)))
+
+
+@pytest.mark.parametrize("lo, n, a, b, r", [(0, 5, 0, 5, 2), (3, 6, 3, 9, 4), (2, 7, 4, 6, 1),
+                                             (0, 1, 0, 1, 3), (5, 4, 6, 8, 0)])
+def test_padded_input_is_the_replicate_border(lo, n, a, b, r):
+    """A layer's padded input (the helper every fast path uses): rows [a - r, b + r) and
+    columns [-r, W - r + Kp - 1) of the rows given, coordinates clamped into them."""
+    x = np.random.default_rng(r).integers(-255, 256, size=(3, n, 7)).astype(np.float32)
+    k_cols = 3 * -(-(2 * r + 1) // 3)
+    got = _padded(x, lo, a, b, r, k_cols, np.float64)
+    rows = np.clip(np.arange(a - r, b + r), lo, lo + n - 1) - lo
+    cols = np.clip(np.arange(-r, 7 - r + k_cols - 1), 0, 6)
+    assert got.dtype == np.float64
+    assert_array_equal(got, x[:, rows][:, :, cols])
 
 
 def test_float32_lanes_hold_the_worst_case_sums():
