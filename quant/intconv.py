@@ -322,66 +322,92 @@ def _rows1(xp, w_pad, c, y, acc1):
 
 
 @njit(cache=True)
-def _conv_rows(xp, w_pad, acc):
-    """acc[c, y, x] = sum over (ci, ky, kx) of w_pad[c, ci, ky, kx] * xp[ci, y + ky, x + kx],
-    without the bias. ``w_pad`` (C_out, C_in, K, Kp) has zeros beyond column K; ``xp`` and
-    ``acc`` are float lanes of one dtype."""
-    c_out = w_pad.shape[0]
-    rows, width = acc.shape[1], acc.shape[2]
-    acc4 = np.empty((4, width), dtype=acc.dtype)
-    acc1 = np.empty(width, dtype=acc.dtype)
-    for y in range(rows):
-        c = 0
-        while c + 4 <= c_out:
-            _rows4(xp, w_pad, c, y, acc4)
-            acc[c:c + 4, y, :] = acc4
-            c += 4
-        while c < c_out:
-            _rows1(xp, w_pad, c, y, acc1)
-            acc[c, y, :] = acc1
-            c += 1
+def _tap_sums(xp, w_pad, c, y, acc4):
+    """Tap sums of the output channels from c at row y into acc4[0 .. n): four channels
+    (:func:`_rows4`) while four are left, else one (:func:`_rows1` into acc4[0]); returns n."""
+    if c + 4 <= w_pad.shape[0]:
+        _rows4(xp, w_pad, c, y, acc4)
+        return 4
+    _rows1(xp, w_pad, c, y, acc4[0])
+    return 1
 
 
 @njit(cache=True)
-def _requant_rows(acc, bias, m, h, out):
-    """out[c, y, x] = clamp(mul_shift(int32(acc) + bias[c], m[c], h[c]), 0, 127), in the lanes
-    of ``out`` (the next layer's input)."""
-    c_out, rows, width = acc.shape
-    for c in range(c_out):
-        for y in range(rows):
-            for x in range(width):
-                v = mul_shift(np.int32(acc[c, y, x]) + bias[c], m[c], h[c])
-                if v < 0:
-                    v = 0
-                elif v > ACT_MAX:
-                    v = ACT_MAX
-                out[c, y, x] = v
+def _sign_row(acc, bias_c, mask, bits):
+    """bits[x] |= mask where int32(acc[x]) + bias_c > 0 (acc an exact integer-valued row)."""
+    zero = mask ^ mask
+    limit = -bias_c
+    for x in range(acc.shape[0]):
+        bits[x] |= mask if np.int32(acc[x]) > limit else zero
 
 
 @njit(cache=True)
-def _sign_rows(acc, bias, masks, out):
-    """out[y, x] = OR of masks[c] over the channels with int32(acc[c, y, x]) + bias[c] > 0."""
-    c_out, rows, width = acc.shape
+def _requant_row(acc, bias_c, m, h, out):
+    """out[x] = clamp(mul_shift(int32(acc[x]) + bias_c, m, h), 0, 127), in the dtype of out."""
+    for x in range(acc.shape[0]):
+        v = mul_shift(np.int32(acc[x]) + bias_c, m, h)
+        if v < 0:
+            v = 0
+        elif v > ACT_MAX:
+            v = ACT_MAX
+        out[x] = v
+
+
+@njit(cache=True)
+def _sign_layer(xp, w_pad, bias, masks, out):
+    """out[y, x] = OR of masks[c] over the channels c whose accumulator bias[c] + tap sum (of
+    ``w_pad`` over ``xp``, as :func:`_rows4`) at row y, column x is > 0. Each row's tap sums
+    are thresholded while they are in cache; no accumulator leaves the row's scratch."""
+    rows, width = out.shape
+    acc4 = np.empty((4, width), dtype=xp.dtype)
     zero = masks[0] ^ masks[0]
     for y in range(rows):
-        for x in range(width):
-            out[y, x] = zero
-    for c in range(c_out):
-        mask = masks[c]
-        limit = -bias[c]
-        for y in range(rows):
-            for x in range(width):
-                out[y, x] |= mask if np.int32(acc[c, y, x]) > limit else zero
+        bits = out[y]
+        bits[:] = zero
+        c = 0
+        while c < w_pad.shape[0]:
+            n = _tap_sums(xp, w_pad, c, y, acc4)
+            for j in range(n):
+                _sign_row(acc4[j], bias[c + j], masks[c + j], bits)
+            c += n
 
 
 @njit(cache=True)
-def _acc_rows(acc, bias, out):
-    """out[y, x, c] = int32(acc[c, y, x]) + bias[c]: the last layer's accumulators."""
-    c_out, rows, width = acc.shape
-    for c in range(c_out):
-        for y in range(rows):
-            for x in range(width):
-                out[y, x, c] = np.int32(acc[c, y, x]) + bias[c]
+def _requant_layer(xp, w_pad, bias, mult, shift, out):
+    """out[c, y, x] = the requantised activation (:func:`_requant_row`) of channel c's
+    accumulator at row y, column x; ``out`` may be a view into the next layer's input."""
+    rows, width = out.shape[1], out.shape[2]
+    acc4 = np.empty((4, width), dtype=xp.dtype)
+    for y in range(rows):
+        c = 0
+        while c < w_pad.shape[0]:
+            n = _tap_sums(xp, w_pad, c, y, acc4)
+            for j in range(n):
+                _requant_row(acc4[j], bias[c + j], mult[c + j], shift[c + j], out[c + j, y])
+            c += n
+
+
+@njit(cache=True)
+def _acc_layer(xp, w_pad, bias, out):
+    """out[y, x, c] = int32(tap sum) + bias[c]: the layer's int32 accumulators (rows, W, C)."""
+    rows, width = out.shape[0], out.shape[1]
+    acc4 = np.empty((4, width), dtype=xp.dtype)
+    for y in range(rows):
+        c = 0
+        while c < w_pad.shape[0]:
+            n = _tap_sums(xp, w_pad, c, y, acc4)
+            for j in range(n):
+                for x in range(width):
+                    out[y, x, c + j] = np.int32(acc4[j, x]) + bias[c + j]
+            c += n
+
+
+@njit(cache=True)
+def _requant_rows(acc, m, h, out):
+    """out[c, y, x] = clamp(mul_shift(acc[c, y, x], m[c], h[c]), 0, 127) of int32 ``acc``."""
+    for c in range(acc.shape[0]):
+        for y in range(acc.shape[1]):
+            _requant_row(acc[c, y], np.int32(0), m[c], h[c], out[c, y])
 
 
 def _pad_taps(w: np.ndarray, dtype) -> np.ndarray:
@@ -406,46 +432,97 @@ def band_ranges(halves: tuple[int, ...], height: int, y0: int, y1: int) -> list[
     return ranges[::-1]
 
 
-def _padded(x: np.ndarray, lo: int, height: int, a: int, b: int, r: int, k_cols: int, dtype):
-    """Layer input rows [a - r, b + r) and columns [-r, W + r + extra) with the replicate
-    border, from ``x`` (C, rows, W) holding frame rows [lo, lo + rows)."""
-    width = x.shape[2]
-    rows = np.clip(np.arange(a - r, b + r), 0, height - 1) - lo
-    cols = np.clip(np.arange(-r, width - r + k_cols - 1), 0, width - 1)
-    return np.ascontiguousarray(x[:, rows][:, :, cols], dtype=dtype)
+def _replicate_border(xp: np.ndarray, top: int, rows: int, r: int, width: int) -> None:
+    """The replicate border, in place: ``xp`` (C, n, Wp) holds a layer's input in rows
+    [top, top + rows) and columns [r, r + width); every other column of those rows repeats
+    the nearest of them, then every row above (below) repeats the first (last) of them."""
+    inner = xp[:, top : top + rows]
+    inner[:, :, :r] = inner[:, :, r : r + 1]
+    inner[:, :, r + width :] = inner[:, :, r + width - 1 : r + width]
+    xp[:, :top] = xp[:, top : top + 1]
+    xp[:, top + rows :] = xp[:, top + rows - 1 : top + rows]
 
 
-def forward_bands(img, net, finish, band_rows: int = BAND_ROWS) -> None:
+def _padded(x: np.ndarray, lo: int, a: int, b: int, r: int, k_cols: int, dtype) -> np.ndarray:
+    """Layer input rows [a - r, b + r) and columns [-r, W - r + k_cols - 1) with the replicate
+    border, from ``x`` (C, n, W) holding rows [lo, lo + n) (the rows the border clamps into)."""
+    n_ch, n, width = x.shape
+    first, last = max(lo, a - r), min(lo + n, b + r)
+    xp = np.empty((n_ch, b - a + 2 * r, width + k_cols - 1), dtype=dtype)
+    top = first - (a - r)
+    xp[:, top : top + last - first, r : r + width] = x[:, first - lo : last - lo]
+    _replicate_border(xp, top, last - first, r, width)
+    return xp
+
+
+class _LayerPlan(NamedTuple):
+    """One layer of :func:`forward_bands`: its kernel ``w_pad`` in exact float lanes, its half
+    kernel ``r`` and a flat buffer that holds any band's padded input (C_in, rows, W + Kp - 1)."""
+
+    w_pad: np.ndarray
+    r: int
+    buffer: np.ndarray
+
+    def band_input(self, a: int, b: int, width: int) -> np.ndarray:
+        """The padded input of output rows [a, b) of a frame ``width`` wide: a contiguous
+        (C_in, b - a + 2r, width + Kp - 1) view of the buffer."""
+        shape = (self.w_pad.shape[1], b - a + 2 * self.r, width + self.w_pad.shape[3] - 1)
+        return self.buffer[: shape[0] * shape[1] * shape[2]].reshape(shape)
+
+
+def _layer_plans(net, width: int, band_rows: int) -> list[_LayerPlan]:
+    """Each layer's :class:`_LayerPlan` for bands of ``band_rows`` output rows: a layer's
+    input spans the band plus the half kernels of it and of every layer after it, each side."""
+    weights, _, _, _, input_offset = net
+    halves = [w.shape[2] // 2 for w in weights]
+    x_max = max(input_offset, 255 - input_offset)
+    plans = []
+    for layer, w in enumerate(weights):
+        w_pad = _pad_taps(w, lane_dtype(w, x_max))
+        rows = band_rows + 2 * sum(halves[layer:])
+        size = w.shape[1] * rows * (width + w_pad.shape[3] - 1)
+        plans.append(_LayerPlan(w_pad, halves[layer], np.empty(size, w_pad.dtype)))
+        x_max = ACT_MAX
+    return plans
+
+
+def forward_bands(img, net, out, band_rows: int = BAND_ROWS) -> None:
     """Run the checked network ``net`` = (weights, biases, mult, shift, input_offset) over
-    ``img`` band by band: ``finish(y0, y1, acc, bias)`` receives the last layer's tap sums
-    (C, y1 - y0, W) in float lanes for output rows [y0, y1), the bias apart."""
+    ``img`` band by band into ``out``: the descriptor (H, W) of unsigned ints
+    (:func:`int_signs`) or the last layer's int32 accumulators (H, W, C) (:func:`int_forward`).
+    Each layer's requantised outputs go straight into the next layer's padded input buffer;
+    the buffers are allocated once per call."""
     weights, biases, mult, shift, input_offset = net
     height, width = img.shape
-    halves = tuple(w.shape[2] // 2 for w in weights)
-    x_max = max(input_offset, 255 - input_offset)
-    dtypes, taps = [], []
-    for w in weights:
-        dtypes.append(lane_dtype(w, x_max))
-        taps.append(_pad_taps(w, dtypes[-1]))
-        x_max = ACT_MAX
+    plans = _layer_plans(net, width, band_rows)
+    halves = tuple(p.r for p in plans)
     shifts = [(np.asarray(m, np.int64), np.asarray(h, np.int64)) for m, h in zip(mult, shift)]
+    n_out = weights[-1].shape[0]
+    masks = np.array([1 << c for c in range(n_out)], dtype=descriptor_dtype(n_out))
     for y0 in range(0, height, band_rows):
         y1 = min(height, y0 + band_rows)
         ranges = band_ranges(halves, height, y0, y1)
         lo, hi = ranges[0]
-        x = (img[lo:hi].astype(np.int32) - np.int32(input_offset))[None].astype(np.float32)
-        for layer, w_pad in enumerate(taps):
-            a, b = ranges[layer + 1]
-            r = halves[layer]
-            xp = _padded(x, lo, height, a, b, r, w_pad.shape[3], dtypes[layer])
-            acc = np.empty((w_pad.shape[0], b - a, width), dtype=dtypes[layer])
-            _conv_rows(xp, w_pad, acc)
-            if layer == len(taps) - 1:
-                finish(y0, y1, acc, biases[layer])
-                break
-            x = np.empty(acc.shape, dtype=dtypes[layer + 1])
-            _requant_rows(acc, biases[layer], *shifts[layer], x)
-            lo = a
+        a, b = ranges[1]
+        r = plans[0].r
+        xp = plans[0].band_input(a, b, width)
+        top = lo - (a - r)
+        xp[0, top : top + hi - lo, r : r + width] = img[lo:hi]
+        xp[0, top : top + hi - lo, r : r + width] -= input_offset
+        _replicate_border(xp, top, hi - lo, r, width)
+        for layer, plan in enumerate(plans[:-1]):
+            a_next, b_next = ranges[layer + 2]
+            r_next = plans[layer + 1].r
+            xp_next = plans[layer + 1].band_input(a_next, b_next, width)
+            top = a - (a_next - r_next)
+            inner = xp_next[:, top : top + b - a, r_next : r_next + width]
+            _requant_layer(xp, plan.w_pad, biases[layer], *shifts[layer], inner)
+            _replicate_border(xp_next, top, b - a, r_next, width)
+            xp, a, b = xp_next, a_next, b_next
+        if out.ndim == 2:
+            _sign_layer(xp, plans[-1].w_pad, biases[-1], masks, out[y0:y1])
+        else:
+            _acc_layer(xp, plans[-1].w_pad, biases[-1], out[y0:y1])
 
 
 def int_layer_rows(net: IntNetwork, layer: int, x, lo: int, a: int, b: int) -> np.ndarray:
@@ -464,21 +541,17 @@ def int_layer_rows(net: IntNetwork, layer: int, x, lo: int, a: int, b: int) -> n
         x_max = max(offset, 255 - offset)
     else:
         x_max = ACT_MAX
-    dtype = lane_dtype(w, x_max)
-    w_pad = _pad_taps(w, dtype)
-    xp = _padded(np.asarray(x), 0, x.shape[1], a - lo, b - lo, w.shape[2] // 2, w_pad.shape[3],
-                 dtype)
-    acc = np.empty((w.shape[0], b - a, x.shape[2]), dtype=dtype)
-    _conv_rows(xp, w_pad, acc)
+    w_pad = _pad_taps(w, lane_dtype(w, x_max))
+    xp = _padded(np.asarray(x), lo, a, b, w.shape[2] // 2, w_pad.shape[3], w_pad.dtype)
     if layer == len(weights) - 1:
         out_dtype = descriptor_dtype(w.shape[0])
         masks = np.array([1 << c for c in range(w.shape[0])], dtype=out_dtype)
-        out = np.empty(acc.shape[1:], dtype=out_dtype)
-        _sign_rows(acc, biases[layer], masks, out)
+        out = np.empty((b - a, x.shape[2]), dtype=out_dtype)
+        _sign_layer(xp, w_pad, biases[layer], masks, out)
         return out
-    out = np.empty(acc.shape, dtype=np.int32)
-    _requant_rows(acc, biases[layer], np.asarray(mult[layer], np.int64),
-                  np.asarray(shift[layer], np.int64), out)
+    out = np.empty((w.shape[0], b - a, x.shape[2]), dtype=np.int32)
+    _requant_layer(xp, w_pad, biases[layer], np.asarray(mult[layer], np.int64),
+                   np.asarray(shift[layer], np.int64), out)
     return out
 
 
@@ -487,23 +560,19 @@ def int_layer(x_i32, weights, bias) -> np.ndarray:
     in exact float lanes (the caller guarantees, via :func:`check_network`, that they fit
     int32)."""
     x_max = int(np.abs(x_i32).max()) if x_i32.size else 0
-    dtype = lane_dtype(weights, max(x_max, 1))
-    r = weights.shape[2] // 2
-    w_pad = _pad_taps(weights, dtype)
+    w_pad = _pad_taps(weights, lane_dtype(weights, max(x_max, 1)))
     height = x_i32.shape[1]
-    xp = _padded(np.asarray(x_i32), 0, height, 0, height, r, w_pad.shape[3], dtype)
-    acc = np.empty((weights.shape[0],) + x_i32.shape[1:], dtype=dtype)
-    _conv_rows(xp, w_pad, acc)
+    xp = _padded(np.asarray(x_i32), 0, 0, height, weights.shape[2] // 2, w_pad.shape[3],
+                 w_pad.dtype)
     out = np.empty(x_i32.shape[1:] + (weights.shape[0],), dtype=np.int32)
-    _acc_rows(acc, bias.astype(np.int32), out)
+    _acc_layer(xp, w_pad, bias.astype(np.int32), out)
     return np.ascontiguousarray(out.transpose(2, 0, 1))
 
 
 def requantize(acc_i32, mult, shift) -> np.ndarray:
     """Per-channel ``clamp((acc * m) >> h, 0, 127)`` of int32 (C, H, W); returns int32."""
     out = np.empty(acc_i32.shape, dtype=np.int32)
-    zero = np.zeros(acc_i32.shape[0], dtype=np.int32)
-    _requant_rows(np.ascontiguousarray(acc_i32, dtype=np.int32), zero, mult.astype(np.int64),
+    _requant_rows(np.ascontiguousarray(acc_i32, dtype=np.int32), mult.astype(np.int64),
                   shift.astype(np.int64), out)
     return out
 
@@ -515,11 +584,7 @@ def int_forward(img, weights, biases, mult, shift, input_offset, z_bits=8, *,
     img = _as_image(img)
     net = check_network(weights, biases, mult, shift, input_offset, z_bits)
     out = np.empty(img.shape + (net[0][-1].shape[0],), dtype=np.int32)
-
-    def finish(y0, y1, acc, bias):
-        _acc_rows(acc, bias, out[y0:y1])
-
-    forward_bands(img, net, finish, band_rows)
+    forward_bands(img, net, out, band_rows)
     return out
 
 
@@ -531,19 +596,13 @@ def descriptor_dtype(n_channels: int) -> np.dtype:
 def int_signs(img, weights, biases, mult, shift, input_offset, z_bits=8, *,
               band_rows: int = BAND_ROWS) -> np.ndarray:
     """The descriptor: bit c of out[y, x] is ``acc[c] > 0`` of the last layer (LSB = channel
-    0); uint32 (H, W) for up to 32 channels, uint64 for up to 64. The fast form, band by band:
-    no frame of accumulators is ever held."""
+    0); uint32 (H, W) for up to 32 channels, uint64 for up to 64. The fast form, band by band,
+    each row's signs taken while its tap sums are in cache: no frame of accumulators is ever
+    held."""
     img = _as_image(img)
     net = check_network(weights, biases, mult, shift, input_offset, z_bits)
-    n_out = net[0][-1].shape[0]
-    dtype = descriptor_dtype(n_out)
-    masks = np.array([1 << c for c in range(n_out)], dtype=dtype)
-    out = np.empty(img.shape, dtype=dtype)
-
-    def finish(y0, y1, acc, bias):
-        _sign_rows(acc, bias, masks, out[y0:y1])
-
-    forward_bands(img, net, finish, band_rows)
+    out = np.empty(img.shape, dtype=descriptor_dtype(net[0][-1].shape[0]))
+    forward_bands(img, net, out, band_rows)
     return out
 
 

@@ -14,8 +14,9 @@ from stereosim.nna.conv import cnn_accumulators
 from stereosim.nna.weights import SHIPPED_WEIGHTS, load_network
 from stereosim.quant.intconv import (
     F32_EXACT,
-    _conv_rows,
+    _acc_layer,
     _pad_taps,
+    _padded,
     check_network,
     int_forward,
     int_forward_ref,
@@ -146,6 +147,20 @@ def test_shipped_networks_on_band_edges(height):
         assert_array_equal(int_signs(img, *net.args), signs_ref(int_forward_ref(img, *net.args)))
 
 
+@pytest.mark.parametrize("lo, n, a, b, r", [(0, 5, 0, 5, 2), (3, 6, 3, 9, 4), (2, 7, 4, 6, 1),
+                                             (0, 1, 0, 1, 3), (5, 4, 6, 8, 0)])
+def test_padded_input_is_the_replicate_border(lo, n, a, b, r):
+    """A layer's padded input (the helper every fast path uses): rows [a - r, b + r) and
+    columns [-r, W - r + Kp - 1) of the rows given, coordinates clamped into them."""
+    x = np.random.default_rng(r).integers(-255, 256, size=(3, n, 7)).astype(np.float32)
+    k_cols = 3 * -(-(2 * r + 1) // 3)
+    got = _padded(x, lo, a, b, r, k_cols, np.float64)
+    rows = np.clip(np.arange(a - r, b + r), lo, lo + n - 1) - lo
+    cols = np.clip(np.arange(-r, 7 - r + k_cols - 1), 0, 6)
+    assert got.dtype == np.float64
+    assert_array_equal(got, x[:, rows][:, :, cols])
+
+
 def test_float32_lanes_hold_the_worst_case_sums():
     """Why the fast form may use float32: float32 holds every integer below 2**24, and a layer
     whose worst-case |tap sum| (sum |w| x max|x|) stays below that gets float32 lanes -- every
@@ -170,8 +185,8 @@ def test_float32_lanes_hold_the_worst_case_sums():
     got = {}
     for dtype in (np.float32, np.float64):
         xp = np.full((7, 9, 9), -255, dtype)
-        acc = np.zeros((1, 1, 1), dtype)
-        _conv_rows(xp, _pad_taps(big, dtype), acc)
+        acc = np.zeros((1, 1, 1), np.int32)
+        _acc_layer(xp, _pad_taps(big, dtype), np.zeros(1, np.int32), acc)
         got[dtype] = int(acc[0, 0, 0])
     assert got[np.float64] == exact
     assert got[np.float32] != exact  # what float32 lanes would do: the reason for the rule
