@@ -233,6 +233,16 @@ def walk_fifo(net, f, producer, c_end):
 
 
 @njit(cache=True)
+def walk_fifos(net):
+    """Advance every FIFO's walks as far as the events known settle them."""
+    for f in range(net.fifos.shape[0]):
+        if net.fifos[f].side < net.prm[0].sides:
+            walk_fifo(net, f, np.bool_(False), np.int64(-1))
+            if net.fifos[f].crossing == 1:
+                walk_fifo(net, f, np.bool_(True), np.int64(-1))
+
+
+@njit(cache=True)
 def finish_fifos(net, cycles):
     """Settle every FIFO walk up to the end of a completed run: ``cycles[f]`` = (edges of its
     consumer's domain, edges of its producer's)."""

@@ -481,28 +481,70 @@ def walk_nna(net, ti, final):
 
 
 @njit(cache=True, inline="always")
-def layer_interval(ring, streams, lr, h, k):
-    """(start, finish, leave, a ring error) of output k of layer ``lr``, known: it starts once
-    the previous one has left and its input rows are in, works ``cpd`` cycles and leaves when
-    there is room."""
-    b_off, b_mask, _, b_lo = view(streams, lr.in_stream)
+def mark_layer(ring, streams, lr, h, cover, c0, c1):
+    """Mark layer ``lr``'s known outputs from ``lr.wk`` on in the chunk of cycles [c0, c1):
+    output k starts once the previous one has left and its input rows are in, works ``cpd``
+    cycles [s, f] and leaves at e when there is room -- busy over [s, f] and at e (``cover`` row 0),
+    the last layer blocked over (f, e) (row 1). Each output that has left before c1 adds to the
+    layer's own busy, blocked and first output. Returns (the first output not settled, a ring
+    error). The input rows are read once per output row."""
+    st = streams[lr.out_stream]
     e_off, e_mask, _, e_lo = view(streams, lr.out_stream)
-    r = k // lr.ow
+    b_off, b_mask, _, b_lo = view(streams, lr.in_stream)
+    k, count, cpd, ow = lr.wk, st.count, lr.cpd, lr.ow
     out_rows = lr.y1 - lr.y0
-    fr = r // out_rows
-    need = fr * lr.n_in + (nna_last_input_row(lr.y0 + r - fr * out_rows, lr.half, h) - lr.iy0
-                           + 1) * lr.iw
+    r = k // ow
+    col = k - r * ow
     prev = rd(ring, e_off, e_mask, k - 1) if k > 0 else -1
-    s = max(prev + 1, rd(ring, b_off, b_mask, need - 1) + 1)
-    err = need - 1 <= b_lo or (k > 0 and k - 1 <= e_lo)
-    return s, s + lr.cpd - 1, rd(ring, e_off, e_mask, k), err
+    err = k > 0 and k - 1 <= e_lo  # later outputs read later events
+    row, rows_in = -1, 0
+    l_busy, l_blocked, l_first = 0, 0, lr.first  # written back once
+    n_in, iw, iy0, y0, half = lr.n_in, lr.iw, lr.iy0, lr.y0, lr.half
+    last = lr.last == 1
+    while k < count:
+        if r != row:
+            fr = r // out_rows
+            need = fr * n_in + (nna_last_input_row(y0 + r - fr * out_rows, half, h) - iy0
+                                + 1) * iw
+            rows_in = rd(ring, b_off, b_mask, need - 1) + 1
+            err |= need - 1 <= b_lo
+            row = r
+        s = max(prev + 1, rows_in)
+        if s >= c1:
+            break
+        f = s + cpd - 1
+        e = rd(ring, e_off, e_mask, k)
+        mark(cover, c0, c1, s, f, 0)
+        mark(cover, c0, c1, e, e, 0)
+        if last:
+            mark(cover, c0, c1, f + 1, e - 1, 1)
+        if e >= c1:
+            break
+        # the layer's own activity: busy over [s, f] and at e, blocked over (f, e)
+        l_busy += cpd + (1 if e > f else 0)
+        l_blocked += max(0, e - f - 1)
+        if k == 0:
+            l_first = e
+        prev = e
+        k += 1
+        col += 1
+        if col == ow:
+            col = 0
+            r += 1
+    lr.busy += l_busy
+    lr.blocked += l_blocked
+    lr.first = l_first
+    return k, err
 
 
 @njit(cache=True, inline="always")
-def mark(bm, c0, c1, lo, hi, flag):
-    """Set ``flag`` in the chunk's cycles [lo, hi] within [c0, c1)."""
-    for c in range(max(lo, c0), min(hi, c1 - 1) + 1):
-        bm[c - c0] |= flag
+def mark(cover, c0, c1, lo, hi, row):
+    """Count the chunk's cycles [lo, hi] within [c0, c1) once more in ``cover[row]``, a
+    difference array (+1 at the first cycle, -1 after the last: its running sum is the count)."""
+    lo, hi = max(lo, c0), min(hi, c1 - 1)
+    if lo <= hi:
+        cover[row, lo - c0] += 1
+        cover[row, hi - c0 + 1] -= 1
 
 
 @njit(cache=True)
@@ -511,8 +553,8 @@ def walk_layers(net, ti, final):
     the cycles every event of which is known (``final``: the streams have stopped; an output
     pending whose rows are in works, then waits for ever): busy in a cycle with a pop or in
     which any layer works on an output or lets one leave, blocked when only the last layer
-    holds a finished output, starved otherwise. The cycles are marked in chunks; the busy
-    ones are the block's busy instants (its long gaps)."""
+    holds a finished output, starved otherwise. The cycles are counted in chunks (:func:`mark`: a
+    difference array per class); the busy ones are the block's busy instants (its long gaps)."""
     prm = net.prm[0]
     state = net.state[0]
     ring, streams, gaps = net.ring, net.streams, net.gaps
@@ -541,49 +583,36 @@ def walk_layers(net, ti, final):
     stop = min(front, end)
     c0 = a.walk
     chunk = 1 << 14
-    bm = np.zeros(chunk, np.uint8)
+    cover = np.zeros((2, chunk + 1), np.int32)
     starved, blocked = 0, 0
     last_busy, n_gaps = a.last_busy, a.gaps
     ptr = a.ptr
     err = c0 < stop and ptr < nb and ptr <= b_lo
     while c0 < stop:
         c1 = min(stop, c0 + chunk)
-        bm[:c1 - c0] = 0
+        cover[:, :c1 - c0 + 1] = 0
         while ptr < nb:
             c = rd(ring, b_off, b_mask, ptr)
             if c >= c1:
                 break
-            bm[c - c0] = 1
+            cover[0, c - c0] += 1
+            cover[0, c - c0 + 1] -= 1
             ptr += 1
         for li in range(tl.layer0, tl.layer0 + tl.n_layers):
             lr = net.layers[li]
             st = streams[lr.out_stream]
-            k = lr.wk
-            while k < st.count:
-                s, f, e, bad = layer_interval(ring, streams, lr, h, k)
-                err |= bad
-                if s >= c1:
-                    break
-                mark(bm, c0, c1, s, f, 1)
-                mark(bm, c0, c1, e, e, 1)
-                if lr.last == 1:
-                    mark(bm, c0, c1, f + 1, e - 1, 2)
-                if e >= c1:
-                    break
-                # the layer's own activity: busy over [s, f] and at e, blocked over (f, e)
-                lr.busy += lr.cpd + (1 if e > f else 0)
-                lr.blocked += max(0, e - f - 1)
-                if k == 0:
-                    lr.first = e
-                k += 1
+            k, bad = mark_layer(ring, streams, lr, h, cover, c0, c1)
+            err |= bad
             if k == st.count and k < st.n and final:
                 s = layer_start(ring, streams, lr, h, k)
                 if s < INF:
-                    mark(bm, c0, c1, s, s + lr.cpd - 1, 1)
+                    mark(cover, c0, c1, s, s + lr.cpd - 1, 0)
             lr.wk = k
+        n_busy, n_blocked = 0, 0  # the running sums of cover's rows
         for i in range(c1 - c0):
-            v = bm[i]
-            if v & 1:
+            n_busy += cover[0, i]
+            n_blocked += cover[1, i]
+            if n_busy > 0:
                 t = (c0 + i) * per
                 if t - last_busy > g:
                     if n_gaps < gaps.shape[1]:
@@ -591,7 +620,7 @@ def walk_layers(net, ti, final):
                         gaps[blk, n_gaps, 1] = t
                     n_gaps += 1
                 last_busy = t
-            elif v & 2:
+            elif n_blocked > 0:
                 blocked += 1
             else:
                 starved += 1
