@@ -179,6 +179,7 @@ def cycle_figures(variant: str, first_formula: int, shape=SHAPE) -> dict:
     energy = rep["energy"]["per_frame_uj"]
     return {
         "fps_measured": rep["throughput"]["fps_measured"],
+        "frame_ms": rep["latency"]["frame_ms"],
         "fps_bound": rep["throughput"]["fps_bound"],
         "bottleneck": rep["throughput"]["bottleneck"],
         "sustained_fps": stream["stream"]["sustained_fps"],
@@ -225,7 +226,12 @@ TIME_HEAD = ("| network | first descriptor: formula (cycles) | cycle model: cycl
              "| per-layer first outputs (cycles) | energy / frame: total (NNA), uJ "
              "| power at 30 fps, mW |")
 TIME_KINDS = ("plan", "plan") + ("cycle",) * 4
-TABLES = {COST_HEAD: COST_KINDS, RATE_HEAD: RATE_KINDS, TIME_HEAD: TIME_KINDS}
+FILL_HEAD = ("| network | 1 / NNA fps = max_l cpp_l W H / f, ms "
+             "| one frame: first input pixel to last word, ms | difference, us "
+             "| of which before the first descriptor, us | after it, us |")
+FILL_KINDS = ("plan", "plan") + ("cycle",) * 4
+TABLES = {COST_HEAD: COST_KINDS, RATE_HEAD: RATE_KINDS, TIME_HEAD: TIME_KINDS,
+          FILL_HEAD: FILL_KINDS}
 
 
 def _row(cells) -> str:
@@ -286,6 +292,15 @@ def time_row(p: dict, c: dict | None) -> list[str]:
     ]
 
 
+def fill_row(p: dict, c: dict | None) -> list[str]:
+    period_ms = 1e3 / p["fps_formula"]
+    if not c:
+        return [p["variant"], f"{period_ms:.3f}", *[MISSING] * 4]
+    diff_us = (c["frame_ms"] - period_ms) * 1e3
+    return [p["variant"], f"{period_ms:.3f}", f"{c['frame_ms']:.3f}", f"{diff_us:.1f}",
+            f"{c['first_us']:.1f}", f"{diff_us - c['first_us']:.1f}"]
+
+
 def formula_lines(p: dict) -> list[str]:
     """The hand arithmetic of a network's fps and first descriptor, numbers filled in."""
     h, w = p["shape"]
@@ -335,6 +350,9 @@ def block_lines(plans: list[dict], acc: dict, cycles: dict | None) -> list[str]:
         "",
         TIME_HEAD, _rule(TIME_KINDS),
         *(_row(time_row(p, cyc.get(p["variant"]))) for p in plans),
+        "",
+        FILL_HEAD, _rule(FILL_KINDS),
+        *(_row(fill_row(p, cyc.get(p["variant"]))) for p in plans),
         "",
         "The arithmetic (f = NNA clock, W x H = 1280 x 720, one submodule a camera, memory "
         "source; m_l = K_l^2 C_in,l C_out,l, macs_l its share, cpp_l = ceil(m_l / macs_l), "
