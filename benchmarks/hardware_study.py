@@ -47,6 +47,7 @@ from stereosim.sim.config import load_config
 from stereosim.sim.cycle.plan import build_plan, submodule_report
 from stereosim.sim.sweep import synthetic_pair
 from stereosim.sim.tracing import TraceRequest
+from stereosim.sva.geometry import box_radius, median_radius
 from stereosim.traces.log import changes_of
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -259,7 +260,7 @@ def cost_row(p: dict, acc: dict) -> list[str]:
         ", ".join(f"{la['rows']} x {la['width']} x {la['c_in']} x 8 = {la['bits']:,}"
                   for la in lays),
         f"{p['lb_bits']:,} bits = {p['lb_bits'] / 8192:.1f} KiB",
-        f"{p['hidden_bytes'] / 1e6:.1f} MB",
+        f"{p['hidden_bytes'] / 1e6:.1f} MB" if p["hidden_bytes"] else "none",
         f"{clean[0]:.2f} ({clean[1]:.2f})",
         f"{noisy[0]:.2f} ({noisy[1]:.2f})",
     ]
@@ -305,30 +306,44 @@ def formula_lines(p: dict) -> list[str]:
     """The hand arithmetic of a network's fps and first descriptor, numbers filled in."""
     h, w = p["shape"]
     f_mhz = p["f_hz"] / 1e6
-    m = p["m"]
-    cpp = ", ".join(f"ceil({mm} / {s}) = {c}" for mm, s, c in
-                    zip(m, p["shares"], p["cpp"], strict=True))
+    cpp = ", ".join(f"ceil({mm:,} / {s}) = {c}" for mm, s, c in
+                    zip(p["m"], p["shares"], p["cpp"], strict=True))
     lines = [
-        f"- **{p['variant']}**: m_l = {', '.join(f'{x:,}' for x in m)} "
-        f"(sum {p['macs_per_pixel']:,}); shares of {p['macs']} MACs "
+        f"- **{p['variant']}**: m_l = {', '.join(f'{x:,}' for x in p['m'])} "
+        f"(sum {p['macs_per_pixel']:,}); MAC shares (of {p['macs']}) "
         f"{', '.join(str(s) for s in p['shares'])}; cpp_l = {cpp}; "
         f"fps = {f_mhz:g}e6 / ({p['cpd']} x {w} x {h}) = {p['fps_formula']:.3f}.",
     ]
     for target in TARGETS:
         nd = p["need"][target]
-        text = (f"  {target} fps: ceil({target} / {p['fps_formula']:.3f}) = {nd['ceil']} "
-                f"submodules a camera")
+        text = f"  - {target} fps: ceil({target} / {p['fps_formula']:.3f}) = {nd['ceil']} a camera"
         if nd["plan"] == nd["ceil"]:
-            text += f" (plan: {nd['fps_at_ceil']:.3f} fps)."
+            text += f"; the plan gives {nd['fps_at_ceil']:.3f} fps with {nd['ceil']}."
         else:
-            text += (f", but the plan gives {nd['fps_at_ceil']:.3f} fps there (each column "
-                     f"tile's earlier layers compute a halo of sum h_l columns beyond it); "
-                     f"{nd['plan']} give {nd['fps_at_plan']:.3f}.")
+            text += (f", but the plan gives {nd['fps_at_ceil']:.3f} fps with {nd['ceil']} (a "
+                     "column tile's earlier layers also compute a halo of the later layers' "
+                     f"half kernels); {nd['plan']} give {nd['fps_at_plan']:.3f}.")
         lines.append(text)
     halves = ", ".join(str(x) for x in p["halves"])
-    lines.append(f"  First outputs (h_l = {halves}): "
+    lines.append(f"  - first outputs (h_l = {halves}): "
                  f"{', '.join(f'{x:,}' for x in p['first_formula'])} cycles.")
     return lines
+
+
+def sva_drain_line(variant: str, shape=SHAPE) -> str:
+    """The SVA's time after the NNA's last descriptor: its last r + m + 1 output rows wait for
+    the last input row (box radius r, median radius m), then leave at II cycles a word, and
+    the last word leaves L cycles later."""
+    cfg = load_config(overrides=overrides(variant))
+    sva = build_plan(cfg, shape).block("sva")
+    r, m = box_radius(cfg.sva), median_radius(cfg.sva)
+    w = shape[1]
+    cycles = (r + m + 1) * w * sva.cycles + sva.latency
+    return (f"After the NNA's last descriptor the SVA still owes its last r + m + 1 rows (box "
+            f"radius r = {r}, median radius m = {m}) at II = {sva.cycles} cycles a word plus "
+            f"its latency L = {sva.latency}: ({r} + {m} + 1) x {w} x {sva.cycles} + "
+            f"{sva.latency} = {cycles:,} SVA cycles = {cycles / cfg.clocks.sva_mhz:.1f} us at "
+            f"{cfg.clocks.sva_mhz:g} MHz (the same for every network).")
 
 
 def block_lines(plans: list[dict], acc: dict, cycles: dict | None) -> list[str]:
@@ -361,9 +376,9 @@ def block_lines(plans: list[dict], acc: dict, cycles: dict | None) -> list[str]:
     ]
     for p in plans:
         lines += formula_lines(p)
-    if cycles:
-        engines = sorted({c["engine"] for c in cycles.values()})
-        lines += ["", f"Cycle model engine: {', '.join(engines)}."]
+    lines += ["", sva_drain_line(plans[0]["variant"], plans[0]["shape"])]
+    engines = sorted({c["engine"] for c in cyc.values()}) or [MISSING]
+    lines += ["", f"Cycle model engine: {', '.join(engines)}."]
     return lines
 
 
