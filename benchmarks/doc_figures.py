@@ -616,6 +616,7 @@ ELSEWHERE = {
     "robustness": ("ablation.md",
                    "python benchmarks/robustness.py --seed 0 --write docs/ablation.md"),
     "spill-study": ("energy.md", "python benchmarks/descriptor_dram_study.py --write"),
+    "hardware-study": ("hardware-study.md", "python benchmarks/hardware_study.py --write"),
     "shared-sva": ("streams.md", "python benchmarks/shared_sva.py --frames 60 --write"),
     "protocol-results": ("tuning.md", "python benchmarks/tuning_report.py --write docs/tuning.md"),
 }
