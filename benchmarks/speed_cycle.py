@@ -8,14 +8,17 @@ timed in this process right after each stereosim frame (the two alternate, so a 
 machine's load shows in both).
 
     python benchmarks/speed_cycle.py [--repeat 3] [--engine fast|readable] [--split]
-                                     [--set KEY=VALUE ...]
+                                     [--set KEY=VALUE ...] [--versus KEY=VALUE ...]
 
 ``--engine readable`` is the reference kernel (about 1e5 cycles/s: minutes per frame); ``--engine
 fast`` or the default is the compiled engine (sim/cycle/engine). ``--split`` runs one more frame
 in the child and prints where its CPU time goes: the compiled engine's event streams and
 statistics, and the data kernels (the NNA's descriptors, the SVA's stream and median).
 ``--set`` changes the configuration, e.g. ``--set nna.cnn.weights=benchmarks/models/mccnn4.int8.npz
---set nna.cnn.channels=32`` for a network of four layers (docs/performance.md).
+--set nna.cnn.channels=32`` for a network of four layers (docs/performance.md). ``--versus``
+runs a second configuration in turn with the first, e.g. ``--versus
+nna.cnn.weights=benchmarks/models/mccnn4-slim.int8.npz``, and prints its wall time over the
+first's, run by run.
 """
 
 from __future__ import annotations
@@ -87,6 +90,9 @@ def main(argv=None):
                     help="also print the CPU split: event loop vs data kernels")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                     help="a configuration override (repeatable)")
+    ap.add_argument("--versus", action="append", default=[], metavar="KEY=VALUE",
+                    help="a second configuration (the --set ones plus these), run in turn with "
+                         "the first; prints its time over the first's")
     ap.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.child:
@@ -99,13 +105,19 @@ def main(argv=None):
     sgbm.compute(left, right)
     # stereosim (a fresh process per frame) and OpenCV alternate, so both see the same machine
     env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
-    runs, cv_times = [], []
-    for _ in range(args.repeat):
+    runs, cv_times, versus = [], [], []
+
+    def child(sets: list[str]) -> dict:
         out = subprocess.run([sys.executable, __file__, "--child", "--engine", args.engine]
                              + (["--split"] if args.split else [])
-                             + [f"--set={item}" for item in args.set],
+                             + [f"--set={item}" for item in sets],
                              capture_output=True, text=True, check=True, env=env)
-        runs.append(json.loads(out.stdout.strip().splitlines()[-1]))
+        return json.loads(out.stdout.strip().splitlines()[-1])
+
+    for _ in range(args.repeat):
+        runs.append(child(args.set))
+        if args.versus:
+            versus.append(child(args.set + args.versus))
         t0 = time.perf_counter()
         sgbm.compute(left, right)
         cv_times.append(time.perf_counter() - t0)
@@ -120,6 +132,12 @@ def main(argv=None):
     pairs = sorted(r["wall_s"] / c for r, c in zip(runs, cv_times))
     print(f"  ratio stereosim / OpenCV: {best['wall_s'] / cv_best:.2f}  (target <= 1.3; "
           f"run by run {pairs[0]:.2f} .. {pairs[-1]:.2f}, median {pairs[len(pairs) // 2]:.2f})")
+    if args.versus:
+        vs = sorted(v["wall_s"] / r["wall_s"] for v, r in zip(versus, runs))
+        v_best = min(v["wall_s"] for v in versus)
+        print(f"  with {' '.join(args.versus)}: {v_best:.3f} s, "
+              f"{max(v['cycles'] for v in versus):,} cycles; its time over the first's, run by "
+              f"run {vs[0]:.2f} .. {vs[-1]:.2f}, median {vs[len(vs) // 2]:.2f}")
     if args.split:
         sp = min((r["split"] for r in runs), key=lambda x: x["total_s"])
         kernels = sp["nna_kernels_s"] + sp["sva_kernels_s"]
