@@ -38,6 +38,7 @@ from stereosim.nna.geometry import (
     half_window,
     layer_tiles,
     macs_per_descriptor,
+    pipeline_cycles,
     split_frame,
     window_rows,
 )
@@ -419,7 +420,8 @@ class ChipPlan:
         if block.kind == "camera":  # pairs sharing the chip start a frame every 1/P period
             return block.frame_clocks // self.pairs
         if block.kind == "nna":  # its busiest layer's MAC array (one layer: items x cycles)
-            return max(lay.items * lay.cycles for lay in block.layers)
+            return pipeline_cycles(tuple(lay.items for lay in block.layers),
+                                   tuple(lay.cycles for lay in block.layers))
         return block.items * block.cycles
 
 
