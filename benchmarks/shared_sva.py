@@ -8,7 +8,8 @@ through the DRAM channel at its defaults, dropping the frames that find no free 
 second pair runs half a frame period after the first (``sva.pairs = 2``). It prints per case
 and per pair the measured sustained fps, drops and latency, and the work bound with its
 bottleneck; a lone pair of the same chip gives what sharing costs in latency, and the last
-case lends the other four NNA submodules to a network taking 16 of the channel's 17 GB/s.
+case lends the other four NNA submodules to the example network configs/lent/backbone224.toml
+(a recognition backbone at 30 fps; docs/lent.md), whose DRAM traffic takes a slot of each round.
 ``--write`` puts the table into docs/streams.md.
 """
 
@@ -26,6 +27,7 @@ import stereosim
 from stereosim.sim.datasets import default_scene
 
 DOC = Path(__file__).resolve().parent.parent / "docs" / "streams.md"
+LENT = Path(__file__).resolve().parent.parent / "configs" / "lent" / "backbone224.toml"
 BEGIN, END = "<!-- shared-sva:begin -->", "<!-- shared-sva:end -->"
 CAMERAS = {"source.kind": "camera", "source.frame_buffers": 2,
            "source.on_overflow": "drop_frame", "dram.model": "tdm"}
@@ -37,8 +39,8 @@ CASES = [
     ("CNN, 4 submodules, one pair", CNN4, 1),
     ("CNN, 4 submodules, two pairs", CNN4, 2),
     ("CNN, 6 submodules, two pairs", CNN6, 2),
-    ("CNN, 6 submodules, two pairs, 4 lent at 16 GB/s",
-     {**CNN6, "nna.lent_submodules": 4, "dram.lent_gbps": 16.0}, 2),
+    ("CNN, 6 submodules, two pairs, 4 lent to backbone224 at 30 fps",
+     {**CNN6, "nna.lent_submodules": 4, "nna.lent_network": str(LENT)}, 2),
 ]
 
 

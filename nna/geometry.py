@@ -11,7 +11,14 @@ C_out,l output channels):
   1 (:func:`mac_shares`); cycles per output pixel cpp_l = ceil(m_l / macs_l)
   (:func:`layer_cycles`);
 - line buffer rows: layer 0 holds ``nna.line_buffer_rows`` rows (at least K_0), layer l >= 1
-  K_l plus the same slack (:func:`layer_rows`);
+  K_l plus the same slack (:func:`layer_rows`); a layer of stride s_l holds K_l + slack s_l
+  (:func:`buffer_rows`: the slack counts output rows, and each takes s_l input rows); its line
+  buffer holds rows x its input width x C_in,l x 8 bits (:func:`line_buffer_bits`);
+- stride: a layer of stride s reads its input around every s-th pixel of every s-th row, with
+  the input padded by h_l ("same" padding): an input of N pixels gives ceil(N / s) outputs
+  (:func:`strided_size`); the stereo descriptor's layers all have stride 1;
+- a layer pipeline's frame: its layers run side by side, so a frame takes the busiest layer's
+  output pixels x cycles per pixel, max_l items_l cpp_l (:func:`pipeline_cycles`);
 - regions: layer l's output region is the tile's output region widened by R_l = h_{l+1} + ...
   + h_{L-1} (clipped to the frame), its input region the tile's widened by R_l + h_l -- layer
   l - 1's output region; layer 0's input region is the tile's (:func:`layer_tiles`).
@@ -84,29 +91,20 @@ def layer_macs_per_pixel(cfg: NnaConfig) -> tuple[int, ...]:
     return network(cfg).layer_macs
 
 
-def mac_shares(cfg: NnaConfig) -> tuple[int, ...]:
-    """The MAC units of each layer's stage: ``nna.layer_macs`` when given (one per layer,
-    summing to at most ``nna.macs``), else ``nna.macs`` = M split in proportion to the layers'
-    MACs per pixel m_l by largest remainder -- floor(M m_l / sum m) each, the units left over
-    one each to the largest remainders (the earlier layer first on ties) -- then a layer left
-    with none takes one from the layer with the most (the earlier on ties), so each has at
-    least 1. Fewer MACs than layers, or a ``nna.layer_macs`` of the wrong length or sum, is a
-    ConfigError. One layer (and the census): (M,)."""
-    m = layer_macs_per_pixel(cfg)
-    n, total = len(m), cfg.macs
-    if cfg.layer_macs:
-        if len(cfg.layer_macs) != n or sum(cfg.layer_macs) > total:
-            raise ConfigError(
-                f"nna.layer_macs={list(cfg.layer_macs)} must give one MAC share per layer "
-                f"({n}) summing to at most nna.macs={total}: fix it or leave it empty (the "
-                "proportional split)")
-        return tuple(cfg.layer_macs)
+def share_macs(total: int, work: tuple[int, ...]) -> tuple[int, ...]:
+    """``total`` MAC units split over layers in proportion to their ``work`` by largest
+    remainder: floor(M w_l / sum w) each, the units left over one each to the largest remainders
+    (the earlier layer first on ties), then a layer left with none takes one from the layer
+    with the most (the earlier on ties), so each has at least 1. Fewer MACs than layers is a
+    ConfigError. The stereo network's work is m_l (its layers make about one output pixel per
+    pixel each); a network whose strides shrink the frame weighs m_l by its output pixels."""
+    n = len(work)
     if total < n:
         raise ConfigError(f"nna.macs={total} cannot give each of the network's {n} layers a "
                           f"MAC unit: use at least {n}")
-    weight = sum(m) or 1
-    shares = [total * x // weight for x in m]
-    order = sorted(range(n), key=lambda i: (-(total * m[i] % weight), i))
+    weight = sum(work) or 1
+    shares = [total * x // weight for x in work]
+    order = sorted(range(n), key=lambda i: (-(total * work[i] % weight), i))
     for i in order[:total - sum(shares)]:
         shares[i] += 1
     for i in range(n):
@@ -117,22 +115,69 @@ def mac_shares(cfg: NnaConfig) -> tuple[int, ...]:
     return tuple(shares)
 
 
+def mac_shares(cfg: NnaConfig) -> tuple[int, ...]:
+    """The MAC units of each layer's stage: ``nna.layer_macs`` when given (one per layer,
+    summing to at most ``nna.macs``), else ``nna.macs`` = M split in proportion to the layers'
+    MACs per pixel m_l (:func:`share_macs`). A ``nna.layer_macs`` of the wrong length or sum is
+    a ConfigError. One layer (and the census): (M,)."""
+    m = layer_macs_per_pixel(cfg)
+    if cfg.layer_macs:
+        if len(cfg.layer_macs) != len(m) or sum(cfg.layer_macs) > cfg.macs:
+            raise ConfigError(
+                f"nna.layer_macs={list(cfg.layer_macs)} must give one MAC share per layer "
+                f"({len(m)}) summing to at most nna.macs={cfg.macs}: fix it or leave it empty "
+                "(the proportional split)")
+        return tuple(cfg.layer_macs)
+    return share_macs(cfg.macs, m)
+
+
+def cycles_per_pixel(macs_per_pixel: int, share: int) -> int:
+    """Cycles a layer's MAC array of ``share`` units spends on one output pixel of
+    ``macs_per_pixel`` MACs: ceil(m_l / macs_l)."""
+    return -(-macs_per_pixel // share)
+
+
+def pipeline_cycles(items: tuple[int, ...], cycles: tuple[int, ...]) -> int:
+    """Cycles of a frame of a layer pipeline whose layers run side by side: the busiest layer's
+    output pixels x cycles per pixel, max_l items_l cpp_l."""
+    return max(i * c for i, c in zip(items, cycles, strict=True))
+
+
+def strided_size(n: int, stride: int) -> int:
+    """Outputs of a layer of ``stride`` over ``n`` inputs ("same" padding): ceil(n / s)."""
+    return -(-n // stride)
+
+
+def buffer_rows(kernels: tuple[int, ...], strides: tuple[int, ...], slack: int
+                ) -> tuple[int, ...]:
+    """Input rows each layer's line buffer holds: its window K_l plus ``slack`` output rows'
+    worth of arriving input, slack x s_l rows (a row, or a stride's rows, may arrive while the
+    window computes)."""
+    return tuple(k + slack * s for k, s in zip(kernels, strides, strict=True))
+
+
+def line_buffer_bits(rows: int, width: int, channels_in: int) -> int:
+    """SRAM bits of a line buffer of ``rows`` rows of ``width`` pixels of ``channels_in`` int8
+    activations: rows x width x C_in x 8."""
+    return rows * width * channels_in * 8
+
+
 def layer_cycles(cfg: NnaConfig) -> tuple[int, ...]:
     """Cycles each layer's MAC array spends on one output pixel: cpp_l = ceil(m_l / macs_l)
-    (:func:`mac_shares`); the census unit: 1. One layer: :func:`cycles_per_descriptor`."""
+    (:func:`mac_shares`, :func:`cycles_per_pixel`); the census unit: 1. One layer:
+    :func:`cycles_per_descriptor`."""
     if cfg.descriptor == "census":
         return (1,)
-    return tuple(-(-m // share) for m, share in zip(layer_macs_per_pixel(cfg), mac_shares(cfg),
-                                                      strict=True))
+    return tuple(cycles_per_pixel(m, share) for m, share in
+                 zip(layer_macs_per_pixel(cfg), mac_shares(cfg), strict=True))
 
 
 def layer_rows(cfg: NnaConfig) -> tuple[int, ...]:
     """Input rows each layer's line buffer holds: layer 0 ``nna.line_buffer_rows``, layer
-    l >= 1 K_l + (``nna.line_buffer_rows`` - K_0) -- its window and the same slack."""
-    halves = layer_halves(cfg)
-    slack = cfg.line_buffer_rows - (2 * halves[0] + 1)
-    return tuple(cfg.line_buffer_rows if i == 0 else 2 * r + 1 + slack
-                 for i, r in enumerate(halves))
+    l >= 1 K_l + (``nna.line_buffer_rows`` - K_0) -- its window and the same slack
+    (:func:`buffer_rows` at stride 1)."""
+    kernels = tuple(2 * r + 1 for r in layer_halves(cfg))
+    return buffer_rows(kernels, (1,) * len(kernels), cfg.line_buffer_rows - kernels[0])
 
 
 def check_line_buffer(cfg: NnaConfig) -> None:

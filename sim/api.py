@@ -18,6 +18,7 @@ from stereosim.sim.config import ChipConfig, check_config, config_to_dict, load_
 from stereosim.sim.cycle.contract import RunStopped, stop_report
 from stereosim.sim.cycle.energy import energy_report, energy_table
 from stereosim.sim.cycle.frames import FrameSupply, check_frame_count, functional_words
+from stereosim.sim.cycle.lent import lent_report
 from stereosim.sim.cycle.plan import ChipPlan, architecture_report, build_plan
 from stereosim.sim.cycle.report import power_basis
 from stereosim.sim.cycle.simulate import simulate
@@ -224,6 +225,8 @@ def build_report(plan: ChipPlan, mode: str, fixed: np.ndarray | None) -> dict:
         "descriptor": {"kind": cfg.nna.descriptor, "bits": bits},
         "config": config_to_dict(cfg),
     }
+    if plan.lent is not None:
+        report["lent_network"] = lent_report(plan.lent, plan.dram, h * w)
     if fixed is not None:
         valid = int(np.count_nonzero(fixed >= 0))
         report["output"] = {

@@ -160,7 +160,7 @@ RULES: tuple[tuple[str, str, str], ...] = (
      "ready to its first word"),
     (r"architecture\.sva_pipeline\.register_bits", "architecture", "bits of the SVA "
      "pipeline's registers"),
-    (r"architecture\.nna_submodules\.(?P<k>stereo|on_chip|idle)", "architecture", "NNA "
+    (r"architecture\.nna_submodules\.(?P<k>stereo|on_chip|lent|idle)", "architecture", "NNA "
      "submodules: {k}"),
     (r"architecture\.nna_submodules\.nna_fps", "architecture", f"frames/s, {BOUND} of the "
      "NNA submodules in use"),

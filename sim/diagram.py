@@ -18,6 +18,7 @@ from __future__ import annotations
 import io
 from pathlib import Path
 
+from stereosim.sim.cycle.lent import lent_lines, lent_report
 from stereosim.sim.cycle.plan import BlockPlan, ChipPlan, sram_bits
 from stereosim.sim.errors import InputError
 from stereosim.sim.outputs import atomic_write_bytes
@@ -89,6 +90,8 @@ def plan_text(plan: ChipPlan) -> str:
                      f"bits, {f.key}; {seen}")
     total = sum(sram_bits(plan).values())
     lines.append(f"SRAM per instance: {total:,} bits over {len(sram_bits(plan))} buffers")
+    if plan.lent is not None:
+        lines += lent_lines(lent_report(plan.lent, plan.dram, h * w))
     how = "sim.max_cycles" if plan.cfg.sim.max_cycles else "automatic, sim.max_cycles = 0"
     lines.append(f"cycle budget ({how}; a run stops after this many cycles of each clock): "
                  + ", ".join(f"{k} {v:,} cycles" for k, v in sorted(plan.budget.items())))

@@ -6,24 +6,28 @@ the defaults, an optional TOML file and dotted-key overrides, and rejects unknow
 values with the key's dotted name. ``stereosim config show`` prints the result as TOML.
 
 The package's modules, bottom up: :mod:`~sim.config.widths` (the rule of the automatic register
-widths), :mod:`~sim.config.schema` (the declarations), :mod:`~sim.config.check` (the checks,
-run once where a configuration enters), :mod:`~sim.config.loader` (TOML file and overrides)
-and :mod:`~sim.config.writer` (TOML out, diffs). Their public names are imported from here.
+widths), :mod:`~sim.config.schema` (the declarations), :mod:`~sim.config.files` (reading a TOML
+file), :mod:`~sim.config.lent` (the file of the network on lent NNA submodules),
+:mod:`~sim.config.check` (the checks, run once where a configuration enters),
+:mod:`~sim.config.loader` (TOML file and overrides) and :mod:`~sim.config.writer` (TOML out,
+diffs). Their public names are imported from here.
 """
 
 from stereosim.sim.config.check import check_config, check_section, is_checked
+from stereosim.sim.config.files import read_toml
+from stereosim.sim.config.lent import LentLayer, LentNetwork, read_lent_network
 from stereosim.sim.config.loader import (
     descriptor_width,
     keys_set,
     load_config,
     parse_set_options,
-    read_toml,
 )
 from stereosim.sim.config.schema import (
     AUTO_BUDGET_FACTOR,
     DEFAULT_DESCRIPTOR,
     DESCRIPTOR_DEFAULTS,
     LEGAL_DISPARITIES,
+    RETIRED,
     SECTIONS,
     CensusConfig,
     ChipConfig,
@@ -43,8 +47,8 @@ from stereosim.sim.config.writer import config_diff, config_to_dict, config_to_t
 __all__ = [
     "AUTO_BUDGET_FACTOR", "CNN_BITS", "DEFAULT_DESCRIPTOR", "DESCRIPTOR_DEFAULTS",
     "LEGAL_DISPARITIES", "SECTIONS", "CensusConfig", "ChipConfig", "ClockConfig", "CnnConfig",
-    "DramConfig", "FifoConfig", "NnaConfig", "SimConfig", "SourceConfig", "SvaConfig",
-    "check_config", "check_section", "config_diff", "config_to_dict", "config_to_toml",
-    "descriptor_width", "is_checked", "keys_set", "load_config", "param", "parse_set_options",
-    "read_toml", "sgm_widths",
+    "DramConfig", "FifoConfig", "LentLayer", "LentNetwork", "NnaConfig", "RETIRED", "SimConfig",
+    "SourceConfig", "SvaConfig", "check_config", "check_section", "config_diff",
+    "config_to_dict", "config_to_toml", "descriptor_width", "is_checked", "keys_set",
+    "load_config", "param", "parse_set_options", "read_lent_network", "read_toml", "sgm_widths",
 ]

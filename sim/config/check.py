@@ -26,7 +26,8 @@ from typing import Any
 
 import numpy as np
 
-from stereosim.sim.config.schema import SECTIONS, ChipConfig
+from stereosim.sim.config.lent import read_lent_network
+from stereosim.sim.config.schema import RETIRED, SECTIONS, ChipConfig
 from stereosim.sim.errors import ConfigError
 
 # id -> the object that passed the checks; an entry goes with its object
@@ -142,6 +143,8 @@ def _build(cls, data: dict, prefix: str):
     for key in data:
         if key not in names:
             dotted = f"{prefix}{key}"
+            if dotted in RETIRED:
+                raise ConfigError(RETIRED[dotted])
             known = ", ".join(f"{prefix}{n}" for n in names)
             raise ConfigError(f"unknown config key '{dotted}' (known here: {known})")
     kwargs = {}
@@ -204,21 +207,18 @@ def check_combinations(cfg: ChipConfig) -> ChipConfig:
             "--set source.frame_buffers=2 (or use sva.pairs=1)"
         )
     d = cfg.dram
-    if d.model == "none" and (d.spill != "none" or d.lent_gbps > 0):
-        what = "dram.spill" if d.spill != "none" else "dram.lent_gbps"
+    if d.model == "none" and d.spill != "none":
+        raise ConfigError("dram.spill needs the DRAM channel: add --set dram.model=tdm")
+    if nna.lent_submodules and not nna.lent_network:
         raise ConfigError(
-            f"{what} needs the DRAM channel: add --set dram.model=tdm"
-        )
-    if d.lent_gbps > 0 and nna.lent_submodules == 0:
-        raise ConfigError(
-            f"dram.lent_gbps={d.lent_gbps} is the traffic of a network on lent NNA submodules, "
-            "but none is lent: add --set nna.lent_submodules=N (or drop dram.lent_gbps)"
-        )
-    if d.lent_gbps >= d.gbps:
-        raise ConfigError(
-            f"dram.lent_gbps={d.lent_gbps} is not below the channel's dram.gbps={d.gbps}: the "
-            "stereo pair would get no slot; lower it or widen the channel"
-        )
+            f"nna.lent_submodules={nna.lent_submodules} lends submodules to a network, but "
+            "nna.lent_network names none: give its TOML file (docs/lent.md) or lend none")
+    if nna.lent_network:
+        if not nna.lent_submodules:
+            raise ConfigError(
+                f"nna.lent_network={nna.lent_network!r} needs submodules to run on: add --set "
+                "nna.lent_submodules=N")
+        read_lent_network(nna.lent_network)  # the file's every field, one line per mistake
     if cfg.source.on_overflow == "drop_frame" and (cfg.source.kind != "camera"
                                                    or cfg.source.frame_buffers == 0):
         raise ConfigError(

@@ -1,10 +1,10 @@
 """Loading the configuration: defaults, then a TOML file, then dotted-key overrides.
 
-:func:`load_config` reads the file (:func:`read_toml`: one line for every way a file can be
-unusable), applies ``--set`` overrides, fills the keys left unset that depend on others -- the
-descriptor's tuned back end (:data:`~sim.config.schema.DESCRIPTOR_DEFAULTS`) and the register
-widths that follow the descriptor, box, P2 and paths (:func:`derived_widths`) -- and checks the
-result once (:func:`sim.config.check.checked_chip`).
+:func:`load_config` reads the file (:func:`~sim.config.files.read_toml`: one line for every
+way a file can be unusable), applies ``--set`` overrides, fills the keys left unset that depend
+on others -- the descriptor's tuned back end (:data:`~sim.config.schema.DESCRIPTOR_DEFAULTS`)
+and the register widths that follow the descriptor, box, P2 and paths (:func:`derived_widths`)
+-- and checks the result once (:func:`sim.config.check.checked_chip`).
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ from typing import Any
 
 from stereosim.sim.census_layout import comparison_offsets
 from stereosim.sim.config.check import _build, checked_chip
+from stereosim.sim.config.files import read_toml
 from stereosim.sim.config.schema import (
     DEFAULT_DESCRIPTOR,
     DESCRIPTOR_DEFAULTS,
@@ -25,8 +26,7 @@ from stereosim.sim.config.schema import (
     SvaConfig,
 )
 from stereosim.sim.config.widths import CNN_BITS, sgm_widths
-from stereosim.sim.errors import ConfigError, UserError
-from stereosim.sim.outputs import path_text
+from stereosim.sim.errors import ConfigError
 
 
 def _parse_value(text: str, key: str):
@@ -50,32 +50,6 @@ def _insert(tree: dict, dotted: str, value) -> None:
             raise ConfigError(f"config key '{'.'.join(parts[: i + 1])}' is a value, not a table")
         node = nxt
     node[parts[-1]] = value
-
-
-def read_toml(path, what: str, error: type[UserError] = ConfigError) -> dict:
-    """The parsed TOML file at ``path``; a missing, unreadable, binary or malformed file (or a
-    folder) raises ``error`` with one line naming ``what`` and the file."""
-    p = Path(path)
-    shown = path_text(p)
-    try:
-        if p.is_dir():
-            raise error(f"{what} {shown} is a folder: give the path of a TOML file")
-        if not p.is_file():
-            raise error(f"{what} {shown} not found: give the path of a TOML file")
-        text = p.read_text()
-    except OSError as exc:
-        reason = exc.strerror or type(exc).__name__
-        raise error(f"cannot read {what} {shown} ({reason}): check the file and its "
-                    "permissions") from None
-    except UnicodeDecodeError:
-        raise error(f"{what} {shown} is not UTF-8 text: give a TOML file") from None
-    try:
-        return tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise error(f"{what} {shown} is not valid TOML: {exc}") from None
-    except RecursionError:  # the reader recurses once per level of [[[...]]] or {a = {...}}
-        raise error(f"{what} {shown} nests arrays or tables too deeply to be read: flatten "
-                    "them") from None
 
 
 def load_config(

@@ -109,11 +109,12 @@ class NnaConfig:
         "halo) or rows (bands with a halo)", choices=("columns", "rows"),
     )
     lent_submodules: int = param(
-        0, "submodules lent to another network (a what-if: they run its load, not the stereo "
-           "pair's, and add its energy; its DRAM traffic is dram.lent_gbps)", lo=0, hi=256,
+        0, "submodules lent to another network, nna.lent_network (they run its layers, not the "
+           "stereo pair's; its DRAM traffic takes slots of the channel)", lo=0, hi=256,
     )
-    lent_mac_load: float = param(
-        0.5, "the lent network's share of its submodules' MAC capacity (0..1)", lo=0.0, hi=1.0,
+    lent_network: str = param(
+        "", "TOML file of the network on the lent submodules: its input, frame rate and "
+            "convolution layers (docs/lent.md; \"\": none)",
     )
 
 
@@ -267,9 +268,6 @@ class DramConfig:
         "maps before the sign, 4 bytes per channel)",
         choices=("none", "descriptors", "float32"),
     )
-    lent_gbps: float = param(0.0, "DRAM traffic of another network run on the NNA submodules "
-                                  "the stereo pair does not use (nna.lent_submodules), GB/s",
-                             lo=0.0, hi=10000.0)
 
 
 @dataclass(frozen=True, slots=True, kw_only=True, weakref_slot=True)
@@ -316,6 +314,15 @@ class ChipConfig:
     sim: SimConfig = field(default_factory=SimConfig)
     dram: DramConfig = field(default_factory=DramConfig)
 
+
+#: Keys that no longer exist, with what replaces them (a configuration that sets one is refused
+#: with this line).
+RETIRED = {
+    "nna.lent_mac_load": "nna.lent_mac_load is retired: describe the lent network's layers in "
+                         "a TOML file and give it as nna.lent_network (docs/lent.md)",
+    "dram.lent_gbps": "dram.lent_gbps is retired: the lent network's DRAM traffic follows from "
+                      "its layers and frame rate; give them as nna.lent_network (docs/lent.md)",
+}
 
 #: The sections a stage's entry point may check on their own (:func:`sim.config.check_section`).
 SECTIONS = {"nna.": NnaConfig, "sva.": SvaConfig, "clocks.": ClockConfig,

@@ -20,7 +20,9 @@ clock cycle per domain. The actions of one frame:
 - **FIFOs**: every bit through them, pushed and popped (over the run, shared per frame);
 - **DRAM**: a memory source reads both views (a byte a pixel each), a camera with frame
   buffers writes them first, the disparity is written back (a word a pixel);
-- **clock**: the run's cycles of each domain, per frame.
+- **clock**: the run's cycles of each domain, per frame;
+- **lent** (``nna.lent_network``): the network on the lent submodules over the stereo frame's
+  time, as many of its frames as its fps gives (:func:`lent_energy_items`).
 
 The report (``energy``) lists every item -- block, action, what, count, unit energy -- so the
 total is their sum (``tests/sim/test_energy.py`` holds it), the totals by block and by action,
@@ -34,6 +36,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from stereosim.sim.config import read_toml
+from stereosim.sim.cycle.lent import LentPlan
 from stereosim.sim.cycle.plan import ChipPlan, action_counts
 from stereosim.sim.cycle.stages import lg
 from stereosim.sim.errors import ConfigError
@@ -214,20 +217,46 @@ def energy_items(plan: ChipPlan, table: EnergyTable, stats: dict) -> list[dict]:
         add("dram", "dram", f"{cfg.dram.spill} spilled between NNA and SVA (written and read "
             "back, both views)", round(spill.bytes_per_pixel * n * 8), "bit",
             table.dram_pj_per_bit)
-    if cfg.nna.lent_submodules:  # another network on the lent submodules, over the frame's time
-        nna_cycles = stats["cycles"]["nna"] // frames
-        add("lent", "mac", f"the lent network's MACs ({cfg.nna.lent_submodules} submodules at "
-            f"{cfg.nna.lent_mac_load:g} of their MACs)",
-            round(cfg.nna.lent_submodules * cfg.nna.macs * cfg.nna.lent_mac_load * nna_cycles),
-            "MAC", table.mac_int8_pj)
-        if cfg.dram.lent_gbps:
-            seconds = nna_cycles / plan.domains["nna"].freq_hz
-            add("lent", "dram", "the lent network's DRAM traffic",
-                round(cfg.dram.lent_gbps * 1e9 * 8 * seconds), "bit", table.dram_pj_per_bit)
+    if plan.lent is not None:  # the lent network, over the stereo frame's time
+        seconds = stats["cycles"]["nna"] / frames / plan.domains["nna"].freq_hz
+        items.extend(lent_energy_items(plan.lent, table, plan.lent.fps * seconds))
     for domain, cycles in sorted(stats["cycles"].items()):
         pj = table.clock_pj_per_cycle.get(domain, 0.0)
         add("clock", "clock", f"{domain} domain cycles", cycles // frames, "cycle", pj)
     return items
+
+
+def lent_energy_items(lent: LentPlan, table: EnergyTable, frames: float) -> list[dict]:
+    """The lent network's actions over ``frames`` of its frames (a stereo frame's time at its
+    fps): its MACs and requantising multiplies, its on-chip line buffers' accesses (per input
+    pixel one word of C_in activations written; per output pixel s K words read, the window's
+    next s columns) and its DRAM bytes (input, output, spills and weights read per frame)."""
+    out = []
+
+    def add(action, what, count, unit, pj_each):
+        if round(count):
+            out.append({"block": "lent", "action": action, "what": what,
+                        "count": round(count), "unit": unit, "pj_each": pj_each})
+
+    of = f"the lent network ({frames:.4g} of its frames)"
+    add("mac", f"{of}: int8 multiply-accumulates", frames * lent.macs_per_frame, "MAC",
+        table.mac_int8_pj)
+    add("multiply", f"{of}: requantising multiplies",
+        frames * sum(lay.items * lay.layer.channels_out for lay in lent.layers),
+        "32-bit multiply", table.mult32_pj)
+    for lay in lent.layers:
+        if not lay.on_chip:
+            continue
+        bank = lay.buffer_bits // lay.rows
+        read = table.sram_read_pj_per_bit(bank)
+        word = 8 * lay.layer.channels_in
+        add("sram_read", f"{of}: layer {lay.index} line buffer ({bank} bits a bank)",
+            frames * lay.items * lay.layer.stride * lay.layer.kernel * word, "bit", read)
+        add("sram_write", f"{of}: layer {lay.index} line buffer ({bank} bits a bank)",
+            frames * lay.in_shape[0] * lay.in_shape[1] * word, "bit", read * table.write_factor)
+    for what, nbytes in lent.bytes_per_frame.items():
+        add("dram", f"{of}: DRAM {what}", frames * nbytes * 8, "bit", table.dram_pj_per_bit)
+    return out
 
 
 def energy_report(plan: ChipPlan, stats: dict, fps: float | None, fps_basis: str,

@@ -50,6 +50,7 @@ import math
 
 from stereosim.nna.geometry import Tile
 from stereosim.sim.config import ChipConfig, config_to_dict
+from stereosim.sim.cycle.lent import lent_lines, lent_report
 from stereosim.sim.cycle.plan import (
     ChipPlan,
     FifoPlan,
@@ -559,6 +560,7 @@ def estimate(cfg: ChipConfig, shape: tuple[int, int]) -> dict:
         "actions": actions,
         "macs_per_frame": 2 * actions["nna_per_camera"]["macs"],
         **({"nna_layers": layer_report(plan)} if len(subs[0].layers) > 1 else {}),
+        **({"lent_network": lent_report(plan.lent, plan.dram, h * w)} if plan.lent else {}),
         "paper": paper_analysis(shape),
         "warnings": warnings,
     }
@@ -602,6 +604,8 @@ def format_estimate(est: dict) -> str:
             f"x{lay['channels_out']}, {lay['macs_per_pixel']} MACs a pixel on "
             f"{lay['mac_share']} MACs: {lay['cycles_per_pixel']} cycles a pixel; line buffer "
             f"{lay['line_buffer_rows']} rows, {lay['line_buffer_bits']} bits")
+    if "lent_network" in est:
+        lines += lent_lines(est["lent_network"])
     if thr["merge_depth_needed"] is not None:
         lines.append(
             f"merge FIFOs: fifo.nna_to_merge_depth = "

@@ -26,7 +26,6 @@ stop messages)::
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass, field
 from functools import cached_property
 
@@ -36,12 +35,16 @@ from stereosim.nna.geometry import (
     check_line_buffer,
     cycles_per_descriptor,
     half_window,
+    layer_halves,
     layer_tiles,
     macs_per_descriptor,
+    pipeline_cycles,
     split_frame,
     window_rows,
 )
 from stereosim.sim.config import AUTO_BUDGET_FACTOR, ChipConfig, check_config
+from stereosim.sim.cycle.dram import DramPlan, dram_plan
+from stereosim.sim.cycle.lent import LentPlan, lent_plan
 from stereosim.sim.cycle.rules import ClockDomain, fifo_edges, period_fs
 from stereosim.sim.cycle.stages import (
     BufferPlan,
@@ -163,112 +166,6 @@ class SignalPlan:
 
 
 @dataclass(frozen=True)
-class DramClient:
-    """A client of the DRAM channel: the slots it owns in every round (offsets ``first`` ..
-    ``first + count - 1``) and the bytes it moves per pixel of a view (a what-if's load)."""
-
-    name: str
-    first: int
-    count: int
-    bytes_per_pixel: float
-    what: str
-
-
-@dataclass(frozen=True)
-class DramPlan:
-    """The DRAM channel, time-division multiplexed (:mod:`sim.cycle.rules`, docs/dram.md).
-
-    A round has one slot per client burst in step with the pixels: for every ``read_pixels``
-    pixels of a view (one burst of each view read), the cameras' writes of as many pixels, the
-    write-back of as many words, the spill's and the lent network's bursts. The memory sources
-    request a pair of bursts (both views, the slots ``reads.first`` and the next) once their
-    ``prefetch`` buffers have a free burst; the sink writes a burst of ``write_words`` words once
-    its last word is in, holding at most ``write_buffer`` bursts."""
-
-    slot_fs: int  # one burst at the peak bandwidth
-    latency_fs: int  # a read slot's end to its data in the chip
-    round_slots: int
-    clients: tuple[DramClient, ...]
-    burst_bytes: int
-    read_pixels: int  # pixels of a view per read burst (one byte each)
-    prefetch: int  # read bursts per view requested ahead of the pixels sent
-    write_words: int  # disparity words per write-back burst
-    write_buffer: int  # bursts the sink's write buffer holds
-
-    def client(self, name: str) -> DramClient | None:
-        return next((c for c in self.clients if c.name == name), None)
-
-    @property
-    def reads(self) -> DramClient | None:
-        return self.client("read")
-
-    @property
-    def write_back(self) -> DramClient:
-        return self.client("write_back")
-
-    @property
-    def round_fs(self) -> int:
-        return self.round_slots * self.slot_fs
-
-    @property
-    def longest_wait_fs(self) -> int:
-        """The longest a read may legitimately keep the chip waiting with nothing moving: a
-        request just after its round's read slots waits for the next round and its two slots
-        (at most a round each), then the access latency (``rules.dram_read_ready_fs``). The
-        watchdog and the automatic cycle budget allow it."""
-        return 2 * self.round_fs + self.latency_fs
-
-    def gbps(self, client: DramClient) -> float:
-        """The bandwidth a client's slots give it, GB/s."""
-        return client.count * self.burst_bytes * 1e15 / self.round_fs / 1e9
-
-
-def dram_plan(cfg: ChipConfig, reads: bool, camera_writes: bool, beat_bits: int,
-              word_bits: int, descriptor_bits: int, camera_hz: float, line_share: float
-              ) -> DramPlan:
-    """The channel's slots. Raises ConfigError when it cannot absorb the cameras' writes (a
-    camera cannot wait)."""
-    d = cfg.dram
-    slot_fs = max(1, round(d.burst_bytes * 1e15 / (d.gbps * 1e9)))
-    px = d.burst_bytes  # pixels of a view per read burst: one byte each
-    wpb = max(1, d.burst_bytes * 8 // word_bits)
-    spill = {"none": 0.0, "descriptors": 2 * 2 * beat_bits / 8,
-             "float32": 2 * 2 * descriptor_bits * 4.0}[d.spill]
-    clients: list[DramClient] = []
-
-    def add(name, count, bpp, what):
-        first = sum(c.count for c in clients)
-        clients.append(DramClient(name, first, count, bpp, what))
-
-    if reads:
-        add("read", 2, 2.0, "the stereo pair read by the memory sources (left, right)")
-    if camera_writes:
-        add("camera_write", 2 * cfg.sva.pairs, 2.0,  # pairs' frames overlap: a slot each
-            "the cameras' frames written into the frame buffers")
-    add("write_back", -(-px // wpb), word_bits / 8, "the disparity words written back")
-    if spill:
-        add("spill", -(-round(spill * px) // d.burst_bytes), spill,
-            f"{d.spill} written by the NNA and read back by the SVA (both views)")
-    base = sum(c.count for c in clients)
-    if d.lent_gbps > 0:
-        x = d.lent_gbps / d.gbps
-        add("lent", math.ceil(x * base / (1 - x) - 1e-9), 0.0,
-            "the network on the lent NNA submodules")
-    plan = DramPlan(slot_fs, round(d.latency_ns * 1e6), sum(c.count for c in clients),
-                    tuple(clients), d.burst_bytes, px, d.read_prefetch_bursts, wpb,
-                    d.write_buffer_bursts)
-    if camera_writes:
-        need = camera_hz * line_share  # bytes per second per camera within its lines
-        got = px * 1e15 / plan.round_fs
-        if got < need:
-            raise ConfigError(
-                f"the DRAM channel writes {got / 1e9:.3f} GB/s per camera into the frame "
-                f"buffers but a camera sends {need / 1e9:.3f} GB/s in its lines: raise "
-                "dram.gbps or lower the other clients' load (dram.spill, dram.lent_gbps)")
-    return plan
-
-
-@dataclass(frozen=True)
 class ChipPlan:
     """The chip of a configuration at a frame size: clock domains, blocks, FIFOs, buffers,
     signals and the derived constants every engine, the estimate and the reports read."""
@@ -286,6 +183,7 @@ class ChipPlan:
     frames: int = 1  # camera frames of the stream (all of ``shape``; every pair's: ``pairs``)
     signals: tuple[SignalPlan, ...] = field(default=())
     dram: DramPlan | None = None  # the DRAM channel (dram.model = "tdm"), else None
+    lent: LentPlan | None = None  # the network on the lent NNA submodules (nna.lent_network)
 
     # ---- lookups ----------------------------------------------------------------------------
 
@@ -419,7 +317,8 @@ class ChipPlan:
         if block.kind == "camera":  # pairs sharing the chip start a frame every 1/P period
             return block.frame_clocks // self.pairs
         if block.kind == "nna":  # its busiest layer's MAC array (one layer: items x cycles)
-            return max(lay.items * lay.cycles for lay in block.layers)
+            return pipeline_cycles(tuple(lay.items for lay in block.layers),
+                                   tuple(lay.cycles for lay in block.layers))
         return block.items * block.cycles
 
 
@@ -575,16 +474,19 @@ def build_plan(cfg: ChipConfig, shape: tuple[int, int], frames: int = 1) -> Chip
                             buffers=tuple(b for st in stages for b in st.buffers),
                             stages=stages))
     blocks.append(BlockPlan("sink", "sink", "sva", None, (to_sink,), (), "top.sink", n))
+    lent = lent_plan(cfg, nna_buffers(cfg, layers[0]),
+                     cfg.nna.line_buffer_rows - 2 * layer_halves(cfg.nna)[0] - 1)
     dram = None
     if cfg.dram.model == "tdm":
         dram = dram_plan(cfg, not (camera and not buffered), buffered, beat_bits, word_bits,
-                         bits, freqs.get("camera", 0.0), w / (w + cfg.source.camera_hblank))
+                         bits, freqs.get("camera", 0.0), w / (w + cfg.source.camera_hblank),
+                         lent.gbps if lent is not None else 0.0)
     plan = ChipPlan(cfg=cfg, shape=(h, w), domains=domains, fifos=tuple(fifos),
                     blocks=tuple(blocks), tiles=tiles,
                     budget=frame_budget(cfg, shape, freqs, cpd, sva_ii,
                                         frames * cfg.sva.pairs, dram),
                     descriptor_bits=bits, beat_bits=beat_bits, word_bits=word_bits,
-                    frames=frames * cfg.sva.pairs, dram=dram)
+                    frames=frames * cfg.sva.pairs, dram=dram, lent=lent)
     object.__setattr__(plan, "signals", tuple(_signals(plan)))
     return plan
 
@@ -740,9 +642,9 @@ def layer_report(plan: ChipPlan) -> list[dict]:
 
 
 def submodule_report(plan: ChipPlan) -> dict:
-    """How many NNA submodules the stereo pair uses, and what the idle ones could give: the
-    NNA's frame rate (its work bound) with every submodule on the pair (the largest even
-    count; None when the frame cannot be split that far)."""
+    """How many NNA submodules the stereo pair uses, how many are lent, and what the others
+    could give: the NNA's frame rate (its work bound) with every submodule on the pair (the
+    largest even count, none lent; None when the frame cannot be split that far)."""
     n = plan.cfg.nna
     most = n.submodules - n.submodules % 2
 
@@ -750,10 +652,12 @@ def submodule_report(plan: ChipPlan) -> dict:
         sub = max(p.blocks_of("nna"), key=lambda b: b.items)
         return round(p.domains["nna"].freq_hz / p.work_cycles(sub, 0), 3)
 
-    out = {"on_chip": n.submodules, "stereo": n.stereo_submodules,
-           "idle": n.submodules - n.stereo_submodules, "nna_fps": nna_fps(plan)}
+    out = {"on_chip": n.submodules, "stereo": n.stereo_submodules, "lent": n.lent_submodules,
+           "idle": n.submodules - n.stereo_submodules - n.lent_submodules,
+           "nna_fps": nna_fps(plan)}
     if most > n.stereo_submodules:
-        cfg = dataclasses.replace(plan.cfg, nna=dataclasses.replace(n, stereo_submodules=most))
+        cfg = dataclasses.replace(plan.cfg, nna=dataclasses.replace(
+            n, stereo_submodules=most, lent_submodules=0, lent_network=""))
         try:
             out["with_all"] = {"stereo_submodules": most,
                                "nna_fps": nna_fps(build_plan(cfg, plan.shape))}

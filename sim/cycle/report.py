@@ -221,8 +221,8 @@ def dram_report(plan: ChipPlan, stats: dict, end_fs: int, frames_taken: int) -> 
     clients = {}
     total = 0.0
     for c in d.clients:
-        if c.name == "lent":
-            nbytes = plan.cfg.dram.lent_gbps * 1e9 * span_s if span_s else 0.0
+        if c.name == "lent":  # a load at the lent network's rate, over the run
+            nbytes = plan.lent.gbps * 1e9 * span_s if span_s else 0.0
         elif c.name == "spill":
             nbytes = c.bytes_per_pixel * n * frames_taken
         else:
@@ -239,9 +239,6 @@ def dram_report(plan: ChipPlan, stats: dict, end_fs: int, frames_taken: int) -> 
     if d.reads is not None:
         stalls.update({"memory_left": waits["read_stall_cycles"][0],
                        "memory_right": waits["read_stall_cycles"][1]})
-    bound = None
-    if d.reads is not None:
-        bound = round(FS_PER_S / (-(-n // d.read_pixels) * d.round_fs), 3)
     return {
         "model": "tdm", "peak_gbps": plan.cfg.dram.gbps, "burst_bytes": d.burst_bytes,
         "slot_ns": d.slot_fs / 1e6, "round_slots": d.round_slots,
@@ -249,7 +246,7 @@ def dram_report(plan: ChipPlan, stats: dict, end_fs: int, frames_taken: int) -> 
         "clients": clients,
         "stall_cycles": dict(sorted(stalls.items())),
         "utilisation": round(total / (plan.cfg.dram.gbps * 1e9 * span_s), 6) if span_s else None,
-        "read_bound_fps": bound,
+        "read_bound_fps": d.read_bound_fps(n),
     }
 
 

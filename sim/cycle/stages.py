@@ -63,6 +63,7 @@ from stereosim.nna.geometry import (
     layer_macs_per_pixel,
     layer_rows,
     layer_tiles,
+    line_buffer_bits,
     mac_shares,
 )
 from stereosim.sim.config import ChipConfig
@@ -321,7 +322,7 @@ def nna_layers(cfg: ChipConfig, tile: Tile, shape: tuple[int, int], widths: tupl
         width = widths[i]
         what = ("pixels x 8 bits" if c_in == 1 else f"pixels x {c_in} channels x 8 bits")
         buf = BufferPlan("nna.line_buffer" if single else f"nna.layer{i}.line_buffer",
-                         rows * width * c_in * 8,
+                         line_buffer_bits(rows, width, c_in),
                          f"{rows} input rows x {width} {what} (a bank per row: per "
                          f"{'descriptor' if single else 'output pixel'} the window's next "
                          "column read, one pixel from each of its rows' banks; per pixel one "

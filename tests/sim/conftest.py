@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -35,6 +37,25 @@ def network_artifact(path, net):
         weight_scales=tuple(np.ones(w.shape[0]) for w in net.weights),
         act_scales=np.ones(n), distances=("rms",) * n, sign_agreement=1.0, acc_rms=0.0))
     return str(path)
+
+
+def write_lent_toml(path, layers, width=16, height=16, channels=1, fps="max"):
+    """Write a lent network file (nna.lent_network) of ``layers`` (K, C_in, C_out, stride)
+    tuples; returns its path."""
+    fps_text = '"max"' if fps == "max" else repr(float(fps))
+    text = [f"fps = {fps_text}", "[input]", f"width = {width}", f"height = {height}",
+            f"channels = {channels}"]
+    for k, c_in, c_out, s in layers:
+        text += ["[[layer]]", f"kernel = {k}", f"channels_in = {c_in}",
+                 f"channels_out = {c_out}", f"stride = {s}"]
+    Path(path).write_text("\n".join(text) + "\n")
+    return str(path)
+
+
+@pytest.fixture(scope="session")
+def lent_toml():
+    """:func:`write_lent_toml`: write a lent network file."""
+    return write_lent_toml
 
 
 @pytest.fixture(scope="session")

@@ -138,7 +138,7 @@ def test_a_larger_write_buffer_absorbs_the_channel_and_the_sink_never_waits():
     ({"dram.gbps": 0.05, "dram.burst_bytes": 8, "dram.read_prefetch_bursts": 1,
       "dram.write_buffer_bursts": 1}, (3, 1)),
     ({"dram.gbps": 0.2, "dram.spill": "descriptors", "nna.lent_submodules": 2,
-      "dram.lent_gbps": 0.05, "dram.burst_bytes": 16, "nna.stereo_submodules": 4,
+      "nna.lent_network": "LENT", "dram.burst_bytes": 16, "nna.stereo_submodules": 4,
       "fifo.nna_to_merge_depth": 8}, None),
     ({"dram.gbps": 2, "source.kind": "camera", "source.frame_buffers": 2,
       "source.on_overflow": "drop_frame", "clocks.camera_mhz": 400, "source.camera_vblank": 4,
@@ -146,8 +146,12 @@ def test_a_larger_write_buffer_absorbs_the_channel_and_the_sink_never_waits():
     ({"dram.gbps": 0.5, "source.kind": "camera", "dram.write_buffer_bursts": 1,
       "clocks.camera_mhz": 50}, (2, 0)),
 ])
-def test_the_engines_agree_through_the_channel(over, stall, engines_agree):
+def test_the_engines_agree_through_the_channel(over, stall, engines_agree, tmp_path,
+                                               lent_toml):
     """Words of every frame, statistics, report and a trace window over a frame boundary."""
+    if over.get("nna.lent_network") == "LENT":  # about 0.05 GB/s: 1348 bytes at 37,000 fps
+        over = {**over, "nna.lent_network": lent_toml(tmp_path / "n.toml", [(3, 1, 4, 1)],
+                                                      fps=37000)}
     plan = _plan(3, **over)
     p = plan.domains["sva"].period_fs
     slow, _ = engines_agree(plan, *_stream(3, seed=7), sink_stall=stall,
@@ -155,9 +159,10 @@ def test_the_engines_agree_through_the_channel(over, stall, engines_agree):
     assert slow.trace is not None
 
 
-def test_the_report_counts_every_clients_bytes_and_the_utilisation():
+def test_the_report_counts_every_clients_bytes_and_the_utilisation(tmp_path, lent_toml):
+    net = lent_toml(tmp_path / "n.toml", [(3, 1, 4, 1)], fps=74000)  # 1348 B a frame: 0.1 GB/s
     plan = _plan(2, **{"dram.gbps": 0.3, "dram.spill": "float32", "nna.lent_submodules": 2,
-                       "dram.lent_gbps": 0.1})
+                       "nna.lent_network": net})
     left, right = _stream(2)
     rep = run_compiled(plan, left, right).report
     dram = rep["dram"]
@@ -167,6 +172,8 @@ def test_the_report_counts_every_clients_bytes_and_the_utilisation():
     assert c["read"]["bytes"] == 2 * 2 * n
     assert c["write_back"]["bytes"] == 2 * -(-n * plan.word_bits // 8)
     assert c["spill"]["bytes"] == 2 * n * 2 * 2 * plan.descriptor_bits * 4
+    assert plan.lent.gbps == pytest.approx(1348 * 74000 / 1e9)
+    assert c["lent"]["gbps"] == pytest.approx(plan.lent.gbps, rel=1e-3)
     total = sum(v["bytes"] for v in c.values())
     assert dram["utilisation"] == pytest.approx(total / (0.3e9 * span_s), rel=1e-4)
     slots = sum(v["slots_per_round"] for v in c.values())
@@ -181,13 +188,19 @@ def test_the_report_counts_every_clients_bytes_and_the_utilisation():
 
 @pytest.mark.parametrize("over, needle", [
     ({"dram.model": "none", "dram.spill": "descriptors"}, "dram.spill needs the DRAM channel"),
-    ({"dram.lent_gbps": 1.0}, "none is lent"),
-    ({"dram.lent_gbps": 20.0, "nna.lent_submodules": 2}, "is not below the channel"),
+    ({"dram.lent_gbps": 1.0}, "dram.lent_gbps is retired: .* nna.lent_network"),
+    ({"nna.lent_mac_load": 0.5}, "nna.lent_mac_load is retired: .* nna.lent_network"),
+    ({"nna.lent_submodules": 2}, "nna.lent_network names none"),
+    ({"nna.lent_submodules": 2, "nna.lent_network": "LENT"},
+     "needs 0.135 GB/s of DRAM, not below the channel's dram.gbps=0.1"),
     ({"nna.lent_submodules": 9}, "exceeds nna.submodules"),
     ({"source.kind": "camera", "source.frame_buffers": 2, "dram.gbps": 0.01},
      "per camera into the frame buffers"),
 ])
-def test_impossible_channels_are_refused_in_one_line(over, needle):
+def test_impossible_channels_are_refused_in_one_line(over, needle, tmp_path, lent_toml):
+    if over.get("nna.lent_network") == "LENT":  # 1348 bytes a frame at 100,000 fps
+        over = {**over, "dram.gbps": 0.1,
+                "nna.lent_network": lent_toml(tmp_path / "n.toml", [(3, 1, 4, 1)], fps=1e5)}
     with pytest.raises(ConfigError, match=needle) as err:
         _plan(**over)
     assert "\n" not in str(err.value)
