@@ -17,6 +17,7 @@ import time
 
 import cv2
 import numpy as np
+from machine import describe
 
 from stereosim.sim.api import run
 from stereosim.sim.datasets import default_scene
@@ -61,6 +62,7 @@ def main(argv=None):
     cv2_t, _ = best_of(lambda: sgbm.compute(left, right), args.repeat)
     cv2.setNumThreads(prev_threads)
 
+    print(f"machine: {describe()}")
     print(f"1280x720, D=128, descriptor {args.descriptor}, best (median) of {args.repeat}:")
     print(f"  stereosim functional, 1 thread : {ours:.3f} s ({ours_med:.3f})")
     print(f"  OpenCV SGBM,          1 thread : {cv1:.3f} s ({cv1_med:.3f})")
