@@ -524,6 +524,9 @@ def main(argv: list[str] | None = None) -> int:
             finally:
                 if handler is not None:
                     handler.settle()  # the outcome is decided: a signal no longer changes it
+            lost = signals.swallowed()
+            if lost is not None:  # a signal came while a finalizer ran: it ends the command now
+                raise lost
             return status
         except UserError as exc:
             return _fail(str(exc))

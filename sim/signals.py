@@ -13,6 +13,11 @@ plain handler leaves:
 * :meth:`Handler.settle`: once a command's outcome is decided (its status, or its one-line
   error), a signal no longer interrupts it; the process exits with that outcome instead of a
   traceback or a silent death.
+* A signal whose exception is raised inside a finalizer (a ``__del__`` or a weakref callback
+  that Python runs between two bytecodes of the command: llvmlite frees its objects so) cannot
+  propagate: Python would print "Exception ignored ..." with a traceback and go on. The hook
+  :class:`_Unraisable` keeps it instead (``Handler.swallowed``) and prints nothing, and the command
+  line ends the command with its one line (:func:`swallowed`).
 * :func:`install` is idempotent: the console entry (:mod:`sim.console`) installs the handler
   before it imports the heavy modules (numba, OpenCV), the command reuses it, and it stays in
   place until the process exits.
@@ -25,6 +30,7 @@ from __future__ import annotations
 
 import contextlib
 import signal
+import sys
 from collections.abc import Iterator
 
 HELD = frozenset({signal.SIGINT, signal.SIGTERM, signal.SIGHUP})
@@ -49,6 +55,7 @@ class Handler:
         self.published = False
         self.holding = 0  # nested held() stretches
         self.pending: int | None = None
+        self.swallowed: KeyboardInterrupt | None = None  # raised inside a finalizer
 
     def __call__(self, signum, frame):
         if self.settled:  # the outcome is decided: the process exits with it
@@ -83,7 +90,31 @@ def install() -> Handler | None:
             signal.signal(signum, handler)
     except ValueError:  # not the main thread
         return None
+    if not isinstance(sys.unraisablehook, _Unraisable):
+        sys.unraisablehook = _Unraisable(sys.unraisablehook)
     return handler
+
+
+class _Unraisable:
+    """``sys.unraisablehook`` while a :class:`Handler` is installed: the exception of a signal
+    raised inside a finalizer is kept in the handler (``swallowed``), silently; anything else
+    goes to the hook it replaced."""
+
+    def __init__(self, previous):
+        self.previous = previous
+
+    def __call__(self, unraisable) -> None:
+        handler = current()
+        if handler is not None and isinstance(unraisable.exc_value, KeyboardInterrupt):
+            handler.swallowed = handler.swallowed or unraisable.exc_value
+            return
+        self.previous(unraisable)
+
+
+def swallowed() -> KeyboardInterrupt | None:
+    """The signal's exception that a finalizer swallowed while the command ran, or None."""
+    handler = current()
+    return None if handler is None else handler.swallowed
 
 
 @contextlib.contextmanager

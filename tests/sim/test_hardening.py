@@ -552,6 +552,27 @@ def test_a_signal_after_the_outputs_are_written_says_so(old_run, capfd, monkeypa
     assert sorted(p.name for p in out.iterdir()) == sorted(RUN_FILES)
 
 
+def test_a_signal_raised_inside_a_finalizer_still_ends_the_command(old_run, capfd, monkeypatch):
+    """A signal whose exception is raised while Python runs a finalizer (llvmlite frees its
+    objects in ``__del__``) cannot propagate there: it ends the command with its one line, no
+    "Exception ignored" traceback, and the status of the signal."""
+    left, right, out, _ = old_run
+
+    class Freed:
+        def __del__(self):
+            os.kill(os.getpid(), signal.SIGTERM)  # the handler runs inside this finalizer
+
+    def summary_then_a_finalizer(*a, **k):
+        Freed()
+
+    monkeypatch.setattr("stereosim.sim.cli.print_summary", summary_then_a_finalizer)
+    code, _, err = _cli(["run", "--mode", "functional", "--left", left, "--right", right,
+                         "--disparities", "32", "--out", out], capfd)
+    assert (code, err) == (143, "stereosim: terminated after writing its outputs (they are "
+                                "complete)\n")
+    assert sorted(p.name for p in out.iterdir()) == sorted(RUN_FILES)
+
+
 def test_a_signal_after_the_outcome_is_decided_changes_nothing(tmp_path, capfd, monkeypatch):
     """Once main knows its outcome (a status, or a one-line error) a signal no longer cuts it
     short: no traceback, no second line, no other status."""
