@@ -364,7 +364,7 @@ def _sign_layer(xp, w_pad, bias, masks, out):
     for y in range(rows):
         bits = out[y]
         bits[:] = zero
-        c = 0
+        c = np.int64(0)  # not a literal 0: numba would compile _tap_sums once more for it
         while c < w_pad.shape[0]:
             n = _tap_sums(xp, w_pad, c, y, acc4)
             for j in range(n):
@@ -379,7 +379,7 @@ def _requant_layer(xp, w_pad, bias, mult, shift, out):
     rows, width = out.shape[1], out.shape[2]
     acc4 = np.empty((4, width), dtype=xp.dtype)
     for y in range(rows):
-        c = 0
+        c = np.int64(0)  # not a literal 0: numba would compile _tap_sums once more for it
         while c < w_pad.shape[0]:
             n = _tap_sums(xp, w_pad, c, y, acc4)
             for j in range(n):
@@ -393,7 +393,7 @@ def _acc_layer(xp, w_pad, bias, out):
     rows, width = out.shape[0], out.shape[1]
     acc4 = np.empty((4, width), dtype=xp.dtype)
     for y in range(rows):
-        c = 0
+        c = np.int64(0)  # not a literal 0: numba would compile _tap_sums once more for it
         while c < w_pad.shape[0]:
             n = _tap_sums(xp, w_pad, c, y, acc4)
             for j in range(n):
