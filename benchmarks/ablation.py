@@ -4,7 +4,8 @@ Every row goes through the same SVA back end (box filter, SGM, WTA, sub-pixel, L
 with the same settings; only the descriptor and its matching cost change:
 
 * ``census``: the 32-bit census at its own tuned P1/P2 (``nna.descriptor = census``);
-* for each variant (``mccnn4``, ``mccnn4-slim``, ``single9x9``), at the CNN's tuned P1/P2:
+* for each variant of ``nna.trainconfig.VARIANTS`` (``mccnn4``, ``mccnn4-slim``, ``single9x9``,
+  ``mixed5x5``), at the CNN's tuned P1/P2:
   ``float cosine`` (the float network's outputs compared by cosine, cost on the Hamming scale,
   :func:`sva.cost.cosine_cost`), ``float sign`` (signs of the float outputs, Hamming) and
   ``int8 sign`` (signs of the integer network's accumulators, Hamming -- what the chip runs).
