@@ -45,7 +45,7 @@ def _merge_tables(net, side, tab):
         r.last_pop = net.acc[nb + tl.out_fifo].last_pop
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def advance_merge(net, side):
     """The merge of ``side`` (the readable ``Merge.evaluate``): descriptor m (raster order)
     moves from its owner tile's FIFO to the SVA's in one cycle, once visible there and with a

@@ -77,7 +77,7 @@ def line_room(ring, e, r, geometry):
         return rd(ring, e_off, e_mask, j) + 1, True, j <= e_lo
     return 0, True, False
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def advance_line_pops(net, ti):
     """Line-buffer pops of tile ``ti``, as far as its source and its MAC array allow."""
     prm = net.prm[0]
@@ -368,7 +368,7 @@ def advance_last_layer(net, ti, li):
     return j > start
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def advance_mac_pushes(net, ti):
     """The MAC arrays' outputs of tile ``ti``, layer after layer: the layers before the last
     into the next one's line buffer (:func:`advance_layer`), the last into the tile's FIFO

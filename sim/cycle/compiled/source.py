@@ -253,7 +253,7 @@ def _tiles_free(ring, tab, fno, x, y, rat, camera, c):
     return free, True, err, full_tile
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def advance_source(net, side):
     """Source pushes of camera ``side`` to its tiles (a joint push to every tile that takes the
     pixel), as far as their line buffers' pops allow."""

@@ -168,7 +168,7 @@ def words_between(ring, t, kt, lo_tick, hi_tick):
 # ---- the pops -----------------------------------------------------------------------------------
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def advance_sva_pops(net):
     """The SVA's joint pops (the readable ``SvaBlock.evaluate``'s input), as far as both
     descriptor streams and its row window (released as output rows are issued) allow."""
