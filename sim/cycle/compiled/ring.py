@@ -97,7 +97,7 @@ def catch_up(ring, off, mask, ptr, lowest, lo):
     return lowest, ring[off + (lowest & mask)] > lo
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def pops_in(ring, pops, ptr, lo, hi, long, gaps, state):
     """Count the pops in cycles [lo, hi) (skipping those before lo); inside an interval longer
     than the watchdog's time (``long``) each is a busy instant to note. ``pops`` = (ring offset,
