@@ -440,7 +440,8 @@ def walk_nna(net, ti, final):
                 if s_j < INF:
                     n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy, s_j * per,
                                               done * per, g)
-                    _, _, n_gaps, last_busy = pops_in(ring, b_pops, ptr, done + 1, INF, True, gaps,
+                    _, _, n_gaps, last_busy = pops_in(ring, b_pops, ptr, done + 1, INF,
+                                                       np.bool_(True), gaps,
                                                        (blk, n_gaps, last_busy, per, g))
             break
         e = rd(ring, e_off, e_mask, j)

@@ -36,6 +36,7 @@ instant (status, traced signals, its stages').
 
 from __future__ import annotations
 
+import numpy as np
 from numba import njit
 
 from stereosim.sim.cycle.compiled.layout import (
@@ -423,8 +424,9 @@ def walk_sva(net, final):
                     if arrive > max(lo, ready):
                         n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy,
                                                   max(lo, ready) * per, (arrive - 1) * per, g)
-                    _, _, n_gaps, last_busy = pops_in(ring, p_pops, ptr, arrive, INF, True,
-                                                       gaps, (blk, n_gaps, last_busy, per, g))
+                    _, _, n_gaps, last_busy = pops_in(ring, p_pops, ptr, arrive, INF,
+                                                       np.bool_(True), gaps,
+                                                       (blk, n_gaps, last_busy, per, g))
             break
         out = rd(ring, o_off, o_mask, j)
         if out > known_until:
