@@ -379,7 +379,7 @@ def run_stream(pairs, *, mode: str = "cycle", config: ChipConfig | str | None = 
                overrides: dict[str, Any] | None = None, gt: np.ndarray | None = None,
                masks: dict[str, np.ndarray] | None = None, sink_stall=None,
                max_pixels: int | None = MAX_PIXELS,
-               energy: str | os.PathLike | None = None) -> Stream:
+               energy: str | os.PathLike | None = None, progress=None) -> Stream:
     """Simulate a stream of stereo pairs of one size, back to back through the chip.
 
     ``pairs``: a sequence of (left, right) images (a list, or any object with ``len`` and
@@ -394,7 +394,9 @@ def run_stream(pairs, *, mode: str = "cycle", config: ChipConfig | str | None = 
     for the sink. Mistakes raise a :class:`sim.errors.UserError` before any kernel runs (a
     frame of another size, when it is read). A stream that stops early raises
     :class:`~sim.cycle.contract.RunStopped` as :func:`run` does (its ``report`` adds ``frames``;
-    its ``plan`` and ``supply`` let :func:`sim.tracing.run_traced` trace it up to the stop)."""
+    its ``plan`` and ``supply`` let :func:`sim.tracing.run_traced` trace it up to the stop).
+    ``progress(frames)``: how many frames the compiled engine's timing pass has finished, said
+    now and then while it runs."""
     if mode not in MODES:
         raise ConfigError(f"mode must be one of {', '.join(MODES)}; got {mode!r}")
     table = _energy_table(energy, mode)
@@ -421,7 +423,8 @@ def run_stream(pairs, *, mode: str = "cycle", config: ChipConfig | str | None = 
                 frame = simulate(plan, supply, sink_stall=sink_stall,
                                  on_frame=lambda f, fixed: words.__setitem__(f, fixed.copy()))
             else:
-                frame = simulate(plan, supply, sink_stall=sink_stall, words=False)
+                frame = simulate(plan, supply, sink_stall=sink_stall, words=False,
+                                 progress=progress)
         except RunStopped as stop:
             stop.report = stopped_report(plan, stop) | {"frames": supply.count}
             stop.plan, stop.supply = plan, supply  # to trace it up to the stop

@@ -117,8 +117,9 @@ def cmd_run_stream(args, request, data: dict | None, cfg, inputs: list = ()) -> 
                               quiet=args.json or args.mode != "cycle") as bar:
                 stream = run_stream(pairs, mode=args.mode, config=cfg,
                                     max_pixels=args.max_pixels or None, energy=args.energy,
-                                    gt=gt, masks=masks)
-                bar.update(bar.total)  # the compiled pass is one call: done at once
+                                    gt=gt, masks=masks,
+                                    progress=lambda done: bar.update(done - bar.n))
+                bar.update(bar.total - bar.n)
         except RunStopped as stop:
             raise _publish_stop(stop, request, out_dir, planned,
                                 {"name": name, "source": source}) from None

@@ -41,7 +41,7 @@ def _needs_readable(plan: ChipPlan, sink_stall, order_seed) -> str | None:
 
 def simulate(plan: ChipPlan, left, right=None, *, sink_stall=None,
              window: tuple[int, int] | None = None, order_seed=None,
-             on_frame=None, words: bool = True) -> FrameResult:
+             on_frame=None, words: bool = True, progress=None) -> FrameResult:
     """One frame or a stream of frames of ``plan`` (``left``, ``right``: (H, W) arrays, (N, H,
     W) stacks, or a :class:`~sim.cycle.frames.FrameSupply` as ``left``): the last frame's
     words, cycle report (with ``engine``), statistics, row and frame instants and, with
@@ -49,7 +49,8 @@ def simulate(plan: ChipPlan, left, right=None, *, sink_stall=None,
     every frame's words in order. ``sink_stall``: ``(period, allowed_phase)`` (or, readable
     kernel only, a function of the cycle that returns True when the sink refuses to pop).
     ``words=False``: the compiled engine computes no words (``words`` is None; the readable
-    kernel moves them anyway)."""
+    kernel moves them anyway). ``progress(frames)``: the compiled engine says now and then how
+    many frames the sink has taken (the readable kernel draws its own bar)."""
     engine = plan.cfg.sim.engine
     reason = _needs_readable(plan, sink_stall, order_seed)
     if engine == "fast" and reason is not None:
@@ -62,7 +63,7 @@ def simulate(plan: ChipPlan, left, right=None, *, sink_stall=None,
                                       order_seed=order_seed, on_frame=on_frame)
             else:
                 result = run_compiled(plan, left, right, sink_stall=sink_stall, window=window,
-                                      on_frame=on_frame, words=words)
+                                      on_frame=on_frame, words=words, progress=progress)
     except RunStopped as stop:
         stop.engine = ran
         raise

@@ -96,6 +96,23 @@ def test_the_readable_kernel_reports_rows_without_changing_the_run(monkeypatch, 
     assert "readable engine" in err and "9/9" in err and "row" in err
 
 
+def test_the_compiled_timing_pass_reports_frames_without_changing_the_stream():
+    """A stream's timing pass on the compiled engine says, between the returns of its event
+    loop (each time the walkers are due), how many frames the sink has taken whole: never
+    backwards, within the stream, and more than once on a stream longer than the rings."""
+    from stereosim.sim.api import run_stream
+
+    left, right = _pair(120, 200)
+    pairs = [(left, right)] * 6
+    over = {"sva.disparities": 32}
+    heard = []
+    with_progress = run_stream(pairs, overrides=over, progress=heard.append)
+    plain = run_stream(pairs, overrides=over)
+    assert with_progress.report == plain.report
+    assert heard == sorted(heard) and 0 <= heard[0] and heard[-1] <= len(pairs)
+    assert len(set(heard)) >= 3  # it moved while the pass ran, not only at its end
+
+
 def test_quantize_counts_every_channel_search(monkeypatch, capsys):
     """Two layers of 3 and 2 channels: 3 + 2 scale searches and 3 (m, h) searches."""
     rng = np.random.default_rng(0)

@@ -113,7 +113,8 @@ def first_quiet(net, periods, end_fs):
                 break
 
 
-def _pass(plan: ChipPlan, sink_stall, cap_fs: int, stats: bool, capacity: int | None = None):
+def _pass(plan: ChipPlan, sink_stall, cap_fs: int, stats: bool, capacity: int | None = None,
+          progress=None):
     """One pass over the streams; reruns with larger rings (or room for more long gaps) if one
     was too small."""
     cap = capacity or ring_capacity(plan)
@@ -125,7 +126,7 @@ def _pass(plan: ChipPlan, sink_stall, cap_fs: int, stats: bool, capacity: int | 
             for i, b in enumerate(plan.blocks):
                 if b.kind == "camera":
                     note_camera(net, i, plan.shape[0], b.line_clocks, b.frame_clocks)
-        run_pass(net)
+        run_pass(net, progress)
         error = net.state[0]["error"]
         if error == ERR_NONE:
             return net, names
@@ -491,7 +492,7 @@ def _stop_trace(plan: ChipPlan, sink_stall, window: tuple[int, int], supply, net
 
 def run_compiled(plan: ChipPlan, left, right=None, *, sink_stall=None,
                  window: tuple[int, int] | None = None, timings: dict | None = None,
-                 on_frame=None, words: bool = True) -> FrameResult:
+                 on_frame=None, words: bool = True, progress=None) -> FrameResult:
     """One frame or a stream of frames (the plan's: (N, H, W) stacks or a
     :class:`~sim.cycle.frames.FrameSupply`) on the compiled engine: the readable kernel's
     words, report and statistics, or its exception; ``window`` = (start_fs, end_fs) records
@@ -500,16 +501,19 @@ def run_compiled(plan: ChipPlan, left, right=None, *, sink_stall=None,
     frame's output words, in order, as they are computed (the timing does not depend on the
     pixels: frame f is read only then); ``words=False`` computes none (the result's ``words``
     is None: the caller takes them from :func:`~sim.cycle.frames.functional_words`, frame by
-    frame). ``timings`` (a dict) receives the CPU seconds of the event streams and statistics
-    (``engine_s``), the NNA's descriptors (``nna_kernels_s``) and the SVA's stream
-    (``sva_kernels_s``). A run that stops raises the readable kernel's
-    :class:`~sim.cycle.contract.RunStopped`, with the row instants reached by then
-    (``row_times``) and the trace of ``window`` up to the stop (``trace``,
+    frame). ``progress(frames)`` hears, now and then while the event streams run, how many
+    frames the sink has taken whole (:func:`.schedule.run_pass`). ``timings`` (a dict) receives
+    the CPU seconds of the event streams and statistics (``engine_s``), the NNA's descriptors
+    (``nna_kernels_s``) and the SVA's stream (``sva_kernels_s``). A run that stops raises the
+    readable kernel's :class:`~sim.cycle.contract.RunStopped`, with the row instants reached by
+    then (``row_times``) and the trace of ``window`` up to the stop (``trace``,
     ``outputs_in_window``)."""
     supply = FrameSupply.of(left, right)
     supply = camera_frames(supply, plan)  # every camera pair sees the stream
     t0 = time.process_time()
-    net, names = _pass(plan, sink_stall, _budget_instant(plan), True)
+    per_frame = plan.shape[0] * plan.shape[1]  # the sink's words of a frame: one a pixel
+    heard = None if progress is None else (lambda words: progress(words // per_frame))
+    net, names = _pass(plan, sink_stall, _budget_instant(plan), True, progress=heard)
     t_end = INF
     q_s = int(net.ids[0]["sink_pop"])
     if net.state[0]["end"] == END_DONE:
