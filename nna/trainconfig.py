@@ -68,6 +68,8 @@ class TrainConfig:
     input_offset: int = 128
     input_scale: float = 1.0 / 64.0
     threads: int = 0  # torch CPU threads; 0 = auto (nna.trainrun.pick_threads)
+    # quantisation-aware fine-tuning (nna.trainqat): the float model it starts from, "" = none
+    qat: str = ""
 
     def __post_init__(self):
         for f in dataclasses.fields(self):
