@@ -24,6 +24,7 @@ from stereosim.nna.traindata import (
     leave_fold_out,
     training_scene_dirs,
 )
+from stereosim.nna.trainqat import build_qat_net, export_quantized
 from stereosim.nna.trainrun import (
     box_width,
     check_checkpoint_option,
@@ -147,8 +148,6 @@ def _cmd_qat(args) -> int:
     if ckpt is not None:
         check_checkpoint_option(ckpt, args.resume)
     _import_torch()
-    from stereosim.nna.trainqat import build_qat_net, export_quantized
-
     t0 = time.perf_counter()
     images, names = calibration_images(calibration_scene_dirs(data), 8)
     qcfg = QuantizerConfig()
