@@ -103,14 +103,16 @@ def _curve_step(net, batch, cfg: TrainConfig, frac: float, log_temp):
 
 
 def train(cfg: TrainConfig, scene_dirs, *, progress: bool = True, checkpoint=None,
-          checkpoint_every: int = 0, resume: bool = False, log=None) -> dict:
+          checkpoint_every: int = 0, resume: bool = False, log=None, make_net=None) -> dict:
     """Train one network; returns the arrays and metadata :func:`save_float_model` writes.
 
     ``cfg.threads`` 0 picks the thread count (:func:`nna.trainrun.pick_threads`; the result
     records the count used). With ``checkpoint`` (a path) and ``checkpoint_every`` N > 0 the
     state is written there every N steps; ``resume`` continues from it, to the same weights as
     an uninterrupted run (:mod:`nna.trainrun`). ``log(line)`` receives the line that says how
-    many threads the run uses, before the first step."""
+    many threads the run uses, before the first step. ``make_net()``: builds the network to train
+    instead of a fresh one of ``cfg.variant`` (a QAT network, :mod:`nna.trainqat`), after the
+    seeds are set."""
     import torch
 
     requested = cfg.threads
@@ -127,7 +129,7 @@ def train(cfg: TrainConfig, scene_dirs, *, progress: bool = True, checkpoint=Non
         n_samples = data.scene.size
     if n_samples == 0:
         raise InputError("the training scenes have no pixel with usable ground truth")
-    net = build_network(cfg.variant)
+    net = build_network(cfg.variant) if make_net is None else make_net()
     params = list(net.parameters())
     log_temp = torch.nn.Parameter(torch.tensor(float(np.log(cfg.temperature))))
     if cfg.objective == "curve":
@@ -166,15 +168,26 @@ def train(cfg: TrainConfig, scene_dirs, *, progress: bool = True, checkpoint=Non
                     and run["step"] % checkpoint_every == 0:
                 state = {**snapshot(net, log_temp, opt, sched, rng), **run}
                 save_checkpoint(checkpoint, state, asdict(cfg), data.names)
-    convs = [m for m in net if isinstance(m, torch.nn.Conv2d)]
+    weights, biases = _float_layers(net)
     return {
-        "weights": [c.weight.detach().numpy().astype(np.float32) for c in convs],
-        "biases": [c.bias.detach().numpy().astype(np.float32) for c in convs],
+        "weights": weights,
+        "biases": biases,
         "config": asdict(cfg),
         "scenes": list(data.names),
         "loss_per_epoch": run["history"],
         "samples": int(n_samples),
     }
+
+
+def _float_layers(net) -> tuple[list, list]:
+    """The trained float weights and biases (float32 numpy) of a plain or a QAT network."""
+    import torch
+
+    if hasattr(net, "float_layers"):
+        return net.float_layers()
+    convs = [m for m in net if isinstance(m, torch.nn.Conv2d)]
+    return ([c.weight.detach().numpy().astype(np.float32) for c in convs],
+            [c.bias.detach().numpy().astype(np.float32) for c in convs])
 
 
 def _triplet_step(net, batch, cfg: TrainConfig):

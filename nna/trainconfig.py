@@ -1,10 +1,12 @@
 """The settings of a training run of the learned descriptor, and the networks it can train.
 
-Four variants, all with a 9x9 receptive field and 32 output channels (one descriptor bit each):
+Five variants, all with a 9x9 receptive field and 32 output channels (one descriptor bit each):
 ``mccnn4`` (four 3x3 convolutions, channels 1, 32, 32, 32, 32: MC-CNN-fast), ``mccnn4-slim``
 (four 3x3 convolutions, channels 1, 4, 4, 8, 32), ``single9x9`` (one 9x9 convolution, 1 -> 32:
-the network the chip ships) and ``mixed5x5`` (a 5x5 convolution 1 -> 8, then 3x3 ones 8 -> 16
--> 32: 5,960 MACs per pixel, between the slim and the full four-layer network). :class:`TrainConfig`
+the network the chip ships), ``mixed5x5`` (a 5x5 convolution 1 -> 8, then 3x3 ones 8 -> 16
+-> 32: 5,960 MACs per pixel, between the slim and the full four-layer network) and ``mccnn4-mid``
+(four 3x3 convolutions, channels 1, 16, 16, 32, 32: 16,272 MACs per pixel, inside the 720p
+30 fps budget of 24,000 that the full network exceeds). :class:`TrainConfig`
 checks every setting when it is built (one line naming it).
 """
 
@@ -22,6 +24,7 @@ VARIANTS = {
     "mccnn4-slim": ((1, 4, 3), (4, 4, 3), (4, 8, 3), (8, 32, 3)),
     "single9x9": ((1, 32, 9),),
     "mixed5x5": ((1, 8, 5), (8, 16, 3), (16, 32, 3)),
+    "mccnn4-mid": ((1, 16, 3), (16, 16, 3), (16, 32, 3), (32, 32, 3)),
 }
 PATCH = 9  # receptive field of every variant
 SIMILARITIES = ("cosine", "tanh", "both")
@@ -68,6 +71,8 @@ class TrainConfig:
     input_offset: int = 128
     input_scale: float = 1.0 / 64.0
     threads: int = 0  # torch CPU threads; 0 = auto (nna.trainrun.pick_threads)
+    # quantisation-aware fine-tuning (nna.trainqat): the float model it starts from, "" = none
+    qat: str = ""
 
     def __post_init__(self):
         for f in dataclasses.fields(self):

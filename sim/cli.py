@@ -104,7 +104,7 @@ def config_file(text: str) -> str:
 def _add_config_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--config", metavar="FILE|PRESET", type=config_file,
                    help="TOML configuration file, or a preset of configs/: paper-720p, 1080p60, "
-                   "census-baseline")
+                   "census-baseline, robust-720p")
     p.add_argument(
         "--set", metavar="KEY=VALUE", action="append", default=[],
         help="override one configuration key, e.g. --set sva.p1=10 (repeatable)",

@@ -12,6 +12,8 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+
 from stereosim.nna.augment import RECIPES
 from stereosim.nna.floatmodel import load_float_model, save_float_model
 from stereosim.nna.train import train
@@ -22,6 +24,7 @@ from stereosim.nna.traindata import (
     leave_fold_out,
     training_scene_dirs,
 )
+from stereosim.nna.trainqat import build_qat_net, export_quantized
 from stereosim.nna.trainrun import (
     box_width,
     check_checkpoint_option,
@@ -29,7 +32,7 @@ from stereosim.nna.trainrun import (
     parse_threads,
 )
 from stereosim.quant.artifact import save_quantized
-from stereosim.quant.quantizer import QuantizerConfig, quantize
+from stereosim.quant.quantizer import FloatModel, QuantizerConfig, quantize
 from stereosim.sim.argtypes import check_single_output, finite_float, nonnegative_int, positive_int
 from stereosim.sim.datasets import scene_files, shared_data_dir
 from stereosim.sim.errors import InputError, UserError
@@ -59,10 +62,19 @@ def _import_torch():
         ) from None
 
 
+# what a QAT run keeps of its base model's training settings unless given again
+QAT_KEPT = ("objective", "strips", "strip_width", "disparities", "box", "temperature", "balance",
+            "decorrelate", "gain", "offset", "noise_max", "gamma", "shot_noise", "blur_max",
+            "vshift_max", "input_offset", "input_scale")
+QAT_EPOCHS, QAT_LR = 4, 0.0005
+
+
 def cmd_train(args) -> int:
+    if args.qat is not None:
+        return _cmd_qat(args)
     # options left unset keep TrainConfig's defaults (the shipped recipe)
     given = {
-        "variant": args.variant, "objective": args.objective, "epochs": args.epochs,
+        "variant": args.variant or "single9x9", "objective": args.objective, "epochs": args.epochs,
         "steps_per_epoch": args.steps, "batch": args.batch, "strips": args.strips,
         "lr": args.lr, "seed": args.seed, "similarity": args.similarity,
         "noise_max": args.noise_max, "blur_max": args.blur_max, "aggregate": args.aggregate,
@@ -70,7 +82,7 @@ def cmd_train(args) -> int:
     }
     recipe = dict(RECIPES[args.augment])  # then the options given on their own win
     cfg = TrainConfig(**{**recipe, **{k: v for k, v in given.items() if v is not None}})
-    out = Path(args.out or f"{args.variant}.npz")
+    out = Path(args.out or f"{cfg.variant}.npz")
     check_single_output(out, "--out")
     data = args.data or shared_data_dir()
     if data is None:
@@ -96,6 +108,73 @@ def cmd_train(args) -> int:
         f"{time.perf_counter() - t0:.0f} s; final loss {result['loss_per_epoch'][-1]:.4f}; "
         f"wrote {out}"
     )
+    return 0
+
+
+def _cmd_qat(args) -> int:
+    """``train --qat BASE``: quantise BASE with the project's quantiser, fine-tune it through the
+    frozen integer arithmetic (:mod:`nna.trainqat`), write the int8 artifact."""
+    if args.out is None:
+        raise InputError("--qat needs --out (the int8 artifact to write)")
+    out = Path(args.out)
+    check_single_output(out, "--out", [(args.qat, "--qat")])
+    model, variant, training = load_float_model(args.qat)
+    if args.variant is not None and args.variant != variant:
+        raise InputError(f"--variant {args.variant} but {args.qat} is a {variant} model")
+    if args.objective not in (None, "curve") or training["config"].get("objective") != "curve":
+        raise InputError("--qat fine-tunes with the curve objective only")
+    base = training["config"]
+    kept = {k: base[k] for k in QAT_KEPT if k in base}
+    given = {"epochs": args.epochs, "steps_per_epoch": args.steps, "strips": args.strips,
+             "lr": args.lr, "noise_max": args.noise_max, "blur_max": args.blur_max,
+             "box": args.box}
+    cfg = TrainConfig(**{
+        **kept, "variant": variant, "seed": args.seed, "threads": args.threads,
+        "epochs": QAT_EPOCHS, "lr": QAT_LR, "qat": Path(args.qat).name,
+        # the base run ended on the signs at its largest tanh scale: QAT stays there
+        "scale_start": base["scale_end"], "scale_end": base["scale_end"], "sign_fraction": 1.0,
+        **{k: v for k, v in given.items() if v is not None}})
+    data = args.data or shared_data_dir()
+    if data is None:
+        raise InputError("no training data found: give --data DIR (the shared Middlebury folder)")
+    dirs = training_scene_dirs(data)
+    if args.leave_out_fold is not None:
+        dirs = leave_fold_out(dirs, *args.leave_out_fold)
+    ckpt = checkpoint_path(out) if args.checkpoint_every or args.resume else None
+    float_out = Path(args.float_out) if args.float_out else None
+    outputs = [(out, "--out"), *([(float_out, "--float-out")] if float_out else []),
+               *([(ckpt, "the checkpoint")] if ckpt else [])]
+    check_outputs(outputs, scene_files(dirs))
+    if ckpt is not None:
+        check_checkpoint_option(ckpt, args.resume)
+    _import_torch()
+    t0 = time.perf_counter()
+    images, names = calibration_images(calibration_scene_dirs(data), 8)
+    qcfg = QuantizerConfig()
+    calibration = (f"{len(images)} views (left+right) of {', '.join(names)}; quantiser defaults "
+                   f"(seed {qcfg.seed}, {qcfg.n_samples} samples, {qcfg.n_steps} steps); then "
+                   f"QAT, {cfg.epochs} x {cfg.steps_per_epoch} batches, lr {cfg.lr}, seed "
+                   f"{cfg.seed}, from {Path(args.qat).name}")
+    qm = quantize(model, images, qcfg, variant=variant, calibration=calibration,
+                  progress=not args.quiet)
+    print(f"quantiser: {100 * qm.sign_agreement:.3f}% of the calibration bits agree with "
+          f"{Path(args.qat).name}'s float signs", file=sys.stderr)
+    result = train(cfg, dirs, progress=not args.quiet, checkpoint=ckpt,
+                   checkpoint_every=args.checkpoint_every, resume=args.resume,
+                   log=lambda line: print(line, file=sys.stderr),
+                   make_net=lambda: build_qat_net(model, qm))
+    latent = FloatModel(weights=tuple(np.float64(w) for w in result["weights"]),
+                        biases=tuple(np.float64(b) for b in result["biases"]),
+                        input_offset=model.input_offset, input_scale=model.input_scale)
+    qat = export_quantized(latent, qm, images, calibration)
+    if float_out is not None:
+        save_float_model(float_out, result)
+    save_quantized(out, qat)
+    if ckpt is not None:
+        ckpt.unlink(missing_ok=True)
+    print(f"QAT of {variant} on {len(result['scenes'])} scenes in {time.perf_counter() - t0:.0f} "
+          f"s: {100 * qat.sign_agreement:.3f}% of the calibration bits agree with its float "
+          f"signs (quantiser alone: {100 * qm.sign_agreement:.3f}%); wrote {out}")
     return 0
 
 
@@ -137,7 +216,7 @@ def cmd_quantize(args) -> int:
 def _add_train_parser(sub) -> None:
     """``stereosim train``: the learned descriptor (needs torch)."""
     t = sub.add_parser("train", help="train a siamese descriptor network (needs torch)")
-    t.add_argument("--variant", default="single9x9", choices=tuple(VARIANTS))
+    t.add_argument("--variant", choices=tuple(VARIANTS), help="default single9x9")
     t.add_argument("--data", metavar="DIR", help="shared data folder holding "
                    "middlebury2005_third/ and middlebury2006_third/ (default: ../shared/data)")
     t.add_argument("--objective", choices=("curve", "triplet"), help="curve (default): "
@@ -178,7 +257,14 @@ def _add_train_parser(sub) -> None:
                    help="write OUT.ckpt.pt every N steps (default 200; 0 = never)")
     t.add_argument("--resume", action="store_true", help="continue from OUT.ckpt.pt, the "
                    "checkpoint of an interrupted run with the same options")
-    t.add_argument("--out", metavar="FILE", help="float model .npz (default: VARIANT.npz)")
+    t.add_argument("--out", metavar="FILE", help="float model .npz (default: VARIANT.npz); "
+                   "with --qat the int8 artifact")
+    t.add_argument("--qat", metavar="BASE", help="quantisation-aware fine-tuning of the float "
+                   "model BASE (written by train): quantise it, train through the chip's "
+                   f"integer arithmetic ({QAT_EPOCHS} epochs at lr {QAT_LR} unless given; its "
+                   "augmentation unless given), write the int8 artifact to --out")
+    t.add_argument("--float-out", metavar="FILE", help="with --qat: also write the fine-tuned "
+                   "float weights (the float model the int8 bits are compared with)")
     t.add_argument("--quiet", action="store_true", help="no progress bar")
     t.set_defaults(func=cmd_train)
 

@@ -25,7 +25,7 @@ from stereosim.sim.errors import ConfigError
 from stereosim.sim.io import to_grey
 
 MODELS = Path(__file__).resolve().parents[2] / "benchmarks" / "models"
-NETWORKS = ("mccnn4", "mccnn4-slim")
+NETWORKS = ("mccnn4", "mccnn4-slim", "mccnn4-mid")
 DATA = shared_data_dir()
 
 

@@ -7,7 +7,7 @@ from stereosim.sim.cli import PRESETS, main
 from stereosim.sim.config import DESCRIPTOR_DEFAULTS, load_config
 from stereosim.sim.cycle.estimate import estimate
 
-NAMES = ("paper-720p", "1080p60", "census-baseline")
+NAMES = ("paper-720p", "1080p60", "census-baseline", "robust-720p")
 
 
 def test_the_shipped_presets_are_the_documented_ones():
@@ -53,6 +53,16 @@ def test_census_baseline_keeps_the_census_penalties():
     assert cfg.nna.descriptor == "census"
     assert (cfg.sva.p1, cfg.sva.p2) == (DESCRIPTOR_DEFAULTS["census"]["p1"],
                                         DESCRIPTOR_DEFAULTS["census"]["p2"])
+
+
+def test_robust_720p_sustains_30_fps_on_the_ten_submodules(monkeypatch):
+    """Its network's weight file is named from the repository root; the NNA's work bound at 720p
+    is at least 30 fps on 10 submodules (5 per camera)."""
+    monkeypatch.chdir(PRESETS.parent)
+    cfg = load_config(PRESETS / "robust-720p.toml")
+    assert cfg.nna.stereo_submodules == cfg.nna.submodules == 10
+    block, ms = _bound(cfg, 720, 1280)
+    assert block.startswith("nna_") and 1e3 / ms >= 30.0
 
 
 @pytest.mark.parametrize("name", NAMES)
