@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from functools import lru_cache
+from pathlib import Path
 
 import numpy as np
 
@@ -13,10 +14,26 @@ from stereosim.quant.intconv import IntNetwork
 from stereosim.sim.config import NnaConfig, check_section
 from stereosim.sim.errors import ConfigError
 
+# stereosim's folder (the repository, in the README's editable install): where a relative
+# weight path that the working directory lacks is looked up next (the presets name
+# benchmarks/models/... and run from anywhere)
+PROJECT_ROOT = Path(__file__).resolve().parents[1]
+
+
+def weights_file(weights: str) -> str:
+    """The file ``nna.cnn.weights`` names: the shipped layer for "default"; a relative path from
+    the working directory, else from :data:`PROJECT_ROOT` if it is there."""
+    if weights == "default":
+        return SHIPPED_WEIGHTS
+    path = Path(weights)
+    if not path.is_absolute() and not path.exists() and (PROJECT_ROOT / path).exists():
+        return str(PROJECT_ROOT / path)
+    return weights
+
 
 @lru_cache(maxsize=8)
 def _network(weights: str) -> IntNetwork:
-    return load_network(SHIPPED_WEIGHTS if weights == "default" else weights)
+    return load_network(weights_file(weights))
 
 
 def network(cfg: NnaConfig) -> IntNetwork:
