@@ -84,12 +84,7 @@ def cmd_train(args) -> int:
     cfg = TrainConfig(**{**recipe, **{k: v for k, v in given.items() if v is not None}})
     out = Path(args.out or f"{cfg.variant}.npz")
     check_single_output(out, "--out")
-    data = args.data or shared_data_dir()
-    if data is None:
-        raise InputError("no training data found: give --data DIR (the shared Middlebury folder)")
-    dirs = training_scene_dirs(data)
-    if args.leave_out_fold is not None:
-        dirs = leave_fold_out(dirs, *args.leave_out_fold)
+    _, dirs = _training_dirs(args)
     ckpt = checkpoint_path(out) if args.checkpoint_every or args.resume else None
     check_outputs([(out, "--out"), *([(ckpt, "the checkpoint")] if ckpt else [])],
                   scene_files(dirs))
@@ -109,6 +104,18 @@ def cmd_train(args) -> int:
         f"wrote {out}"
     )
     return 0
+
+
+def _training_dirs(args) -> tuple:
+    """(the data folder, its training scenes): ``--data`` or the shared Middlebury folder, the
+    scenes less ``--leave-out-fold``."""
+    data = args.data or shared_data_dir()
+    if data is None:
+        raise InputError("no training data found: give --data DIR (the shared Middlebury folder)")
+    dirs = training_scene_dirs(data)
+    if args.leave_out_fold is not None:
+        dirs = leave_fold_out(dirs, *args.leave_out_fold)
+    return data, dirs
 
 
 def _cmd_qat(args) -> int:
@@ -134,12 +141,7 @@ def _cmd_qat(args) -> int:
         # the base run ended on the signs at its largest tanh scale: QAT stays there
         "scale_start": base["scale_end"], "scale_end": base["scale_end"], "sign_fraction": 1.0,
         **{k: v for k, v in given.items() if v is not None}})
-    data = args.data or shared_data_dir()
-    if data is None:
-        raise InputError("no training data found: give --data DIR (the shared Middlebury folder)")
-    dirs = training_scene_dirs(data)
-    if args.leave_out_fold is not None:
-        dirs = leave_fold_out(dirs, *args.leave_out_fold)
+    data, dirs = _training_dirs(args)
     ckpt = checkpoint_path(out) if args.checkpoint_every or args.resume else None
     float_out = Path(args.float_out) if args.float_out else None
     outputs = [(out, "--out"), *([(float_out, "--float-out")] if float_out else []),
