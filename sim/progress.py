@@ -31,6 +31,9 @@ COMPILE_MESSAGE = (
     "stereosim: compiling numba kernels (once after an install or an edit; cached afterwards)"
 )
 COMPILED_MESSAGE = "stereosim: compiling took {seconds:.1f} s ({kernels} numba kernels)"
+# the closing line when a helper process compiled some of them at the same time
+COMPILED_WITH_HELPER = ("stereosim: compiling took {seconds:.1f} s ({kernels} numba kernels, "
+                        "{helper} of them in a helper process at the same time)")
 # compiling shorter than this in all is not announced (a kernel of a new signature, say)
 COMPILE_NOTICE_DELAY_S = 1.0
 
@@ -84,6 +87,7 @@ class CompileWatch(event.Listener):
         self.delay_s = delay_s
         self.seconds = 0.0
         self.kernels: set[tuple] = set()
+        self.helper_kernels: set[tuple] = set()
         self.announced = False
         self._depth = 0
         self._since = 0.0
@@ -130,13 +134,40 @@ class CompileWatch(event.Listener):
         if timer is not None:
             timer.cancel()
 
+    def add_helper(self, kernels: set[tuple], waited_s: float) -> None:
+        """Count the ``kernels`` a helper process compiled for this run
+        (:mod:`sim.cycle.compiled.prewarm`) and the ``waited_s`` seconds this process waited
+        for it after its own compiles: compiling time too, said as such."""
+        with self._lock:
+            self.helper_kernels |= kernels
+            self.kernels |= kernels
+            self.seconds += waited_s
+            late = self.seconds >= self.delay_s and bool(self.kernels)
+        if late:
+            with self._lock:
+                if self.announced:
+                    return
+                self.announced = True
+            self._write(COMPILE_MESSAGE)
+
     def report(self) -> None:
         """The closing line, when the compile was announced."""
-        if self.announced:
+        if not self.announced:
+            return
+        if self.helper_kernels:
+            self._write(COMPILED_WITH_HELPER.format(seconds=self.seconds,
+                                                    kernels=len(self.kernels),
+                                                    helper=len(self.helper_kernels)))
+        else:
             self._write(COMPILED_MESSAGE.format(seconds=self.seconds, kernels=len(self.kernels)))
 
 
 _open = threading.local()  # the outermost open notice of this thread (.watch)
+
+
+def current_watch() -> CompileWatch | None:
+    """The compile notice open in this thread (None outside one)."""
+    return getattr(_open, "watch", None)
 
 
 @contextlib.contextmanager

@@ -13,13 +13,16 @@ decides which engine runs.
 
 The first frame after an install or an edit compiles the numba kernels it uses; one line on
 stderr says so when the first one starts, and one more how long it took
-(:func:`sim.progress.compile_notice`). The readable kernel draws a progress bar on stderr when
-it is a terminal. A run that stops raises its :class:`~sim.cycle.contract.RunStopped` with
-``engine`` set (and, with ``window``, the trace up to the stop).
+(:func:`sim.progress.compile_notice`); on an empty cache the compiled engine's kernels compile
+on two cores (:mod:`sim.cycle.compiled.prewarm`). The readable kernel draws a progress bar on
+stderr when it is a terminal. A run that stops raises its
+:class:`~sim.cycle.contract.RunStopped` with ``engine`` set (and, with ``window``, the trace up
+to the stop).
 """
 
 from __future__ import annotations
 
+from stereosim.sim.cycle.compiled.prewarm import prewarm
 from stereosim.sim.cycle.compiled.run import run_compiled
 from stereosim.sim.cycle.contract import FrameResult, RunStopped
 from stereosim.sim.cycle.plan import ChipPlan
@@ -62,8 +65,10 @@ def simulate(plan: ChipPlan, left, right=None, *, sink_stall=None,
                 result = run_readable(plan, left, right, sink_stall=sink_stall, window=window,
                                       order_seed=order_seed, on_frame=on_frame)
             else:
-                result = run_compiled(plan, left, right, sink_stall=sink_stall, window=window,
-                                      on_frame=on_frame, words=words, progress=progress)
+                with prewarm(plan):  # a cold cache compiles on two cores
+                    result = run_compiled(plan, left, right, sink_stall=sink_stall,
+                                          window=window, on_frame=on_frame, words=words,
+                                          progress=progress)
     except RunStopped as stop:
         stop.engine = ran
         raise

@@ -1,0 +1,118 @@
+"""The cold-cache helper process of the compiled engine (sim/cycle/compiled/prewarm.py): the
+run is the same with it, the helper never outlives the block, and the compile notice counts
+what it compiled. (A real cold compile takes half a minute of CPU: benchmarks/first_run.py
+measures it; here the suite's cache is warm, so a forced helper compiles nothing.)"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import pickle
+import re
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from stereosim.sim.config import load_config
+from stereosim.sim.cycle.compiled import prewarm as pw
+from stereosim.sim.cycle.plan import build_plan
+from stereosim.sim.cycle.simulate import simulate
+from stereosim.sim.progress import COMPILE_MESSAGE, COMPILED_WITH_HELPER, compile_notice
+
+HELPER_DONE = re.compile(re.escape(COMPILED_WITH_HELPER).replace(r"\{seconds:\.1f\}", r"[0-9.]+")
+                         .replace(r"\{kernels\}", "([0-9]+)").replace(r"\{helper\}", "([0-9]+)"))
+
+
+@pytest.fixture(scope="module")
+def plan():
+    cfg = load_config(overrides={"sva.disparities": 16})
+    return build_plan(cfg, (20, 48))
+
+
+def _pair(seed=0):
+    rng = np.random.default_rng(seed)
+    return rng.integers(0, 256, (2, 20, 48), dtype=np.uint8)
+
+
+def test_a_forced_helper_leaves_the_run_unchanged_and_is_gone_after_it(plan):
+    left, right = _pair()
+    alone = simulate(plan, left, right)
+    out = io.StringIO()
+    with compile_notice(stream=out, delay_s=1e9) as watch:
+        with pw.prewarm(plan, always=True) as helper:
+            assert helper is not None
+            helped = simulate(plan, left, right)
+    assert helper.returncode is not None  # waited for and reaped
+    assert np.array_equal(alone.words, helped.words) and alone.report == helped.report
+    # the warm cache: the helper loaded every kernel and compiled none, and said so
+    assert watch.helper_kernels == set() and out.getvalue() == ""
+
+
+def test_the_helper_is_killed_when_the_block_raises(plan):
+    with pytest.raises(KeyboardInterrupt), pw.prewarm(plan, always=True) as helper:
+        raise KeyboardInterrupt
+    assert helper.returncode is not None
+
+
+def test_the_helper_exits_when_its_parent_is_gone(plan):
+    helper = pw._start_helper(plan)
+    helper.stdin.close()  # what the parent's death does to the pipe
+    assert helper.wait(timeout=120) == 0
+    assert helper.stdout.read() == b""  # stopped before its report
+    helper.stdout.close()
+
+
+def test_a_failing_helper_costs_nothing_but_its_time(plan, monkeypatch):
+    def broken(_plan):
+        return subprocess.Popen([sys.executable, "-c", "import sys; sys.exit(3)"],
+                                stdin=subprocess.PIPE, stdout=subprocess.PIPE)
+
+    monkeypatch.setattr(pw, "_start_helper", broken)
+    left, right = _pair(1)
+    with compile_notice(stream=io.StringIO(), delay_s=1e9) as watch:
+        with pw.prewarm(plan, always=True) as helper:
+            words = simulate(plan, left, right).words
+    assert helper.returncode == 3 and watch.helper_kernels == set()
+    assert np.array_equal(words, simulate(plan, left, right).words)
+
+
+def test_switched_off_or_warm_starts_no_helper(plan, monkeypatch):
+    with pw.prewarm(plan) as helper:  # the suite's cache holds the stream loop
+        assert helper is None
+    monkeypatch.setenv("STEREOSIM_PREWARM", "0")
+    with pw.prewarm(plan, always=True) as helper:
+        assert helper is None
+
+
+def test_the_notice_counts_the_helpers_kernels_and_the_wait():
+    out = io.StringIO()
+    kernels = {("m", "f", "(int64,)"), ("m", "g", "(float64,)")}
+    with compile_notice(stream=out, delay_s=0.5) as watch:
+        watch.add_helper(kernels, 2.0)  # waited 2 s: announced then
+        assert out.getvalue().splitlines() == [COMPILE_MESSAGE]
+    done = HELPER_DONE.fullmatch(out.getvalue().splitlines()[1])
+    assert done and done.group(1) == "2" == done.group(2)
+    assert watch.seconds == pytest.approx(2.0)
+
+
+def test_the_helpers_report_names_what_it_compiled(plan, tmp_path):
+    """On an empty cache of its own, the helper's report lists the walkers and the SVA's
+    stream among its kernels (the stand-in frame is small: a few seconds of compiling the
+    walkers and the SVA's kernels)."""
+    env_cache = tmp_path / "cache"
+    helper = subprocess.Popen([sys.executable, "-m", pw.__name__], stdin=subprocess.PIPE,
+                              stdout=subprocess.PIPE,
+                              env={**os.environ, "NUMBA_CACHE_DIR": str(env_cache)})
+    job = pickle.dumps((plan.cfg, plan.shape))
+    helper.stdin.write(len(job).to_bytes(8, "little") + job)
+    helper.stdin.flush()
+    line = helper.stdout.readline()
+    helper.stdin.close()
+    assert helper.wait(timeout=600) == 0
+    helper.stdout.close()
+    names = {k[1] for k in json.loads(line)["kernels"]}
+    assert {"walk_nna", "walk_sva", "walk_fifos", "stream_rows"} <= names
+    assert "advance_streams" not in names  # the parent's part
