@@ -10,10 +10,11 @@ the best penalties depend on the box), so the block is the whole chain of decisi
 page states whether the shipped defaults are what the chain chose. The criterion averages
 clean, sigma-8 noisy, exposure-changed and blurred pairs (CONDITIONS); about 16 minutes on 2
 cores (``--jobs``).
-Three explorations, printed and never written (the page holds the one-pass chain under the
-protocol's criterion): ``--descriptor`` runs one descriptor's studies (e.g. to compare
-candidate weights), ``--condition`` averages other conditions, ``--passes N`` repeats the
-chain from its own choices (does one pass of coordinate descent settle?).
+Four explorations, printed and never written (the page holds the one-pass chain under the
+protocol's criterion): ``--descriptor`` runs one descriptor's studies, ``--weights FILE`` (with
+``--descriptor cnn``) runs the CNN's for another int8 network (its own back end, as a preset
+gives it), ``--condition`` averages other conditions, ``--passes N`` repeats the chain from its
+own choices (does one pass of coordinate descent settle?).
 """
 
 from __future__ import annotations
@@ -145,6 +146,9 @@ def main(argv=None) -> int:
     ap.add_argument("--write", metavar="DOC", help="put the block into DOC between its markers")
     ap.add_argument("--descriptor", choices=sorted(FIXED),
                     help="only this descriptor's studies (printed; not with --write)")
+    ap.add_argument("--weights", metavar="FILE",
+                    help="the CNN's studies for this int8 network (nna.cnn.weights; with "
+                         "--descriptor cnn: printed, not with --write): its own back end")
     ap.add_argument("--condition", action="append", choices=CONDITION_CHOICES,
                     help="average these conditions instead of the protocol's "
                          "(repeatable; printed; not with --write)")
@@ -152,13 +156,18 @@ def main(argv=None) -> int:
                     help="run the chain N times, each pass starting from the last one's "
                          "choices (1-4; printed; not with --write)")
     args = ap.parse_args(argv)
-    if (args.descriptor or args.condition or args.passes > 1) and args.write:
-        raise UserError("--descriptor, --condition and --passes explore; the page holds the "
-                        "whole chain under the protocol's criterion: drop them to --write")
+    if (args.descriptor or args.condition or args.passes > 1 or args.weights) and args.write:
+        raise UserError("--descriptor, --condition, --passes and --weights explore; the page "
+                        "holds the whole chain under the protocol's criterion: drop them to "
+                        "--write")
+    if args.weights and args.descriptor != "cnn":
+        raise UserError("--weights names a CNN: give --descriptor cnn too")
     conditions = tuple(args.condition or CONDITIONS)
     root = tuning_root(args.data)
     scenes = tuning_scenes(root, conditions)
     chosen = {d: dict(FIXED[d]) for d in FIXED}
+    if args.weights:
+        chosen["cnn"]["nna.cnn.weights"] = args.weights
     body, summary = [], []
     plan = [(d, what + (f" (pass {p})" if p > 1 else ""), spec)
             for p in range(1, args.passes + 1) for d, what, spec in STUDIES

@@ -1,12 +1,15 @@
 """The settings of a training run of the learned descriptor, and the networks it can train.
 
-Five variants, all with a 9x9 receptive field and 32 output channels (one descriptor bit each):
+Seven variants, all with a 9x9 receptive field and 32 output channels (one descriptor bit each):
 ``mccnn4`` (four 3x3 convolutions, channels 1, 32, 32, 32, 32: MC-CNN-fast), ``mccnn4-slim``
 (four 3x3 convolutions, channels 1, 4, 4, 8, 32), ``single9x9`` (one 9x9 convolution, 1 -> 32:
 the network the chip ships), ``mixed5x5`` (a 5x5 convolution 1 -> 8, then 3x3 ones 8 -> 16
 -> 32: 5,960 MACs per pixel, between the slim and the full four-layer network) and ``mccnn4-mid``
 (four 3x3 convolutions, channels 1, 16, 16, 32, 32: 16,272 MACs per pixel, inside the 720p
-30 fps budget of 24,000 that the full network exceeds). :class:`TrainConfig`
+30 fps budget of 24,000 that the full network exceeds), and two wider candidates inside that
+budget: ``mccnn4-wide`` (channels 1, 24, 24, 32, 32: 21,528 MACs per pixel) and
+``mixed5x5-wide`` (a 5x5 convolution 1 -> 32, then two 3x3 ones 32 -> 32: 19,232).
+:class:`TrainConfig`
 checks every setting when it is built (one line naming it).
 """
 
@@ -25,6 +28,8 @@ VARIANTS = {
     "single9x9": ((1, 32, 9),),
     "mixed5x5": ((1, 8, 5), (8, 16, 3), (16, 32, 3)),
     "mccnn4-mid": ((1, 16, 3), (16, 16, 3), (16, 32, 3), (32, 32, 3)),
+    "mccnn4-wide": ((1, 24, 3), (24, 24, 3), (24, 32, 3), (32, 32, 3)),
+    "mixed5x5-wide": ((1, 32, 5), (32, 32, 3), (32, 32, 3)),
 }
 PATCH = 9  # receptive field of every variant
 SIMILARITIES = ("cosine", "tanh", "both")
