@@ -34,7 +34,8 @@ def test_the_shared_folder_tunes_on_2005_and_2006_only(tmp_path):
 
 
 @pytest.mark.parametrize("explore", [["--descriptor", "cnn"], ["--condition", "blur"],
-                                     ["--passes", "2"]])
+                                     ["--passes", "2"], ["--descriptor", "cnn", "--weights",
+                                                         "n.int8.npz"]])
 def test_a_partial_chain_is_never_written_into_the_page(tmp_path, explore):
     """``tuning_report.py`` may explore one descriptor or other conditions, but the page holds
     the whole chain under the protocol's criterion: such a run with --write is refused before
@@ -46,10 +47,18 @@ def test_a_partial_chain_is_never_written_into_the_page(tmp_path, explore):
                            "--data", str(tmp_path), "--write", str(page)],
                           capture_output=True, text=True, timeout=120, check=False)
     assert done.returncode == 2 and done.stdout == ""
-    assert done.stderr.strip() == ("tuning_report: --descriptor, --condition and --passes "
-                                   "explore; the page holds the whole chain under the "
-                                   "protocol's criterion: drop them to --write")
+    assert done.stderr.strip() == ("tuning_report: --descriptor, --condition, --passes and "
+                                   "--weights explore; the page holds the whole chain under "
+                                   "the protocol's criterion: drop them to --write")
     assert page.read_bytes() == before
+
+
+def test_weights_without_the_cnn_studies_are_refused(tmp_path):
+    done = subprocess.run([sys.executable, str(SCRIPT.with_name("tuning_report.py")),
+                           "--weights", "n.int8.npz", "--data", str(tmp_path)],
+                          capture_output=True, text=True, timeout=120, check=False)
+    assert done.returncode == 2 and done.stdout == ""
+    assert done.stderr.strip() == "tuning_report: --weights names a CNN: give --descriptor cnn too"
 
 
 def test_cross_validating_weights_on_a_held_out_set_is_refused(tmp_path):
