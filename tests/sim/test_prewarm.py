@@ -12,12 +12,15 @@ import pickle
 import re
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
+from numba import typeof
 
 from stereosim.sim.config import load_config
 from stereosim.sim.cycle.compiled import prewarm as pw
+from stereosim.sim.cycle.compiled.layout import serialise
 from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.cycle.simulate import simulate
 from stereosim.sim.progress import COMPILE_MESSAGE, COMPILED_WITH_HELPER, compile_notice
@@ -116,3 +119,20 @@ def test_the_helpers_report_names_what_it_compiled(plan, tmp_path):
     names = {k[1] for k in json.loads(line)["kernels"]}
     assert {"walk_nna", "walk_sva", "walk_fifos", "stream_rows"} <= names
     assert "advance_streams" not in names  # the parent's part
+
+
+@pytest.mark.parametrize("preset", ["paper-720p", "1080p60", "census-baseline", "robust-720p"])
+@pytest.mark.parametrize("over", [{}, {"sva.pairs": 2, "source.kind": "camera",
+                                       "source.frame_buffers": 2}])
+def test_the_stand_in_net_has_the_run_s_numba_type(preset, over):
+    """The stream loop compiled for the stand-in's types is the one the run calls: the event
+    net of a 24-row frame has the numba type of the real frame's, streams of frames included,
+    for every preset (whole frames, column tiles, cameras, frame buffers, several layers)."""
+    cfg = load_config(Path(__file__).resolve().parents[2] / "configs" / f"{preset}.toml",
+                      overrides=over)
+    real = build_plan(cfg, (96, 320), frames=3)
+    stand_in = pw._stand_in_plan(real)
+    assert stand_in.shape[0] == pw.SMALL_ROWS
+    assert pw._loop_signature(real) == (typeof(serialise(real)[0]),
+                                        typeof(np.zeros(len(serialise(real)[0].streams),
+                                                        np.int64)))

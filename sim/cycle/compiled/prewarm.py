@@ -93,7 +93,10 @@ def prewarm(plan: ChipPlan, *, always: bool = False):
     if os.environ.get("STEREOSIM_PREWARM", "1").strip() == "0":
         yield None
         return
-    sig = _loop_signature(plan) if always or not advance_streams.overloads else None
+    try:
+        sig = _loop_signature(plan) if always or not advance_streams.overloads else None
+    except Exception:  # noqa: BLE001 -- a stand-in the plan refuses: no helper, the run as ever
+        sig = None
     if sig is None or not always and _cached(advance_streams, sig):
         yield None  # loaded in this process already, or in the cache
         return
