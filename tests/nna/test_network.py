@@ -16,6 +16,7 @@ from stereosim.nna.geometry import (
     macs_per_descriptor,
     window_rows,
 )
+from stereosim.nna.trainconfig import VARIANTS
 from stereosim.quant.artifact import load_quantized
 from stereosim.quant.intconv import int_forward, int_forward_ref, signs_ref
 from stereosim.sim.api import run
@@ -25,7 +26,7 @@ from stereosim.sim.errors import ConfigError
 from stereosim.sim.io import to_grey
 
 MODELS = Path(__file__).resolve().parents[2] / "benchmarks" / "models"
-NETWORKS = ("mccnn4", "mccnn4-slim", "mccnn4-mid")
+NETWORKS = ("mccnn4", "mccnn4-slim", "mccnn4-mid", "mixed5x5-wide")
 DATA = shared_data_dir()
 
 
@@ -44,12 +45,14 @@ def _pair(h, w, seed, shift=3):
 
 @pytest.mark.parametrize("name", NETWORKS)
 def test_the_artifact_is_the_network_the_nna_runs(name):
-    """Its layers, reach (the sum of the half kernels: 4 for four 3x3 layers, like 9x9) and MACs
-    per descriptor (sum of K*K*C_in*C_out) as the geometry reports them."""
+    """Its layers, reach (the sum of the half kernels: 4 for four 3x3 layers or a 5x5 and two
+    3x3, like 9x9) and MACs per descriptor (sum of K*K*C_in*C_out) as the geometry reports
+    them."""
     qm = load_quantized(MODELS / f"{name}.int8.npz")
     cfg = _cfg(name).nna
     net = network(cfg)
-    assert net.n_layers == qm.n_layers == 4
+    assert net.n_layers == qm.n_layers == len(VARIANTS[name])
+    assert [w.shape for w in qm.weights] == [(o, i, k, k) for i, o, k in VARIANTS[name]]
     assert half_window(cfg) == net.reach == sum(w.shape[2] // 2 for w in qm.weights) == 4
     assert window_rows(cfg) == 9
     macs = sum(int(np.prod(w.shape)) for w in qm.weights)
