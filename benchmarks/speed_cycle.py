@@ -132,7 +132,7 @@ def main(argv=None):
           f"chip: {best['fps']} fps, bottleneck {best['bottleneck']}")
     print(f"  OpenCV SGBM, 1 thread : {cv_best:.3f} s")
     pairs = sorted(r["wall_s"] / c for r, c in zip(runs, cv_times))
-    print(f"  ratio stereosim / OpenCV: {best['wall_s'] / cv_best:.2f}  (target <= 1.0; "
+    print(f"  ratio stereosim / OpenCV: {best['wall_s'] / cv_best:.2f}  (goal <= 1.0; "
           f"run by run {pairs[0]:.2f} .. {pairs[-1]:.2f}, median {pairs[len(pairs) // 2]:.2f})")
     if args.versus:
         vs = sorted(v["wall_s"] / r["wall_s"] for v, r in zip(versus, runs))
