@@ -142,12 +142,9 @@ class CompileWatch(event.Listener):
             self.helper_kernels |= kernels
             self.kernels |= kernels
             self.seconds += waited_s
-            late = self.seconds >= self.delay_s and bool(self.kernels)
-        if late:
-            with self._lock:
-                if self.announced:
-                    return
-                self.announced = True
+            late = not self.announced and self.kernels and self.seconds >= self.delay_s
+            self.announced = self.announced or bool(late)
+        if late:  # (this process compiled too little to have said it)
             self._write(COMPILE_MESSAGE)
 
     def report(self) -> None:

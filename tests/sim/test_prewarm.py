@@ -7,8 +7,6 @@ from __future__ import annotations
 
 import io
 import json
-import os
-import pickle
 import re
 import subprocess
 import sys
@@ -101,17 +99,12 @@ def test_the_notice_counts_the_helpers_kernels_and_the_wait():
     assert watch.seconds == pytest.approx(2.0)
 
 
-def test_the_helpers_report_names_what_it_compiled(plan, tmp_path):
+def test_the_helpers_report_names_what_it_compiled(plan, tmp_path, monkeypatch):
     """On an empty cache of its own, the helper's report lists the walkers and the SVA's
     stream among its kernels (the stand-in frame is small: a few seconds of compiling the
     walkers and the SVA's kernels)."""
-    env_cache = tmp_path / "cache"
-    helper = subprocess.Popen([sys.executable, "-m", pw.__name__], stdin=subprocess.PIPE,
-                              stdout=subprocess.PIPE,
-                              env={**os.environ, "NUMBA_CACHE_DIR": str(env_cache)})
-    job = pickle.dumps((plan.cfg, plan.shape))
-    helper.stdin.write(len(job).to_bytes(8, "little") + job)
-    helper.stdin.flush()
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "cache"))  # the helper inherits it
+    helper = pw._start_helper(plan)
     line = helper.stdout.readline()
     helper.stdin.close()
     assert helper.wait(timeout=600) == 0

@@ -30,7 +30,9 @@ the kernels are the same functions with the same types, whichever process compil
 from __future__ import annotations
 
 import contextlib
+import io
 import json
+import math
 import os
 import pickle
 import subprocess
@@ -47,7 +49,7 @@ from stereosim.sim.cycle.compiled.layout import serialise
 from stereosim.sim.cycle.compiled.schedule import advance_streams, walk_all
 from stereosim.sim.cycle.plan import ChipPlan, build_plan
 from stereosim.sim.errors import UserError
-from stereosim.sim.progress import current_watch
+from stereosim.sim.progress import compile_notice, current_watch
 from stereosim.sva.pipeline import sva_stream
 
 #: the longest this process waits for the helper before it goes on alone (a safety net:
@@ -115,9 +117,11 @@ def prewarm(plan: ChipPlan, *, always: bool = False):
 
 
 def _start_helper(plan: ChipPlan) -> subprocess.Popen:
+    """The helper process, with its job (the configuration and frame size) on its stdin; it
+    inherits this process's environment, so it fills the same numba cache."""
     helper = subprocess.Popen(
         [sys.executable, "-m", __name__], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-        stderr=subprocess.DEVNULL, env=os.environ.copy())
+        stderr=subprocess.DEVNULL)
     job = pickle.dumps((plan.cfg, plan.shape))
     helper.stdin.write(len(job).to_bytes(8, "little") + job)
     helper.stdin.flush()  # stdin stays open: the helper exits when it closes
@@ -150,16 +154,17 @@ def _compile_walkers(plan: ChipPlan) -> None:
     walk_all(net, False)  # before any event: every walker runs and finds nothing to do
 
 
-def _stand_in_pair(plan: ChipPlan, rng) -> tuple[np.ndarray, np.ndarray]:
+def _stand_in_view(plan: ChipPlan, rng) -> np.ndarray:
+    """A small random grey view, a little wider than the disparity range."""
     w = min(plan.shape[1], plan.cfg.sva.disparities + 32)
-    return tuple(rng.integers(0, 256, (SMALL_ROWS, w), dtype=np.uint8) for _ in range(2))
+    return rng.integers(0, 256, (SMALL_ROWS, w), dtype=np.uint8)
 
 
 def _compile_descriptors(plan: ChipPlan) -> None:
     """The NNA's data kernels, on a small random view (in this process, while the helper
     compiles the rest). A stand-in the descriptor refuses (a window taller than it, say) only
     leaves the kernels to the run."""
-    view = _stand_in_pair(plan, np.random.default_rng(0))[0]
+    view = _stand_in_view(plan, np.random.default_rng(0))
     with contextlib.suppress(UserError, ValueError):
         compute_descriptor(view, plan.cfg.nna)
 
@@ -167,7 +172,7 @@ def _compile_descriptors(plan: ChipPlan) -> None:
 def _compile_sva_stream(plan: ChipPlan) -> None:
     """The SVA's data kernels, on random descriptors of the run's type."""
     rng = np.random.default_rng(0)
-    left, _ = _stand_in_pair(plan, rng)
+    left = _stand_in_view(plan, rng)
     dtype = descriptor_dtype(plan.descriptor_bits)
     top = 1 << plan.descriptor_bits
     desc_l, desc_r = (rng.integers(0, top, left.shape, dtype=np.uint64).astype(dtype)
@@ -176,8 +181,6 @@ def _compile_sva_stream(plan: ChipPlan) -> None:
 
 
 def _helper_main() -> None:
-    from numba.core import event
-
     size = int.from_bytes(sys.stdin.buffer.read(8), "little")
     cfg, shape = pickle.loads(sys.stdin.buffer.read(size))
 
@@ -186,21 +189,12 @@ def _helper_main() -> None:
         os._exit(0)
 
     threading.Thread(target=orphaned, daemon=True).start()
-    kernels: set[tuple] = set()
-
-    class Watch(event.Listener):
-        def on_start(self, ev) -> None:
-            func = ev.data["dispatcher"].py_func
-            kernels.add((func.__module__, func.__qualname__, str(ev.data["args"])))
-
-        def on_end(self, ev) -> None:
-            pass
-
-    with event.install_listener("numba:compile", Watch()):
+    # the run's own notice, silent here: it collects what this process compiles
+    with compile_notice(stream=io.StringIO(), delay_s=math.inf) as watch:
         plan = build_plan(cfg, shape)
         _compile_walkers(plan)
         _compile_sva_stream(plan)
-    sys.stdout.write(json.dumps({"kernels": sorted(kernels)}) + "\n")
+    sys.stdout.write(json.dumps({"kernels": sorted(watch.kernels)}) + "\n")
     sys.stdout.flush()
     os._exit(0)  # not a normal shutdown: the watcher thread is blocked reading stdin
 
