@@ -1,4 +1,4 @@
-"""Training the learned descriptor in torch on the CPU: the run loop.
+"""Training the learned descriptor in torch, on the CPU (or a CUDA GPU, ``device``): the run loop.
 
 The pieces, one module each: the settings and the three variants (:mod:`nna.trainconfig`), the
 scenes and batches (:mod:`nna.traindata`), the networks and losses (:mod:`nna.trainloss`), the
@@ -62,12 +62,14 @@ from stereosim.nna.trainloss import (
     relaxed_bits,
 )
 from stereosim.nna.trainrun import (
+    deterministic,
     load_checkpoint,
     pick_threads,
     restore,
     save_checkpoint,
     snapshot,
     threads_line,
+    training_device,
     use_threads,
 )
 from stereosim.sim.errors import InputError
@@ -82,20 +84,23 @@ def _scale_at(cfg: TrainConfig, frac: float) -> float:
 def _curve_step(net, batch, cfg: TrainConfig, frac: float, log_temp):
     import torch
 
-    def features(crops):
-        x = (torch.from_numpy(crops) - float(cfg.input_offset)) * cfg.input_scale
+    dev = log_temp.device
+
+    def tensor(key):
+        return torch.from_numpy(batch[key]).to(dev)
+
+    def features(key):
+        x = (tensor(key) - float(cfg.input_offset)) * cfg.input_scale
         return net(x[:, None])
 
-    f_ref, f_other = features(batch["ref"]), features(batch["other"])
-    mirror = torch.from_numpy(batch["mirror"])[:, None, None, None]
+    f_ref, f_other = features("ref"), features("other")
+    mirror = tensor("mirror")[:, None, None, None]
     f_ref = torch.where(mirror, f_ref.flip(3), f_ref)
     f_other = torch.where(mirror, f_other.flip(3), f_other)
     scale, sign = _scale_at(cfg, frac), frac >= 1.0 - cfg.sign_fraction
     b_ref, b_other = relaxed_bits(f_ref, scale, sign), relaxed_bits(f_other, scale, sign)
     cost = cost_curves(b_ref, b_other, cfg.disparities, cfg.box)
-    loss = curve_loss(
-        cost, torch.from_numpy(batch["target"]), torch.from_numpy(batch["max_disp"]), log_temp
-    )
+    loss = curve_loss(cost, tensor("target"), tensor("max_disp"), log_temp)
     if cfg.balance or cfg.decorrelate:
         bal, dec = bit_regularisers(b_ref)
         loss = loss + cfg.balance * bal + cfg.decorrelate * dec
@@ -119,7 +124,7 @@ def train(cfg: TrainConfig, scene_dirs, *, progress: bool = True, checkpoint=Non
     cfg = dataclasses.replace(cfg, threads=pick_threads(requested))
     use_threads(cfg.threads)
     torch.manual_seed(cfg.seed)
-    torch.use_deterministic_algorithms(True)
+    deterministic(cfg.device)
     rng = np.random.default_rng(cfg.seed)
     if cfg.objective == "curve":
         data = load_strip_set(scene_dirs, cfg)
@@ -129,9 +134,10 @@ def train(cfg: TrainConfig, scene_dirs, *, progress: bool = True, checkpoint=Non
         n_samples = data.scene.size
     if n_samples == 0:
         raise InputError("the training scenes have no pixel with usable ground truth")
-    net = build_network(cfg.variant) if make_net is None else make_net()
+    dev = training_device(cfg.device)
+    net = (build_network(cfg.variant) if make_net is None else make_net()).to(dev)
     params = list(net.parameters())
-    log_temp = torch.nn.Parameter(torch.tensor(float(np.log(cfg.temperature))))
+    log_temp = torch.nn.Parameter(torch.tensor(float(np.log(cfg.temperature)), device=dev))
     if cfg.objective == "curve":
         params.append(log_temp)
     opt = torch.optim.Adam(params, lr=cfg.lr)
@@ -186,14 +192,15 @@ def _float_layers(net) -> tuple[list, list]:
     if hasattr(net, "float_layers"):
         return net.float_layers()
     convs = [m for m in net if isinstance(m, torch.nn.Conv2d)]
-    return ([c.weight.detach().numpy().astype(np.float32) for c in convs],
-            [c.bias.detach().numpy().astype(np.float32) for c in convs])
+    return ([c.weight.detach().cpu().numpy().astype(np.float32) for c in convs],
+            [c.bias.detach().cpu().numpy().astype(np.float32) for c in convs])
 
 
 def _triplet_step(net, batch, cfg: TrainConfig):
     import torch
 
-    x = (torch.from_numpy(batch) - float(cfg.input_offset)) * cfg.input_scale
+    dev = next(net.parameters()).device
+    x = (torch.from_numpy(batch).to(dev) - float(cfg.input_offset)) * cfg.input_scale
     f = net(x.reshape(3 * cfg.batch, 1, *batch.shape[2:]))
     if cfg.aggregate == 1:
         f = f.reshape(3, cfg.batch, -1)

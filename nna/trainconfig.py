@@ -1,6 +1,7 @@
 """The settings of a training run of the learned descriptor, and the networks it can train.
 
-Seven variants, all with a 9x9 receptive field and 32 output channels (one descriptor bit each):
+Twelve variants, all with a 9x9 receptive field and 32 output channels (one descriptor bit each)
+but the last two:
 ``mccnn4`` (four 3x3 convolutions, channels 1, 32, 32, 32, 32: MC-CNN-fast), ``mccnn4-slim``
 (four 3x3 convolutions, channels 1, 4, 4, 8, 32), ``single9x9`` (one 9x9 convolution, 1 -> 32:
 the network the chip ships), ``mixed5x5`` (a 5x5 convolution 1 -> 8, then 3x3 ones 8 -> 16
@@ -8,7 +9,12 @@ the network the chip ships), ``mixed5x5`` (a 5x5 convolution 1 -> 8, then 3x3 on
 (four 3x3 convolutions, channels 1, 16, 16, 32, 32: 16,272 MACs per pixel, inside the 720p
 30 fps budget of 24,000 that the full network exceeds), and two wider candidates inside that
 budget: ``mccnn4-wide`` (channels 1, 24, 24, 32, 32: 21,528 MACs per pixel) and
-``mixed5x5-wide`` (a 5x5 convolution 1 -> 32, then two 3x3 ones 32 -> 32: 19,232).
+``mixed5x5-wide`` (a 5x5 convolution 1 -> 32, then two 3x3 ones 32 -> 32: 19,232), and three
+more shapes of that budget: ``mixed5x5-40`` (5x5 1 -> 40, 3x3 40 -> 32, 3x3 32 -> 32: 21,736),
+``double5x5`` (5x5 1 -> 24, 5x5 24 -> 32: 19,800) and ``mixed7x7`` (7x7 1 -> 32, 3x3 32 -> 32:
+10,784, inside the 60 fps budget of about 12,000). Two give 64-bit descriptors (uint64 words,
+the SVA's widest): ``single9x9-64`` (one 9x9 convolution 1 -> 64: 5,184 MACs) and
+``mixed5x5-64`` (5x5 1 -> 16, 3x3 16 -> 24, 3x3 24 -> 64: 17,680).
 :class:`TrainConfig`
 checks every setting when it is built (one line naming it).
 """
@@ -30,10 +36,16 @@ VARIANTS = {
     "mccnn4-mid": ((1, 16, 3), (16, 16, 3), (16, 32, 3), (32, 32, 3)),
     "mccnn4-wide": ((1, 24, 3), (24, 24, 3), (24, 32, 3), (32, 32, 3)),
     "mixed5x5-wide": ((1, 32, 5), (32, 32, 3), (32, 32, 3)),
+    "mixed5x5-40": ((1, 40, 5), (40, 32, 3), (32, 32, 3)),
+    "mixed7x7": ((1, 32, 7), (32, 32, 3)),
+    "double5x5": ((1, 24, 5), (24, 32, 5)),
+    "single9x9-64": ((1, 64, 9),),
+    "mixed5x5-64": ((1, 16, 5), (16, 24, 3), (24, 64, 3)),
 }
 PATCH = 9  # receptive field of every variant
 SIMILARITIES = ("cosine", "tanh", "both")
 OBJECTIVES = ("curve", "triplet")
+DEVICES = ("cpu", "cuda")  # where torch trains (nna.trainrun.training_device)
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -76,6 +88,8 @@ class TrainConfig:
     input_offset: int = 128
     input_scale: float = 1.0 / 64.0
     threads: int = 0  # torch CPU threads; 0 = auto (nna.trainrun.pick_threads)
+    # where torch trains: "cpu", or "cuda" (a GPU; other weights than the CPU's, same recipe)
+    device: str = "cpu"
     # quantisation-aware fine-tuning (nna.trainqat): the float model it starts from, "" = none
     qat: str = ""
 
@@ -106,6 +120,8 @@ class TrainConfig:
         for name in ("epochs", "steps_per_epoch", "batch", "strips", "strip_width"):
             if getattr(self, name) < 1:
                 raise ConfigError(f"{name} must be at least 1, got {getattr(self, name)}")
+        if self.device not in DEVICES:
+            raise ConfigError(f"device must be one of {', '.join(DEVICES)}, got {self.device!r}")
         if self.threads < 0:
             raise ConfigError(f"threads must be 0 (auto) or more, got {self.threads}")
         if not 0 <= self.pos_offset < self.neg_low <= self.neg_high:

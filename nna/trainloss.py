@@ -95,7 +95,7 @@ def curve_loss(cost, target, max_disp, log_temp):
     """
     import torch
 
-    grid = torch.arange(cost.shape[2], dtype=cost.dtype)
+    grid = torch.arange(cost.shape[2], dtype=cost.dtype, device=cost.device)
     logits = (-cost / log_temp.exp()).masked_fill(grid > max_disp[..., None], -1e4)
     usable = torch.isfinite(target)
     gt = torch.nan_to_num(target, nan=0.0)
@@ -117,5 +117,5 @@ def bit_regularisers(bits):
     cov = (z @ z.T) / z.shape[1]
     std = cov.diagonal().clamp(min=1e-6).sqrt()
     corr = cov / std[:, None] / std[None, :]
-    off = corr - torch.eye(c, dtype=corr.dtype)
+    off = corr - torch.eye(c, dtype=corr.dtype, device=corr.device)
     return (mean * mean).mean(), (off * off).sum() / (c * (c - 1))

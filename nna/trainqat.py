@@ -72,10 +72,33 @@ def _qat_class():
             self.input_scale = float(qm.input_scale)
             x_max = max(qm.input_offset, 255 - qm.input_offset)
             self.x_max = [float(x_max)] + [float(ACT_MAX)] * (qm.n_layers - 1)
-            self.scale = [torch.tensor(np.asarray(s, np.float64)) for s in qm.weight_scales]
             self.act = [float(a) for a in qm.act_scales]
-            self.mult = [torch.tensor(np.asarray(m, np.float64)) for m in qm.mult]
-            self.pow = [torch.tensor(np.ldexp(1.0, -np.asarray(h, np.int64))) for h in qm.shift]
+            # the frozen scales and multiply-shift pairs: buffers, so that .to(device) moves
+            # them with the weights; not persistent, so a checkpoint holds the weights alone
+            frozen = {"scale": [np.asarray(s, np.float64) for s in qm.weight_scales],
+                      "mult": [np.asarray(m, np.float64) for m in qm.mult],
+                      "pow": [np.ldexp(1.0, -np.asarray(h, np.int64)) for h in qm.shift]}
+            self._counts = {name: len(arrays) for name, arrays in frozen.items()}
+            for name, arrays in frozen.items():
+                for i, a in enumerate(arrays):
+                    self.register_buffer(f"{name}{i}", torch.tensor(a), persistent=False)
+
+        def _frozen(self, name):
+            """The frozen tensors ``name`` layer by layer: ``scale`` of every layer, ``mult``
+            and ``pow`` (2^-shift) of every layer but the last."""
+            return [self.get_buffer(f"{name}{i}") for i in range(self._counts[name])]
+
+        @property
+        def scale(self):
+            return self._frozen("scale")
+
+        @property
+        def mult(self):
+            return self._frozen("mult")
+
+        @property
+        def pow(self):
+            return self._frozen("pow")
 
         def integer_params(self):
             """Per layer ``(W_int, B_int)`` as float64 tensors holding integers (STE grads)."""
@@ -115,8 +138,8 @@ def _qat_class():
 
         def float_layers(self):
             """The float weights and biases (the latent network) as float32 numpy arrays."""
-            return ([w.detach().numpy().astype(np.float32) for w in self.weights],
-                    [b.detach().numpy().astype(np.float32) for b in self.biases])
+            return ([w.detach().cpu().numpy().astype(np.float32) for w in self.weights],
+                    [b.detach().cpu().numpy().astype(np.float32) for b in self.biases])
 
     return QatNet
 
@@ -135,8 +158,8 @@ def integer_network(net) -> tuple[list[np.ndarray], list[np.ndarray]]:
 
     with torch.no_grad():
         params = net.integer_params()
-    return ([w.numpy().astype(np.int8) for w, _ in params],
-            [b.numpy().astype(np.int32) for _, b in params])
+    return ([w.cpu().numpy().astype(np.int8) for w, _ in params],
+            [b.cpu().numpy().astype(np.int32) for _, b in params])
 
 
 def export_quantized(model: FloatModel, qm: QuantizedModel, images,

@@ -12,11 +12,13 @@ Checkpoints. Every ``checkpoint_every`` steps the run writes, atomically, everyt
 step depends on: the network, the learnt temperature, the Adam state, the learning-rate
 schedule, the step, the finished epochs' losses and the running loss of the current one, the
 numpy and torch random states, the settings and the scene list. Resuming from it gives the same
-final weights, bit for bit, as the run that was never stopped (same machine and thread count).
-The file is ``OUT.ckpt.pt`` beside the output (:func:`checkpoint_path`); a run that finishes
-removes it. A checkpoint is read with ``weights_only=True`` and its contents are checked before
-any is used (:func:`load_checkpoint`, :func:`restore`): a damaged or crafted file, or one whose
-weights went NaN, is one line. torch is imported only inside the functions that need it.
+final weights, bit for bit, as the run that was never stopped (same machine, thread count and
+device). A GPU run (``--device cuda``) resumes on the CPU and back: a checkpoint is read onto
+the CPU and its tensors follow the network to its device. The file is ``OUT.ckpt.pt`` beside the
+output (:func:`checkpoint_path`); a run that finishes removes it. A checkpoint is read with
+``weights_only=True`` and its contents are checked before any is used (:func:`load_checkpoint`,
+:func:`restore`): a damaged or crafted file, or one whose weights went NaN, is one line. torch
+is imported only inside the functions that need it.
 """
 
 from __future__ import annotations
@@ -35,8 +37,9 @@ from stereosim.sim.errors import ConfigError, InputError
 from stereosim.sim.outputs import atomic_write_bytes, path_text
 
 CHECKPOINT_FORMAT = "stereosim-train-checkpoint-v1"
-# Settings that do not change the computed weights (they may differ on resume).
-NOT_COMPARED = ("threads",)
+# Settings that change how the weights are computed, not the recipe: a run may resume with
+# others (the same weights bit for bit only with the same ones, on the same machine).
+NOT_COMPARED = ("threads", "device")
 
 
 def cpu_count() -> int:
@@ -99,6 +102,32 @@ def use_threads(threads: int) -> None:
             torch.set_num_interop_threads(1)
         except RuntimeError:  # already started in this process
             pass
+
+
+def training_device(name: str):
+    """The torch device of a run: ``cpu``, or ``cuda`` (torch's current GPU) when torch sees
+    one, else a one-line InputError. On a GPU, cuBLAS is given the workspace its deterministic
+    mode needs (``CUBLAS_WORKSPACE_CONFIG``, before its first use) and the run keeps torch's
+    deterministic algorithms where a GPU kernel has one (:func:`deterministic`)."""
+    import torch
+
+    if name == "cpu":
+        return torch.device("cpu")
+    if not torch.cuda.is_available():
+        raise InputError(f"--device {name}: this torch sees no CUDA GPU; train with --device "
+                         "cpu (the default)")
+    os.environ.setdefault("CUBLAS_WORKSPACE_CONFIG", ":4096:8")
+    return torch.device(name)
+
+
+def deterministic(device: str) -> None:
+    """torch's deterministic algorithms: required on the CPU (a run is reproducible from its
+    seed, bit for bit on the same machine and thread count); on a GPU an op without a
+    deterministic kernel warns instead of stopping the run (the weights may then differ in
+    the last bits from one GPU run to the next)."""
+    import torch
+
+    torch.use_deterministic_algorithms(True, warn_only=device != "cpu")
 
 
 def checkpoint_path(out) -> Path:

@@ -17,7 +17,7 @@ import numpy as np
 from stereosim.nna.augment import RECIPES
 from stereosim.nna.floatmodel import load_float_model, save_float_model
 from stereosim.nna.train import train
-from stereosim.nna.trainconfig import VARIANTS, TrainConfig
+from stereosim.nna.trainconfig import DEVICES, VARIANTS, TrainConfig
 from stereosim.nna.traindata import (
     calibration_images,
     calibration_scene_dirs,
@@ -78,7 +78,7 @@ def cmd_train(args) -> int:
         "steps_per_epoch": args.steps, "batch": args.batch, "strips": args.strips,
         "lr": args.lr, "seed": args.seed, "similarity": args.similarity,
         "noise_max": args.noise_max, "blur_max": args.blur_max, "aggregate": args.aggregate,
-        "box": args.box, "threads": args.threads,
+        "box": args.box, "threads": args.threads, "device": args.device,
     }
     recipe = dict(RECIPES[args.augment])  # then the options given on their own win
     cfg = TrainConfig(**{**recipe, **{k: v for k, v in given.items() if v is not None}})
@@ -137,6 +137,7 @@ def _cmd_qat(args) -> int:
              "box": args.box}
     cfg = TrainConfig(**{
         **kept, "variant": variant, "seed": args.seed, "threads": args.threads,
+        "device": args.device,
         "epochs": QAT_EPOCHS, "lr": QAT_LR, "qat": Path(args.qat).name,
         # the base run ended on the signs at its largest tanh scale: QAT stays there
         "scale_start": base["scale_end"], "scale_end": base["scale_end"], "sign_fraction": 1.0,
@@ -255,6 +256,9 @@ def _add_train_parser(sub) -> None:
                    "similarity over A x A neighbouring descriptors, as the box filter does (odd)")
     t.add_argument("--threads", type=parse_threads, default=0, metavar="N", help="torch CPU "
                    "threads (default auto: 1 up to 2 CPUs, else half the CPUs, at most 4)")
+    t.add_argument("--device", choices=DEVICES, default="cpu", help="where torch trains: cpu "
+                   "(default) or cuda, a GPU torch sees (other weights than the CPU's, from the "
+                   "same recipe and seed)")
     t.add_argument("--checkpoint-every", type=nonnegative_int, default=200, metavar="N",
                    help="write OUT.ckpt.pt every N steps (default 200; 0 = never)")
     t.add_argument("--resume", action="store_true", help="continue from OUT.ckpt.pt, the "

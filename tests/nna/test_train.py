@@ -489,3 +489,37 @@ def test_training_scenes_go_through_the_bounded_readers(data_root, tmp_path, mon
     for find in (training_scene_dirs, calibration_scene_dirs):
         with pytest.raises(InputError, match=r"File name too long"):
             find(long)
+
+
+def test_the_training_device_is_checked_and_a_missing_gpu_is_one_line(data_root, tmp_path,
+                                                                      capsys):
+    """``--device``: cpu or cuda, nothing else; cuda where torch sees no GPU is one line and
+    writes nothing (where it sees one, a smoke run on it writes a model of the same shapes,
+    recorded as trained there)."""
+    with pytest.raises(ConfigError, match="device must be one of cpu, cuda"):
+        TrainConfig(device="tpu")
+    out = tmp_path / "g.npz"
+    args = ["train", "--data", str(data_root), "--device", "cuda", "--epochs", "1", "--steps",
+            "2", "--strips", "4", "--threads", "1", "--quiet", "--out", str(out)]
+    code = main(args)
+    err = capsys.readouterr().err
+    if torch.cuda.is_available():
+        assert code == 0, err
+        model, _, info = load_float_model(out)
+        assert info["config"]["device"] == "cuda"
+        assert [w.shape for w in model.weights] == [(32, 1, 9, 9)]
+    else:
+        assert code == 2 and err.count("\n") == 1
+        assert "--device cuda: this torch sees no CUDA GPU; train with --device cpu" in err
+        assert not out.exists()
+
+
+def test_a_cpu_run_records_its_device_and_a_checkpoint_resumes_on_another(data_root):
+    """The device is recorded with the settings; a checkpoint resumes on another device (the
+    weights then differ from an uninterrupted run's in the last bits only where the devices'
+    arithmetic does), as it does with another thread count."""
+    from stereosim.nna.trainrun import NOT_COMPARED
+
+    cfg = TrainConfig(epochs=1, steps_per_epoch=2, strips=4, threads=1)
+    assert train(cfg, training_scene_dirs(data_root), progress=False)["config"]["device"] == "cpu"
+    assert "device" in NOT_COMPARED and "threads" in NOT_COMPARED

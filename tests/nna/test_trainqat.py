@@ -151,3 +151,20 @@ def test_qat_forward_equals_the_integer_reference_on_a_real_scene():
     args = (weights, biases, qm.mult, qm.shift, qm.input_offset, qm.z_bits)
     for img in views:
         assert_array_equal(_accumulators(net, img), int_forward_ref(img, *args))
+
+
+def test_the_frozen_arithmetic_moves_with_the_network_and_stays_out_of_checkpoints():
+    """The scales and multiply-shift pairs are buffers: ``.to()`` moves them with the weights
+    (a GPU run), and a checkpoint (the state dict) holds the trained weights and biases alone."""
+    import torch
+
+    model = _model(5)
+    qm = _quantized(model)
+    net = build_qat_net(model, qm)
+    assert set(net.state_dict()) == {f"{k}.{i}" for k in ("weights", "biases")
+                                     for i in range(len(model.weights))}
+    assert len(net.scale) == len(model.weights) and len(net.mult) == len(qm.mult)
+    moved = net.to(torch.float64)  # floating buffers follow the module like its parameters
+    assert all(s.dtype == torch.float64 for s in moved.scale + moved.mult + moved.pow)
+    x = torch.zeros(1, 1, 12, 12, dtype=torch.float32)
+    assert torch.isfinite(build_qat_net(model, qm)(x)).all()
