@@ -26,7 +26,7 @@ from stereosim.sim.errors import ConfigError
 from stereosim.sim.io import to_grey
 
 MODELS = Path(__file__).resolve().parents[2] / "benchmarks" / "models"
-NETWORKS = ("mccnn4", "mccnn4-slim", "mccnn4-mid", "mixed5x5-wide")
+NETWORKS = ("mccnn4", "mccnn4-slim", "mccnn4-mid", "mixed5x5-wide", "mixed5x5-wide-n6")
 DATA = shared_data_dir()
 
 
@@ -51,8 +51,8 @@ def test_the_artifact_is_the_network_the_nna_runs(name):
     qm = load_quantized(MODELS / f"{name}.int8.npz")
     cfg = _cfg(name).nna
     net = network(cfg)
-    assert net.n_layers == qm.n_layers == len(VARIANTS[name])
-    assert [w.shape for w in qm.weights] == [(o, i, k, k) for i, o, k in VARIANTS[name]]
+    assert net.n_layers == qm.n_layers == len(VARIANTS[qm.variant])
+    assert [w.shape for w in qm.weights] == [(o, i, k, k) for i, o, k in VARIANTS[qm.variant]]
     assert half_window(cfg) == net.reach == sum(w.shape[2] // 2 for w in qm.weights) == 4
     assert window_rows(cfg) == 9
     macs = sum(int(np.prod(w.shape)) for w in qm.weights)
