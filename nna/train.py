@@ -62,7 +62,6 @@ from stereosim.nna.trainloss import (
     relaxed_bits,
 )
 from stereosim.nna.trainrun import (
-    deterministic,
     load_checkpoint,
     pick_threads,
     restore,
@@ -124,7 +123,7 @@ def train(cfg: TrainConfig, scene_dirs, *, progress: bool = True, checkpoint=Non
     cfg = dataclasses.replace(cfg, threads=pick_threads(requested))
     use_threads(cfg.threads)
     torch.manual_seed(cfg.seed)
-    deterministic(cfg.device)
+    dev = training_device(cfg.device)  # before the scenes load: a missing GPU stops at once
     rng = np.random.default_rng(cfg.seed)
     if cfg.objective == "curve":
         data = load_strip_set(scene_dirs, cfg)
@@ -134,7 +133,6 @@ def train(cfg: TrainConfig, scene_dirs, *, progress: bool = True, checkpoint=Non
         n_samples = data.scene.size
     if n_samples == 0:
         raise InputError("the training scenes have no pixel with usable ground truth")
-    dev = training_device(cfg.device)
     net = (build_network(cfg.variant) if make_net is None else make_net()).to(dev)
     params = list(net.parameters())
     log_temp = torch.nn.Parameter(torch.tensor(float(np.log(cfg.temperature)), device=dev))

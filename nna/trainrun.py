@@ -105,29 +105,21 @@ def use_threads(threads: int) -> None:
 
 
 def training_device(name: str):
-    """The torch device of a run: ``cpu``, or ``cuda`` (torch's current GPU) when torch sees
-    one, else a one-line InputError. On a GPU, cuBLAS is given the workspace its deterministic
-    mode needs (``CUBLAS_WORKSPACE_CONFIG``, before its first use) and the run keeps torch's
-    deterministic algorithms where a GPU kernel has one (:func:`deterministic`)."""
+    """The torch device of a run, with torch's deterministic algorithms switched on: ``cpu``
+    (a run is reproducible from its seed, bit for bit on the same machine and thread count), or
+    ``cuda`` (torch's current GPU) when torch sees one, else a one-line InputError. On a GPU,
+    cuBLAS is given the workspace its deterministic mode needs (``CUBLAS_WORKSPACE_CONFIG``,
+    before its first use), and an op without a deterministic GPU kernel warns instead of
+    stopping the run."""
     import torch
 
-    if name == "cpu":
-        return torch.device("cpu")
-    if not torch.cuda.is_available():
-        raise InputError(f"--device {name}: this torch sees no CUDA GPU; train with --device "
-                         "cpu (the default)")
-    os.environ.setdefault("CUBLAS_WORKSPACE_CONFIG", ":4096:8")
+    if name != "cpu":
+        if not torch.cuda.is_available():
+            raise InputError(f"--device {name}: this torch sees no CUDA GPU; train with "
+                             "--device cpu (the default)")
+        os.environ.setdefault("CUBLAS_WORKSPACE_CONFIG", ":4096:8")
+    torch.use_deterministic_algorithms(True, warn_only=name != "cpu")
     return torch.device(name)
-
-
-def deterministic(device: str) -> None:
-    """torch's deterministic algorithms: required on the CPU (a run is reproducible from its
-    seed, bit for bit on the same machine and thread count); on a GPU an op without a
-    deterministic kernel warns instead of stopping the run (the weights may then differ in
-    the last bits from one GPU run to the next)."""
-    import torch
-
-    torch.use_deterministic_algorithms(True, warn_only=device != "cpu")
 
 
 def checkpoint_path(out) -> Path:

@@ -514,12 +514,6 @@ def test_the_training_device_is_checked_and_a_missing_gpu_is_one_line(data_root,
         assert not out.exists()
 
 
-def test_a_cpu_run_records_its_device_and_a_checkpoint_resumes_on_another(data_root):
-    """The device is recorded with the settings; a checkpoint resumes on another device (the
-    weights then differ from an uninterrupted run's in the last bits only where the devices'
-    arithmetic does), as it does with another thread count."""
-    from stereosim.nna.trainrun import NOT_COMPARED
-
+def test_a_run_records_its_device(data_root):
     cfg = TrainConfig(epochs=1, steps_per_epoch=2, strips=4, threads=1)
     assert train(cfg, training_scene_dirs(data_root), progress=False)["config"]["device"] == "cpu"
-    assert "device" in NOT_COMPARED and "threads" in NOT_COMPARED

@@ -4,7 +4,7 @@ crafted checkpoint is one line."""
 
 import argparse
 import io
-from dataclasses import replace
+from dataclasses import asdict, replace
 
 import numpy as np
 import pytest
@@ -113,7 +113,13 @@ def test_a_checkpoint_of_other_settings_or_scenes_is_refused(data_root, tmp_path
         train(replace(cfg, lr=0.001), dirs, progress=False, checkpoint=ckpt, resume=True)
     with pytest.raises(ConfigError, match="other scenes"):
         train(cfg, dirs[:1], progress=False, checkpoint=ckpt, resume=True)
-    # the thread count does not change the recipe: a resume may use another one
+    # the device does not change the recipe: a GPU run may resume this CPU checkpoint (the
+    # settings it compares are those of the run that wrote it, the device aside)
+    scenes = torch.load(ckpt, weights_only=True)["scenes"]
+    assert load_checkpoint(ckpt, {**asdict(cfg), "device": "cuda"}, scenes)["step"] == 2
+    with pytest.raises(ConfigError, match="other settings: seed=0"):
+        load_checkpoint(ckpt, {**asdict(cfg), "device": "cuda", "seed": 1}, scenes)
+    # nor does the thread count: a resume may use another one
     assert train(replace(cfg, threads=2), dirs, progress=False, checkpoint=ckpt,
                  resume=True)["config"]["threads"] == 2
     ckpt.write_bytes(b"not a checkpoint")
