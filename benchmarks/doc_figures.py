@@ -635,6 +635,15 @@ def current(name: str) -> list[str]:
     return text.split(begin, 1)[1].split(end, 1)[0].strip("\n").split("\n")
 
 
+def stale(name: str, lines: list[str]) -> list[str]:
+    """The diff of block ``name``'s page against ``lines`` (measured now); [] if it holds them."""
+    held = current(name)
+    if held == lines:
+        return []
+    return list(difflib.unified_diff(held or [], lines, f"docs/{FIGURES[name].doc} ({name})",
+                                     "measured now", lineterm=""))
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("names", nargs="*", metavar="NAME", help=f"blocks ({', '.join(FIGURES)}; "
@@ -655,11 +664,9 @@ def main(argv: list[str] | None = None) -> int:
         if args.write:
             status |= write_between(DOCS / figure.doc, *markers(name), lines)
         elif args.check:
-            held = current(name)
-            if held != lines:
+            diff = stale(name, lines)
+            if diff:
                 status = 1
-                diff = difflib.unified_diff(held or [], lines, f"docs/{figure.doc} ({name})",
-                                            "measured now", lineterm="")
                 print("\n".join(diff))
         else:
             print("\n".join(lines))

@@ -7,7 +7,7 @@ import itertools
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, given, seed, settings
 from hypothesis import strategies as st
 
 from stereosim.sim.config import load_config
@@ -143,17 +143,14 @@ def _run(fn, *args, **kw):
         return None, exc
 
 
-@settings(max_examples=320, deadline=None, derandomize=True,
-          suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
-@given(configurations())
-def test_the_compiled_engine_equals_the_readable_kernel(network_file, case):
+def _the_engines_agree(network_file, case) -> None:
     """Either both runs stop with the same error (type, message, the state of every FIFO and
     block) or they give the same words, report, statistics, row instants and trace (the VCD of
     the window, and the words pushed in it)."""
-    h, w, over, stall, seed, window, frames, net = case
+    h, w, over, stall, pixel_seed, window, frames, net = case
     if net is not None:  # a random network of layers, written as a quantised artifact
         over = {**over, "nna.cnn.weights": network_file(*net)[0]}
-    pairs = [_pair(h, w, seed=seed + f) for f in range(frames)]
+    pairs = [_pair(h, w, seed=pixel_seed + f) for f in range(frames)]
     left, right = np.stack([p[0] for p in pairs]), np.stack([p[1] for p in pairs])
     if frames == 1:
         left, right = left[0], right[0]
@@ -182,6 +179,30 @@ def test_the_compiled_engine_equals_the_readable_kernel(network_file, case):
     if slow.trace is not None:
         assert vcd_bytes(fast.trace, version="t") == vcd_bytes(slow.trace, version="t")
         assert fast.outputs_in_window == slow.outputs_in_window
+
+
+# The random configurations come in SHARDS tests, each with its own hypothesis seed: tests of
+# about 15 s rather than one of two minutes, which the suite's workers share. Every shard's
+# first example is hypothesis's simplest configuration, the same in all of them, so 8 shards
+# of 41 examples are 328 draws: the simplest one and 320 other random ones.
+SHARDS, EXAMPLES_PER_SHARD = 8, 41
+
+
+def _shard(k: int):
+    @seed(k)
+    @settings(max_examples=EXAMPLES_PER_SHARD, deadline=None, derandomize=True, database=None,
+              suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+    @given(configurations())
+    def test(network_file, case):
+        _the_engines_agree(network_file, case)
+
+    test.__name__ = test.__qualname__ = f"test_the_compiled_engine_equals_the_readable_kernel_{k}"
+    test.__doc__ = _the_engines_agree.__doc__
+    return test
+
+
+for _k in range(SHARDS):
+    globals()[f"test_the_compiled_engine_equals_the_readable_kernel_{_k}"] = _shard(_k)
 
 
 @pytest.mark.parametrize(
