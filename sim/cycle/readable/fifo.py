@@ -233,27 +233,27 @@ class Fifo:
             self.pushed = self._push_staged
         if self._dst_ticked:
             self.popped = self._pop_staged
-        moved = False
-        if self._push_staged:
+        pushed = self._push_staged
+        if pushed:
             ready = self.dst.first_edge_after(now_fs) + self._data_edges - 1
             self._items.append((ready, self._push_item))
             self._pushes += 1
             self._push_staged = False
             self._push_item = None
-            moved = True
-        if self._pop_staged:
+        popped = self._pop_staged
+        if popped:
             self._items.popleft()
             self._pops += 1
             self._frees.append(self.src.first_edge_after(now_fs) + self._space_edges - 1)
             self._pop_staged = False
-            moved = True
-        occ = self._pushes - self._pops
-        self._max_occupancy = max(self._max_occupancy, occ)
-        seen = self._pushes - self._frees_seen
-        self._max_producer_occupancy = max(self._max_producer_occupancy, seen)
+        if pushed:  # only a push raises the occupancy, or the producer's view of it
+            occ = self._pushes - self._pops
+            self._max_occupancy = max(self._max_occupancy, occ)
+            seen = self._pushes - self._frees_seen
+            self._max_producer_occupancy = max(self._max_producer_occupancy, seen)
         self._src_open = False
         self._dst_open = False
-        return moved
+        return pushed or popped
 
     # ---- tracing and statistics --------------------------------------------------------------
 

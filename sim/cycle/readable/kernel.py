@@ -50,6 +50,7 @@ class Simulator:
         self._next_fs: dict[str, int] = {}
         self._blocks_of: dict[str, list[Block]] = {}
         self._fifos_of: dict[str, list] = {}
+        self._groups: dict[tuple[str, ...], tuple[list, list, frozenset]] = {}
         # the trace's last value of each owner's signals, and its owners by set of ticking domains
         self._last_values: dict[str, dict[str, object]] = {}
         self._trace_owners: dict[tuple, list] = {}
@@ -185,18 +186,12 @@ class Simulator:
         ticking = [d for d, nt in next_fs.items() if nt == t]
         cycles = self._cycles
         self.now_fs = t
-        if len(ticking) == 1:
-            d = ticking[0]
-            blocks = list(self._blocks_of[d])
-            fifos = self._fifos_of[d]
-        else:
-            blocks = [b for d in ticking for b in self._blocks_of[d]]
-            fifos = list({id(f): f for d in ticking for f in self._fifos_of[d]}.values())
-        tick_set = set(ticking)
+        blocks, fifos, tick_set = self._ticking_group(tuple(ticking))
         for f in fifos:
             f._begin_step(tick_set, cycles)
         rng = self._rng
         if rng is not None:
+            blocks = list(blocks)
             rng.shuffle(blocks)
         progress = False
         for b in blocks:
@@ -216,6 +211,17 @@ class Simulator:
             next_fs[d] = t + self._domains[d].period_fs
         self.steps += 1
         return progress
+
+    def _ticking_group(self, ticking: tuple[str, ...]) -> tuple[list, list, frozenset]:
+        """The blocks and the FIFOs (each once) of the domains ``ticking`` at an instant, and
+        the set of those domains: the same every time these domains tick together, so built
+        the first time (no block or FIFO is added once the run has started)."""
+        group = self._groups.get(ticking)
+        if group is None:
+            blocks = [b for d in ticking for b in self._blocks_of[d]]
+            fifos = list({id(f): f for d in ticking for f in self._fifos_of[d]}.values())
+            group = self._groups[ticking] = (blocks, fifos, frozenset(ticking))
+        return group
 
     def _emit_trace(self, t: int, ticking, blocks, fifos) -> None:
         """Report the signals whose committed value changed in this step, every owner (block
