@@ -29,8 +29,9 @@ network whose bound exceeds int32, so the int32 accumulators never wrap. The pro
 Two implementations that must agree bit for bit: :func:`int_forward_ref` (numpy int64, the
 definition tap by tap, checked to fit int32 after every layer) and the fast form
 :func:`int_forward` / :func:`int_signs` (numba kernels over row bands through every layer, in
-float lanes that are exact for the layer's worst case, :func:`lane_dtype`). The NNA's descriptor
-is :func:`int_signs`; its naive form ``signs_ref(int_forward_ref(...))``.
+float lanes that are exact for the layer's worst case, :func:`lane_dtype`; a single 9x9 or
+11x11 layer on a CPU with AVX512-VNNI by byte dot products instead, :mod:`quant.vnni`). The
+NNA's descriptor is :func:`int_signs`; its naive form ``signs_ref(int_forward_ref(...))``.
 """
 
 from __future__ import annotations
@@ -40,6 +41,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from stereosim.quant.vnni import vnni_applies, vnni_signs
 from stereosim.sim.errors import ConfigError
 
 MAX_LAYERS = 4
@@ -598,11 +600,15 @@ def int_signs(img, weights, biases, mult, shift, input_offset, z_bits=8, *,
     """The descriptor: bit c of out[y, x] is ``acc[c] > 0`` of the last layer (LSB = channel
     0); uint32 (H, W) for up to 32 channels, uint64 for up to 64. The fast form, band by band,
     each row's signs taken while its tap sums are in cache: no frame of accumulators is ever
-    held."""
+    held; a single wide layer on a CPU with AVX512-VNNI by byte dot products instead
+    (:func:`vnni_signs`)."""
     img = _as_image(img)
     net = check_network(weights, biases, mult, shift, input_offset, z_bits)
     out = np.empty(img.shape, dtype=descriptor_dtype(net[0][-1].shape[0]))
-    forward_bands(img, net, out, band_rows)
+    if vnni_applies(net[0]):
+        vnni_signs(img, net[0][0], net[1][0], net[4], out)
+    else:
+        forward_bands(img, net, out, band_rows)
     return out
 
 

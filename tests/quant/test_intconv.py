@@ -12,6 +12,7 @@ from numpy.testing import assert_array_equal
 
 from stereosim.nna.conv import cnn_accumulators
 from stereosim.nna.weights import SHIPPED_WEIGHTS, load_network
+from stereosim.quant import vnni
 from stereosim.quant.intconv import (
     F32_EXACT,
     _acc_layer,
@@ -221,3 +222,40 @@ def test_check_network_refuses_bad_networks():
         check_network(weights, biases, mult, shift, 256)
     with pytest.raises(ConfigError, match="1..4 layers"):
         check_network(weights * 3, biases * 3, mult * 5, shift * 5, 128)
+
+
+# ---- byte dot products (AVX512-VNNI) ----------------------------------------------------------
+
+
+@pytest.mark.skipif(not vnni.HAS_VNNI, reason="the byte dot products need AVX512-VNNI")
+@given(seed=st.integers(0, 2**16), k=st.sampled_from([9, 11]),
+       channels=st.sampled_from([1, 5, 32, 40]), height=st.integers(1, 40),
+       width=st.integers(1, 70), offset=st.integers(0, 255))
+@settings(max_examples=60, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.too_slow])
+def test_byte_dot_products_equal_the_definition(seed, k, channels, height, width, offset):
+    """One layer of 9 or 11 taps a row (every odd K the three groups of four hold), 1 to 40
+    channels (uint64 descriptors past 32), frames narrower than a block of 16 and not whole
+    blocks, any offset: the VNNI descriptor equals the int64 definition's signs."""
+    weights, biases, mult, shift = _network(seed, (channels,), (k,), bias_range=60000)
+    img = _image((height, width), seed + 1)
+    args = (weights, biases, mult, shift, offset)
+    out = np.empty((height, width), signs_ref(int_forward_ref(img, *args)).dtype)
+    vnni.vnni_signs(img, weights[0], biases[0], offset, out)
+    assert_array_equal(out, signs_ref(int_forward_ref(img, *args)))
+
+
+def test_the_byte_dot_products_serve_one_wide_layer_only(monkeypatch):
+    """int_signs takes the dot products for a single layer of 9 or 11 taps on a CPU with the
+    instruction, unless STEREOSIM_VNNI=0; otherwise the float lanes, which still equal the
+    definition for such a layer."""
+    wide, _, _, _ = _network(1, (32,), (9,))
+    assert vnni.vnni_applies(tuple(wide)) == vnni.HAS_VNNI
+    assert not vnni.vnni_applies(tuple(_network(2, (32,), (7,))[0]))
+    assert not vnni.vnni_applies(tuple(_network(3, (8, 32), (9, 3))[0]))
+    monkeypatch.setenv("STEREOSIM_VNNI", "0")
+    assert not vnni.vnni_applies(tuple(wide))
+    weights, biases, mult, shift = _network(4, (32,), (9,))
+    img = _image((37, 53), 5)
+    args = (weights, biases, mult, shift, 77)
+    assert_array_equal(int_signs(img, *args), signs_ref(int_forward_ref(img, *args)))

@@ -1,0 +1,179 @@
+"""The NNA's single wide layer by byte dot products (AVX512-VNNI): :func:`vnni_signs` is
+:func:`quant.intconv.int_signs` for a network of one 9x9 or 11x11 layer on the grey image, on a
+CPU that has the instruction (:func:`vnni_applies`), bit for bit.
+
+``vpdpbusd`` adds to each of 16 int32 lanes the four products of the lane's uint8 bytes of one
+operand with the int8 bytes of the other: 64 products an instruction, against the 8 float32
+lanes of a multiply-add in :mod:`quant.intconv`'s loops (LLVM keeps those at 256 bits on this
+CPU). numba does not vectorise the convolution into it, so :func:`_dpbusd3` emits it
+(``llvm.x86.avx512.vpdpbusd.512``), as sva/cost.py's popcount emits ``llvm.ctpop``. A layer of
+one input channel (the grey image) then needs no offset in its lanes: its tap sum is ``sum w * p
+- offset * sum w`` with p the uint8 pixels, so bit c is ``sum w_c * p > offset * sum w_c -
+bias_c``. The pixels go four to an int32 (:func:`_quads`: a pixel and the three to its right),
+the K taps of a kernel row in three groups of four (zero weights after the K-th): K = 9 or 11 (K
+is odd) leaves 3 or 1 of the 12 taps unused. Every product and partial sum is an exact int32 (at
+most 255 * 128 * 121 in magnitude). Four channels share each load of the pixels
+(:func:`_dpbusd3c4`).
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+from llvmlite import binding, ir
+from numba import njit, types
+from numba.extending import intrinsic
+
+VNNI_LANES = 16  # int32 lanes of one instruction
+VNNI_GROUP = 4  # bytes a lane
+VNNI_GROUPS = 3  # groups of a kernel row: taps 0..11
+#: whether this CPU has the instruction (numba compiles for the CPU it runs on)
+HAS_VNNI = bool(binding.get_host_cpu_features().get("avx512vnni", False))
+
+
+def vnni_applies(weights: tuple) -> bool:
+    """Whether :func:`quant.intconv.int_signs` takes the byte dot products: a CPU with
+    AVX512-VNNI, a network of one layer on the grey image with K = 9 or 11 (narrower kernels
+    would waste most of the three groups: the float lanes are faster for them), and
+    ``STEREOSIM_VNNI`` not ``0``."""
+    if not HAS_VNNI or os.environ.get("STEREOSIM_VNNI", "1").strip() == "0":
+        return False
+    return len(weights) == 1 and weights[0].shape[1] == 1 and 9 <= weights[0].shape[2] <= 12
+
+
+@intrinsic
+def _dpbusd3(typingctx, acc, i, q, j, w0, w1, w2):
+    """acc[i:i+16] += over g = 0, 1, 2: the dot products of the bytes of q[j + 4 g + lane] with
+    those of w_g; the accumulator stays in a register across the three groups."""
+    sig = types.void(acc, i, q, j, w0, w1, w2)
+
+    def codegen(context, builder, signature, args):
+        acc_v, i_v, q_v, j_v = args[:4]
+        acc_a = context.make_array(signature.args[0])(context, builder, acc_v)
+        q_a = context.make_array(signature.args[2])(context, builder, q_v)
+        vt = ir.VectorType(ir.IntType(32), VNNI_LANES)
+        fn = builder.module.declare_intrinsic("llvm.x86.avx512.vpdpbusd.512",
+                                              fnty=ir.FunctionType(vt, [vt, vt, vt]))
+        pa = builder.bitcast(builder.gep(acc_a.data, [i_v]), vt.as_pointer())
+        a = builder.load(pa, align=4)
+        for g, w_v in enumerate(args[4:]):
+            jj = builder.add(j_v, ir.Constant(j_v.type, VNNI_GROUP * g))
+            b = builder.load(builder.bitcast(builder.gep(q_a.data, [jj]), vt.as_pointer()),
+                             align=4)
+            wv = builder.insert_element(ir.Constant(vt, ir.Undefined), w_v,
+                                        ir.Constant(ir.IntType(32), 0))
+            wv = builder.shuffle_vector(wv, ir.Constant(vt, ir.Undefined),
+                                        ir.Constant(vt, [0] * VNNI_LANES))
+            a = builder.call(fn, [a, b, wv])  # b: the unsigned bytes, wv: the signed ones
+        builder.store(a, pa, align=4)
+        return context.get_dummy_value()
+
+    return sig, codegen
+
+
+@intrinsic
+def _dpbusd3c4(typingctx, a0, a1, a2, a3, i, q, j, w00, w01, w02, w10, w11, w12, w20, w21, w22,
+               w30, w31, w32):
+    """:func:`_dpbusd3` for four channels at once (accumulators a0..a3, their three groups of
+    weights in turn): each block of q loaded once for the four."""
+    sig = types.void(a0, a1, a2, a3, i, q, j, w00, w01, w02, w10, w11, w12, w20, w21, w22,
+                     w30, w31, w32)
+
+    def codegen(context, builder, signature, args):
+        i_v, q_v, j_v = args[4:7]
+        q_a = context.make_array(signature.args[5])(context, builder, q_v)
+        vt = ir.VectorType(ir.IntType(32), VNNI_LANES)
+        fn = builder.module.declare_intrinsic("llvm.x86.avx512.vpdpbusd.512",
+                                              fnty=ir.FunctionType(vt, [vt, vt, vt]))
+        ptrs, accs = [], []
+        for ch in range(4):
+            arr = context.make_array(signature.args[ch])(context, builder, args[ch])
+            pa = builder.bitcast(builder.gep(arr.data, [i_v]), vt.as_pointer())
+            ptrs.append(pa)
+            accs.append(builder.load(pa, align=4))
+        for g in range(VNNI_GROUPS):
+            jj = builder.add(j_v, ir.Constant(j_v.type, VNNI_GROUP * g))
+            b = builder.load(builder.bitcast(builder.gep(q_a.data, [jj]), vt.as_pointer()),
+                             align=4)
+            for ch in range(4):
+                wv = builder.insert_element(ir.Constant(vt, ir.Undefined),
+                                            args[7 + ch * VNNI_GROUPS + g],
+                                            ir.Constant(ir.IntType(32), 0))
+                wv = builder.shuffle_vector(wv, ir.Constant(vt, ir.Undefined),
+                                            ir.Constant(vt, [0] * VNNI_LANES))
+                accs[ch] = builder.call(fn, [accs[ch], b, wv])
+        for pa, a in zip(ptrs, accs):
+            builder.store(a, pa, align=4)
+        return context.get_dummy_value()
+
+    return sig, codegen
+
+
+@njit(cache=True)
+def _quads(padded, q):
+    """q[y, x] = the four uint8 padded[y, x .. x + 3] packed little-endian into a uint32."""
+    for y in range(q.shape[0]):
+        row = padded[y]
+        for x in range(q.shape[1]):
+            q[y, x] = (np.uint32(row[x]) | (np.uint32(row[x + 1]) << 8)
+                       | (np.uint32(row[x + 2]) << 16) | (np.uint32(row[x + 3]) << 24))
+
+
+@njit(cache=True)
+def _vnni_sign_layer(q, wq, threshold, masks, acc, out):
+    """out[y, x] = OR of masks[c] over the channels whose tap sum of the pixels exceeds
+    threshold[c]; wq[c, ky] = kernel row ky's three groups of channel c, q the quads of the
+    padded image; out's width a multiple of 16."""
+    rows, width = out.shape
+    k = wq.shape[1]
+    zero = masks[0] ^ masks[0]
+    for y in range(rows):
+        bits = out[y]
+        bits[:] = zero
+        c = 0
+        while c < wq.shape[0]:
+            n = 4 if c + 4 <= wq.shape[0] else 1
+            acc[:n] = 0
+            a0, a1, a2, a3 = acc[0], acc[1], acc[2], acc[3]
+            for ky in range(k):
+                qr = q[y + ky]
+                if n == 4:
+                    u, v, p, s = wq[c, ky], wq[c + 1, ky], wq[c + 2, ky], wq[c + 3, ky]
+                    for x in range(0, width, VNNI_LANES):
+                        _dpbusd3c4(a0, a1, a2, a3, x, qr, x, u[0], u[1], u[2], v[0], v[1], v[2],
+                                   p[0], p[1], p[2], s[0], s[1], s[2])
+                else:
+                    w0, w1, w2 = wq[c, ky, 0], wq[c, ky, 1], wq[c, ky, 2]
+                    for x in range(0, width, VNNI_LANES):
+                        _dpbusd3(a0, x, qr, x, w0, w1, w2)
+            for j in range(n):
+                t, m, aj = threshold[c + j], masks[c + j], acc[j]
+                for x in range(width):
+                    bits[x] |= m if aj[x] > t else zero
+            c += n
+
+
+def vnni_signs(img: np.ndarray, weights: np.ndarray, bias: np.ndarray, offset: int,
+               out: np.ndarray) -> None:
+    """``out`` = the descriptor of the single layer ``weights`` (C, 1, K, K), K = 9 or 11, by
+    byte dot products (:func:`vnni_applies` says when)."""
+    c_out, _, k, _ = weights.shape
+    r = k // 2
+    h, w = img.shape
+    wide = -(-w // VNNI_LANES) * VNNI_LANES  # whole blocks of 16 pixels (the rest dropped)
+    cols = np.clip(np.arange(-r, wide + VNNI_GROUPS * VNNI_GROUP + r), 0, w - 1)
+    rows = np.clip(np.arange(-r, h + r), 0, h - 1)
+    padded = np.ascontiguousarray(img[rows][:, cols])  # the replicate border
+    q = np.empty((h + 2 * r, wide + VNNI_GROUPS * VNNI_GROUP), np.uint32)
+    _quads(padded, q)
+    taps = np.zeros((c_out, k, VNNI_GROUPS * VNNI_GROUP), np.int8)
+    taps[:, :, :k] = weights[:, 0]
+    wq = taps.view(np.int32).reshape(c_out, k, VNNI_GROUPS).copy()
+    # |offset * sum w - bias| <= |bias| + sum |w| * max|x|, which check_network holds in int32
+    threshold = (offset * weights.astype(np.int64).sum(axis=(1, 2, 3))
+                 - bias.astype(np.int64)).astype(np.int32)
+    masks = np.array([1 << c for c in range(c_out)], dtype=out.dtype)
+    wide_out = np.empty((h, wide), out.dtype)
+    _vnni_sign_layer(q, wq, threshold, masks, np.empty((4, wide), np.int32), wide_out)
+    out[:] = wide_out[:, :w]
