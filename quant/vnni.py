@@ -23,13 +23,26 @@ import os
 import numpy as np
 from llvmlite import binding, ir
 from numba import njit, types
+from numba.core import config as numba_config
 from numba.extending import intrinsic
 
 VNNI_LANES = 16  # int32 lanes of one instruction
 VNNI_GROUP = 4  # bytes a lane
 VNNI_GROUPS = 3  # groups of a kernel row: taps 0..11
-#: whether this CPU has the instruction (numba compiles for the CPU it runs on)
-HAS_VNNI = bool(binding.get_host_cpu_features().get("avx512vnni", False))
+
+
+def numba_targets_vnni(cpu_name, cpu_features, host: dict) -> bool:
+    """Whether the code numba compiles has the instruction: the ``host`` CPU's features
+    (numba's default target), or those that ``NUMBA_CPU_NAME`` / ``NUMBA_CPU_FEATURES`` name
+    when set (a cache compiled for a generic CPU must not meet it)."""
+    if cpu_name or cpu_features:
+        return "+avx512vnni" in (cpu_features or "").split(",")
+    return bool(host.get("avx512vnni", False))
+
+
+#: whether the compiled code may use the instruction
+HAS_VNNI = numba_targets_vnni(numba_config.CPU_NAME, numba_config.CPU_FEATURES,
+                              binding.get_host_cpu_features())
 
 
 def vnni_applies(weights: tuple) -> bool:

@@ -259,3 +259,13 @@ def test_the_byte_dot_products_serve_one_wide_layer_only(monkeypatch):
     img = _image((37, 53), 5)
     args = (weights, biases, mult, shift, 77)
     assert_array_equal(int_signs(img, *args), signs_ref(int_forward_ref(img, *args)))
+
+
+def test_a_generic_numba_target_keeps_the_float_lanes():
+    """NUMBA_CPU_NAME / NUMBA_CPU_FEATURES (a cache for other machines) decide, not the host:
+    the instruction only where the named features include it."""
+    assert not vnni.numba_targets_vnni("generic", None, {"avx512vnni": True})
+    assert not vnni.numba_targets_vnni("znver4", "+avx2,-avx512vnni", {"avx512vnni": True})
+    assert vnni.numba_targets_vnni("generic", "+avx512f,+avx512vnni", {})
+    assert vnni.numba_targets_vnni(None, None, {"avx512vnni": True})
+    assert not vnni.numba_targets_vnni(None, None, {"avx512vnni": False})
