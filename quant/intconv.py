@@ -606,7 +606,7 @@ def int_signs(img, weights, biases, mult, shift, input_offset, z_bits=8, *,
     net = check_network(weights, biases, mult, shift, input_offset, z_bits)
     out = np.empty(img.shape, dtype=descriptor_dtype(net[0][-1].shape[0]))
     if vnni_applies(net[0]):
-        vnni_signs(img, net[0][0], net[1][0], net[4], out)
+        vnni_signs(img, net[0][0], net[1][0], net[4], out, band_rows)
     else:
         forward_bands(img, net, out, band_rows)
     return out

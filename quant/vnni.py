@@ -9,10 +9,10 @@ CPU). numba does not vectorise the convolution into it, so :func:`_dpbusd3` emit
 (``llvm.x86.avx512.vpdpbusd.512``), as sva/cost.py's popcount emits ``llvm.ctpop``. A layer of
 one input channel (the grey image) then needs no offset in its lanes: its tap sum is ``sum w * p
 - offset * sum w`` with p the uint8 pixels, so bit c is ``sum w_c * p > offset * sum w_c -
-bias_c``. The pixels go four to an int32 (:func:`_quads`: a pixel and the three to its right),
-the K taps of a kernel row in three groups of four (zero weights after the K-th): K = 9 or 11 (K
-is odd) leaves 3 or 1 of the 12 taps unused. Every product and partial sum is an exact int32 (at
-most 255 * 128 * 121 in magnitude). Four channels share each load of the pixels
+bias_c``. The pixels go four to an int32 (:func:`_band_quads`: a pixel and the three to its
+right), the K taps of a kernel row in three groups of four (zero weights after the K-th): K = 9
+or 11 (K is odd) leaves 3 or 1 of the 12 taps unused. Every product and partial sum is an exact
+int32 (at most 255 * 128 * 121 in magnitude). Four channels share each load of the pixels
 (:func:`_dpbusd3c4`).
 """
 
@@ -52,37 +52,51 @@ def vnni_applies(weights: tuple) -> bool:
     ``STEREOSIM_VNNI`` not ``0``."""
     if not HAS_VNNI or os.environ.get("STEREOSIM_VNNI", "1").strip() == "0":
         return False
-    return len(weights) == 1 and weights[0].shape[1] == 1 and 9 <= weights[0].shape[2] <= 12
+    k = weights[0].shape[2]
+    return len(weights) == 1 and weights[0].shape[1] == 1 and 9 <= k <= VNNI_GROUPS * VNNI_GROUP
+
+
+def _dpbusd_codegen(channels: int):
+    """The code of :func:`_dpbusd3` (one channel) and :func:`_dpbusd3c4` (four): load each
+    channel's 16 int32 accumulators, add the dot products of the three groups of q (each group
+    loaded once for every channel) with the channel's three weights, store them back."""
+
+    def codegen(context, builder, signature, args):
+        i_v, q_v, j_v = args[channels:channels + 3]
+        weights = args[channels + 3:]
+        q_a = context.make_array(signature.args[channels + 1])(context, builder, q_v)
+        vt = ir.VectorType(ir.IntType(32), VNNI_LANES)
+        fn = builder.module.declare_intrinsic("llvm.x86.avx512.vpdpbusd.512",
+                                              fnty=ir.FunctionType(vt, [vt, vt, vt]))
+        ptrs, accs = [], []
+        for ch in range(channels):
+            arr = context.make_array(signature.args[ch])(context, builder, args[ch])
+            ptrs.append(builder.bitcast(builder.gep(arr.data, [i_v]), vt.as_pointer()))
+            accs.append(builder.load(ptrs[-1], align=4))
+        for g in range(VNNI_GROUPS):
+            jj = builder.add(j_v, ir.Constant(j_v.type, VNNI_GROUP * g))
+            b = builder.load(builder.bitcast(builder.gep(q_a.data, [jj]), vt.as_pointer()),
+                             align=4)
+            for ch in range(channels):
+                wv = builder.insert_element(ir.Constant(vt, ir.Undefined),
+                                            weights[ch * VNNI_GROUPS + g],
+                                            ir.Constant(ir.IntType(32), 0))
+                wv = builder.shuffle_vector(wv, ir.Constant(vt, ir.Undefined),
+                                            ir.Constant(vt, [0] * VNNI_LANES))
+                # b: the unsigned bytes (pixels), wv: the signed ones (weights)
+                accs[ch] = builder.call(fn, [accs[ch], b, wv])
+        for pa, acc in zip(ptrs, accs):
+            builder.store(acc, pa, align=4)
+        return context.get_dummy_value()
+
+    return codegen
 
 
 @intrinsic
 def _dpbusd3(typingctx, acc, i, q, j, w0, w1, w2):
     """acc[i:i+16] += over g = 0, 1, 2: the dot products of the bytes of q[j + 4 g + lane] with
     those of w_g; the accumulator stays in a register across the three groups."""
-    sig = types.void(acc, i, q, j, w0, w1, w2)
-
-    def codegen(context, builder, signature, args):
-        acc_v, i_v, q_v, j_v = args[:4]
-        acc_a = context.make_array(signature.args[0])(context, builder, acc_v)
-        q_a = context.make_array(signature.args[2])(context, builder, q_v)
-        vt = ir.VectorType(ir.IntType(32), VNNI_LANES)
-        fn = builder.module.declare_intrinsic("llvm.x86.avx512.vpdpbusd.512",
-                                              fnty=ir.FunctionType(vt, [vt, vt, vt]))
-        pa = builder.bitcast(builder.gep(acc_a.data, [i_v]), vt.as_pointer())
-        a = builder.load(pa, align=4)
-        for g, w_v in enumerate(args[4:]):
-            jj = builder.add(j_v, ir.Constant(j_v.type, VNNI_GROUP * g))
-            b = builder.load(builder.bitcast(builder.gep(q_a.data, [jj]), vt.as_pointer()),
-                             align=4)
-            wv = builder.insert_element(ir.Constant(vt, ir.Undefined), w_v,
-                                        ir.Constant(ir.IntType(32), 0))
-            wv = builder.shuffle_vector(wv, ir.Constant(vt, ir.Undefined),
-                                        ir.Constant(vt, [0] * VNNI_LANES))
-            a = builder.call(fn, [a, b, wv])  # b: the unsigned bytes, wv: the signed ones
-        builder.store(a, pa, align=4)
-        return context.get_dummy_value()
-
-    return sig, codegen
+    return types.void(acc, i, q, j, w0, w1, w2), _dpbusd_codegen(1)
 
 
 @intrinsic
@@ -92,53 +106,31 @@ def _dpbusd3c4(typingctx, a0, a1, a2, a3, i, q, j, w00, w01, w02, w10, w11, w12,
     weights in turn): each block of q loaded once for the four."""
     sig = types.void(a0, a1, a2, a3, i, q, j, w00, w01, w02, w10, w11, w12, w20, w21, w22,
                      w30, w31, w32)
-
-    def codegen(context, builder, signature, args):
-        i_v, q_v, j_v = args[4:7]
-        q_a = context.make_array(signature.args[5])(context, builder, q_v)
-        vt = ir.VectorType(ir.IntType(32), VNNI_LANES)
-        fn = builder.module.declare_intrinsic("llvm.x86.avx512.vpdpbusd.512",
-                                              fnty=ir.FunctionType(vt, [vt, vt, vt]))
-        ptrs, accs = [], []
-        for ch in range(4):
-            arr = context.make_array(signature.args[ch])(context, builder, args[ch])
-            pa = builder.bitcast(builder.gep(arr.data, [i_v]), vt.as_pointer())
-            ptrs.append(pa)
-            accs.append(builder.load(pa, align=4))
-        for g in range(VNNI_GROUPS):
-            jj = builder.add(j_v, ir.Constant(j_v.type, VNNI_GROUP * g))
-            b = builder.load(builder.bitcast(builder.gep(q_a.data, [jj]), vt.as_pointer()),
-                             align=4)
-            for ch in range(4):
-                wv = builder.insert_element(ir.Constant(vt, ir.Undefined),
-                                            args[7 + ch * VNNI_GROUPS + g],
-                                            ir.Constant(ir.IntType(32), 0))
-                wv = builder.shuffle_vector(wv, ir.Constant(vt, ir.Undefined),
-                                            ir.Constant(vt, [0] * VNNI_LANES))
-                accs[ch] = builder.call(fn, [accs[ch], b, wv])
-        for pa, a in zip(ptrs, accs):
-            builder.store(a, pa, align=4)
-        return context.get_dummy_value()
-
-    return sig, codegen
+    return sig, _dpbusd_codegen(4)
 
 
 @njit(cache=True)
-def _quads(padded, q):
-    """q[y, x] = the four uint8 padded[y, x .. x + 3] packed little-endian into a uint32."""
-    for y in range(q.shape[0]):
-        row = padded[y]
+def _band_quads(img, y0, r, q):
+    """q[i, x] = the four pixels img[clamp(y0 - r + i), clamp(x - r + t)], t = 0..3, packed
+    little-endian into a uint32 (the replicate border): a pixel of the padded band and the
+    three to its right."""
+    h, w = img.shape
+    for i in range(q.shape[0]):
+        row = img[min(max(y0 - r + i, 0), h - 1)]
         for x in range(q.shape[1]):
-            q[y, x] = (np.uint32(row[x]) | (np.uint32(row[x + 1]) << 8)
-                       | (np.uint32(row[x + 2]) << 16) | (np.uint32(row[x + 3]) << 24))
+            word = np.uint32(0)
+            for t in range(VNNI_GROUP):
+                word |= np.uint32(row[min(max(x - r + t, 0), w - 1)]) << np.uint32(8 * t)
+            q[i, x] = word
 
 
 @njit(cache=True)
 def _vnni_sign_layer(q, wq, threshold, masks, acc, out):
     """out[y, x] = OR of masks[c] over the channels whose tap sum of the pixels exceeds
     threshold[c]; wq[c, ky] = kernel row ky's three groups of channel c, q the quads of the
-    padded image; out's width a multiple of 16."""
+    padded rows; the dot products over acc's width (whole blocks of 16), the signs over out's."""
     rows, width = out.shape
+    blocks = acc.shape[1]
     k = wq.shape[1]
     zero = masks[0] ^ masks[0]
     for y in range(rows):
@@ -153,12 +145,12 @@ def _vnni_sign_layer(q, wq, threshold, masks, acc, out):
                 qr = q[y + ky]
                 if n == 4:
                     u, v, p, s = wq[c, ky], wq[c + 1, ky], wq[c + 2, ky], wq[c + 3, ky]
-                    for x in range(0, width, VNNI_LANES):
+                    for x in range(0, blocks, VNNI_LANES):
                         _dpbusd3c4(a0, a1, a2, a3, x, qr, x, u[0], u[1], u[2], v[0], v[1], v[2],
                                    p[0], p[1], p[2], s[0], s[1], s[2])
                 else:
                     w0, w1, w2 = wq[c, ky, 0], wq[c, ky, 1], wq[c, ky, 2]
-                    for x in range(0, width, VNNI_LANES):
+                    for x in range(0, blocks, VNNI_LANES):
                         _dpbusd3(a0, x, qr, x, w0, w1, w2)
             for j in range(n):
                 t, m, aj = threshold[c + j], masks[c + j], acc[j]
@@ -168,18 +160,14 @@ def _vnni_sign_layer(q, wq, threshold, masks, acc, out):
 
 
 def vnni_signs(img: np.ndarray, weights: np.ndarray, bias: np.ndarray, offset: int,
-               out: np.ndarray) -> None:
+               out: np.ndarray, band_rows: int) -> None:
     """``out`` = the descriptor of the single layer ``weights`` (C, 1, K, K), K = 9 or 11, by
-    byte dot products (:func:`vnni_applies` says when)."""
+    byte dot products (:func:`vnni_applies` says when), ``band_rows`` output rows at a time:
+    the packed pixels of a band are all it holds besides the image and ``out``."""
     c_out, _, k, _ = weights.shape
     r = k // 2
     h, w = img.shape
     wide = -(-w // VNNI_LANES) * VNNI_LANES  # whole blocks of 16 pixels (the rest dropped)
-    cols = np.clip(np.arange(-r, wide + VNNI_GROUPS * VNNI_GROUP + r), 0, w - 1)
-    rows = np.clip(np.arange(-r, h + r), 0, h - 1)
-    padded = np.ascontiguousarray(img[rows][:, cols])  # the replicate border
-    q = np.empty((h + 2 * r, wide + VNNI_GROUPS * VNNI_GROUP), np.uint32)
-    _quads(padded, q)
     taps = np.zeros((c_out, k, VNNI_GROUPS * VNNI_GROUP), np.int8)
     taps[:, :, :k] = weights[:, 0]
     wq = taps.view(np.int32).reshape(c_out, k, VNNI_GROUPS).copy()
@@ -187,6 +175,10 @@ def vnni_signs(img: np.ndarray, weights: np.ndarray, bias: np.ndarray, offset: i
     threshold = (offset * weights.astype(np.int64).sum(axis=(1, 2, 3))
                  - bias.astype(np.int64)).astype(np.int32)
     masks = np.array([1 << c for c in range(c_out)], dtype=out.dtype)
-    wide_out = np.empty((h, wide), out.dtype)
-    _vnni_sign_layer(q, wq, threshold, masks, np.empty((4, wide), np.int32), wide_out)
-    out[:] = wide_out[:, :w]
+    q = np.empty((band_rows + 2 * r, wide + VNNI_GROUPS * VNNI_GROUP), np.uint32)
+    acc = np.empty((4, wide), np.int32)
+    for y0 in range(0, h, band_rows):
+        y1 = min(h, y0 + band_rows)
+        band = q[:y1 - y0 + 2 * r]
+        _band_quads(img, y0, r, band)
+        _vnni_sign_layer(band, wq, threshold, masks, acc, out[y0:y1])

@@ -230,19 +230,22 @@ def test_check_network_refuses_bad_networks():
 @pytest.mark.skipif(not vnni.HAS_VNNI, reason="the byte dot products need AVX512-VNNI")
 @given(seed=st.integers(0, 2**16), k=st.sampled_from([9, 11]),
        channels=st.sampled_from([1, 5, 32, 40]), height=st.integers(1, 40),
-       width=st.integers(1, 70), offset=st.integers(0, 255))
+       width=st.integers(1, 70), offset=st.integers(0, 255), band_rows=st.integers(1, 40))
 @settings(max_examples=60, deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.too_slow])
-def test_byte_dot_products_equal_the_definition(seed, k, channels, height, width, offset):
+def test_byte_dot_products_equal_the_definition(seed, k, channels, height, width, offset,
+                                                  band_rows):
     """One layer of 9 or 11 taps a row (every odd K the three groups of four hold), 1 to 40
     channels (uint64 descriptors past 32), frames narrower than a block of 16 and not whole
-    blocks, any offset: the VNNI descriptor equals the int64 definition's signs."""
+    blocks, any offset, bands of any height (the replicate border at every band's edge): the
+    VNNI descriptor equals the int64 definition's signs."""
     weights, biases, mult, shift = _network(seed, (channels,), (k,), bias_range=60000)
     img = _image((height, width), seed + 1)
     args = (weights, biases, mult, shift, offset)
-    out = np.empty((height, width), signs_ref(int_forward_ref(img, *args)).dtype)
-    vnni.vnni_signs(img, weights[0], biases[0], offset, out)
-    assert_array_equal(out, signs_ref(int_forward_ref(img, *args)))
+    ref = signs_ref(int_forward_ref(img, *args))
+    out = np.empty_like(ref)
+    vnni.vnni_signs(img, weights[0], biases[0], offset, out, band_rows)
+    assert_array_equal(out, ref)
 
 
 def test_the_byte_dot_products_serve_one_wide_layer_only(monkeypatch):
