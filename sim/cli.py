@@ -590,5 +590,5 @@ def _fail(message: str) -> int:
 
 
 if __name__ == "__main__":
-    signals.install()  # kept until the process exits: a late signal cannot cut the exit short
-    sys.exit(main())
+    # the handler is kept until the process exits: a late signal cannot cut the exit short
+    sys.exit(signals.entry(main))

@@ -16,16 +16,13 @@ from stereosim.sim import signals
 
 def main(argv: list[str] | None = None) -> int:
     """Run one command (``argv``: the arguments, default ``sys.argv[1:]``); the exit status."""
-    handler = signals.install()
-    try:
-        # the handler first: importing the command line loads numba and OpenCV
-        import stereosim.sim.cli
-    except KeyboardInterrupt as exc:
-        if handler is not None:
-            handler.settle()
-        status, line = signals.exit_line(exc, published=False)
-        print(line, file=sys.stderr)
-        return status
+    return signals.entry(lambda: _command(argv))
+
+
+def _command(argv: list[str] | None) -> int:
+    # the handler is in: importing the command line loads numba and OpenCV
+    import stereosim.sim.cli
+
     return stereosim.sim.cli.main(argv)
 
 

@@ -21,6 +21,9 @@ plain handler leaves:
 * :func:`install` is idempotent: the console entry (:mod:`sim.console`) installs the handler
   before it imports the heavy modules (numba, OpenCV), the command reuses it, and it stays in
   place until the process exits.
+* :func:`entry` installs it *inside* the ``try`` that turns a signal into its line: a signal that
+  lands the moment the handler is in -- before the command's own ``try`` is entered -- still
+  ends the process with its one line, never a traceback and exit 1.
 
 Only the standard library is imported here: the console entry needs this module before anything
 else.
@@ -31,7 +34,7 @@ from __future__ import annotations
 import contextlib
 import signal
 import sys
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
 HELD = frozenset({signal.SIGINT, signal.SIGTERM, signal.SIGHUP})
 _WORDS = {signal.SIGINT: "interrupted", signal.SIGTERM: "terminated", signal.SIGHUP: "hung up"}
@@ -93,6 +96,23 @@ def install() -> Handler | None:
     if not isinstance(sys.unraisablehook, _Unraisable):
         sys.unraisablehook = _Unraisable(sys.unraisablehook)
     return handler
+
+
+def entry(command: Callable[[], int]) -> int:
+    """A process's entry: install the :class:`Handler` for the rest of the process and run
+    ``command``; its status, or 128 + the signal's number with the signal's one line on stderr
+    when a signal lands outside the command's own handling (between the handler's install and
+    the command's ``try``; during the imports of a console entry)."""
+    try:
+        install()
+        return command()
+    except KeyboardInterrupt as exc:
+        handler = current()
+        if handler is not None:
+            handler.settle()
+        status, line = exit_line(exc, handler is not None and handler.published)
+        print(line, file=sys.stderr)
+        return status
 
 
 class _Unraisable:

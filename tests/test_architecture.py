@@ -137,7 +137,7 @@ def _imports_in_functions(tree):
 # would load the whole application on every `import nna.census`. So the public names sim.run
 # and sim.Result resolve on first use (PEP 562). The console entry imports the command line
 # only once it has installed the signal handler (a SIGTERM while numba loads gets its line).
-DEFERRED = {("sim", "__getattr__", "sim"), ("sim.console", "main", "sim.cli")}
+DEFERRED = {("sim", "__getattr__", "sim"), ("sim.console", "_command", "sim.cli")}
 
 
 def test_no_project_import_hides_in_a_function():

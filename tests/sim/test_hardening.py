@@ -4,10 +4,12 @@ half-written, no traceback, no death by signal)."""
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import errno
 import json
 import os
+import runpy
 import signal
 import subprocess
 import sys
@@ -275,7 +277,7 @@ def test_sigterm_during_a_run_leaves_the_old_set_and_no_temporary_files(old_run,
         # say so again next time): that line, then the one that says what happened
         lines = [ln for ln in err.decode().splitlines()
                  if not ln.startswith("stereosim: compiling")]
-        assert proc.returncode == 143 and len(lines) == 1
+        assert proc.returncode == 143 and len(lines) == 1, err.decode()
         if lines[0] != "stereosim: terminated":  # after the publish: then the new set is whole
             assert lines == ["stereosim: terminated after writing its outputs (they are "
                              "complete)"]
@@ -613,3 +615,69 @@ def test_sighup_before_the_switch_leaves_the_old_set(old_run, capfd, monkeypatch
                          "--disparities", "32", "--out", out], capfd)
     assert (code, err) == (129, "stereosim: hung up\n")
     assert _snapshot(out) == before
+
+
+
+@contextlib.contextmanager
+def _as_a_process():
+    """Run a process's entry in this process: the entry installs its handler for the rest of
+    the process, so the handlers, the unraisable hook and the trace function are put back."""
+    previous = {signum: signal.getsignal(signum) for signum in signals.HELD}
+    hook = sys.unraisablehook
+    try:
+        yield
+    finally:
+        sys.settrace(None)
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+        sys.unraisablehook = hook
+
+
+def _run_entry(module, argv, monkeypatch, tracer):
+    """``python -m module argv...`` in this process, traced by ``tracer``: its exit status, or
+    the signal's exception that escaped it (the process would print a traceback, exit 1)."""
+    monkeypatch.setattr(sys, "argv", [module, *argv])
+    with _as_a_process():
+        try:
+            sys.settrace(tracer)
+            runpy.run_module(module, run_name="__main__", alter_sys=False)
+        except SystemExit as stop:
+            return stop.code
+        except KeyboardInterrupt as exc:
+            return f"escaped: {exc!r}"
+    return "no exit"
+
+
+def _sigterm_at_call(k):
+    """A trace function that sends this process SIGTERM at the k-th Python call made once the
+    handler is in (a real signal: the handler raises wherever Python runs it next); ``k=0``
+    only counts them (``tracer.calls``)."""
+
+    def tracer(frame, event, arg):
+        if event == "call" and signals.current() is not None:
+            tracer.calls += 1
+            if tracer.calls == k:
+                os.kill(os.getpid(), signal.SIGTERM)
+        return None
+    tracer.calls = 0
+    return tracer
+
+
+@pytest.mark.filterwarnings("ignore:.*found in sys.modules:RuntimeWarning")
+@pytest.mark.parametrize("module", ["stereosim", "stereosim.sim.cli"])
+def test_sigterm_the_moment_the_handler_is_in_is_one_line(module, capfd, monkeypatch):
+    """A SIGTERM at any Python call after the handler goes in -- the first ones run before the
+    command's own ``try``: CI once got a traceback and exit 1 there -- ends with the one line
+    and 143, or (once the outcome is decided) changes nothing: 0 and no line."""
+    argv = ["config", "show", "--plain"]
+    counter = _sigterm_at_call(0)
+    assert _run_entry(module, argv, monkeypatch, counter) == 0
+    capfd.readouterr()
+    outcomes = []
+    # every one of the first calls (the start: install, the command's try), then a sample
+    for k in sorted({*range(1, 121), *np.linspace(121, counter.calls, 40).astype(int)}):
+        code = _run_entry(module, argv, monkeypatch, _sigterm_at_call(k))
+        err = capfd.readouterr().err
+        assert (code, err) in {(143, "stereosim: terminated\n"), (0, "")}, (k, code, err)
+        outcomes.append(code)
+    assert outcomes[0] == 143 and outcomes[-1] == 0, counter.calls  # both sides seen
