@@ -51,8 +51,10 @@ def _covered(module: str, members: set[str]) -> bool:
 def test_the_import_contracts_hold():
     """lint-imports (import-linter) over the five packages: the layers, no circles between
     siblings of any package, the two accelerators apart."""
-    exe = shutil.which("lint-imports") or str(Path(sys.executable).with_name("lint-imports"))
-    out = subprocess.run([exe, "--config", str(ROOT / "pyproject.toml")], cwd=ROOT,
+    # run by this interpreter, whose environment has stereosim: the first lint-imports on PATH
+    # may belong to another Python (it said "Could not find package 'stereosim'")
+    lint = "import sys; from importlinter.cli import lint_imports_command; lint_imports_command()"
+    out = subprocess.run([sys.executable, "-c", lint, str(ROOT / "pyproject.toml")], cwd=ROOT,
                          capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-2000:]
     assert "BROKEN" not in out.stdout and "broken" in out.stdout  # "N kept, 0 broken"
