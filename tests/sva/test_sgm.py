@@ -168,7 +168,7 @@ def test_adaptive_p2_changes_the_result():
 @given(
     h=st.integers(1, 8),
     w=st.integers(1, 16),
-    disparities=st.integers(1, 20),
+    disparities=st.integers(1, 80),
     paths=st.integers(1, 4),
     p1=st.integers(0, 60),
     p2=st.integers(0, 400),
