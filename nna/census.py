@@ -33,10 +33,10 @@ Output: one descriptor per pixel, ``uint32`` when the descriptor has at most 32 
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from stereosim.sim.census_layout import comparison_offsets
 from stereosim.sim.errors import ConfigError, InputError
+from stereosim.sim.kernel_cache import njit
 
 KINDS = ("plain", "symmetric")
 MAX_WINDOW = 15

@@ -39,10 +39,10 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
 from stereosim.quant.vnni import vnni_applies, vnni_signs
 from stereosim.sim.errors import ConfigError
+from stereosim.sim.kernel_cache import njit
 
 MAX_LAYERS = 4
 MAX_OUT_CHANNELS = 64

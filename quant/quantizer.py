@@ -40,7 +40,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 from stereosim.quant.artifact import QuantizedModel, check_quantized
 from stereosim.quant.distances import get_distance, l1
@@ -53,6 +52,7 @@ from stereosim.quant.intconv import (
     requantize,
 )
 from stereosim.sim.errors import ConfigError
+from stereosim.sim.kernel_cache import njit
 from stereosim.sim.progress import progress_bar
 
 TAU = 127

@@ -22,9 +22,11 @@ import os
 
 import numpy as np
 from llvmlite import binding, ir
-from numba import njit, types
+from numba import types
 from numba.core import config as numba_config
 from numba.extending import intrinsic
+
+from stereosim.sim.kernel_cache import njit
 
 VNNI_LANES = 16  # int32 lanes of one instruction
 VNNI_GROUP = 4  # bytes a lane

@@ -11,9 +11,9 @@ row functions below do the same.
 """
 
 import numpy as np
-from numba import njit
 
 from stereosim.sim.errors import InputError
+from stereosim.sim.kernel_cache import njit
 
 
 def box_filter_ref(cost, k: int, cost_bits: int) -> np.ndarray:

@@ -11,10 +11,11 @@ fall outside the right image never wins against one that lies inside. Costs are 
 """
 
 import numpy as np
-from numba import njit, types
+from numba import types
 from numba.extending import intrinsic
 
 from stereosim.sim.errors import InputError
+from stereosim.sim.kernel_cache import njit
 
 
 def hamming_cost_ref(desc_l, desc_r, disparities: int, bits: int) -> np.ndarray:

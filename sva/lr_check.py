@@ -12,9 +12,9 @@ aggregation alone this shear is exact; through SGM's causal paths it is the usua
 """
 
 import numpy as np
-from numba import njit
 
 from stereosim.sim.errors import InputError
+from stereosim.sim.kernel_cache import njit
 from stereosim.sva.wta import INVALID, disparity_index
 
 

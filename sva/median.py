@@ -8,9 +8,9 @@ pixel whose window is mostly invalid becomes invalid. A result < 0 is invalid (-
 import functools
 
 import numpy as np
-from numba import njit
 
 from stereosim.sim.errors import InputError
+from stereosim.sim.kernel_cache import njit
 
 
 def median_ref(q, k: int) -> np.ndarray:

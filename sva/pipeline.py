@@ -14,10 +14,10 @@ Two implementations that must agree bit for bit:
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from stereosim.sim.config import SvaConfig, check_section
 from stereosim.sim.errors import InputError
+from stereosim.sim.kernel_cache import njit
 from stereosim.sva.aggregation import box_filter, box_filter_ref, box_start, box_step
 from stereosim.sva.cost import (
     check_descriptor_pair,

@@ -23,11 +23,12 @@ Integer definition (the chip's):
 
 import numpy as np
 from llvmlite import ir
-from numba import njit, types
+from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
 from stereosim.sim.errors import InputError
+from stereosim.sim.kernel_cache import njit
 
 # (dx, dy) of the predecessor p - r, in the order ``sva.paths`` enables them.
 PATHS = ((-1, 0), (0, -1), (-1, -1), (1, -1))

@@ -35,9 +35,9 @@ from importlib import metadata
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
 from stereosim.sim.errors import ConfigError
+from stereosim.sim.kernel_cache import njit
 from stereosim.sim.outputs import atomic_write_bytes
 from stereosim.traces.log import CLOCK_SCOPE, Clock, Signal, TraceLog, validate
 

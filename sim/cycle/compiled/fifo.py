@@ -16,11 +16,11 @@ producer sees, its cycles full); and its counts at an instant (occupancy, traced
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from stereosim.sim.cycle.compiled.layout import ERR_RING, FIFO_TO_MERGE, FIFO_TO_NNA, INF
 from stereosim.sim.cycle.compiled.ring import at, rd, view
 from stereosim.sim.cycle.rules import seen_from, seen_from_scaled
+from stereosim.sim.kernel_cache import njit
 
 # ---- items and streams --------------------------------------------------------------------------
 

@@ -11,8 +11,6 @@ off the same events.
 
 from __future__ import annotations
 
-from numba import njit
-
 from stereosim.sim.cycle.compiled.layout import (
     A_BLOCKED,
     A_BUSY,
@@ -24,6 +22,7 @@ from stereosim.sim.cycle.compiled.layout import (
 )
 from stereosim.sim.cycle.compiled.ring import busy, event, lt_at, ratio, rd, view
 from stereosim.sim.cycle.rules import seen_from, seen_from_scaled
+from stereosim.sim.kernel_cache import njit
 
 
 @njit(cache=True, inline="always")

@@ -28,7 +28,6 @@ reports at an instant (status, traced signals, per layer).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from stereosim.sim.cycle.compiled.layout import (
     A_BLOCKED,
@@ -55,6 +54,7 @@ from stereosim.sim.cycle.rules import (
     nna_rows_started_before_input,
     seen_from_scaled,
 )
+from stereosim.sim.kernel_cache import njit
 
 # ---- the line buffer's pops ---------------------------------------------------------------------
 

@@ -17,7 +17,6 @@ from __future__ import annotations
 import time
 
 import numpy as np
-from numba import njit
 
 from stereosim.nna.descriptor import compute_descriptor
 from stereosim.sim.cycle.buffers import buffer_report
@@ -67,6 +66,7 @@ from stereosim.sim.cycle.frames import FrameSupply, camera_frames
 from stereosim.sim.cycle.plan import ChipPlan
 from stereosim.sim.cycle.report import cycle_report
 from stereosim.sim.cycle.rules import camera_busy_cycles, camera_frame_start, seen_from
+from stereosim.sim.kernel_cache import njit
 from stereosim.sva.pipeline import sva_stream
 from stereosim.traces.log import TraceLog
 

@@ -14,8 +14,6 @@ blocked.
 
 from __future__ import annotations
 
-from numba import njit
-
 from stereosim.sim.cycle.compiled.fifo import counts_at, sample_fifo
 from stereosim.sim.cycle.compiled.layout import (
     INF,
@@ -32,6 +30,7 @@ from stereosim.sim.cycle.compiled.ring import cursors_at
 from stereosim.sim.cycle.compiled.sink import sample_sink, status_sink
 from stereosim.sim.cycle.compiled.source import sample_source, status_camera, status_memory
 from stereosim.sim.cycle.compiled.sva import sample_sva, status_sva
+from stereosim.sim.kernel_cache import njit
 
 
 @njit(cache=True)

@@ -26,7 +26,6 @@ out).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from stereosim.sim.cycle.compiled import fifo, merge, nna, sink, source, sva
 from stereosim.sim.cycle.compiled.layout import (
@@ -39,6 +38,7 @@ from stereosim.sim.cycle.compiled.layout import (
 )
 from stereosim.sim.cycle.compiled.ring import rd, view
 from stereosim.sim.cycle.compiled.windows import walk_windows
+from stereosim.sim.kernel_cache import njit
 
 
 @njit(cache=True)

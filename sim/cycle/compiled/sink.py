@@ -14,8 +14,6 @@ at an instant is read off the same events.
 
 from __future__ import annotations
 
-from numba import njit
-
 from stereosim.sim.cycle.compiled.layout import (
     A_BLOCKED,
     A_BUSY,
@@ -36,6 +34,7 @@ from stereosim.sim.cycle.rules import (
     sink_may_pop,
     sink_next_allowed,
 )
+from stereosim.sim.kernel_cache import njit
 
 
 @njit(cache=True, inline="always")

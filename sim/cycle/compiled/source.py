@@ -21,8 +21,6 @@ reports at an instant (status, traced signals).
 
 from __future__ import annotations
 
-from numba import njit
-
 from stereosim.sim.cycle.compiled.layout import (
     A_BLOCKED,
     A_BUSY,
@@ -51,6 +49,7 @@ from stereosim.sim.cycle.rules import (
     seen_from,
     seen_from_scaled,
 )
+from stereosim.sim.kernel_cache import njit
 
 FRAME_BUFFERS = -2  # what a memory source reading a camera's frame buffers waits on
 DRAM = -3  # what a memory source (its read burst) or the sink (its write buffer) waits on

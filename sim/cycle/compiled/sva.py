@@ -37,7 +37,6 @@ instant (status, traced signals, its stages').
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from stereosim.sim.cycle.compiled.layout import (
     A_BLOCKED,
@@ -71,6 +70,7 @@ from stereosim.sim.cycle.rules import (
     sva_rows_done_before_input,
     sva_tick_at,
 )
+from stereosim.sim.kernel_cache import njit
 
 # ---- the pipeline in closed form ----------------------------------------------------------------
 

@@ -7,9 +7,8 @@ the row instants the blocks' loops note in ``Net.occ`` (``TILE.occ_in`` / ``occ_
 
 from __future__ import annotations
 
-from numba import njit
-
 from stereosim.sim.cycle.compiled.layout import ERR_RING
+from stereosim.sim.kernel_cache import njit
 
 
 @njit(cache=True)

@@ -1,0 +1,112 @@
+"""numba's cache follows every module a kernel is built from (sim/kernel_cache.py)."""
+
+from __future__ import annotations
+
+import importlib
+import subprocess
+import sys
+
+from numba.core import caching
+from numba.core.dispatcher import Dispatcher
+
+from stereosim.sim import kernel_cache
+from stereosim.sim.kernel_cache import ROOT, PackageLocator, digest_of, source_files
+
+
+def _cached_kernel_modules():
+    """The package's modules that define a kernel numba caches on disk, and their text."""
+    for path in source_files():
+        text = path.read_text()
+        if "cache=True" in text:
+            rel = path.relative_to(ROOT).with_suffix("")
+            yield "stereosim." + ".".join(rel.parts), text
+
+
+def test_every_cached_kernel_of_the_package_uses_the_package_locator():
+    """A module that decorated its kernels before the locator was in would keep numba's stamp
+    of its own file alone: each takes ``njit`` from sim.kernel_cache, which installs it."""
+    seen = 0
+    for name, text in _cached_kernel_modules():
+        assert "from stereosim.sim.kernel_cache import njit" in text, name
+        module = importlib.import_module(name)
+        for attr, value in vars(module).items():
+            cache = getattr(value, "_cache", None)
+            if isinstance(value, Dispatcher) and not isinstance(cache, caching.NullCache):
+                assert isinstance(cache._impl.locator, PackageLocator), f"{name}.{attr}"
+                seen += 1
+    assert seen > 100, seen  # the package has well over a hundred cached kernels
+
+
+def test_the_stamp_is_the_files_and_the_packages_digest():
+    from stereosim.sva import pipeline
+
+    locator = pipeline.stream_rows._cache._impl.locator
+    inner = locator.inner
+    assert not isinstance(inner, PackageLocator)
+    assert locator.get_source_stamp() == (inner.get_source_stamp(), kernel_cache.source_digest())
+    assert locator.get_cache_path() == inner.get_cache_path()
+
+
+def test_the_digest_changes_with_any_module(tmp_path):
+    for name, text in (("a.py", "x = 1\n"), ("b.py", "y = 2\n")):
+        (tmp_path / name).write_text(text)
+    files = sorted(tmp_path.glob("*.py"))
+    before = digest_of(files, tmp_path)
+    assert digest_of(files, tmp_path) == before
+    (tmp_path / "b.py").write_text("y = 3\n")  # same size
+    assert digest_of(files, tmp_path) != before
+
+
+DEPENDENCY = """
+from numba import njit
+
+
+@njit(cache=True, inline="always")
+def value():
+    return {value}
+"""
+USER = """
+from numba import njit
+
+from dependency import value
+
+
+@njit(cache=True)
+def twice():
+    return 2 * value()
+"""
+RUN = """
+import sys
+from pathlib import Path
+
+if sys.argv[2] == "package":
+    from stereosim.sim import kernel_cache
+
+    kernel_cache.ROOT = Path(sys.argv[1])  # this folder plays the package
+sys.path.insert(0, sys.argv[1])
+import user
+
+print(user.twice())
+"""
+
+
+def _twice_after_an_edit(folder, locator):
+    """``user.twice()`` (2 x the inlined ``dependency.value()``) with value() = 1, then again
+    in a new process after value() became 2."""
+    folder.mkdir()
+    (folder / "user.py").write_text(USER)
+    results = []
+    for value in (1, 2):
+        (folder / "dependency.py").write_text(DEPENDENCY.format(value=value))
+        out = subprocess.run([sys.executable, "-c", RUN, str(folder), locator],
+                             capture_output=True, text=True, timeout=120, cwd=folder)
+        assert out.returncode == 0, out.stderr
+        results.append(int(out.stdout))
+    return results
+
+
+def test_an_edit_of_an_inlined_kernel_recompiles_its_callers(tmp_path):
+    """numba alone serves the caller from its cache after an edit of the kernel it inlines
+    (the value before the edit); with the package's locator the caller is compiled again."""
+    assert _twice_after_an_edit(tmp_path / "plain", "numba") == [2, 2]  # stale
+    assert _twice_after_an_edit(tmp_path / "package", "package") == [2, 4]
