@@ -29,6 +29,7 @@ from numba.extending import intrinsic
 
 from stereosim.sim.errors import InputError
 from stereosim.sim.kernel_cache import njit
+from stereosim.sva.lanes import LANES, VectorCode, uint16_rows
 
 # (dx, dy) of the predecessor p - r, in the order ``sva.paths`` enables them.
 PATHS = ((-1, 0), (0, -1), (-1, -1), (1, -1))
@@ -224,76 +225,43 @@ def sgm_pixel(c, x, y, img_row, img_prev, state, params, s_out):
     return s1
 
 
-# d-lanes of one step of :func:`_lanes` (uint16: 512 bits)
-LANES = 32
-
-
 def _lanes_codegen(paths: int):
     """The code of :func:`_lanes` for ``paths`` paths: per chunk of LANES disparities, the
-    operations of :func:`_lane` on every path in <LANES x i16> vectors (wrapping like uint16;
-    exact for the same reason), each path's new row stored, their running minima and S's kept
-    in vectors and reduced once at the end; nothing at all when there is no chunk."""
+    operations of :func:`_lane` on every path (:class:`~sva.lanes.VectorCode`), each path's
+    new row stored, their running minima and S's kept in vectors and reduced once at the end;
+    nothing at all when there is no chunk."""
 
     def codegen(context, builder, signature, args):
         c_v, pred_v, out_v, s_v, scal_v, chunks = args
         c_t, pred_t, out_t, s_t = signature.args[:4]
-        i16 = ir.IntType(16)
-        vt = ir.VectorType(i16, LANES)
-        intp = chunks.type
-
-        def splat(value):
-            vec = builder.insert_element(ir.Constant(vt, ir.Undefined), value,
-                                         ir.Constant(ir.IntType(32), 0))
-            return builder.shuffle_vector(vec, ir.Constant(vt, ir.Undefined),
-                                          ir.Constant(ir.VectorType(ir.IntType(32), LANES),
-                                                      [0] * LANES))
-
-        def umin(a, b):
-            return builder.select(builder.icmp_unsigned("<", a, b), a, b)
-
-        def at(ptr, offset):
-            return builder.bitcast(builder.gep(ptr, [offset]), vt.as_pointer())
-
-        c_p = context.make_array(c_t)(context, builder, c_v).data
-        s_p = context.make_array(s_t)(context, builder, s_v).data
-        preds = [context.make_array(pred_t.dtype)(context, builder,
-                                                  builder.extract_value(pred_v, k)).data
-                 for k in range(paths)]
-        outs = [context.make_array(out_t.dtype)(context, builder,
-                                                builder.extract_value(out_v, k)).data
-                for k in range(paths)]
-        results = [cgutils.alloca_once_value(builder, ir.Constant(i16, 0xFFFF))
+        code = VectorCode(context, builder)
+        c_p, s_p = code.data(c_t, c_v), code.data(s_t, s_v)
+        preds = [code.data(pred_t.dtype, builder.extract_value(pred_v, k)) for k in range(paths)]
+        outs = [code.data(out_t.dtype, builder.extract_value(out_v, k)) for k in range(paths)]
+        results = [cgutils.alloca_once_value(builder, ir.Constant(code.lane, 0xFFFF))
                    for _ in range(paths + 1)]
-        with builder.if_then(builder.icmp_signed(">", chunks, ir.Constant(intp, 0))):
-            scal = [builder.extract_value(scal_v, k) for k in range(2 * paths + 3)]
-            p1 = splat(scal[0])
-            jumps = [splat(v) for v in scal[1:1 + paths]]
-            mins = [splat(v) for v in scal[1 + paths:1 + 2 * paths]]
-            cap, scap = splat(scal[2 * paths + 1]), splat(scal[2 * paths + 2])
-            acc = [cgutils.alloca_once_value(builder, ir.Constant(vt, [0xFFFF] * LANES))
+        with builder.if_then(builder.icmp_signed(">", chunks, ir.Constant(chunks.type, 0))):
+            scal = [code.splat(builder.extract_value(scal_v, k)) for k in range(2 * paths + 3)]
+            p1, jumps, mins = scal[0], scal[1:1 + paths], scal[1 + paths:1 + 2 * paths]
+            cap, scap = scal[2 * paths + 1], scal[2 * paths + 2]
+            acc = [cgutils.alloca_once_value(builder, code.full(0xFFFF))
                    for _ in range(paths + 1)]
-            one, two = ir.Constant(intp, 1), ir.Constant(intp, 2)
-            with cgutils.for_range(builder, chunks) as loop:
-                d = builder.mul(loop.index, ir.Constant(intp, LANES))
-                cd = builder.load(at(c_p, d), align=2)
+            with code.chunks(chunks) as d:
+                cd = code.load(c_p, d)
                 total = None
                 for k in range(paths):
-                    below = builder.load(at(preds[k], d), align=2)
-                    here = builder.load(at(preds[k], builder.add(d, one)), align=2)
-                    above = builder.load(at(preds[k], builder.add(d, two)), align=2)
-                    best = umin(umin(here, builder.add(umin(below, above), p1)), jumps[k])
-                    v = umin(builder.add(cd, builder.sub(best, mins[k])), cap)
-                    builder.store(v, at(outs[k], builder.add(d, one)), align=2)
-                    builder.store(umin(builder.load(acc[k]), v), acc[k])
+                    below, here, above = (code.load(preds[k], d, j) for j in range(3))
+                    best = code.umin(code.umin(here, builder.add(code.umin(below, above), p1)),
+                                     jumps[k])
+                    v = code.umin(builder.add(cd, builder.sub(best, mins[k])), cap)
+                    code.store(v, outs[k], d, 1)
+                    builder.store(code.umin(builder.load(acc[k]), v), acc[k])
                     total = v if total is None else builder.add(total, v)
-                sv = umin(total, scap)
-                builder.store(sv, at(s_p, d), align=2)
-                builder.store(umin(builder.load(acc[paths]), sv), acc[paths])
-            reduce = cgutils.get_or_insert_function(
-                builder.module, ir.FunctionType(i16, [vt]),
-                f"llvm.vector.reduce.umin.v{LANES}i16")
+                sv = code.umin(total, scap)
+                code.store(sv, s_p, d)
+                builder.store(code.umin(builder.load(acc[paths]), sv), acc[paths])
             for a, r in zip(acc, results):
-                builder.store(builder.call(reduce, [builder.load(a)]), r)
+                builder.store(code.reduce_min(builder.load(a)), r)
         return context.make_tuple(builder, signature.return_type,
                                   [builder.load(r) for r in results])
 
@@ -314,9 +282,7 @@ def _lanes(typingctx, c, preds, outs, s_out, scalars, chunks):
     loop over them too, but behind runtime overlap checks of every loaded row against every
     stored one: about 580 scalar instructions a pixel (sgm_row's: 113 -> 67 ns a pixel at
     D = 128, 4 paths; the fused SVA stream 0.112 -> 0.101 s a 720p frame)."""
-    arrays = (c, s_out, *preds, *outs)
-    if not all(isinstance(a, types.Array) and a.ndim == 1 and a.layout == "C"
-               and a.dtype == types.uint16 for a in arrays) or len(preds) != len(outs):
+    if not uint16_rows(c, s_out, *preds, *outs) or len(preds) != len(outs):
         return None
     paths = len(preds)
     sig = types.UniTuple(types.uint16, paths + 1)(c, preds, outs, s_out, scalars, chunks)
