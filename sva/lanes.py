@@ -2,7 +2,7 @@
 
 numba vectorises a per-pixel d-loop that reads some rows and writes others, but only behind
 runtime checks that no written row overlaps a read one, run at every pixel: for the SGM's
-loop about 580 scalar instructions a pixel, more than the loop's own work. The SGM's rows
+loop a long run of scalar compares a pixel, more than the loop's own work. The SGM's rows
 never overlap (:func:`sva.sgm.new_path_buffers` lays them out so), so its loop is written out
 in <LANES x i16> vectors instead (llvmlite IR in a numba ``intrinsic``, as sva/cost.py emits
 ``llvm.ctpop``): :class:`VectorCode` builds such loops, one chunk of LANES disparities a step,

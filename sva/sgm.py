@@ -280,8 +280,7 @@ def _lanes(typingctx, c, preds, outs, s_out, scalars, chunks):
 
     The rows are distinct, as :func:`new_path_buffers` lays them out. numba vectorised its own
     loop over them too, but behind runtime overlap checks of every loaded row against every
-    stored one: about 580 scalar instructions a pixel (sgm_row's: 113 -> 67 ns a pixel at
-    D = 128, 4 paths; the fused SVA stream 0.112 -> 0.101 s a 720p frame)."""
+    stored one: a long run of scalar compares at every pixel (docs/performance.md)."""
     if not uint16_rows(c, s_out, *preds, *outs) or len(preds) != len(outs):
         return None
     paths = len(preds)
