@@ -182,6 +182,19 @@ def test_to_grey_formula():
     assert to_grey(rgb).dtype == np.uint8
 
 
+def test_to_grey_is_the_formula_for_every_colour():
+    """All 2^24 RGB triples, 16 values of R at a time (a 4096 x 256 image), against the
+    formula in int32."""
+    gb = np.arange(1 << 16, dtype=np.int32)
+    g, b = gb >> 8, gb & 255
+    for r0 in range(0, 256, 16):
+        r = np.repeat(np.arange(r0, r0 + 16, dtype=np.int32), 1 << 16)
+        gg, bb = np.tile(g, 16), np.tile(b, 16)
+        rgb = np.stack([r, gg, bb], axis=-1).astype(np.uint8).reshape(4096, 256, 3)
+        spec = ((77 * r + 150 * gg + 29 * bb + 128) >> 8).astype(np.uint8).reshape(4096, 256)
+        np.testing.assert_array_equal(to_grey(rgb), spec)
+
+
 def test_to_grey_rejects_wrong_dtype_and_channels():
     with pytest.raises(InputError, match=r"float32.*convert it to uint8"):
         to_grey(np.zeros((2, 2), np.float32))
