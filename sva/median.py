@@ -29,15 +29,10 @@ def median_ref(q, k: int) -> np.ndarray:
     return out
 
 
-@functools.cache
-def selection_network(k: int) -> np.ndarray:
-    """Compare-exchange pairs (n, 2) that bring the median of k*k values to index k*k // 2.
-
-    Batcher's odd-even merge sort for the next power of two, minus the pairs that touch the
-    padding (padding would hold +inf, which a compare-exchange never moves) and minus the
-    pairs nothing at the median index depends on: 113 pairs for k = 5.
-    """
-    m = k * k
+def _batcher_pairs(m: int) -> list[tuple[int, int]]:
+    """Batcher's odd-even merge sort of m values: the network for the next power of two, minus
+    the pairs that touch the padding (padding would hold +inf, which a compare-exchange never
+    moves)."""
     n = 1
     while n < m:
         n *= 2
@@ -52,13 +47,76 @@ def selection_network(k: int) -> np.ndarray:
                         pairs.append((i + j, i + j + step))
             step //= 2
         p *= 2
+    return pairs
+
+
+@functools.cache
+def selection_network(k: int) -> np.ndarray:
+    """Compare-exchange pairs (n, 2) that bring the median of k*k values to index k*k // 2:
+    :func:`_batcher_pairs`, minus the pairs nothing at the median index depends on (113 pairs
+    for k = 5)."""
+    m = k * k
     needed = {m // 2}
     kept = []
-    for a, b in reversed(pairs):
+    for a, b in reversed(_batcher_pairs(m)):
         if a in needed or b in needed:
             kept.append((a, b))
             needed |= {a, b}
     return np.array(kept[::-1], np.int64).reshape(-1, 2)
+
+
+def sorted_column_windows(k: int) -> tuple[list[int], int]:
+    """Every 0-1 window whose k columns are sorted (index j*k + i: row j, column i; each
+    column 0 .. 0 1 .. 1 from the top), (k + 1)^k of them, as bit sets: for each of the k*k
+    values the int whose bit n is window n's value there, and the int whose bit n is window
+    n's median."""
+    zeros = np.indices((k + 1,) * k).reshape(k, -1).T  # the number of 0s of each column
+    win = (np.arange(k)[None, :, None] >= zeros[:, None, :]).reshape(len(zeros), k * k)
+    median = win.sum(axis=1) > k * k // 2  # at least k*k // 2 + 1 ones
+
+    def bits(column):
+        return int.from_bytes(np.packbits(column, bitorder="little").tobytes(), "little")
+
+    return [bits(win[:, i]) for i in range(k * k)], bits(median)
+
+
+def median_holds(pairs, windows: tuple[list[int], int]) -> bool:
+    """Whether the compare-exchanges ``pairs`` leave every window's median (``windows``, as
+    :func:`sorted_column_windows` gives them) at index k*k // 2: on bit sets, min is AND and
+    max is OR."""
+    wires, median = windows
+    v = list(wires)
+    for a, b in pairs:
+        v[a], v[b] = v[a] & v[b], v[a] | v[b]
+    return v[len(v) // 2] == median
+
+
+# the largest window whose network is pruned against every 0-1 window with sorted columns
+PRUNED_UP_TO = 5
+
+
+@functools.cache
+def column_networks(k: int) -> tuple[np.ndarray, np.ndarray]:
+    """(pairs that sort a column of k values, pairs that bring the median of a k x k window
+    whose columns are sorted to index k*k // 2): the kernel sorts the k values of each column
+    once for the k windows that share them, then runs the second network per pixel.
+
+    The second is :func:`selection_network` less every pair, tried one at a time from the
+    last, without which the median of every 0-1 window with sorted columns still lands in
+    the middle (:func:`median_holds`). By the 0-1 principle (a compare-exchange network
+    commutes with thresholding, and thresholding keeps a column sorted) it then does so for
+    every window with sorted columns. k = 5: 76 pairs against 113, and 9 for a column.
+    Larger k: no column sort and the whole selection network ((k + 1)^k windows to check)."""
+    if k > PRUNED_UP_TO:
+        return np.zeros((0, 2), np.int64), selection_network(k)
+    windows = sorted_column_windows(k)
+    pairs = [tuple(p) for p in selection_network(k)]
+    for i in range(len(pairs) - 1, -1, -1):
+        trial = pairs[:i] + pairs[i + 1:]
+        if median_holds(trial, windows):
+            pairs = trial
+    column = np.array(_batcher_pairs(k), np.int64).reshape(-1, 2)
+    return column, np.array(pairs, np.int64).reshape(-1, 2)
 
 
 # pixels per block of the network: its k*k rows of int32 stay in the L1 cache
@@ -73,12 +131,14 @@ def _frame_row(src, height, i):
 
 
 @njit(cache=True)
-def median_network_rows(src, height, k, network, y0, y1, out):
+def median_network_rows(src, height, k, networks, y0, y1, out):
     """Median rows y0 .. y1 - 1 of a frame of ``height`` rows into ``out[y - y0]``, any odd k:
-    the window values of a block of pixels, one row per window position, then the selection
-    network as branch-free min/max over the block (vectorised over x). ``src`` holds the
-    frame or a ring of its rows (:func:`_frame_row`) that includes rows y0 - k // 2 ..
+    the k rows of the window, each column sorted by ``networks[0]`` (:func:`column_networks`),
+    then the window values of a block of pixels, one row per window position, and
+    ``networks[1]`` as branch-free min/max over the block (vectorised over x). ``src`` holds
+    the frame or a ring of its rows (:func:`_frame_row`) that includes rows y0 - k // 2 ..
     y1 - 1 + k // 2 (clamped)."""
+    column, network = networks
     w = src.shape[1]
     r = k // 2
     padded = np.empty((k, w + 2 * r), np.int32)
@@ -89,6 +149,14 @@ def median_network_rows(src, height, k, network, y0, y1, out):
             dst = padded[j]
             for x in range(w + 2 * r):
                 dst[x] = row[min(max(x - r, 0), w - 1)]
+        for c in range(column.shape[0]):  # sort every column of the k rows
+            a = padded[column[c, 0]]
+            b = padded[column[c, 1]]
+            for x in range(w + 2 * r):
+                u = a[x]
+                v = b[x]
+                a[x] = min(u, v)
+                b[x] = max(u, v)
         o = out[y - y0]
         for x0 in range(0, w, _BLOCK):
             n = min(_BLOCK, w - x0)
@@ -154,13 +222,13 @@ def median_rows(src, height: int, k: int, y0: int, y1: int, out) -> None:
     if k == 3:
         median3_rows(src, height, y0, y1, out)
     else:
-        median_network_rows(src, height, k, selection_network(k), y0, y1, out)
+        median_network_rows(src, height, k, column_networks(k), y0, y1, out)
 
 
 @njit(cache=True)
-def _median_network(q, k, network, out):
+def _median_network(q, k, networks, out):
     """The whole frame ``q`` (H, W) through :func:`median_network_rows`."""
-    median_network_rows(q, q.shape[0], k, network, np.int64(0), q.shape[0], out)
+    median_network_rows(q, q.shape[0], k, networks, np.int64(0), q.shape[0], out)
 
 
 @njit(cache=True)
@@ -180,5 +248,5 @@ def median(q, k: int) -> np.ndarray:
     if k == 3:
         _median3(q32, out)
     else:
-        _median_network(q32, k, selection_network(k), out)
+        _median_network(q32, k, column_networks(k), out)
     return out

@@ -7,7 +7,14 @@ from hypothesis import strategies as st
 from numpy.testing import assert_array_equal
 
 from stereosim.sim.errors import InputError
-from stereosim.sva.median import median, median_ref, selection_network
+from stereosim.sva.median import (
+    column_networks,
+    median,
+    median_holds,
+    median_ref,
+    selection_network,
+    sorted_column_windows,
+)
 
 SHAPES = [(1, 1), (1, 17), (19, 1), (7, 13), (9, 21)]
 
@@ -62,6 +69,31 @@ def test_selection_network_puts_the_median_in_the_middle(k):
             if v[a] > v[b]:
                 v[a], v[b] = v[b], v[a]
         assert v[k * k // 2] == sorted(v)[k * k // 2]
+
+
+@pytest.mark.parametrize("k", [3, 5])
+def test_the_column_networks_sort_and_select(k):
+    """The column network sorts every 0-1 column (all 2^k), the window network leaves the
+    median of every 0-1 window with sorted columns in the middle (all (k + 1)^k: by the 0-1
+    principle, of every such window), with fewer pairs than the selection network; and it is
+    not vacuous: without the column sort it fails."""
+    column, network = column_networks(k)
+    for v in range(1 << k):
+        col = [(v >> i) & 1 for i in range(k)]
+        for a, b in column:
+            col[a], col[b] = min(col[a], col[b]), max(col[a], col[b])
+        assert col == sorted(col)
+    assert median_holds([tuple(p) for p in network], sorted_column_windows(k))
+    assert len(network) < len(selection_network(k))
+    rng = np.random.default_rng(k)
+    unsorted_fails = False
+    for _ in range(2000):
+        v = list(rng.integers(-1, 6, size=k * k))
+        for a, b in network:
+            if v[a] > v[b]:
+                v[a], v[b] = v[b], v[a]
+        unsorted_fails |= v[k * k // 2] != sorted(v)[k * k // 2]
+    assert unsorted_fails
 
 
 @pytest.mark.parametrize("k", [3, 5])
