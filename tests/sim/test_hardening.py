@@ -624,6 +624,9 @@ def _as_a_process():
     the process, so the handlers, the unraisable hook and the trace function are put back."""
     previous = {signum: signal.getsignal(signum) for signum in signals.HELD}
     hook = sys.unraisablehook
+    for signum in signals.HELD:  # as a new Python process has them
+        signal.signal(signum, signal.default_int_handler if signum == signal.SIGINT
+                      else signal.SIG_DFL)
     try:
         yield
     finally:
