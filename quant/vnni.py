@@ -26,6 +26,7 @@ from numba import types
 from numba.core import config as numba_config
 from numba.extending import intrinsic
 
+from stereosim.quant.vectors import VectorCode
 from stereosim.sim.kernel_cache import njit
 
 VNNI_LANES = 16  # int32 lanes of one instruction
@@ -66,29 +67,20 @@ def _dpbusd_codegen(channels: int):
     def codegen(context, builder, signature, args):
         i_v, q_v, j_v = args[channels:channels + 3]
         weights = args[channels + 3:]
-        q_a = context.make_array(signature.args[channels + 1])(context, builder, q_v)
-        vt = ir.VectorType(ir.IntType(32), VNNI_LANES)
+        code = VectorCode(context, builder, 32, VNNI_LANES)
+        q = code.data(signature.args[channels + 1], q_v)
         fn = builder.module.declare_intrinsic("llvm.x86.avx512.vpdpbusd.512",
-                                              fnty=ir.FunctionType(vt, [vt, vt, vt]))
-        ptrs, accs = [], []
-        for ch in range(channels):
-            arr = context.make_array(signature.args[ch])(context, builder, args[ch])
-            ptrs.append(builder.bitcast(builder.gep(arr.data, [i_v]), vt.as_pointer()))
-            accs.append(builder.load(ptrs[-1], align=4))
+                                              fnty=ir.FunctionType(code.vec, [code.vec] * 3))
+        accs = [code.data(signature.args[ch], args[ch]) for ch in range(channels)]
+        sums = [code.load(acc, i_v) for acc in accs]
         for g in range(VNNI_GROUPS):
-            jj = builder.add(j_v, ir.Constant(j_v.type, VNNI_GROUP * g))
-            b = builder.load(builder.bitcast(builder.gep(q_a.data, [jj]), vt.as_pointer()),
-                             align=4)
+            b = code.load(q, j_v, VNNI_GROUP * g)
             for ch in range(channels):
-                wv = builder.insert_element(ir.Constant(vt, ir.Undefined),
-                                            weights[ch * VNNI_GROUPS + g],
-                                            ir.Constant(ir.IntType(32), 0))
-                wv = builder.shuffle_vector(wv, ir.Constant(vt, ir.Undefined),
-                                            ir.Constant(vt, [0] * VNNI_LANES))
-                # b: the unsigned bytes (pixels), wv: the signed ones (weights)
-                accs[ch] = builder.call(fn, [accs[ch], b, wv])
-        for pa, acc in zip(ptrs, accs):
-            builder.store(acc, pa, align=4)
+                # b: the unsigned bytes (pixels), the splat: the signed ones (weights)
+                sums[ch] = builder.call(fn, [sums[ch], b,
+                                             code.splat(weights[ch * VNNI_GROUPS + g])])
+        for acc, total in zip(accs, sums):
+            code.store(total, acc, i_v)
         return context.get_dummy_value()
 
     return codegen

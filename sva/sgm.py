@@ -27,9 +27,9 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
+from stereosim.quant.vectors import VectorCode, contiguous_rows
 from stereosim.sim.errors import InputError
 from stereosim.sim.kernel_cache import njit
-from stereosim.sva.lanes import LANES, VectorCode, uint16_rows
 
 # (dx, dy) of the predecessor p - r, in the order ``sva.paths`` enables them.
 PATHS = ((-1, 0), (0, -1), (-1, -1), (1, -1))
@@ -225,16 +225,20 @@ def sgm_pixel(c, x, y, img_row, img_prev, state, params, s_out):
     return s1
 
 
+# uint16 lanes of one step of :func:`_lanes` (512 bits)
+LANES = 32
+
+
 def _lanes_codegen(paths: int):
     """The code of :func:`_lanes` for ``paths`` paths: per chunk of LANES disparities, the
-    operations of :func:`_lane` on every path (:class:`~sva.lanes.VectorCode`), each path's
+    operations of :func:`_lane` on every path (:class:`~quant.vectors.VectorCode`), each path's
     new row stored, their running minima and S's kept in vectors and reduced once at the end;
     nothing at all when there is no chunk."""
 
     def codegen(context, builder, signature, args):
         c_v, pred_v, out_v, s_v, scal_v, chunks = args
         c_t, pred_t, out_t, s_t = signature.args[:4]
-        code = VectorCode(context, builder)
+        code = VectorCode(context, builder, 16, LANES)
         c_p, s_p = code.data(c_t, c_v), code.data(s_t, s_v)
         preds = [code.data(pred_t.dtype, builder.extract_value(pred_v, k)) for k in range(paths)]
         outs = [code.data(out_t.dtype, builder.extract_value(out_v, k)) for k in range(paths)]
@@ -281,7 +285,7 @@ def _lanes(typingctx, c, preds, outs, s_out, scalars, chunks):
     The rows are distinct, as :func:`new_path_buffers` lays them out. numba vectorised its own
     loop over them too, but behind runtime overlap checks of every loaded row against every
     stored one: a long run of scalar compares at every pixel (docs/performance.md)."""
-    if not uint16_rows(c, s_out, *preds, *outs) or len(preds) != len(outs):
+    if not contiguous_rows(types.uint16, c, s_out, *preds, *outs) or len(preds) != len(outs):
         return None
     paths = len(preds)
     sig = types.UniTuple(types.uint16, paths + 1)(c, preds, outs, s_out, scalars, chunks)
