@@ -528,23 +528,42 @@ def main(argv: list[str] | None = None) -> int:
             if lost is not None:  # a signal came while a finalizer ran: it ends the command now
                 raise lost
             return status
-        except UserError as exc:
-            return _fail(str(exc))
-        except OSError as exc:  # a file-system problem no command anticipated
-            if not _stdout_works() or (exc.filename is None and exc.errno in _STREAM_ERRNOS):
-                _silence_stdout()
-                return _fail(f"cannot write to standard output ({describe_os_error(exc)}): "
-                             "check the device or pipe it writes to")
-            where = f" ({path_text(exc.filename)})" if exc.filename else ""
-            return _fail(f"{describe_os_error(exc)}{where}: check the path, its permissions and "
-                         "the free space")
-        except MemoryError:
-            return _fail("out of memory: use smaller images (--max-pixels) or a smaller "
-                         "disparity range")
+        except Exception as exc:
+            lost = signals.swallowed()
+            if lost is not None:
+                # a signal raised inside a finalizer or a C callback (llvmlite's, while numba
+                # compiles) cut that code short, and what failed after it is the signal's
+                # doing: numba's "no compiled object yet" gave a traceback and exit 1
+                status, line = signals.exit_line(lost, handler is not None and handler.published)
+                print(line, file=sys.stderr)
+                return status
+            status = _failure(exc)
+            if status is None:  # no command anticipated it: a bug, with its traceback
+                raise
+            return status
         except KeyboardInterrupt as exc:  # SIGINT, or Terminated (SIGTERM, SIGHUP)
             status, line = signals.exit_line(exc, handler is not None and handler.published)
             print(line, file=sys.stderr)
             return status
+
+
+def _failure(exc: Exception) -> int | None:
+    """Exit 2 with the one line of a command stopped by ``exc`` (a user mistake, a file-system
+    problem, memory); None for an exception no command anticipated."""
+    if isinstance(exc, UserError):
+        return _fail(str(exc))
+    if isinstance(exc, OSError):  # a file-system problem no command anticipated
+        if not _stdout_works() or (exc.filename is None and exc.errno in _STREAM_ERRNOS):
+            _silence_stdout()
+            return _fail(f"cannot write to standard output ({describe_os_error(exc)}): "
+                         "check the device or pipe it writes to")
+        where = f" ({path_text(exc.filename)})" if exc.filename else ""
+        return _fail(f"{describe_os_error(exc)}{where}: check the path, its permissions and "
+                     "the free space")
+    if isinstance(exc, MemoryError):
+        return _fail("out of memory: use smaller images (--max-pixels) or a smaller "
+                     "disparity range")
+    return None
 
 
 def _command(argv: list[str] | None) -> int:

@@ -37,6 +37,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from stereosim.sim import signals
 from stereosim.sim.errors import InputError
 from stereosim.sim.outputs import atomic_write_bytes, describe_os_error, path_text
 
@@ -143,27 +144,31 @@ def open_file(path, noun: str, error: type = InputError, shown: str | None = Non
     ``OSError``, here or while the caller reads, raise ``error`` with one line naming ``noun`` and
     the path (``shown``, by default :func:`path_text`)."""
     shown = path_text(path) if shown is None else shown
-    try:
-        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
-    except FileNotFoundError:
-        raise error(f"{noun} {shown} not found: check the path") from None
-    except OSError as exc:
-        raise error(_os_failure(noun, shown, exc)) from None
-    except ValueError:  # an embedded NUL byte
-        raise error(f"{noun} path {shown} is not a valid path: check it") from None
-    try:
-        st = os.fstat(fd)
-        if stat.S_ISDIR(st.st_mode):
-            raise error(f"{noun} path {shown} is a folder: give the path of a file")
-        if not stat.S_ISREG(st.st_mode):
-            raise error(
-                f"{noun} path {shown} is not a regular file (a device, pipe or socket): "
-                "give the path of a file"
-            )
-        f = os.fdopen(fd, "rb")
-    except BaseException:
-        os.close(fd)
-        raise
+    # the descriptor changes hands whole: a signal waits for the end of the stretch (a SIGTERM
+    # just after fdopen once closed it here and again in the file object: "Bad file
+    # descriptor", exit 2, instead of the signal's line)
+    with signals.held():
+        try:
+            fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
+        except FileNotFoundError:
+            raise error(f"{noun} {shown} not found: check the path") from None
+        except OSError as exc:
+            raise error(_os_failure(noun, shown, exc)) from None
+        except ValueError:  # an embedded NUL byte
+            raise error(f"{noun} path {shown} is not a valid path: check it") from None
+        try:
+            st = os.fstat(fd)
+            if stat.S_ISDIR(st.st_mode):
+                raise error(f"{noun} path {shown} is a folder: give the path of a file")
+            if not stat.S_ISREG(st.st_mode):
+                raise error(
+                    f"{noun} path {shown} is not a regular file (a device, pipe or socket): "
+                    "give the path of a file"
+                )
+            f = os.fdopen(fd, "rb")
+        except BaseException:
+            os.close(fd)
+            raise
     with f:
         try:
             yield f, st.st_size

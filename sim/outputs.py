@@ -118,11 +118,16 @@ def atomic_write_bytes(path: str | os.PathLike, data) -> None:
     folder = p.parent
     if not folder.is_dir():
         raise InputError(f"output folder {folder} does not exist: create it first")
+    tmp_name = None
     try:
-        fd, tmp_name = tempfile.mkstemp(prefix=f".{p.name[:200]}.", suffix=".tmp", dir=folder)
-    except OSError as exc:
-        raise _fail("write into", folder, exc) from None
-    try:
+        # the temporary file and the name that removes it come together: a signal waits for
+        # the end of the stretch (one just after mkstemp left the file behind)
+        with signals.held():
+            try:
+                fd, tmp_name = tempfile.mkstemp(prefix=f".{p.name[:200]}.", suffix=".tmp",
+                                                dir=folder)
+            except OSError as exc:
+                raise _fail("write into", folder, exc) from None
         try:
             os.fchmod(fd, 0o666 & ~_current_umask())
             _write_fd(fd, data)
@@ -133,7 +138,8 @@ def atomic_write_bytes(path: str | os.PathLike, data) -> None:
         _remove_quietly(tmp_name)
         raise _fail("write", p, exc) from None
     except BaseException:
-        _remove_quietly(tmp_name)
+        if tmp_name is not None:
+            _remove_quietly(tmp_name)
         raise
 
 

@@ -59,6 +59,7 @@ class Handler:
         self.holding = 0  # nested held() stretches
         self.pending: int | None = None
         self.swallowed: KeyboardInterrupt | None = None  # raised inside a finalizer
+        self.raised = False  # a signal was raised: the command is being stopped by it
 
     def __call__(self, signum, frame):
         if self.settled:  # the outcome is decided: the process exits with it
@@ -66,6 +67,7 @@ class Handler:
         if self.holding:  # another thread took the signal: it waits for the stretch's end
             self.pending = self.pending or signum
             return
+        self.raised = True
         if signum == signal.SIGINT:
             raise KeyboardInterrupt
         raise Terminated(signum)
@@ -117,8 +119,10 @@ def entry(command: Callable[[], int]) -> int:
 
 class _Unraisable:
     """``sys.unraisablehook`` while a :class:`Handler` is installed: the exception of a signal
-    raised inside a finalizer is kept in the handler (``swallowed``), silently; anything else
-    goes to the hook it replaced."""
+    raised inside a finalizer is kept in the handler (``swallowed``), silently; so is, silently,
+    a finalizer's failure once a signal is stopping the command (llvmlite's objects, left half
+    made by a compile the signal cut, fail as they are freed: "Exception ignored in
+    ObjectRef.__del__" after the signal's line); anything else goes to the hook it replaced."""
 
     def __init__(self, previous):
         self.previous = previous
@@ -127,6 +131,8 @@ class _Unraisable:
         handler = current()
         if handler is not None and isinstance(unraisable.exc_value, KeyboardInterrupt):
             handler.swallowed = handler.swallowed or unraisable.exc_value
+            return
+        if handler is not None and handler.raised:
             return
         self.previous(unraisable)
 

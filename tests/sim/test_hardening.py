@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import dis
 import errno
 import json
 import os
@@ -573,6 +574,131 @@ def test_a_signal_raised_inside_a_finalizer_still_ends_the_command(old_run, capf
     assert (code, err) == (143, "stereosim: terminated after writing its outputs (they are "
                                 "complete)\n")
     assert sorted(p.name for p in out.iterdir()) == sorted(RUN_FILES)
+
+
+def _sigterm_at_instruction(k, function):
+    """A trace function that sends this process SIGTERM at the k-th bytecode instruction run in
+    frames of ``function`` (a name) once a handler is in; ``k=0`` only counts them. NOPs are
+    skipped: Python never runs a signal handler there (a NOP is in no ``try``'s range, so an
+    exception raised there by the trace function would skip every handler)."""
+
+    def tracer(frame, event, arg):
+        if event == "call":
+            if frame.f_code.co_name != function:
+                return None
+            frame.f_trace_opcodes = True
+        elif (event == "opcode" and signals.current() is not None
+              and frame.f_code.co_code[frame.f_lasti] != dis.opmap["NOP"]):
+            tracer.count += 1
+            if tracer.count == k:
+                os.kill(os.getpid(), signal.SIGTERM)
+        return tracer
+    tracer.count = 0
+    return tracer
+
+
+def test_sigterm_at_any_instruction_of_a_file_open_is_one_line(old_run, capfd):
+    """sim.io.open_file hands a descriptor to a file object; a SIGTERM between the two closed
+    it there and again in the file object: "Bad file descriptor", exit 2. At every instruction
+    of it, for both input images: the signal's line and status, the old set intact -- or,
+    after the last, a finished run."""
+    left, right, out, before = old_run
+    argv = ["run", "--mode", "functional", "--left", left, "--right", right, "--disparities",
+            "16", "--out", out]
+    counter = _sigterm_at_instruction(0, "open_file")
+    sys.settrace(counter)
+    try:
+        assert _cli(argv, capfd)[0] == 0
+    finally:
+        sys.settrace(None)
+    finished = _snapshot(out)
+    for k in range(1, counter.count + 1):
+        sys.settrace(_sigterm_at_instruction(k, "open_file"))
+        try:
+            code, _, err = _cli(argv, capfd)
+        finally:
+            sys.settrace(None)
+        assert (code, err) == (143, "stereosim: terminated\n"), (k, code, err)
+        assert _snapshot(out) in (before, finished), k
+    assert counter.count > 20, counter.count  # the two opens were walked through
+
+
+def test_sigterm_at_any_instruction_of_an_atomic_write_leaves_no_file(tmp_path):
+    """A SIGTERM just after the temporary file's creation, before the code that removes it on
+    failure knew its name, left ``.out.bin.XXXX.tmp`` behind. At every instruction of
+    sim.outputs.atomic_write_bytes: the signal stops it, and the folder holds the whole new
+    file or nothing."""
+    out = tmp_path / "out.bin"
+    data = bytes(range(256)) * 64
+
+    def write(tracer):
+        out.unlink(missing_ok=True)
+        with signals.handling():
+            sys.settrace(tracer)
+            try:
+                outputs.atomic_write_bytes(out, data)
+                return "written"
+            except signals.Terminated:
+                return "terminated"
+            finally:
+                sys.settrace(None)
+
+    counter = _sigterm_at_instruction(0, "atomic_write_bytes")
+    assert write(counter) == "written"
+    outcomes = set()
+    for k in range(1, counter.count + 1):
+        outcomes.add(write(_sigterm_at_instruction(k, "atomic_write_bytes")))
+        assert [p.name for p in tmp_path.iterdir()] in ([], ["out.bin"]), k
+        assert not out.exists() or out.read_bytes() == data, k
+    assert "terminated" in outcomes and counter.count > 20, (outcomes, counter.count)
+
+
+def test_what_fails_after_a_signal_cut_a_callback_short_is_the_signal(old_run, capfd,
+                                                                     monkeypatch):
+    """A signal raised inside a finalizer or a C callback cannot propagate, and the code it cut
+    short may leave the work broken: numba, when LLVM's callback that hands it the compiled
+    object was cut, raised "no compiled object yet" (CI: a traceback and exit 1). The failure
+    that follows is the signal's: its line and status, the old set intact."""
+    left, right, out, before = old_run
+
+    class Freed:
+        def __del__(self):
+            os.kill(os.getpid(), signal.SIGTERM)  # the handler runs inside this finalizer
+
+    def cut_short(*a, **k):
+        Freed()
+        raise RuntimeError("no compiled object yet")  # what numba then said
+
+    monkeypatch.setattr("stereosim.sim.cli.html_files", cut_short)
+    code, _, err = _cli(["run", "--mode", "functional", "--left", left, "--right", right,
+                         "--disparities", "32", "--out", out], capfd)
+    assert (code, err) == (143, "stereosim: terminated\n")
+    assert _snapshot(out) == before
+
+
+def test_a_finalizer_that_fails_once_a_signal_stops_the_command_prints_nothing(old_run, capfd,
+                                                                             monkeypatch):
+    """Objects left half made by the work a signal cut short fail as they are freed (llvmlite's
+    after an interrupted compile: "Exception ignored in ObjectRef.__del__" and a traceback
+    after the signal's line); once a signal stops the command, the signal's line is all."""
+    left, right, out, before = old_run
+
+    class HalfMade:
+        def __del__(self):
+            raise RuntimeError("freed half made")
+
+    def cut_short(*a, **k):
+        half = HalfMade()  # freed with this frame, once the signal's exception is handled
+        os.kill(os.getpid(), signal.SIGTERM)
+        return half
+
+    monkeypatch.setattr("stereosim.sim.cli.html_files", cut_short)
+    # Python's own hook, which prints to stderr (pytest's turns the failure into a warning)
+    monkeypatch.setattr(sys, "unraisablehook", sys.__unraisablehook__)
+    code, _, err = _cli(["run", "--mode", "functional", "--left", left, "--right", right,
+                         "--disparities", "32", "--out", out], capfd)
+    assert (code, err) == (143, "stereosim: terminated\n")
+    assert _snapshot(out) == before
 
 
 def test_a_signal_after_the_outcome_is_decided_changes_nothing(tmp_path, capfd, monkeypatch):
