@@ -5,15 +5,17 @@ CPU that has the instruction (:func:`vnni_applies`), bit for bit.
 ``vpdpbusd`` adds to each of 16 int32 lanes the four products of the lane's uint8 bytes of one
 operand with the int8 bytes of the other: 64 products an instruction, against the 8 float32
 lanes of a multiply-add in :mod:`quant.intconv`'s loops (LLVM keeps those at 256 bits on this
-CPU). numba does not vectorise the convolution into it, so :func:`_dpbusd3` emits it
-(``llvm.x86.avx512.vpdpbusd.512``), as sva/cost.py's popcount emits ``llvm.ctpop``. A layer of
-one input channel (the grey image) then needs no offset in its lanes: its tap sum is ``sum w * p
-- offset * sum w`` with p the uint8 pixels, so bit c is ``sum w_c * p > offset * sum w_c -
-bias_c``. The pixels go four to an int32 (:func:`_band_quads`: a pixel and the three to its
-right), the K taps of a kernel row in three groups of four (zero weights after the K-th): K = 9
-or 11 (K is odd) leaves 3 or 1 of the 12 taps unused. Every product and partial sum is an exact
-int32 (at most 255 * 128 * 121 in magnitude). Four channels share each load of the pixels
-(:func:`_dpbusd3c4`).
+CPU). numba does not vectorise the convolution into it, so :func:`_taps9` / :func:`_taps11`
+emit it (``llvm.x86.avx512.vpdpbusd.512``), as sva/cost.py's popcount emits ``llvm.ctpop``. A
+layer of one input channel (the grey image) then needs no offset in its lanes: its tap sum is
+``sum w * p - offset * sum w`` with p the uint8 pixels, so bit c is ``sum w_c * p > offset *
+sum w_c - bias_c``. The pixels go four to an int32 twice (:func:`_band_quads`): a pixel and the
+three to its right, and a pixel and the three below it. A kernel row's first 4 G taps (G = K //
+4) take the first, the K - 4 G columns left over the second, four rows at a time: K = 9 takes 21
+instructions a channel where groups of four along every row took 27 (the 12 taps of three
+groups hold 9). Every product and partial sum is an exact int32 (at most 255 * 128 * 121 in
+magnitude). Four channels share each load of the pixels, and their sums stay in registers over
+the whole kernel, two a channel (eight chains of dependent instructions, not four).
 """
 
 from __future__ import annotations
@@ -31,7 +33,7 @@ from stereosim.sim.kernel_cache import njit
 
 VNNI_LANES = 16  # int32 lanes of one instruction
 VNNI_GROUP = 4  # bytes a lane
-VNNI_GROUPS = 3  # groups of a kernel row: taps 0..11
+VNNI_KERNELS = (9, 11)  # the kernel sizes with code of their own (_taps9, _taps11)
 
 
 def numba_targets_vnni(cpu_name, cpu_features, host: dict) -> bool:
@@ -50,64 +52,93 @@ HAS_VNNI = numba_targets_vnni(numba_config.CPU_NAME, numba_config.CPU_FEATURES,
 
 def vnni_applies(weights: tuple) -> bool:
     """Whether :func:`quant.intconv.int_signs` takes the byte dot products: a CPU with
-    AVX512-VNNI, a network of one layer on the grey image with K = 9 or 11 (narrower kernels
-    would waste most of the three groups: the float lanes are faster for them), and
+    AVX512-VNNI, a network of one layer on the grey image with K = 9 or 11 (the two with code
+    of their own; the float lanes are faster for narrower kernels), and
     ``STEREOSIM_VNNI`` not ``0``."""
     if not HAS_VNNI or os.environ.get("STEREOSIM_VNNI", "1").strip() == "0":
         return False
     k = weights[0].shape[2]
-    return len(weights) == 1 and weights[0].shape[1] == 1 and 9 <= k <= VNNI_GROUPS * VNNI_GROUP
+    return len(weights) == 1 and weights[0].shape[1] == 1 and k in VNNI_KERNELS
 
 
-def _dpbusd_codegen(channels: int):
-    """The code of :func:`_dpbusd3` (one channel) and :func:`_dpbusd3c4` (four): load each
-    channel's 16 int32 accumulators, add the dot products of the three groups of q (each group
-    loaded once for every channel) with the channel's three weights, store them back."""
+def _taps_codegen(k: int):
+    """The code of :func:`_taps9` / :func:`_taps11`: four channels' 16 int32 sums in
+    registers over every tap of a K x K kernel, then stored to their accumulator rows.
+
+    The taps of kernel row ky from column 0 to 4 G - 1 (G = K // 4 groups of four) come
+    from ``q``, a pixel and the three to its right; the T = K - 4 G columns left over come
+    from ``v``, a pixel and the three below it, in V = ceil(K / 4) groups of four rows (zero
+    weights past row K - 1). K = 9: 18 + 3 = 21 instructions a channel where groups of four
+    along every row would take 27 (three of their twelve taps unused)."""
+    g_n, t_n, v_n = k // VNNI_GROUP, k % VNNI_GROUP, -(-k // VNNI_GROUP)
 
     def codegen(context, builder, signature, args):
-        i_v, q_v, j_v = args[channels:channels + 3]
-        weights = args[channels + 3:]
+        a0, a1, a2, a3, q_v, v_v, w_v, qs, y, x, c = args
         code = VectorCode(context, builder, 32, VNNI_LANES)
-        q = code.data(signature.args[channels + 1], q_v)
+        q = code.data(signature.args[4], q_v)
+        v = code.data(signature.args[5], v_v)
+        w = code.data(signature.args[6], w_v)
         fn = builder.module.declare_intrinsic("llvm.x86.avx512.vpdpbusd.512",
                                               fnty=ir.FunctionType(code.vec, [code.vec] * 3))
-        accs = [code.data(signature.args[ch], args[ch]) for ch in range(channels)]
-        sums = [code.load(acc, i_v) for acc in accs]
-        for g in range(VNNI_GROUPS):
-            b = code.load(q, j_v, VNNI_GROUP * g)
-            for ch in range(channels):
+        accs = [code.data(signature.args[ch], args[ch]) for ch in range(4)]
+        per = k * g_n + v_n * t_n  # weight words of a channel
+        # two sums a channel, taken in turn: eight chains of dependent instructions
+        sums = [code.full(0) for _ in range(8)]
+        turn = [0]
+
+        def dot(ptr, at, word):
+            b = code.load(ptr, at)
+            half = 4 * (turn[0] & 1)
+            turn[0] += 1
+            for ch in range(4):
+                base = builder.add(builder.mul(builder.add(c, ir.Constant(c.type, ch)),
+                                               ir.Constant(c.type, per)),
+                                   ir.Constant(c.type, word))
                 # b: the unsigned bytes (pixels), the splat: the signed ones (weights)
-                sums[ch] = builder.call(fn, [sums[ch], b,
-                                             code.splat(weights[ch * VNNI_GROUPS + g])])
-        for acc, total in zip(accs, sums):
-            code.store(total, acc, i_v)
+                sums[half + ch] = builder.call(fn, [sums[half + ch], b, code.splat(
+                    builder.load(builder.gep(w, [base])))])
+
+        def cell(row, col):
+            return builder.add(builder.mul(builder.add(y, ir.Constant(y.type, row)), qs),
+                               builder.add(x, ir.Constant(x.type, col)))
+
+        for ky in range(k):
+            for g in range(g_n):
+                dot(q, cell(ky, VNNI_GROUP * g), ky * g_n + g)
+        for vg in range(v_n):
+            for t in range(t_n):
+                dot(v, cell(VNNI_GROUP * vg, VNNI_GROUP * g_n + t), k * g_n + vg * t_n + t)
+        for ch, acc in enumerate(accs):
+            code.store(builder.add(sums[ch], sums[4 + ch]), acc, x)
         return context.get_dummy_value()
 
     return codegen
 
 
-@intrinsic
-def _dpbusd3(typingctx, acc, i, q, j, w0, w1, w2):
-    """acc[i:i+16] += over g = 0, 1, 2: the dot products of the bytes of q[j + 4 g + lane] with
-    those of w_g; the accumulator stays in a register across the three groups."""
-    return types.void(acc, i, q, j, w0, w1, w2), _dpbusd_codegen(1)
+def _taps_signature(a0, a1, a2, a3, q, v, w, qs, y, x, c):
+    return types.void(a0, a1, a2, a3, q, v, w, qs, y, x, c)
 
 
 @intrinsic
-def _dpbusd3c4(typingctx, a0, a1, a2, a3, i, q, j, w00, w01, w02, w10, w11, w12, w20, w21, w22,
-               w30, w31, w32):
-    """:func:`_dpbusd3` for four channels at once (accumulators a0..a3, their three groups of
-    weights in turn): each block of q loaded once for the four."""
-    sig = types.void(a0, a1, a2, a3, i, q, j, w00, w01, w02, w10, w11, w12, w20, w21, w22,
-                     w30, w31, w32)
-    return sig, _dpbusd_codegen(4)
+def _taps9(typingctx, a0, a1, a2, a3, q, v, w, qs, y, x, c):
+    """a_j[x:x+16] = the tap sums of channel c + j for the 16 pixels from x of output row y
+    (:func:`_taps_codegen`, K = 9): ``q``, ``v`` the band's horizontal and vertical quads
+    (flat, both ``qs`` words a row), ``w`` every channel's weight words in turn."""
+    return _taps_signature(a0, a1, a2, a3, q, v, w, qs, y, x, c), _taps_codegen(9)
+
+
+@intrinsic
+def _taps11(typingctx, a0, a1, a2, a3, q, v, w, qs, y, x, c):
+    """:func:`_taps9` for K = 11."""
+    return _taps_signature(a0, a1, a2, a3, q, v, w, qs, y, x, c), _taps_codegen(11)
 
 
 @njit(cache=True)
-def _band_quads(img, y0, r, q):
+def _band_quads(img, y0, r, q, v):
     """q[i, x] = the four pixels img[clamp(y0 - r + i), clamp(x - r + t)], t = 0..3, packed
     little-endian into a uint32 (the replicate border): a pixel of the padded band and the
-    three to its right."""
+    three to its right; v[i, x] the same of img[clamp(y0 - r + i + t), clamp(x - r)]: a
+    pixel and the three below it."""
     h, w = img.shape
     n = q.shape[1]
     # x - r .. x - r + 3 inside the row: no clamp, a loop LLVM vectorises
@@ -126,41 +157,48 @@ def _band_quads(img, y0, r, q):
             for t in range(VNNI_GROUP):
                 word |= np.uint32(row[min(max(x - r + t, 0), w - 1)]) << np.uint32(8 * t)
             qi[x] = word
+    m = v.shape[1]
+    x_lo = min(r, m)
+    x_hi = max(x_lo, min(m, w + r))
+    for i in range(v.shape[0]):
+        r0 = img[min(max(y0 - r + i, 0), h - 1)]
+        r1 = img[min(max(y0 - r + i + 1, 0), h - 1)]
+        r2 = img[min(max(y0 - r + i + 2, 0), h - 1)]
+        r3 = img[min(max(y0 - r + i + 3, 0), h - 1)]
+        vi = v[i]
+        for x in range(m):
+            xc = min(max(x - r, 0), w - 1) if x < x_lo or x >= x_hi else x - r
+            vi[x] = (np.uint32(r0[xc]) | np.uint32(r1[xc]) << np.uint32(8)
+                     | np.uint32(r2[xc]) << np.uint32(16) | np.uint32(r3[xc]) << np.uint32(24))
 
 
 @njit(cache=True)
-def _vnni_sign_layer(q, wq, threshold, masks, acc, out):
+def _vnni_sign_layer(q, v, wq, k, threshold, masks, acc, out):
     """out[y, x] = OR of masks[c] over the channels whose tap sum of the pixels exceeds
-    threshold[c]; wq[c, ky] = kernel row ky's three groups of channel c, q the quads of the
-    padded rows; the dot products over acc's width (whole blocks of 16), the signs over out's."""
+    threshold[c]: the sums four channels at a time over acc's width (whole blocks of 16,
+    :func:`_taps9` / :func:`_taps11`; ``wq`` the weight words of ceil(C / 4) * 4 channels,
+    zero past the C-th), the signs over out's."""
     rows, width = out.shape
     blocks = acc.shape[1]
-    k = wq.shape[1]
+    n_c = threshold.shape[0]
+    qs = q.shape[1]
+    qf, vf = q.reshape(q.size), v.reshape(v.size)
     zero = masks[0] ^ masks[0]
+    a0, a1, a2, a3 = acc[0], acc[1], acc[2], acc[3]
     for y in range(rows):
         bits = out[y]
         bits[:] = zero
-        c = 0
-        while c < wq.shape[0]:
-            n = 4 if c + 4 <= wq.shape[0] else 1
-            acc[:n] = 0
-            a0, a1, a2, a3 = acc[0], acc[1], acc[2], acc[3]
-            for ky in range(k):
-                qr = q[y + ky]
-                if n == 4:
-                    u, v, p, s = wq[c, ky], wq[c + 1, ky], wq[c + 2, ky], wq[c + 3, ky]
-                    for x in range(0, blocks, VNNI_LANES):
-                        _dpbusd3c4(a0, a1, a2, a3, x, qr, x, u[0], u[1], u[2], v[0], v[1], v[2],
-                                   p[0], p[1], p[2], s[0], s[1], s[2])
-                else:
-                    w0, w1, w2 = wq[c, ky, 0], wq[c, ky, 1], wq[c, ky, 2]
-                    for x in range(0, blocks, VNNI_LANES):
-                        _dpbusd3(a0, x, qr, x, w0, w1, w2)
-            for j in range(n):
+        for c in range(0, n_c, 4):
+            if k == 9:
+                for x in range(0, blocks, VNNI_LANES):
+                    _taps9(a0, a1, a2, a3, qf, vf, wq, qs, y, x, c)
+            else:
+                for x in range(0, blocks, VNNI_LANES):
+                    _taps11(a0, a1, a2, a3, qf, vf, wq, qs, y, x, c)
+            for j in range(min(4, n_c - c)):
                 t, m, aj = threshold[c + j], masks[c + j], acc[j]
                 for x in range(width):
                     bits[x] |= m if aj[x] > t else zero
-            c += n
 
 
 def vnni_signs(img: np.ndarray, weights: np.ndarray, bias: np.ndarray, offset: int,
@@ -172,17 +210,27 @@ def vnni_signs(img: np.ndarray, weights: np.ndarray, bias: np.ndarray, offset: i
     r = k // 2
     h, w = img.shape
     wide = -(-w // VNNI_LANES) * VNNI_LANES  # whole blocks of 16 pixels (the rest dropped)
-    taps = np.zeros((c_out, k, VNNI_GROUPS * VNNI_GROUP), np.int8)
-    taps[:, :, :k] = weights[:, 0]
-    wq = taps.view(np.int32).reshape(c_out, k, VNNI_GROUPS).copy()
+    g_n, t_n, v_n = k // VNNI_GROUP, k % VNNI_GROUP, -(-k // VNNI_GROUP)
+    c_pad = -(-c_out // 4) * 4
+    kern = np.zeros((c_pad, v_n * VNNI_GROUP, k), np.int8)  # rows past K: zero
+    kern[:c_out, :k] = weights[:, 0]
+    rows_q = kern[:, :k, :VNNI_GROUP * g_n].reshape(c_pad, k * g_n, VNNI_GROUP)
+    # the leftover columns by four rows: (channel, group of rows, column, row in the group)
+    tail = kern[:, :, VNNI_GROUP * g_n:].reshape(c_pad, v_n, VNNI_GROUP, t_n)
+    tail = tail.transpose(0, 1, 3, 2).reshape(c_pad, v_n * t_n, VNNI_GROUP)
+    wq = np.ascontiguousarray(np.concatenate([rows_q, tail], axis=1)).view(np.int32)
+    wq = wq.reshape(wq.size)
     # |offset * sum w - bias| <= |bias| + sum |w| * max|x|, which check_network holds in int32
     threshold = (offset * weights.astype(np.int64).sum(axis=(1, 2, 3))
                  - bias.astype(np.int64)).astype(np.int32)
     masks = np.array([1 << c for c in range(c_out)], dtype=out.dtype)
-    q = np.empty((band_rows + 2 * r, wide + VNNI_GROUPS * VNNI_GROUP), np.uint32)
+    # both quads of a row in rows of one length (the kernel's taps read past the block's
+    # 16 pixels by up to K - 1)
+    q = np.empty((band_rows + 2 * r, wide + k), np.uint32)
+    v = np.empty_like(q)
     acc = np.empty((4, wide), np.int32)
     for y0 in range(0, h, band_rows):
         y1 = min(h, y0 + band_rows)
-        band = q[:y1 - y0 + 2 * r]
-        _band_quads(img, y0, r, band)
-        _vnni_sign_layer(band, wq, threshold, masks, acc, out[y0:y1])
+        band_q, band_v = q[:y1 - y0 + 2 * r], v[:y1 - y0 + 2 * r]
+        _band_quads(img, y0, r, band_q, band_v)
+        _vnni_sign_layer(band_q, band_v, wq, k, threshold, masks, acc, out[y0:y1])

@@ -198,6 +198,8 @@ def advance_sva_pops(net):
     occ = net.occ
     occ_in, occ_out = ids.occ_sva_in, ids.occ_sva_out
     known = min(n, nl, nr)
+    # one camera's events stand for both (prm.sides 1): the right pair is the left's
+    same = fl.push == fr.push and (l_src, l_dst, l_de) == (r_src, r_dst, r_de)
     y = j // w
     x = j - y * w
     while j < known:
@@ -213,7 +215,8 @@ def advance_sva_pops(net):
             window_row = y
         err |= j <= l_lo or j <= r_lo
         vl = seen_from_scaled(rd(ring, l_off, l_mask, j), l_src, l_dst, l_rat, l_de)
-        vr = seen_from_scaled(rd(ring, r_off, r_mask, j), r_src, r_dst, r_rat, r_de)
+        vr = vl if same else seen_from_scaled(rd(ring, r_off, r_mask, j), r_src, r_dst,
+                                              r_rat, r_de)
         p = max(p_prev + 1, vl, vr, window)
         if p * per >= cap:
             break
