@@ -20,7 +20,7 @@ import numpy as np
 from stereosim.sim.cycle.compiled.layout import ERR_RING, FIFO_TO_MERGE, FIFO_TO_NNA, INF
 from stereosim.sim.cycle.compiled.ring import at, rd, view
 from stereosim.sim.cycle.rules import seen_from, seen_from_scaled
-from stereosim.sim.kernel_cache import njit
+from stereosim.sim.kernel_cache import njit, njit_borrowing
 
 # ---- items and streams --------------------------------------------------------------------------
 
@@ -118,7 +118,7 @@ def pop_cycle(net, f, i):
 # ---- statistics ---------------------------------------------------------------------------------
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def walk_fifo(net, f, producer, c_end):
     """Advance FIFO f's occupancy walk: the consumer's timeline (``producer`` False: a push
     counts from the first consumer edge after it, a pop from the next consumer cycle; the
@@ -232,7 +232,7 @@ def walk_fifo(net, f, producer, c_end):
 
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def walk_fifos(net):
     """Advance every FIFO's walks as far as the events known settle them."""
     for f in range(net.fifos.shape[0]):
@@ -242,7 +242,7 @@ def walk_fifos(net):
                 walk_fifo(net, f, np.bool_(True), np.int64(-1))
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def finish_fifos(net, cycles):
     """Settle every FIFO walk up to the end of a completed run: ``cycles[f]`` = (edges of its
     consumer's domain, edges of its producer's)."""

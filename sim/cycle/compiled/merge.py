@@ -22,7 +22,7 @@ from stereosim.sim.cycle.compiled.layout import (
 )
 from stereosim.sim.cycle.compiled.ring import busy, event, lt_at, ratio, rd, view
 from stereosim.sim.cycle.rules import seen_from, seen_from_scaled
-from stereosim.sim.kernel_cache import njit
+from stereosim.sim.kernel_cache import njit, njit_borrowing
 
 
 @njit(cache=True, inline="always")
@@ -44,7 +44,7 @@ def _merge_tables(net, side, tab):
         r.last_pop = net.acc[nb + tl.out_fifo].last_pop
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def advance_merge(net, side):
     """The merge of ``side`` (the readable ``Merge.evaluate``): descriptor m (raster order)
     moves from its owner tile's FIFO to the SVA's in one cycle, once visible there and with a

@@ -54,7 +54,7 @@ from stereosim.sim.cycle.rules import (
     nna_rows_started_before_input,
     seen_from_scaled,
 )
-from stereosim.sim.kernel_cache import njit
+from stereosim.sim.kernel_cache import njit, njit_borrowing
 
 # ---- the line buffer's pops ---------------------------------------------------------------------
 
@@ -77,7 +77,7 @@ def line_room(ring, e, r, geometry):
         return rd(ring, e_off, e_mask, j) + 1, True, j <= e_lo
     return 0, True, False
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def advance_line_pops(net, ti):
     """Line-buffer pops of tile ``ti``, as far as its source and its MAC array allow."""
     prm = net.prm[0]
@@ -228,7 +228,7 @@ def whole_pops_end(net, k, cur):
 # ---- the MAC arrays' outputs --------------------------------------------------------------------
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def advance_layer(net, ti, li):
     """Outputs of layer ``li`` (its record) of tile ``ti``, a layer before the last, as far as
     its input rows and the room in the next layer's line buffer (:func:`line_room` of that
@@ -368,7 +368,7 @@ def advance_last_layer(net, ti, li):
     return j > start
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def advance_mac_pushes(net, ti):
     """The MAC arrays' outputs of tile ``ti``, layer after layer: the layers before the last
     into the next one's line buffer (:func:`advance_layer`), the last into the tile's FIFO

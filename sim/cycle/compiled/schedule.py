@@ -38,10 +38,10 @@ from stereosim.sim.cycle.compiled.layout import (
 )
 from stereosim.sim.cycle.compiled.ring import rd, view
 from stereosim.sim.cycle.compiled.windows import walk_windows
-from stereosim.sim.kernel_cache import njit
+from stereosim.sim.kernel_cache import njit_borrowing
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def advance_whole_side(net, side):
     """A camera served by one submodule: its source's pushes (:func:`.source.whole_pushes`) and
     its line buffer's pops (:func:`.nna.whole_pops`) taken in turn (a push needs the pop of
@@ -60,7 +60,7 @@ def advance_whole_side(net, side):
     return push[0] > start_a or pop[0] > start_b
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def advance_sva_and_sink(net):
     """The SVA's issues (:func:`.sva.issues`), its pushes (:func:`.sva.pushes`) and the sink's
     pops (:func:`.sink.pops`) taken in turn (an issue needs the rows' pops and the pushes
@@ -84,7 +84,7 @@ def advance_sva_and_sink(net):
     return issue[0] > start[0] or ko > start[1] or pop[0] > start[2]
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def note_horizon(net):
     """``state.horizon_fs``: the latest instant of any event computed so far."""
     horizon = 0
@@ -136,7 +136,7 @@ def run_pass(net, progress=None):
         walk_all(net, True)
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def advance_streams(net, walked):
     """Advance every stream in turn until the pass ends (False; ``state.end`` or
     ``state.error`` says how) or, with statistics, a stream has gone a quarter of its ring past

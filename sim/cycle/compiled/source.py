@@ -49,7 +49,7 @@ from stereosim.sim.cycle.rules import (
     seen_from,
     seen_from_scaled,
 )
-from stereosim.sim.kernel_cache import njit
+from stereosim.sim.kernel_cache import njit, njit_borrowing
 
 FRAME_BUFFERS = -2  # what a memory source reading a camera's frame buffers waits on
 DRAM = -3  # what a memory source (its read burst) or the sink (its write buffer) waits on
@@ -73,7 +73,7 @@ def pair_frames_taken(frame_fs, g, pair, pairs, buffers):
     return count, held
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def decide_frame(net, g, acc, until_fs):
     """The camera frame the g-th frame of the stream is, with frame buffers (the readable
     ``CameraSource._decide``): the next camera frame whose pair's buffer is free when it starts
@@ -119,7 +119,7 @@ def fb_first_cycle(net, g, x, y, per_src, rat):
     return seen_from_scaled(c, prm.per_cam, per_src, rat, 1)
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def dram_ready(net, k, own_side, own_count):
     """(cycle, ok, ring error): the first source cycle pixel k may leave through the DRAM
     channel -- its read burst's ``DRAM_READ`` event, computed here for the burst after the last
@@ -252,7 +252,7 @@ def _tiles_free(ring, tab, fno, x, y, rat, camera, c):
     return free, True, err, full_tile
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def advance_source(net, side):
     """Source pushes of camera ``side`` to its tiles (a joint push to every tile that takes the
     pixel), as far as their line buffers' pops allow."""
@@ -470,7 +470,7 @@ def whole_pushes_end(net, k, cur):
         state.error = ERR_GAPS
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def pending_overflow(net, side):
     """After a pass in which nothing moves: a camera whose next pixel's slot never frees (or
     frees only beyond the cap) overflows when that pixel arrives, if before the cap."""
@@ -552,7 +552,7 @@ def note_source_wait(net):
                                        (lo - 1) * per, prm.watchdog_fs)
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def decide_until(net, acc, until_fs):
     """When a run stops: the camera frames that start before ``until_fs`` are decided at their
     start whatever the readers do (a camera does not wait; the passes decide a frame when a

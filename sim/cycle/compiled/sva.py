@@ -70,7 +70,7 @@ from stereosim.sim.cycle.rules import (
     sva_rows_done_before_input,
     sva_tick_at,
 )
-from stereosim.sim.kernel_cache import njit
+from stereosim.sim.kernel_cache import njit, njit_borrowing
 
 # ---- the pipeline in closed form ----------------------------------------------------------------
 
@@ -169,7 +169,7 @@ def words_between(ring, t, kt, lo_tick, hi_tick):
 # ---- the pops -----------------------------------------------------------------------------------
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def advance_sva_pops(net):
     """The SVA's joint pops (the readable ``SvaBlock.evaluate``'s input), as far as both
     descriptor streams and its row window (released as output rows are issued) allow."""
@@ -366,7 +366,7 @@ def pushes(k, ring, ko, kt, kq):
 # ---- statistics ---------------------------------------------------------------------------------
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def walk_sva(net, final):
     """Settle the SVA's activity for the words whose every event is known (``final``: the
     streams have stopped; a pending word waits for its row, the pipeline, then a slot). Word j,

@@ -8,10 +8,10 @@ the row instants the blocks' loops note in ``Net.occ`` (``TILE.occ_in`` / ``occ_
 from __future__ import annotations
 
 from stereosim.sim.cycle.compiled.layout import ERR_RING
-from stereosim.sim.kernel_cache import njit
+from stereosim.sim.kernel_cache import njit_borrowing
 
 
-@njit(cache=True)
+@njit_borrowing(cache=True)
 def walk_windows(net, final):
     """Settle the row windows' peaks (:func:`sim.cycle.buffers.window_peaks`, the same
     arithmetic) for the input rows whose instant is known and before which every output row
