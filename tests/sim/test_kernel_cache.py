@@ -6,10 +6,14 @@ import importlib
 import subprocess
 import sys
 
+import numpy as np
+import pytest
 from numba.core import caching
 from numba.core.dispatcher import Dispatcher
+from numba.core.errors import TypingError
 
 from stereosim.sim import kernel_cache
+from stereosim.sim.cycle.compiled import fifo, schedule, sva
 from stereosim.sim.kernel_cache import ROOT, PackageLocator, digest_of, source_files
 
 
@@ -110,3 +114,32 @@ def test_an_edit_of_an_inlined_kernel_recompiles_its_callers(tmp_path):
     (the value before the edit); with the package's locator the caller is compiled again."""
     assert _twice_after_an_edit(tmp_path / "plain", "numba") == [2, 2]  # stale
     assert _twice_after_an_edit(tmp_path / "package", "package") == [2, 4]
+
+
+def test_a_borrowing_kernel_works_on_given_arrays_and_cannot_make_one():
+    """``njit_borrowing``: numba's reference counts off. A kernel that reads and writes the
+    arrays it is given runs as the plain one does; one that makes an array is refused at
+    compile time (a typing error), not run without the counts it needs."""
+    def fill(a, b):
+        for i in range(a.shape[0]):
+            b[i] = 2 * a[i] + 1
+
+    def make(n):
+        return np.zeros(n).sum()
+
+    a = np.arange(7)
+    plain, borrowed = np.zeros(7, np.int64), np.zeros(7, np.int64)
+    kernel_cache.njit()(fill)(a, plain)
+    kernel_cache.njit_borrowing()(fill)(a, borrowed)
+    assert borrowed.tolist() == plain.tolist() == (2 * a + 1).tolist()
+    assert kernel_cache.njit()(make)(3) == 0.0
+    with pytest.raises(TypingError):
+        kernel_cache.njit_borrowing()(make)(3)
+
+
+def test_the_stream_loop_runs_without_reference_counts():
+    """The compiled engine's stream loop and its walkers are borrowing kernels (the 0.7 us of
+    atomic counts a call are gone; docs/performance.md)."""
+    for kernel in (schedule.advance_streams, schedule.advance_whole_side,
+                   schedule.advance_sva_and_sink, sva.advance_sva_pops, fifo.walk_fifo):
+        assert kernel.targetoptions.get("_nrt") is False, kernel.py_func.__name__
