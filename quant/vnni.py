@@ -82,14 +82,11 @@ def _taps_codegen(k: int):
                                               fnty=ir.FunctionType(code.vec, [code.vec] * 3))
         accs = [code.data(signature.args[ch], args[ch]) for ch in range(4)]
         per = k * g_n + v_n * t_n  # weight words of a channel
-        # two sums a channel, taken in turn: eight chains of dependent instructions
+        # two sums a channel, the taps in turn: eight chains of dependent instructions
         sums = [code.full(0) for _ in range(8)]
-        turn = [0]
 
-        def dot(ptr, at, word):
+        def dot(half, ptr, at, word):
             b = code.load(ptr, at)
-            half = 4 * (turn[0] & 1)
-            turn[0] += 1
             for ch in range(4):
                 base = builder.add(builder.mul(builder.add(c, ir.Constant(c.type, ch)),
                                                ir.Constant(c.type, per)),
@@ -102,12 +99,11 @@ def _taps_codegen(k: int):
             return builder.add(builder.mul(builder.add(y, ir.Constant(y.type, row)), qs),
                                builder.add(x, ir.Constant(x.type, col)))
 
-        for ky in range(k):
-            for g in range(g_n):
-                dot(q, cell(ky, VNNI_GROUP * g), ky * g_n + g)
-        for vg in range(v_n):
-            for t in range(t_n):
-                dot(v, cell(VNNI_GROUP * vg, VNNI_GROUP * g_n + t), k * g_n + vg * t_n + t)
+        taps = [(q, (ky, VNNI_GROUP * g)) for ky in range(k) for g in range(g_n)]
+        taps += [(v, (VNNI_GROUP * vg, VNNI_GROUP * g_n + t)) for vg in range(v_n)
+                 for t in range(t_n)]
+        for word, (ptr, at) in enumerate(taps):  # the weight words are in this order
+            dot(4 * (word & 1), ptr, cell(*at), word)
         for ch, acc in enumerate(accs):
             code.store(builder.add(sums[ch], sums[4 + ch]), acc, x)
         return context.get_dummy_value()

@@ -555,18 +555,21 @@ def test_a_signal_after_the_outputs_are_written_says_so(old_run, capfd, monkeypa
     assert sorted(p.name for p in out.iterdir()) == sorted(RUN_FILES)
 
 
+class _SigtermWhenFreed:
+    """An object whose finalizer sends this process SIGTERM: the handler runs inside it."""
+
+    def __del__(self):
+        os.kill(os.getpid(), signal.SIGTERM)
+
+
 def test_a_signal_raised_inside_a_finalizer_still_ends_the_command(old_run, capfd, monkeypatch):
     """A signal whose exception is raised while Python runs a finalizer (llvmlite frees its
     objects in ``__del__``) cannot propagate there: it ends the command with its one line, no
     "Exception ignored" traceback, and the status of the signal."""
     left, right, out, _ = old_run
 
-    class Freed:
-        def __del__(self):
-            os.kill(os.getpid(), signal.SIGTERM)  # the handler runs inside this finalizer
-
     def summary_then_a_finalizer(*a, **k):
-        Freed()
+        _SigtermWhenFreed()
 
     monkeypatch.setattr("stereosim.sim.cli.print_summary", summary_then_a_finalizer)
     code, _, err = _cli(["run", "--mode", "functional", "--left", left, "--right", right,
@@ -661,12 +664,8 @@ def test_what_fails_after_a_signal_cut_a_callback_short_is_the_signal(old_run, c
     that follows is the signal's: its line and status, the old set intact."""
     left, right, out, before = old_run
 
-    class Freed:
-        def __del__(self):
-            os.kill(os.getpid(), signal.SIGTERM)  # the handler runs inside this finalizer
-
     def cut_short(*a, **k):
-        Freed()
+        _SigtermWhenFreed()
         raise RuntimeError("no compiled object yet")  # what numba then said
 
     monkeypatch.setattr("stereosim.sim.cli.html_files", cut_short)

@@ -138,7 +138,7 @@ def test_a_borrowing_kernel_works_on_given_arrays_and_cannot_make_one():
 
 
 def test_the_stream_loop_runs_without_reference_counts():
-    """The compiled engine's stream loop and its walkers are borrowing kernels (the 0.7 us of
+    """The compiled engine's stream loop and its walkers are borrowing kernels (the 0.35 us of
     atomic counts a call are gone; docs/performance.md)."""
     for kernel in (schedule.advance_streams, schedule.advance_whole_side,
                    schedule.advance_sva_and_sink, sva.advance_sva_pops, fifo.walk_fifo):
