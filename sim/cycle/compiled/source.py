@@ -399,8 +399,8 @@ def whole_pushes(net, k, cur, kb):
         if ka >= depth:
             free = seen_from_scaled(rd(ring, b_off, b_mask, ka - depth), p_nna, p_src,
                                     rat_back, se)
-        c = camera_cycle(fa, xa, ya - fa * h, line_clocks, frame_clocks, pairs)
         if camera == 1:
+            c = camera_cycle(fa, xa, ya - fa * h, line_clocks, frame_clocks, pairs)
             if c * p_src >= cap:
                 break
             if free > c:
