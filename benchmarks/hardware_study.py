@@ -3,7 +3,9 @@
 The paper (section 5) cut MC-CNN-fast's four 3x3 layers to one 9x9 layer because a multilayer
 network must store its intermediate feature maps. stereosim runs 1-4 layer networks on an NNA
 submodule as a layer pipeline with a line buffer per layer (nna/geometry.py). This script puts
-the four networks of ``benchmarks/models`` side by side at 1280x720 on the paper's NNA:
+seven networks of ``benchmarks/models`` (:data:`NETWORKS`: the paper's three, our
+``mixed5x5`` and the three of the robust-network budget) side by side at 1280x720 on the
+paper's NNA:
 
 * from the chip plan and nna/geometry.py (cheap): MACs per pixel, each layer's MAC share,
   cycles per pixel and line buffer, the NNA's frame rate on one submodule per camera (the hand
@@ -53,7 +55,8 @@ from stereosim.traces.log import changes_of
 ROOT = Path(__file__).resolve().parents[1]
 DOC = ROOT / "docs" / "hardware-study.md"
 BEGIN, END = "<!-- hardware-study:begin -->", "<!-- hardware-study:end -->"
-NETWORKS = ("single9x9", "mccnn4-slim", "mccnn4", "mixed5x5")
+NETWORKS = ("single9x9", "mccnn4-slim", "mccnn4", "mixed5x5", "mccnn4-mid", "mccnn4-wide",
+            "mixed5x5-wide")
 SHAPE = (720, 1280)
 #: the paper's NNA, set explicitly (each equals stereosim's default today)
 CHIP = {"clocks.nna_mhz": 460.0, "nna.macs": 288, "nna.submodules": 10,
