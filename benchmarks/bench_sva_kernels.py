@@ -97,13 +97,15 @@ def _bench_box_horizontal(colsum, k, cap, rows):
 def _bench_sgm(agg_row, img, state, params, rows):
     w, dn = agg_row.shape
     s = np.empty(dn, np.uint16)
+    scratch = np.empty(w + dn - 1, np.uint16)  # the diagonal search the pixel step feeds
     total = 0
     for y in range(rows):
         img_row = img[y]
         img_prev = img[y - 1] if y > 0 else img[0]
-        sgm_row_start(y, state)
+        sgm_row_start(y, img_row, img_prev, state, params)
         for x in range(w):
-            total += sgm_pixel(agg_row[x], x, y, img_row, img_prev, state, params, s)
+            s1, _ = sgm_pixel(agg_row[x], x, y, state, params, s, (scratch, scratch, w - 1 - x))
+            total += s1
     return total
 
 

@@ -6,7 +6,8 @@ IR over LLVM vectors: the NNA's single layer by byte dot products (``vpdpbusd``,
 behind runtime checks, at every pixel, that no written row overlaps a read one -- a long run of
 scalar compares, more than the loop's own work. :class:`VectorCode` holds what both build:
 an array argument's data pointer, a vector loaded or stored at an element offset, a scalar
-splat over the lanes, an unsigned minimum, a loop over chunks and the lanes' minimum. The
+splat over the lanes, an unsigned compare and minimum, loads and stores under a mask of
+lanes, a loop over chunks and the lanes' minimum. The
 vectors wrap like the scalar integers they stand for, so a kernel written with them computes
 what its scalar loop computes, bit for bit (each kernel's tests hold it to its reference).
 """
@@ -54,7 +55,47 @@ class VectorCode:
         return ir.Constant(self.vec, [value] * self.lanes)
 
     def umin(self, a, b):
-        return self.builder.select(self.builder.icmp_unsigned("<", a, b), a, b)
+        return self.builder.select(self.ult(a, b), a, b)
+
+    def ult(self, a, b):
+        """Lane by lane a < b, unsigned (a vector of i1)."""
+        return self.builder.icmp_unsigned("<", a, b)
+
+    def index(self, i):
+        """The lanes' element indices i, i + 1, ..., i + lanes - 1 (wrapping like the lane
+        type), ``i`` a scalar integer at least as wide as a lane."""
+        b = self.builder
+        if i.type.width > self.lane.width:
+            i = b.trunc(i, self.lane)
+        return b.add(self.splat(i), ir.Constant(self.vec, list(range(self.lanes))))
+
+    def lanes_below(self, n):
+        """The mask of the lanes 0 .. n - 1 (``n`` a scalar of the lane type, <= lanes)."""
+        return self.ult(ir.Constant(self.vec, list(range(self.lanes))), self.splat(n))
+
+    def _masked(self, op: str):
+        ptr = self.vec.as_pointer()
+        mask = ir.VectorType(ir.IntType(1), self.lanes)
+        suffix = f"v{self.lanes}i{self.lane.width}.p0"
+        if op == "load":
+            fnty = ir.FunctionType(self.vec, [ptr, ir.IntType(32), mask, self.vec])
+        else:
+            fnty = ir.FunctionType(ir.VoidType(), [self.vec, ptr, ir.IntType(32), mask])
+        return cgutils.get_or_insert_function(self.builder.module, fnty,
+                                              f"llvm.masked.{op}.{suffix}")
+
+    def load_masked(self, ptr, i, mask, plus: int = 0, other: int = 0):
+        """The lanes at ptr[i + plus ...] where ``mask`` is set, ``other`` in the rest; the
+        masked-off lanes' memory is not touched (AVX-512 suppresses their faults)."""
+        return self.builder.call(self._masked("load"), [
+            self.at(ptr, i, plus), ir.Constant(ir.IntType(32), self.align), mask,
+            self.full(other)])
+
+    def store_masked(self, value, ptr, i, mask, plus: int = 0):
+        """Store the lanes of ``value`` where ``mask`` is set; the others' memory is not
+        touched."""
+        self.builder.call(self._masked("store"), [
+            value, self.at(ptr, i, plus), ir.Constant(ir.IntType(32), self.align), mask])
 
     def at(self, ptr, i, plus: int = 0):
         """A vector pointer to the lanes at ptr[i + plus ...]."""

@@ -30,7 +30,6 @@ from stereosim.sva.geometry import box_radius, check_disparity_range, median_rad
 from stereosim.sva.lr_check import (
     diagonal_finish,
     diagonal_start,
-    diagonal_update,
     lr_check,
     lr_check_ref,
     lr_check_row,
@@ -39,7 +38,7 @@ from stereosim.sva.lr_check import (
 )
 from stereosim.sva.median import median, median_ref, median_rows
 from stereosim.sva.sgm import new_path_buffers, sgm, sgm_params, sgm_pixel, sgm_ref, sgm_row_start
-from stereosim.sva.wta import disparity_index, subpixel_mode_code, wta, wta_pixel, wta_ref
+from stereosim.sva.wta import disparity_index, subpixel_mode_code, wta, wta_ref, wta_select
 
 
 def check_inputs(desc_l, desc_r, img_l, cfg: SvaConfig, bits: int) -> SvaConfig:
@@ -97,8 +96,9 @@ def stream_rows(views, img, box, sgm_args, select, out, rows):
 
     Per row: the vertical box sums slide down one row (the cost row entering the window added,
     the one leaving it subtracted, both recomputed from the descriptors: no ring of cost rows).
-    Per pixel: the horizontal box sum, every SGM path and S in one d-loop (the top paths in
-    row rings), WTA and the diagonal search of the right disparity. Per row again: the LR
+    Per pixel: the horizontal box sum; then one d-loop for every SGM path (the top paths in
+    row rings), S, WTA's winner and the diagonal search of the right disparity
+    (:func:`sva.sgm.sgm_pixel`); then the winner's sub-pixel offset. Per row again: the LR
     check.
     """
     desc_l, desc_r = views
@@ -118,6 +118,8 @@ def stream_rows(views, img, box, sgm_args, select, out, rows):
     idx = disparity_index(dn)
     dint = np.empty(w, np.int32)
     dr = np.empty(w, np.int32)
+    diag_best, diag_d = diag[0], diag[1]
+    diag_base = diag_best.shape[0] - dn  # right pixel x at W - 1 - x
     if y_start == 0:
         for j in range(-r, r + 1):
             yy = min(max(j, 0), h - 1)
@@ -136,14 +138,14 @@ def stream_rows(views, img, box, sgm_args, select, out, rows):
         img_prev = img[y - 1] if y > 0 else img[0]
         q_row = q_out[y % q_out.shape[0]]
         diagonal_start(diag)
-        sgm_row_start(y, state)
+        sgm_row_start(y, img_row, img_prev, state, params)
         for x in range(w):
             box_step(hacc, colsum[min(x + r + 1, w - 1)], colsum[max(x - r, 0)], agg_cap, agg)
-            s1 = sgm_pixel(agg, x, y, img_row, img_prev, state, params, s)
-            q_row[x], dint[x] = wta_pixel(s, s1, idx, uniqueness, mode, frac_bits)
-            # unconditional even without the LR check: a branch around array code in this
-            # loop would cost numba reference counting on every pixel
-            diagonal_update(s, x, diag)
+            # the SGM's d-loop also finds WTA's winner and runs the diagonal search of the
+            # right disparity, unconditionally (even without the LR check)
+            s1, best = sgm_pixel(agg, x, y, state, params, s, (diag_best, diag_d, diag_base - x))
+            q_row[x], dint[x] = wta_select(s, s1, np.int64(best), idx, uniqueness, mode,
+                                           frac_bits)
         diagonal_finish(diag, dr)
         if lr:
             lr_check_row(q_row, dint, dr, max_diff)

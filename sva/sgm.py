@@ -93,7 +93,7 @@ ABSENT = 0x7FFF
 
 
 def new_path_buffers(width: int, disparities: int):
-    """State of the streaming SGM: ``(buf, mins, phase)``.
+    """State of the streaming SGM: ``(buf, mins, phase, pens)``.
 
     ``buf`` (3 W + 6, D + 2) uint16 holds every path row the kernel reads or writes, laid out
     so that a pixel's predecessor rows and output rows are always different rows: the d-loop
@@ -112,46 +112,52 @@ def new_path_buffers(width: int, disparities: int):
     - 3 W + 5: all-zero costs, the predecessor of a path start: from a zero predecessor
       (minimum 0) the step gives min(A + min(0, ABSENT + P1, P2), cap) = min(A, cap).
 
-    ``mins`` (3 W + 7,) uint16: the minimum over d of each row, and a last entry nobody
-    reads (see :func:`_paths4`). Costs live at [1, D]; entries 0 and D + 1 stay ABSENT so
-    the d-loop has no branches. ``phase`` (2,) int64: the ring offsets of the row in
-    progress, y mod (W + 1) and 2 y mod (W + 2) (:func:`sgm_row_start`).
+    ``mins`` (3 W + 6,) uint16: the minimum over d of each row. Costs live at [1, D];
+    entries 0 and D + 1 stay ABSENT so the d-loop has no branches. ``phase`` (2,) int64: the
+    ring offsets of the row in progress, y mod (W + 1) and 2 y mod (W + 2); ``pens`` (4, W)
+    uint16: the P2 of each path's step into each pixel of that row (both set by
+    :func:`sgm_row_start`).
     """
     buf = np.full((3 * width + 6, disparities + 2), ABSENT, np.uint16)
     buf[3 * width + 5, 1:-1] = 0
-    return buf, np.zeros(3 * width + 7, np.uint16), np.zeros(2, np.int64)
+    return (buf, np.zeros(3 * width + 6, np.uint16), np.zeros(2, np.int64),
+            np.zeros((4, width), np.uint16))
 
 
 @njit(cache=True, inline="always")
-def _p2_at(p1, p2, adaptive, slope, i_p, i_prev):
+def _pens(p1, p2, adaptive, slope, row, prev, dst):
+    """dst[x] = the P2 of a step from a pixel of grey ``prev[x]`` to one of grey ``row[x]``
+    (:func:`effective_p2`): a branch-free pass over x, the adaptive switch outside it."""
     if not adaptive:
-        return np.uint16(p2)
-    diff = np.int64(i_p) - np.int64(i_prev)
-    if diff < 0:
-        diff = -diff
-    pen2 = np.int64(p2) - ((np.int64(slope) * diff) >> 4)
-    return np.uint16(max(p1, pen2))
-
-
-@njit(cache=True, inline="always")
-def _lane(c, below, here, above, p1, jump, mp, cap):
-    """One d of one path step: min(c + min(L(d), min(L(d-1), L(d+1)) + P1, m + P2) - m, cap).
-
-    Exact in uint16: L(d +- 1) + P1 <= ABSENT + P1 < 2^16; the inner minimum ``best`` lies
-    in m .. m + P2, and c <= cap < 2^14 (the callers clamp it), so c + (best - m) < 2^16."""
-    best = min(here, np.uint16(min(below, above) + p1))
-    best = min(best, jump)
-    return min(np.uint16(c + np.uint16(best - mp)), cap)
+        for x in range(dst.shape[0]):
+            dst[x] = p2
+        return
+    for x in range(dst.shape[0]):
+        diff = np.int64(row[x]) - np.int64(prev[x])
+        dst[x] = np.uint16(max(np.int64(p1), np.int64(p2) - ((np.int64(slope) * abs(diff)) >> 4)))
 
 
 @njit(cache=True)
-def sgm_row_start(y, state):
-    """Set the ring offsets of row ``y`` (call before its first :func:`sgm_pixel`)."""
-    buf = state[0]
-    phase = state[2]
-    w = (buf.shape[0] - 6) // 3
+def sgm_row_start(y, img_row, img_prev, state, params):
+    """Before the first :func:`sgm_pixel` of row ``y``: the ring offsets, and each path's P2
+    into every pixel of the row from ``img_row`` (row y of the grey image) and ``img_prev``
+    (row y - 1; any row at y = 0, where no top path has a predecessor): one pass per path over
+    the row instead of four branchy evaluations at every pixel."""
+    buf, _, phase, pens = state
+    p1, p2, adaptive, slope = params[1], params[2], params[3], params[4]
+    w = img_row.shape[0]
     phase[0] = y % (w + 1)
     phase[1] = (2 * y) % (w + 2)
+    # path 0 from (x - 1, y); path 1 from (x, y - 1); path 2 from (x - 1, y - 1); path 3 from
+    # (x + 1, y - 1); at the borders the predecessor is clamped into the row (its step then
+    # starts from the zero row, where P2 does not matter, but it is defined all the same)
+    _pens(p1, p2, adaptive, slope, img_row[1:], img_row[:-1], pens[0, 1:])
+    _pens(p1, p2, adaptive, slope, img_row[:1], img_row[:1], pens[0, :1])
+    _pens(p1, p2, adaptive, slope, img_row, img_prev, pens[1])
+    _pens(p1, p2, adaptive, slope, img_row[1:], img_prev[:-1], pens[2, 1:])
+    _pens(p1, p2, adaptive, slope, img_row[:1], img_prev[:1], pens[2, :1])
+    _pens(p1, p2, adaptive, slope, img_row[:-1], img_prev[1:], pens[3, :-1])
+    _pens(p1, p2, adaptive, slope, img_row[w - 1:], img_prev[w - 1:], pens[3, w - 1:])
 
 
 @njit(cache=True, inline="always")
@@ -166,255 +172,177 @@ def _ring_slots(x, offset, n):
 
 
 @njit(cache=True, inline="always")
-def sgm_pixel(c, x, y, img_row, img_prev, state, params, s_out):
-    """Every enabled path at pixel (x, y) of a raster scan; S into ``s_out``, returns min S.
+def sgm_pixel(c, x, y, state, params, s_out, diag):
+    """Every enabled path at pixel (x, y) of a raster scan; S into ``s_out``; returns (min S,
+    the first d holding it) as uint16, WTA's winner (:func:`sva.wta.wta_select`).
 
     ``c`` (D,) uint16: the aggregated cost, already clamped to the path cap. ``state`` is
-    :func:`new_path_buffers` (ring offsets set by :func:`sgm_row_start` for row y),
-    ``params`` = (paths, p1, p2, adaptive, slope, path_cap, sum_cap) with p1, p2 and the caps
-    as uint16 (:func:`sgm_params`). Pixels must come in raster order (x = 0..W-1 per row).
-    ``s_out[d]`` = min(sum of the enabled paths' L_r(p, d), sum_cap).
+    :func:`new_path_buffers`, set by :func:`sgm_row_start` for row y; ``params`` = (paths, p1,
+    p2, adaptive, slope, path_cap, sum_cap) with p1, p2 and the caps as uint16
+    (:func:`sgm_params`). Pixels must come in raster order (x = 0..W-1 per row).
+    ``s_out[d]`` = min(sum of the enabled paths' L_r(p, d), sum_cap). ``diag`` = (best,
+    best_d, base): S is also offered to the right view's diagonal search
+    (:func:`sva.lr_check.diagonal_update`'s arrays; right pixel x - d at index base + d).
 
-    One d-loop computes every enabled path, their minima, S and its minimum, so each
-    predecessor row is read and each output row written once, in uint16 lanes (:func:`_lanes`
-    in explicit vectors of LANES disparities, a scalar loop for the rest).
+    Here only the rows: each path's predecessor and output row of ``buf`` (scalar arithmetic
+    on the ring offsets); :func:`_step` reads every predecessor and writes every output row,
+    S, the rows' minima, the winner and the diagonal search in one pass over d, in uint16
+    lanes.
     """
-    _, mins, phase = state
-    paths, p1, p2, adaptive, slope, _, _ = params
-    w = img_row.shape[0]
+    buf, mins, phase, pens = state
+    paths, p1, _, _, _, cap, scap = params
+    w = pens.shape[1]
     top_left = w + 1
     top_right = 2 * w + 3
     left = 3 * w + 3
     zero = 3 * w + 5
-    i_p = img_row[x]
     # path 0: left to right, predecessor (x - 1, y)
     pred0 = zero if x == 0 else left + 1 - (x & 1)
     out0 = left + (x & 1)
-    pen0 = _p2_at(p1, p2, adaptive, slope, i_p, img_row[max(x - 1, 0)])
     # path 1: top to bottom, predecessor (x, y - 1)
     out1, pred1 = _ring_slots(x, phase[0], w + 1)
     pred1 = pred1 if y > 0 else zero
-    pen1 = _p2_at(p1, p2, adaptive, slope, i_p, img_prev[x])
     # path 2: top-left to bottom-right, predecessor (x - 1, y - 1)
     out2, pred2 = _ring_slots(x, phase[1], w + 2)
     out2 += top_left
     pred2 = top_left + pred2 if y > 0 and x > 0 else zero
-    pen2 = _p2_at(p1, p2, adaptive, slope, i_p, img_prev[max(x - 1, 0)])
     # path 3: top-right to bottom-left, predecessor (x + 1, y - 1)
     out3 = top_right + x
     pred3 = top_right + x + 1 if y > 0 and x < w - 1 else zero
-    pen3 = _p2_at(p1, p2, adaptive, slope, i_p, img_prev[min(x + 1, w - 1)])
-    # (predecessor rows, output rows, m + P2 per path)
-    step = (
-        (pred0, pred1, pred2, pred3),
-        (out0, out1, out2, out3),
-        (
-            np.uint16(mins[pred0] + pen0),
-            np.uint16(mins[pred1] + pen1),
-            np.uint16(mins[pred2] + pen2),
-            np.uint16(mins[pred3] + pen3),
-        ),
-    )
-    # one d-loop per path count, each run over D or 0 disparities (a loop cannot skip a path
-    # without a branch per d); with 0, _lanes skips its work and the rest is scalar
-    dn = c.shape[0]
-    s1 = _paths4(c, state, step, params, s_out, dn if paths == 4 else 0)
-    s1 = min(s1, _paths3(c, state, step, params, s_out, dn if paths == 3 else 0))
-    s1 = min(s1, _paths2(c, state, step, params, s_out, dn if paths == 2 else 0))
-    s1 = min(s1, _paths1(c, state, step, params, s_out, dn if paths == 1 else 0))
-    return s1
+    return _step(c, buf, mins, (pred0, pred1, pred2, pred3, out0, out1, out2, out3),
+                 (pens[0, x], pens[1, x], pens[2, x], pens[3, x]), s_out, (p1, cap, scap),
+                 paths, diag)
 
 
-# uint16 lanes of one step of :func:`_lanes` (512 bits)
+# uint16 lanes of one step of :func:`_step` (512 bits)
 LANES = 32
 
 
-def _lanes_codegen(paths: int):
-    """The code of :func:`_lanes` for ``paths`` paths: per chunk of LANES disparities, the
-    operations of :func:`_lane` on every path (:class:`~quant.vectors.VectorCode`), each path's
-    new row stored, their running minima and S's kept in vectors and reduced once at the end;
-    nothing at all when there is no chunk."""
+def _step_loop(code, rows, scalars, paths: int):
+    """The d-loop of :func:`_step` for ``paths`` paths: per chunk of LANES disparities, for
+    each path k, L_k(d) = min(c(d) + min(L'(d), min(L'(d-1), L'(d+1)) + P1, m + P2) - m,
+    cap) from its predecessor row L' (minimum m), stored; S(d) = min(their sum, sum cap),
+    stored; the running minima kept in vectors, S's with the first d of each lane holding it
+    (strict <: d grows); and the diagonal search (:func:`sva.lr_check.diagonal_update`): where
+    S(d) is below the right pixel's best, it becomes the best and d its d. The last D mod
+    LANES disparities by the same code under a mask of lanes. Returns (min S, the first d
+    holding it); the rows' minima go to ``mins``.
 
-    def codegen(context, builder, signature, args):
-        c_v, pred_v, out_v, s_v, scal_v, chunks = args
-        c_t, pred_t, out_t, s_t = signature.args[:4]
-        code = VectorCode(context, builder, 16, LANES)
-        c_p, s_p = code.data(c_t, c_v), code.data(s_t, s_v)
-        preds = [code.data(pred_t.dtype, builder.extract_value(pred_v, k)) for k in range(paths)]
-        outs = [code.data(out_t.dtype, builder.extract_value(out_v, k)) for k in range(paths)]
-        results = [cgutils.alloca_once_value(builder, ir.Constant(code.lane, 0xFFFF))
-                   for _ in range(paths + 1)]
-        with builder.if_then(builder.icmp_signed(">", chunks, ir.Constant(chunks.type, 0))):
-            scal = [code.splat(builder.extract_value(scal_v, k)) for k in range(2 * paths + 3)]
-            p1, jumps, mins = scal[0], scal[1:1 + paths], scal[1 + paths:1 + 2 * paths]
-            cap, scap = scal[2 * paths + 1], scal[2 * paths + 2]
-            acc = [cgutils.alloca_once_value(builder, code.full(0xFFFF))
-                   for _ in range(paths + 1)]
-            with code.chunks(chunks) as d:
-                cd = code.load(c_p, d)
-                total = None
-                for k in range(paths):
-                    below, here, above = (code.load(preds[k], d, j) for j in range(3))
-                    best = code.umin(code.umin(here, builder.add(code.umin(below, above), p1)),
-                                     jumps[k])
-                    v = code.umin(builder.add(cd, builder.sub(best, mins[k])), cap)
-                    code.store(v, outs[k], d, 1)
-                    builder.store(code.umin(builder.load(acc[k]), v), acc[k])
-                    total = v if total is None else builder.add(total, v)
-                sv = code.umin(total, scap)
-                code.store(sv, s_p, d)
-                builder.store(code.umin(builder.load(acc[paths]), sv), acc[paths])
-            for a, r in zip(acc, results):
-                builder.store(code.reduce_min(builder.load(a)), r)
-        return context.make_tuple(builder, signature.return_type,
-                                  [builder.load(r) for r in results])
+    Exact in uint16: L'(d +- 1) + P1 <= ABSENT + P1 < 2^16; the inner minimum lies in m ..
+    m + P2, and c <= cap < 2^14 (the callers clamp it), so c + (best - m) < 2^16; the sum of
+    four paths is at most 4 (2^14 - 1) < 2^16 before it saturates."""
+    b = code.builder
+    c_p, s_p, buf_p, stride, mins_p, dn = rows["c"], rows["s"], rows["buf"], rows["stride"], \
+        rows["mins"], rows["dn"]
+    preds = [b.gep(buf_p, [b.mul(rows["pred"][k], stride)]) for k in range(paths)]
+    outs = [b.gep(buf_p, [b.mul(rows["out"][k], stride)]) for k in range(paths)]
+    low = [b.load(b.gep(mins_p, [rows["pred"][k]])) for k in range(paths)]
+    p1, cap, scap = (code.splat(v) for v in scalars["p1_cap_scap"])
+    mins = [code.splat(m) for m in low]
+    jumps = [code.splat(b.add(m, pen)) for m, pen in zip(low, scalars["pens"])]
+    acc = [cgutils.alloca_once_value(b, code.full(0xFFFF)) for _ in range(paths + 1)]
+    first = cgutils.alloca_once_value(b, code.full(0xFFFF))
 
-    return codegen
+    def chunk(d, mask):
+        def load(ptr, plus=0):
+            return code.load(ptr, d, plus) if mask is None else \
+                code.load_masked(ptr, d, mask, plus)
+
+        def store(value, ptr, plus=0):
+            if mask is None:
+                code.store(value, ptr, d, plus)
+            else:
+                code.store_masked(value, ptr, d, mask, plus)
+
+        def keep(vec):  # masked-off lanes must not lower a minimum
+            return vec if mask is None else b.select(mask, vec, code.full(0xFFFF))
+
+        cd = load(c_p)
+        total = None
+        for k in range(paths):
+            below, here, above = (load(preds[k], j) for j in range(3))
+            best = code.umin(code.umin(here, b.add(code.umin(below, above), p1)), jumps[k])
+            v = code.umin(b.add(cd, b.sub(best, mins[k])), cap)
+            store(v, outs[k], 1)
+            b.store(code.umin(b.load(acc[k]), keep(v)), acc[k])
+            total = v if total is None else b.add(total, v)
+        sv = keep(code.umin(total, scap))
+        store(sv, s_p)
+        low = b.load(acc[paths])
+        dv = code.index(d)
+        b.store(b.select(code.ult(sv, low), dv, b.load(first)), first)
+        b.store(code.umin(low, sv), acc[paths])
+        old = load(rows["diag"][0])
+        store(b.select(code.ult(sv, old), dv, load(rows["diag"][1])), rows["diag"][1])
+        store(code.umin(sv, old), rows["diag"][0])
+
+    lanes = ir.Constant(dn.type, LANES)
+    full = b.udiv(dn, lanes)
+    with code.chunks(full) as d:
+        chunk(d, None)
+    done = b.mul(full, lanes)
+    rest = b.sub(dn, done)
+    with b.if_then(b.icmp_signed(">", rest, ir.Constant(rest.type, 0))):
+        chunk(done, code.lanes_below(b.trunc(rest, code.lane)))
+    for k in range(paths):
+        b.store(code.reduce_min(b.load(acc[k])), b.gep(mins_p, [rows["out"][k]]))
+    s1 = code.reduce_min(b.load(acc[paths]))
+    holds = b.icmp_unsigned("==", b.load(acc[paths]), code.splat(s1))
+    return s1, code.reduce_min(b.select(holds, b.load(first), code.full(0xFFFF)))
+
+
+def _step_codegen(context, builder, signature, args):
+    c_v, buf_v, mins_v, rows_v, pens_v, s_v, scal_v, paths_v, diag_v = args
+    c_t, buf_t, mins_t, _, _, s_t, _, _, diag_t = signature.args
+    code = VectorCode(context, builder, 16, LANES)
+    c_a = context.make_array(c_t)(context, builder, c_v)
+    buf_a = context.make_array(buf_t)(context, builder, buf_v)
+    rows = {
+        "c": c_a.data, "s": code.data(s_t, s_v), "buf": buf_a.data,
+        "stride": cgutils.unpack_tuple(builder, buf_a.shape, 2)[1],
+        "mins": code.data(mins_t, mins_v),
+        "dn": cgutils.unpack_tuple(builder, c_a.shape, 1)[0],
+        "pred": [builder.extract_value(rows_v, k) for k in range(4)],
+        "out": [builder.extract_value(rows_v, 4 + k) for k in range(4)],
+        "diag": [builder.gep(code.data(diag_t[k], builder.extract_value(diag_v, k)),
+                             [builder.extract_value(diag_v, 2)]) for k in range(2)],
+    }
+    scalars = {"pens": [builder.extract_value(pens_v, k) for k in range(4)],
+               "p1_cap_scap": [builder.extract_value(scal_v, k) for k in range(3)]}
+    result = [cgutils.alloca_once_value(builder, ir.Constant(code.lane, 0xFFFF))
+              for _ in range(2)]
+    for paths in range(1, len(PATHS) + 1):  # one loop per path count, chosen once a pixel
+        with builder.if_then(builder.icmp_signed("==", paths_v,
+                                                 ir.Constant(paths_v.type, paths))):
+            for r, v in zip(result, _step_loop(code, rows, scalars, paths)):
+                builder.store(v, r)
+    return context.make_tuple(builder, signature.return_type, [builder.load(r) for r in result])
 
 
 @intrinsic
-def _lanes(typingctx, c, preds, outs, s_out, scalars, chunks):
-    """The d-loop of :func:`_paths4` .. :func:`_paths1` over d < LANES * ``chunks`` in
-    explicit vectors: for each path k and d, outs[k][d + 1] = :func:`_lane` (c[d],
-    preds[k][d .. d + 2], P1, m_k + P2, m_k, cap), and s_out[d] = min(their sum, sum cap).
-    ``preds`` / ``outs``: each path's predecessor row and output row (rows of
-    :func:`new_path_buffers`, with the ABSENT borders); ``scalars`` = (P1, m_k + P2 per path,
-    m_k per path, cap, sum cap), uint16. Returns (the minimum of each path's new row, the
-    minimum of S) over those d (0xFFFF without a chunk). Contiguous uint16 arrays only.
+def _step(typingctx, c, buf, mins, rows, pens, s_out, scalars, paths, diag):
+    """One pixel of every enabled path (the first ``paths`` of :data:`PATHS`), in explicit
+    vectors (:func:`_step_loop`): path k reads row ``rows[k]`` of ``buf`` (its predecessor,
+    minimum ``mins[rows[k]]``) and writes row ``rows[4 + k]`` (its minimum to
+    ``mins[rows[4 + k]]``), with the P2 ``pens[k]``; S goes to ``s_out`` and to the diagonal
+    search ``diag`` = (best, best_d, base); returns (min S, the first d holding it).
+    ``scalars`` = (P1, path cap, sum cap), uint16; ``buf`` is :func:`new_path_buffers`'s
+    (C-contiguous, rows of D + 2 with the ABSENT borders); ``c``, ``s_out`` and the two
+    ``diag`` arrays contiguous uint16, ``diag``'s from index base on at least D long.
 
     The rows are distinct, as :func:`new_path_buffers` lays them out. numba vectorised its own
     loop over them too, but behind runtime overlap checks of every loaded row against every
-    stored one: a long run of scalar compares at every pixel (docs/performance.md)."""
-    if not contiguous_rows(types.uint16, c, s_out, *preds, *outs) or len(preds) != len(outs):
+    stored one: a long run of scalar compares at every pixel; and taking each row out of
+    ``buf`` as an array, for every path count, cost more scalar work than the vectors'
+    (docs/performance.md)."""
+    u16 = types.uint16
+    if not (contiguous_rows(u16, c, mins, s_out, *diag.types[:2]) and isinstance(buf, types.Array)
+            and buf.ndim == 2 and buf.layout == "C" and buf.dtype == u16
+            and rows == types.UniTuple(types.int64, 8) and pens == types.UniTuple(u16, 4)
+            and scalars == types.UniTuple(u16, 3) and paths == types.int64):
         return None
-    paths = len(preds)
-    sig = types.UniTuple(types.uint16, paths + 1)(c, preds, outs, s_out, scalars, chunks)
-    return sig, _lanes_codegen(paths)
-
-
-@njit(cache=True, inline="always")
-def _paths4(c, state, step, params, s_out, n):
-    """The d-loop of :func:`sgm_pixel` with all four paths over d < n (n = D, or 0 when
-    another path count is configured); returns min S (0xFFFF if n = 0). ``step`` =
-    (predecessor rows, output rows, m + P2) per path."""
-    buf, mins = state[0], state[1]
-    pred, out, jump = step
-    p1, cap, scap = params[1], params[5], params[6]
-    unused = mins.shape[0] - 1  # where a loop that did not run writes its minima
-    l0, l1, l2, l3 = buf[pred[0]], buf[pred[1]], buf[pred[2]], buf[pred[3]]
-    o0, o1, o2, o3 = buf[out[0]], buf[out[1]], buf[out[2]], buf[out[3]]
-    m0, m1, m2, m3 = mins[pred[0]], mins[pred[1]], mins[pred[2]], mins[pred[3]]
-    j0, j1, j2, j3 = jump
-    n0, n1, n2, n3, s1 = _lanes(c, (l0, l1, l2, l3), (o0, o1, o2, o3), s_out,
-                                (p1, j0, j1, j2, j3, m0, m1, m2, m3, cap, scap), n // LANES)
-    for d in range(n // LANES * LANES, n):  # the last D mod LANES disparities
-        cd = c[d]
-        v0 = _lane(cd, l0[d], l0[d + 1], l0[d + 2], p1, j0, m0, cap)
-        v1 = _lane(cd, l1[d], l1[d + 1], l1[d + 2], p1, j1, m1, cap)
-        v2 = _lane(cd, l2[d], l2[d + 1], l2[d + 2], p1, j2, m2, cap)
-        v3 = _lane(cd, l3[d], l3[d + 1], l3[d + 2], p1, j3, m3, cap)
-        o0[d + 1] = v0
-        o1[d + 1] = v1
-        o2[d + 1] = v2
-        o3[d + 1] = v3
-        n0 = min(n0, v0)
-        n1 = min(n1, v1)
-        n2 = min(n2, v2)
-        n3 = min(n3, v3)
-        # at most 4 * (2^14 - 1) < 2^16: no wrap before the sum saturates
-        sv = min(np.uint16(v0 + v1 + v2 + v3), scap)
-        s_out[d] = sv
-        s1 = min(s1, sv)
-    mins[out[0] if n else unused] = n0
-    mins[out[1] if n else unused] = n1
-    mins[out[2] if n else unused] = n2
-    mins[out[3] if n else unused] = n3
-    return s1
-
-
-@njit(cache=True, inline="always")
-def _paths3(c, state, step, params, s_out, n):
-    """:func:`_paths4` with paths 0..2."""
-    buf, mins = state[0], state[1]
-    pred, out, jump = step
-    p1, cap, scap = params[1], params[5], params[6]
-    unused = mins.shape[0] - 1  # where a loop that did not run writes its minima
-    l0, l1, l2 = buf[pred[0]], buf[pred[1]], buf[pred[2]]
-    o0, o1, o2 = buf[out[0]], buf[out[1]], buf[out[2]]
-    m0, m1, m2 = mins[pred[0]], mins[pred[1]], mins[pred[2]]
-    j0, j1, j2 = jump[0], jump[1], jump[2]
-    n0, n1, n2, s1 = _lanes(c, (l0, l1, l2), (o0, o1, o2), s_out,
-                            (p1, j0, j1, j2, m0, m1, m2, cap, scap), n // LANES)
-    for d in range(n // LANES * LANES, n):
-        cd = c[d]
-        v0 = _lane(cd, l0[d], l0[d + 1], l0[d + 2], p1, j0, m0, cap)
-        v1 = _lane(cd, l1[d], l1[d + 1], l1[d + 2], p1, j1, m1, cap)
-        v2 = _lane(cd, l2[d], l2[d + 1], l2[d + 2], p1, j2, m2, cap)
-        o0[d + 1] = v0
-        o1[d + 1] = v1
-        o2[d + 1] = v2
-        n0 = min(n0, v0)
-        n1 = min(n1, v1)
-        n2 = min(n2, v2)
-        sv = min(np.uint16(v0 + v1 + v2), scap)
-        s_out[d] = sv
-        s1 = min(s1, sv)
-    mins[out[0] if n else unused] = n0
-    mins[out[1] if n else unused] = n1
-    mins[out[2] if n else unused] = n2
-    return s1
-
-
-@njit(cache=True, inline="always")
-def _paths2(c, state, step, params, s_out, n):
-    """:func:`_paths4` with paths 0 and 1."""
-    buf, mins = state[0], state[1]
-    pred, out, jump = step
-    p1, cap, scap = params[1], params[5], params[6]
-    unused = mins.shape[0] - 1  # where a loop that did not run writes its minima
-    l0, l1 = buf[pred[0]], buf[pred[1]]
-    o0, o1 = buf[out[0]], buf[out[1]]
-    m0, m1 = mins[pred[0]], mins[pred[1]]
-    j0, j1 = jump[0], jump[1]
-    n0, n1, s1 = _lanes(c, (l0, l1), (o0, o1), s_out, (p1, j0, j1, m0, m1, cap, scap),
-                        n // LANES)
-    for d in range(n // LANES * LANES, n):
-        cd = c[d]
-        v0 = _lane(cd, l0[d], l0[d + 1], l0[d + 2], p1, j0, m0, cap)
-        v1 = _lane(cd, l1[d], l1[d + 1], l1[d + 2], p1, j1, m1, cap)
-        o0[d + 1] = v0
-        o1[d + 1] = v1
-        n0 = min(n0, v0)
-        n1 = min(n1, v1)
-        sv = min(np.uint16(v0 + v1), scap)
-        s_out[d] = sv
-        s1 = min(s1, sv)
-    mins[out[0] if n else unused] = n0
-    mins[out[1] if n else unused] = n1
-    return s1
-
-
-@njit(cache=True, inline="always")
-def _paths1(c, state, step, params, s_out, n):
-    """:func:`_paths4` with the left path only."""
-    buf, mins = state[0], state[1]
-    pred, out, jump = step
-    p1, cap, scap = params[1], params[5], params[6]
-    unused = mins.shape[0] - 1  # where a loop that did not run writes its minima
-    l0 = buf[pred[0]]
-    o0 = buf[out[0]]
-    m0 = mins[pred[0]]
-    j0 = jump[0]
-    n0, s1 = _lanes(c, (l0,), (o0,), s_out, (p1, j0, m0, cap, scap), n // LANES)
-    for d in range(n // LANES * LANES, n):
-        v0 = _lane(c[d], l0[d], l0[d + 1], l0[d + 2], p1, j0, m0, cap)
-        o0[d + 1] = v0
-        n0 = min(n0, v0)
-        sv = min(v0, scap)
-        s_out[d] = sv
-        s1 = min(s1, sv)
-    mins[out[0] if n else unused] = n0
-    return s1
+    sig = types.UniTuple(u16, 2)(c, buf, mins, rows, pens, s_out, scalars, paths, diag)
+    return sig, _step_codegen
 
 
 @njit(cache=True)
@@ -423,9 +351,11 @@ def sgm_row(agg_row, img_row, img_prev, y, state, params, s_row):
 
     ``agg_row`` is clamped to the path cap; ``state``/``params`` as for :func:`sgm_pixel`.
     """
-    sgm_row_start(y, state)
-    for x in range(agg_row.shape[0]):
-        sgm_pixel(agg_row[x], x, y, img_row, img_prev, state, params, s_row[x])
+    sgm_row_start(y, img_row, img_prev, state, params)
+    w, dn = agg_row.shape
+    scratch = np.empty(w + dn - 1, np.uint16)  # the diagonal search, read by nobody here
+    for x in range(w):
+        sgm_pixel(agg_row[x], x, y, state, params, s_row[x], (scratch, scratch, w - 1 - x))
 
 
 def sgm_params(

@@ -91,17 +91,26 @@ def wta_pixel(sx, s1, idx, uniqueness, mode, frac_bits):
     """One pixel of :func:`wta_ref` from its costs ``sx`` (D,) uint16 and their minimum
     ``s1`` (which the SGM step computes on the way): (q, d*).
 
-    ``idx`` is :func:`disparity_index`. Branch-free passes over d in uint16 lanes: the first
-    index holding S1, a minimum over ``d if S(d) == S1 else 0xFFFF``; with the uniqueness
-    check on, the runner-up over |d - d*| >= 2, a minimum over ``S(d) if d - (d* - 1) > 2
+    ``idx`` is :func:`disparity_index`. The first index holding S1 by a branch-free pass over
+    d in uint16 lanes, a minimum over ``d if S(d) == S1 else 0xFFFF``; the rest is
+    :func:`wta_select`. ``mode``: 0 off, 1 parabola, 2 equiangular.
+    """
+    first = np.uint16(0xFFFF)
+    for d in range(sx.shape[0]):
+        first = min(first, idx[d] if sx[d] == s1 else np.uint16(0xFFFF))
+    return wta_select(sx, s1, np.int64(first), idx, uniqueness, mode, frac_bits)
+
+
+@njit(cache=True, inline="always")
+def wta_select(sx, s1, best, idx, uniqueness, mode, frac_bits):
+    """:func:`wta_pixel` once the winner is known: ``best`` = d*, the first d holding the
+    minimum ``s1`` of ``sx`` (the fused SVA loop has it from the SGM's d-loop,
+    :func:`sva.sgm.sgm_pixel`). The sub-pixel offset, and with the uniqueness check on, the
+    runner-up over |d - d*| >= 2: a branch-free minimum over ``S(d) if d - (d* - 1) > 2
     (modulo 2^16) else 0xFFFF`` (0xFFFF is a legal S too, so whether such a d exists is
-    decided apart). ``mode``: 0 off, 1 parabola, 2 equiangular.
+    decided apart). Returns (q, d*).
     """
     dn = sx.shape[0]
-    first = np.uint16(0xFFFF)
-    for d in range(dn):
-        first = min(first, idx[d] if sx[d] == s1 else np.uint16(0xFFFF))
-    best = np.int64(first)
     # the neighbours are read (clamped) before any branch: in numba an array last used inside
     # a branch costs reference counting on every call, and this runs once per pixel
     a = np.int64(sx[max(best - 1, 0)])

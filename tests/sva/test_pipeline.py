@@ -199,6 +199,20 @@ def test_largest_disparity_range_every_path_count(overrides):
     check(dl, dr, img, cfg, 31)
 
 
+@pytest.mark.parametrize("disparities", [48, 80])
+@pytest.mark.parametrize("paths", [1, 2, 3, 4])
+def test_a_partial_last_chunk_of_disparities(disparities, paths):
+    # the SGM's d-loop runs whole chunks of 32 uint16 lanes and then the last D mod 32 (16 for
+    # these D, the configurable ones being multiples of 16) under a mask of lanes: S, the rows'
+    # minima, WTA's winner and the diagonal search of the right disparity must see those last
+    # disparities and nothing past them
+    cfg = sva_config(disparities=disparities, box_size=3, paths=paths, lr_check=True,
+                     subpixel="parabola", p2_adaptive=True, uniqueness=5)
+    dl, dr, img = descriptor_pair(4, disparities + 9, 31, seed=disparities + paths)
+    got = check(dl, dr, img, cfg, 31)
+    assert (got != INVALID).any()
+
+
 def test_largest_disparity_range():
     cfg = sva_config(disparities=256, box_size=1, paths=4, lr_check=True, median=3)
     dl, dr, img = descriptor_pair(2, 257, 31, seed=256)
