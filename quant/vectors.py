@@ -2,9 +2,10 @@
 
 Where numba's own loop is not what the kernel needs, a kernel emits its inner loop as llvmlite
 IR over LLVM vectors: the NNA's single layer by byte dot products (``vpdpbusd``,
-:mod:`quant.vnni`), and the SGM's d-loop (:mod:`sva.sgm`), which numba vectorised too but
+:mod:`quant.vnni`), the SGM's d-loop (:mod:`sva.sgm`), which numba vectorised too but
 behind runtime checks, at every pixel, that no written row overlaps a read one -- a long run of
-scalar compares, more than the loop's own work. :class:`VectorCode` holds what both build:
+scalar compares, more than the loop's own work -- and the 5 x 5 median (:mod:`sva.median`),
+whose 25 values a pixel numba's own loop could not keep in registers. :class:`VectorCode` holds what both build:
 an array argument's data pointer, a vector loaded or stored at an element offset, a scalar
 splat over the lanes, an unsigned compare and minimum, loads and stores under a mask of
 lanes, a loop over chunks and the lanes' minimum. The
@@ -56,6 +57,9 @@ class VectorCode:
 
     def umin(self, a, b):
         return self.builder.select(self.ult(a, b), a, b)
+
+    def umax(self, a, b):
+        return self.builder.select(self.ult(a, b), b, a)
 
     def ult(self, a, b):
         """Lane by lane a < b, unsigned (a vector of i1)."""

@@ -8,7 +8,12 @@ pixel whose window is mostly invalid becomes invalid. A result < 0 is invalid (-
 import functools
 
 import numpy as np
+from llvmlite import ir
+from numba import types
+from numba.core import cgutils
+from numba.extending import intrinsic
 
+from stereosim.quant.vectors import VectorCode
 from stereosim.sim.errors import InputError
 from stereosim.sim.kernel_cache import njit
 
@@ -185,6 +190,75 @@ def median_network_rows(src, height, k, networks, y0, y1, out):
                 o[x0 + t] = max(m[t], -1)  # a median < 0 is invalid (-1)
 
 
+# the largest word the 16-bit median takes: words w in -1 .. NARROW_MAX become w + 1 in uint16
+NARROW_MAX = 0xFFFE
+# uint16 lanes of one block of the 5 x 5 median (512 bits)
+_LANES = 32
+
+
+def _median5_codegen(context, builder, signature, args):
+    rows_v, x0, out_v, n = args
+    rows_t, _, out_t, _ = signature.args
+    code = VectorCode(context, builder, 16, _LANES)
+    words = VectorCode(context, builder, 32, _LANES)
+    rows = context.make_array(rows_t)(context, builder, rows_v)
+    stride = cgutils.unpack_tuple(builder, rows.shape, 2)[1]
+    mask = code.lanes_below(builder.trunc(n, code.lane))
+    v = [code.load_masked(builder.gep(rows.data, [builder.mul(stride, ir.Constant(
+        stride.type, j))]), x0, mask, i) for j in range(5) for i in range(5)]
+    for a, b in column_networks(5)[1]:
+        v[a], v[b] = code.umin(v[a], v[b]), code.umax(v[a], v[b])
+    m = builder.sub(builder.zext(v[12], words.vec), words.full(1))
+    words.store_masked(m, words.data(out_t, out_v), x0, mask)
+    return context.get_dummy_value()
+
+
+@intrinsic
+def _median5_lanes(typingctx, rows, x0, out, n):
+    """out[x0 + t] = the median of the 5 x 5 window at rows[0:5, x0 + t .. x0 + t + 4], less
+    1, for t < ``n`` <= 32: ``rows`` (5, W + 4) uint16 holds the window rows (each word + 1,
+    borders replicated) with every column sorted, ``out`` int32. The 25 values of each lane
+    stay in registers through the network of :func:`column_networks` (its min and max, no
+    store in between), 32 pixels a step."""
+    u16 = types.uint16
+    if not (isinstance(rows, types.Array) and rows.ndim == 2 and rows.layout == "C"
+            and rows.dtype == u16 and isinstance(out, types.Array) and out.ndim == 1
+            and out.layout == "C" and out.dtype == types.int32):
+        return None
+    return types.void(rows, types.int64, out, types.int64), _median5_codegen
+
+
+@njit(cache=True)
+def median5_narrow_rows(src, height, column, y0, y1, out):
+    """:func:`median_network_rows` for k = 5 and words -1 .. :data:`NARROW_MAX`, in uint16:
+    each window row as word + 1 (the order kept, -1 becoming 0), every column of the five
+    rows sorted by ``column`` (:func:`column_networks` (5)'s first network, vectorised over
+    x), then :func:`_median5_lanes` on 32 pixels at a time, the window in registers."""
+    w = src.shape[1]
+    padded = np.empty((5, w + 4), np.uint16)
+    for y in range(y0, y1):
+        for j in range(5):
+            row = _frame_row(src, height, y + j - 2)
+            dst = padded[j]
+            inner = dst[2:2 + w]
+            for x in range(w):
+                inner[x] = np.uint16(row[x] + 1)
+            for x in range(2):
+                dst[x] = np.uint16(row[0] + 1)
+                dst[2 + w + x] = np.uint16(row[w - 1] + 1)
+        for c in range(column.shape[0]):  # sort every column of the five rows
+            a = padded[column[c, 0]]
+            b = padded[column[c, 1]]
+            for x in range(w + 4):
+                u = a[x]
+                v = b[x]
+                a[x] = min(u, v)
+                b[x] = max(u, v)
+        o = out[y - y0]
+        for x0 in range(0, w, _LANES):
+            _median5_lanes(padded, x0, o, min(_LANES, w - x0))
+
+
 @njit(cache=True)
 def median3_rows(src, height, y0, y1, out):
     """:func:`median_network_rows` for k = 3 without sorting windows: sort each column of
@@ -222,11 +296,15 @@ def median3_rows(src, height, y0, y1, out):
             o[x] = max(max(a, min(b, bottom)), -1)  # a median < 0 is invalid (-1)
 
 
-def median_rows(src, height: int, k: int, y0: int, y1: int, out) -> None:
+def median_rows(src, height: int, k: int, y0: int, y1: int, out, narrow: bool = False) -> None:
     """Median rows y0 .. y1 - 1 (k odd, >= 3) of a frame of ``height`` rows held in ``src``,
-    all of it or a ring of its rows (row i in slot i mod len(src)), into ``out[y - y0]``."""
+    all of it or a ring of its rows (row i in slot i mod len(src)), into ``out[y - y0]``.
+    ``narrow``: every word of ``src`` is in -1 .. :data:`NARROW_MAX` (the 5 x 5 median then
+    runs in uint16)."""
     if k == 3:
         median3_rows(src, height, y0, y1, out)
+    elif k == 5 and narrow:
+        median5_narrow_rows(src, height, column_networks(5)[0], y0, y1, out)
     else:
         median_network_rows(src, height, k, column_networks(k), y0, y1, out)
 
@@ -253,6 +331,9 @@ def median(q, k: int) -> np.ndarray:
     out = np.empty(q.shape, np.int32)
     if k == 3:
         _median3(q32, out)
+    elif k == 5 and q32.size and q32.min() >= -1 and q32.max() <= NARROW_MAX:
+        median5_narrow_rows(q32, q32.shape[0], column_networks(5)[0], np.int64(0), q32.shape[0],
+                            out)
     else:
         _median_network(q32, k, column_networks(k), out)
     return out

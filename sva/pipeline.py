@@ -36,7 +36,7 @@ from stereosim.sva.lr_check import (
     new_diagonal_buffers,
     right_disparity_ref,
 )
-from stereosim.sva.median import median, median_ref, median_rows
+from stereosim.sva.median import NARROW_MAX, median, median_ref, median_rows
 from stereosim.sva.sgm import new_path_buffers, sgm, sgm_params, sgm_pixel, sgm_ref, sgm_row_start
 from stereosim.sva.wta import disparity_index, subpixel_mode_code, wta, wta_ref, wta_select
 
@@ -193,6 +193,10 @@ class SvaStream:
         self._colsum = np.zeros((w, dn), np.uint16)
         self._r = box_radius(cfg)
         self._m = median_radius(cfg)
+        # the largest output word, (D - 1) << F plus the largest sub-pixel offset 2^(F-1)
+        # (sva.wta): with D <= 256 and F <= 8 the median may run in uint16
+        top = ((dn - 1) << cfg.subpixel_bits) + ((1 << cfg.subpixel_bits) >> 1)
+        self._narrow = top <= NARROW_MAX
         self.q = np.empty((h, w), np.int32)
         # the words after WTA, sub-pixel and the LR check: with the median off they are final
         # and go to q; with it on, to a ring that keeps the rows the median still needs
@@ -218,7 +222,7 @@ class SvaStream:
             final = h if chunk_stop >= h else max(0, chunk_stop - m)
             if m and final > self.rows_final:
                 median_rows(ring, h, self.cfg.median, self.rows_final, final,
-                            self.q[self.rows_final:final])
+                            self.q[self.rows_final:final], self._narrow)
             self.rows_final = max(self.rows_final, final)
         return self.rows_final
 

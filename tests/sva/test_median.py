@@ -8,6 +8,7 @@ from numpy.testing import assert_array_equal
 
 from stereosim.sim.errors import InputError
 from stereosim.sva.median import (
+    NARROW_MAX,
     column_networks,
     median,
     median_holds,
@@ -54,9 +55,27 @@ def test_kernel_equals_ref(shape, k):
 
 @pytest.mark.parametrize("k", [3, 5, 7])
 def test_wider_than_a_block(k):
-    # the network runs over blocks of 128 pixels: a row of 300 has a partial last block
+    # the network runs over blocks of 128 pixels (32 for the 5 x 5 median in uint16): a row of
+    # 300 has a partial last block
     q = random_words((4, 300), seed=k, high=9)
     assert_array_equal(median(q, k), median_ref(q, k))
+
+
+@pytest.mark.parametrize("width", [31, 32, 33, 65])
+def test_the_16_bit_median_at_the_ends_of_its_range(width):
+    """The 5 x 5 median of words in -1 .. NARROW_MAX runs in uint16 (word + 1), 32 pixels a
+    step, the last step under a mask: the extreme words and every width around a step."""
+    rng = np.random.default_rng(width)
+    q = rng.choice(np.array([-1, 0, 1, NARROW_MAX - 1, NARROW_MAX], np.int32), size=(6, width))
+    assert_array_equal(median(q, 5), median_ref(q, 5))
+
+
+def test_words_beyond_16_bits_take_the_32_bit_network():
+    """A word above NARROW_MAX (not a word the SVA makes, but median() takes any int32):
+    the 32-bit network, still the reference's result."""
+    q = random_words((7, 40), seed=1, high=2**31 - 1)
+    assert q.max() > NARROW_MAX
+    assert_array_equal(median(q, 5), median_ref(q, 5))
 
 
 @pytest.mark.parametrize("k", [3, 5, 7])
