@@ -18,7 +18,7 @@ import numpy as np
 from stereosim.sim.config import SvaConfig, check_section
 from stereosim.sim.errors import InputError
 from stereosim.sim.kernel_cache import njit
-from stereosim.sva.aggregation import box_filter, box_filter_ref, box_start, box_step
+from stereosim.sva.aggregation import box_filter, box_filter_ref, box_start
 from stereosim.sva.cost import (
     check_descriptor_pair,
     cost_row_add,
@@ -96,7 +96,7 @@ def stream_rows(views, img, box, sgm_args, select, out, rows):
 
     Per row: the vertical box sums slide down one row (the cost row entering the window added,
     the one leaving it subtracted, both recomputed from the descriptors: no ring of cost rows).
-    Per pixel: the horizontal box sum; then one d-loop for every SGM path (the top paths in
+    Per pixel: one d-loop for the horizontal box sum's step, every SGM path (the top paths in
     row rings), S, WTA's winner and the diagonal search of the right disparity
     (:func:`sva.sgm.sgm_pixel`); then the winner's sub-pixel offset. Per row again: the LR
     check.
@@ -113,7 +113,6 @@ def stream_rows(views, img, box, sgm_args, select, out, rows):
     rev_in = np.empty(w, desc_r.dtype)
     rev_out = np.empty(w, desc_r.dtype)
     hacc = np.empty(dn, np.uint16)
-    agg = np.empty(dn, np.uint16)
     s = np.empty(dn, np.uint16)
     idx = disparity_index(dn)
     dint = np.empty(w, np.int32)
@@ -140,10 +139,11 @@ def stream_rows(views, img, box, sgm_args, select, out, rows):
         diagonal_start(diag)
         sgm_row_start(y, img_row, img_prev, state, params)
         for x in range(w):
-            box_step(hacc, colsum[min(x + r + 1, w - 1)], colsum[max(x - r, 0)], agg_cap, agg)
-            # the SGM's d-loop also finds WTA's winner and runs the diagonal search of the
-            # right disparity, unconditionally (even without the LR check)
-            s1, best = sgm_pixel(agg, x, y, state, params, s, (diag_best, diag_d, diag_base - x))
+            # the SGM's d-loop also slides the horizontal box window (hacc: its cost is
+            # min(hacc, agg_cap)), finds WTA's winner and runs the diagonal search of the right
+            # disparity, unconditionally (even without the LR check)
+            s1, best = sgm_pixel(hacc, x, y, state, params, s, (diag_best, diag_d, diag_base - x),
+                                 (colsum[min(x + r + 1, w - 1)], colsum[max(x - r, 0)], agg_cap))
             q_row[x], dint[x] = wta_select(s, s1, np.int64(best), idx, uniqueness, mode,
                                            frac_bits)
         diagonal_finish(diag, dr)

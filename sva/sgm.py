@@ -172,7 +172,7 @@ def _ring_slots(x, offset, n):
 
 
 @njit(cache=True, inline="always")
-def sgm_pixel(c, x, y, state, params, s_out, diag):
+def sgm_pixel(c, x, y, state, params, s_out, diag, box=None):
     """Every enabled path at pixel (x, y) of a raster scan; S into ``s_out``; returns (min S,
     the first d holding it) as uint16, WTA's winner (:func:`sva.wta.wta_select`).
 
@@ -183,6 +183,9 @@ def sgm_pixel(c, x, y, state, params, s_out, diag):
     ``s_out[d]`` = min(sum of the enabled paths' L_r(p, d), sum_cap). ``diag`` = (best,
     best_d, base): S is also offered to the right view's diagonal search
     (:func:`sva.lr_check.diagonal_update`'s arrays; right pixel x - d at index base + d).
+    ``box`` = (column in, column out, cap), the fused SVA's horizontal box step
+    (:func:`sva.aggregation.box_step`): ``c`` is then the window sum, the cost min(c, cap),
+    and c slides on by + column in - column out in the same pass.
 
     Here only the rows: each path's predecessor and output row of ``buf`` (scalar arithmetic
     on the ring offsets); :func:`_step` reads every predecessor and writes every output row,
@@ -211,7 +214,7 @@ def sgm_pixel(c, x, y, state, params, s_out, diag):
     pred3 = top_right + x + 1 if y > 0 and x < w - 1 else zero
     return _step(c, buf, mins, (pred0, pred1, pred2, pred3, out0, out1, out2, out3),
                  (pens[0, x], pens[1, x], pens[2, x], pens[3, x]), s_out, (p1, cap, scap),
-                 paths, diag)
+                 paths, diag, box)
 
 
 # uint16 lanes of one step of :func:`_step` (512 bits)
@@ -258,6 +261,10 @@ def _step_loop(code, rows, scalars, paths: int):
             return vec if mask is None else b.select(mask, vec, code.full(0xFFFF))
 
         cd = load(c_p)
+        if "box" in rows:  # c is the window sum: the cost is its clamp, then it slides on
+            col_in, col_out, agg_cap = rows["box"]
+            store(b.sub(b.add(cd, load(col_in)), load(col_out)), c_p)
+            cd = code.umin(cd, code.splat(agg_cap))
         total = None
         for k in range(paths):
             below, here, above = (load(preds[k], j) for j in range(3))
@@ -292,8 +299,8 @@ def _step_loop(code, rows, scalars, paths: int):
 
 
 def _step_codegen(context, builder, signature, args):
-    c_v, buf_v, mins_v, rows_v, pens_v, s_v, scal_v, paths_v, diag_v = args
-    c_t, buf_t, mins_t, _, _, s_t, _, _, diag_t = signature.args
+    c_v, buf_v, mins_v, rows_v, pens_v, s_v, scal_v, paths_v, diag_v, box_v = args
+    c_t, buf_t, mins_t, _, _, s_t, _, _, diag_t, box_t = signature.args
     code = VectorCode(context, builder, 16, LANES)
     c_a = context.make_array(c_t)(context, builder, c_v)
     buf_a = context.make_array(buf_t)(context, builder, buf_v)
@@ -307,6 +314,9 @@ def _step_codegen(context, builder, signature, args):
         "diag": [builder.gep(code.data(diag_t[k], builder.extract_value(diag_v, k)),
                              [builder.extract_value(diag_v, 2)]) for k in range(2)],
     }
+    if box_t != types.none:
+        rows["box"] = [code.data(box_t[k], builder.extract_value(box_v, k)) for k in range(2)]
+        rows["box"].append(builder.extract_value(box_v, 2))
     scalars = {"pens": [builder.extract_value(pens_v, k) for k in range(4)],
                "p1_cap_scap": [builder.extract_value(scal_v, k) for k in range(3)]}
     result = [cgutils.alloca_once_value(builder, ir.Constant(code.lane, 0xFFFF))
@@ -320,12 +330,14 @@ def _step_codegen(context, builder, signature, args):
 
 
 @intrinsic
-def _step(typingctx, c, buf, mins, rows, pens, s_out, scalars, paths, diag):
+def _step(typingctx, c, buf, mins, rows, pens, s_out, scalars, paths, diag, box):
     """One pixel of every enabled path (the first ``paths`` of :data:`PATHS`), in explicit
     vectors (:func:`_step_loop`): path k reads row ``rows[k]`` of ``buf`` (its predecessor,
     minimum ``mins[rows[k]]``) and writes row ``rows[4 + k]`` (its minimum to
     ``mins[rows[4 + k]]``), with the P2 ``pens[k]``; S goes to ``s_out`` and to the diagonal
     search ``diag`` = (best, best_d, base); returns (min S, the first d holding it).
+    With ``box`` = (column in, column out, cap) (None: ``c`` is the cost), ``c`` is the
+    horizontal box window's sum: the cost is min(c, cap) and c becomes c + in - out.
     ``scalars`` = (P1, path cap, sum cap), uint16; ``buf`` is :func:`new_path_buffers`'s
     (C-contiguous, rows of D + 2 with the ABSENT borders); ``c``, ``s_out`` and the two
     ``diag`` arrays contiguous uint16, ``diag``'s from index base on at least D long.
@@ -341,7 +353,9 @@ def _step(typingctx, c, buf, mins, rows, pens, s_out, scalars, paths, diag):
             and rows == types.UniTuple(types.int64, 8) and pens == types.UniTuple(u16, 4)
             and scalars == types.UniTuple(u16, 3) and paths == types.int64):
         return None
-    sig = types.UniTuple(u16, 2)(c, buf, mins, rows, pens, s_out, scalars, paths, diag)
+    if box != types.none and not (contiguous_rows(u16, *box.types[:2]) and box[2] == u16):
+        return None
+    sig = types.UniTuple(u16, 2)(c, buf, mins, rows, pens, s_out, scalars, paths, diag, box)
     return sig, _step_codegen
 
 
