@@ -113,7 +113,7 @@ def stream_rows(views, img, box, sgm_args, select, out, rows):
     rev_in = np.empty(w, desc_r.dtype)
     rev_out = np.empty(w, desc_r.dtype)
     hacc = np.empty(dn, np.uint16)
-    s = np.empty(dn, np.uint16)
+    s_two = np.empty((2, dn), np.uint16)
     idx = disparity_index(dn)
     dint = np.empty(w, np.int32)
     dr = np.empty(w, np.int32)
@@ -138,14 +138,23 @@ def stream_rows(views, img, box, sgm_args, select, out, rows):
         q_row = q_out[y % q_out.shape[0]]
         diagonal_start(diag)
         sgm_row_start(y, img_row, img_prev, state, params)
-        for x in range(w):
-            # the SGM's d-loop also slides the horizontal box window (hacc: its cost is
-            # min(hacc, agg_cap)), finds WTA's winner and runs the diagonal search of the right
-            # disparity, unconditionally (even without the LR check)
-            s1, best = sgm_pixel(hacc, x, y, state, params, s, (diag_best, diag_d, diag_base - x),
-                                 (colsum[min(x + r + 1, w - 1)], colsum[max(x - r, 0)], agg_cap))
-            q_row[x], dint[x] = wta_select(s, s1, np.int64(best), idx, uniqueness, mode,
-                                           frac_bits)
+        s1, best = np.uint16(0), np.uint16(0)
+        for x in range(w + 1):
+            # pixel x's d-loop, then pixel x - 1's sub-pixel offset: the two are independent,
+            # so the CPU overlaps the one's scalar tail with the other's vectors
+            s1_prev, best_prev = s1, best
+            if x < w:
+                # the SGM's d-loop also slides the horizontal box window (hacc: its cost is
+                # min(hacc, agg_cap)), finds WTA's winner and runs the diagonal search of the
+                # right disparity, unconditionally (even without the LR check)
+                s1, best = sgm_pixel(hacc, x, y, state, params, s_two[x & 1],
+                                     (diag_best, diag_d, diag_base - x),
+                                     (colsum[min(x + r + 1, w - 1)], colsum[max(x - r, 0)],
+                                      agg_cap))
+            if x > 0:
+                q_row[x - 1], dint[x - 1] = wta_select(s_two[(x - 1) & 1], s1_prev,
+                                                       np.int64(best_prev), idx, uniqueness,
+                                                       mode, frac_bits)
         diagonal_finish(diag, dr)
         if lr:
             lr_check_row(q_row, dint, dr, max_diff)
