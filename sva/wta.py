@@ -178,7 +178,16 @@ def wta(s, *, uniqueness: int, subpixel: str, frac_bits: int):
 
 
 def to_float(q, frac_bits: int) -> np.ndarray:
-    """Output words to float32 disparities in pixels, inf where invalid (q < 0)."""
-    out = q.astype(np.float32) / np.float32(1 << frac_bits)
-    out[q < 0] = np.inf
+    """Output words to float32 disparities in pixels, inf where invalid (q < 0):
+    float32(q) / 2^F (exact: a power of two), one pass (:func:`_to_float`)."""
+    q = np.asarray(q)
+    out = np.empty(q.shape, np.float32)
+    _to_float(np.ascontiguousarray(q, dtype=np.int32).reshape(-1), np.float32(1 << frac_bits),
+              out.reshape(-1))
     return out
+
+
+@njit(cache=True)
+def _to_float(q, scale, out):
+    for i in range(q.shape[0]):
+        out[i] = np.float32(np.inf) if q[i] < 0 else np.float32(q[i]) / scale

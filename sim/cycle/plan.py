@@ -26,6 +26,7 @@ stop messages)::
 from __future__ import annotations
 
 import dataclasses
+import functools
 from dataclasses import dataclass, field
 from functools import cached_property
 
@@ -647,23 +648,35 @@ def submodule_report(plan: ChipPlan) -> dict:
     largest even count, none lent; None when the frame cannot be split that far)."""
     n = plan.cfg.nna
     most = n.submodules - n.submodules % 2
-
-    def nna_fps(p: ChipPlan) -> float:
-        sub = max(p.blocks_of("nna"), key=lambda b: b.items)
-        return round(p.domains["nna"].freq_hz / p.work_cycles(sub, 0), 3)
-
     out = {"on_chip": n.submodules, "stereo": n.stereo_submodules, "lent": n.lent_submodules,
            "idle": n.submodules - n.stereo_submodules - n.lent_submodules,
-           "nna_fps": nna_fps(plan)}
+           "nna_fps": _nna_fps(plan)}
     if most > n.stereo_submodules:
-        cfg = dataclasses.replace(plan.cfg, nna=dataclasses.replace(
-            n, stereo_submodules=most, lent_submodules=0, lent_network=""))
-        try:
-            out["with_all"] = {"stereo_submodules": most,
-                               "nna_fps": nna_fps(build_plan(cfg, plan.shape))}
-        except ConfigError:
-            out["with_all"] = None  # more tiles than the frame has columns or rows
+        fps = _nna_fps_with_all(plan.cfg, plan.shape)
+        out["with_all"] = None if fps is None else {"stereo_submodules": most, "nna_fps": fps}
     return out
+
+
+def _nna_fps(p: ChipPlan) -> float:
+    """The NNA's work bound of plan ``p`` in frames a second (its busiest submodule's)."""
+    sub = max(p.blocks_of("nna"), key=lambda b: b.items)
+    return round(p.domains["nna"].freq_hz / p.work_cycles(sub, 0), 3)
+
+
+@functools.lru_cache(maxsize=64)
+def _nna_fps_with_all(cfg: ChipConfig, shape: tuple[int, int]) -> float | None:
+    """:func:`_nna_fps` of ``cfg`` with every submodule on the pair (the largest even count,
+    none lent), None when the frame cannot be split that far. A whole plan to build for one
+    figure of every report: kept for the configurations and shapes seen (a configuration is
+    frozen, and its network file is read once a process, :func:`nna.descriptor.network`)."""
+    n = cfg.nna
+    most = n.submodules - n.submodules % 2
+    other = dataclasses.replace(cfg, nna=dataclasses.replace(
+        n, stereo_submodules=most, lent_submodules=0, lent_network=""))
+    try:
+        return _nna_fps(build_plan(other, shape))
+    except ConfigError:
+        return None  # more tiles than the frame has columns or rows
 
 
 def sva_pipeline_report(plan: ChipPlan) -> dict:
