@@ -23,6 +23,7 @@ from stereosim.sim.cycle.plan import ChipPlan, architecture_report, build_plan
 from stereosim.sim.cycle.report import power_basis
 from stereosim.sim.cycle.simulate import simulate
 from stereosim.sim.errors import ConfigError, InputError
+from stereosim.sim.heap import keep_freed_memory
 from stereosim.sim.io import MAX_PIXELS, check_gt_values, pixel_cap, to_grey
 from stereosim.sim.metrics import check_truth, evaluate, mean_metrics, undefined_metrics
 from stereosim.sim.progress import compile_notice
@@ -35,6 +36,9 @@ MODES = ("functional", "cycle")
 # apart from its frames' latencies and gives a stream's accuracy per frame (docs/report.md)
 REPORT_VERSION = 3
 VERSION = "0.1.0"  # the one place (pyproject.toml reads it: [tool.setuptools.dynamic])
+
+# frame after frame, the arrays of a frame reuse the last one's pages (sim.heap)
+keep_freed_memory()
 
 
 def version_text() -> str:
