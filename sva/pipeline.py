@@ -108,7 +108,7 @@ def stream_rows(views, img, box, sgm_args, select, out, rows):
     state, params = sgm_args
     uniqueness, mode, frac_bits, lr, max_diff, diag = select
     h, w = desc_l.shape
-    dn = state[0].shape[1] - 2
+    dn = colsum.shape[1]
     r = k // 2
     rev_in = np.empty(w, desc_r.dtype)
     rev_out = np.empty(w, desc_r.dtype)

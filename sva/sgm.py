@@ -95,7 +95,7 @@ ABSENT = 0x7FFF
 def new_path_buffers(width: int, disparities: int):
     """State of the streaming SGM: ``(buf, mins, phase, pens)``.
 
-    ``buf`` (3 W + 6, D + 2) uint16 holds every path row the kernel reads or writes, laid out
+    ``buf`` (3 W + 6, >= D + 2) uint16 holds every path row the kernel reads or writes, laid out
     so that a pixel's predecessor rows and output rows are always different rows: the d-loop
     of :func:`sgm_pixel` then reads every predecessor and writes every output in one pass
     (no copies, no in-place hazard), and the choice of rows is scalar arithmetic:
@@ -113,13 +113,19 @@ def new_path_buffers(width: int, disparities: int):
       (minimum 0) the step gives min(A + min(0, ABSENT + P1, P2), cap) = min(A, cap).
 
     ``mins`` (3 W + 6,) uint16: the minimum over d of each row. Costs live at [1, D];
-    entries 0 and D + 1 stay ABSENT so the d-loop has no branches. ``phase`` (2,) int64: the
-    ring offsets of the row in progress, y mod (W + 1) and 2 y mod (W + 2); ``pens`` (4, W)
-    uint16: the P2 of each path's step into each pixel of that row (both set by
+    entries 0 and D + 1 and the rest of a row stay ABSENT so the d-loop has no branches. A
+    row is D + 2 rounded up to a whole number of LANES entries, and entry 1 of every row lies
+    on a 64-byte boundary: each chunk of a row's output and of the middle of its predecessor
+    is one aligned vector (an unaligned one straddles two cache lines). ``phase`` (2,) int64:
+    the ring offsets of the row in progress, y mod (W + 1) and 2 y mod (W + 2); ``pens`` (4,
+    W) uint16: the P2 of each path's step into each pixel of that row (both set by
     :func:`sgm_row_start`).
     """
-    buf = np.full((3 * width + 6, disparities + 2), ABSENT, np.uint16)
-    buf[3 * width + 5, 1:-1] = 0
+    rows, stride = 3 * width + 6, -(-(disparities + 2) // LANES) * LANES
+    flat = np.full(rows * stride + LANES, ABSENT, np.uint16)
+    skip = -(flat.ctypes.data // flat.itemsize + 1) % LANES  # entry 1 of row 0 aligned
+    buf = flat[skip:skip + rows * stride].reshape(rows, stride)
+    buf[3 * width + 5, 1:disparities + 1] = 0
     return (buf, np.zeros(3 * width + 6, np.uint16), np.zeros(2, np.int64),
             np.zeros((4, width), np.uint16))
 
@@ -339,7 +345,7 @@ def _step(typingctx, c, buf, mins, rows, pens, s_out, scalars, paths, diag, box)
     With ``box`` = (column in, column out, cap) (None: ``c`` is the cost), ``c`` is the
     horizontal box window's sum: the cost is min(c, cap) and c becomes c + in - out.
     ``scalars`` = (P1, path cap, sum cap), uint16; ``buf`` is :func:`new_path_buffers`'s
-    (C-contiguous, rows of D + 2 with the ABSENT borders); ``c``, ``s_out`` and the two
+    (C-contiguous, rows of at least D + 2 with the ABSENT borders); ``c``, ``s_out`` and the two
     ``diag`` arrays contiguous uint16, ``diag``'s from index base on at least D long.
 
     The rows are distinct, as :func:`new_path_buffers` lays them out. numba vectorised its own
