@@ -2,22 +2,39 @@
 
 Where numba's own loop is not what the kernel needs, a kernel emits its inner loop as llvmlite
 IR over LLVM vectors: the NNA's single layer by byte dot products (``vpdpbusd``,
-:mod:`quant.vnni`), the SGM's d-loop (:mod:`sva.sgm`), which numba vectorised too but
-behind runtime checks, at every pixel, that no written row overlaps a read one -- a long run of
-scalar compares, more than the loop's own work -- and the 5 x 5 median (:mod:`sva.median`),
-whose 25 values a pixel numba's own loop could not keep in registers. :class:`VectorCode` holds what both build:
-an array argument's data pointer, a vector loaded or stored at an element offset, a scalar
-splat over the lanes, an unsigned compare and minimum, loads and stores under a mask of
-lanes, a loop over chunks and the lanes' minimum. The
-vectors wrap like the scalar integers they stand for, so a kernel written with them computes
-what its scalar loop computes, bit for bit (each kernel's tests hold it to its reference).
+:mod:`quant.vnni`), the SGM's d-loop (:mod:`sva.sgm`), which numba vectorised too but behind
+runtime checks, at every pixel, that no written row overlaps a read one -- a long run of scalar
+compares, more than the loop's own work -- and the 5 x 5 median (:mod:`sva.median`), whose 25
+values a pixel numba's own loop could not keep in registers. :class:`VectorCode` holds what
+they build: an array argument's data pointer, a vector loaded or stored at an element offset,
+a scalar splat over the lanes, an unsigned compare, minimum and maximum, loads and stores
+under a mask of lanes, a loop over chunks and the lanes' minimum; :func:`aligned_full` the
+arrays whose rows such loops read as aligned vectors. The vectors wrap like the scalar
+integers they stand for, so a kernel written with them computes what its scalar loop
+computes, bit for bit (each kernel's tests hold it to its reference).
 """
 
 from __future__ import annotations
 
+import numpy as np
 from llvmlite import ir
 from numba import types
 from numba.core import cgutils
+
+#: the alignment of a vector of 512 bits: one such load or store touches one cache line
+VECTOR_BYTES = 64
+
+
+def aligned_full(shape, dtype, fill, first: int = 0) -> np.ndarray:
+    """A C-contiguous array of ``shape`` filled with ``fill`` whose element ``first`` (flat
+    index) lies on a :data:`VECTOR_BYTES` boundary: rows whose length is a multiple of a
+    vector's elements then start every vector of a kernel's chunk loop on a cache line."""
+    dtype = np.dtype(dtype)
+    per = VECTOR_BYTES // dtype.itemsize
+    n = int(np.prod(shape))
+    flat = np.full(n + per, fill, dtype)
+    skip = -(flat.ctypes.data // dtype.itemsize + first) % per
+    return flat[skip:skip + n].reshape(shape)
 
 
 def contiguous_rows(dtype, *arrays) -> bool:

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from stereosim.quant.vectors import aligned_full
 from stereosim.sim.config import SvaConfig, check_section
 from stereosim.sim.errors import InputError
 from stereosim.sim.kernel_cache import njit
@@ -199,7 +200,9 @@ class SvaStream:
             np.int64(cfg.lr_max_diff),
             new_diagonal_buffers(w, dn),
         )
-        self._colsum = np.zeros((w, dn), np.uint16)
+        # the box's column sums, one vector-aligned row per column (D is a multiple of 16,
+        # so every row starts 32-byte aligned; 64-byte for D a multiple of 32)
+        self._colsum = aligned_full((w, dn), np.uint16, 0)
         self._r = box_radius(cfg)
         self._m = median_radius(cfg)
         # the largest output word, (D - 1) << F plus the largest sub-pixel offset 2^(F-1)

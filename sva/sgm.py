@@ -27,7 +27,7 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from stereosim.quant.vectors import VectorCode, contiguous_rows
+from stereosim.quant.vectors import VectorCode, aligned_full, contiguous_rows
 from stereosim.sim.errors import InputError
 from stereosim.sim.kernel_cache import njit
 
@@ -121,10 +121,8 @@ def new_path_buffers(width: int, disparities: int):
     W) uint16: the P2 of each path's step into each pixel of that row (both set by
     :func:`sgm_row_start`).
     """
-    rows, stride = 3 * width + 6, -(-(disparities + 2) // LANES) * LANES
-    flat = np.full(rows * stride + LANES, ABSENT, np.uint16)
-    skip = -(flat.ctypes.data // flat.itemsize + 1) % LANES  # entry 1 of row 0 aligned
-    buf = flat[skip:skip + rows * stride].reshape(rows, stride)
+    buf = aligned_full((3 * width + 6, -(-(disparities + 2) // LANES) * LANES), np.uint16,
+                       ABSENT, first=1)
     buf[3 * width + 5, 1:disparities + 1] = 0
     return (buf, np.zeros(3 * width + 6, np.uint16), np.zeros(2, np.int64),
             np.zeros((4, width), np.uint16))
