@@ -9,7 +9,11 @@ machine state (timings on a shared machine vary by tens of percent: compare the 
 
 Per-stage lines time each stage's kernel alone over 720 rows of real data (the same row of the
 frame again and again, so the data stays realistic while the loops stay per-row like the
-stream); their sum is not the fused time, which shares caches between the stages.
+stream); their sum is not the fused time, which shares caches between the stages. The "sgm"
+line's pixel step also finds WTA's winner and runs the right view's diagonal search (the fused
+stream's d-loop does both), the "wta" and "right disparity" lines time the volume kernels, and
+the median line the 5x5 median of a frame of the middle row's output words (the fused line
+has no median: BENCH_CONFIG).
 
     python benchmarks/bench_sva_kernels.py [--repeat 9]
 """
@@ -29,6 +33,7 @@ from stereosim.sim.kernel_cache import njit
 from stereosim.sva.aggregation import box_filter, box_start, box_step
 from stereosim.sva.cost import cost_row_update, hamming_cost, reverse_row
 from stereosim.sva.lr_check import lr_check_row, new_diagonal_buffers, right_disparity_row
+from stereosim.sva.median import median
 from stereosim.sva.pipeline import sva_stream
 from stereosim.sva.sgm import new_path_buffers, sgm, sgm_params, sgm_pixel, sgm_row_start
 from stereosim.sva.wta import disparity_index, subpixel_mode_code, wta, wta_pixel
@@ -192,6 +197,8 @@ def main() -> None:
         "right disparity + LR check (per row)": lambda: _bench_lr(
             s[mid], q[mid], dint[mid], cfg.lr_max_diff, new_diagonal_buffers(WIDTH, dn), HEIGHT
         ),
+        # the output words of the middle row repeated over the frame (5 x 5, in uint16)
+        "median 5x5 (whole frame)": lambda: median(np.repeat(q[mid:mid + 1], HEIGHT, 0), 5),
     }
     print(cfg)
     print(
