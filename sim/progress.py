@@ -18,6 +18,7 @@ kernels compile in a moment).
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import sys
 import threading
@@ -119,7 +120,7 @@ class CompileWatch(event.Listener):
             return
         if left <= 0:
             self._announce()
-        else:
+        elif math.isfinite(left):  # an infinite delay (a silent watch) needs no timer
             self._timer = threading.Timer(left, self._announce)
             self._timer.daemon = True
             self._timer.start()

@@ -3,10 +3,12 @@ notice while numba compiles (before the first kernel compiles, and how long it t
 
 import importlib.util
 import io
+import math
 import os
 import re
 import subprocess
 import sys
+import threading
 import time
 
 import numpy as np
@@ -264,6 +266,22 @@ def test_compiling_briefly_is_not_announced_and_a_long_compile_is_while_it_runs(
     lines = out.getvalue().splitlines()
     assert lines[0] == COMPILE_MESSAGE and DONE.fullmatch(lines[1])
     assert out.compiled_at_line == [False, True] and watch.seconds > 0.2
+
+
+def test_a_silent_watch_counts_without_a_timer(tmp_path):
+    """The prewarm helper's watch (delay infinite) counts the kernels and starts no timer
+    (threading.Timer cannot wait forever: it raised in a thread at every compile)."""
+    src = tmp_path / "h4_silent.py"
+    src.write_text(SOURCE)
+    module = _load(src, "h4_silent")
+    raised = []
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(threading, "excepthook", raised.append)  # any thread's uncaught exception
+        with compile_notice(stream=io.StringIO(), delay_s=math.inf) as watch:
+            assert module.add_two(1) == 3
+        time.sleep(0.2)  # (a timer thread, had one started, has run by now)
+    assert raised == [] and watch._timer is None
+    assert len(watch.kernels) == 2 and not watch.announced
 
 
 def test_a_traced_run_announces_the_trace_writers_compile(tmp_path):

@@ -47,6 +47,7 @@ from stereosim.nna.descriptor import compute_descriptor
 from stereosim.quant.intconv import descriptor_dtype
 from stereosim.sim.cycle.compiled.layout import serialise
 from stereosim.sim.cycle.compiled.schedule import advance_streams, walk_all
+from stereosim.sim.cycle.compiled.source import note_source_wait
 from stereosim.sim.cycle.plan import ChipPlan, build_plan
 from stereosim.sim.errors import UserError
 from stereosim.sim.progress import compile_notice, current_watch
@@ -152,6 +153,9 @@ def _wait(helper: subprocess.Popen) -> None:
 def _compile_walkers(plan: ChipPlan) -> None:
     net, _ = serialise(_stand_in_plan(plan))
     walk_all(net, False)  # before any event: every walker runs and finds nothing to do
+    # and the pass a run makes when it stops (a run may stop before any event), which would
+    # otherwise compile in the run's own process, the longer of the two
+    note_source_wait(net)
 
 
 def _stand_in_view(plan: ChipPlan, rng) -> np.ndarray:
