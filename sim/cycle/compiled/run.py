@@ -534,6 +534,10 @@ def run_compiled(plan: ChipPlan, left, right=None, *, sink_stall=None,
     frame_fs = net.frame_fs.copy()
     report = cycle_report(plan, int(net.state[0]["first_pop"]), _last(net, q_s),
                           stats, buffers, frame_fs)
+    rows = net.rows.copy()
+    # the event net (its rings and statistics) is done with: let its memory go before the
+    # frames' descriptors and words are made, so the two are not held at once
+    del net
     t1 = time.process_time()
     traced = _window_frames(plan, frame_fs, window) if window is not None else range(0)
     kept_desc, kept_words = [], []
@@ -556,7 +560,7 @@ def run_compiled(plan: ChipPlan, left, right=None, *, sink_stall=None,
             on_frame(int(frame_fs[2, f]), last)
     if timings is not None:
         timings.update(engine_s=t1 - t0, nna_kernels_s=nna_s, sva_kernels_s=sva_s)
-    result = FrameResult(last if words else None, report, stats, net.rows.copy(), frame_fs)
+    result = FrameResult(last if words else None, report, stats, rows, frame_fs)
     if window is not None:
         data = _trace_data(plan, kept_desc, kept_words, traced.start)
         result.trace, result.outputs_in_window = _trace(plan, sink_stall, window, t_end, data)
