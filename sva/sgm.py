@@ -147,7 +147,7 @@ def sgm_row_start(y, img_row, img_prev, state, params):
     into every pixel of the row from ``img_row`` (row y of the grey image) and ``img_prev``
     (row y - 1; any row at y = 0, where no top path has a predecessor): one pass per path over
     the row instead of four branchy evaluations at every pixel."""
-    buf, _, phase, pens = state
+    _, _, phase, pens = state
     p1, p2, adaptive, slope = params[1], params[2], params[3], params[4]
     w = img_row.shape[0]
     phase[0] = y % (w + 1)
