@@ -183,6 +183,7 @@ def main() -> None:
         cfg.paths, cfg.p1, cfg.p2, cfg.p2_adaptive, cfg.p2_slope, cfg.path_bits, cfg.sum_bits
     )
 
+    words = np.repeat(q[mid:mid + 1], HEIGHT, 0)  # a frame of output words for the median
     stages = {
         "cost + vertical box (per row)": lambda: _bench_cost_vertical(desc_l, desc_r, dn, k),
         "horizontal box (per pixel)": lambda: _bench_box_horizontal(
@@ -198,7 +199,7 @@ def main() -> None:
             s[mid], q[mid], dint[mid], cfg.lr_max_diff, new_diagonal_buffers(WIDTH, dn), HEIGHT
         ),
         # the output words of the middle row repeated over the frame (5 x 5, in uint16)
-        "median 5x5 (whole frame)": lambda: median(np.repeat(q[mid:mid + 1], HEIGHT, 0), 5),
+        "median 5x5 (whole frame)": lambda: median(words, 5),
     }
     print(cfg)
     print(

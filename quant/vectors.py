@@ -23,6 +23,8 @@ from numba.core import cgutils
 
 #: the alignment of a vector of 512 bits: one such load or store touches one cache line
 VECTOR_BYTES = 64
+#: uint16 lanes of one such vector (the SGM's disparities a step, the median's pixels a step)
+U16_LANES = VECTOR_BYTES // 2
 
 
 def aligned_full(shape, dtype, fill, first: int = 0) -> np.ndarray:

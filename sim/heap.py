@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import ctypes
 import ctypes.util
+import functools
 import os
 import sys
 
@@ -33,25 +34,15 @@ TRIM_THRESHOLD = 128 << 20
 #: the environment variable that turns :func:`keep_freed_memory` off ("0")
 ENV = "STEREOSIM_KEEP_HEAP"
 
-_done: list[bool] = []
-
-
+@functools.cache
 def keep_freed_memory() -> bool:
-    """Raise glibc's mmap and trim thresholds once (later calls return the first answer);
-    True when both took, False on another C library, with ``STEREOSIM_KEEP_HEAP=0``, or when
-    glibc refused a value."""
-    if not _done:
-        _done.append(_set_thresholds())
-    return _done[0]
-
-
-def _set_thresholds() -> bool:
+    """Raise glibc's mmap and trim thresholds, once a process (a later call returns the first
+    answer); True when both took, False on another C library, with ``STEREOSIM_KEEP_HEAP=0``,
+    or when glibc refused a value."""
     if os.environ.get(ENV, "1") == "0" or not sys.platform.startswith("linux"):
         return False
-    name = ctypes.util.find_library("c")
     try:
-        libc = ctypes.CDLL(name)
-        mallopt = libc.mallopt
+        mallopt = ctypes.CDLL(ctypes.util.find_library("c")).mallopt
     except (OSError, AttributeError, TypeError):
         return False  # not glibc (musl has no mallopt), or no C library found
     mallopt.argtypes = (ctypes.c_int, ctypes.c_int)

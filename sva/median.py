@@ -13,7 +13,7 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from stereosim.quant.vectors import VectorCode
+from stereosim.quant.vectors import U16_LANES, VectorCode
 from stereosim.sim.errors import InputError
 from stereosim.sim.kernel_cache import njit
 
@@ -135,6 +135,35 @@ def _frame_row(src, height, i):
     return src[min(max(i, 0), height - 1) % src.shape[0]]
 
 
+@njit(cache=True, inline="always")
+def _sorted_window_rows(src, height, y, column, plus, padded):
+    """The k rows of output row y's windows into ``padded`` (k, W + 2 r), each word + ``plus``
+    in ``padded``'s dtype, the borders replicated, then every column of the k rows sorted by
+    the pairs ``column`` (branch-free min/max, vectorised over x)."""
+    k = padded.shape[0]
+    r = k // 2
+    w = src.shape[1]
+    for j in range(k):
+        row = _frame_row(src, height, y + j - r)
+        dst = padded[j]
+        # the row, then its replicated borders: a plain copy LLVM vectorises (a clamped
+        # index at every x did not vectorise)
+        inner = dst[r:r + w]
+        for x in range(w):
+            inner[x] = row[x] + plus
+        for x in range(r):
+            dst[x] = row[0] + plus
+            dst[r + w + x] = row[w - 1] + plus
+    for c in range(column.shape[0]):  # sort every column of the k rows
+        a = padded[column[c, 0]]
+        b = padded[column[c, 1]]
+        for x in range(w + 2 * r):
+            u = a[x]
+            v = b[x]
+            a[x] = min(u, v)
+            b[x] = max(u, v)
+
+
 @njit(cache=True)
 def median_network_rows(src, height, k, networks, y0, y1, out):
     """Median rows y0 .. y1 - 1 of a frame of ``height`` rows into ``out[y - y0]``, any odd k:
@@ -145,29 +174,10 @@ def median_network_rows(src, height, k, networks, y0, y1, out):
     y1 - 1 + k // 2 (clamped)."""
     column, network = networks
     w = src.shape[1]
-    r = k // 2
-    padded = np.empty((k, w + 2 * r), np.int32)
+    padded = np.empty((k, w + 2 * (k // 2)), np.int32)
     win = np.empty((k * k, _BLOCK), np.int32)
     for y in range(y0, y1):
-        for j in range(k):
-            row = _frame_row(src, height, y + j - r)
-            dst = padded[j]
-            # the row, then its replicated borders: a plain copy LLVM vectorises (a clamped
-            # index at every x did not vectorise)
-            inner = dst[r:r + w]
-            for x in range(w):
-                inner[x] = row[x]
-            for x in range(r):
-                dst[x] = row[0]
-                dst[r + w + x] = row[w - 1]
-        for c in range(column.shape[0]):  # sort every column of the k rows
-            a = padded[column[c, 0]]
-            b = padded[column[c, 1]]
-            for x in range(w + 2 * r):
-                u = a[x]
-                v = b[x]
-                a[x] = min(u, v)
-                b[x] = max(u, v)
+        _sorted_window_rows(src, height, y, column, 0, padded)
         o = out[y - y0]
         for x0 in range(0, w, _BLOCK):
             n = min(_BLOCK, w - x0)
@@ -192,8 +202,8 @@ def median_network_rows(src, height, k, networks, y0, y1, out):
 
 # the largest word the 16-bit median takes: words w in -1 .. NARROW_MAX become w + 1 in uint16
 NARROW_MAX = 0xFFFE
-# uint16 lanes of one block of the 5 x 5 median (512 bits)
-_LANES = 32
+# pixels of one block of the 5 x 5 median: the uint16 lanes of a vector
+_LANES = U16_LANES
 
 
 def _median5_codegen(context, builder, signature, args):
@@ -237,23 +247,7 @@ def median5_narrow_rows(src, height, column, y0, y1, out):
     w = src.shape[1]
     padded = np.empty((5, w + 4), np.uint16)
     for y in range(y0, y1):
-        for j in range(5):
-            row = _frame_row(src, height, y + j - 2)
-            dst = padded[j]
-            inner = dst[2:2 + w]
-            for x in range(w):
-                inner[x] = np.uint16(row[x] + 1)
-            for x in range(2):
-                dst[x] = np.uint16(row[0] + 1)
-                dst[2 + w + x] = np.uint16(row[w - 1] + 1)
-        for c in range(column.shape[0]):  # sort every column of the five rows
-            a = padded[column[c, 0]]
-            b = padded[column[c, 1]]
-            for x in range(w + 4):
-                u = a[x]
-                v = b[x]
-                a[x] = min(u, v)
-                b[x] = max(u, v)
+        _sorted_window_rows(src, height, y, column, 1, padded)
         o = out[y - y0]
         for x0 in range(0, w, _LANES):
             _median5_lanes(padded, x0, o, min(_LANES, w - x0))

@@ -27,7 +27,7 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from stereosim.quant.vectors import VectorCode, aligned_full, contiguous_rows
+from stereosim.quant.vectors import U16_LANES, VectorCode, aligned_full, contiguous_rows
 from stereosim.sim.errors import InputError
 from stereosim.sim.kernel_cache import njit
 
@@ -221,8 +221,8 @@ def sgm_pixel(c, x, y, state, params, s_out, diag, box=None):
                  paths, diag, box)
 
 
-# uint16 lanes of one step of :func:`_step` (512 bits)
-LANES = 32
+# disparities of one step of :func:`_step`: the uint16 lanes of a vector
+LANES = U16_LANES
 
 
 def _step_loop(code, rows, scalars, paths: int):
@@ -279,10 +279,10 @@ def _step_loop(code, rows, scalars, paths: int):
             total = v if total is None else b.add(total, v)
         sv = keep(code.umin(total, scap))
         store(sv, s_p)
-        low = b.load(acc[paths])
+        s_low = b.load(acc[paths])
         dv = code.index(d)
-        b.store(b.select(code.ult(sv, low), dv, b.load(first)), first)
-        b.store(code.umin(low, sv), acc[paths])
+        b.store(b.select(code.ult(sv, s_low), dv, b.load(first)), first)
+        b.store(code.umin(s_low, sv), acc[paths])
         old = load(rows["diag"][0])
         store(b.select(code.ult(sv, old), dv, load(rows["diag"][1])), rows["diag"][1])
         store(code.umin(sv, old), rows["diag"][0])

@@ -50,7 +50,3 @@ def test_a_freed_frame_array_is_reused_without_page_faults():
     assert not took
     assert faults[1] > faults[0] // 2
 
-
-def test_the_switch_and_the_answer_are_kept():
-    """keep_freed_memory runs once a process: a second call gives the first answer."""
-    assert heap.keep_freed_memory() == heap.keep_freed_memory()

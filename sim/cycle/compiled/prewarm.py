@@ -4,8 +4,9 @@ On an empty numba cache a cycle run spends nearly all its time compiling, one ke
 another: the stream loop (:func:`.schedule.advance_streams`, with every block's advance linked
 into it) is about 45 % of it, the walkers and the data kernels (the NNA's descriptors, the
 SVA's stream) most of the rest. They do not depend on each other, so :func:`prewarm` compiles
-them at the same time: a helper process (``python -m`` this module) compiles the walkers and
-the SVA's data kernels of the run's configuration into numba's on-disk cache, while this
+them at the same time: a helper process (``python -m`` this module) compiles the walkers, the
+pass a stopped run makes (``note_source_wait``) and the SVA's data kernels of the run's
+configuration into numba's on-disk cache, while this
 process compiles the stream loop and the NNA's data kernels; then this process waits for the
 helper, and the run finds every kernel compiled (its own in memory, the helper's in the
 cache). Nothing changes in what runs:
