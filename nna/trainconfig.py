@@ -1,7 +1,7 @@
 """The settings of a training run of the learned descriptor, and the networks it can train.
 
-Twelve variants, all with a 9x9 receptive field and 32 output channels (one descriptor bit each)
-but the last two:
+Thirteen variants, all with 32 output channels (one descriptor bit each) but the two 64-bit ones,
+and all with a 9x9 receptive field but the last (:func:`receptive_field`):
 ``mccnn4`` (four 3x3 convolutions, channels 1, 32, 32, 32, 32: MC-CNN-fast), ``mccnn4-slim``
 (four 3x3 convolutions, channels 1, 4, 4, 8, 32), ``single9x9`` (one 9x9 convolution, 1 -> 32:
 the network the chip ships), ``mixed5x5`` (a 5x5 convolution 1 -> 8, then 3x3 ones 8 -> 16
@@ -14,7 +14,8 @@ more shapes of that budget: ``mixed5x5-40`` (5x5 1 -> 40, 3x3 40 -> 32, 3x3 32 -
 ``double5x5`` (5x5 1 -> 24, 5x5 24 -> 32: 19,800) and ``mixed7x7`` (7x7 1 -> 32, 3x3 32 -> 32:
 10,784, inside the 60 fps budget of about 12,000). Two give 64-bit descriptors (uint64 words,
 the SVA's widest): ``single9x9-64`` (one 9x9 convolution 1 -> 64: 5,184 MACs) and
-``mixed5x5-64`` (5x5 1 -> 16, 3x3 16 -> 24, 3x3 24 -> 64: 17,680).
+``mixed5x5-64`` (5x5 1 -> 16, 3x3 16 -> 24, 3x3 24 -> 64: 17,680). ``mixed5x5-rf11`` reads an
+11x11 window (5x5 1 -> 16, 5x5 16 -> 24, 3x3 24 -> 32: 16,912 MACs, inside the 30 fps budget).
 :class:`TrainConfig`
 checks every setting when it is built (one line naming it).
 """
@@ -41,8 +42,14 @@ VARIANTS = {
     "double5x5": ((1, 24, 5), (24, 32, 5)),
     "single9x9-64": ((1, 64, 9),),
     "mixed5x5-64": ((1, 16, 5), (16, 24, 3), (24, 64, 3)),
+    "mixed5x5-rf11": ((1, 16, 5), (16, 24, 5), (24, 32, 3)),
 }
-PATCH = 9  # receptive field of every variant
+
+
+def receptive_field(variant: str) -> int:
+    """Side of the input window one output pixel of ``variant`` reads: 1 + sum (K_l - 1)."""
+    return 1 + sum(k - 1 for _, _, k in VARIANTS[variant])
+
 SIMILARITIES = ("cosine", "tanh", "both")
 OBJECTIVES = ("curve", "triplet")
 DEVICES = ("cpu", "cuda")  # where torch trains (nna.trainrun.training_device)

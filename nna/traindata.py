@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from stereosim.nna.augment import photometric, rows_at, vertical_offsets
-from stereosim.nna.trainconfig import PATCH, TrainConfig
+from stereosim.nna.trainconfig import TrainConfig, receptive_field
 from stereosim.sim.datasets import find_scene, find_scenes, load_scene, occluded_by_cross_check
 from stereosim.sim.errors import ConfigError, InputError
 from stereosim.sim.io import (
@@ -139,8 +139,9 @@ def load_training_set(scene_dirs, cfg: TrainConfig) -> TrainingSet:
 
 
 def patch_size(cfg: TrainConfig) -> int:
-    """Side of the training patches: the 9x9 receptive field, grown by the aggregation window."""
-    return PATCH + cfg.aggregate - 1
+    """Side of the training patches: the variant's receptive field, grown by the aggregation
+    window."""
+    return receptive_field(cfg.variant) + cfg.aggregate - 1
 
 
 def sample_batch(ts: TrainingSet, cfg: TrainConfig, rng: np.random.Generator) -> np.ndarray:
@@ -250,9 +251,9 @@ def load_strip_set(scene_dirs, cfg: TrainConfig) -> StripSet:
 
 
 def strip_reach(cfg: TrainConfig) -> int:
-    """Pixels a strip's crop reaches beyond its reference pixels: the 9x9 receptive field and
-    the box filter."""
-    return PATCH // 2 + cfg.box // 2
+    """Pixels a strip's crop reaches beyond its reference pixels: half the variant's receptive
+    field and half the box filter."""
+    return receptive_field(cfg.variant) // 2 + cfg.box // 2
 
 
 def sample_strips(ss: StripSet, cfg: TrainConfig, rng: np.random.Generator) -> dict:

@@ -32,6 +32,11 @@ all sampled pixels and channels; channel i's requantisation target is the accumu
 ``mean |clamp(t, 0, 127) - clamp((acc * m) >> h, 0, 127)|`` over the samples (Algorithm 2), ties
 going to the smaller h, then the smaller m.
 
+Per-channel activation ranges (``equalize``, the default): the next layer reads all of its input
+channels with one ``a_{l+1}``, so before the searches the float model is rescaled, channel by
+channel, into the same function with every hidden channel's quantile at one value
+(:func:`equalize_channels`); the artifact's integer network is that of the rescaled model.
+
 Agreement figures are measured on every pixel of the calibration images.
 """
 
@@ -99,7 +104,9 @@ class FloatModel:
 @dataclass(frozen=True, slots=True, kw_only=True)
 class QuantizerConfig:
     """Search settings. ``distance`` picks the scales of the last layer, ``hidden_distance`` those
-    of the other layers; ``n_steps`` candidates per channel; ``z_bits`` bounds m and h."""
+    of the other layers; ``n_steps`` candidates per channel; ``z_bits`` bounds m and h;
+    ``equalize`` puts every hidden channel on one activation range first
+    (:func:`equalize_channels`; False: the paper's one range for a layer's channels as they are)."""
 
     n_steps: int = 1000
     z_bits: int = 8
@@ -109,6 +116,7 @@ class QuantizerConfig:
     hidden_distance: str = "rms"
     act_quantile: float = 0.9999
     chunk: int = 128
+    equalize: bool = True
 
     def __post_init__(self):
         get_distance(self.distance)
@@ -333,6 +341,50 @@ def _as_images(calib_images):
     return images
 
 
+# --- per-channel activation ranges (a float transform before the searches) ---------------------
+
+
+def equalize_channels(model: FloatModel, calib_images, config: QuantizerConfig | None = None):
+    """The same float function with every hidden channel's activations on one range.
+
+    The chip's multiply-shift is per output channel, but the next layer's weights are read with
+    one activation scale ``a_{l+1}`` for all of their input channels, so a hidden channel whose
+    ReLU outputs span a tenth of the layer's range uses a tenth of the int8 levels. ReLU is
+    positively homogeneous: multiplying channel i of layer l (weights and bias) by
+    ``alpha_i > 0`` and dividing column i of layer l + 1's weights by ``alpha_i`` leaves the
+    float network's output unchanged. With ``q_i`` the ``act_quantile`` quantile of channel i's
+    ReLU outputs at the sampled pixels and ``q`` the largest of them, ``alpha_i = q / q_i`` (1
+    for a channel that is never positive there) puts every channel's quantile at ``q``; the
+    quantiser then maps it to 127 for all channels. Layer l + 1's pre-activations do not change,
+    so every layer's ``alpha`` comes from the given model's own float maps. A one-layer model is
+    returned as it is.
+    """
+    config = config or QuantizerConfig()
+    images = _as_images(calib_images)
+    n_layers = len(model.weights)
+    weights = [np.asarray(w, dtype=np.float64).copy() for w in model.weights]
+    biases = [np.asarray(b, dtype=np.float64).copy() for b in model.biases]
+    if n_layers == 1:
+        return model
+    positions = _sample_positions([im.shape for im in images], config.n_samples, config.seed)
+    x_float = [float_input(model, im) for im in images]
+    for layer in range(n_layers - 1):
+        w_orig, b_orig = model.weights[layer], model.biases[layer]
+        f_maps = [np.maximum(float_layer(xf, w_orig, b_orig), 0.0) for xf in x_float]
+        samples = np.concatenate([f[:, ys, xs] for f, (ys, xs) in zip(f_maps, positions)], axis=1)
+        q_i = np.quantile(samples, config.act_quantile, axis=1)
+        alpha = np.ones_like(q_i)
+        live = q_i > 0
+        if live.any():
+            alpha[live] = q_i[live].max() / q_i[live]
+        weights[layer] *= alpha[:, None, None, None]
+        biases[layer] *= alpha
+        weights[layer + 1] /= alpha[None, :, None, None]
+        x_float = f_maps
+    return FloatModel(weights=tuple(weights), biases=tuple(biases),
+                      input_offset=model.input_offset, input_scale=model.input_scale)
+
+
 # --- the whole model (Algorithm 3) ---------------------------------------------------------------
 
 
@@ -349,8 +401,26 @@ def quantize(
 
     ``progress``: a bar on stderr (when it is a terminal) counting the channel searches, the
     scale search of every output channel and the (m, h) search of every hidden channel."""
+    return quantize_twin(model, calib_images, config, variant=variant, calibration=calibration,
+                         progress=progress)[1]
+
+
+def quantize_twin(
+    model: FloatModel,
+    calib_images,
+    config: QuantizerConfig | None = None,
+    *,
+    variant: str = "",
+    calibration: str = "",
+    progress: bool = True,
+) -> tuple[FloatModel, QuantizedModel]:
+    """:func:`quantize`, with the float model whose weight scales the artifact holds: the
+    equalised one (:func:`equalize_channels`) when ``config.equalize``, else ``model``. What
+    works on the scales together with float weights (quantisation-aware training) needs it."""
     config = config or QuantizerConfig()
     images = _as_images(calib_images)
+    if config.equalize:
+        model = equalize_channels(model, images, config)
     n_layers = len(model.weights)
     positions = _sample_positions([im.shape for im in images], config.n_samples, config.seed)
     x_float = [float_input(model, im) for im in images]
@@ -435,4 +505,4 @@ def quantize(
         calibration=calibration,
     )
     check_quantized(qm)
-    return qm
+    return model, qm

@@ -32,7 +32,7 @@ from stereosim.nna.trainrun import (
     parse_threads,
 )
 from stereosim.quant.artifact import save_quantized
-from stereosim.quant.quantizer import FloatModel, QuantizerConfig, quantize
+from stereosim.quant.quantizer import FloatModel, QuantizerConfig, quantize, quantize_twin
 from stereosim.sim.argtypes import check_single_output, finite_float, nonnegative_int, positive_int
 from stereosim.sim.datasets import scene_files, shared_data_dir
 from stereosim.sim.errors import InputError, UserError
@@ -155,11 +155,13 @@ def _cmd_qat(args) -> int:
     images, names = calibration_images(calibration_scene_dirs(data), 8)
     qcfg = QuantizerConfig()
     calibration = (f"{len(images)} views (left+right) of {', '.join(names)}; quantiser defaults "
-                   f"(seed {qcfg.seed}, {qcfg.n_samples} samples, {qcfg.n_steps} steps); then "
+                   f"(seed {qcfg.seed}, {qcfg.n_samples} samples, {qcfg.n_steps} steps, "
+                   f"{_equalize_text(len(model.weights), qcfg.equalize)}); then "
                    f"QAT, {cfg.epochs} x {cfg.steps_per_epoch} batches, lr {cfg.lr}, seed "
                    f"{cfg.seed}, from {Path(args.qat).name}")
-    qm = quantize(model, images, qcfg, variant=variant, calibration=calibration,
-                  progress=not args.quiet)
+    # QAT trains the float model whose twin qm is (the equalised one by default)
+    model, qm = quantize_twin(model, images, qcfg, variant=variant, calibration=calibration,
+                              progress=not args.quiet)
     print(f"quantiser: {100 * qm.sign_agreement:.3f}% of the calibration bits agree with "
           f"{Path(args.qat).name}'s float signs", file=sys.stderr)
     result = train(cfg, dirs, progress=not args.quiet, checkpoint=ckpt,
@@ -181,13 +183,21 @@ def _cmd_qat(args) -> int:
     return 0
 
 
+def _equalize_text(n_layers: int, equalize: bool) -> str:
+    """How the hidden channels' activation ranges were set, for the artifact's record."""
+    if n_layers == 1:
+        return "no hidden layer"
+    return ("hidden channels equalised to one activation range" if equalize
+            else "one activation range a layer (not equalised)")
+
+
 def cmd_quantize(args) -> int:
     check_single_output(Path(args.out), "--out", [(args.model, "model")])
     model, variant, _ = load_float_model(args.model)
     qcfg = QuantizerConfig(
         n_steps=args.steps, z_bits=args.z_bits, n_samples=args.samples, seed=args.seed,
         distance=args.distance, hidden_distance=args.hidden_distance,
-        act_quantile=args.act_quantile,
+        act_quantile=args.act_quantile, equalize=args.equalize,
     )
     out = Path(args.out)
     dirs = calibration_scene_dirs(args.calib)
@@ -199,7 +209,7 @@ def cmd_quantize(args) -> int:
         f"distance {qcfg.distance}"
         + (
             f", hidden layers: distance {qcfg.hidden_distance}, activation quantile "
-            f"{qcfg.act_quantile}"
+            f"{qcfg.act_quantile}, {_equalize_text(len(model.weights), qcfg.equalize)}"
             if len(model.weights) > 1
             else ""
         )
@@ -292,6 +302,10 @@ def _add_quantize_parser(sub) -> None:
                    help="multi-layer: "
                    "each hidden layer's int8 activations map this quantile of its ReLU outputs "
                    "to 127 (default 0.9999; lower clips more and rounds finer)")
+    q.add_argument("--no-equalize", dest="equalize", action="store_false",
+                   help="multi-layer: keep each hidden layer's channels on the one activation "
+                   "range the paper's quantiser gives them (default: every hidden channel is "
+                   "first rescaled onto one range, the float function unchanged)")
     q.add_argument("--steps", type=int, default=1000, metavar="N",
                    help="scale candidates per channel (>= 1000)")
     q.add_argument("--z-bits", type=int, default=8, metavar="Z", help="m, h in [0, 2^Z - 1]")

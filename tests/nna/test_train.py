@@ -22,13 +22,14 @@ from numpy.testing import assert_array_equal
 from stereosim.nna.conv import cnn_descriptor
 from stereosim.nna.floatmodel import load_float_model, save_float_model
 from stereosim.nna.train import train
-from stereosim.nna.trainconfig import PATCH, VARIANTS, TrainConfig
+from stereosim.nna.trainconfig import VARIANTS, TrainConfig, receptive_field
 from stereosim.nna.traindata import (
     calibration_scene_dirs,
     cv_folds,
     leave_fold_out,
     load_strip_set,
     load_training_set,
+    patch_size,
     sample_batch,
     sample_strips,
     strip_reach,
@@ -93,7 +94,7 @@ def test_positive_patch_is_the_left_patch_without_augmentation(data_root):
     ts = load_training_set(training_scene_dirs(data_root), cfg)
     assert np.all(ts.disp == SHIFT) and ts.scene.size > 0
     batch = sample_batch(ts, cfg, np.random.default_rng(0))
-    assert batch.shape == (3, 64, PATCH, PATCH)
+    assert batch.shape == (3, 64, 9, 9)  # single9x9's window
     assert_array_equal(batch[1], batch[0])  # right(x - d) == left(x) in this scene
     assert not np.array_equal(batch[2], batch[0])  # the negative is 3 px off
 
@@ -250,7 +251,7 @@ def test_aggregated_training_sees_larger_patches(data_root):
     cfg = TrainConfig(aggregate=3, pos_offset=0.0, gain=0.0, offset=0.0, noise_max=0.0, batch=8)
     ts = load_training_set(training_scene_dirs(data_root), cfg)
     batch = sample_batch(ts, cfg, np.random.default_rng(1))
-    assert batch.shape == (3, 8, PATCH + 2, PATCH + 2)
+    assert batch.shape == (3, 8, 9 + 2, 9 + 2)
     assert_array_equal(batch[1], batch[0])
     res = _train(data_root, objective="triplet", aggregate=3)
     assert res["weights"][0].shape == (32, 1, 9, 9)
@@ -296,23 +297,37 @@ def _float_bits(model, img):
     return float_forward(model, img) > 0
 
 
-def test_cost_curves_are_the_chips_box_filtered_hamming_costs(data_root):
+def test_receptive_fields_are_the_sum_of_the_kernels():
+    assert receptive_field("single9x9") == receptive_field("mccnn4") == 9
+    assert receptive_field("mixed5x5-wide") == receptive_field("double5x5") == 9
+    assert receptive_field("mixed5x5-rf11") == 11
+    cfg = TrainConfig(variant="mixed5x5-rf11", box=7)
+    assert strip_reach(cfg) == 5 + 3 and patch_size(cfg) == 11
+
+
+@pytest.mark.parametrize("variant", ["single9x9", "mixed5x5-rf11"])
+def test_cost_curves_are_the_chips_box_filtered_hamming_costs(data_root, variant):
     """With sign bits, the training cost of every strip pixel equals the SVA's Hamming cost
-    box-filtered over 5 x 5 (divided by 25) at that pixel, for both reference views."""
-    cfg = TrainConfig(strips=24, strip_width=20, disparities=10, gain=0.0, offset=0.0,
-                      noise_max=0.0)  # fmt: skip
+    box-filtered over 5 x 5 (divided by 25) at that pixel, for both reference views. The crops
+    clamp their coordinates into the image, which is the chip's replicate border for one layer;
+    for several layers the check keeps to pixels whose window lies inside the image."""
+    cfg = TrainConfig(variant=variant, strips=24, strip_width=20, disparities=10, gain=0.0,
+                      offset=0.0, noise_max=0.0)  # fmt: skip
     dirs = training_scene_dirs(data_root)
     ss = load_strip_set(dirs, cfg)
     torch.manual_seed(0)
-    net = build_network("single9x9").double()
+    net = build_network(variant).double()
+    convs = [m for m in net if isinstance(m, torch.nn.Conv2d)]
     with torch.no_grad():
-        net[0].bias.uniform_(-0.2, 0.2)
+        for conv in convs:
+            conv.bias.uniform_(-0.2, 0.2)
     model = FloatModel(
-        weights=(net[0].weight.detach().numpy().astype(np.float64),),
-        biases=(net[0].bias.detach().numpy().astype(np.float64),),
+        weights=tuple(c.weight.detach().numpy().astype(np.float64) for c in convs),
+        biases=tuple(c.bias.detach().numpy().astype(np.float64) for c in convs),
         input_offset=cfg.input_offset,
         input_scale=cfg.input_scale,
     )
+    margin = cfg.box // 2 if len(convs) == 1 else strip_reach(cfg)
     batch = sample_strips(ss, cfg, np.random.default_rng(2))
     with torch.no_grad():
         feats = [
@@ -325,8 +340,9 @@ def test_cost_curves_are_the_chips_box_filtered_hamming_costs(data_root):
         cost = cost_curves(bits[0], bits[1], cfg.disparities, cfg.box).numpy()
     # the chip's volumes: left reference directly; right reference on mirrored images with
     # the mirrored network (conv of a mirrored image by a mirrored kernel = mirrored output)
-    mirrored = FloatModel(weights=(model.weights[0][..., ::-1],), biases=model.biases,
-                          input_offset=model.input_offset, input_scale=model.input_scale)
+    mirrored = FloatModel(weights=tuple(w[..., ::-1] for w in model.weights),
+                          biases=model.biases, input_offset=model.input_offset,
+                          input_scale=model.input_scale)
     volumes = {}
     for i in range(len(ss.views)):
         view, partner = ss.views[i].astype(np.uint8), ss.views[i ^ 1].astype(np.uint8)
@@ -344,13 +360,13 @@ def test_cost_curves_are_the_chips_box_filtered_hamming_costs(data_root):
     for k in range(cfg.strips):
         i, y = int(batch["image"][k]), int(batch["y"][k])
         height, width = ss.views[i].shape
-        if not 2 <= y < height - 2:
+        if not margin <= y < height - margin:
             continue
         for j in np.flatnonzero(np.isfinite(batch["target"][k])):
             # max_disp is the pixel's column in the chip's (for a right reference: mirrored)
             # geometry, where the match of column x at disparity d is column x - d
             xc = int(batch["max_disp"][k, j])
-            if xc - 2 - (cfg.disparities - 1) < 0 or xc + 2 >= width:
+            if xc - margin - (cfg.disparities - 1) < 0 or xc + margin >= width:
                 continue
             np.testing.assert_allclose(cost[k, j], volumes[i][y, xc], atol=1e-9)
             checked += 1

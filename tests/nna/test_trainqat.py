@@ -17,7 +17,7 @@ from stereosim.nna.traindata import training_scene_dirs
 from stereosim.nna.trainqat import build_qat_net, export_quantized, integer_network
 from stereosim.quant.artifact import load_quantized
 from stereosim.quant.intconv import int_forward, int_forward_ref
-from stereosim.quant.quantizer import FloatModel, QuantizerConfig, quantize
+from stereosim.quant.quantizer import FloatModel, QuantizerConfig, quantize_twin
 from stereosim.sim.cli import main
 from stereosim.sim.datasets import find_scene, load_scene, shared_data_dir
 from stereosim.sim.io import to_grey
@@ -41,7 +41,9 @@ def _images(seed: int, n: int = 2, shape=(29, 37)):
 
 
 def _quantized(model: FloatModel):
-    return quantize(model, _images(1), QuantizerConfig(n_samples=800), progress=False)
+    """The quantiser's float twin of ``model`` (equalised: the same function, rescaled hidden
+    channels) and its integer network."""
+    return quantize_twin(model, _images(1), QuantizerConfig(n_samples=800), progress=False)
 
 
 def _accumulators(net, img):
@@ -55,7 +57,7 @@ def _accumulators(net, img):
                                                             (4, 6, 3))])
 def test_qat_forward_equals_the_integer_reference(shapes):
     model = _model(2, shapes)
-    qm = _quantized(model)
+    model, qm = _quantized(model)
     net = build_qat_net(model, qm, torch.float64)
     # the QAT starts from the quantiser's integer network
     weights, biases = integer_network(net)
@@ -78,7 +80,7 @@ def test_qat_forward_equals_the_integer_reference(shapes):
 
 def test_qat_forward_is_the_accumulators_over_their_scale_and_passes_gradients():
     model = _model(5)
-    qm = _quantized(model)
+    model, qm = _quantized(model)
     net = build_qat_net(model, qm)  # float32, as in training
     img = _images(6, 1, (21, 25))[0]
     x = torch.from_numpy((img.astype(np.float32) - 128.0) / 64.0)[None, None]
@@ -96,7 +98,7 @@ def test_qat_forward_is_the_accumulators_over_their_scale_and_passes_gradients()
 
 def test_export_writes_the_qat_integer_network():
     model = _model(7)
-    qm = _quantized(model)
+    model, qm = _quantized(model)
     images = _images(8)
     out = export_quantized(model, qm, images, "test")
     weights, biases = integer_network(build_qat_net(model, qm))
@@ -142,7 +144,7 @@ def test_qat_forward_equals_the_integer_reference_on_a_real_scene():
     scene = load_scene(find_scene(DATA / "middlebury2006_third" / "Aloe"))
     views = [to_grey(scene[v])[100:180, 150:270].copy() for v in ("left", "right")]
     model = _model(9, ((1, 8, 5), (8, 16, 3), (16, 32, 3)))
-    qm = quantize(model, views, QuantizerConfig(n_samples=2000), progress=False)
+    model, qm = quantize_twin(model, views, QuantizerConfig(n_samples=2000), progress=False)
     net = build_qat_net(model, qm, torch.float64)
     with torch.no_grad():
         for b in net.biases:
@@ -159,7 +161,7 @@ def test_the_frozen_arithmetic_moves_with_the_network_and_stays_out_of_checkpoin
     import torch
 
     model = _model(5)
-    qm = _quantized(model)
+    model, qm = _quantized(model)
     net = build_qat_net(model, qm)
     assert set(net.state_dict()) == {f"{k}.{i}" for k in ("weights", "biases")
                                      for i in range(len(model.weights))}

@@ -14,10 +14,11 @@ from stereosim.nna.conv import cnn_accumulators
 from stereosim.nna.weights import load_layer, load_weights
 from stereosim.quant.artifact import load_quantized, save_quantized, to_nna_weights
 from stereosim.quant.distances import DISTANCES, l1
-from stereosim.quant.intconv import int_forward, mul_shift_ref
+from stereosim.quant.intconv import int_forward, int_layer, mul_shift_ref, requantize
 from stereosim.quant.quantizer import (
     FloatModel,
     QuantizerConfig,
+    equalize_channels,
     float_forward,
     float_input,
     float_layer,
@@ -225,20 +226,102 @@ def test_two_layer_model_agrees_and_figures_are_honest():
     assert np.all(qm.act_scales > 0)
 
 
+def _hidden_relu(model, images, layer=0):
+    """ReLU of ``layer``'s float output, (C, pixels of every image)."""
+    maps = []
+    for im in images:
+        x = float_input(model, im)
+        for lay in range(layer + 1):
+            x = np.maximum(float_layer(x, model.weights[lay], model.biases[lay]), 0.0)
+        maps.append(x.reshape(x.shape[0], -1))
+    return np.concatenate(maps, axis=1)
+
+
 @pytest.mark.parametrize("q", [0.9999, 0.99, 0.9])
 def test_the_hidden_activation_scale_maps_the_chosen_quantile_to_127(q):
     """With every pixel sampled, layer 1's input scale is 127 over the q-quantile of ReLU of
-    layer 0's float output over all pixels and channels (the module docstring's rule)."""
+    layer 0's float output over all pixels and channels (the module docstring's rule); with
+    the channels equalised, the same rule on the equalised model's outputs."""
     model = _two_layer_model(6)
     images = _smooth_images(2, (21, 19), 3)
-    qm = quantize(model, images, QuantizerConfig(n_samples=10**6, act_quantile=q))
-    relu = np.concatenate([
-        np.maximum(float_layer(float_input(model, im), model.weights[0], model.biases[0]),
-                   0.0).reshape(4, -1)
-        for im in images
-    ], axis=1)  # fmt: skip
+    relu = _hidden_relu(model, images)
+    qm = quantize(model, images, QuantizerConfig(n_samples=10**6, act_quantile=q,
+                                                 equalize=False))
     assert qm.act_scales[0] == pytest.approx(1.0 / INPUT_SCALE)
     assert qm.act_scales[1] == pytest.approx(127.0 / np.quantile(relu.T, q), rel=1e-12)
+    config = QuantizerConfig(n_samples=10**6, act_quantile=q)
+    eq = quantize(model, images, config)
+    relu_eq = _hidden_relu(equalize_channels(model, images, config), images)
+    assert eq.act_scales[1] == pytest.approx(127.0 / np.quantile(relu_eq.T, q), rel=1e-12)
+
+
+def _three_layer_model(seed, dead=None):
+    """Three layers whose hidden channels span ranges 1000x apart (and one channel of layer 0
+    never positive when ``dead`` is given)."""
+    rng = np.random.default_rng(seed)
+    w0 = rng.normal(0, 0.3, size=(4, 1, 3, 3)) * np.array([1.0, 0.03, 0.3, 0.001])[:, None,
+                                                                                   None, None]
+    w1 = rng.normal(0, 0.3, size=(6, 4, 3, 3)) * np.array([1.0, 30.0, 3.0, 1000.0])[None, :,
+                                                                                    None, None]
+    w2 = rng.normal(0, 0.3, size=(8, 6, 3, 3))
+    b0 = rng.normal(0, 0.05, size=4) * np.array([1.0, 0.03, 0.3, 0.001])
+    if dead is not None:
+        w0[dead] = 0.0
+        b0[dead] = -1.0
+    b1 = rng.normal(0, 0.05, size=6)
+    b2 = rng.normal(0, 0.05, size=8)
+    return FloatModel(weights=(w0, w1, w2), biases=(b0, b1, b2), input_offset=128,
+                      input_scale=INPUT_SCALE)
+
+
+@pytest.mark.parametrize("dead", [None, 2])
+def test_equalised_channels_keep_the_float_function_on_one_range(dead):
+    """Every layer's pre-activations are the model's own (ReLU is positively homogeneous);
+    every hidden channel that is ever positive has its quantile at the largest one, a channel
+    never positive keeps its weights; a one-layer model is returned as it is."""
+    model = _three_layer_model(11, dead)
+    images = _smooth_images(2, (33, 29), 5)
+    config = QuantizerConfig(n_samples=10**6)
+    eq = equalize_channels(model, images, config)
+    for im in images:
+        assert_allclose(float_forward(eq, im), float_forward(model, im), rtol=1e-9, atol=1e-12)
+    for layer in range(2):
+        q = np.quantile(_hidden_relu(eq, images, layer), config.act_quantile, axis=1)
+        live = q > 0
+        assert_allclose(q[live], q[live].max(), rtol=1e-9)
+        assert q[live].max() == pytest.approx(
+            np.quantile(_hidden_relu(model, images, layer), config.act_quantile, axis=1).max())
+    if dead is not None:
+        assert_array_equal(eq.weights[0][dead], model.weights[0][dead])
+        assert eq.biases[0][dead] == model.biases[0][dead]
+        row_alpha = eq.biases[1] / model.biases[1]  # layer 1's own outputs' rescaling
+        assert_allclose(eq.weights[1][:, dead],
+                        model.weights[1][:, dead] * row_alpha[:, None, None], rtol=1e-12)
+    one = FloatModel(weights=model.weights[:1], biases=model.biases[:1], input_offset=128,
+                     input_scale=INPUT_SCALE)
+    assert equalize_channels(one, images, config) is one
+    assert quantize(one, images, config).weights[0].tobytes() == quantize(
+        one, images, dataclasses.replace(config, equalize=False)).weights[0].tobytes()
+
+
+def test_equalised_channels_use_the_int8_range_and_agree_more():
+    """A hidden channel 1000x below the layer's largest uses at most a couple of int8 levels on
+    one range a layer; equalised, every live channel reaches the top of the range, and the
+    descriptor bits agree with the float signs more."""
+    model = _three_layer_model(12)
+    images = _smooth_images(2, (40, 36), 6)
+    flat = quantize(model, images, QuantizerConfig(n_samples=6000, equalize=False))
+    eq = quantize(model, images, QuantizerConfig(n_samples=6000))
+    for qm, top in ((flat, None), (eq, 100)):
+        acc = [int_layer(im.astype(np.int32)[None] - 128, qm.weights[0], qm.biases[0])
+               for im in images]
+        act = np.concatenate([requantize(a, qm.mult[0], qm.shift[0]).reshape(4, -1)
+                              for a in acc], axis=1)
+        if top is None:
+            assert act[3].max() <= 2
+        else:
+            assert act.max(axis=1).min() >= top
+    assert eq.sign_agreement > flat.sign_agreement
 
 
 def test_quantize_is_deterministic():
