@@ -4,8 +4,8 @@ Every row goes through the same SVA back end (box filter, SGM, WTA, sub-pixel, L
 with the same settings; only the descriptor and its matching cost change:
 
 * ``census``: the 32-bit census at its own tuned P1/P2 (``nna.descriptor = census``);
-* for each variant of ``nna.trainconfig.VARIANTS`` (``mccnn4``, ``mccnn4-slim``, ``single9x9``,
-  ``mixed5x5``), at the CNN's tuned P1/P2:
+* for each variant of ``nna.trainconfig.VARIANTS`` whose float and int8 files are in the models
+  folder (or those ``--variants`` names), at the CNN's tuned P1/P2:
   ``float cosine`` (the float network's outputs compared by cosine, cost on the Hamming scale,
   :func:`sva.cost.cosine_cost`), ``float sign`` (signs of the float outputs, Hamming) and
   ``int8 sign`` (signs of the integer network's accumulators, Hamming -- what the chip runs).
@@ -249,7 +249,8 @@ def main(argv=None):
     ap.add_argument("--data", help="MiddEval3 trainingQ folder (default: shared data)")
     ap.add_argument("--models", default=str(MODELS), help="folder of VARIANT.float.npz and "
                     "VARIANT.int8.npz (default: benchmarks/models)")
-    ap.add_argument("--variants", default=",".join(VARIANTS), help="comma-separated subset")
+    ap.add_argument("--variants", help="comma-separated subset (default: every variant whose "
+                    "float and int8 files are both in --models)")
     ap.add_argument("--noise", type=float, default=0.0, metavar="SIGMA")
     ap.add_argument("--seed", type=int, default=0, metavar="S")
     ap.add_argument("--scenes", type=int, default=0, metavar="N", help="only the first N scenes")
@@ -263,6 +264,12 @@ def main(argv=None):
     if data_dir is None:
         sys.exit("ablation: no data; pass --data pointing at MiddEval3 trainingQ")
     models = {}
+    if args.variants is None:  # the study's networks are those with files; the rest were not kept
+        present = [v for v in VARIANTS
+                   if all(p.is_file() for p in model_paths(Path(args.models), v))]
+        if not present:
+            sys.exit(f"ablation: no VARIANT.float.npz with VARIANT.int8.npz in {args.models}")
+        args.variants = ",".join(present)
     for variant in args.variants.split(","):
         if variant not in VARIANTS:
             sys.exit(f"ablation: unknown variant {variant!r}; choose from {', '.join(VARIANTS)}")
