@@ -183,6 +183,15 @@ def test_quantize_takes_the_hidden_layer_settings_of_a_multi_layer_model(data_ro
         scales[q] = qm.act_scales[1]
     # a lower quantile of the same ReLU outputs maps a smaller value to 127
     assert scales["0.9"] > scales["0.9999"]
+    # --no-equalize: the paper's one range a layer, as the channels come, and the record says so
+    flat = tmp_path / "flat.npz"
+    args = ["quantize", str(model), "--calib", str(data_root), "--out", str(flat), "--samples",
+            "300", "--hidden-distance", "l1", "--no-equalize"]
+    assert main(args) == 0, capsys.readouterr().err
+    qm_flat = load_quantized(flat)
+    assert "one activation range a layer (not equalised)" in qm_flat.calibration
+    assert "hidden channels equalised to one activation range" in qm.calibration
+    assert qm_flat.act_scales[1] != scales["0.9999"]  # the same quantile, another range
     bad = ["quantize", str(model), "--calib", str(data_root), "--out", str(tmp_path / "x.npz"),
            "--act-quantile", "0"]
     assert main(bad) == 2
