@@ -354,18 +354,19 @@ def equalize_channels(model: FloatModel, calib_images, config: QuantizerConfig |
     ``alpha_i > 0`` and dividing column i of layer l + 1's weights by ``alpha_i`` leaves the
     float network's output unchanged. With ``q_i`` the ``act_quantile`` quantile of channel i's
     ReLU outputs at the sampled pixels and ``q`` the largest of them, ``alpha_i = q / q_i`` (1
-    for a channel that is never positive there) puts every channel's quantile at ``q``; the
-    quantiser then maps it to 127 for all channels. Layer l + 1's pre-activations do not change,
+    for a channel that is never positive there) puts every channel's quantile at ``q``, so the
+    layer's one range (127 over the quantile of all its channels' outputs) fits each of them
+    alike. Layer l + 1's pre-activations do not change,
     so every layer's ``alpha`` comes from the given model's own float maps. A one-layer model is
     returned as it is.
     """
     config = config or QuantizerConfig()
     images = _as_images(calib_images)
     n_layers = len(model.weights)
-    weights = [np.asarray(w, dtype=np.float64).copy() for w in model.weights]
-    biases = [np.asarray(b, dtype=np.float64).copy() for b in model.biases]
     if n_layers == 1:
         return model
+    weights = [np.asarray(w, dtype=np.float64).copy() for w in model.weights]
+    biases = [np.asarray(b, dtype=np.float64).copy() for b in model.biases]
     positions = _sample_positions([im.shape for im in images], config.n_samples, config.seed)
     x_float = [float_input(model, im) for im in images]
     for layer in range(n_layers - 1):
