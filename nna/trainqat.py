@@ -3,7 +3,9 @@
 A fine-tuning phase after float training. The project's quantiser (:func:`quant.quantizer.quantize`,
 the paper's Algorithm 3) first turns the trained float network into an integer one; its per-channel
 weight scales ``s``, the activation scales ``a_l`` and the multiply-shift pairs ``(m, h)`` are then
-**frozen**, and training continues on the float weights ``W`` and biases ``B`` with every layer
+**frozen**, and training continues on the float weights ``W`` and biases ``B`` (those of the
+float model the scales belong to: the quantiser's rescaled twin,
+:func:`quant.quantizer.quantize_twin`, when it equalises the hidden channels) with every layer
 computed as the NNA computes it (:mod:`quant.intconv`):
 
     x_0     = round(x / input_scale)                           (pixel - input_offset, exact)
