@@ -73,6 +73,12 @@ def model_paths(models_dir: Path, variant: str) -> tuple[Path, Path]:
     return models_dir / f"{variant}.float.npz", quant
 
 
+def variants_with_files(models_dir: Path) -> list[str]:
+    """The variants, in ``VARIANTS`` order, whose float model and int8 artifact are both in
+    ``models_dir`` (the study's networks; the other variants were not trained or not kept)."""
+    return [v for v in VARIANTS if all(p.is_file() for p in model_paths(models_dir, v))]
+
+
 def pack_signs(values) -> np.ndarray:
     """Descriptor words (H, W) uint32 from (H, W, C <= 32) outputs: bit c = value[c] > 0."""
     bits = values.shape[2]
@@ -264,9 +270,8 @@ def main(argv=None):
     if data_dir is None:
         sys.exit("ablation: no data; pass --data pointing at MiddEval3 trainingQ")
     models = {}
-    if args.variants is None:  # the study's networks are those with files; the rest were not kept
-        present = [v for v in VARIANTS
-                   if all(p.is_file() for p in model_paths(Path(args.models), v))]
+    if args.variants is None:
+        present = variants_with_files(Path(args.models))
         if not present:
             sys.exit(f"ablation: no VARIANT.float.npz with VARIANT.int8.npz in {args.models}")
         args.variants = ",".join(present)

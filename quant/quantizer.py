@@ -389,21 +389,11 @@ def equalize_channels(model: FloatModel, calib_images, config: QuantizerConfig |
 # --- the whole model (Algorithm 3) ---------------------------------------------------------------
 
 
-def quantize(
-    model: FloatModel,
-    calib_images,
-    config: QuantizerConfig | None = None,
-    *,
-    variant: str = "",
-    calibration: str = "",
-    progress: bool = True,
-) -> QuantizedModel:
-    """Quantise ``model`` layer by layer on uint8 calibration images (module docstring).
-
-    ``progress``: a bar on stderr (when it is a terminal) counting the channel searches, the
-    scale search of every output channel and the (m, h) search of every hidden channel."""
-    return quantize_twin(model, calib_images, config, variant=variant, calibration=calibration,
-                         progress=progress)[1]
+def quantize(model: FloatModel, calib_images, config: QuantizerConfig | None = None,
+             **options) -> QuantizedModel:
+    """Quantise ``model`` layer by layer on uint8 calibration images (module docstring): the
+    artifact of :func:`quantize_twin`, which takes the same arguments."""
+    return quantize_twin(model, calib_images, config, **options)[1]
 
 
 def quantize_twin(
@@ -415,9 +405,14 @@ def quantize_twin(
     calibration: str = "",
     progress: bool = True,
 ) -> tuple[FloatModel, QuantizedModel]:
-    """:func:`quantize`, with the float model whose weight scales the artifact holds: the
-    equalised one (:func:`equalize_channels`) when ``config.equalize``, else ``model``. What
-    works on the scales together with float weights (quantisation-aware training) needs it."""
+    """The float model whose weight scales the artifact holds -- the equalised one
+    (:func:`equalize_channels`) when ``config.equalize``, else ``model``; what works on the
+    scales together with float weights (quantisation-aware training) needs it -- and the
+    artifact.
+
+    ``variant`` and ``calibration`` are recorded in the artifact; ``progress``: a bar on stderr
+    (when it is a terminal) counting the channel searches, the scale search of every output
+    channel and the (m, h) search of every hidden channel."""
     config = config or QuantizerConfig()
     images = _as_images(calib_images)
     if config.equalize:

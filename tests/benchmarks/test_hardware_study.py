@@ -92,3 +92,14 @@ def test_the_cached_accuracy_is_what_the_ablation_computes(condition):
     for key, metrics in rows.items():
         name = key if isinstance(key, str) else " / ".join(key)
         assert cached["per_scene"][0][name] == metrics, name
+
+
+def test_the_ablation_scores_the_networks_whose_files_are_there(tmp_path):
+    """Its default (the documented command) takes the variants with both files and skips the
+    ones trained elsewhere or not kept; single9x9 takes the shipped artifact for its int8."""
+    for name in ("mccnn4.float.npz", "mccnn4.int8.npz", "mixed5x5.float.npz",
+                 "single9x9.float.npz", "mixed5x5-rf11.int8.npz"):
+        (tmp_path / name).write_bytes(b"")
+    assert ablation.variants_with_files(tmp_path) == ["mccnn4", "single9x9"]
+    shipped = ablation.variants_with_files(ROOT / "benchmarks" / "models")
+    assert "mixed5x5-wide" in shipped and "mixed5x5-40" not in shipped
