@@ -10,7 +10,7 @@ from stereosim.sim.cli import main
 from stereosim.sim.config import load_config
 from stereosim.sim.cycle.contract import CameraOverflow
 from stereosim.sim.cycle.estimate import estimate
-from stereosim.sim.cycle.plan import build_plan, sram_bits
+from stereosim.sim.cycle.plan import build_plan, chip_sram, sram_bits
 from stereosim.sim.cycle.simulate import simulate
 from stereosim.sim.errors import ConfigError, InputError
 from stereosim.sim.io import encode_png
@@ -103,6 +103,26 @@ def test_a_tile_line_buffer_is_sized_for_the_widest_tile_input(split):
         assert widest < shape[1]  # a column tile does not hold whole frame rows
     whole = build_plan(load_config(overrides=SMALL), shape)
     assert sram_bits(whole)["nna.line_buffer"] == rows * shape[1] * 8
+
+
+@pytest.mark.parametrize("descriptor, stereo", [("cnn", 2), ("cnn", 6), ("census", 4)])
+def test_the_chip_sram_counts_every_submodule_once_and_every_buffer_and_fifo(descriptor, stereo):
+    """The chip total: each of the NNA's submodules (stereo, lent or idle) holds the widest
+    tile's buffers, plus the SVA's buffers and every FIFO's depth x width, summed by hand from
+    the plan's blocks here."""
+    shape = (40, 120)
+    cfg = load_config(overrides={**SMALL, "nna.descriptor": descriptor,
+                                 "nna.stereo_submodules": stereo})
+    plan = build_plan(cfg, shape)
+    per_sub = max(sum(b.bits for b in blk.buffers) for blk in plan.blocks_of("nna"))
+    sva = sum(b.bits for b in plan.block("sva").buffers)
+    fifos = sum(f.depth * f.width_bits for f in plan.fifos)
+    got = chip_sram(plan)
+    assert got["nna_per_submodule"] == per_sub
+    assert got["total"] == cfg.nna.submodules * per_sub + sva + fifos
+    assert sum(got["by_kind"].values()) == got["total"] == sum(got["by_block"].values())
+    assert got["by_block"]["nna_stereo"] == stereo * per_sub
+    assert got["by_block"]["nna_idle"] == (cfg.nna.submodules - stereo) * per_sub
 
 
 # ---- both cameras overflowing in one cycle ----------------------------------------------------
