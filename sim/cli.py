@@ -24,14 +24,14 @@ from stereosim.sim.config import (
     config_diff,
     config_to_toml,
     keys_set,
+    layer_notes,
     load_config,
     parse_set_options,
-    read_toml,
 )
 from stereosim.sim.cycle.contract import RunStopped
 from stereosim.sim.cycle.estimate import parse_size
 from stereosim.sim.cycle.frames import MAX_FRAMES
-from stereosim.sim.cycle.plan import build_plan
+from stereosim.sim.cycle.plan import build_plan, frame_size
 from stereosim.sim.datasets import (
     default_scene,
     find_scene,
@@ -63,7 +63,7 @@ from stereosim.sim.outputs import (
 )
 from stereosim.sim.progress import compile_notice
 from stereosim.sim.run_files import publish_stop, with_report
-from stereosim.sim.stream_cli import cmd_run_stream
+from stereosim.sim.stream_cli import cmd_run_stream, config_sources
 from stereosim.sim.summary import eval_document, eval_line, eval_tables, eval_timing, print_summary
 from stereosim.sim.tracing import TraceRequest, parse_window, trace_files, trace_paths
 from stereosim.traces.cli import add_wave_parser
@@ -72,7 +72,7 @@ from stereosim.traces.log import parse_patterns
 EVAL_KEYS = ("bad0.5", "bad1", "bad2", "bad4", "invalid", "totbad", "avgerr", "rms")
 RUN_FILES = ("disparity.pfm", "disparity.png", "report.json")
 # run's options that name a file it reads (no output may replace one) and those it writes
-RUN_INPUTS = ("left", "right", "gt", "mask", "config", "energy", "calib", "left_video",
+RUN_INPUTS = ("left", "right", "gt", "mask", "energy", "calib", "left_video",
               "right_video")
 RUN_OUTPUTS = ("html", "vcd", "timeline")
 
@@ -102,9 +102,10 @@ def config_file(text: str) -> str:
 
 
 def _add_config_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--config", metavar="FILE|PRESET", type=config_file,
+    p.add_argument("--config", metavar="FILE|PRESET", type=config_file, action="append",
                    help="TOML configuration file, or a preset of configs/: paper-720p, 1080p60, "
-                   "census-baseline, robust-720p")
+                   "census-baseline, robust-720p; repeatable: the files are layered in order, "
+                   "a later file's keys win (each key it replaces is noted on stderr)")
     p.add_argument(
         "--set", metavar="KEY=VALUE", action="append", default=[],
         help="override one configuration key, e.g. --set sva.p1=10 (repeatable)",
@@ -129,15 +130,25 @@ def _overrides(args) -> dict:
 
 def _user_set_disparities(args, over: dict) -> bool:
     """Did the user choose D (flag, --set or config file)? Then a scene's calib.txt does not."""
-    if "sva.disparities" in over:
-        return True
-    if args.config:
-        sva = read_toml(args.config, "config file").get("sva", {})
-        return isinstance(sva, dict) and "disparities" in sva
-    return False
+    return "sva.disparities" in keys_set(args.config, over)
+
+
+def config_inputs(args) -> list[tuple[str, str]]:
+    """The config files of ``--config`` as (path, label) inputs no output may replace."""
+    return [(path, "--config") for path in args.config or ()]
+
+
+def _note_layers(args) -> None:
+    """With several --config files, one stderr line per key a later file replaces (once a
+    command: the parsed arguments remember it)."""
+    if len(args.config or ()) > 1 and not getattr(args, "_layers_noted", False):
+        args._layers_noted = True
+        for line in layer_notes(args.config):
+            print(f"stereosim: note: {line}", file=sys.stderr)
 
 
 def _scene_config(args, ndisp: int | None):
+    _note_layers(args)
     over = _overrides(args)
     if ndisp is not None and not _user_set_disparities(args, over):
         over["sva.disparities"] = legal_disparities(ndisp)
@@ -230,6 +241,7 @@ def cmd_run(args) -> int:
     if args.html:
         planned.append((args.html, "--html"))
     inputs = [(getattr(args, name), f"--{name.replace('_', '-')}") for name in RUN_INPUTS]
+    inputs += config_inputs(args)
     scenes = [find_scene(args.scene, gt_scale=args.gt_scale)] if args.scene else []
     inputs += scene_files(scenes)
     check_outputs(planned, inputs)  # before any work, none an input
@@ -260,9 +272,11 @@ def cmd_run(args) -> int:
                      gt=data.get("gt"), masks=data.get("masks"), trace=request,
                      max_pixels=args.max_pixels or None, energy=args.energy)
     except RunStopped as stop:
+        stop.report["config_sources"] = config_sources(args)
         raise publish_stop(stop, request, out_dir, planned, scene) from None
     seconds = time.perf_counter() - t0
     result.report["scene"] = scene
+    result.report["config_sources"] = config_sources(args)
     traces = trace_files(result.trace, request) if request is not None else {}
     saved = saving.files(out_dir, result.disparity, data["left"])
     page = html_files(args.html, result, data)
@@ -317,7 +331,7 @@ def cmd_eval(args) -> int:
         args.algo_name = name = formats.check_algo_name(args.algo_name
                                                         or formats.DEFAULT_ALGO_NAME)
         planned += formats.middeval3_paths(args.save, name, [s.name for s in scenes])
-    check_outputs(planned, [(args.config, "--config"), *scene_files(scenes)])  # before a scene
+    check_outputs(planned, [*config_inputs(args), *scene_files(scenes)])  # before a scene
     rows: list[tuple[str, dict, int, dict | None]] = []  # scene, metrics, D, timing
     failed: dict[str, str] = {}
     bar = tqdm(scenes, desc="eval", unit="scene", disable=args.json or None, file=sys.stderr)
@@ -375,16 +389,17 @@ def _eval_scene(args, scene, saved: dict | None = None) -> tuple[dict, int, dict
 
 
 def cmd_config_show(args) -> int:
-    cfg = load_config(args.config, _overrides(args))
+    cfg = _scene_config(args, None)
     sys.stdout.write(config_to_toml(cfg, comments=not args.plain,
                                     set_keys=keys_set(args.config, _overrides(args))))
     return 0
 
 
 def cmd_config_plan(args) -> int:
-    if args.png:
-        check_single_output(Path(args.png), "--png", [(args.config, "--config")])
-    plan = build_plan(load_config(args.config, _overrides(args)), parse_size(args.size))
+    if args.png is not None:
+        check_single_output(Path(args.png), "--png", config_inputs(args))
+    cfg = _scene_config(args, None)
+    plan = build_plan(cfg, parse_size(args.size) if args.size else frame_size(cfg))
     if args.png:
         write_plan_png(plan, args.png)
     sys.stdout.write(plan_text(plan))
@@ -500,8 +515,9 @@ def _add_config_parser(sub) -> None:
     _add_config_options(cs)
     cs.set_defaults(func=cmd_config_show)
     cp = csub.add_parser("plan", help="the chip plan: clock domains, blocks, FIFOs, SRAM")
-    cp.add_argument("--size", default="1280x720", metavar="WxH",
-                    help="frame size (default 1280x720)")
+    cp.add_argument("--size", metavar="WxH",
+                    help="frame size (default: the configured camera's, source.camera_width x "
+                    "camera_height, else 1280x720)")
     cp.add_argument("--png", metavar="PATH", help="also draw the plan into this PNG")
     _add_config_options(cp)
     cp.set_defaults(func=cmd_config_plan)

@@ -90,6 +90,13 @@ def _publish_stop(stop: RunStopped, request, out_dir: Path, planned: list, scene
     return publish_stop(stop, request, out_dir, planned, scene)
 
 
+def config_sources(args) -> dict:
+    """Where a run's configuration came from, for its report: the ``--config`` files in the
+    order they were layered (a later file's keys win) and the ``--set`` options after them."""
+    return {"files": [str(Path(p).resolve()) for p in args.config or ()],
+            "set": list(args.set or ())}
+
+
 def cmd_run_stream(args, request, data: dict | None, cfg, inputs: list = ()) -> int:
     """``stereosim run`` on a stream; ``inputs``: ``(path, label)`` of every file the run reads
     (no output, the saved frames included, may replace one)."""
@@ -121,6 +128,7 @@ def cmd_run_stream(args, request, data: dict | None, cfg, inputs: list = ()) -> 
                                     progress=lambda done: bar.update(done - bar.n))
                 bar.update(bar.total - bar.n)
         except RunStopped as stop:
+            stop.report["config_sources"] = config_sources(args)
             raise _publish_stop(stop, request, out_dir, planned,
                                 {"name": name, "source": source}) from None
         dmax = float(cfg.sva.disparities)
@@ -140,6 +148,7 @@ def cmd_run_stream(args, request, data: dict | None, cfg, inputs: list = ()) -> 
                         digests[os.path.join("frames", nm)] = hashlib.sha256(blob).hexdigest()
         report = stream.report
         report["scene"] = {"name": name, "source": source}
+        report["config_sources"] = config_sources(args)
         report["output"] = {"last_frame_invalid_percent": last.invalid_percent,
                             "saved_every": save_every}
         traces, log = {}, None

@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 
 from stereosim.sim.cycle.estimate import estimate, format_estimate, parse_size
+from stereosim.sim.cycle.plan import frame_size
 from stereosim.sim.errors import InputError, UserError
 from stereosim.sim.outputs import json_text
 from stereosim.sim.plot import (
@@ -88,15 +89,19 @@ def register(sub, add_config_options, scene_config) -> None:
     """Add the three subcommands to ``sub`` (the parser's subparsers)."""
 
     def cmd_estimate(args) -> int:
-        size = args.size or "1280x720"
-        ndisp = None
-        if size == "default" or Path(size).is_dir():
+        size, ndisp = args.size, None
+        if size is not None and not size.strip():
+            raise InputError("--size is empty: give WIDTHxHEIGHT, 'default' or a scene folder")
+        if size is None:
+            shape = None  # the configured camera's frame size, else 720p
+        elif size == "default" or Path(size).is_dir():
             data = load_scene_spec(size if size == "default" else str(Path(size)))
             shape = data["left"].shape[:2]
             ndisp = data.get("ndisp")
         else:
             shape = parse_size(size)
         cfg = scene_config(args, ndisp)
+        shape = shape or frame_size(cfg)
         est = estimate(cfg, shape)  # the plan refuses a chip it cannot build (D not below W)
         if args.json:
             sys.stdout.write(json_text(est))
@@ -106,7 +111,8 @@ def register(sub, add_config_options, scene_config) -> None:
 
     e = sub.add_parser("estimate", help="analytic fps, latency, SRAM and traffic (no simulation)")
     e.add_argument("--size", metavar="WxH|SCENE",
-                   help="frame size (default 1280x720), 'default' or a scene folder")
+                   help="frame size (default: the configured camera's, source.camera_width x "
+                   "camera_height, else 1280x720), 'default' or a scene folder")
     e.add_argument("--json", action="store_true", help="print the estimate as JSON")
     add_config_options(e)
     e.set_defaults(func=cmd_estimate)

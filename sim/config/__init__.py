@@ -19,6 +19,7 @@ from stereosim.sim.config.lent import LentLayer, LentNetwork, read_lent_network
 from stereosim.sim.config.loader import (
     descriptor_width,
     keys_set,
+    layer_notes,
     load_config,
     parse_set_options,
 )
@@ -50,5 +51,6 @@ __all__ = [
     "DramConfig", "FifoConfig", "LentLayer", "LentNetwork", "NnaConfig", "RETIRED", "SimConfig",
     "SourceConfig", "SvaConfig", "check_config", "check_section", "config_diff",
     "config_to_dict", "config_to_toml", "descriptor_width", "is_checked", "keys_set",
-    "load_config", "param", "parse_set_options", "read_lent_network", "read_toml", "sgm_widths",
+    "layer_notes", "load_config", "param", "parse_set_options", "read_lent_network",
+    "read_toml", "sgm_widths",
 ]

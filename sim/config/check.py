@@ -206,6 +206,12 @@ def check_combinations(cfg: ChipConfig) -> ChipConfig:
             "which needs each pair's frames in DRAM frame buffers: add --set source.kind=camera "
             "--set source.frame_buffers=2 (or use sva.pairs=1)"
         )
+    src = cfg.source
+    if bool(src.camera_width) != bool(src.camera_height):
+        raise ConfigError(
+            f"source.camera_width={src.camera_width} and source.camera_height="
+            f"{src.camera_height}: give both (the camera's frame size) or set both to 0 (the "
+            "pair's own size)")
     d = cfg.dram
     if d.model == "none" and d.spill != "none":
         raise ConfigError("dram.spill needs the DRAM channel: add --set dram.model=tdm")

@@ -10,6 +10,8 @@ and the register widths that follow the descriptor, box, P2 and paths (:func:`de
 from __future__ import annotations
 
 import dataclasses
+import functools
+import os
 import tomllib
 from pathlib import Path
 from typing import Any
@@ -52,17 +54,107 @@ def _insert(tree: dict, dotted: str, value) -> None:
     node[parts[-1]] = value
 
 
+def _fields(cls, prefix: str = ""):
+    """(dotted key, field) of every leaf key of the config class ``cls``."""
+    for f in dataclasses.fields(cls):
+        sub = f.default_factory if f.default_factory is not dataclasses.MISSING else None
+        if isinstance(sub, type) and dataclasses.is_dataclass(sub):
+            yield from _fields(sub, f"{prefix}{f.name}.")
+        else:
+            yield f"{prefix}{f.name}", f
+
+
+@functools.cache
+def _field(dotted: str) -> dataclasses.Field:
+    return dict(_fields(ChipConfig))[dotted]
+
+
+#: The keys whose value names a file (``param(path=True)``).
+PATH_KEYS = tuple(k for k, f in _fields(ChipConfig) if f.metadata.get("path"))
+
+
+def config_paths(path) -> list[str]:
+    """The config files ``path`` names, in the order they are layered: one path, a list or
+    tuple of them, or None (none)."""
+    if path is None:
+        return []
+    paths = list(path) if isinstance(path, (list, tuple)) else [path]
+    for p in paths:
+        if not isinstance(p, (str, os.PathLike)) or not os.fspath(p):
+            raise ConfigError(f"a config file must be a path; got {p!r}")
+    return [os.fspath(p) for p in paths]
+
+
+def read_layer(path) -> dict:
+    """The tree of the config file at ``path``, every file-naming key (``param(path=True)``)
+    given relative to the file's folder made absolute -- so a config file means the same
+    files from whatever folder it is used, and a file of the working directory cannot shadow
+    a preset's."""
+    tree = read_toml(path, "config file")
+    folder = Path(path).resolve().parent
+    for dotted in PATH_KEYS:
+        *parents, leaf = dotted.split(".")
+        node = tree
+        for part in parents:
+            node = node.get(part) if isinstance(node, dict) else None
+        if not isinstance(node, dict):
+            continue
+        value = node.get(leaf)
+        if isinstance(value, str) and value and value != _field(dotted).default:
+            node[leaf] = os.path.normpath(folder / os.path.expanduser(value))
+    return tree
+
+
+def _merge(into: dict, layer: dict) -> None:
+    """Layer ``layer`` over ``into``: tables merge key by key, a later value wins."""
+    for key, value in layer.items():
+        if isinstance(value, dict) and isinstance(into.get(key), dict):
+            _merge(into[key], value)
+        else:
+            into[key] = value
+
+
+def _leaves(tree: dict, prefix: str = "") -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for k, v in tree.items():
+        if isinstance(v, dict):
+            out.update(_leaves(v, f"{prefix}{k}."))
+        else:
+            out[f"{prefix}{k}"] = v
+    return out
+
+
+def layer_notes(path) -> list[str]:
+    """For several config files ``path`` layered in order, one line for each file that
+    replaces keys an earlier file set (per earlier file), naming each key with its old and new
+    value: what the user of ``--config A --config B`` should know was replaced."""
+    notes, seen = [], {}
+    for p in config_paths(path):
+        replaced: dict[str, list[str]] = {}
+        for key, value in _leaves(read_layer(p)).items():
+            if key in seen and seen[key][1] != value:
+                replaced.setdefault(seen[key][0], []).append(
+                    f"{key} {seen[key][1]!r} -> {value!r}")
+            seen[key] = (p, value)
+        for earlier, keys in replaced.items():
+            notes.append(f"{Path(p).name} replaces {len(keys)} key{'s' if len(keys) > 1 else ''}"
+                         f" of {Path(earlier).name}: " + ", ".join(keys))
+    return notes
+
+
 def load_config(
-    path: str | Path | None = None, overrides: dict[str, Any] | None = None
+    path: str | Path | list | tuple | None = None, overrides: dict[str, Any] | None = None
 ) -> ChipConfig:
-    """Defaults, then the TOML file at ``path``, then ``overrides`` (dotted keys).
+    """Defaults, then the TOML file(s) at ``path`` (several are layered in order: a later
+    file's keys win), then ``overrides`` (dotted keys).
 
     Override values may be typed Python values or strings in TOML syntax (as given on the
-    command line with ``--set key=value``).
+    command line with ``--set key=value``). A file-naming key in a config file is relative to
+    that file (:func:`read_layer`); in an override, to the working directory.
     """
     tree: dict = {}
-    if path is not None:
-        tree = read_toml(path, "config file")
+    for p in config_paths(path):
+        _merge(tree, read_layer(p))
     for key, value in (overrides or {}).items():
         if not isinstance(key, str) or not key:
             raise ConfigError(f"override key {key!r} must be a dotted name such as sva.p1")
@@ -135,19 +227,11 @@ def parse_set_options(items: list[str] | None) -> dict[str, str]:
     return out
 
 
-def keys_set(path: str | Path | None = None, overrides: dict[str, Any] | None = None
-             ) -> frozenset[str]:
-    """The dotted keys a configuration file at ``path`` and ``overrides`` set (the keys the
-    user chose, as opposed to defaults)."""
+def keys_set(path: str | Path | list | tuple | None = None,
+             overrides: dict[str, Any] | None = None) -> frozenset[str]:
+    """The dotted keys the configuration file(s) at ``path`` and ``overrides`` set (the keys
+    the user chose, as opposed to defaults)."""
     out = set(overrides or {})
-
-    def walk(tree: dict, prefix: str) -> None:
-        for k, v in tree.items():
-            if isinstance(v, dict):
-                walk(v, f"{prefix}{k}.")
-            else:
-                out.add(f"{prefix}{k}")
-
-    if path is not None:
-        walk(read_toml(path, "config file"), "")
+    for p in config_paths(path):
+        out.update(_leaves(read_toml(p, "config file")))
     return frozenset(out)

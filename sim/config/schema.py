@@ -43,9 +43,11 @@ AUTO_BUDGET_FACTOR = 20
 # passed them by weak reference, so that a checked configuration is trusted, not checked again.
 
 
-def param(default, help: str, *, lo=None, hi=None, choices=None, odd=False):
-    """A config field with its validation rules in the metadata."""
-    meta = {"help": help, "lo": lo, "hi": hi, "choices": choices, "odd": odd}
+def param(default, help: str, *, lo=None, hi=None, choices=None, odd=False, path=False):
+    """A config field with its validation rules in the metadata. ``path``: the value names a
+    file, which a config file gives relative to its own folder (:mod:`sim.config.loader`);
+    the default value names none."""
+    meta = {"help": help, "lo": lo, "hi": hi, "choices": choices, "odd": odd, "path": path}
     return field(default=default, metadata=meta)
 
 
@@ -68,8 +70,8 @@ class CensusConfig:
 @dataclass(frozen=True, slots=True, kw_only=True, weakref_slot=True)
 class CnnConfig:
     weights: str = param(
-        "default", "int8 weight file (.npz) of the descriptor layer, or 'default' for the shipped "
-        "9x9x32 one"
+        "default", "int8 weight file (.npz) of the descriptor network (in a config file: "
+        "relative to that file), or 'default' for the shipped 9x9x32 one", path=True,
     )
     channels: int = param(
         CNN_BITS, "output channels of the layer = descriptor bits; the SVA's automatic register "
@@ -114,7 +116,8 @@ class NnaConfig:
     )
     lent_network: str = param(
         "", "TOML file of the network on the lent submodules: its input, frame rate and "
-            "convolution layers (docs/lent.md; \"\": none)",
+            "convolution layers (docs/lent.md; in a config file: relative to that file; "
+            "\"\": none)", path=True,
     )
 
 
@@ -221,6 +224,14 @@ class SourceConfig:
     kind: str = param(
         "memory", "where frames come from: memory (at memory_gbps) or camera (pixel clock with "
         "blanking; a camera cannot stall)", choices=("memory", "camera"),
+    )
+    camera_width: int = param(
+        0, "width of the frames the chip is built for (a preset's camera resolution): a pair of "
+        "another size is refused; 0 with camera_height 0: the pair's own size", lo=0, hi=1 << 16,
+    )
+    camera_height: int = param(
+        0, "height of the frames the chip is built for (see camera_width; 0: the pair's own)",
+        lo=0, hi=1 << 16,
     )
     memory_gbps: float = param(
         4.0, "memory read bandwidth per camera in GB/s (at most one pixel per NNA cycle)",

@@ -57,7 +57,7 @@ from stereosim.sim.cycle.stages import (
     pipeline_latency,
     sva_stages,
 )
-from stereosim.sim.errors import ConfigError
+from stereosim.sim.errors import ConfigError, InputError
 from stereosim.sva.geometry import check_disparity_range, output_word_bits, row_lookahead
 
 SIDES = ("left", "right")
@@ -381,6 +381,31 @@ def nna_buffers(cfg: ChipConfig, layers: tuple[LayerPlan, ...]) -> tuple[BufferP
 # ---- building ----------------------------------------------------------------------------------
 
 
+#: The frame size (H, W) a command assumes when neither the user nor the configuration gives
+#: one: the paper's 720p.
+DEFAULT_FRAME = (720, 1280)
+
+
+def frame_size(cfg: ChipConfig) -> tuple[int, int]:
+    """(H, W) of the frames ``cfg`` is built for: its camera's (``source.camera_width`` x
+    ``camera_height``), else :data:`DEFAULT_FRAME`."""
+    src = cfg.source
+    return (src.camera_height, src.camera_width) if src.camera_width else DEFAULT_FRAME
+
+
+def check_frame_size(source, shape: tuple[int, int]) -> None:
+    """A chip built for a camera's frame size (``source.camera_width`` x ``camera_height``, a
+    preset's resolution) takes frames of that size only: its blanking, clocks and submodule
+    count were chosen for it. Raises :class:`InputError` for a pair of another size."""
+    h, w = shape
+    if source.camera_width and (w, h) != (source.camera_width, source.camera_height):
+        raise InputError(
+            f"the frames are {w}x{h} but the chip is built for the camera's "
+            f"{source.camera_width}x{source.camera_height} (source.camera_width x "
+            f"camera_height): give frames of that size, or --set source.camera_width=0 --set "
+            "source.camera_height=0 to build it for these")
+
+
 def build_plan(cfg: ChipConfig, shape: tuple[int, int], frames: int = 1) -> ChipPlan:
     """The plan of ``cfg`` for a stream of ``frames`` frames of ``shape`` = (H, W), back to back
     -- per camera pair: with ``sva.pairs`` = P pairs sharing the chip the stream has P x
@@ -393,6 +418,7 @@ def build_plan(cfg: ChipConfig, shape: tuple[int, int], frames: int = 1) -> Chip
     if isinstance(frames, bool) or not isinstance(frames, int) or frames < 1:
         raise ConfigError(f"a stream needs at least one frame, got frames={frames!r}")
     n = h * w
+    check_frame_size(cfg.source, shape)
     check_line_buffer(cfg.nna)
     check_disparity_range(cfg.sva, w)
     parts = cfg.nna.stereo_submodules // 2

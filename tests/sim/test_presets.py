@@ -56,8 +56,8 @@ def test_census_baseline_keeps_the_census_penalties():
 
 
 def test_robust_720p_sustains_30_fps_on_the_ten_submodules(monkeypatch, tmp_path):
-    """Its network's weight file is named from the repository root and found from any working
-    directory (nna.descriptor.weights_file); the NNA's work bound at 720p is at least 30 fps on
+    """Its network's weight file is named relative to the preset (sim.config.loader.read_layer)
+    and found from any working directory; the NNA's work bound at 720p is at least 30 fps on
     10 submodules (5 per camera)."""
     monkeypatch.chdir(tmp_path)  # not the repository: benchmarks/models/... is not here
     cfg = load_config(PRESETS / "robust-720p.toml")
