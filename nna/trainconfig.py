@@ -26,6 +26,7 @@ import dataclasses
 import math
 from dataclasses import dataclass
 
+from stereosim.sim.config import SvaConfig
 from stereosim.sim.errors import ConfigError
 
 # (C_in, C_out, K) per layer
@@ -49,6 +50,23 @@ VARIANTS = {
 def receptive_field(variant: str) -> int:
     """Side of the input window one output pixel of ``variant`` reads: 1 + sum (K_l - 1)."""
     return 1 + sum(k - 1 for _, _, k in VARIANTS[variant])
+
+def _sva_rule(name: str) -> dict:
+    return next(f.metadata for f in dataclasses.fields(SvaConfig) if f.name == name)
+
+
+def box_range() -> tuple[int, int]:
+    """The windows ``box`` and ``aggregate`` may take: they stand in the loss for the chip's box
+    filter, so sva.box_size's declared range (odd)."""
+    rule = _sva_rule("box_size")
+    return rule["lo"], rule["hi"]
+
+
+def max_disparities() -> int:
+    """The most candidate disparities a run may score: the chip's widest range
+    (sva.disparities)."""
+    return max(_sva_rule("disparities")["choices"])
+
 
 SIMILARITIES = ("cosine", "tanh", "both")
 OBJECTIVES = ("curve", "triplet")
@@ -107,7 +125,9 @@ class TrainConfig:
                 isinstance(value, bool) or not isinstance(value, (int, float))
             ):
                 raise ConfigError(f"{f.name} must be a number, got {value!r}")
-            if f.type == "float" and not math.isfinite(value):
+            if f.type == "int" and not isinstance(value, int):
+                raise ConfigError(f"{f.name} must be a whole number, got {value!r}")
+            if f.type == "float" and not (-math.inf < _as_float(value) < math.inf):
                 raise ConfigError(f"{f.name} must be a finite number, got {value!r}")
         if self.variant not in VARIANTS:
             raise ConfigError(
@@ -121,9 +141,11 @@ class TrainConfig:
             raise ConfigError(
                 f"unknown similarity {self.similarity!r}; choose one of {', '.join(SIMILARITIES)}"
             )
+        lo, hi = box_range()
         for name in ("aggregate", "box"):
-            if getattr(self, name) < 1 or getattr(self, name) % 2 == 0:
-                raise ConfigError(f"{name} must be odd and >= 1, got {getattr(self, name)}")
+            if not lo <= getattr(self, name) <= hi or getattr(self, name) % 2 == 0:
+                raise ConfigError(f"{name} must be odd and in {lo}..{hi} (sva.box_size's range), "
+                                  f"got {getattr(self, name)}")
         for name in ("epochs", "steps_per_epoch", "batch", "strips", "strip_width"):
             if getattr(self, name) < 1:
                 raise ConfigError(f"{name} must be at least 1, got {getattr(self, name)}")
@@ -142,8 +164,9 @@ class TrainConfig:
                                self.shot_noise, self.blur_max, self.vshift_max) < 0:
             raise ConfigError("lr must be positive; margin, gain, offset, noise_max, gamma, "
                               "shot_noise, blur_max and vshift_max non-negative")
-        if self.disparities < 2:
-            raise ConfigError(f"disparities must be at least 2, got {self.disparities}")
+        if not 2 <= self.disparities <= max_disparities():
+            raise ConfigError(f"disparities must be in 2..{max_disparities()} (the chip's widest "
+                              f"range, sva.disparities), got {self.disparities}")
         if not (self.temperature > 0 and 0 < self.scale_start <= self.scale_end):
             raise ConfigError(
                 "temperature must be positive and 0 < scale_start <= scale_end, got "
@@ -151,3 +174,11 @@ class TrainConfig:
             )
         if not 0 <= self.sign_fraction <= 1 or min(self.balance, self.decorrelate) < 0:
             raise ConfigError("sign_fraction must be in [0, 1]; balance, decorrelate >= 0")
+
+
+def _as_float(value) -> float:
+    """``value`` as a float; an integer too large for one is infinite."""
+    try:
+        return float(value)
+    except OverflowError:
+        return math.inf

@@ -24,15 +24,15 @@ is imported only inside the functions that need it.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import io
 import math
 import os
 import pickle
+import warnings
 import zipfile
 from pathlib import Path
 
-from stereosim.sim.config import SvaConfig
+from stereosim.nna.trainconfig import box_range
 from stereosim.sim.errors import ConfigError, InputError
 from stereosim.sim.outputs import atomic_write_bytes, path_text
 
@@ -60,24 +60,30 @@ def pick_threads(requested: int, cpus: int | None = None) -> int:
 
 
 def parse_threads(text: str) -> int:
-    """argparse type of ``--threads``: ``auto`` (0) or a whole number >= 1."""
+    """argparse type of ``--threads``: ``auto`` (0) or a whole number from 1 to the CPUs this
+    process may run on (:func:`cpu_count`; more threads than CPUs only wait for each other)."""
     if text.strip().lower() == "auto":
         return 0
     if not text.strip().isdigit() or int(text) < 1:
         raise argparse.ArgumentTypeError(f"{text!r} must be 'auto' or a whole number >= 1")
+    cpus = cpu_count()
+    if int(text) > cpus:
+        raise argparse.ArgumentTypeError(f"{text!r} is more threads than the {cpus} CPU"
+                                         f"{'' if cpus == 1 else 's'} this process may run on: "
+                                         f"give 1..{cpus} or auto")
     return int(text)
 
 
 def box_width(text: str) -> int:
     """argparse type of ``train --box`` and ``--aggregate``: the window stands in the loss for
-    the chip's box filter, so it may be as wide as ``sva.box_size`` allows (odd is checked
-    with the other settings, by TrainConfig)."""
-    rule = next(f.metadata for f in dataclasses.fields(SvaConfig) if f.name == "box_size")
+    the chip's box filter, so it may be as wide as ``sva.box_size`` allows
+    (:func:`nna.trainconfig.box_range`; odd is checked with the other settings, by
+    TrainConfig)."""
+    lo, hi = box_range()
     value = int(text) if text.strip().isdigit() else 0
-    if not rule["lo"] <= value <= rule["hi"]:
+    if not lo <= value <= hi:
         raise argparse.ArgumentTypeError(f"{text!r} is not a window the chip's box filter has: "
-                                         f"give an odd K in {rule['lo']}..{rule['hi']} "
-                                         "(sva.box_size's range)")
+                                         f"give an odd K in {lo}..{hi} (sva.box_size's range)")
     return value
 
 
@@ -238,7 +244,11 @@ def load_checkpoint(path, config: dict, scenes) -> dict:
 
     name = path_text(Path(path))
     try:
-        data = torch.load(path, map_location="cpu", weights_only=True)
+        # torch warns on stderr about what it reads (a pickle protocol other than its own, a
+        # TorchScript archive): the contents are checked below, and a refusal is one line
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            data = torch.load(path, map_location="cpu", weights_only=True)
     except OSError as err:
         raise InputError(f"cannot read checkpoint {name}: {err.strerror or err}") from None
     except (RuntimeError, pickle.UnpicklingError, zipfile.BadZipFile, EOFError, ValueError,

@@ -42,6 +42,15 @@ def nonnegative_int(text: str) -> int:
     return value
 
 
+def nonempty_path(text: str) -> str:
+    """argparse type of a file or folder option: the path as given, ``''`` refused (an unset
+    shell variable, say) -- taken as unset it would fall back to a default, taken as a path it
+    would name the working directory."""
+    if text == "":
+        raise argparse.ArgumentTypeError("'' is empty: give a path")
+    return text
+
+
 def check_single_output(out: Path, label: str, inputs=()) -> None:
     """Before a long job: its one output can be written (its folder must exist), no input."""
     check_outputs([(out, label)], inputs)

@@ -8,6 +8,7 @@ starts and written atomically at the end).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 import time
 from pathlib import Path
@@ -33,9 +34,15 @@ from stereosim.nna.trainrun import (
 )
 from stereosim.quant.artifact import save_quantized
 from stereosim.quant.quantizer import FloatModel, QuantizerConfig, quantize, quantize_twin
-from stereosim.sim.argtypes import check_single_output, finite_float, nonnegative_int, positive_int
+from stereosim.sim.argtypes import (
+    check_single_output,
+    finite_float,
+    nonempty_path,
+    nonnegative_int,
+    positive_int,
+)
 from stereosim.sim.datasets import scene_files, shared_data_dir
-from stereosim.sim.errors import InputError, UserError
+from stereosim.sim.errors import ConfigError, InputError, UserError
 from stereosim.sim.outputs import check_outputs
 
 
@@ -93,8 +100,7 @@ def cmd_train(args) -> int:
     _import_torch()
     t0 = time.perf_counter()
     result = train(cfg, dirs, progress=not args.quiet, checkpoint=ckpt,
-                   checkpoint_every=args.checkpoint_every, resume=args.resume,
-                   log=lambda line: print(line, file=sys.stderr))
+                   checkpoint_every=args.checkpoint_every, resume=args.resume, log=_note(args))
     save_float_model(out, result)
     if ckpt is not None:
         ckpt.unlink(missing_ok=True)  # the model is written: the checkpoint is spent
@@ -104,6 +110,14 @@ def cmd_train(args) -> int:
         f"wrote {out}"
     )
     return 0
+
+
+def _note(args):
+    """Where the notes of a run go (its thread count, the quantiser's agreement): stderr, or
+    nowhere with ``--quiet``."""
+    if args.quiet:
+        return None
+    return lambda line: print(line, file=sys.stderr)
 
 
 def _training_dirs(args) -> tuple:
@@ -128,9 +142,9 @@ def _cmd_qat(args) -> int:
     model, variant, training = load_float_model(args.qat)
     if args.variant is not None and args.variant != variant:
         raise InputError(f"--variant {args.variant} but {args.qat} is a {variant} model")
-    if args.objective not in (None, "curve") or training["config"].get("objective") != "curve":
+    base = _base_settings(training, args.qat)
+    if args.objective not in (None, "curve") or base.get("objective") != "curve":
         raise InputError("--qat fine-tunes with the curve objective only")
-    base = training["config"]
     kept = {k: base[k] for k in QAT_KEPT if k in base}
     given = {"epochs": args.epochs, "steps_per_epoch": args.steps, "strips": args.strips,
              "lr": args.lr, "noise_max": args.noise_max, "blur_max": args.blur_max,
@@ -162,11 +176,12 @@ def _cmd_qat(args) -> int:
     # QAT trains the float model whose twin qm is (the equalised one by default)
     model, qm = quantize_twin(model, images, qcfg, variant=variant, calibration=calibration,
                               progress=not args.quiet)
-    print(f"quantiser: {100 * qm.sign_agreement:.3f}% of the calibration bits agree with "
-          f"{Path(args.qat).name}'s float signs", file=sys.stderr)
+    note = _note(args)
+    if note is not None:
+        note(f"quantiser: {100 * qm.sign_agreement:.3f}% of the calibration bits agree with "
+             f"{Path(args.qat).name}'s float signs")
     result = train(cfg, dirs, progress=not args.quiet, checkpoint=ckpt,
-                   checkpoint_every=args.checkpoint_every, resume=args.resume,
-                   log=lambda line: print(line, file=sys.stderr),
+                   checkpoint_every=args.checkpoint_every, resume=args.resume, log=note,
                    make_net=lambda: build_qat_net(model, qm))
     latent = FloatModel(weights=tuple(np.float64(w) for w in result["weights"]),
                         biases=tuple(np.float64(b) for b in result["biases"]),
@@ -181,6 +196,27 @@ def _cmd_qat(args) -> int:
           f"s: {100 * qat.sign_agreement:.3f}% of the calibration bits agree with its float "
           f"signs (quantiser alone: {100 * qm.sign_agreement:.3f}%); wrote {out}")
     return 0
+
+
+def _base_settings(training, source) -> dict:
+    """The settings of the run that trained the ``--qat`` base model (its training record's
+    ``config``), checked before any is used: a record of another shape, without the last tanh
+    scale, or with a setting TrainConfig refuses (the rules every run's settings pass: ``box``
+    in sva.box_size's range, ``disparities`` at most the chip's, whole numbers where whole
+    numbers belong, ...) is one line naming the file."""
+    where = f"float model {str(source)!r}: its training record"
+    base = training.get("config") if isinstance(training, dict) else None
+    if not isinstance(base, dict):
+        raise ConfigError(f"{where} has no settings (a 'config' object): write the model with "
+                          "'stereosim train'")
+    if "scale_end" not in base:
+        raise ConfigError(f"{where} lacks scale_end (the tanh scale QAT continues from)")
+    settings = {f.name for f in dataclasses.fields(TrainConfig)}
+    try:
+        TrainConfig(**{k: v for k, v in base.items() if k in settings})
+    except ConfigError as err:
+        raise ConfigError(f"{where}: {err}") from None
+    return base
 
 
 def _equalize_text(n_layers: int, equalize: bool) -> str:
@@ -230,7 +266,7 @@ def _add_train_parser(sub) -> None:
     """``stereosim train``: the learned descriptor (needs torch)."""
     t = sub.add_parser("train", help="train a siamese descriptor network (needs torch)")
     t.add_argument("--variant", choices=tuple(VARIANTS), help="default single9x9")
-    t.add_argument("--data", metavar="DIR", help="shared data folder holding "
+    t.add_argument("--data", type=nonempty_path, metavar="DIR", help="shared data folder holding "
                    "middlebury2005_third/ and middlebury2006_third/ (default: ../shared/data)")
     t.add_argument("--objective", choices=("curve", "triplet"), help="curve (default): "
                    "softmax over the box-filtered cost of every candidate disparity of strips of "
@@ -273,25 +309,31 @@ def _add_train_parser(sub) -> None:
                    help="write OUT.ckpt.pt every N steps (default 200; 0 = never)")
     t.add_argument("--resume", action="store_true", help="continue from OUT.ckpt.pt, the "
                    "checkpoint of an interrupted run with the same options")
-    t.add_argument("--out", metavar="FILE", help="float model .npz (default: VARIANT.npz); "
-                   "with --qat the int8 artifact")
-    t.add_argument("--qat", metavar="BASE", help="quantisation-aware fine-tuning of the float "
-                   "model BASE (written by train): quantise it, train through the chip's "
-                   f"integer arithmetic ({QAT_EPOCHS} epochs at lr {QAT_LR} unless given; its "
-                   "augmentation unless given), write the int8 artifact to --out")
-    t.add_argument("--float-out", metavar="FILE", help="with --qat: also write the fine-tuned "
-                   "float weights (the float model the int8 bits are compared with)")
-    t.add_argument("--quiet", action="store_true", help="no progress bar")
+    t.add_argument("--out", type=nonempty_path, metavar="FILE", help="float model .npz "
+                   "(default: VARIANT.npz); with --qat the int8 artifact")
+    t.add_argument("--qat", type=nonempty_path, metavar="BASE", help="quantisation-aware "
+                   "fine-tuning of the float model BASE (written by train): quantise it, "
+                   f"train through the chip's integer arithmetic ({QAT_EPOCHS} epochs at lr "
+                   f"{QAT_LR} unless given; its augmentation unless given), write the int8 "
+                   "artifact to --out")
+    t.add_argument("--float-out", type=nonempty_path, metavar="FILE", help="with --qat: "
+                   "also write the fine-tuned float weights (the float model the int8 bits "
+                   "are compared with)")
+    t.add_argument("--quiet", action="store_true", help="no progress bar and no notes on "
+                   "stderr (the thread count, the quantiser's agreement)")
     t.set_defaults(func=cmd_train)
 
 
 def _add_quantize_parser(sub) -> None:
     """``stereosim quantize``: a trained model to the NNA's int8 weights."""
     q = sub.add_parser("quantize", help="int8-quantise a trained model for the NNA")
-    q.add_argument("model", help="float model .npz written by 'stereosim train'")
-    q.add_argument("--calib", required=True, metavar="DIR", help="calibration scenes: the "
-                   "shared data folder (its training scenes), a collection or one scene")
-    q.add_argument("--out", required=True, metavar="WEIGHTS", help="quantized artifact .npz")
+    q.add_argument("model", type=nonempty_path,
+                   help="float model .npz written by 'stereosim train'")
+    q.add_argument("--calib", type=nonempty_path, required=True, metavar="DIR",
+                   help="calibration scenes: the shared data folder (its training scenes), "
+                   "a collection or one scene")
+    q.add_argument("--out", type=nonempty_path, required=True, metavar="WEIGHTS",
+                   help="quantized artifact .npz")
     q.add_argument("--calib-scenes", type=positive_int, default=8, metavar="N",
                    help="use the views of at most N scenes, spread evenly (default 8)")
     q.add_argument("--distance", default="hamming", choices=("hamming", "rms", "l1", "kl",

@@ -1,0 +1,163 @@
+"""Hostile inputs of ``stereosim train`` and ``stereosim quantize`` (issue 46, item 9): each is
+one line on stderr and exit status 2, before any training starts, with nothing written and an
+existing output left as it was."""
+
+import json
+import pickle
+import subprocess
+import sys
+from dataclasses import asdict
+
+import numpy as np
+import pytest
+
+from stereosim.nna.floatmodel import save_float_model
+from stereosim.nna.trainconfig import TrainConfig, box_range, max_disparities
+from stereosim.nna.trainrun import checkpoint_path, cpu_count, parse_threads
+from stereosim.sim.cli import main
+from stereosim.sim.errors import ConfigError
+
+OLD = b"an earlier output"
+
+
+def _one_line(code: int, err: str) -> str:
+    assert code == 2, err
+    assert err.startswith("stereosim: error: ") and err.count("\n") == 1, err
+    assert "Traceback" not in err
+    return err
+
+
+@pytest.fixture(scope="module")
+def data_root(tmp_path_factory, scene_writer):
+    root = tmp_path_factory.mktemp("data")
+    for year, name, seed in (("2005", "Books", 2), ("2006", "Aloe", 3)):
+        scene_writer(root / f"middlebury{year}_third" / name, seed, 5)
+    return root
+
+
+def _base_model(path, record) -> str:
+    """A float model file (single9x9) whose training record is ``record`` (any JSON value)."""
+    rng = np.random.default_rng(0)
+    save_float_model(path, {
+        "weights": [rng.normal(size=(32, 1, 9, 9)).astype(np.float32)],
+        "biases": [np.zeros(32, np.float32)],
+        "config": asdict(TrainConfig()), "scenes": [], "loss_per_epoch": [], "samples": 0,
+    })  # fmt: skip
+    with np.load(path) as archive:
+        arrays = {k: archive[k] for k in archive.files}
+    arrays["training"] = np.array(json.dumps(record))
+    np.savez(path, **arrays)
+    return str(path)
+
+
+def _config(**changes):
+    return {"config": {**asdict(TrainConfig()), **changes}, "scenes": [], "samples": 0,
+            "loss_per_epoch": []}
+
+
+def _without_scale_end():
+    record = _config()
+    del record["config"]["scale_end"]
+    return record
+
+
+RECORDS = [
+    (_config(box=999), "box must be odd and in 1..15 (sva.box_size's range), got 999"),
+    (_config(disparities=10**7), "disparities must be in 2..256"),
+    (_config(box=5.5), "box must be a whole number, got 5.5"),
+    (_config(disparities="96"), "disparities must be a number, got '96'"),
+    (_config(gain=10**400), "gain must be a finite number"),
+    ({"scenes": []}, "has no settings (a 'config' object)"),
+    ([1, 2], "has no settings"),
+    (None, "has no settings"),
+    ("config", "has no settings"),
+    ({"config": [1, 2]}, "has no settings"),
+    (_without_scale_end(), "lacks scale_end"),
+    (_config(scale_end="big"), "scale_end must be a number, got 'big'"),
+]
+
+
+@pytest.mark.parametrize("record, message", RECORDS,
+                         ids=["box", "disparities", "box-float", "disparities-text", "gain-huge",
+                              "no-config", "list", "null", "string", "config-list",
+                              "no-scale-end", "scale-end-text"])
+def test_a_qat_base_records_settings_are_checked_as_the_clis(record, message, tmp_path, capsys):
+    """`"box": 999` ran to the end at 15.2 GB, `"disparities": 10**7` passed 6.8 GB; a record
+    of another shape was a traceback. The record is refused before the data are looked at (the
+    data folder here does not exist)."""
+    base = _base_model(tmp_path / "base.npz", record)
+    out = tmp_path / "q.int8.npz"
+    out.write_bytes(OLD)
+    code = main(["train", "--qat", base, "--data", str(tmp_path / "nowhere"), "--out", str(out),
+                 "--quiet"])
+    err = _one_line(code, capsys.readouterr().err)
+    assert f"float model {base!r}: its training record" in err and message in err
+    assert out.read_bytes() == OLD
+
+
+def test_train_config_bounds_the_windows_and_disparities_by_the_chips():
+    lo, hi = box_range()
+    assert TrainConfig(box=hi, aggregate=hi, disparities=max_disparities()).box == hi
+    for bad in ({"box": hi + 2}, {"aggregate": hi + 2}, {"disparities": max_disparities() + 1},
+                {"strips": 2.0}, {"lr": 10**400}):
+        with pytest.raises(ConfigError):
+            TrainConfig(**bad)
+
+
+EMPTY = [
+    (["train", "--out", ""], "--out"),
+    (["train", "--data", ""], "--data"),
+    (["train", "--qat", "", "--out", "q.npz"], "--qat"),
+    (["train", "--qat", "base.npz", "--out", "q.npz", "--float-out", ""], "--float-out"),
+    (["quantize", "", "--calib", ".", "--out", "q.npz"], "model"),
+    (["quantize", "base.npz", "--calib", "", "--out", "q.npz"], "--calib"),
+    (["quantize", "base.npz", "--calib", ".", "--out", ""], "--out"),
+]
+
+
+@pytest.mark.parametrize("argv, option", EMPTY)
+def test_an_empty_file_option_is_refused(argv, option, tmp_path, monkeypatch, capsys):
+    """`train --out ''` wrote ./single9x9.npz, `--data ''` read the default folder, and
+    `--float-out ''` wrote no float model, with no word. (A later bad option, --epochs 0 or
+    --samples 0, stops the command if '' were taken.)"""
+    monkeypatch.chdir(tmp_path)
+    later = ["--epochs", "0"] if argv[0] == "train" else ["--samples", "0"]
+    err = _one_line(main([*argv, *later]), capsys.readouterr().err)
+    assert f"argument {option}: '' is empty: give a path" in err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_threads_are_at_most_the_cpus(tmp_path, capsys):
+    """`--threads 999` was taken."""
+    assert parse_threads(str(cpu_count())) == cpu_count() and parse_threads("auto") == 0
+    out = tmp_path / "m.npz"
+    code = main(["train", "--threads", str(cpu_count() + 1), "--out", str(out), "--epochs", "0"])
+    err = _one_line(code, capsys.readouterr().err)
+    assert f"is more threads than the {cpu_count()} CPU" in err and "or auto" in err
+    assert not out.exists()
+
+
+def test_quiet_training_prints_nothing_on_stderr(data_root, tmp_path, capsys):
+    """`train --quiet` printed its thread note."""
+    out = tmp_path / "m.npz"
+    argv = ["train", "--data", str(data_root), "--epochs", "1", "--steps", "1", "--strips", "2",
+            "--threads", "1", "--checkpoint-every", "0", "--out", str(out)]
+    assert main([*argv, "--quiet"]) == 0
+    assert capsys.readouterr().err == ""
+    assert out.is_file()
+
+
+def test_a_checkpoint_of_another_pickle_protocol_is_one_line_without_torchs_warning(
+        data_root, tmp_path):
+    """torch's weights-only reader warned "Detected pickle protocol 4 in the checkpoint" on
+    stderr before the one error line (a warning shows only outside pytest: a process)."""
+    out = tmp_path / "m.npz"
+    checkpoint_path(out).write_bytes(pickle.dumps({"format": "x"}, protocol=4))
+    run = subprocess.run(
+        [sys.executable, "-m", "stereosim.sim.cli", "train", "--data", str(data_root), "--epochs",
+         "1", "--steps", "1", "--strips", "2", "--threads", "1", "--quiet", "--out", str(out),
+         "--resume"],
+        capture_output=True, text=True, timeout=300)
+    err = _one_line(run.returncode, run.stderr)
+    assert "is not a readable training checkpoint" in err
+    assert not out.exists()
