@@ -11,35 +11,36 @@ matter.
   aborts on a malformed vector with a Rust panic; the project's reader refuses each of those
   with one line.
 * **FST** goes through pywellen (Surfer's reader; libfst's own reader exits the process on a
-  corrupt block). Its first and last instants are the header's start and end times -- the last
-  instant of a stereosim dump carries no value change (it marks the window's end), so the
-  instants that hold changes would lose it. Values are integers, or None for unknown bits
-  (``x``, ``z``, ...) and real values, as the VCD reader gives them. A corrupt FST makes pywellen
-  raise, or panic; both become an :class:`sim.errors.InputError` with one line, and what the
-  panic prints on the process's stderr is swallowed (:func:`_stderr_swallowed`).
+  corrupt block), after :func:`traces.fstcheck.checked_fst` has checked its blocks' types and
+  declared lengths (the reader allocates what a block declares, and aborts the process when
+  it cannot) and inflated a wrapped file in bounded chunks: a file that fails is refused with
+  one line before pywellen sees it. Its first and last instants are the header's start and
+  end times -- the last instant of a stereosim dump carries no value change (it marks the
+  window's end), so the instants that hold changes would lose it. Values are integers, or
+  None for unknown bits (``x``, ``z``, ...) and real values, as the VCD reader gives them. A
+  corrupt FST makes pywellen raise, or panic; both become an :class:`sim.errors.InputError`
+  with one line, and what the panic prints on the process's stderr is swallowed
+  (:func:`_stderr_swallowed`).
 """
 
 from __future__ import annotations
 
 import contextlib
-import gzip
 import os
 import struct
 import sys
 import tempfile
-import zlib
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
 from stereosim.sim.errors import InputError, UserError
+from stereosim.traces.fstcheck import checked_fst
 from stereosim.traces.vcdread import MAX_TIME, VcdData, VcdVar, read_vcd
 
 #: FST block types a file may start with (libfst's FST_BL_HDR and FST_BL_ZWRAPPER).
 FST_HEADER_BLOCK, FST_WRAPPER_BLOCK = 0, 254
 #: The header block: type (1 byte), section length, start time, end time (big-endian uint64).
 _HEADER = struct.Struct(">BQQQ")
-#: A wrapper block: type, section length, uncompressed length, then a gzip stream of the file.
-_WRAPPER_PREFIX = 17
 
 
 def read_dump(path: str | os.PathLike, select: Callable | None = None) -> VcdData:
@@ -90,16 +91,14 @@ def _is_reader_failure(exc: BaseException) -> bool:
             or type(exc).__name__ == "PanicException")
 
 
-def _time_range(p: Path) -> tuple[int, int]:
-    """The start and end times of the FST's header block (inside the wrapper's gzip stream for
-    a wrapped file); InputError if the header is not there."""
+def _time_range(p: Path, unwrapped: Path) -> tuple[int, int]:
+    """The start and end times of the FST's header block (``unwrapped``: the file, or what its
+    wrapper held, already checked by :func:`traces.fstcheck.checked_fst`); InputError if the
+    header is not there."""
     try:
-        with open(p, "rb") as f:
+        with open(unwrapped, "rb") as f:
             head = f.read(_HEADER.size)
-            if head[:1] == bytes([FST_WRAPPER_BLOCK]):
-                f.seek(_WRAPPER_PREFIX)
-                head = gzip.GzipFile(fileobj=f).read(_HEADER.size)
-    except (OSError, EOFError, zlib.error) as exc:
+    except OSError as exc:
         raise InputError(f"FST file {p} is corrupt ({exc}): replace it") from None
     if len(head) < _HEADER.size or head[0] != FST_HEADER_BLOCK:
         raise InputError(f"FST file {p} has no header block: it is truncated, replace it")
@@ -127,13 +126,19 @@ def read_fst(path: str | os.PathLike, select: Callable | None = None) -> VcdData
     """Parse the FST at ``path`` (see the module docstring); ``select`` as in
     :func:`traces.vcdread.read_vcd`. Variable codes are the signal ids pywellen gives, so
     two names of one signal share their changes, as two VCD variables of one code do."""
+    p = Path(path)
+    with checked_fst(p) as unwrapped:
+        return _read_checked_fst(p, unwrapped, select)
+
+
+def _read_checked_fst(p: Path, unwrapped: Path, select: Callable | None) -> VcdData:
+    """:func:`read_fst` of the file ``p``, its layout checked and unwrapped at ``unwrapped``."""
     import pywellen
 
-    p = Path(path)
-    first, last = _time_range(p)
+    first, last = _time_range(p, unwrapped)
     try:
         with _stderr_swallowed():
-            wave = pywellen.Waveform(str(p), multi_threaded=False)
+            wave = pywellen.Waveform(str(unwrapped), multi_threaded=False)
             unit_fs = _unit_fs(wave, p)
             handles = list(wave.all_vars())
             variables = [
