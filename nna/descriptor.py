@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
-from functools import lru_cache
+import os
+import threading
+import time
+from collections import OrderedDict
 from pathlib import Path
 
 import numpy as np
@@ -31,14 +34,55 @@ def weights_file(weights: str) -> str:
     return weights
 
 
-@lru_cache(maxsize=8)
+# (absolute path, device, inode, size, mtime in ns) -> the network read from that file as it
+# was; the few most recent, newest last
+_NETWORKS: OrderedDict[tuple, IntNetwork] = OrderedDict()
+_NETWORKS_KEPT = 8
+_NETWORKS_LOCK = threading.Lock()
+# A file modified this shortly before it was read is not kept: a rewrite within the file
+# system's timestamp tick (a few ms on Linux, up to 2 s on FAT) could keep its size and mtime,
+# so its identity alone would not tell the two contents apart (git's "racily clean" entries)
+_SETTLED_NS = 2_000_000_000
+
+
+def file_identity(path: str) -> tuple | None:
+    """What identifies the content of the file at ``path`` now: its absolute path (a relative
+    path resolved against the working directory of this call), device, inode, size and
+    modification time in ns; None if it cannot be stat'ed."""
+    full = os.path.abspath(path)
+    try:
+        st = os.stat(full)
+    except (OSError, ValueError):
+        return None
+    return (full, st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns)
+
+
 def _network(weights: str) -> IntNetwork:
-    return load_network(weights_file(weights))
+    """The network of ``nna.cnn.weights``, read once per file content (:func:`file_identity`):
+    a file rewritten, replaced or deleted since, or a relative path from another working
+    directory, is read (and checked) again; so is a file modified less than 2 s before it was
+    read."""
+    path = weights_file(weights)
+    key = file_identity(path)
+    with _NETWORKS_LOCK:
+        net = _NETWORKS.get(key) if key is not None else None
+        if net is not None:
+            _NETWORKS.move_to_end(key)
+            return net
+    net = load_network(path)  # a missing or bad file raises its one line here
+    settled = key is not None and time.time_ns() - key[-1] > _SETTLED_NS
+    if settled and file_identity(path) == key:  # and unchanged while it was read
+        with _NETWORKS_LOCK:
+            _NETWORKS[key] = net
+            while len(_NETWORKS) > _NETWORKS_KEPT:
+                _NETWORKS.popitem(last=False)
+    return net
 
 
 def network(cfg: NnaConfig) -> IntNetwork:
     """The integer network of the CNN descriptor the config names (``nna.cnn.weights``: a
-    weight file of one layer or a quantized artifact of 1..4 layers).
+    weight file of one layer or a quantized artifact of 1..4 layers), as the file holds it now
+    (a relative path from the working directory of this call; :func:`_network`).
 
     Its last layer must have ``nna.cnn.channels`` output channels -- the SVA's register widths
     were worked out for that many bits -- else :class:`ConfigError` says which value to set."""

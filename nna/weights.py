@@ -23,7 +23,7 @@ import os
 
 import numpy as np
 
-from stereosim.nna.conv import check_layer
+from stereosim.nna.conv import MAX_KERNEL_SIZE, check_layer
 from stereosim.quant.artifact import load_quantized, to_nna_weights
 from stereosim.quant.intconv import IntNetwork, network
 from stereosim.sim.errors import ConfigError
@@ -63,7 +63,9 @@ def load_layer(path) -> tuple[np.ndarray, np.ndarray, int]:
 
 def load_network(path) -> IntNetwork:
     """The network a weight file or a quantized artifact of 1..4 layers holds (checked in full;
-    a damaged or inconsistent file raises :class:`ConfigError` naming it)."""
+    a damaged or inconsistent file raises :class:`ConfigError` naming it). Every layer's kernel
+    fits the NNA as a one-layer file's must (:func:`nna.conv.check_layer`): odd and at most
+    :data:`~nna.conv.MAX_KERNEL_SIZE` wide."""
     name = os.fspath(path)
     fix = f"write it with nna.save_weights (keys {', '.join(KEYS)}) or stereosim quantize"
     with open_npz(name, "weight file", fix) as archive:
@@ -73,9 +75,18 @@ def load_network(path) -> IntNetwork:
         return network((weights[:, None],), (bias,), (), (), offset)
     qm = load_quantized(name)
     try:
-        return network(qm.weights, qm.biases, qm.mult, qm.shift, qm.input_offset, qm.z_bits)
+        net = network(qm.weights, qm.biases, qm.mult, qm.shift, qm.input_offset, qm.z_bits)
     except ConfigError as err:
         raise ConfigError(f"weight file {name!r}: {err}") from None
+    for layer, w in enumerate(net.weights):
+        k_size = w.shape[2]
+        if k_size > MAX_KERNEL_SIZE:  # the bound check_layer puts on a one-layer file
+            raise ConfigError(
+                f"weight file {name!r}: layer {layer}'s kernel size {k_size}x{k_size} is larger "
+                f"than the {MAX_KERNEL_SIZE}x{MAX_KERNEL_SIZE} window the largest NNA line "
+                "buffer can hold (nna.line_buffer_rows <= 64): use a smaller kernel"
+            )
+    return net
 
 
 def placeholder_weights() -> tuple[np.ndarray, np.ndarray, int]:
