@@ -42,6 +42,11 @@ RATE_KINDS = {
 # a measured rate this far (as a share of the bound) from the work bound is worth a note, in a
 # sweep's summary and in run's (sim/summary.py)
 RATE_GAP = 0.03
+# the columns that carry a sweep's target frame rate, in the order preferred: the camera's own
+# rate (an estimate sweep's; a cycle or functional sweep's estimate.* copy of it)
+TARGET_COLUMNS = ("throughput.camera_fps", "estimate.throughput.camera_fps")
+# a point meets the target when its rate is at most this share below it (rates are rounded)
+TARGET_SLACK = 1e-6
 
 
 def _number(text):
@@ -115,6 +120,15 @@ def time_scale(column: str, values) -> tuple[float, str]:
 def _plain_numbers(ax, axis: str) -> None:
     """Tick labels as plain numbers: no offset ('+1.234e6') and no scientific notation."""
     ax.ticklabel_format(axis=axis, style="plain", useOffset=False)
+
+
+def _integer_ticks(ax, axis: str, values) -> None:
+    """Ticks at whole numbers only on an axis whose values are all whole (a count such as
+    ``nna.stereo_submodules``: no tick at 36.5)."""
+    from matplotlib.ticker import MaxNLocator
+
+    if values and all(float(v).is_integer() for v in values):
+        (ax.xaxis if axis == "x" else ax.yaxis).set_major_locator(MaxNLocator(integer=True))
 
 
 def _tick_text(value, _pos=None) -> str:
@@ -241,10 +255,12 @@ def plot_xy(rows: list[dict], x: str, y: str, png: str | Path, *, hue: str | Non
         _log_axis(ax, "x", [p * x_factor for pts in data.values() for p, _ in pts])
     elif numeric_x:
         _plain_numbers(ax, "x")
+        _integer_ticks(ax, "x", [p * x_factor for pts in data.values() for p, _ in pts])
     if logy:
         _log_axis(ax, "y", [v * y_factor for pts in data.values() for _, v in pts])
     else:
         _plain_numbers(ax, "y")
+        _integer_ticks(ax, "y", [v * y_factor for pts in data.values() for _, v in pts])
     ax.set_xlabel(x_label)
     ax.set_ylabel(f"{y_label}, mean over rows" if averaged else y_label)
     if hue:
@@ -301,6 +317,7 @@ class ParetoPoint:
     error: float | None
     optimal: bool
     parts: tuple[tuple[str, str], ...] = ()  # the label's (name, value) pairs
+    meets: bool | None = None  # reaches the view's target rate (None: no target)
 
 
 @dataclass
@@ -315,17 +332,51 @@ class ParetoData:
     points: list[ParetoPoint]
     label_boxes: list[tuple[float, float, float, float]] = field(default_factory=list)
     key: list[str] = field(default_factory=list)  # "numbers: label", when numbers label it
+    target: float | None = None  # the frame rate a point must reach (None: none known)
+    target_source: str = ""  # where the target comes from (a column, or an option)
 
     @property
     def front(self) -> list[ParetoPoint]:
         return [p for p in self.points if p.optimal]
 
+    @property
+    def ringed(self) -> list[ParetoPoint]:
+        """The points the plot rings: the Pareto-optimal ones that reach the target (all of
+        them without a target)."""
+        return [p for p in self.points if p.optimal and p.meets is not False]
+
+    @property
+    def chosen(self) -> ParetoPoint | None:
+        """The point to build with a target: the least SRAM among those that reach it (then
+        the highest rate, the least error, the first); None without a target or when no point
+        reaches it."""
+        meeting = [p for p in self.points if p.meets]
+        return min(meeting, key=lambda p: (p.sram, -p.fps, p.error or 0.0), default=None)
+
+
+def target_rate(rows: list[dict]) -> tuple[float, str] | None:
+    """The frame rate a sweep's points must reach and the column it comes from: the camera's
+    own rate (the first of :data:`TARGET_COLUMNS` every successful row has, one value for all);
+    None without a camera, or when the points' cameras differ (no one line to draw)."""
+    ok = _ok_rows(rows)
+    for col in TARGET_COLUMNS:
+        values = {_number(r.get(col)) for r in ok}
+        if ok and len(values) == 1:
+            (value,) = values
+            if value is not None and math.isfinite(value) and value > 0:
+                return value, col
+    return None
+
 
 def pareto_data(rows: list[dict], *, sram: str = "sram_bits", fps: str = BOUND_RATE,
                 error: str | None = None, source: str = "the results",
-                label_keys=()) -> ParetoData:
+                label_keys=(), target_fps: float | None = None) -> ParetoData:
     """The points of a Pareto view: SRAM bits, ``fps`` and ``error`` (if given) per point,
-    averaged over its scenes; the front computed on those very values."""
+    averaged over its scenes; the front computed on those very values. The target rate:
+    ``target_fps`` if given, else the camera's rate the rows carry (:func:`target_rate`);
+    each point says whether it reaches it (within :data:`TARGET_SLACK`)."""
+    if target_fps is not None and not (math.isfinite(target_fps) and target_fps > 0):
+        raise InputError(f"a target frame rate must be a positive number, got {target_fps}")
     check_columns(rows, (sram, fps, error), source)
     acc: dict[str, list] = defaultdict(list)
     kept = []
@@ -341,10 +392,13 @@ def pareto_data(rows: list[dict], *, sram: str = "sram_bits", fps: str = BOUND_R
     pts = [tuple(sum(v[i] for v in acc[k]) / len(acc[k]) for i in range(3)) for k in keys]
     labels = point_labels(kept, label_keys)
     parts = _label_parts(kept, label_keys)
+    target = (target_fps, "given") if target_fps is not None else target_rate(kept)
+    goal = target[0] if target else None
     return ParetoData(sram, fps, error, [
-        ParetoPoint(k, labels[k], s, f, e if error else None, on, tuple(parts[k]))
+        ParetoPoint(k, labels[k], s, f, e if error else None, on, tuple(parts[k]),
+                    None if goal is None else f >= goal * (1 - TARGET_SLACK))
         for k, (s, f, e), on in zip(keys, pts, pareto_front(pts))
-    ])
+    ], target=goal, target_source=target[1] if target else "")
 
 
 def _shared_labels(points: list[ParetoPoint]) -> list[tuple[tuple[float, float], str, str]]:
@@ -445,10 +499,24 @@ def _bits_unit(data: ParetoData) -> tuple[float, str]:
                  if top >= size), (1.0, "bits"))
 
 
+def _target_words(data: ParetoData) -> str:
+    """The title's two lines on the target: where it comes from, then what is ringed and
+    boxed, or that no point reaches it and the best rate there is."""
+    where = "" if data.target_source == "given" else f" ({data.target_source})"
+    goal = f"dashed: target {data.target:,.4g} fps{where}; faded: below it"
+    if data.chosen is None:
+        best = max(p.fps for p in data.points)
+        return f"{goal}\nno point reaches it (best {best:,.4g} fps): none ringed"
+    return f"{goal}\nringed: Pareto-optimal at or above it; boxed: the least SRAM there"
+
+
 def _pareto_axes(data: ParetoData, key: list[str] | None):
     """The Pareto view without its labels; with a ``key`` (lines "numbers: label"), a wider
     figure with the key to the right of the plot. Laid out before the labels are placed (a
-    layout moves the axes)."""
+    layout moves the axes). With a target: its line, the points below it faded, the
+    Pareto-optimal points that reach it ringed and the least SRAM among them boxed; none
+    ringed when no point reaches it (the title says so). The target line, the rings and the
+    box carry the gids ``target``, ``ringed`` and ``chosen``."""
     plt, fig, ax = _figure()
     if key:
         fig.set_size_inches(FIGSIZE[0] + 3.8, max(FIGSIZE[1], 0.14 * len(key) + 1.4))
@@ -457,8 +525,19 @@ def _pareto_axes(data: ParetoData, key: list[str] | None):
     ys = [p.fps for p in data.points]
     colour = {"c": [p.error for p in data.points], "cmap": "viridis_r"} if data.error else {}
     sc = ax.scatter(xs, ys, s=40, zorder=3, **colour)
-    ax.scatter([p.sram / scale for p in data.front], [p.fps for p in data.front], s=160,
-               facecolors="none", edgecolors="red", zorder=4)
+    short = [p for p in data.points if p.meets is False]
+    if short:  # faded: they miss the target
+        ax.scatter([p.sram / scale for p in short], [p.fps for p in short], s=40, c="white",
+                   alpha=0.65, linewidths=0, zorder=3.5)
+    ax.scatter([p.sram / scale for p in data.ringed], [p.fps for p in data.ringed], s=160,
+               facecolors="none", edgecolors="red", zorder=4, gid="ringed")
+    if data.chosen is not None:
+        ax.scatter([data.chosen.sram / scale], [data.chosen.fps], s=330, marker="s",
+                   facecolors="none", edgecolors="black", linewidths=1.4, zorder=4,
+                   gid="chosen")
+    if data.target is not None:
+        ax.axhline(data.target, color="tab:red", linestyle="--", linewidth=1.1, zorder=2,
+                   gid="target")
     if data.error:
         fig.colorbar(sc, ax=ax, label=f"{data.error} (lower is better)")
     _plain_numbers(ax, "both")
@@ -466,10 +545,11 @@ def _pareto_axes(data: ParetoData, key: list[str] | None):
     ax.set_xlabel(f"{data.sram} (chip SRAM, in {unit})")
     ax.set_ylabel(_axis_label(data.fps, ys)[1])
     ax.grid(True, alpha=0.3)
+    labels = "numbers: the points (key on the right)" if key else "labels: the swept keys"
+    marks = (f"ringed: Pareto-optimal; {labels}" if data.target is None
+             else f"{_target_words(data)}\n{labels}")
     ax.set_title("Pareto view: SRAM vs fps" + (f" vs {data.error}" if data.error else "")
-                 + "\nringed: Pareto-optimal; "
-                 + ("numbers: the points (key on the right)" if key else
-                    "labels: the swept keys"), fontsize="medium")
+                 + f"\n{marks}", fontsize="medium")
     if key:
         fig.tight_layout(rect=(0, 0, 0.62, 1))
         fig.text(0.64, 0.97, "\n".join(key), va="top", ha="left", fontsize="x-small")
@@ -480,15 +560,19 @@ def _pareto_axes(data: ParetoData, key: list[str] | None):
 
 def pareto_plot(rows: list[dict], png: str | Path, *, sram: str = "sram_bits",
                 fps: str = BOUND_RATE, error: str | None = None,
-                source: str = "the results", label_keys=()) -> ParetoData:
+                source: str = "the results", label_keys=(),
+                target_fps: float | None = None) -> ParetoData:
     """SRAM bits vs ``fps`` per point (averaged over scenes), coloured by ``error`` if given;
-    the Pareto-optimal points (on the plotted values) ringed; each point labelled by its values
-    of ``label_keys`` (the sweep's axes, :func:`point_labels`) where the labels overlap neither
+    the Pareto-optimal points (on the plotted values) ringed -- with a target rate
+    (``target_fps``, else the camera's rate the rows carry: :func:`target_rate`) a dashed line
+    at it, only those that reach it ringed, the least SRAM among them boxed, and the title
+    saying so, or that no point reaches it; each point labelled by its values of
+    ``label_keys`` (the sweep's axes, :func:`point_labels`) where the labels overlap neither
     one another nor the points -- or, where they cannot, by its number, with a key beside the
     plot (``ParetoData.key``). Returns what it drew (:func:`pareto_data`, with the labels'
     boxes)."""
     data = pareto_data(rows, sram=sram, fps=fps, error=error, source=source,
-                       label_keys=label_keys)
+                       label_keys=label_keys, target_fps=target_fps)
     places = _shared_labels(data.points)
     scale = _bits_unit(data)[0]
     anchors = [(sram / scale, fps) for (sram, fps), _, _ in places]
@@ -513,22 +597,27 @@ def _totbad(cols) -> str | None:
     return next((c for c in ("metrics.nonocc.totbad", "metrics.all.totbad") if c in cols), None)
 
 
-def sweep_pareto(rows: list[dict], axes: list[str]) -> ParetoData | None:
+def sweep_pareto(rows: list[dict], axes: list[str],
+                 target_fps: float | None = None) -> ParetoData | None:
     """The Pareto view a sweep's plots show (None when its columns allow none): chip SRAM
     against the rate :func:`rate_column` picks, coloured by totbad when the scenes are scored,
-    each point labelled by the swept keys that vary."""
+    each point labelled by the swept keys that vary; the target ``target_fps``, else the
+    camera's rate the rows carry (:func:`target_rate`)."""
     ok = _ok_rows(rows)
     cols = set().union(*(r.keys() for r in ok)) if ok else set()
     varying = [a for a in axes if _varies(ok, a)]
     fps = rate_column(ok)
     if "sram_bits" not in cols or not fps or not varying:
         return None
-    return pareto_data(ok, fps=fps, error=_totbad(cols), label_keys=varying)
+    return pareto_data(ok, fps=fps, error=_totbad(cols), label_keys=varying,
+                       target_fps=target_fps)
 
 
-def sweep_plots(rows: list[dict], axes: list[str], out_dir: str | Path) -> list[Path]:
+def sweep_plots(rows: list[dict], axes: list[str], out_dir: str | Path,
+                target_fps: float | None = None) -> list[Path]:
     """The built-in plots the sweep's columns allow; returns the files written. Frame rates
-    are the measured ones where the runs measured them (:func:`rate_column`)."""
+    are the measured ones where the runs measured them (:func:`rate_column`); the Pareto
+    view's target is ``target_fps``, else the camera's rate the rows carry."""
     out = Path(out_dir)
     ok = _ok_rows(rows)
     if not ok:
@@ -567,9 +656,10 @@ def sweep_plots(rows: list[dict], axes: list[str], out_dir: str | Path) -> list[
         hued, hue = other(x)
         plot_xy(hued, x, totbad, p, hue=hue, title=f"accuracy: {totbad} vs {x}")
         written.append(p)
-    view = sweep_pareto(ok, axes)
+    view = sweep_pareto(ok, axes, target_fps)
     if view is not None:
         p = out / ("pareto_sram_fps_totbad.png" if view.error else "pareto_sram_fps.png")
-        pareto_plot(ok, p, fps=view.fps, error=view.error, label_keys=varying)
+        pareto_plot(ok, p, fps=view.fps, error=view.error, label_keys=varying,
+                    target_fps=target_fps)
         written.append(p)
     return written
