@@ -5,9 +5,13 @@ column; rows with the same hue and x (several scenes, say) are averaged and the 
 Axes print plain numbers (no offset, no scientific notation) and may be logarithmic; a column
 of nanoseconds or femtoseconds is drawn in us, ms or s, whichever reads best, and the label
 says which; a frame-rate column says which rate it is (:data:`RATE_KINDS`: measured, or a work
-bound). :func:`pareto_plot` shows SRAM bits against fps, coloured by accuracy, with the
-Pareto-optimal points ringed and every point labelled by its configuration (the swept keys),
-the labels placed where they overlap neither one another nor the points. :func:`sweep_plots`
+bound); an axis whose values are all whole numbers (a count such as
+``nna.stereo_submodules``) is ticked at whole numbers only. :func:`pareto_plot` shows SRAM
+bits against fps, coloured by accuracy, with the Pareto-optimal points ringed and every point
+labelled by its configuration (the swept keys), the labels placed where they overlap neither
+one another nor the points; with a target rate (the camera's, :func:`target_rate`, or one
+given) it draws the target as a dashed line, rings only the optimal points that reach it and
+boxes the least SRAM among them, or says that none does. :func:`sweep_plots`
 makes the built-in plots a sweep's columns allow; they use the rate the runs measured wherever
 they measured one (:func:`rate_column`: a cycle sweep's ``throughput.fps_measured``), since the
 work bound can be far from it (column tiles behind shallow merge FIFOs), and
