@@ -436,7 +436,8 @@ def _draw(plan: ChipPlan):
         if e.vertical:
             start, end = (a.x, a.y - BOX_H / 2 - 0.05), (b.x, b.y + BOX_H / 2 + 0.05)
         else:
-            start, end = (a.x + BOX_W / 2 + 0.05, a.y), (b.x - BOX_W / 2 - 0.05, b.y)
+            shadow = 2 * STACK if a.count > 1 else 0.0  # leave from the stack's last box
+            start, end = (a.x + BOX_W / 2 + shadow + 0.05, a.y), (b.x - BOX_W / 2 - 0.05, b.y)
         style = "<|-|>" if e.both_ways else "-|>"
         ax.annotate("", xy=end, xytext=start,
                     arrowprops=dict(arrowstyle=style, lw=1.2,
