@@ -78,15 +78,22 @@ def window_fs(spec: str | None, plan: ChipPlan, row_times=None) -> tuple[int, in
             raise ConfigError(f"--trace-window {spec!r}: the image has rows 0 to {h - 1}")
         first, last = int(row_times[0, a]), int(row_times[1, b])
         return (first if first >= 0 else end_of_run), (last + 1 if last >= 0 else end_of_run)
-    if win.is_time:
-        return a, end_of_run if win.end is None else win.end
-    if win.kind not in plan.domains:
+    end = win.end
+    if not win.is_time:
+        if win.kind not in plan.domains:
+            raise ConfigError(
+                f"--trace-window {spec!r}: this configuration has no {win.kind} clock "
+                f"(domains: {', '.join(plan.domains)})"
+            )
+        per = plan.domains[win.kind].period_fs
+        a, end = a * per, None if end is None else end * per
+    if a >= end_of_run:
         raise ConfigError(
-            f"--trace-window {spec!r}: this configuration has no {win.kind} clock "
-            f"(domains: {', '.join(plan.domains)})"
+            f"--trace-window {spec!r} starts at {a} fs, after any run has ended (2**62 fs): "
+            "choose an earlier window"
         )
-    per = plan.domains[win.kind].period_fs
-    return a * per, end_of_run if win.end is None else win.end * per
+    # an end past every run is the end of the run (the engine counts time in int64)
+    return a, end_of_run if end is None else min(end, end_of_run)
 
 
 def trace_section(log, outputs_in_window: int) -> dict:

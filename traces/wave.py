@@ -47,7 +47,7 @@ import numpy as np
 from stereosim.sim.errors import ConfigError
 from stereosim.traces.gtkw import STATUS_COLOURS, STATUS_NAMES, STATUS_SUFFIX, datafmt_of
 from stereosim.traces.log import CLOCK_SCOPE, match_paths
-from stereosim.traces.vcdread import VcdData, VcdVar
+from stereosim.traces.vcdread import MAX_TIME, VcdData, VcdVar
 from stereosim.traces.window import DOMAINS, ROWS, UNITS, Window, parse_window
 
 MAX_ROWS = 64
@@ -142,6 +142,11 @@ def window_units(spec: str | None, data: VcdData, option: str = "--window") -> t
         b = None if b is None else clk.phase + b * clk.period
     a = data.first_time if a is None else a
     b = data.last_time if b is None else b
+    if b > MAX_TIME:  # (a cycle window's end past the last instant a dump can hold)
+        raise ConfigError(
+            f"{option} {spec!r} ends at {b} time units, after the last instant a dump can "
+            f"hold (2**63 - 1); the dump runs from {data.first_time} to {data.last_time}"
+        )
     if not a < b:
         raise ConfigError(f"{option} {spec!r} is empty: its start must be before its end")
     if b < data.first_time or a > data.last_time:

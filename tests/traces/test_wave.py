@@ -2,6 +2,7 @@
 the run-to-wave round trip: test_wave_fst.py)."""
 
 import os
+import re
 import sys
 
 import numpy as np
@@ -372,3 +373,17 @@ def test_wave_checks_the_png_path_before_reading(tmp_path, capsys):
     assert _main(["wave", str(tmp_path / "missing.vcd"), "--png", str(tmp_path)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "is a folder" in err
+
+
+def test_wave_refuses_huge_windows_in_one_line(dumped, tmp_path, capsys):
+    """A 5,000-digit bound, 34 digits of cycles, and cycles whose instant passes 2**63 - 1."""
+    _, path = dumped
+    for window, message in [("0:" + "9" * 5000 + "us", "more than a window can span"),
+                            ("sva:0:" + "9" * 34, r"above 2\*\*63 - 1"),
+                            (f"sva:0:{2**62}", "after the last instant a dump can hold")]:
+        png = tmp_path / "w.png"
+        assert _main(["wave", str(path), "--window", window, "--png", str(png)]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "Traceback" not in err and len(err) < 400, err
+        assert re.search(message, err), err
+        assert not png.exists()

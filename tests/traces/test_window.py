@@ -72,3 +72,27 @@ def test_windows_resolve_to_femtoseconds():
         window_fs("rows:0:9", plan, row_times)
     with pytest.raises(ConfigError, match="rows 0 to 7"):
         window_fs("rows:8:", plan, row_times)
+
+
+@pytest.mark.parametrize("spec, message", [
+    ("0:" + "9" * 5000 + "us", "a bound of 5000 characters, more than a window can span"),
+    ("sva:0:" + "9" * 34, r"a bound of 9{34} cycles is above 2\*\*63 - 1"),
+    ("0:" + "9" * 20 + "s", r"a bound of 9{20}0{15} fs is above 2\*\*63 - 1"),
+    ("x" + "1" * 5000 + ":3", r"bound 'x1{59}'\.\.\. \(5001 characters\) is not a number"),
+], ids=["5000 digits", "34 digits of cycles", "20 digits of seconds", "5000 characters"])
+def test_huge_bounds_fail_in_one_short_line(spec, message):
+    """Not a traceback (int() refuses 4300 digits; the engine counts in int64) and not the
+    5,000 characters quoted back."""
+    for kinds in ((), ("sva", "nna", "camera", "rows")):
+        with pytest.raises(ConfigError, match=message) as exc:
+            parse_window(spec, kinds=kinds if "sva:" not in spec else ("sva",))
+        assert "\n" not in str(exc.value) and len(str(exc.value)) < 400
+
+
+def test_cycle_windows_past_any_run():
+    """A cycle bound below 2**63 whose instant (cycles x period) is not: the end is the run's,
+    a start there is refused in one line."""
+    plan = build_plan(load_config(overrides={"sva.disparities": 16}), (8, 24))
+    assert window_fs("sva:0:" + str(2**62), plan) == (0, 1 << 62)
+    with pytest.raises(ConfigError, match=r"starts at \d+ fs, after any run has ended"):
+        window_fs(f"sva:{2**61}:", plan)
