@@ -264,7 +264,47 @@ def energy_report(plan: ChipPlan, stats: dict, fps: float | None, fps_basis: str
     """The ``energy`` section of a cycle report: every item, the frame's total by block and by
     action (uJ), and the average power (mW) at ``fps``."""
     table = table or energy_table()
-    items = energy_items(plan, table, stats)
+    return _totals(energy_items(plan, table, stats), table, fps, fps_basis)
+
+
+def frame_cycles_at(plan: ChipPlan, fps: float) -> dict[str, int]:
+    """Each clock domain's cycles in one frame period at ``fps``: round(f / fps) (the clocks
+    run all the time, so a chip delivering ``fps`` frames a second spends that many cycles a
+    frame)."""
+    return {name: round(d.freq_hz / fps) for name, d in plan.domains.items()}
+
+
+def analytic_stats(plan: ChipPlan, frame_cycles: dict[str, int]) -> dict:
+    """The two counts :func:`energy_items` takes from a run, from the plan instead: the bits
+    each FIFO moves (its beats a frame x its width: what a run that completes counts, exactly)
+    and each domain's clock cycles a frame (``frame_cycles``: :func:`frame_cycles_at`, or a
+    one-frame run's span), over the plan's ``frames``."""
+    frames = plan.frames
+    return {"fifos": {f.name: {"bits_transferred": frames * f.beats * f.width_bits}
+                      for f in plan.fifos},
+            "cycles": {d: frames * c for d, c in frame_cycles.items()}}
+
+
+def estimate_energy(plan: ChipPlan, table: EnergyTable, fps: float, fps_basis: str = "",
+                    frame_cycles: dict[str, int] | None = None) -> dict:
+    """The energy a frame and the power at ``fps`` without a run: :func:`energy_items` of the
+    same table, every count from the plan (:func:`analytic_stats`). MACs, multiplies, SRAM,
+    datapath, FIFO and DRAM counts are the ones a cycle run counts, exactly; the clocks' are
+    each domain's cycles in a frame period at ``fps`` (:func:`frame_cycles_at`) unless
+    ``frame_cycles`` gives them (a one-frame run counts its span instead: first input pixel to
+    last output word); the lent network's frames follow from the NNA's cycles. The keys are
+    the run's (:func:`energy_report`) plus ``analytic``: what the clock counts are."""
+    cycles = frame_cycles if frame_cycles is not None else frame_cycles_at(plan, fps)
+    items = energy_items(plan, table, analytic_stats(plan, cycles))
+    out = _totals(items, table, fps, fps_basis)
+    out["analytic"] = ("every count from the chip plan; the clocks' cycles a frame: "
+                       + ("as given" if frame_cycles is not None
+                          else f"a frame period at {fps:g} fps (f / fps per domain)"))
+    return out
+
+
+def _totals(items: list[dict], table: EnergyTable, fps: float | None, fps_basis: str) -> dict:
+    """The energy section from its items: totals by block and by action, power at ``fps``."""
     total_pj = sum(it["count"] * it["pj_each"] for it in items)
     by_block: dict[str, float] = {}
     by_action: dict[str, float] = {}

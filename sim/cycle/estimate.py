@@ -50,18 +50,24 @@ import math
 
 from stereosim.nna.geometry import Tile
 from stereosim.sim.config import ChipConfig, config_to_dict
+from stereosim.sim.cycle.energy import EnergyTable, energy_table, estimate_energy
 from stereosim.sim.cycle.lent import lent_lines, lent_report
 from stereosim.sim.cycle.plan import (
     ChipPlan,
     FifoPlan,
     action_counts,
     build_plan,
+    chip_sram,
     layer_report,
     sram_bits,
 )
 from stereosim.sim.cycle.rules import (
+    burst_last,
+    burst_of,
     camera_cycle,
     dram_read_ready_fs,
+    dram_slot,
+    edges_through,
     first_edge_at,
     memory_first_cycle,
     nna_last_input_row,
@@ -245,24 +251,73 @@ def merge_depth_needed(plan: ChipPlan) -> int | None:
 # latency: the row timeline
 
 
-def _source_cycle(plan: ChipPlan, k: int) -> int:
-    """Cycle (source domain) in which pixel k (raster) leaves an unobstructed source."""
-    w = plan.shape[1]
-    src = plan.blocks[0]
-    if src.kind == "camera":
-        return camera_cycle(0, k % w, k // w, src.line_clocks, src.frame_clocks, 1)
-    if plan.dram is not None:  # burst b in round b (a prefetch that never waits: a bound)
-        d = plan.dram
-        slot = d.round_slots * (k // d.read_pixels) + d.reads.first
-        return max(k, first_edge_at(dram_read_ready_fs(slot, d.slot_fs, d.latency_fs),
-                                    plan.domains[src.domain].period_fs))
-    hz = round(plan.domains[src.domain].freq_hz)
-    return max(k, memory_first_cycle(k, hz, src.bytes_per_s))
+def _feeder(plan: ChipPlan):
+    """The block that pushes one camera's pixels into the NNA's FIFOs: a camera streaming
+    straight in, or a memory source (frames in memory, or a camera's frame buffers)."""
+    return next(b for b in plan.blocks if b.kind in ("memory", "camera") and b.outputs)
 
 
-def _tile_rows(plan: ChipPlan, sub) -> dict[int, tuple[float, float]]:
+class SourceTimes:
+    """The cycle (of the feeding block's domain) in which pixel k (raster, frame 0) leaves an
+    unobstructed source, by the rules of :mod:`sim.cycle.readable.blocks.sources`:
+
+    - a camera streaming into the NNA: its pixel clock (:func:`camera_cycle`);
+    - a memory source: its token bucket (:func:`memory_first_cycle`), or through the DRAM
+      channel once its read burst is in (:func:`dram_slot`, :func:`dram_read_ready_fs`:
+      the bursts take the read slots in turn, each requested at once -- a prefetch that never
+      waits: a lower bound);
+    - reading a camera's frame buffers (``feed``): not before the first NNA edge after the
+      camera wrote the pixel (:func:`camera_cycle`, :func:`seen_from`), and through the DRAM
+      channel a burst is requested once the camera wrote its last pixel.
+
+    Frame 0 of the camera is the stream's frame 0 (it is always taken)."""
+
+    def __init__(self, plan: ChipPlan):
+        self.plan = plan
+        self.src = _feeder(plan)
+        self.period = plan.domains[self.src.domain].period_fs
+        self.camera = plan.block(self.src.feed) if self.src.feed else None
+        self.cam_period = plan.domains["camera"].period_fs if plan.camera else 0
+        self.ready: list[int] = []  # DRAM: per read burst, the first source cycle it is in
+        self.slot = -1
+
+    def _camera(self, k: int) -> int:
+        w = self.plan.shape[1]
+        raster = self.camera if self.camera is not None else self.src
+        return camera_cycle(0, k % w, k // w, raster.line_clocks, raster.frame_clocks, 1)
+
+    def _burst_ready(self, b: int) -> int:
+        d = self.plan.dram
+        n = self.plan.shape[0] * self.plan.shape[1]
+        while len(self.ready) <= b:
+            r = len(self.ready)
+            request = 0
+            if self.camera is not None:  # after the camera wrote the burst's last pixel
+                request = self._camera(burst_last(r, n, d.read_pixels)) * self.cam_period
+            self.slot = dram_slot(request, self.slot, d.slot_fs, d.round_slots, d.reads.first, 1)
+            self.ready.append(first_edge_at(dram_read_ready_fs(self.slot, d.slot_fs,
+                                                               d.latency_fs), self.period))
+        return self.ready[b]
+
+    def cycle(self, k: int) -> int:
+        src = self.src
+        if src.kind == "camera":
+            return self._camera(k)
+        n = self.plan.shape[0] * self.plan.shape[1]
+        if self.plan.dram is not None:
+            first = max(k, self._burst_ready(burst_of(k, n, self.plan.dram.read_pixels)[0]))
+        else:
+            hz = round(self.plan.domains[src.domain].freq_hz)
+            first = max(k, memory_first_cycle(k, hz, src.bytes_per_s))
+        if self.camera is not None:  # the camera has written it into the frame buffer
+            first = max(first, seen_from(self._camera(k), self.cam_period, self.period, 1))
+        return first
+
+
+def _tile_rows(plan: ChipPlan, sub, pops: list | None = None) -> dict[int, tuple[float, float]]:
     """NNA cycles of the first and last descriptor push of every output row of one submodule
-    (``sub``: its block in the plan)."""
+    (``sub``: its block in the plan); ``pops`` (a list) receives the NNA cycle it pops its
+    last input pixel."""
     h_img, w_img = plan.shape
     first_layer = sub.layers[0]
     tile: Tile = first_layer.tile
@@ -270,6 +325,7 @@ def _tile_rows(plan: ChipPlan, sub) -> dict[int, tuple[float, float]]:
     tw_in = tile.in_x1 - tile.in_x0
     tw = tile.x1 - tile.x0
     src = plan.fifo(sub.inputs[0])
+    times = SourceTimes(plan)
     p_nna = plan.domains["nna"].period_fs
     # the source -> NNA link: one pop per NNA cycle, at most depth items per round trip
     ii_in = max(1.0, round_trip_fs(src, plan) / src.depth / p_nna)
@@ -283,13 +339,13 @@ def _tile_rows(plan: ChipPlan, sub) -> dict[int, tuple[float, float]]:
     for y_in in range(tile.in_y0, tile.in_y1):
         k0 = y_in * w_img + tile.in_x0
         k1 = y_in * w_img + tile.in_x1 - 1
-        start = max(visible(src, _source_cycle(plan, k0), plan), prev_end + 1)
+        start = max(visible(src, times.cycle(k0), plan), prev_end + 1)
         # line-buffer room: the output rows that must have left before this row may enter
         started = nna_rows_started_before_input(y_in - tile.in_y0, rows, half, tile.top_halo,
                                                 tile.y1 - tile.y0, tile.in_y1 - tile.in_y0)
         if started > 0 and tile.y0 + started - 1 in out:
             start = max(start, out[tile.y0 + started - 1][1] + 1)
-        end = max(visible(src, _source_cycle(plan, k1), plan),
+        end = max(visible(src, times.cycle(k1), plan),
                   math.ceil(start + (tw_in - 1) * ii_in))
         pop_end[y_in] = end
         prev_end = end
@@ -300,6 +356,8 @@ def _tile_rows(plan: ChipPlan, sub) -> dict[int, tuple[float, float]]:
             out[next_out] = (first, last)
             prev_out_last = last
             next_out += 1
+    if pops is not None:
+        pops.append(prev_end)
     return _later_layers(sub, out, h_img)
 
 
@@ -324,13 +382,15 @@ def _later_layers(sub, rows: dict[int, tuple[float, float]], h_img: int
 
 def _merged_rows(plan: ChipPlan, side: int):
     """First/last push (NNA cycles) of each row of one camera's descriptor stream towards the
-    SVA, and the items-per-cycle the stream can sustain."""
+    SVA, the items-per-cycle the stream can sustain and the NNA cycle the camera's last pixel
+    was popped (the source's read of the frame is over)."""
     h, w = plan.shape
     subs = [b for b in plan.blocks if b.kind == "nna" and b.side == side]
     c = subs[0].cycles
-    per_tile = [_tile_rows(plan, b) for b in subs]
+    pops: list = []
+    per_tile = [_tile_rows(plan, b, pops) for b in subs]
     if len(subs) == 1:
-        return per_tile[0], float(c)
+        return per_tile[0], float(c), max(pops)
     rows_split = plan.cfg.nna.split == "rows"
     rows: dict[int, tuple[float, float]] = {}
     prev_end = -1.0
@@ -356,9 +416,9 @@ def _merged_rows(plan: ChipPlan, side: int):
         rows[y] = (first, prev_end)
     if rows_split:
         # the merge drains a band at one beat per cycle; the band's own II is in its row times
-        return rows, 1.0
+        return rows, 1.0, max(pops)
     widest = max(b.tile.x1 - b.tile.x0 for b in subs)
-    return rows, max(1.0, c * widest / w)
+    return rows, max(1.0, c * widest / w), max(pops)
 
 
 def _delay_band(rows, tile: Tile, merge_start: float, n_band: int, depth: int, c: int):
@@ -377,7 +437,7 @@ def timeline(plan: ChipPlan) -> dict:
     """First and last output word of one frame (SVA cycles, as the sink pops them) and the
     cycles of intermediate events, from the row model of the module docstring."""
     h, w = plan.shape
-    nna_rows, nna_ii = _merged_rows(plan, 0)
+    nna_rows, nna_ii, last_pop = _merged_rows(plan, 0)
     sva = plan.block("sva")
     la = sva.lookahead
     link = plan.fifo(sva.inputs[0])
@@ -432,6 +492,7 @@ def timeline(plan: ChipPlan) -> dict:
     return {
         "nna_first_push": nna_rows[0][0],
         "sva_first_ready": in_end[sva_last_input_row(0, la, h)] + 1,
+        "source_last_pop_nna": last_pop,
         "first_output_cycle": out_rows[0][0] + lat,
         "last_output_cycle": out_rows[h - 1][1] + lat,
         "period_fs": {name: d.period_fs for name, d in plan.domains.items()},
@@ -477,10 +538,47 @@ def paper_analysis(shape: tuple[int, int]) -> dict:
 # the estimate
 
 
-def estimate(cfg: ChipConfig, shape: tuple[int, int]) -> dict:
+def delivered_fps(plan: ChipPlan, tl: dict, fps_bound: float, bottleneck: str
+                  ) -> tuple[float, str]:
+    """The frame rate the chip delivers and why: the work bound (frames from memory; a camera
+    that is the bottleneck: its own rate, P x for ``sva.pairs`` = P), or behind a camera with
+    frame buffers that sends more frames than the chip takes, the frames it does take: with
+    two buffers or more the reader always has the next frame (the work bound); with one (one
+    pair) the next frame is taken only if it starts after the reader finished the last, so
+    a frame costs floor(R / T) + 1 camera periods T (R: the reader's end of frame 0,
+    :func:`~sim.cycle.rules.frame_buffer_admits`)."""
+    if not plan.camera:
+        return fps_bound, "the work bound (frames from memory)"
+    cam = plan.blocks_of("camera")[0]
+    if plan.block(bottleneck).kind == "camera":
+        return fps_bound, f"the camera's frame rate{' (every pair)' if plan.pairs > 1 else ''}"
+    if plan.camera_direct:
+        return fps_bound, "the work bound (below the camera's rate: the camera overflows)"
+    if plan.cfg.source.frame_buffers > 1 or plan.pairs > 1:
+        return fps_bound, "the work bound (the chip drops the camera frames beyond it)"
+    period_fs = cam.frame_clocks * plan.domains["camera"].period_fs
+    link = plan.fifo(_feeder(plan).outputs[0])
+    read_end_fs = (tl["source_last_pop_nna"] - link.data_edges) * plan.domains["nna"].period_fs
+    periods = read_end_fs // period_fs + 1
+    camera_fps = plan.domains["camera"].freq_hz / cam.frame_clocks
+    return (min(fps_bound, camera_fps / periods),
+            f"one frame buffer: one camera frame in {periods} (the chip drops the others)")
+
+
+def one_frame_cycles(plan: ChipPlan, last_output_sva_cycle: int) -> dict[str, int]:
+    """Each domain's cycles in a one-frame run that ends with the last output word in SVA cycle
+    ``last_output_sva_cycle`` (:func:`~sim.cycle.rules.edges_through`): the clock counts a
+    one-frame cycle run prices (:func:`~sim.cycle.energy.estimate_energy`)."""
+    t_end = last_output_sva_cycle * plan.domains["sva"].period_fs
+    return {name: edges_through(t_end, d.period_fs) for name, d in plan.domains.items()}
+
+
+def estimate(cfg: ChipConfig, shape: tuple[int, int], table: EnergyTable | None = None) -> dict:
     """The analytic report for one frame of ``shape`` = (H, W) (module docstring); keys follow
     the cycle report's where both have the figure. The chip plan is built first, so a chip
-    that cannot be built is refused here as in the cycle model."""
+    that cannot be built is refused here as in the cycle model. ``energy``: the frame's energy
+    and the power at the delivered rate (:func:`delivered_fps`) from ``table`` (default:
+    stereosim's, :func:`~sim.cycle.energy.energy_table`)."""
     plan = build_plan(cfg, shape)
     h, w = shape
     tl = timeline(plan)
@@ -499,7 +597,7 @@ def estimate(cfg: ChipConfig, shape: tuple[int, int]) -> dict:
     subs = plan.blocks_of("nna")
     widest = max(b.tile.x1 - b.tile.x0 for b in subs)
     warnings = []
-    if plan.camera:
+    if plan.camera_direct:  # with frame buffers the camera writes into DRAM: no FIFO to fill
         camera = plan.blocks_of("camera")[0]
         line_s = camera.line_clocks / plan.domains["camera"].freq_hz
         if widest * subs[0].cycles / plan.domains["nna"].freq_hz > line_s:
@@ -514,7 +612,7 @@ def estimate(cfg: ChipConfig, shape: tuple[int, int]) -> dict:
             f"shallower than the {merge_depth} the column tiles need: the merge drains the "
             "tiles in raster order, so each tile waits for the others and frames come slower "
             "than the work bound and this latency estimate say (both are upper bounds"
-            + ("; a camera can overflow while they do" if plan.camera else "")
+            + ("; a camera can overflow while they do" if plan.camera_direct else "")
             + f"); set fifo.nna_to_merge_depth={merge_depth} or more, or run the cycle model"
         )
     if subs[0].rows < 2 * subs[0].half + 2:
@@ -526,6 +624,14 @@ def estimate(cfg: ChipConfig, shape: tuple[int, int]) -> dict:
     if plan.camera:
         camera = plan.blocks_of("camera")[0]
         camera_fps = round(plan.domains["camera"].freq_hz / camera.frame_clocks, 3)
+    fps, fps_basis = delivered_fps(plan, tl, 1.0 / frame_s, bottleneck)
+    if (plan.frame_buffered and plan.cfg.source.on_overflow == "error"
+            and plan.block(bottleneck).kind != "camera"):
+        warnings.append(
+            f"the chip takes {1.0 / frame_s:.3f} fps (bottleneck {bottleneck}), fewer frames "
+            "than the cameras send: in a stream a frame will find no free frame buffer and the "
+            "run stops (source.on_overflow=drop_frame drops it instead)")
+    energy = estimate_energy(plan, table or energy_table(), fps, fps_basis)
     nna_bits = sum(v for k, v in buffers.items() if k.startswith("nna."))
     actions = action_counts(plan)
     return {
@@ -539,6 +645,9 @@ def estimate(cfg: ChipConfig, shape: tuple[int, int]) -> dict:
             "fifo_items_per_s": {n: round(v, 1) for n, v in sorted(fifo_rate.items())},
             # a camera's real frame rate: its whole raster, vertical blanking included
             "camera_fps": camera_fps,
+            # the rate the chip delivers, what power is given at (delivered_fps)
+            "fps_delivered": round(fps, 3),
+            "fps_delivered_basis": fps_basis,
             # the least fifo.nna_to_merge_depth that keeps column tiles at fps_bound
             "merge_depth_needed": merge_depth,
         },
@@ -555,12 +664,14 @@ def estimate(cfg: ChipConfig, shape: tuple[int, int]) -> dict:
             "sva": sum(v for k, v in buffers.items() if k.startswith("sva.")),
             "fifos": sum(f.sram_bits for f in fifos),
         },
+        "chip_sram": chip_sram(plan),
         "fifo_sram_bits": {f.name: f.sram_bits for f in fifos},
         "fifo_bytes_per_frame": {f.name: f.beats * f.width_bits // 8 for f in fifos},
         "actions": actions,
         "macs_per_frame": 2 * actions["nna_per_camera"]["macs"],
         **({"nna_layers": layer_report(plan)} if len(subs[0].layers) > 1 else {}),
         **({"lent_network": lent_report(plan.lent, plan.dram, h * w)} if plan.lent else {}),
+        "energy": energy,
         "paper": paper_analysis(shape),
         "warnings": warnings,
     }
@@ -578,6 +689,26 @@ def parse_size(text: str) -> tuple[int, int]:
     return h, w
 
 
+def sram_lines(chip: dict) -> list[str]:
+    """The chip's SRAM total (:func:`~sim.cycle.plan.chip_sram`), by block and by kind."""
+    by_block = ", ".join(f"{k} {v:,}" for k, v in chip["by_block"].items() if v)
+    by_kind = ", ".join(f"{k} {v:,}" for k, v in chip["by_kind"].items() if v)
+    return [f"chip SRAM: {chip['total']:,} bits ({chip['total'] / 1e6:.2f} Mbit; "
+            f"{chip['nna_submodules']} NNA submodules of {chip['nna_per_submodule']:,} bits "
+            f"each); by block: {by_block}",
+            f"chip SRAM by kind: {by_kind}"]
+
+
+def energy_lines(energy: dict) -> list[str]:
+    """Energy a frame by block and the power at the delivered rate
+    (:func:`~sim.cycle.energy.estimate_energy`)."""
+    per = energy["per_frame_uj"]
+    blocks = ", ".join(f"{k} {v / 1e3:.3f}" for k, v in per["by_block"].items())
+    return [f"energy: {per['total'] / 1e3:.3f} mJ a frame ({blocks} mJ); power "
+            f"{energy['power_mw'] / 1e3:.3f} W at {energy['power_at_fps']:g} fps "
+            f"({energy['fps_basis']}; table: {energy['table']['node']})"]
+
+
 def format_estimate(est: dict) -> str:
     """The human-readable summary ``stereosim estimate`` prints."""
     img, thr, lat = est["image"], est["throughput"], est["latency"]
@@ -591,8 +722,11 @@ def format_estimate(est: dict) -> str:
             f"{n} {ms:.4f} ms (bound {thr['fps_bound_per_block'][n]} fps)"
             for n, ms in thr["work_ms_per_frame"].items()
         ),
+        f"delivered {thr['fps_delivered']} fps: {thr['fps_delivered_basis']}",
         f"SRAM: NNA {sram['nna_per_submodule']} bits per submodule ({sram['nna_stereo']} for the "
         f"pair), SVA {sram['sva']} bits, FIFOs {sram['fifos']} bits",
+        *sram_lines(est["chip_sram"]),
+        *energy_lines(est["energy"]),
         "FIFO bytes per frame: " + ", ".join(
             f"{n} {b}" for n, b in est["fifo_bytes_per_frame"].items()
         ),

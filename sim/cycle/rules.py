@@ -399,3 +399,10 @@ class ClockDomain:
         if t_fs < self.phase_fs:
             return 0
         return (t_fs - self.phase_fs) // self.period_fs + 1
+
+
+def edges_through(t_fs: int, period_fs: int) -> int:
+    """Edges of a clock of ``period_fs`` (its first at t = 0) at or before the instant
+    ``t_fs``: t // P + 1 -- the cycles a run counts in each domain when it ends at ``t_fs``
+    (the report's ``cycles.total``, the clock energy of a one-frame run)."""
+    return t_fs // period_fs + 1
