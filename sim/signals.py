@@ -21,6 +21,13 @@ plain handler leaves:
 * :func:`install` is idempotent: the console entry (:mod:`sim.console`) installs the handler
   before it imports the heavy modules (numba, OpenCV), the command reuses it, and it stays in
   place until the process exits.
+* The interpreter's shutdown: once the handler is settled, the process's exit (an ``atexit``
+  callback, :func:`_at_exit`) ignores :data:`HELD` for the rest of its life -- Python puts the
+  default action back while it finalizes, and a SIGTERM in that stretch (numba's and llvmlite's
+  objects are freed then) killed a process whose outcome was decided, without its status --
+  and the unraisable hook keeps the settled handler, so a finalizer that fails in that
+  stretch after a signal stopped the command still prints nothing ("Exception ignored in ..."
+  after the signal's line).
 * :func:`entry` installs it *inside* the ``try`` that turns a signal into its line: a signal that
   lands the moment the handler is in -- before the command's own ``try`` is entered -- still
   ends the process with its one line, never a traceback and exit 1.
@@ -31,6 +38,7 @@ else.
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import signal
 import sys
@@ -97,6 +105,7 @@ def install() -> Handler | None:
         return None
     if not isinstance(sys.unraisablehook, _Unraisable):
         sys.unraisablehook = _Unraisable(sys.unraisablehook)
+        atexit.register(_at_exit)
     return handler
 
 
@@ -107,7 +116,11 @@ def entry(command: Callable[[], int]) -> int:
     the command's ``try``; during the imports of a console entry)."""
     try:
         install()
-        return command()
+        status = command()
+        handler = current()
+        if handler is not None:
+            handler.settle()  # the status is decided: a signal no longer changes it
+        return status
     except KeyboardInterrupt as exc:
         handler = current()
         if handler is not None:
@@ -126,15 +139,32 @@ class _Unraisable:
 
     def __init__(self, previous):
         self.previous = previous
+        self.ending: Handler | None = None  # the settled handler of a process that exits
 
     def __call__(self, unraisable) -> None:
-        handler = current()
+        # (no module global is looked up first: late in the shutdown they may be gone)
+        handler = self.ending if self.ending is not None else current()
         if handler is not None and isinstance(unraisable.exc_value, KeyboardInterrupt):
             handler.swallowed = handler.swallowed or unraisable.exc_value
             return
         if handler is not None and handler.raised:
             return
         self.previous(unraisable)
+
+
+def _at_exit() -> None:
+    """The process exits (``atexit``): if its handler is settled, its outcome is decided, and
+    :data:`HELD` are ignored from now on -- Python's finalization would otherwise put their
+    default action back before it frees the last objects, and a signal then would kill the
+    process without its status. The unraisable hook keeps the handler, which the signal
+    module no longer returns."""
+    handler = current()
+    if handler is None or not handler.settled:
+        return
+    for signum in HELD:
+        signal.signal(signum, signal.SIG_IGN)
+    if isinstance(sys.unraisablehook, _Unraisable):
+        sys.unraisablehook.ending = handler
 
 
 def swallowed() -> KeyboardInterrupt | None:

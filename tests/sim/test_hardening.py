@@ -702,6 +702,49 @@ def test_a_finalizer_that_fails_once_a_signal_stops_the_command_prints_nothing(o
     assert _snapshot(out) == before
 
 
+# A process's entry, then an object freed in the interpreter's last stretch of shutdown (a
+# module global: after Python put the signals' default actions back, as numba's and llvmlite's
+# objects are freed), whose finalizer does {late}.
+_SHUTDOWN = """
+import os, signal, sys
+from stereosim.sim import signals
+
+class Late:
+    def __del__(self):
+        {late}
+        sum(range(1000))  # bytecodes in which a Python handler would run
+
+late = Late()
+
+def command():
+    {command}
+    return 0
+
+sys.exit(signals.entry(command))
+"""
+
+
+@pytest.mark.parametrize("command", ["pass", "os.kill(os.getpid(), signal.SIGTERM)"])
+def test_a_signal_during_the_interpreters_shutdown_changes_nothing(command):
+    """A SIGTERM while the interpreter shuts down -- the command's outcome decided, whether it
+    finished or a signal stopped it -- once killed the process (no status, no line); the
+    process exits with its status and its one line, or none."""
+    code = _SHUTDOWN.format(late="os.kill(os.getpid(), signal.SIGTERM)", command=command)
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, timeout=60)
+    want = (0, b"") if command == "pass" else (143, b"stereosim: terminated\n")
+    assert (proc.returncode, proc.stderr) == want
+
+
+def test_a_finalizer_that_fails_during_the_shutdown_after_a_signal_prints_nothing():
+    """After a signal stopped the command, an object left half made that fails as the
+    interpreter frees it in its last stretch ("Exception ignored in ... __del__", seen under
+    load once numba's compile was cut) prints nothing: the signal's line is all."""
+    code = _SHUTDOWN.format(late="raise RuntimeError('freed half made')",
+                            command="os.kill(os.getpid(), signal.SIGTERM)")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, timeout=60)
+    assert (proc.returncode, proc.stderr) == (143, b"stereosim: terminated\n")
+
+
 def test_a_signal_after_the_outcome_is_decided_changes_nothing(tmp_path, capfd, monkeypatch):
     """Once main knows its outcome (a status, or a one-line error) a signal no longer cuts it
     short: no traceback, no second line, no other status."""
