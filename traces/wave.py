@@ -39,6 +39,7 @@ some (:data:`OVERVIEW`), else every signal.
 
 from __future__ import annotations
 
+import functools
 import io
 from dataclasses import dataclass
 
@@ -57,6 +58,8 @@ OVERVIEW = ("*" + STATUS_SUFFIX,)
 STATUS_ALPHA = 0.45
 UNKNOWN_COLOUR = "red"
 MIN_BLOCK_PX = 3
+#: The fonts of the picture: names and values in the monospaced one, the title in the other.
+MONO_FONT, TEXT_FONT = "DejaVu Sans Mono", "DejaVu Sans"
 
 
 @dataclass(frozen=True)
@@ -210,6 +213,23 @@ def _status_colour(var: VcdVar, value) -> str | None:
     return STATUS_COLOURS[value]
 
 
+@functools.lru_cache(maxsize=4)
+def _glyphs(family: str) -> frozenset[int]:
+    """The code points the font ``family`` draws (the font matplotlib picks for it)."""
+    from matplotlib import font_manager
+    from matplotlib.ft2font import FT2Font
+
+    path = font_manager.findfont(font_manager.FontProperties(family=family))
+    return frozenset(FT2Font(path).get_charmap())
+
+
+def drawable(text: str, family: str) -> str:
+    """``text`` with each character the font has no glyph for, and each control character,
+    written as ``?`` -- what matplotlib would draw as an empty box, with a warning on stderr."""
+    glyphs = _glyphs(family)
+    return "".join(c if c.isprintable() and ord(c) in glyphs else "?" for c in text)
+
+
 def wave_png(data: VcdData, variables: list[VcdVar], a: int, b: int, *,
              title: str | None = None, clock: CycleClock | None = None,
              width_in: float = 12.0) -> bytes:
@@ -247,7 +267,11 @@ def wave_figure(data: VcdData, variables: list[VcdVar], a: int, b: int, *,
     width_px = width_in * 100
     label_w = min(0.45, 0.0062 * max(len(s) for s in names) + 0.025)
     px_per_unit = width_px * (0.98 - label_w) / max(b - a, 1)
-    black, red, polys, faces, labels = _row_shapes(data, variables, a, b, k, px_per_unit)
+    # plotted from the window's start when floats cannot tell its ends apart in dump time
+    # (a window of a few units at 10**18): matplotlib refuses equal limits
+    origin = a if abs(a) * k * 1e-9 > (b - a) * k else 0
+    black, red, polys, faces, labels = _row_shapes(data, variables, a, b, k, px_per_unit,
+                                                   origin)
 
     legend = []
     if statuses:
@@ -260,7 +284,7 @@ def wave_figure(data: VcdData, variables: list[VcdVar], a: int, b: int, *,
     height_in = top_in + row_in * n + bottom_in
     fig = Figure(figsize=(width_in, height_in), dpi=100)
     ax = fig.add_axes((label_w, bottom_in / height_in, 0.98 - label_w, row_in * n / height_in))
-    ax.set_xlim(a * k, b * k)
+    ax.set_xlim((a - origin) * k, (b - origin) * k)
     ax.set_ylim(-0.2, n)
     if polys:
         ax.add_collection(PolyCollection(polys, facecolors=faces, edgecolors="none"))
@@ -268,28 +292,31 @@ def wave_figure(data: VcdData, variables: list[VcdVar], a: int, b: int, *,
     if red:
         ax.add_collection(LineCollection(red, colors=UNKNOWN_COLOUR, linewidths=0.8))
     for x, y, text in labels:
-        ax.text(x, y, text, ha="center", va="center", fontsize=7.5, family="DejaVu Sans Mono")
+        ax.text(x, y, text, ha="center", va="center", fontsize=7.5, family=MONO_FONT)
     ax.set_yticks([n - 1 - r + 0.45 for r in range(n)])
-    ax.set_yticklabels(names, fontsize=8, family="DejaVu Sans Mono")
+    ax.set_yticklabels([drawable(name, MONO_FONT) for name in names], fontsize=8,
+                       family=MONO_FONT, parse_math=False)
     ax.tick_params(axis="y", length=0)
     ax.tick_params(axis="x", labelsize=8)
-    ax.set_xlabel(f"time ({unit})", fontsize=8)
+    ax.set_xlabel(f"time ({unit})" if not origin else
+                  f"time ({unit}) after {origin} x {data.unit_fs} fs", fontsize=8)
     ax.grid(axis="x", color="0.85", linewidth=0.5)
     for side in ("top", "right", "left"):
         ax.spines[side].set_visible(False)
     if clock is not None:
         def to_cycles(x):
-            return (np.asarray(x) / k - clock.phase) / clock.period
+            return (np.asarray(x) / k + (origin - clock.phase)) / clock.period
 
         def to_time(c):
-            return (np.asarray(c) * clock.period + clock.phase) * k
+            return (np.asarray(c) * clock.period - (origin - clock.phase)) * k
 
         top = ax.secondary_xaxis("top", functions=(to_cycles, to_time))
         top.xaxis.set_major_locator(MaxNLocator(integer=True))
         top.tick_params(labelsize=8)
         top.set_xlabel(f"{clock.name} cycle", fontsize=8)
     if title:
-        fig.suptitle(title, fontsize=10, y=1 - 0.08 / height_in, va="top")
+        fig.suptitle(drawable(title, TEXT_FONT), fontsize=10, y=1 - 0.08 / height_in,
+                     va="top", family=TEXT_FONT, parse_math=False)
     if legend:
         y_in = height_in - 0.2 - (0.3 if title else 0)
         fig.legend(handles=legend, loc="upper right", bbox_to_anchor=(0.98, y_in / height_in),
@@ -299,11 +326,14 @@ def wave_figure(data: VcdData, variables: list[VcdVar], a: int, b: int, *,
 
 
 def _row_shapes(data: VcdData, variables: list[VcdVar], a: int, b: int, k: float,
-                px_per_unit: float) -> tuple[list, list, list, list, list]:
+                px_per_unit: float, origin: int = 0) -> tuple[list, list, list, list, list]:
     """What :func:`wave_figure` draws of each row, top row first, in plotted units (``k`` per
     dump unit): the black and the red (unknown) polylines, the status blocks' polygons and
     their fills, and the value labels ``(x, y, text)`` that fit their segment."""
     from matplotlib.colors import to_rgba
+
+    def x(t) -> float:  # a dump instant (exact integer) -> plotted units
+        return (t - origin) * k
 
     n = len(variables)
     black, red, polys, faces, labels = [], [], [], [], []
@@ -315,47 +345,47 @@ def _row_shapes(data: VcdData, variables: list[VcdVar], a: int, b: int, k: float
         if var.width == 1:
             for i, (s, e, v) in enumerate(runs):
                 level = hi if v == 1 else lo
-                seg = [(s * k, level), (e * k, level)]
+                seg = [(x(s), level), (x(e), level)]
                 (red if v is None else black).append(seg)
                 if i and v is not None and runs[i - 1][2] is not None:
-                    black.append([(s * k, lo), (s * k, hi)])
+                    black.append([(x(s), lo), (x(s), hi)])
             continue
         mid = (lo + hi) / 2
         if var.path.endswith(STATUS_SUFFIX):
             # a status row is a strip of coloured blocks, outlined, with a divider at each change
             # between blocks both at least MIN_BLOCK_PX wide: where it changes every pixel or
             # so, the colours blend instead of the dividers drawing a black bar
-            black.extend([[(a * k, hi), (b * k, hi)], [(a * k, lo), (b * k, lo)]])
+            black.extend([[(x(a), hi), (x(b), hi)], [(x(a), lo), (x(b), lo)]])
             for i, (s, e, v) in enumerate(runs):
                 colour = _status_colour(var, v)
                 if colour is not None:
-                    polys.append([(s * k, lo), (s * k, hi), (e * k, hi), (e * k, lo)])
+                    polys.append([(x(s), lo), (x(s), hi), (x(e), hi), (x(e), lo)])
                     faces.append(to_rgba(colour, STATUS_ALPHA))
                 wide = (e - s) * px_per_unit >= MIN_BLOCK_PX
                 if i and wide and (s - runs[i - 1][0]) * px_per_unit >= MIN_BLOCK_PX:
-                    black.append([(s * k, lo), (s * k, hi)])
+                    black.append([(x(s), lo), (x(s), hi)])
                 if v is None:
-                    red.extend([[(s * k, hi), (e * k, hi)], [(s * k, lo), (e * k, lo)]])
+                    red.extend([[(x(s), hi), (x(e), hi)], [(x(s), lo), (x(e), lo)]])
                     continue
                 text = value_text(var, v)
                 if (e - s) * px_per_unit > 7 * len(text) + 6:
-                    labels.append(((s + e) / 2 * k, mid, text))
+                    labels.append(((x(s) + x(e)) / 2, mid, text))
             continue
         slope = min(0.25 * (e - s) for s, e, _ in runs) if runs else 0
         slope = min(slope, 3 / px_per_unit)  # 3 pixels wide crossings
         for s, e, v in runs:
             target = red if v is None else black
             # crossings at changes only, not at the window's edges
-            s1 = s + slope if s > a else s
-            e1 = e - slope if e < b else e
-            left = [(s * k, mid)] if s > a else []
-            right = [(e * k, mid)] if e < b else []
+            s1 = x(s) + slope * k if s > a else x(s)
+            e1 = x(e) - slope * k if e < b else x(e)
+            left = [(x(s), mid)] if s > a else []
+            right = [(x(e), mid)] if e < b else []
             for level in (hi, lo):
-                target.append(left + [(s1 * k, level), (e1 * k, level)] + right)
+                target.append(left + [(s1, level), (e1, level)] + right)
             if v is None:
                 continue
             text = value_text(var, v)
             if (e - s) * px_per_unit > 7 * len(text) + 6:
-                labels.append(((s + e) / 2 * k, mid, text))
+                labels.append(((x(s) + x(e)) / 2, mid, text))
 
     return black, red, polys, faces, labels

@@ -4,6 +4,7 @@ the run-to-wave round trip: test_wave_fst.py)."""
 import os
 import re
 import sys
+import warnings
 
 import numpy as np
 import pytest
@@ -15,7 +16,7 @@ from stereosim.traces.log import changes_of
 from stereosim.traces.synthetic import synthetic_log
 from stereosim.traces.vcd import write_vcd
 from stereosim.traces.vcdread import read_vcd, value_at
-from stereosim.traces.wave import CycleClock, window_clock, window_units
+from stereosim.traces.wave import CycleClock, drawable, window_clock, window_units
 
 
 def _main(argv):
@@ -387,3 +388,21 @@ def test_wave_refuses_huge_windows_in_one_line(dumped, tmp_path, capsys):
         assert err.count("\n") == 1 and "Traceback" not in err and len(err) < 400, err
         assert re.search(message, err), err
         assert not png.exists()
+
+
+def test_wave_prints_no_third_party_warnings(tmp_path, capsys):
+    """A title with glyphs the font lacks (and control characters, and a '$' that would be
+    read as mathematics), and a window of 1 unit at 10**18 units, draw without a warning
+    of matplotlib's: the characters become '?', the axis counts from the window's start."""
+    path = tmp_path / "g.vcd"
+    path.write_text("$scope module m $end $var wire 1 ! a $end $upscope $end $enddefinitions "
+                    "$end #0 0! #1000000000000000000 1! #1000000000000000002 0!")
+    runs = [["--title", "t \u4e2d\u6587 \x01 $\\foo{$ \u00e9"],
+            ["--window", "1000000000000000000:1000000000000000001"]]
+    for extra in runs:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            code = _main(["wave", str(path), "--png", str(tmp_path / "w.png"), *extra])
+        assert code == 0 and [str(w.message) for w in caught] == []
+    assert capsys.readouterr().err == ""
+    assert drawable("t \u4e2d \x01 $ \u00e9", "DejaVu Sans") == "t ? ? $ \u00e9"
