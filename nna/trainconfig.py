@@ -174,6 +174,18 @@ class TrainConfig:
             )
         if not 0 <= self.sign_fraction <= 1 or min(self.balance, self.decorrelate) < 0:
             raise ConfigError("sign_fraction must be in [0, 1]; balance, decorrelate >= 0")
+        if max(self.blur_max, self.vshift_max) > self.crop_rows:
+            raise ConfigError(
+                f"blur_max and vshift_max must be at most {self.crop_rows} px, the rows a "
+                "training sample cuts from a view (a wider defocus or misalignment leaves "
+                f"nothing of the crop to learn from), got {self.blur_max}, {self.vshift_max}")
+
+    @property
+    def crop_rows(self) -> int:
+        """Rows a training sample cuts from a view: the variant's receptive field grown by the
+        loss's window (``box`` for the curve objective, ``aggregate`` for the triplet)."""
+        window = self.box if self.objective == "curve" else self.aggregate
+        return receptive_field(self.variant) + window - 1
 
 
 def _as_float(value) -> float:

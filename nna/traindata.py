@@ -242,6 +242,10 @@ def load_strip_set(scene_dirs, cfg: TrainConfig) -> StripSet:
             cand["x"].append(xs.astype(np.int64))
             views.append(to_grey(img).astype(np.float32))
             targets.append(np.where(usable, gt, np.nan).astype(np.float32))
+    widest = max((v.shape[1] for v in views), default=0)
+    if cfg.strip_width > widest:
+        raise ConfigError(f"strip_width {cfg.strip_width} is wider than the widest training view "
+                          f"({widest} px): a strip is part of one row")
     return StripSet(
         views=tuple(views),
         targets=tuple(targets),

@@ -13,6 +13,7 @@ import pytest
 
 from stereosim.nna.floatmodel import save_float_model
 from stereosim.nna.trainconfig import TrainConfig, box_range, max_disparities
+from stereosim.nna.traindata import load_strip_set, training_scene_dirs
 from stereosim.nna.trainrun import checkpoint_path, cpu_count, parse_threads
 from stereosim.sim.cli import main
 from stereosim.sim.errors import ConfigError
@@ -74,13 +75,15 @@ RECORDS = [
     ({"config": [1, 2]}, "has no settings"),
     (_without_scale_end(), "lacks scale_end"),
     (_config(scale_end="big"), "scale_end must be a number, got 'big'"),
+    (_config(blur_max=1e300), "blur_max and vshift_max must be at most 13 px"),
+    (_config(vshift_max=1e300), "blur_max and vshift_max must be at most 13 px"),
 ]
 
 
 @pytest.mark.parametrize("record, message", RECORDS,
                          ids=["box", "disparities", "box-float", "disparities-text", "gain-huge",
                               "no-config", "list", "null", "string", "config-list",
-                              "no-scale-end", "scale-end-text"])
+                              "no-scale-end", "scale-end-text", "blur-huge", "vshift-huge"])
 def test_a_qat_base_records_settings_are_checked_as_the_clis(record, message, tmp_path, capsys):
     """`"box": 999` ran to the end at 15.2 GB, `"disparities": 10**7` passed 6.8 GB; a record
     of another shape was a traceback. The record is refused before the data are looked at (the
@@ -102,6 +105,31 @@ def test_train_config_bounds_the_windows_and_disparities_by_the_chips():
                 {"strips": 2.0}, {"lr": 10**400}):
         with pytest.raises(ConfigError):
             TrainConfig(**bad)
+
+
+def test_augmentation_ranges_are_bounded_by_the_crop(tmp_path, capsys):
+    """A defocus of sigma 1e6 took 70 s a crop in OpenCV (more: all the memory); a vertical
+    misalignment of 1e300 rows overflowed. Both are at most the rows a sample cuts."""
+    cfg = TrainConfig(box=7, blur_max=15.0, vshift_max=15.0)  # 9 + 7 - 1 rows
+    assert cfg.crop_rows == 15
+    assert TrainConfig(objective="triplet", aggregate=1).crop_rows == 9
+    with pytest.raises(ConfigError, match="at most 15 px"):
+        TrainConfig(box=7, blur_max=15.5)
+    out = tmp_path / "m.npz"
+    # the folder that does not exist would be the refusal if the blur were taken
+    code = main(["train", "--blur-max", "1e300", "--data", str(tmp_path / "nowhere"), "--out",
+                 str(out)])
+    err = _one_line(code, capsys.readouterr().err)
+    assert "blur_max and vshift_max must be at most 13 px" in err and not out.exists()
+
+
+def test_a_strip_is_at_most_a_row_of_the_widest_view(data_root):
+    """A strip_width of 10**7 from a base model's record asked for 16 GB a batch."""
+    dirs = training_scene_dirs(data_root)
+    assert load_strip_set(dirs, TrainConfig(strip_width=400)).names
+    with pytest.raises(ConfigError, match=r"strip_width 401 is wider than the widest training "
+                       r"view \(400 px\)"):
+        load_strip_set(dirs, TrainConfig(strip_width=401))
 
 
 EMPTY = [
