@@ -37,6 +37,7 @@ GROUPS = (
     "stream",
     "energy",
     "DRAM",
+    "lent network",
     "architecture",
     "analytic estimate",
     "output and report",
@@ -49,6 +50,16 @@ ACTIVITY = {
     "starved": "starved (waiting for input)",
     "blocked": "blocked (holding an output it cannot hand on)",
     "idle": "idle (nothing left to do)",
+}
+
+# the parts of the lent network's DRAM bytes a frame (sim.cycle.lent.LentPlan.bytes_per_frame)
+LENT_BYTES = {
+    "input": "its input, read",
+    "output": "its last layer's output, written",
+    "spill": "the feature maps of layers that do not fit on chip, written and read back",
+    "weights": "weights read each frame (those of a submodule whose weight store cannot hold "
+    "them; 0 when every submodule's fit)",
+    "total": "input + output + spill + weights",
 }
 
 MEASURED = "**measured** by the cycle model"
@@ -194,6 +205,57 @@ RULES: tuple[tuple[str, str, str], ...] = (
     (r"dram\.clients\.(?P<c>[^.]+)\.what", "DRAM", "what the client {c} moves"),
     (r"dram\.(?P<k>model|peak_gbps|burst_bytes|slot_ns|round_slots|latency_ns)", "DRAM",
      "the channel's {k} (docs/dram.md; units as the name says)"),
+    (r"lent_network\.file", "lent network", "the lent network's file (nna.lent_network; "
+     "docs/lent.md); the lent submodules' figures are the plan's arithmetic in every mode (they "
+     "are not clocked blocks)"),
+    (r"lent_network\.about", "lent network", "the file's about text"),
+    (r"lent_network\.input\.(?P<k>width|height|channels)", "lent network", "the lent "
+     "network's input: its {k}"),
+    (r"lent_network\.fps_target", "lent network", "the file's fps: frames/s, or max (as fast "
+     "as it can)"),
+    (r"lent_network\.fps_max", "lent network", f"frames/s, {BOUND} of the lent network: the "
+     "nna clock / cycles_per_frame"),
+    (r"lent_network\.fps", "lent network", "frames/s the lent network runs at: its target, or "
+     "fps_max for max"),
+    (r"lent_network\.busy_percent", "lent network", "% of the time the lent network's busiest "
+     "submodule works: fps / fps_max"),
+    (r"lent_network\.cycles_per_frame", "lent network", "cycles of the nna clock a frame of "
+     "the lent network takes: its busiest submodule's"),
+    (r"lent_network\.macs_per_frame", "lent network", "multiply-accumulates per frame of the "
+     "lent network"),
+    (r"lent_network\.submodules_lent", "lent network", "NNA submodules lent to it "
+     "(nna.lent_submodules)"),
+    (r"lent_network\.submodules_used", "lent network", "lent submodules its layers occupy "
+     "(the rest stay idle)"),
+    (r"lent_network\.sram_budget_bits_per_submodule", "lent network", "bits of line-buffer "
+     "SRAM of a lent submodule (a stereo submodule's)"),
+    (r"lent_network\.weight_store_bits_per_submodule", "lent network", "bits of a lent "
+     "submodule's weight store"),
+    (r"lent_network\.layers", "lent network", "its layers (JSON: per layer its submodule, "
+     "kernel, stride, channels, input and output size, MACs a pixel, MAC share, cycles a pixel "
+     "and a frame, line buffer rows and bits, on_chip, spill bytes a frame, weight bytes)"),
+    (r"lent_network\.submodules", "lent network", "the lent submodules in use (JSON: per "
+     "submodule its layers, cycles a frame, line-buffer bits and whether its weights stay "
+     "resident)"),
+    (r"lent_network\.dram_bytes_per_frame\.(?P<lb>input|output|spill|weights|total)",
+     "lent network", "bytes of DRAM traffic a frame of the lent network: {what}"),
+    (r"lent_network\.dram_gbps", "lent network", "GB/s of DRAM traffic of the lent network at "
+     "its fps (the DRAM channel's lent client)"),
+    (r"lent_network\.stereo_pair\.dram_channel", "lent network", "True when a DRAM channel "
+     "is modelled (dram.model), where the lent traffic takes slots from the stereo pair"),
+    (r"lent_network\.stereo_pair\.note", "lent network", "why the lent traffic takes nothing "
+     "from the stereo pair; empty when a channel is modelled"),
+    (r"lent_network\.stereo_pair\.lent_slots_per_round", "lent network", "DRAM slots of the "
+     "lent client in every round"),
+    (r"lent_network\.stereo_pair\.round_slots", "lent network", "DRAM slots in a round"),
+    (r"lent_network\.stereo_pair\.lent_slot_gbps", "lent network", "GB/s the lent client's "
+     "slots take (whole slots: at least its dram_gbps)"),
+    (r"lent_network\.stereo_pair\.lent_share_of_channel", "lent network", "the fraction "
+     "(0..1) of the DRAM channel's slots the lent client takes"),
+    (r"lent_network\.stereo_pair\.read_bound_fps", "lent network", f"frames/s, {BOUND} of "
+     "the stereo pair's DRAM reads beside the lent client"),
+    (r"lent_network\.stereo_pair\.read_bound_fps_without_lent", "lent network", f"frames/s, "
+     f"{BOUND} of the stereo pair's DRAM reads without the lent client"),
     (r"metrics\.(?P<m>[^.]+)\.(?P<k>.+)", "accuracy", "{metric} ({m} mask; docs/metrics.md)"),
     (r"output\.valid_pixels", "output and report", "pixels with a disparity"),
     (r"output\.invalid_percent", "output and report", "% of the pixels without a disparity"),
@@ -300,6 +362,8 @@ def describe(column: str, axes=(), overrides=(), domains: dict[str, str] | None 
         parts["how"] = "analytic" if analytic else "cycle sweep: measured; estimate sweep: analytic"
         if "a" in parts:
             parts["act"] = ACTIVITY[parts["a"]]
+        if "lb" in parts:
+            parts["what"] = LENT_BYTES[parts["lb"]]
         if "k" in parts and group == "accuracy":
             parts["metric"] = _metric(parts["k"])
         if "b" in parts:

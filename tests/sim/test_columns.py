@@ -12,6 +12,9 @@ from stereosim.sim.sweep import Task, run_task
 from stereosim.sim.sweep_results import CSV_NAME, GUIDE_NAME, finish_results, write_rows
 
 AXES = ["nna.stereo_submodules"]
+# the keys the sample's points set besides the axis
+FIXED = ["sva.disparities", "source.kind", "source.frame_buffers", "dram.model",
+         "nna.lent_submodules", "nna.lent_network"]
 
 
 def _scene(root):
@@ -29,19 +32,24 @@ def _scene(root):
 
 
 @pytest.fixture(scope="module")
-def sample(tmp_path_factory):
+def sample(tmp_path_factory, lent_toml):
     """Rows of every kind a sweep writes -- cycle (column tiles; a camera; a camera behind
-    frame buffers and the DRAM channel), functional with GT, estimate (tiles, a camera) -- as
-    results.csv and its guide."""
+    frame buffers and the DRAM channel; a lent network beside the DRAM channel), functional
+    with GT, estimate (tiles, a camera; a lent network without a channel) -- as results.csv
+    and its guide."""
     tmp = tmp_path_factory.mktemp("columns")
     scene = str(_scene(tmp / "scene"))
+    lent = {"nna.lent_submodules": 2, "nna.lent_network": lent_toml(
+        tmp / "lent.toml", [(3, 1, 8, 1), (3, 8, 8, 2)])}
     runs = [
         ("cycle", "64x24", {"nna.stereo_submodules": 4}),
         ("cycle", "64x24", {"nna.stereo_submodules": 4, "source.kind": "camera"}),
         ("cycle", "64x24", {"nna.stereo_submodules": 6, "source.kind": "camera",
                             "source.frame_buffers": 2, "dram.model": "tdm"}),
+        ("cycle", "64x24", {"nna.stereo_submodules": 2, "dram.model": "tdm", **lent}),
         ("functional", scene, {"nna.stereo_submodules": 2}),
         ("estimate", "64x24", {"nna.stereo_submodules": 4, "source.kind": "camera"}),
+        ("estimate", "64x24", {"nna.stereo_submodules": 2, **lent}),
     ]
     tasks = [Task(i, i, spec, spec, {"sva.disparities": 16, **over}, None, mode)
              for i, (mode, spec, over) in enumerate(runs)]
@@ -56,12 +64,22 @@ def sample(tmp_path_factory):
 
 def test_every_column_is_described_and_every_rule_describes_one(sample):
     header, _, _ = sample
-    fixed = ["sva.disparities", "source.kind", "source.frame_buffers", "dram.model"]
-    undescribed = [c for c in header if describe(c, AXES, fixed)[0] == "not described"]
+    undescribed = [c for c in header if describe(c, AXES, FIXED)[0] == "not described"]
     assert undescribed == []
     used = {rule_of(c) for c in header} | {rule_of(c[9:]) for c in header
                                            if c.startswith("estimate.")}
     assert [p for p, _, _ in RULES if p not in used] == []
+
+
+def test_a_lent_networks_columns_are_described(sample):
+    """Every column of the report's lent_network section (sim.cycle.lent.lent_report),
+    flattened, with and without a DRAM channel, in its own group of the guide."""
+    header, _, guide = sample
+    lent = [c for c in header if c.startswith("lent_network.")]
+    assert {"lent_network.fps", "lent_network.layers", "lent_network.stereo_pair.note",
+            "lent_network.stereo_pair.read_bound_fps"} <= set(lent)
+    assert [c for c in lent if describe(c, AXES, FIXED)[0] != "lent network"] == []
+    assert f"## lent network ({len(lent)})" in guide
 
 
 def test_the_guide_beside_the_csv_lists_each_column_once(sample):
