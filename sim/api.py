@@ -3,10 +3,12 @@
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import platform
 from collections.abc import Mapping
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import cv2
@@ -14,12 +16,15 @@ import numba
 import numpy as np
 
 from stereosim.nna.descriptor import compute_descriptor
+from stereosim.nna.weights import SHIPPED_WEIGHTS
 from stereosim.sim.config import ChipConfig, check_config, config_to_dict, load_config
+from stereosim.sim.config.backend import BACKEND_KEYS, carried_backend
+from stereosim.sim.config.loader import tuned_backend
 from stereosim.sim.cycle.contract import RunStopped, stop_report
 from stereosim.sim.cycle.energy import energy_report, energy_table
 from stereosim.sim.cycle.frames import FrameSupply, check_frame_count, functional_words
 from stereosim.sim.cycle.lent import lent_report
-from stereosim.sim.cycle.plan import ChipPlan, architecture_report, build_plan
+from stereosim.sim.cycle.plan import ChipPlan, architecture_report, build_plan, chip_sram
 from stereosim.sim.cycle.report import power_basis
 from stereosim.sim.cycle.simulate import simulate
 from stereosim.sim.errors import ConfigError, InputError
@@ -180,6 +185,7 @@ def run(
     report = build_report(plan, mode, fixed)
     if mode == "cycle":
         report.update(cycle_report)
+        add_camera_rate(plan, report)
         if table is not None:
             report["energy"] = energy_report(plan, frame.stats,
                                              *power_basis(report["throughput"], report["stream"]),
@@ -214,19 +220,54 @@ def _energy_table(path, mode: str):
     return energy_table(path)
 
 
+def add_camera_rate(plan: ChipPlan, report: dict) -> None:
+    """A cycle report of a camera-fed chip gains ``throughput.camera_fps``, the camera's own
+    rate: a lone frame skips the vertical blanking and can measure faster."""
+    if plan.camera_fps is not None:
+        report["throughput"]["camera_fps"] = round(plan.camera_fps, 3)
+
+
+def descriptor_report(plan: ChipPlan) -> dict:
+    """The report's ``descriptor``: its kind and bits; for the CNN the network (its file, name
+    and layers); and the SVA back end it runs with (:data:`~sim.config.backend.BACKEND_KEYS`),
+    what it was tuned with (the weight file's own back end, else the descriptor's defaults) and
+    which keys the configuration changed from that."""
+    cfg = plan.cfg
+    out = {"kind": cfg.nna.descriptor, "bits": plan.descriptor_bits}
+    if cfg.nna.descriptor == "cnn":
+        weights = cfg.nna.cnn.weights
+        path = SHIPPED_WEIGHTS if weights == "default" else weights
+        layers = plan.blocks_of("nna")[0].layers
+        out["network"] = {
+            "file": weights, "name": Path(path).name.removesuffix(".npz"),
+            "layers": [f"{2 * lay.half + 1}x{2 * lay.half + 1}x{lay.channels_in}x"
+                       f"{lay.channels_out}" for lay in layers],
+            "macs_per_pixel": sum(lay.macs_per_pixel for lay in layers)}
+    tuned = tuned_backend({"nna": dataclasses.asdict(cfg.nna)})
+    carried = (cfg.nna.descriptor == "cnn" and cfg.nna.cnn.weights != "default"
+               and carried_backend(cfg.nna.cnn.weights) is not None)
+    values = {k: getattr(cfg.sva, k) for k in BACKEND_KEYS}
+    out["backend"] = {
+        **values,
+        "tuned_with": ("the network's weight file" if carried
+                       else f"the {cfg.nna.descriptor} descriptor's defaults"),
+        "changed": [k for k in BACKEND_KEYS if tuned.get(k) != values[k]],
+    }
+    return out
+
+
 def build_report(plan: ChipPlan, mode: str, fixed: np.ndarray | None) -> dict:
     """The report's sections every run has, and the ``output`` words' (``fixed``; None: a
     stopped run has no output)."""
     cfg = plan.cfg
-    bits = plan.descriptor_bits
     h, w = plan.shape
     report = {
-        "architecture": architecture_report(plan),
+        "architecture": {**architecture_report(plan), "chip_sram": chip_sram(plan)},
         "report_version": REPORT_VERSION,
         "stereosim": VERSION,
         "mode": mode,
         "image": {"width": w, "height": h},
-        "descriptor": {"kind": cfg.nna.descriptor, "bits": bits},
+        "descriptor": descriptor_report(plan),
         "config": config_to_dict(cfg),
     }
     if plan.lent is not None:
@@ -410,7 +451,7 @@ def run_stream(pairs, *, mode: str = "cycle", config: ChipConfig | str | None = 
     plan = build_plan(cfg, supply.shape, supply.count)
     h, w = supply.shape
     report = {
-        "architecture": architecture_report(plan),
+        "architecture": {**architecture_report(plan), "chip_sram": chip_sram(plan)},
         "report_version": REPORT_VERSION,
         "stereosim": VERSION,
         "mode": mode,
@@ -434,6 +475,7 @@ def run_stream(pairs, *, mode: str = "cycle", config: ChipConfig | str | None = 
             stop.plan, stop.supply = plan, supply  # to trace it up to the stop
             raise
         report.update(frame.report)
+        add_camera_rate(plan, report)
         if table is not None:
             report["energy"] = energy_report(plan, frame.stats,
                                              *power_basis(report["throughput"], report["stream"]),

@@ -19,8 +19,15 @@ import numpy as np
 
 from stereosim.sim import formats, signals, train_cli, whatif_cli
 from stereosim.sim.api import run, version_text
-from stereosim.sim.argtypes import check_single_output, finite_float, nonnegative_int, positive_int
+from stereosim.sim.argtypes import (
+    check_single_output,
+    finite_float,
+    nonempty_path,
+    nonnegative_int,
+    positive_int,
+)
 from stereosim.sim.config import (
+    DESCRIPTOR_DEFAULTS,
     config_diff,
     config_to_toml,
     keys_set,
@@ -28,8 +35,16 @@ from stereosim.sim.config import (
     load_config,
     parse_set_options,
 )
+from stereosim.sim.config.backend import (
+    BACKEND_KEYS,
+    backend_note,
+    backend_text,
+    carried_backend,
+    describe,
+    write_backend,
+)
 from stereosim.sim.cycle.contract import RunStopped
-from stereosim.sim.cycle.estimate import parse_size
+from stereosim.sim.cycle.estimate import estimate, parse_size
 from stereosim.sim.cycle.frames import MAX_FRAMES
 from stereosim.sim.cycle.plan import build_plan, frame_size
 from stereosim.sim.datasets import (
@@ -138,21 +153,27 @@ def config_inputs(args) -> list[tuple[str, str]]:
     return [(path, "--config") for path in args.config or ()]
 
 
-def _note_layers(args) -> None:
-    """With several --config files, one stderr line per key a later file replaces (once a
-    command: the parsed arguments remember it)."""
-    if len(args.config or ()) > 1 and not getattr(args, "_layers_noted", False):
-        args._layers_noted = True
-        for line in layer_notes(args.config):
-            print(f"stereosim: note: {line}", file=sys.stderr)
+def _notes(args, cfg) -> None:
+    """What the user should know of the configuration, once a command (the parsed arguments
+    remember it), on stderr: with several --config files, a line per file whose keys replace
+    an earlier one's; a CNN weight file without its own back end, which back end stays."""
+    if getattr(args, "_noted", False):
+        return
+    args._noted = True
+    lines = layer_notes(args.config) if len(args.config or ()) > 1 else []
+    note = backend_note(cfg.nna.cnn.weights, cfg.nna.descriptor,
+                        keys_set(args.config, _overrides(args)))
+    for line in lines + ([note] if note else []):
+        print(f"stereosim: note: {line}", file=sys.stderr)
 
 
 def _scene_config(args, ndisp: int | None):
-    _note_layers(args)
     over = _overrides(args)
     if ndisp is not None and not _user_set_disparities(args, over):
         over["sva.disparities"] = legal_disparities(ndisp)
-    return load_config(args.config, over)
+    cfg = load_config(args.config, over)
+    _notes(args, cfg)
+    return cfg
 
 
 # ----------------------------------------------------------------------------------------------
@@ -376,16 +397,24 @@ def _eval_scene(args, scene, saved: dict | None = None) -> tuple[dict, int, dict
     if data["gt"] is None:
         raise InputError(f"scene {scene.name} has no ground truth: nothing to score")
     cfg = _scene_config(args, data.get("ndisp"))
-    t0 = time.perf_counter()
     res = run(data["left"], data["right"], mode=args.mode, config=cfg, gt=data["gt"],
               masks=data["masks"], max_pixels=args.max_pixels or None)
-    if saved is not None:
-        saved[scene.name] = (res.disparity, res.report, time.perf_counter() - t0)
+    if saved is not None:  # the frame time of time<NAME>.txt when the run measured none
+        estimate_ms = (None if "latency" in res.report
+                       else estimate(cfg, res.disparity.shape)["latency"]["frame_ms"])
+        saved[scene.name] = (res.disparity, res.report, estimate_ms)
     return res.report["metrics"], cfg.sva.disparities, eval_timing(res.report)
 
 
 # ----------------------------------------------------------------------------------------------
 # stereosim config
+
+
+def nonempty_size(text: str) -> str:
+    """argparse type of --size: ``''`` refused (an unset shell variable, say)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("'' is empty: give WIDTHxHEIGHT, e.g. 1280x720")
+    return text
 
 
 def cmd_config_show(args) -> int:
@@ -403,6 +432,34 @@ def cmd_config_plan(args) -> int:
     if args.png:
         write_plan_png(plan, args.png)
     sys.stdout.write(plan_text(plan))
+    return 0
+
+
+def cmd_config_backend(args) -> int:
+    """Show the back end a weight file carries; with --set, store one in it first."""
+    path = args.weights
+    if not path.strip():
+        raise InputError("the weight file is empty: give the path of a .npz file")
+    carried = carried_backend(path)
+    if args.set:
+        over = parse_set_options(args.set)
+        keys = {f"sva.{k}" for k in BACKEND_KEYS}
+        for key in over:
+            if key not in keys:
+                raise ConfigError(f"--set {key}: a back end sets only {', '.join(sorted(keys))}")
+        base = {f"sva.{k}": v for k, v in (carried or DESCRIPTOR_DEFAULTS["cnn"]).items()}
+        cfg = load_config(None, {"nna.descriptor": "cnn", "nna.cnn.weights": path,
+                                 **base, **over})  # every value's range, the file's network
+        build_plan(cfg, frame_size(cfg))
+        carried = {k: getattr(cfg.sva, k) for k in BACKEND_KEYS}
+        write_backend(path, carried)
+        print(f"wrote the back end into {path}")
+    if carried is None:
+        print(f"{path} carries no back end: it runs with the cnn descriptor's "
+              f"({describe(DESCRIPTOR_DEFAULTS['cnn'])}); store one with --set sva.KEY=VALUE")
+    else:
+        print(f"{path}: {describe(carried)}")
+        sys.stdout.write(backend_text(carried))
     return 0
 
 
@@ -487,19 +544,21 @@ def _add_run_parser(sub) -> None:
 def _add_eval_parser(sub) -> None:
     """``stereosim eval``: every scene of a folder, scored."""
     e = sub.add_parser("eval", help="run and score every scene of a Middlebury-layout folder")
-    e.add_argument("dataset",
+    e.add_argument("dataset", type=nonempty_path,
                    help="folder of scenes (e.g. ../shared/data/middlebury2014_trainingQ)")
     e.add_argument("--gt-scale", type=finite_float, help="GT PNG scale for non-standard sizes")
     e.add_argument("--mode", default="cycle", choices=("functional", "cycle"),
                    help="cycle (default, as in run): scores plus fps, latency and bottleneck per "
                    "scene; functional: the bit-exact model alone, faster")
     e.add_argument("--json", action="store_true", help="print per-scene and mean metrics as JSON")
-    e.add_argument("--out", metavar="FILE.json", help="also write the per-scene and mean metrics "
-                   "here, rewritten (atomically) after every scene")
+    e.add_argument("--out", metavar="FILE.json", type=nonempty_path,
+                   help="also write the per-scene and mean metrics here, rewritten "
+                   "(atomically) after every scene")
     e.add_argument("--max-pixels", type=nonnegative_int, default=MAX_PIXELS, metavar="N",
                    help=f"refuse larger images (default {MAX_PIXELS}; 0 = no cap)")
-    e.add_argument("--save", metavar="DIR", help="also write the disparity maps in MiddEval3's "
-                   "layout: DIR/<Scene>/disp0NAME.pfm and timeNAME.txt (docs/outputs.md)")
+    e.add_argument("--save", metavar="DIR", type=nonempty_path,
+                   help="also write the disparity maps in MiddEval3's layout: "
+                   "DIR/<Scene>/disp0NAME.pfm and timeNAME.txt (docs/outputs.md)")
     e.add_argument("--algo-name", metavar="NAME",
                    help=f"NAME in --save's file names (default {formats.DEFAULT_ALGO_NAME})")
     _add_config_options(e)
@@ -515,12 +574,20 @@ def _add_config_parser(sub) -> None:
     _add_config_options(cs)
     cs.set_defaults(func=cmd_config_show)
     cp = csub.add_parser("plan", help="the chip plan: clock domains, blocks, FIFOs, SRAM")
-    cp.add_argument("--size", metavar="WxH",
+    cp.add_argument("--size", metavar="WxH", type=nonempty_size,
                     help="frame size (default: the configured camera's, source.camera_width x "
                     "camera_height, else 1280x720)")
-    cp.add_argument("--png", metavar="PATH", help="also draw the plan into this PNG")
+    cp.add_argument("--png", metavar="PATH", type=nonempty_path,
+                    help="also draw the plan into this PNG")
     _add_config_options(cp)
     cp.set_defaults(func=cmd_config_plan)
+    cb = csub.add_parser("backend", help="the SVA back end a CNN weight file carries (the "
+                         "P1/P2, adaptive P2 and box it was tuned with); --set stores one")
+    cb.add_argument("weights", metavar="FILE.npz", help="a weight file or quantized artifact")
+    cb.add_argument("--set", metavar="sva.KEY=VALUE", action="append", default=[],
+                    help="store this back-end key in the file (repeatable; the keys not given "
+                    "keep the file's, else the cnn descriptor's defaults)")
+    cb.set_defaults(func=cmd_config_backend)
     cd = csub.add_parser("diff", help="keys that differ between two configurations (TOML files "
                          "or presets)")
     cd.add_argument("a", metavar="A", type=config_file,

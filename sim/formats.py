@@ -373,27 +373,24 @@ def middeval3_paths(
     ]
 
 
-def runtime_seconds(report: dict, wall_s: float) -> tuple[float, str]:
-    """The run time written to ``time<NAME>.txt`` and what it is.
-
-    With the cycle model (the report's ``latency.frame_ms``): the simulated chip's frame time,
-    the figure a hardware submission reports. Without it (``--mode functional``): the
-    wall-clock seconds the simulator took on this machine. Returns
-    ``(seconds, "chip" | "wall")``.
+def runtime_seconds(report: dict, estimate_ms: float) -> tuple[float, str]:
+    """The run time written to ``time<NAME>.txt`` and what it is: the simulated chip's frame
+    time, the figure a hardware submission reports -- measured by the cycle model (the
+    report's ``latency.frame_ms``), else (``--mode functional``) the analytic estimate's,
+    ``estimate_ms`` (:func:`sim.cycle.estimate.estimate`). Either is the same from run to run.
+    Returns ``(seconds, "chip" | "estimate")``.
     """
     frame_ms = (report.get("latency") or {}).get("frame_ms")
     if frame_ms is not None:
         return float(frame_ms) * 1e-3, "chip"
-    return float(wall_s), "wall"
+    return float(estimate_ms) * 1e-3, "estimate"
 
 
 def time_text(seconds: float, source: str) -> str:
     """The contents of a MiddEval3 ``time<NAME>.txt``: one plain number of seconds and a newline
-    (6 significant digits for the simulated chip, 0.01 s for the wall clock; never in exponent
-    notation)."""
-    if source == "chip":
-        return np.format_float_positional(seconds, precision=6, fractional=False, trim="-") + "\n"
-    return f"{seconds:.2f}\n"
+    (6 significant digits, never in exponent notation; ``source`` is what
+    :func:`runtime_seconds` says it is)."""
+    return np.format_float_positional(seconds, precision=6, fractional=False, trim="-") + "\n"
 
 
 def middeval3_files(
@@ -401,14 +398,14 @@ def middeval3_files(
 ) -> dict[Path, bytes]:
     """Every scene's ``disp0<NAME>.pfm`` (float32, scale -1 little-endian, bottom row first,
     ``inf`` = invalid, as the MiddEval3 SDK reads it) and ``time<NAME>.txt``;
-    ``results``: scene -> (disparity, report, wall-clock seconds of its run)."""
+    ``results``: scene -> (disparity, report, the estimate's frame time in ms)."""
     root = Path(save_dir)
     files: dict[Path, bytes] = {}
-    for scene, (disp, report, wall_s) in sorted(results.items()):
+    for scene, (disp, report, estimate_ms) in sorted(results.items()):
         d = _disparity(disp)
         files[root / scene / f"disp0{name}.pfm"] = pfm_bytes(np.where(np.isfinite(d), d, np.inf))
         files[root / scene / f"time{name}.txt"] = time_text(
-            *runtime_seconds(report, wall_s)
+            *runtime_seconds(report, estimate_ms)
         ).encode()
     return files
 
@@ -417,13 +414,13 @@ def middeval3_note(
     save_dir: str | os.PathLike, name: str, results: dict[str, tuple[np.ndarray, dict, float]]
 ) -> str:
     """The line ``stereosim eval --save`` prints: what was written and what the times are."""
-    sources = {runtime_seconds(report, wall_s)[1] for _, report, wall_s in results.values()}
+    sources = {runtime_seconds(report, ms)[1] for _, report, ms in results.values()}
     what = (
         "the simulated chip's frame time"
         if sources == {"chip"}
-        else "the simulator's wall-clock seconds"
-        if sources == {"wall"}
-        else "chip frame time or wall-clock seconds"
+        else "the chip's frame time as the analytic estimate gives it"
+        if sources == {"estimate"}
+        else "the chip's frame time, simulated or estimated"
     )
     return (
         f"wrote disp0{name}.pfm and time{name}.txt ({what}) for {len(results)} scene(s) "

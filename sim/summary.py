@@ -23,6 +23,7 @@ from rich import box
 from rich.console import Console
 from rich.table import Table
 
+from stereosim.sim.config.backend import describe
 from stereosim.sim.metrics import DENSE_KEYS, format_table, mean_metrics
 from stereosim.sim.plot import RATE_GAP
 
@@ -30,6 +31,12 @@ WIDTH = 100  # columns of the plain-text summary
 ACTIVITIES = ("busy", "starved", "blocked", "idle")
 # stereosim eval --mode cycle: the timing columns of each scene (report.json keys, flattened)
 TIMING_KEYS = ("fps_bound", "fps_measured", "first_output_us", "frame_ms", "bottleneck")
+# what the blocks table's two measures of a block's load mean (they differ: the SVA holds a
+# word in its pipeline for its latency, longer than the II its work counts)
+BLOCKS_CAPTION = ("busy %: cycles the block held work (the SVA: any word in its pipeline, its "
+                  "fill and drain included); work ms: the cycles its critical resource is "
+                  "occupied (NNA: its MAC array; SVA: words x its II), the figure that bounds "
+                  "the frame rate")
 
 
 # ---- formatting -------------------------------------------------------------------------------
@@ -94,8 +101,13 @@ def _run_rows(report: dict, seconds: float, t: Table) -> None:
     frames = f", {report['frames']} frames" if "frames" in report else ""
     t.add_row("size", f"{img['width']} x {img['height']} pixels{frames}")
     t.add_row("disparities D", str(cfg["sva"]["disparities"]))
-    t.add_row("descriptor", f"{report['descriptor']['kind']} ({report['descriptor']['bits']} "
-              "bits)")
+    t.add_row("descriptor", _descriptor(report["descriptor"]))
+    backend = report["descriptor"].get("backend")
+    if backend:
+        changed = backend["changed"]
+        t.add_row("SVA back end", f"{describe(backend)}: {backend['tuned_with']}"
+                  + (f", but for {', '.join(changed)} (set by the configuration)" if changed
+                     else ""))
     t.add_row("SGM paths", str(cfg["sva"]["paths"]))
     t.add_row("wall time", f"{seconds:.2f} s")
     out = report.get("output", {})
@@ -103,6 +115,16 @@ def _run_rows(report: dict, seconds: float, t: Table) -> None:
         t.add_row("valid pixels", f"{100 - out['invalid_percent']:.2f} %")
     elif "last_frame_invalid_percent" in out:
         t.add_row("valid pixels (last frame)", f"{100 - out['last_frame_invalid_percent']:.2f} %")
+
+
+def _descriptor(d: dict) -> str:
+    """``cnn: mixed5x5-wide-n6.int8 (5x5x1x32, 3x3x32x32, ...; 19,232 MACs a pixel), 32 bits``."""
+    net = d.get("network")
+    if not net:
+        return f"{d['kind']} ({d['bits']} bits)"
+    return (f"{d['kind']}: {net['name']} ({len(net['layers'])} layer"
+            f"{'s' if len(net['layers']) > 1 else ''} {', '.join(net['layers'])}; "
+            f"{net['macs_per_pixel']:,} MACs a pixel), {d['bits']} bits")
 
 
 def _measured(st: dict) -> str:
@@ -155,7 +177,15 @@ def _throughput_table(report: dict) -> Table:
                   f"{_fps(d['read_bound_fps'])} fps")
     slow = thr.get("fps_measured")
     bound = thr["fps_bound"]
-    if slow and bound and abs(slow / bound - 1) > RATE_GAP and st.get("frames", 1) == 1:
+    camera = thr.get("camera_fps")
+    if camera:
+        t.add_row("camera (fps)", f"{_fps(camera)} (its pixel clock over the whole raster, "
+                  "blanking included: no stream from it is faster)")
+    if slow and camera and slow > camera and st.get("frames", 1) == 1:
+        t.add_row("note", f"one frame alone measures {_fps(slow)} fps, above the camera's "
+                  f"{_fps(camera)}: a lone frame skips the vertical blanking between frames; "
+                  "a stream (--frames N) measures the rate the chip sustains")
+    elif slow and bound and abs(slow / bound - 1) > RATE_GAP and st.get("frames", 1) == 1:
         t.add_row("note", f"one frame alone runs at {_fps(slow)} fps, {abs(slow / bound - 1):.0%} "
                   f"off the {_fps(bound)} fps work bound (the pipeline's fill, and blocks "
                   "waiting on each other: the blocked column below)")
@@ -166,7 +196,7 @@ def _blocks_table(report: dict) -> Table:
     """Each block's cycles in its clock domain, and what share of them it spent how."""
     work = report["throughput"].get("work_ms_per_frame", {})
     t = Table(title="blocks (cycles of each block's own clock, % of them, work per frame)",
-              title_justify="left",
+              title_justify="left", caption=BLOCKS_CAPTION, caption_justify="left",
               box=box.SIMPLE_HEAD, pad_edge=False, show_edge=False)
     t.add_column("block", no_wrap=True)
     t.add_column("clock", no_wrap=True)
@@ -179,6 +209,25 @@ def _blocks_table(report: dict) -> Table:
         t.add_row(name, f"{b['clock_domain']} @ {b['clock_mhz']:g} MHz", _int(b["cycles_total"]),
                   *(f"{pct[a]:.2f}" for a in ACTIVITIES),
                   f"{work[name]:.4f}" if name in work else "-")
+    return t
+
+
+def _chip_table(report: dict) -> Table:
+    """The chip's totals a user can quote: its SRAM (every submodule instance, by block), and
+    the lent network's rate and DRAM load."""
+    t = _pairs_table("chip")
+    sram = report["architecture"]["chip_sram"]
+    parts = ", ".join(f"{k} {v / 1e6:,.2f}" for k, v in sram["by_block"].items() if v)
+    t.add_row("SRAM", f"{sram['total'] / 1e6:,.2f} Mbit ({sram['total']:,} bits): {parts} "
+              f"Mbit; each of the {sram['nna_submodules']} NNA submodules "
+              f"{sram['nna_per_submodule']:,} bits")
+    lent = report.get("lent_network")
+    if lent:
+        t.add_row("lent network", f"{lent['file']}: {lent['fps']:,.3f} fps (at most "
+                  f"{lent['fps_max']:,.3f}) on {lent['submodules_used']} of "
+                  f"{lent['submodules_lent']} lent submodules; DRAM "
+                  f"{lent['dram_bytes_per_frame']['total']:,} bytes a frame, "
+                  f"{lent['dram_gbps']:,.3f} GB/s")
     return t
 
 
@@ -220,6 +269,8 @@ def summary_tables(report: dict, seconds: float) -> list[Table]:
     tables = [run]
     if "throughput" in report:
         tables += [_throughput_table(report), _blocks_table(report)]
+    if "chip_sram" in report.get("architecture", {}):
+        tables.append(_chip_table(report))
     if "energy" in report:
         tables.append(_energy_table(report["energy"]))
     if report.get("metrics"):

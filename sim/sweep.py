@@ -351,7 +351,7 @@ def _run(task: Task) -> dict[str, Any]:
     flat = flatten(report)
     flat["sram_bits"] = sum(est["sram_bits_total"][k] for k in ("nna_stereo", "sva", "fifos"))
     for key in ("throughput.fps_bound", "throughput.bottleneck", "throughput.merge_depth_needed",
-                "latency.first_output_us", "latency.frame_ms"):
+                "throughput.camera_fps", "latency.first_output_us", "latency.frame_ms"):
         flat[f"estimate.{key}"] = flatten(est)[key]
     return flat
 

@@ -10,6 +10,7 @@ import os
 import sys
 from pathlib import Path
 
+from stereosim.sim.argtypes import finite_float, nonempty_path
 from stereosim.sim.cycle.estimate import estimate, format_estimate, parse_size
 from stereosim.sim.cycle.plan import frame_size
 from stereosim.sim.errors import InputError, UserError
@@ -41,7 +42,8 @@ def _mean(rows: list[dict], column: str) -> float | None:
     return sum(values) / len(values) if values else None
 
 
-def sweep_summary(rows: list[dict], axes: list[str]) -> list[str]:
+def sweep_summary(rows: list[dict], axes: list[str], target_fps: float | None = None
+                  ) -> list[str]:
     """The lines a sweep prints about its results: the best points (the Pareto-optimal ones
     in chip SRAM, frame rate and accuracy when scored -- the same as the Pareto plot, on the
     measured rate when the runs measured one) named by their swept keys, with their rate
@@ -68,6 +70,15 @@ def sweep_summary(rows: list[dict], axes: list[str]) -> list[str]:
             lines.append(f"  {p.label}: " + ", ".join(parts))
         if len(best) > BEST_SHOWN:
             lines.append(f"  ... and {len(best) - BEST_SHOWN} more (the Pareto plot shows all)")
+        target = sweep_pareto(rows, axes, target_fps=target_fps)
+        if target is not None and target.target is not None:
+            chosen = target.chosen
+            lines.append(
+                f"target {target.target:,.1f} fps ({target.target_source}): "
+                + (f"the least SRAM that reaches it is {chosen.label}, {chosen.fps:,.1f} fps, "
+                   f"SRAM {chosen.sram:,.0f} bits" if chosen is not None
+                   else f"no point reaches it (best {max(p.fps for p in target.points):,.1f} "
+                   "fps)"))
     gaps = rate_gaps(rows)
     if gaps:
         worst = gaps[0]
@@ -118,6 +129,8 @@ def register(sub, add_config_options, scene_config) -> None:
     e.set_defaults(func=cmd_estimate)
 
     def cmd_sweep(args) -> int:
+        if args.target_fps is not None and not args.target_fps > 0:
+            raise InputError(f"--target-fps must be above 0; got {args.target_fps:g}")
         if args.workers is not None and args.workers < 1:
             raise InputError(f"--workers must be at least 1; got {args.workers}")
         if args.max_points is not None and args.max_points < 1:
@@ -128,12 +141,12 @@ def register(sub, add_config_options, scene_config) -> None:
         counts = run_sweep(sweep, out, scheduler=args.scheduler, workers=workers,
                            progress=not args.quiet, verbose=args.verbose)
         rows = read_rows(out / CSV_NAME)
-        plots = sweep_plots(rows, sweep.axes, out)
+        plots = sweep_plots(rows, sweep.axes, out, target_fps=args.target_fps)
         print(f"{counts['tasks']} runs ({len(sweep.points)} points x {len(sweep.scenes)} scenes): "
               f"{counts['skipped']} already done, {counts['ok']} ok, {counts['error']} failed")
         planned = {t.point_id for t in sweep.tasks}
         mine = [r for r in rows if r.get("point_id") in planned]
-        for line in sweep_summary(mine, sweep.axes):
+        for line in sweep_summary(mine, sweep.axes, args.target_fps):
             print(line)
         n_columns = len(rows[0]) if rows else 0
         print(f"wrote {out / CSV_NAME} ({n_columns} columns: {GUIDE_NAME} beside it says what "
@@ -149,16 +162,22 @@ def register(sub, add_config_options, scene_config) -> None:
         return 0
 
     s = sub.add_parser("sweep", help="run a grid of configurations x scenes in parallel (Dask)")
-    s.add_argument("sweep_file", help="sweep TOML: [grid], optional [zip] and [set], scenes, mode")
+    s.add_argument("sweep_file", type=nonempty_path,
+                   help="sweep TOML: [grid], optional [zip] and [set], scenes, mode")
     s.add_argument("--scheduler", metavar="ADDRESS",
                    help="an existing Dask scheduler, e.g. tcp://host:8786 (default: a local "
                    "cluster of worker processes)")
     s.add_argument("--workers", type=int, metavar="N",
                    help="local worker processes (default: min(2, CPUs))")
-    s.add_argument("--out", default="sweep", help="output folder (default: sweep)")
+    s.add_argument("--out", default="sweep", type=nonempty_path,
+                   help="output folder (default: sweep)")
     s.add_argument("--max-points", type=int, metavar="N",
                    help=f"refuse a sweep of more than N points (grid x zip; default "
                    f"{MAX_POINTS:,})")
+    s.add_argument("--target-fps", type=finite_float, metavar="FPS",
+                   help="the frame rate a point must reach: the Pareto plot draws it and boxes "
+                   "the least SRAM that reaches it (default: the camera's rate the rows carry, "
+                   "throughput.camera_fps)")
     s.add_argument("--quiet", action="store_true", help="no progress bar")
     s.add_argument("--verbose", action="store_true",
                    help="let Dask's own log and warnings through to stderr")
@@ -175,12 +194,12 @@ def register(sub, add_config_options, scene_config) -> None:
         return 0
 
     p = sub.add_parser("plot", help="plot one column of a sweep's results.csv against another")
-    p.add_argument("results", help="a sweep's results.csv")
+    p.add_argument("results", type=nonempty_path, help="a sweep's results.csv")
     p.add_argument("--x", required=True, metavar="COLUMN")
     p.add_argument("--y", required=True, metavar="COLUMN")
     p.add_argument("--hue", metavar="COLUMN", help="one line per value of this column")
     p.add_argument("--title")
-    p.add_argument("--png", required=True, metavar="OUT.png")
+    p.add_argument("--png", required=True, metavar="OUT.png", type=nonempty_path)
     p.add_argument("--logx", action="store_true", help="logarithmic x axis (positive values)")
     p.add_argument("--logy", action="store_true", help="logarithmic y axis (positive values)")
     p.set_defaults(func=cmd_plot)

@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from stereosim.sim.census_layout import comparison_offsets
+from stereosim.sim.config.backend import carried_backend
 from stereosim.sim.config.check import _build, checked_chip
 from stereosim.sim.config.files import read_toml
 from stereosim.sim.config.schema import (
@@ -176,10 +177,29 @@ def _descriptor_defaults(tree: dict) -> None:
     descriptor = nna.get("descriptor", DEFAULT_DESCRIPTOR)
     if not isinstance(descriptor, str):
         return
-    for key, value in DESCRIPTOR_DEFAULTS.get(descriptor, {}).items():
+    for key, value in tuned_backend(tree).items():
         sva.setdefault(key, value)
     for key, value in derived_widths(sva, descriptor_width(nna)).items():
         sva.setdefault(key, value)
+
+
+def tuned_backend(tree: dict) -> dict:
+    """The back end (:data:`~sim.config.backend.BACKEND_KEYS`) the configuration tree's
+    descriptor was tuned with: the CNN's weight file's own when it carries one
+    (:func:`~sim.config.backend.carried_backend`), else the descriptor's
+    :data:`DESCRIPTOR_DEFAULTS` (none for a malformed tree, left for :func:`_build`)."""
+    nna = tree.get("nna", {})
+    if not isinstance(nna, dict):
+        return {}
+    descriptor = nna.get("descriptor", DEFAULT_DESCRIPTOR)
+    if descriptor == "cnn":
+        cnn = nna.get("cnn", {})
+        weights = cnn.get("weights", "default") if isinstance(cnn, dict) else None
+        if isinstance(weights, str) and weights != "default" and os.path.isfile(weights):
+            carried = carried_backend(weights)
+            if carried is not None:
+                return {**DESCRIPTOR_DEFAULTS["cnn"], **carried}
+    return dict(DESCRIPTOR_DEFAULTS.get(descriptor, {})) if isinstance(descriptor, str) else {}
 
 
 def descriptor_width(nna: dict) -> int:

@@ -6,7 +6,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Any
 
-from stereosim.sim.config.loader import derived_widths, descriptor_width
+from stereosim.sim.config.loader import derived_widths, descriptor_width, tuned_backend
 from stereosim.sim.config.schema import DESCRIPTOR_DEFAULTS, ChipConfig
 
 
@@ -38,18 +38,25 @@ def _auto_keys(cfg, set_keys) -> dict[str, str]:
     user: the descriptor's tuned values (:data:`DESCRIPTOR_DEFAULTS`) and the register widths
     that follow the box, P2 and paths (:func:`~sim.config.loader.derived_widths`): dotted key
     -> why."""
-    defaults = DESCRIPTOR_DEFAULTS.get(cfg.nna.descriptor, {})
+    tree = {"nna": dataclasses.asdict(cfg.nna)}
+    defaults = tuned_backend(tree)
+    carried = defaults != DESCRIPTOR_DEFAULTS.get(cfg.nna.descriptor, {})
 
     def choices(key: str) -> str:
         return ", ".join(f"{d} {str(v[key]).lower()}" for d, v in DESCRIPTOR_DEFAULTS.items())
 
-    auto = {f"sva.{k}": f"auto: nna.descriptor's tuned value ({choices(k)})"
+    def why(key: str) -> str:
+        if carried:
+            return "auto: the tuned value the network's weight file carries"
+        return f"auto: nna.descriptor's tuned value ({choices(key)})"
+
+    auto = {f"sva.{k}": why(k)
             for k, v in defaults.items()
             if f"sva.{k}" not in set_keys and getattr(cfg.sva, k) == v}
     bits = descriptor_width(dataclasses.asdict(cfg.nna))
     derived = derived_widths(dataclasses.asdict(cfg.sva), bits)
-    why = "auto: the narrowest that never saturates at this descriptor, box, P2 and paths"
-    auto.update({f"sva.{k}": why
+    widths = "auto: the narrowest that never saturates at this descriptor, box, P2 and paths"
+    auto.update({f"sva.{k}": widths
                  for k, v in derived.items()
                  if f"sva.{k}" not in set_keys and getattr(cfg.sva, k) == v})
     return auto

@@ -230,6 +230,15 @@ class ChipPlan:
         """A camera streaming straight into the NNA's FIFOs."""
         return self.camera and not self.frame_buffered
 
+    @property
+    def camera_fps(self) -> float | None:
+        """The camera's own frame rate (its pixel clock over its whole raster, blanking
+        included): no stream from it is faster. None without a camera."""
+        if not self.camera:
+            return None
+        camera = self.blocks_of("camera")[0]
+        return self.domains["camera"].freq_hz / camera.frame_clocks
+
     @cached_property
     def symmetric(self) -> bool:
         """Do the two cameras' sides time alike -- the same blocks and FIFOs but for their

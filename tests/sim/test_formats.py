@@ -19,6 +19,7 @@ from stereosim.sim import formats
 from stereosim.sim.api import run
 from stereosim.sim.cli import main
 from stereosim.sim.config import load_config
+from stereosim.sim.cycle.estimate import estimate
 from stereosim.sim.errors import ConfigError, InputError
 from stereosim.sim.formats import Calibration
 from stereosim.sim.io import encode_png, pfm_bytes, read_pfm
@@ -270,10 +271,10 @@ def test_middeval3_time_is_the_chip_frame_time_in_cycle_mode():
     seconds, source = formats.runtime_seconds({"latency": {"frame_ms": 4.125,
                                                            "first_output_us": 1.0}}, 12.3)
     assert source == "chip" and seconds == pytest.approx(0.004125, rel=1e-12)
-    assert formats.runtime_seconds({"mode": "functional"}, 12.345) == (12.345, "wall")
+    assert formats.runtime_seconds({"mode": "functional"}, 12.345) == (0.012345, "estimate")
     assert formats.time_text(0.004125, "chip") == "0.004125\n"
     assert formats.time_text(2.0238713118e-05, "chip") == "0.0000202387\n"  # no exponent
-    assert formats.time_text(12.345678, "wall") == "12.35\n"
+    assert formats.time_text(0.012345678, "estimate") == "0.0123457\n"
 
 
 def test_algo_name_must_be_a_plain_file_name_part():
@@ -441,9 +442,11 @@ def test_eval_save_writes_the_middeval3_layout(tmp_path, capsys, mode):
             seconds = res.report["latency"]["frame_ms"] * 1e-3
             assert re.fullmatch(r"0\.0*[1-9]\d{0,5}\n", text)  # 6 digits, no exponent
             assert float(text) == pytest.approx(seconds, rel=1e-5)
-        else:  # wall-clock seconds, to 0.01 s
-            assert re.fullmatch(r"\d+\.\d\d\n", text)
-    what = "simulated chip's frame time" if mode == "cycle" else "simulator's wall-clock seconds"
+        else:  # the analytic estimate's frame time: the same in every run
+            seconds = estimate(cfg, left.shape)["latency"]["frame_ms"] * 1e-3
+            assert float(text) == pytest.approx(seconds, rel=1e-5)
+    what = ("simulated chip's frame time" if mode == "cycle"
+            else "chip's frame time as the analytic estimate gives it")
     assert f"wrote disp0Chip.pfm and timeChip.txt (the {what}) for 2 scene(s) into" in stdout
 
 

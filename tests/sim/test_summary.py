@@ -374,3 +374,66 @@ def test_eval_prints_the_dense_scores_beside_the_sparse_ones(tmp_path, capsys):
                                                         "dense_bad2", "dense_bad4",
                                                         "dense_avgerr", "dense_rms"))]
     assert m["invalid"] > 0  # something was filled
+
+
+# ---- chip totals, the camera's rate and what busy and work mean (issue 46, items 3 and 6) ----
+
+
+def _rows(text: str) -> str:
+    return " ".join(text.split())  # the plain summary wraps long rows at 100 columns
+
+
+def test_the_summary_quotes_the_chips_sram_with_every_submodule(cycle_report):
+    from stereosim.sim.cycle.plan import chip_sram
+
+    sram = cycle_report["architecture"]["chip_sram"]
+    cfg = load_config(overrides={"sva.disparities": D})
+    assert sram == chip_sram(build_plan(cfg, (H, W)))
+    text = _rows(summary_text(cycle_report, 1.0, terminal=False))
+    assert (f"SRAM {sram['total'] / 1e6:,.2f} Mbit ({sram['total']:,} bits): nna_stereo "
+            f"{sram['by_block']['nna_stereo'] / 1e6:,.2f}") in text
+    assert f"each of the {cfg.nna.submodules} NNA submodules {sram['nna_per_submodule']:,}" in text
+
+
+def test_the_summary_gives_the_lent_networks_rate_and_dram_load():
+    from stereosim.sim.cli import PRESETS
+
+    over = {"sva.disparities": D, "nna.lent_submodules": 4,
+            "nna.lent_network": str(PRESETS / "lent" / "backbone224.toml")}
+    rep = run(*_pair(), mode="functional", overrides=over).report
+    lent = rep["lent_network"]
+    text = _rows(summary_text(rep, 1.0, terminal=False))
+    assert (f"lent network {lent['file']}: {lent['fps']:,.3f} fps (at most "
+            f"{lent['fps_max']:,.3f}) on {lent['submodules_used']} of 4 lent submodules; DRAM "
+            f"{lent['dram_bytes_per_frame']['total']:,} bytes a frame") in text
+
+
+def test_a_lone_frame_faster_than_its_camera_is_explained(cycle_report):
+    """A camera's rate includes its vertical blanking, which one frame alone skips: the summary
+    says so when the lone frame measures faster than the camera, and not otherwise."""
+    measured = cycle_report["throughput"]["fps_measured"]
+    slow = {**cycle_report, "throughput": {**cycle_report["throughput"],
+                                           "camera_fps": measured * 0.97}}
+    text = _rows(summary_text(slow, 1.0, terminal=False))
+    assert f"one frame alone measures {measured:,.1f} fps, above the camera's" in text
+    assert "skips the vertical blanking" in text
+    fast = {**cycle_report, "throughput": {**cycle_report["throughput"],
+                                           "camera_fps": measured * 1.5}}
+    assert "above the camera's" not in summary_text(fast, 1.0, terminal=False)
+
+
+def test_a_camera_fed_report_carries_the_cameras_rate():
+    over = {"sva.disparities": D, "source.kind": "camera", "source.frame_buffers": 2,
+            "source.on_overflow": "drop_frame"}
+    rep = run(*_pair(), mode="cycle", overrides=over).report
+    cfg = load_config(overrides=over)
+    raster = (H + cfg.source.camera_vblank) * (W + cfg.source.camera_hblank)
+    assert rep["throughput"]["camera_fps"] == round(cfg.clocks.camera_mhz * 1e6 / raster, 3)
+    assert "camera_fps" not in run(*_pair(), mode="cycle", overrides={"sva.disparities": D}
+                                   ).report["throughput"]
+
+
+def test_the_blocks_table_says_what_busy_and_work_mean(cycle_report):
+    text = _rows(summary_text(cycle_report, 1.0, terminal=False))
+    assert "busy %: cycles the block held work (the SVA: any word in its pipeline" in text
+    assert "work ms: the cycles its critical resource is occupied" in text
