@@ -124,35 +124,39 @@ class TrainConfig:
             if f.type in ("int", "float") and (
                 isinstance(value, bool) or not isinstance(value, (int, float))
             ):
-                raise ConfigError(f"{f.name} must be a number, got {value!r}")
+                raise ConfigError(f"{f.name} must be a number, got {_shown(value)}")
             if f.type == "int" and not isinstance(value, int):
-                raise ConfigError(f"{f.name} must be a whole number, got {value!r}")
+                raise ConfigError(f"{f.name} must be a whole number, got {_shown(value)}")
             if f.type == "float" and not (-math.inf < _as_float(value) < math.inf):
-                raise ConfigError(f"{f.name} must be a finite number, got {value!r}")
+                raise ConfigError(f"{f.name} must be a finite number, got {_shown(value)}")
+            if f.type == "str" and not isinstance(value, str):
+                raise ConfigError(f"{f.name} must be text, got {_shown(value)}")
         if self.variant not in VARIANTS:
             raise ConfigError(
-                f"unknown variant {self.variant!r}; choose one of {', '.join(VARIANTS)}"
+                f"unknown variant {_shown(self.variant)}; choose one of {', '.join(VARIANTS)}"
             )
         if self.objective not in OBJECTIVES:
             raise ConfigError(
-                f"unknown objective {self.objective!r}; choose one of {', '.join(OBJECTIVES)}"
+                f"unknown objective {_shown(self.objective)}; choose one of {', '.join(OBJECTIVES)}"
             )
         if self.similarity not in SIMILARITIES:
             raise ConfigError(
-                f"unknown similarity {self.similarity!r}; choose one of {', '.join(SIMILARITIES)}"
+                f"unknown similarity {_shown(self.similarity)}; choose one of "
+                f"{', '.join(SIMILARITIES)}"
             )
         lo, hi = box_range()
         for name in ("aggregate", "box"):
             if not lo <= getattr(self, name) <= hi or getattr(self, name) % 2 == 0:
                 raise ConfigError(f"{name} must be odd and in {lo}..{hi} (sva.box_size's range), "
-                                  f"got {getattr(self, name)}")
+                                  f"got {_shown(getattr(self, name))}")
         for name in ("epochs", "steps_per_epoch", "batch", "strips", "strip_width"):
             if getattr(self, name) < 1:
-                raise ConfigError(f"{name} must be at least 1, got {getattr(self, name)}")
+                raise ConfigError(f"{name} must be at least 1, got {_shown(getattr(self, name))}")
         if self.device not in DEVICES:
-            raise ConfigError(f"device must be one of {', '.join(DEVICES)}, got {self.device!r}")
+            raise ConfigError(f"device must be one of {', '.join(DEVICES)}, got "
+                              f"{_shown(self.device)}")
         if self.threads < 0:
-            raise ConfigError(f"threads must be 0 (auto) or more, got {self.threads}")
+            raise ConfigError(f"threads must be 0 (auto) or more, got {_shown(self.threads)}")
         if not 0 <= self.pos_offset < self.neg_low <= self.neg_high:
             raise ConfigError(
                 "offsets must satisfy 0 <= pos_offset < neg_low <= neg_high, got "
@@ -166,7 +170,7 @@ class TrainConfig:
                               "shot_noise, blur_max and vshift_max non-negative")
         if not 2 <= self.disparities <= max_disparities():
             raise ConfigError(f"disparities must be in 2..{max_disparities()} (the chip's widest "
-                              f"range, sva.disparities), got {self.disparities}")
+                              f"range, sva.disparities), got {_shown(self.disparities)}")
         if not (self.temperature > 0 and 0 < self.scale_start <= self.scale_end):
             raise ConfigError(
                 "temperature must be positive and 0 < scale_start <= scale_end, got "
@@ -194,3 +198,10 @@ def _as_float(value) -> float:
         return float(value)
     except OverflowError:
         return math.inf
+
+
+def _shown(value) -> str:
+    """``repr(value)`` for a one-line message, cut short (a value from a crafted file may be a
+    4,000-digit number or a long list)."""
+    text = repr(value)
+    return text if len(text) <= 40 else f"{text[:37]}..."

@@ -75,6 +75,8 @@ RECORDS = [
     ({"config": [1, 2]}, "has no settings"),
     (_without_scale_end(), "lacks scale_end"),
     (_config(scale_end="big"), "scale_end must be a number, got 'big'"),
+    (_config(variant=["single9x9"]), "variant must be text, got ['single9x9']"),
+    (_config(box=10**4000), "box must be odd and in 1..15 (sva.box_size's range), got 1000000"),
     (_config(blur_max=1e300), "blur_max and vshift_max must be at most 13 px"),
     (_config(vshift_max=1e300), "blur_max and vshift_max must be at most 13 px"),
 ]
@@ -83,7 +85,8 @@ RECORDS = [
 @pytest.mark.parametrize("record, message", RECORDS,
                          ids=["box", "disparities", "box-float", "disparities-text", "gain-huge",
                               "no-config", "list", "null", "string", "config-list",
-                              "no-scale-end", "scale-end-text", "blur-huge", "vshift-huge"])
+                              "no-scale-end", "scale-end-text", "variant-list", "box-4000-digits",
+                              "blur-huge", "vshift-huge"])
 def test_a_qat_base_records_settings_are_checked_as_the_clis(record, message, tmp_path, capsys):
     """`"box": 999` ran to the end at 15.2 GB, `"disparities": 10**7` passed 6.8 GB; a record
     of another shape was a traceback. The record is refused before the data are looked at (the
@@ -95,6 +98,7 @@ def test_a_qat_base_records_settings_are_checked_as_the_clis(record, message, tm
                  "--quiet"])
     err = _one_line(code, capsys.readouterr().err)
     assert f"float model {base!r}: its training record" in err and message in err
+    assert len(err) < 300 + len(base)  # a crafted value is shown cut short
     assert out.read_bytes() == OLD
 
 
