@@ -2,8 +2,11 @@
 stereo accelerator).
 
 ``stereosim.run(left, right, mode=..., config=..., overrides=...)`` simulates one frame and
-``stereosim.run_stream(pairs, ...)`` a stream of them (:mod:`stereosim.sim.api`); the command
-line is ``stereosim`` (:mod:`stereosim.sim.cli`).
+``stereosim.run_stream(pairs, ...)`` a stream of them (:mod:`stereosim.sim.api`);
+``stereosim.load_scene(folder)`` reads a scene (images, ground truth, masks, calibration) and
+``stereosim.read_pfm`` / ``write_pfm`` read and write disparity maps as the Middlebury PFM
+specification has them (:mod:`stereosim.sim.io`). The command line is ``stereosim``
+(:mod:`stereosim.sim.cli`).
 
 This one top-level package holds the project's folders as sub-packages (``pyproject.toml`` maps
 them): :mod:`stereosim.sim` (the core, the cycle model, the application), :mod:`stereosim.nna`
@@ -16,8 +19,10 @@ it imports only the core here: the API's names resolve on first use (PEP 562), s
 from stereosim.sim import ChipConfig, ConfigError, InputError, UserError, load_config
 
 __all__ = ["ChipConfig", "ConfigError", "FrameOutput", "InputError", "Result", "Stream",
-           "UserError", "load_config", "run", "run_stream"]
-_API = ("run", "Result", "run_stream", "Stream", "FrameOutput")
+           "UserError", "load_config", "load_scene", "read_pfm", "run", "run_stream",
+           "write_pfm"]
+_API = ("run", "Result", "run_stream", "Stream", "FrameOutput", "load_scene")
+_IO = ("read_pfm", "write_pfm")
 
 
 def __getattr__(name):
@@ -25,6 +30,10 @@ def __getattr__(name):
         from stereosim.sim import api
 
         return getattr(api, name)
+    if name in _IO:
+        from stereosim.sim import io
+
+        return getattr(io, name)
     raise AttributeError(f"module 'stereosim' has no attribute {name!r}")
 
 

@@ -27,7 +27,10 @@ from stereosim.sim.cycle.lent import lent_report
 from stereosim.sim.cycle.plan import ChipPlan, architecture_report, build_plan, chip_sram
 from stereosim.sim.cycle.report import power_basis
 from stereosim.sim.cycle.simulate import simulate
+from stereosim.sim.datasets import default_scene, find_scene, parse_calib
+from stereosim.sim.datasets import load_scene as read_scene
 from stereosim.sim.errors import ConfigError, InputError
+from stereosim.sim.formats import read_calibration
 from stereosim.sim.heap import keep_freed_memory
 from stereosim.sim.io import MAX_PIXELS, check_gt_values, pixel_cap, to_grey
 from stereosim.sim.metrics import check_truth, evaluate, mean_metrics, undefined_metrics
@@ -118,6 +121,32 @@ def resolve_config(config: ChipConfig | str | None, overrides: dict[str, Any] | 
             f"{type(overrides).__name__}"
         )
     return load_config(config, overrides)
+
+
+def load_scene(folder, *, gt_scale: float | None = None,
+               max_pixels: int | None = MAX_PIXELS) -> dict:
+    """A scene folder as arrays, as ``stereosim run FOLDER`` reads it: Middlebury 2014
+    (``im0.png``, ``im1.png``, ``disp0GT.pfm``, ``mask0nocc.png``, ``calib.txt``), 2005/2006 and
+    2003 layouts (:mod:`sim.datasets`), or ``"default"`` for the embedded scene.
+
+    Returns a dict: ``name``; ``left``, ``right`` (uint8, grey or RGB); ``gt`` (float32
+    disparities in pixels, ``inf`` unknown; None without GT; ``gt_scale``: the value per
+    pixel of a PNG GT of a non-standard size); ``masks`` (``nonocc`` and/or ``all``, boolean);
+    ``ndisp`` (calib.txt's, or None); ``calibration`` (a :class:`sim.formats.Calibration` from
+    calib.txt when it has the camera's keys, else None) and ``note``. Every problem raises a
+    :class:`sim.errors.UserError` with one line."""
+    if isinstance(folder, str) and folder == "default":
+        data = default_scene()
+        data["calibration"] = None
+        return data
+    if not isinstance(folder, (str, os.PathLike)):
+        raise InputError(f"folder must be a path or 'default'; got {type(folder).__name__}")
+    scene = find_scene(folder, gt_scale=gt_scale)
+    data = read_scene(scene, max_pixels=pixel_cap(max_pixels))
+    calib = Path(folder) / "calib.txt"
+    keys = parse_calib(calib) if calib.is_file() else {}
+    data["calibration"] = read_calibration(calib) if "cam0" in keys else None
+    return data
 
 
 def run(
@@ -401,11 +430,16 @@ def stream_supply(pairs, max_pixels: int | None = MAX_PIXELS,
     if isinstance(pairs, FrameSupply):
         count, read = pairs.count, pairs.pair
     else:
-        if not hasattr(pairs, "__len__") or not hasattr(pairs, "__getitem__"):
+        if (not hasattr(pairs, "__len__") or not hasattr(pairs, "__getitem__")
+                or isinstance(pairs, (Mapping, str, bytes))):  # a dict would give its keys
             raise InputError(
                 f"pairs must be a sequence of (left, right) images or a FrameSupply; got "
                 f"{type(pairs).__name__}")
-        count = len(pairs)
+        try:
+            count = len(pairs)
+        except (TypeError, ValueError, OverflowError) as exc:  # a __len__ below 0, say
+            raise InputError(f"pairs has no usable length (len() raised {exc}): give a "
+                             "sequence of (left, right) images") from None
 
         def read(f):
             item = pairs[f]
