@@ -6,7 +6,10 @@ cycle run that stops (``--max-cycles``, the automatic budget, a deadlock, a came
 publishes what there is to inspect -- report.json marked ``stopped`` with every block's and
 FIFO's state, and the trace up to the stop when ``--vcd`` or ``--timeline`` asked for one --
 and removes, in the same set, every other file the run would have written, so that no file in
-``--out`` looks like this run's output without being it (docs/reliability.md).
+``--out`` looks like this run's output without being it (docs/reliability.md). The command
+exits with the stop's line and status 2 (the frame's outputs are not there); a stop the user
+asked for (``--max-cycles N``) is a :class:`StopAsked`, whose line says so and is no error of
+the chip's.
 """
 
 from __future__ import annotations
@@ -19,6 +22,13 @@ from stereosim.sim.cycle.contract import RunStopped
 from stereosim.sim.errors import ConfigError, UserError
 from stereosim.sim.outputs import json_text, publish
 from stereosim.sim.tracing import TraceRequest, trace_files
+
+
+class StopAsked(UserError):
+    """The line of a run that stopped where the user asked it to (``--max-cycles N``,
+    ``sim.max_cycles``): the run did what it was told, so the line is not an error the chip
+    made; the command still exits 2, as every run whose frame is not complete does, and its
+    report is published as any stop's."""
 
 
 def with_report(out_dir: Path, report: dict, blobs: dict) -> dict:
@@ -37,7 +47,8 @@ def publish_stop(stop: RunStopped, request: TraceRequest | None, out_dir: Path, 
     ``scene``) as report.json and the trace up to the stop (``stop.trace``, written as the
     ``request`` says), and remove every other existing file of ``planned`` (``(path, label)``:
     everything the run would have written). Returns the one line the command exits with: the
-    stop's, and where to look."""
+    stop's, and where to look -- a :class:`StopAsked` for a stop at the user's
+    ``--max-cycles``."""
     stop.report["scene"] = scene
     blobs, waves, refused = {}, [], ""
     if request is not None and stop.trace is not None:
@@ -51,5 +62,6 @@ def publish_stop(stop: RunStopped, request: TraceRequest | None, out_dir: Path, 
     stale = {Path(p): None for p, _ in planned if Path(p) not in blobs and Path(p).exists()}
     publish(blobs | stale, manifest=out_dir / "report.json")
     also = f" and the trace up to the stop in {', '.join(waves)}" if waves else refused
-    return UserError(f"{stop}; see {out_dir / 'report.json'} for every block's and FIFO's "
-                     f"state{also}")
+    kind = StopAsked if stop.report["stopped"]["reason"] == "max_cycles" else UserError
+    return kind(f"{stop}; see {out_dir / 'report.json'} for every block's and FIFO's "
+                f"state{also}")

@@ -7,10 +7,11 @@ engine ran it, defined once so that neither engine owns it.
   :func:`activity_counts`), a FIFO's counts (:func:`fifo_counts`) and the kernel's steps (one
   per distinct clock edge instant, :func:`count_instants`);
 - how a run stops early, as both report it: a deadlock (:class:`DeadlockError`) and an
-  exhausted cycle budget (:class:`BudgetExceeded`) are the kernel's; a camera overflow is the
-  chip's: a camera cannot wait, so a full FIFO when a pixel is due stops the run
-  (:class:`CameraOverflow`), and so does a frame that finds no free frame buffer
-  (:class:`FrameBufferFull`). Every camera that overflows in the same step is named (the step
+  exhausted cycle budget (:class:`BudgetExceeded`: the user's ``--max-cycles``, a stop asked
+  for, or the automatic budget's safety net, :attr:`ChipPlan.budget_reason`) are the
+  kernel's; a camera overflow is the chip's: a camera cannot wait, so a full FIFO when a pixel
+  is due stops the run (:class:`CameraOverflow`), and so does a frame that finds no free frame
+  buffer (:class:`FrameBufferFull`). Every camera that overflows in the same step is named (the step
   completes first, so the order in which the blocks evaluate cannot change the message). Each
   is a :class:`RunStopped` carrying the state of every FIFO and block after the last step the
   run executed, with its one-line message (:func:`stop_message` and the tails below), and
@@ -99,6 +100,11 @@ def stop_message(head: str, now_fs: int, cycles: dict[str, int], fifos: dict[str
               if st["waiting_on"] is not None and st["waiting_on"][0] not in fifos]
     cyc = ", ".join(f"{d} {n}" for d, n in cycles.items())
     return f"{head} at {time_text(now_fs)} (cycles run: {cyc}): {'; '.join(words)}; {tail}"
+
+
+#: How the line of a :class:`BudgetExceeded` begins when no plan says otherwise (a bare
+#: kernel run; the chip's runs give :attr:`~sim.cycle.plan.ChipPlan.budget_head`).
+BUDGET_HEAD = "cycle budget exceeded"
 
 
 def budget_message(domain: str, limit: int, remedy: str | None = None) -> str:
@@ -191,11 +197,12 @@ class FrameBufferFull(CameraOverflow):
 
 
 def stop_reason(stop: RunStopped, plan: ChipPlan) -> str:
-    """What stopped the run, as the report names it: ``max_cycles`` (``sim.max_cycles``),
-    ``cycle_budget`` (the automatic budget), ``deadlock`` (the watchdog), ``camera_overflow``
-    or ``frame_buffer_overflow``."""
+    """What stopped the run, as the report names it: ``max_cycles`` (``sim.max_cycles``, the
+    stop the user asked for), ``cycle_budget`` (the automatic budget), ``time_limit`` (either,
+    capped to the longest run the engines simulate: :attr:`ChipPlan.budget_reason`),
+    ``deadlock`` (the watchdog), ``camera_overflow`` or ``frame_buffer_overflow``."""
     if isinstance(stop, BudgetExceeded):
-        return "max_cycles" if plan.cfg.sim.max_cycles else "cycle_budget"
+        return plan.budget_reason
     if isinstance(stop, DeadlockError):
         return "deadlock"
     if isinstance(stop, FrameBufferFull):

@@ -300,11 +300,58 @@ class ChipPlan:
                 "or raise sim.watchdog_cycles if the chip may legitimately wait longer")
 
     @property
+    def budget_domain(self) -> str:
+        """The clock domain whose budget ends a run that does not complete: the one whose
+        last allowed edge comes first (ties: the first domain), as both engines check it."""
+        order = list(self.domains)
+        return min(self.budget, key=lambda d: (self.budget[d] * self.domains[d].period_fs,
+                                               order.index(d)))
+
+    @property
+    def budget_reason(self) -> str:
+        """Which budget ends a run that does not complete (the report's ``stopped.reason``):
+        ``max_cycles``, the user's ``sim.max_cycles``; ``cycle_budget``, the automatic one;
+        ``time_limit``, either capped to the longest run the engines simulate
+        (:data:`MAX_RUN_FS`)."""
+        d = self.budget_domain
+        if self.budget[d] == MAX_RUN_FS // self.domains[d].period_fs:
+            return "time_limit"
+        return "max_cycles" if self.cfg.sim.max_cycles else "cycle_budget"
+
+    @property
+    def expected_run_s(self) -> float:
+        """The chip time the automatic budget expects the run to take, seconds: its frames
+        at :func:`expected_frame_s` each."""
+        freqs = {name: d.freq_hz for name, d in self.domains.items()}
+        return self.frames * expected_frame_s(self.cfg, self.shape, freqs,
+                                              self.blocks_of("nna")[0].cycles,
+                                              self.block("sva").cycles, self.frames, self.dram)
+
+    @property
+    def budget_head(self) -> str:
+        """How the line of a run stopped by its budget begins (both engines): a stop the user
+        asked for (``--max-cycles N``) is not called an error the chip made."""
+        reason = self.budget_reason
+        if reason == "max_cycles":
+            return f"stopped at the cycle budget you set (--max-cycles {self.cfg.sim.max_cycles})"
+        if reason == "time_limit":
+            return "stopped at the longest run the cycle engines simulate"
+        return "cycle budget exceeded"
+
+    @property
     def budget_remedy(self) -> str:
         """What a run that ran out of cycles tells the user (both engines)."""
-        if self.cfg.sim.max_cycles:
-            return (f"stopped by sim.max_cycles = {self.cfg.sim.max_cycles} (--max-cycles N); "
-                    "raise it or give 0 for the automatic budget")
+        reason, n = self.budget_reason, self.cfg.sim.max_cycles
+        if reason == "max_cycles":  # --max-cycles takes N >= 1: 0 is a config file's
+            return ("raise --max-cycles N (sim.max_cycles), or leave it out for the automatic "
+                    f"budget ({AUTO_BUDGET_FACTOR}x the expected run)")
+        if reason == "time_limit":
+            asked = (f"--max-cycles {n} asks for more" if n else
+                     f"the automatic budget, {AUTO_BUDGET_FACTOR}x the expected run, asks for more")
+            return (f"{MAX_RUN_FS / 1e15:.3f} s of chip time is the longest run the engines "
+                    f"simulate (their time counts femtoseconds in 64 bits; {asked}): a frame that "
+                    "takes that long is starved -- check what the chip waits for (the DRAM "
+                    "channel's slots: nna.lent_network, dram.gbps) and the clocks")
         return (f"the automatic budget ({AUTO_BUDGET_FACTOR}x the expected run) ran out: give a "
                 "cycle limit with --max-cycles N (sim.max_cycles)")
 
@@ -336,17 +383,36 @@ def _nb(n: int) -> int:
     return max(1, int(n).bit_length())
 
 
+#: The longest stretch of chip time a cycle run simulates, on both engines: the compiled engine
+#: counts time in int64 femtoseconds and keeps 2**62 for "never"
+#: (:data:`sim.cycle.compiled.layout.INF`), so every domain's budget is capped to the cycles
+#: that end by this instant (2**61 fs, 2,305.843 s), with room to spare for the arithmetic on
+#: an instant; a run stopped there says so (:attr:`ChipPlan.budget_reason` ``time_limit``).
+MAX_RUN_FS = 1 << 61
+
+
 def frame_budget(cfg: ChipConfig, shape: tuple[int, int], freqs: dict[str, float],
                  cpd: int, sva_ii: int, frames: int = 1, dram: DramPlan | None = None
                  ) -> dict[str, int]:
     """The cycles each domain may run: ``sim.max_cycles`` for every domain when set, else a
-    generous budget of :data:`~sim.config.AUTO_BUDGET_FACTOR` times the frames at the slowest
-    block's rate. Through the DRAM channel a
-    memory source reads no faster than its read slots give, nor than its prefetch window per
-    round trip (``read_prefetch_bursts`` bursts per access latency), and every frame's first
-    burst waits the channel's longest wait."""
+    generous budget of :data:`~sim.config.AUTO_BUDGET_FACTOR` times the expected run
+    (:func:`expected_frame_s` a frame); either at most the cycles of :data:`MAX_RUN_FS`."""
+    cap = {name: MAX_RUN_FS // period_fs(f) for name, f in freqs.items()}
     if cfg.sim.max_cycles:
-        return dict.fromkeys(freqs, cfg.sim.max_cycles)
+        return {name: min(cfg.sim.max_cycles, cap[name]) for name in freqs}
+    frame_s = expected_frame_s(cfg, shape, freqs, cpd, sva_ii, frames, dram)
+    return {name: min(int(min(AUTO_BUDGET_FACTOR * frames * frame_s * f, cap[name])) + 100_000,
+                      cap[name]) for name, f in freqs.items()}
+
+
+def expected_frame_s(cfg: ChipConfig, shape: tuple[int, int], freqs: dict[str, float],
+                     cpd: int, sva_ii: int, frames: int = 1, dram: DramPlan | None = None
+                     ) -> float:
+    """The seconds of chip time the automatic budget expects a frame of a run of ``frames``
+    to take (a little more: 16 rows more): the frame at the slowest block's rate. Through the
+    DRAM channel a memory source reads no faster than its read slots give, nor than its
+    prefetch window per round trip (``read_prefetch_bursts`` bursts per access latency), and
+    every frame's first burst waits the channel's longest wait."""
     h, w = shape
     camera = cfg.source.kind == "camera"
     per_pixel_s = max(
@@ -362,8 +428,7 @@ def frame_budget(cfg: ChipConfig, shape: tuple[int, int], freqs: dict[str, float
         frame_s += dram.longest_wait_fs / 1e15
     if camera and frames > 1:  # the vertical blanking between frames
         frame_s += cfg.source.camera_vblank * (w + cfg.source.camera_hblank) / freqs["camera"]
-    return {name: int(AUTO_BUDGET_FACTOR * frames * frame_s * f) + 100_000
-            for name, f in freqs.items()}
+    return frame_s
 
 
 # ---- buffers -----------------------------------------------------------------------------------

@@ -11,6 +11,12 @@ decides which engine runs.
   why. ``fast`` refuses such a run with one
   line.
 
+A run the engines cannot simulate is refused before either starts, in one line
+(:func:`check_run_time`): one whose expected chip time, or whose watchdog window, is longer
+than :data:`~sim.cycle.plan.MAX_RUN_FS` (the compiled engine's time is int64 femtoseconds) --
+a network on the lent NNA submodules that leaves the stereo pair a sliver of the DRAM channel
+does that.
+
 The first frame after an install or an edit compiles the numba kernels it uses; one line on
 stderr says so when the first one starts, and one more how long it took
 (:func:`sim.progress.compile_notice`); on an empty cache the compiled engine's kernels compile
@@ -25,7 +31,7 @@ from __future__ import annotations
 from stereosim.sim.cycle.compiled.prewarm import prewarm
 from stereosim.sim.cycle.compiled.run import run_compiled
 from stereosim.sim.cycle.contract import FrameResult, RunStopped
-from stereosim.sim.cycle.plan import ChipPlan
+from stereosim.sim.cycle.plan import MAX_RUN_FS, ChipPlan
 from stereosim.sim.cycle.readable.chip import run_readable
 from stereosim.sim.errors import ConfigError
 from stereosim.sim.progress import compile_notice
@@ -42,6 +48,31 @@ def _needs_readable(plan: ChipPlan, sink_stall, order_seed) -> str | None:
     return None
 
 
+def check_run_time(plan: ChipPlan) -> None:
+    """Raise :class:`ConfigError` for a run longer than the engines simulate: its budget is
+    capped (:attr:`ChipPlan.budget_reason` ``time_limit``) and the run is expected to take
+    longer than that (it could only stop there), or its watchdog's window -- with the DRAM
+    channel's longest wait -- is longer (no stretch of it could be told from a deadlock)."""
+    limit_s = MAX_RUN_FS / 1e15
+    remedy = ("give the stereo pair more of the DRAM channel (a lower fps in "
+              "nna.lent_network, a wider dram.gbps) or faster clocks")
+    if plan.budget_reason == "time_limit" and plan.expected_run_s > limit_s:
+        why = f"the run would take about {plan.expected_run_s:,.3f} s of chip time"
+    elif plan.watchdog_fs > MAX_RUN_FS:
+        why = (f"its watchdog waits {plan.watchdog_fs / 1e15:,.3f} s of chip time "
+               f"(sim.watchdog_cycles = {plan.cfg.sim.watchdog_cycles} periods of the slowest "
+               "clock, with the DRAM channel's longest wait)")
+        remedy = f"lower sim.watchdog_cycles, or {remedy}"
+    else:
+        return
+    slots = ""
+    if plan.dram is not None and plan.dram.reads is not None:
+        slots = (f"; the stereo pair's reads get {plan.dram.reads.count} of the DRAM channel's "
+                 f"{plan.dram.round_slots:,} slots a round")
+    raise ConfigError(f"{why}, longer than the {limit_s:,.3f} s the cycle engines simulate "
+                      f"(their time counts femtoseconds in 64 bits){slots}: {remedy}")
+
+
 def simulate(plan: ChipPlan, left, right=None, *, sink_stall=None,
              window: tuple[int, int] | None = None, order_seed=None,
              on_frame=None, words: bool = True, progress=None) -> FrameResult:
@@ -54,6 +85,7 @@ def simulate(plan: ChipPlan, left, right=None, *, sink_stall=None,
     ``words=False``: the compiled engine computes no words (``words`` is None; the readable
     kernel moves them anyway). ``progress(frames)``: the compiled engine says now and then how
     many frames the sink has taken (the readable kernel draws its own bar)."""
+    check_run_time(plan)
     engine = plan.cfg.sim.engine
     reason = _needs_readable(plan, sink_stall, order_seed)
     if engine == "fast" and reason is not None:

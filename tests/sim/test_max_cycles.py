@@ -1,7 +1,9 @@
 """``--max-cycles N`` (sim.max_cycles): a run stops once any clock domain ran N cycles, on both
 engines at the same instant with the same state of every FIFO; a limit the run does not reach
-changes nothing. A stopped command (the limit, or a deadlock) exits 2 with one line and
-publishes its report and the trace up to the stop. ``--version`` names the installed
+changes nothing; a limit beyond what the engines' time holds is capped to it. A stopped
+command (the limit, the automatic budget, or a deadlock) exits 2 with one line and publishes its
+report and the trace up to the stop; the line of the limit the user set says so, and is no
+error of the chip's. ``--version`` names the installed
 version."""
 
 import hashlib
@@ -13,14 +15,16 @@ import numpy as np
 import pytest
 import pywellen
 
+import stereosim
 from stereosim.sim import tracing
 from stereosim.sim.cli import main
 from stereosim.sim.config import load_config
 from stereosim.sim.cycle.compiled.run import run_compiled
 from stereosim.sim.cycle.contract import BudgetExceeded
-from stereosim.sim.cycle.plan import STATUS_CODES, build_plan
+from stereosim.sim.cycle.plan import MAX_RUN_FS, STATUS_CODES, build_plan
 from stereosim.sim.cycle.simulate import simulate
 from stereosim.sim.io import encode_png
+from stereosim.sim.run_files import StopAsked, publish_stop
 
 CENSUS = {"sva.disparities": 16, "nna.descriptor": "census"}
 
@@ -55,7 +59,9 @@ def test_the_run_stops_at_the_limit_of_its_fastest_domain(clocks, share, run_cyc
     for d, dom in plan.domains.items():  # every domain's edges before the stop instant
         per = dom.period_fs
         assert fast.value.cycles[d] == -(-limit * plan.domains[fastest].period_fs // per)
-    assert f"stopped by sim.max_cycles = {limit} (--max-cycles N)" in str(fast.value)
+    assert str(fast.value).startswith(f"stopped at the cycle budget you set (--max-cycles {limit})"
+                                      " at ")
+    assert f"{fastest} reached {limit} cycles" in str(fast.value)
 
 
 def test_a_limit_the_run_does_not_reach_changes_nothing(run_cycle):
@@ -148,7 +154,7 @@ def test_a_stopped_run_publishes_its_report_and_the_trace_up_to_the_stop(tmp_pat
     assert main(args + files + ["--max-cycles", "5000"]) == 2
     assert not (out / "page.html").exists()
     err = capsys.readouterr().err
-    assert "stopped by sim.max_cycles = 5000" in err
+    assert "stopped at the cycle budget you set (--max-cycles 5000)" in err
     cfg = load_config(overrides={"sva.disparities": 16, "sim.max_cycles": 5000})
     report = _stopped_set(out, err, dump, build_plan(cfg, (40, 64)))
     assert report["stopped"]["reason"] == "max_cycles" and report["engine"] == engine
@@ -197,7 +203,7 @@ def test_a_stopped_stream_publishes_its_report_and_the_trace_up_to_the_stop(tmp_
     limit = 12000  # beyond one 40x64 frame (about 5,700 SVA cycles), short of three
     assert main(args + ["--out", str(out), "--vcd", str(dump), "--max-cycles", str(limit)]) == 2
     err = capsys.readouterr().err
-    assert f"stopped by sim.max_cycles = {limit}" in err
+    assert f"stopped at the cycle budget you set (--max-cycles {limit})" in err
     cfg = load_config(overrides={"sva.disparities": 16, "sim.max_cycles": limit})
     report = _stopped_set(out, err, dump, build_plan(cfg, (40, 64), 3))
     assert report["frames"] == 3 and report["stopped"]["reason"] == "max_cycles"
@@ -212,7 +218,8 @@ def test_a_stop_whose_trace_is_above_the_limit_still_publishes_its_report(tmp_pa
                                         "--trace-limit", "0.001", "--max-cycles", "5000"]
     assert main(args) == 2
     err = _one_line(capsys.readouterr().err)
-    assert "stopped by sim.max_cycles = 5000" in err and "(no trace: the VCD would be" in err
+    assert "stopped at the cycle budget you set (--max-cycles 5000)" in err
+    assert "(no trace: the VCD would be" in err
     report = json.loads((out / "report.json").read_text())
     assert report["stopped"]["reason"] == "max_cycles"
     assert "--trace-limit" in report["trace"]["refused"] and report["files"] == {}
@@ -225,3 +232,65 @@ def test_version_is_the_installed_one(capsys):
     assert done.value.code == 0
     text = capsys.readouterr().out
     assert text.startswith(f"stereosim {importlib.metadata.version('stereosim')} (Python ")
+
+
+def test_a_stop_the_user_asked_for_is_no_error_and_its_advice_is_what_the_cli_takes(tmp_path):
+    """``--max-cycles N`` is a stop the user asked for: its line says so (not "cycle budget
+    exceeded"), advises what --max-cycles takes (it refuses 0: leave it out for the automatic
+    budget), and the command's line is a :class:`StopAsked` -- the automatic budget's safety
+    net stays a budget overrun."""
+    left, right = _pair(6, 40)
+    cfg = load_config(overrides={**CENSUS, "sim.max_cycles": 300})
+    with pytest.raises(BudgetExceeded) as info:
+        stereosim.run(left, right, config=cfg)
+    line = str(info.value)
+    assert line.startswith("stopped at the cycle budget you set (--max-cycles 300) at ")
+    assert "exceeded" not in line and "error" not in line and "give 0" not in line
+    assert "raise --max-cycles N (sim.max_cycles), or leave it out for the automatic" in line
+    assert info.value.report["stopped"]["reason"] == "max_cycles"
+    said = publish_stop(info.value, None, tmp_path, [], {"name": "pair", "source": "test"})
+    assert isinstance(said, StopAsked) and str(said).startswith(line)
+    assert main(["run", "--max-cycles", "0"]) == 2  # what the advice steers clear of
+
+
+def test_the_automatic_budget_is_still_an_overrun(tmp_path, capsys, monkeypatch):
+    """A sink that never pops and a watchdog longer than the automatic budget: the budget's
+    safety net stops the run, worded as an overrun, and its line is no :class:`StopAsked`."""
+    def never_popping(plan, left, right, **kw):
+        return simulate(plan, left, right, sink_stall=(1 << 40, (1 << 40) - 1), **kw)
+
+    monkeypatch.setattr("stereosim.sim.api.simulate", never_popping)
+    out = tmp_path / "out"
+    args = _inputs(tmp_path, 12, 40) + ["--set", "sim.watchdog_cycles=1000000000", "--out",
+                                         str(out)]
+    assert main(args) == 2
+    err = _one_line(capsys.readouterr().err)
+    assert err.startswith("stereosim: error: cycle budget exceeded at ")
+    assert "the automatic budget (20x the expected run) ran out" in err
+    report = json.loads((out / "report.json").read_text())
+    assert report["stopped"]["reason"] == "cycle_budget"
+
+
+def test_a_huge_max_cycles_is_capped_to_what_the_engines_time_holds(run_cycle, capsys,
+                                                                    tmp_path):
+    """``--max-cycles 10000000000000`` (legal up to 2**50) overflowed the compiled engine's
+    int64 femtoseconds (a traceback): every domain's budget is capped to the cycles of
+    MAX_RUN_FS, and the run completes on both engines as without a limit."""
+    left, right = _pair(6, 40)
+    free = load_config(overrides=CENSUS)
+    words, report, _ = run_cycle(left, right, free)
+    for n in (10**13, 1 << 50):
+        cfg = load_config(overrides={**CENSUS, "sim.max_cycles": n})
+        plan = build_plan(cfg, left.shape)
+        for d, dom in plan.domains.items():
+            assert plan.budget[d] == min(n, MAX_RUN_FS // dom.period_fs)
+        assert plan.budget_reason == "time_limit"
+        assert plan.budget_head == "stopped at the longest run the cycle engines simulate"
+        assert f"--max-cycles {n} asks for more" in plan.budget_remedy
+        frame = run_compiled(plan, left, right)
+        assert np.array_equal(frame.words, words)
+        assert frame.report["cycles"] == report["cycles"]
+    assert run_cycle(left, right, cfg)[1]["cycles"] == report["cycles"]
+    assert main(_inputs(tmp_path, 12, 40) + ["--out", str(tmp_path / "out"), "--max-cycles",
+                                             str(10**13)]) == 0
+    assert "Traceback" not in capsys.readouterr().err

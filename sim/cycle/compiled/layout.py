@@ -42,10 +42,13 @@ from typing import NamedTuple
 import numpy as np
 
 from stereosim.sim.cycle.buffers import tracked
-from stereosim.sim.cycle.plan import ChipPlan
+from stereosim.sim.cycle.plan import MAX_RUN_FS, ChipPlan
 from stereosim.sim.cycle.stages import stage_offsets
 
+#: "never" (an event not computed, a stop that does not come): above every instant a run
+#: reaches, which the plan's budget keeps at most MAX_RUN_FS
 INF = 1 << 62
+assert MAX_RUN_FS < INF
 
 # stream kinds (``STREAM.kind``)
 (SOURCE_PUSH, LINE_POP, MAC_PUSH, MERGE_MOVE, SVA_POP, SVA_PUSH, SINK_POP, SVA_ISSUE, DRAM_READ,

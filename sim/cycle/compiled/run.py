@@ -151,7 +151,10 @@ def _left(name: str) -> str:
 
 
 def _budget_instant(plan: ChipPlan) -> int:
-    return min(plan.budget[d] * dom.period_fs for d, dom in plan.domains.items())
+    """The instant of the budget's stop: at most the plan's :data:`~sim.cycle.plan.MAX_RUN_FS`,
+    below :data:`.layout.INF` (the plan caps every domain's budget)."""
+    d = plan.budget_domain
+    return plan.budget[d] * plan.domains[d].period_fs
 
 
 def _periods(plan: ChipPlan) -> np.ndarray:
@@ -320,7 +323,7 @@ def _stop(plan: ChipPlan, sink_stall, cls, now_fs: int, executed: int, tail: str
             waiting = ("dram", "full" if status == "blocked" else "empty")
         blocks[b.name] = {"status": status, "waiting_on": waiting}
     if message is None:
-        message = stop_message("deadlock" if cls is DeadlockError else "cycle budget exceeded",
+        message = stop_message("deadlock" if cls is DeadlockError else plan.budget_head,
                                now_fs, cycles, fifos, blocks, tail)
     return cls(message, time_fs=now_fs, cycles=dict(sorted(cycles.items())), fifos=fifos,
                blocks=blocks)
@@ -373,8 +376,7 @@ def _raise_stop(plan: ChipPlan, net: Net, names: dict, sink_stall, t_end: int) -
     t_dog, quiet_from = first_quiet(net, _periods(plan), limit)
     if t_budget <= min(t_end, t_over, t_dog):
         now = max(((t_budget - 1) // d.period_fs) * d.period_fs for d in plan.domains.values())
-        limit_d = min(plan.budget, key=lambda d: (plan.budget[d] * plan.domains[d].period_fs,
-                                                  list(plan.domains).index(d)))
+        limit_d = plan.budget_domain
         raise _stop(plan, sink_stall, BudgetExceeded, now, t_budget,
                     budget_message(limit_d, plan.budget[limit_d], plan.budget_remedy))
     if t_over <= t_dog and t_over < INF:

@@ -149,6 +149,7 @@ class Chip:
             stats = self.sim.run(self.done, budget_cycles=plan.budget,
                                  on_progress=poller(bar, lambda: sink.received // sink.width),
                                  budget_remedy=plan.budget_remedy,
+                                 budget_head=plan.budget_head,
                                  watchdog_cycles=plan.watchdog_cycles,
                                  watchdog_remedy=plan.watchdog_remedy)
         except UserError:

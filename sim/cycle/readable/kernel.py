@@ -11,6 +11,7 @@ import random
 from collections.abc import Callable
 
 from stereosim.sim.cycle.contract import (
+    BUDGET_HEAD,
     BudgetExceeded,
     DeadlockError,
     budget_message,
@@ -248,6 +249,7 @@ class Simulator:
         budget_cycles: dict[str, int] | int,
         watchdog_cycles: int | None = 1000,
         budget_remedy: str | None = None,
+        budget_head: str = BUDGET_HEAD,
         watchdog_remedy: str | None = None,
         on_progress: Callable[[], None] | None = None,
     ) -> dict:
@@ -260,7 +262,8 @@ class Simulator:
         that ends ``watchdog_cycles`` periods of the slowest clock domain after the last step
         with progress (or after one slowest period before the run's first step); ``None``
         disables it. ``budget_remedy``, ``watchdog_remedy``: what the budget's and the
-        watchdog's messages tell the user to change.
+        watchdog's messages tell the user to change; ``budget_head``: how the budget's message
+        begins (a limit the user set is not an error).
         In time, not in steps, so an engine that skips quiet stretches reaches the
         same verdict at the same instant. ``on_progress()`` is called every
         :data:`PROGRESS_STEPS` steps and at the end, for a progress bar; it must not touch the
@@ -281,7 +284,7 @@ class Simulator:
             t = min(self._next_fs.values()) if self._domains else 0
             for d, limit in budget.items():
                 if self._next_fs[d] == t and self._cycles[d] - start[d] >= limit:
-                    raise self._stop(BudgetExceeded, "cycle budget exceeded",
+                    raise self._stop(BudgetExceeded, budget_head,
                                      budget_message(d, limit, budget_remedy))
             if self.step():
                 last_progress = t
