@@ -277,19 +277,24 @@ def lent_report(lent: LentPlan, dram: DramPlan | None, pixels: int) -> dict:
         "dram_bytes_per_frame": {**per_frame, "total": sum(per_frame.values())},
         "dram_gbps": round(lent.gbps, 6),
     }
-    client = dram.client("lent") if dram is not None else None
-    if client is None:
+    if dram is None:
         out["stereo_pair"] = {"dram_channel": False, "note": "dram.model = none: no channel is "
                               "modelled, the lent traffic takes no slot from the stereo pair"}
         return out
+    client = dram.client("lent")  # None (or no slot) for a traffic too light to take a slot
+    slots = client.count if client is not None else 0
     out["stereo_pair"] = {
         "dram_channel": True,
-        "lent_slots_per_round": client.count, "round_slots": dram.round_slots,
-        "lent_slot_gbps": round(dram.gbps(client), 6),
-        "lent_share_of_channel": round(client.count / dram.round_slots, 6),
+        "lent_slots_per_round": slots, "round_slots": dram.round_slots,
+        "lent_slot_gbps": round(dram.gbps(client), 6) if client is not None else 0.0,
+        "lent_share_of_channel": round(slots / dram.round_slots, 6),
         "read_bound_fps": dram.read_bound_fps(pixels),
         "read_bound_fps_without_lent": dram.read_bound_fps(pixels, without="lent"),
     }
+    if not slots:
+        out["stereo_pair"]["note"] = (
+            f"its traffic, {lent.gbps:.3g} GB/s, takes no slot of the DRAM channel's round: the "
+            "stereo pair loses nothing to it")
     return out
 
 
@@ -312,7 +317,7 @@ def lent_lines(rep: dict) -> list[str]:
             f"{lay['cycles_per_frame']} a frame; line buffer {lay['line_buffer_rows']} rows, "
             f"{lay['line_buffer_bits']} bits, {where}")
     st = rep["stereo_pair"]
-    if st["dram_channel"]:
+    if st["dram_channel"] and st["lent_slots_per_round"]:
         lines.append(f"  the stereo pair gives it {st['lent_slots_per_round']} of "
                      f"{st['round_slots']} DRAM slots a round ({st['lent_slot_gbps']} GB/s); "
                      f"read-bound fps {st['read_bound_fps']} (without it "

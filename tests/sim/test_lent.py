@@ -15,9 +15,10 @@ from stereosim.nna.geometry import buffer_rows, share_macs, strided_size
 from stereosim.sim.cli import main
 from stereosim.sim.config import load_config
 from stereosim.sim.cycle.compiled.run import run_compiled
-from stereosim.sim.cycle.lent import _group_cycles, cut_layers, lent_report
-from stereosim.sim.cycle.plan import build_plan
+from stereosim.sim.cycle.lent import _group_cycles, cut_layers, lent_lines, lent_report
+from stereosim.sim.cycle.plan import MAX_RUN_FS, build_plan
 from stereosim.sim.errors import ConfigError
+from stereosim.sim.io import encode_png
 
 H, W = 8, 40
 # census with a 4-row line buffer (window 3, slack 1): a stereo submodule's line-buffer SRAM is
@@ -205,3 +206,65 @@ def test_the_stereo_pair_loses_dram_slots_and_time(tmp_path, lent_toml, over, fp
     assert macs["count"] == round(fps * seconds * shared.lent.macs_per_frame)
     assert {it["action"] for it in items} == {"mac", "multiply", "sram_read", "sram_write",
                                               "dram"}
+
+
+@pytest.mark.parametrize("fps", [1e-320, 1e-6], ids=["no_client", "no_slot"])
+def test_a_traffic_too_light_for_a_slot_is_not_called_no_channel(tmp_path, lent_toml, fps):
+    """A lent network whose traffic rounds to nothing (0 GB/s: the channel gets no lent
+    client; or a client of no slot) was reported as "dram.model = none": the channel is
+    modelled, and the report says the traffic takes no slot of it."""
+    path = lent_toml(tmp_path / "n.toml", NET, channels=2, height=12, fps=fps)
+    plan = _plan(path, lent=2, **{"dram.model": "tdm"})
+    client = plan.dram.client("lent")
+    assert client is None or client.count == 0
+    st = lent_report(plan.lent, plan.dram, H * W)["stereo_pair"]
+    assert st["dram_channel"] is True and st["lent_slots_per_round"] == 0
+    assert st["read_bound_fps"] == st["read_bound_fps_without_lent"]
+    assert "dram.model" not in st["note"] and "takes no slot" in st["note"]
+    lines = lent_lines(lent_report(plan.lent, plan.dram, H * W))
+    assert not any("dram.model = none" in line for line in lines)
+    assert "takes no slot of the DRAM channel's round" in lines[-1]
+    none = _plan(path, lent=2)  # no channel modelled: that is what it says then
+    assert "dram.model = none" in lent_report(none.lent, none.dram, H * W)["stereo_pair"]["note"]
+
+
+# A tiny network whose traffic leaves the stereo pair a sliver of a channel just wider: 137
+# bytes a frame (input 64, output 64, weights 9) at 7e6 fps is 0.959 GB/s
+SLIVER_NET = [(1, 1, 1, 1)]
+SLIVER_GBPS = 137 * 7e6 / 1e9
+
+
+@pytest.mark.parametrize("sliver", [1e-8, 1e-9])
+def test_a_lent_network_that_starves_the_pair_gives_a_result_or_one_line(tmp_path, lent_toml,
+                                                                         capsys, sliver):
+    """The lent client takes all but a part in 1e8 (1e9) of the channel: the automatic budget
+    (20x a run of 1,121 s of chip time) overflowed the compiled engine's int64 femtoseconds
+    with a traceback. Now the budget is capped to MAX_RUN_FS and the frame completes (1e8:
+    about 640 s of chip time), or the run, expected to take longer than the engines simulate
+    (1e9: 11,212 s), is refused in one line naming the DRAM slots."""
+    path = lent_toml(tmp_path / "n.toml", SLIVER_NET, width=8, height=8, fps=7e6)
+    over = {"dram.model": "tdm", "dram.gbps": SLIVER_GBPS * (1 + sliver),
+            "nna.lent_submodules": 4, "nna.lent_network": path, "sva.disparities": 16,
+            "nna.descriptor": "census"}
+    plan = build_plan(load_config(overrides=over), (24, 64))
+    assert plan.budget_reason == "time_limit"
+    rng = np.random.default_rng(0)
+    lp, rp = tmp_path / "l.png", tmp_path / "r.png"
+    base = rng.integers(0, 256, (24, 67), dtype=np.uint8)
+    lp.write_bytes(encode_png(base[:, :64].copy()))
+    rp.write_bytes(encode_png(base[:, 3:].copy()))
+    sets = [a for k, v in over.items() for a in ("--set", f"{k}={v}")]
+    code = main(["run", "--left", str(lp), "--right", str(rp), "--out", str(tmp_path / "out"),
+                 "--json", *sets])
+    out, err = capsys.readouterr()
+    assert "Traceback" not in err
+    if sliver == 1e-8:
+        assert code == 0
+        report = json.loads(out)
+        seconds = report["cycles"]["total"]["nna"] / plan.domains["nna"].freq_hz
+        assert 100 < seconds < MAX_RUN_FS / 1e15
+    else:
+        lines = [ln for ln in err.splitlines() if not ln.startswith("stereosim: compiling")]
+        assert code == 2 and len(lines) == 1, err
+        assert "longer than the 2,305.843 s the cycle engines simulate" in lines[0]
+        assert "the stereo pair's reads get 2 of the DRAM channel's" in lines[0]
