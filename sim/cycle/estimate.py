@@ -265,7 +265,8 @@ class SourceTimes:
     - a memory source: its token bucket (:func:`memory_first_cycle`), or through the DRAM
       channel once its read burst is in (:func:`dram_slot`, :func:`dram_read_ready_fs`:
       the bursts take the read slots in turn, each requested at once -- a prefetch that never
-      waits: a lower bound);
+      waits: a lower bound) and a cycle after the burst's pixel before it (a burst's pixels
+      leave one a cycle once it is in);
     - reading a camera's frame buffers (``feed``): not before the first NNA edge after the
       camera wrote the pixel (:func:`camera_cycle`, :func:`seen_from`), and through the DRAM
       channel a burst is requested once the camera wrote its last pixel.
@@ -278,7 +279,7 @@ class SourceTimes:
         self.period = plan.domains[self.src.domain].period_fs
         self.camera = plan.block(self.src.feed) if self.src.feed else None
         self.cam_period = plan.domains["camera"].period_fs if plan.camera else 0
-        self.ready: list[int] = []  # DRAM: per read burst, the first source cycle it is in
+        self.ready: list[int] = []  # DRAM: per read burst, the first cycle its first pixel leaves
         self.slot = -1
 
     def _camera(self, k: int) -> int:
@@ -286,7 +287,10 @@ class SourceTimes:
         raster = self.camera if self.camera is not None else self.src
         return camera_cycle(0, k % w, k // w, raster.line_clocks, raster.frame_clocks, 1)
 
-    def _burst_ready(self, b: int) -> int:
+    def _burst_first(self, b: int) -> int:
+        """The cycle the first pixel of read burst b leaves: once the burst is in, and after
+        the previous burst's pixels, one a cycle (the camera wrote them all before the burst
+        was requested)."""
         d = self.plan.dram
         n = self.plan.shape[0] * self.plan.shape[1]
         while len(self.ready) <= b:
@@ -295,8 +299,9 @@ class SourceTimes:
             if self.camera is not None:  # after the camera wrote the burst's last pixel
                 request = self._camera(burst_last(r, n, d.read_pixels)) * self.cam_period
             self.slot = dram_slot(request, self.slot, d.slot_fs, d.round_slots, d.reads.first, 1)
-            self.ready.append(first_edge_at(dram_read_ready_fs(self.slot, d.slot_fs,
-                                                               d.latency_fs), self.period))
+            ready = first_edge_at(dram_read_ready_fs(self.slot, d.slot_fs, d.latency_fs),
+                                  self.period)
+            self.ready.append(max(ready, self.ready[-1] + d.read_pixels if r else 0))
         return self.ready[b]
 
     def cycle(self, k: int) -> int:
@@ -305,7 +310,8 @@ class SourceTimes:
             return self._camera(k)
         n = self.plan.shape[0] * self.plan.shape[1]
         if self.plan.dram is not None:
-            first = max(k, self._burst_ready(burst_of(k, n, self.plan.dram.read_pixels)[0]))
+            px = self.plan.dram.read_pixels
+            first = max(k, self._burst_first(burst_of(k, n, px)[0]) + k % px)
         else:
             hz = round(self.plan.domains[src.domain].freq_hz)
             first = max(k, memory_first_cycle(k, hz, src.bytes_per_s))
@@ -625,6 +631,7 @@ def estimate(cfg: ChipConfig, shape: tuple[int, int], table: EnergyTable | None 
         camera = plan.blocks_of("camera")[0]
         camera_fps = round(plan.domains["camera"].freq_hz / camera.frame_clocks, 3)
     fps, fps_basis = delivered_fps(plan, tl, 1.0 / frame_s, bottleneck)
+    fps = round(fps, 3)  # as the report gives it, and the power is given at
     if (plan.frame_buffered and plan.cfg.source.on_overflow == "error"
             and plan.block(bottleneck).kind != "camera"):
         warnings.append(
@@ -646,7 +653,7 @@ def estimate(cfg: ChipConfig, shape: tuple[int, int], table: EnergyTable | None 
             # a camera's real frame rate: its whole raster, vertical blanking included
             "camera_fps": camera_fps,
             # the rate the chip delivers, what power is given at (delivered_fps)
-            "fps_delivered": round(fps, 3),
+            "fps_delivered": fps,
             "fps_delivered_basis": fps_basis,
             # the least fifo.nna_to_merge_depth that keeps column tiles at fps_bound
             "merge_depth_needed": merge_depth,

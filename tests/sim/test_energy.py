@@ -9,9 +9,17 @@ import math
 import numpy as np
 import pytest
 
+from stereosim.sim.api import run, run_stream
 from stereosim.sim.config import load_config
 from stereosim.sim.cycle.compiled.run import run_compiled
-from stereosim.sim.cycle.energy import DEFAULT_TABLE, energy_report, energy_table, popcount_bit_adds
+from stereosim.sim.cycle.energy import (
+    DEFAULT_TABLE,
+    energy_report,
+    energy_table,
+    estimate_energy,
+    popcount_bit_adds,
+)
+from stereosim.sim.cycle.estimate import estimate, one_frame_cycles
 from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.errors import ConfigError
 
@@ -103,3 +111,76 @@ def test_a_custom_table_and_its_mistakes(tmp_path):
         f.write_text(bad)
         with pytest.raises(ConfigError, match=match):
             energy_table(f)
+
+
+# the estimate against the cycle model: a 20x112 CNN frame from memory, whose latency the
+# estimate gives to the cycle (tests/sim/test_estimate.py), priced with a table whose clocks cost
+ESTIMATED = {"sva.disparities": 32, "nna.descriptor": "cnn", "sva.median": 3}
+
+
+def _clocked_table(tmp_path):
+    path = tmp_path / "clocked.toml"
+    path.write_text(DEFAULT_TABLE.read_text()
+                    .replace("nna_pj_per_cycle = 0.0", "nna_pj_per_cycle = 5.0")
+                    .replace("sva_pj_per_cycle = 0.0", "sva_pj_per_cycle = 7.0"))
+    return path, energy_table(path)
+
+
+def _estimated_pair(shape):
+    left = np.random.default_rng(7).integers(0, 256, shape, dtype=np.uint8)
+    return left, np.roll(left, -5, axis=1)
+
+
+def test_the_estimates_energy_is_a_one_frame_cycle_runs_item_for_item(tmp_path):
+    """Every count the estimate prices comes from the plan; given the clocks' cycles of a
+    one-frame run (its span, from the estimate's own last output word), every item -- clocks
+    included -- equals the run's exactly."""
+    path, table = _clocked_table(tmp_path)
+    shape = (20, 112)
+    cfg = load_config(overrides=ESTIMATED)
+    rep = run(*_estimated_pair(shape), config=cfg, energy=path).report
+    est = estimate(cfg, shape, table)
+    plan = build_plan(cfg, shape)
+    cycles = one_frame_cycles(plan, est["latency"]["last_output_sva_cycle"])
+    assert cycles == rep["cycles"]["total"]
+    one = estimate_energy(plan, table, rep["energy"]["power_at_fps"], frame_cycles=cycles)
+    assert one["items"] == rep["energy"]["items"]
+    assert one["per_frame_uj"] == rep["energy"]["per_frame_uj"]
+    assert one["power_mw"] == rep["energy"]["power_mw"]
+
+
+def test_the_estimates_energy_at_its_rate_is_a_streams(tmp_path):
+    """The estimate's own figure counts the clocks over a frame period at the rate the chip
+    delivers (f / fps cycles a domain), every other item as the run does (exactly). A stream
+    of N frames counts its span over N frames: the first frame's latency and N - 1 frame
+    periods, that mix of the estimate's two clock counts within a cycle a frame."""
+    path, table = _clocked_table(tmp_path)
+    shape = (20, 112)
+    cfg = load_config(overrides=ESTIMATED)
+    pair = _estimated_pair(shape)
+    rep = run(*pair, config=cfg, energy=path).report
+    est = estimate(cfg, shape, table)
+    fps = est["throughput"]["fps_delivered"]
+    energy = est["energy"]
+    assert energy["power_at_fps"] == fps
+    assert energy["power_mw"] == pytest.approx(energy["per_frame_uj"]["total"] * fps * 1e-3,
+                                               rel=1e-6)
+
+    def split(items):
+        clocks = {it["what"]: it["count"] for it in items if it["action"] == "clock"}
+        return [it for it in items if it["action"] != "clock"], clocks
+
+    others, clocks = split(energy["items"])
+    run_others, _ = split(rep["energy"]["items"])
+    assert others == run_others
+    plan = build_plan(cfg, shape)
+    at_rate = {d: round(dom.freq_hz / fps) for d, dom in plan.domains.items()}
+    assert clocks == {f"{d} domain cycles": c for d, c in at_rate.items()}
+    frames = 8
+    stream = run_stream([pair] * frames, config=cfg, energy=path).report
+    assert stream["stream"]["sustained_fps"] == pytest.approx(fps, rel=1e-4)
+    _, stream_clocks = split(stream["energy"]["items"])
+    first = one_frame_cycles(plan, est["latency"]["last_output_sva_cycle"])
+    for d in plan.domains:
+        mix = (first[d] + (frames - 1) * at_rate[d]) / frames
+        assert stream_clocks[f"{d} domain cycles"] == pytest.approx(mix, abs=frames)

@@ -12,6 +12,7 @@ import pytest
 
 from stereosim.sim.api import run, run_stream
 from stereosim.sim.config import load_config
+from stereosim.sim.cycle.contract import CameraOverflow, FrameBufferFull
 from stereosim.sim.cycle.estimate import estimate, paper_analysis, parse_size
 from stereosim.sim.errors import InputError
 
@@ -20,6 +21,8 @@ MID = (24, 64)
 # The grid's rows are census unless they say cnn (census: 1 NNA cycle per descriptor, so the
 # rows exercise the SVA- and FIFO-bound cases; the cnn rows the NNA-bound ones).
 BASE = {"sva.disparities": 32, "nna.descriptor": "census", "sva.median": 3}
+
+FB = {"source.kind": "camera", "source.frame_buffers": 2, "source.on_overflow": "drop_frame"}
 
 # (shape, overrides, exact to the cycle?)
 GRID = [
@@ -52,6 +55,16 @@ GRID = [
       for d in (1, 2, 3) for m in (0, 3, 5)],
     # a camera at the NNA's clock: blanking only
     (SMALL, {"source.kind": "camera", "source.camera_hblank": 20}, True),
+    # cameras writing into DRAM frame buffers read by the memory sources: the first NNA edge
+    # after the camera wrote a pixel; through the DRAM channel a burst read once written
+    (SMALL, FB, True),
+    (SMALL, {**FB, "nna.descriptor": "cnn", "clocks.camera_mhz": 148.5,
+             "source.camera_hblank": 20}, True),
+    (SMALL, {**FB, "dram.model": "tdm"}, True),
+    (SMALL, {**FB, "dram.model": "tdm", "nna.descriptor": "cnn"}, True),
+    (SMALL, {**FB, "dram.model": "tdm", "dram.latency_ns": 500.0, "clocks.camera_mhz": 148.5,
+             "source.camera_hblank": 20}, True),
+    (SMALL, {"dram.model": "tdm"}, True),
     # approximations (docs/whatif.md): a FIFO that fills, camera clock alignment, row bands
     (SMALL, {"fifo.source_to_nna_depth": 1}, False),
     (SMALL, {"source.kind": "camera", "clocks.camera_mhz": 20.0, "nna.descriptor": "cnn"}, False),
@@ -148,6 +161,48 @@ def test_camera_overflow_risk_is_warned():
     assert f"fifo.nna_to_merge_depth={need} or more" in warning
     cfg = load_config(overrides={**over, "fifo.nna_to_merge_depth": need})
     assert not estimate(cfg, (720, 1280))["warnings"]
+
+
+# a CNN behind a 720p-clocked camera whose short blanking gives the NNA too little time a row
+FAST_CAMERA = {**BASE, "nna.descriptor": "cnn", "source.kind": "camera",
+               "source.camera_hblank": 10, "source.camera_vblank": 2}
+
+
+def test_only_a_camera_streaming_into_the_nna_is_warned_of_an_overflow():
+    """The cycle model overflows the source FIFO only where the camera feeds it; a camera that
+    writes into frame buffers drops the frames the chip cannot take, and the estimate says so
+    without a warning."""
+    shape = SMALL
+    direct = load_config(overrides=FAST_CAMERA)
+    assert any("overflow the source FIFO" in w for w in estimate(direct, shape)["warnings"])
+    with pytest.raises(CameraOverflow):
+        run_stream([_pair(shape, 2)] * 2, config=direct)
+    buffered = load_config(overrides={**FAST_CAMERA, **FB})
+    est = estimate(buffered, shape)
+    assert est["warnings"] == []
+    assert "drops" in est["throughput"]["fps_delivered_basis"]
+    rep = run_stream([_pair(shape, 2)] * 6, config=buffered).report
+    assert est["throughput"]["fps_delivered"] == pytest.approx(rep["stream"]["sustained_fps"],
+                                                               rel=1e-4)
+
+
+def test_frame_buffers_the_chip_cannot_empty_in_time():
+    """One frame buffer: the camera's next frame is taken only if it starts after the reader
+    finished the last (one camera frame in two here); the error policy stops a stream at the
+    first frame that finds no free buffer, and the estimate warns of it."""
+    shape = SMALL
+    over = {**FAST_CAMERA, **FB, "source.camera_vblank": 0, "source.camera_hblank": 5}
+    one = load_config(overrides={**over, "source.frame_buffers": 1})
+    est = estimate(one, shape)
+    thr = est["throughput"]
+    rep = run_stream([_pair(shape, 2)] * 6, config=one).report["stream"]
+    assert rep["frames_dropped"] > 0
+    assert thr["fps_delivered"] < thr["fps_bound"]
+    assert thr["fps_delivered"] == pytest.approx(rep["sustained_fps"], rel=1e-4)
+    stop = load_config(overrides={**over, "source.on_overflow": "error"})
+    assert any("no free frame buffer" in w for w in estimate(stop, shape)["warnings"])
+    with pytest.raises(FrameBufferFull):
+        run_stream([_pair(shape, 2)] * 6, config=stop)
 
 
 # Merge FIFO depths (merge_depth_needed), frames from memory: (H, W), overrides. The widths make
