@@ -44,7 +44,7 @@ from stereosim.sim.config.backend import (
     write_backend,
 )
 from stereosim.sim.cycle.contract import RunStopped
-from stereosim.sim.cycle.estimate import estimate, parse_size
+from stereosim.sim.cycle.estimate import energy_lines, estimate, parse_size
 from stereosim.sim.cycle.frames import MAX_FRAMES
 from stereosim.sim.cycle.plan import build_plan, frame_size
 from stereosim.sim.datasets import (
@@ -428,10 +428,13 @@ def cmd_config_plan(args) -> int:
     if args.png is not None:
         check_single_output(Path(args.png), "--png", config_inputs(args))
     cfg = _scene_config(args, None)
-    plan = build_plan(cfg, parse_size(args.size) if args.size else frame_size(cfg))
+    shape = parse_size(args.size) if args.size else frame_size(cfg)
+    plan = build_plan(cfg, shape)
     if args.png:
         write_plan_png(plan, args.png)
     sys.stdout.write(plan_text(plan))
+    # the chip's energy a frame and power at the rate it delivers, as the estimate prices them
+    print("\n".join(energy_lines(estimate(cfg, shape)["energy"])))
     return 0
 
 

@@ -115,3 +115,14 @@ def test_run_and_estimate_refuse_a_pair_of_another_size_in_one_line(tmp_path, ca
     assert main(["estimate", "--config", "1080p60", "--size", "1280x720"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "1920x1080" in err
+
+
+def test_config_plan_is_for_the_cameras_size_and_quotes_the_chips_energy_and_power(capsys):
+    from stereosim.sim.cycle.estimate import energy_lines, estimate
+
+    assert main(["config", "plan", "--config", "1080p60"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("chip plan: 1920x1080")
+    cfg = load_config(PRESETS / "1080p60.toml")
+    (line,) = energy_lines(estimate(cfg, (1080, 1920))["energy"])
+    assert line in out.splitlines() and " W at " in line
