@@ -178,6 +178,15 @@ class TrainConfig:
             )
         if not 0 <= self.sign_fraction <= 1 or min(self.balance, self.decorrelate) < 0:
             raise ConfigError("sign_fraction must be in [0, 1]; balance, decorrelate >= 0")
+        # the augmentation's ranges (nna.augment) on the 8-bit grey scale: an offset or a noise
+        # sigma beyond 255 grey levels leaves nothing but clipping, a gain above 1 may be
+        # negative (an inverted view), a gamma above 1 raises to powers beyond e^+-1
+        if max(self.offset, self.noise_max, self.shot_noise) > 255 or max(self.gain,
+                                                                          self.gamma) > 1:
+            raise ConfigError(
+                "offset, noise_max and shot_noise must be at most 255 grey levels and gain and "
+                f"gamma at most 1, got {self.offset}, {self.noise_max}, {self.shot_noise}, "
+                f"{self.gain}, {self.gamma}")
         if max(self.blur_max, self.vshift_max) > self.crop_rows:
             raise ConfigError(
                 f"blur_max and vshift_max must be at most {self.crop_rows} px, the rows a "

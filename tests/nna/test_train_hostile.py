@@ -77,6 +77,8 @@ RECORDS = [
     (_config(scale_end="big"), "scale_end must be a number, got 'big'"),
     (_config(variant=["single9x9"]), "variant must be text, got ['single9x9']"),
     (_config(box=10**4000), "box must be odd and in 1..15 (sva.box_size's range), got 1000000"),
+    (_config(offset=1e300), "offset, noise_max and shot_noise must be at most 255 grey levels"),
+    (_config(gamma=1e300), "gain and gamma at most 1"),
     (_config(blur_max=1e300), "blur_max and vshift_max must be at most 13 px"),
     (_config(vshift_max=1e300), "blur_max and vshift_max must be at most 13 px"),
 ]
@@ -86,7 +88,7 @@ RECORDS = [
                          ids=["box", "disparities", "box-float", "disparities-text", "gain-huge",
                               "no-config", "list", "null", "string", "config-list",
                               "no-scale-end", "scale-end-text", "variant-list", "box-4000-digits",
-                              "blur-huge", "vshift-huge"])
+                              "offset-huge", "gamma-huge", "blur-huge", "vshift-huge"])
 def test_a_qat_base_records_settings_are_checked_as_the_clis(record, message, tmp_path, capsys):
     """`"box": 999` ran to the end at 15.2 GB, `"disparities": 10**7` passed 6.8 GB; a record
     of another shape was a traceback. The record is refused before the data are looked at (the
@@ -111,7 +113,7 @@ def test_train_config_bounds_the_windows_and_disparities_by_the_chips():
             TrainConfig(**bad)
 
 
-def test_augmentation_ranges_are_bounded_by_the_crop(tmp_path, capsys):
+def test_augmentation_ranges_are_bounded_by_the_crop():
     """A defocus of sigma 1e6 took 70 s a crop in OpenCV (more: all the memory); a vertical
     misalignment of 1e300 rows overflowed. Both are at most the rows a sample cuts."""
     cfg = TrainConfig(box=7, blur_max=15.0, vshift_max=15.0)  # 9 + 7 - 1 rows
@@ -119,12 +121,19 @@ def test_augmentation_ranges_are_bounded_by_the_crop(tmp_path, capsys):
     assert TrainConfig(objective="triplet", aggregate=1).crop_rows == 9
     with pytest.raises(ConfigError, match="at most 15 px"):
         TrainConfig(box=7, blur_max=15.5)
+
+
+@pytest.mark.parametrize("option", ["--noise-max", "--blur-max"])
+def test_an_augmentation_range_is_refused_before_training(option, tmp_path, capsys):
+    """`--noise-max 1e300` trained, numpy warning "overflow encountered in cast" on stderr;
+    `--blur-max 1e300` took all the memory. The folder that does not exist would be the
+    refusal if the range were taken."""
     out = tmp_path / "m.npz"
-    # the folder that does not exist would be the refusal if the blur were taken
-    code = main(["train", "--blur-max", "1e300", "--data", str(tmp_path / "nowhere"), "--out",
+    code = main(["train", option, "1e300", "--data", str(tmp_path / "nowhere"), "--out",
                  str(out)])
     err = _one_line(code, capsys.readouterr().err)
-    assert "blur_max and vshift_max must be at most 13 px" in err and not out.exists()
+    assert option[2:].replace("-", "_") in err and "must be at most" in err
+    assert not out.exists()
 
 
 def test_a_strip_is_at_most_a_row_of_the_widest_view(data_root):
