@@ -146,9 +146,12 @@ class TrainConfig:
             )
         lo, hi = box_range()
         for name in ("aggregate", "box"):
-            if not lo <= getattr(self, name) <= hi or getattr(self, name) % 2 == 0:
-                raise ConfigError(f"{name} must be odd and in {lo}..{hi} (sva.box_size's range), "
-                                  f"got {_shown(getattr(self, name))}")
+            if getattr(self, name) < lo or getattr(self, name) % 2 == 0:
+                raise ConfigError(f"{name} must be odd and >= {lo}, got "
+                                  f"{_shown(getattr(self, name))}")
+            if getattr(self, name) > hi:
+                raise ConfigError(f"{name} must be at most {hi} (sva.box_size's range), got "
+                                  f"{_shown(getattr(self, name))}")
         for name in ("epochs", "steps_per_epoch", "batch", "strips", "strip_width"):
             if getattr(self, name) < 1:
                 raise ConfigError(f"{name} must be at least 1, got {_shown(getattr(self, name))}")
