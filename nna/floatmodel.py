@@ -73,8 +73,9 @@ def load_float_model(path):
         offset, scale = archive.scalar("input_offset", "iu"), archive.scalar("input_scale", "f")
     try:
         training = json.loads(text)
-    except (json.JSONDecodeError, RecursionError) as err:
-        raise ConfigError(f"float model {name!r}: its training record is not JSON ({err})"
+    except (ValueError, RecursionError) as err:  # JSONDecodeError, or a number too long
+        why = " ".join(str(err).split())[:80]
+        raise ConfigError(f"float model {name!r}: its training record is not JSON ({why})"
                           ) from None
     try:
         model = FloatModel(

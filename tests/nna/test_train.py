@@ -448,6 +448,8 @@ def _float_model_file(path: Path, **changes) -> Path:
     [
         ({}, None),
         ({"training": np.array("{not json")}, "its training record is not JSON"),
+        ({"training": np.array('{"config": ' + "1" * 5000 + "}")},
+         "its training record is not JSON"),
         ({"training": None}, "lacks the field 'training'"),
         ({"input_offset": np.zeros(3, np.int32)},
          r"input_offset must be a scalar, got int32 \(3,\)"),
@@ -458,8 +460,8 @@ def _float_model_file(path: Path, **changes) -> Path:
         ({"input_offset": np.int32(300)}, "input_offset must be in 0..255"),
     ],
     ids=[
-        "good", "json", "no-training", "offset-array", "scale-text", "format-array",
-        "text-weights", "inf-weights", "offset-range",
+        "good", "json", "json-long-number", "no-training", "offset-array", "scale-text",
+        "format-array", "text-weights", "inf-weights", "offset-range",
     ],
 )
 def test_float_model_fields_are_checked(tmp_path, changes, message):
