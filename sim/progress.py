@@ -6,13 +6,14 @@ file) gets no bar and no control characters. ``quiet=True`` (a command's ``--qui
 environment variable ``TQDM_DISABLE=1`` turn bars off everywhere.
 
 The first run after an install or an edit compiles the numba kernels it uses, which takes
-from seconds to minutes (docs/performance.md). Inside :func:`compile_notice` numba's own
-compile events are watched: once compiling has taken a second, one line on stderr says so
-(while it compiles), and the end of the block prints how long compiling took and how many
-kernels it compiled. What is announced is therefore exactly what the run compiles -- every
-``@njit`` module, the stages', both engines', the trace writers' -- with no list of modules to
-keep up to date, and nothing is printed when every kernel comes from numba's cache (or a few
-kernels compile in a moment).
+from seconds to minutes (docs/performance.md); a later command that needs others compiles
+those (the first ``--vcd`` run the trace writers', say), and the notice says so again.
+Inside :func:`compile_notice` numba's own compile events are watched: once compiling has
+taken a second, one line on stderr says so (while it compiles), and the end of the block
+prints how long compiling took and how many kernels it compiled. What is announced is
+therefore exactly what the run compiles -- every ``@njit`` module, the stages', both
+engines', the trace writers' -- with no list of modules to keep up to date, and nothing is
+printed when every kernel comes from numba's cache (or a few kernels compile in a moment).
 """
 
 from __future__ import annotations
@@ -28,8 +29,11 @@ from collections.abc import Callable, Iterator
 from numba.core import event
 from tqdm import tqdm
 
+# each kernel compiles when a command first calls it: a first run compiles the engine's, the
+# first traced run after it the trace writers' (traces/vcd.py), and so on
 COMPILE_MESSAGE = (
-    "stereosim: compiling numba kernels (once after an install or an edit; cached afterwards)"
+    "stereosim: compiling numba kernels (each once after an install or an edit, by the first "
+    "command that needs it; cached afterwards)"
 )
 COMPILED_MESSAGE = "stereosim: compiling took {seconds:.1f} s ({kernels} numba kernels)"
 # the closing line when a helper process compiled some of them at the same time
