@@ -54,8 +54,12 @@ def check_run_time(plan: ChipPlan) -> None:
     longer than that (it could only stop there), or its watchdog's window -- with the DRAM
     channel's longest wait -- is longer (no stretch of it could be told from a deadlock)."""
     limit_s = MAX_RUN_FS / 1e15
-    remedy = ("give the stereo pair more of the DRAM channel (a lower fps in "
-              "nna.lent_network, a wider dram.gbps) or faster clocks")
+    ways = ["simulate the stream in parts (fewer --frames)"] if plan.frames > 1 else []
+    if plan.dram is not None:
+        ways.append("give the stereo pair more of the DRAM channel (a lower fps in "
+                    "nna.lent_network, a wider dram.gbps)")
+    ways.append("faster clocks")
+    remedy = ", ".join(ways[:-1]) + f" or {ways[-1]}" if len(ways) > 1 else ways[0]
     if plan.budget_reason == "time_limit" and plan.expected_run_s > limit_s:
         why = f"the run would take about {plan.expected_run_s:,.3f} s of chip time"
     elif plan.watchdog_fs > MAX_RUN_FS:

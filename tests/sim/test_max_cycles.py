@@ -22,7 +22,8 @@ from stereosim.sim.config import load_config
 from stereosim.sim.cycle.compiled.run import run_compiled
 from stereosim.sim.cycle.contract import BudgetExceeded
 from stereosim.sim.cycle.plan import MAX_RUN_FS, STATUS_CODES, build_plan
-from stereosim.sim.cycle.simulate import simulate
+from stereosim.sim.cycle.simulate import check_run_time, simulate
+from stereosim.sim.errors import ConfigError
 from stereosim.sim.io import encode_png
 from stereosim.sim.run_files import StopAsked, publish_stop
 
@@ -294,3 +295,24 @@ def test_a_huge_max_cycles_is_capped_to_what_the_engines_time_holds(run_cycle, c
     assert main(_inputs(tmp_path, 12, 40) + ["--out", str(tmp_path / "out"), "--max-cycles",
                                              str(10**13)]) == 0
     assert "Traceback" not in capsys.readouterr().err
+
+
+def test_a_stream_longer_than_the_engines_simulate_is_one_line(tmp_path, capsys):
+    """At 1 kHz clocks a 6 x 40 frame takes about 1.76 s: 1,000 frames fit the 2,305.843 s
+    the engines simulate (the automatic budget, 20x that, is capped to it: its int64
+    femtoseconds overflowed), 2,000 do not and are refused in one line before any work, with
+    the stream's way out."""
+    cfg = load_config(overrides={**CENSUS, "clocks.nna_mhz": 0.001, "clocks.sva_mhz": 0.001})
+    fits = build_plan(cfg, (6, 40), 1000)
+    assert fits.budget_reason == "time_limit"
+    assert max(n * fits.domains[d].period_fs for d, n in fits.budget.items()) <= MAX_RUN_FS
+    check_run_time(fits)
+    with pytest.raises(ConfigError, match="simulate the stream in parts"):
+        check_run_time(build_plan(cfg, (6, 40), 2000))
+    args = _inputs(tmp_path, 6, 40) + ["--frames", "2000", "--out", str(tmp_path / "out"),
+                                        "--set", "nna.descriptor=census", "--set",
+                                        "clocks.nna_mhz=0.001", "--set", "clocks.sva_mhz=0.001"]
+    assert main(args) == 2
+    line = _one_line(capsys.readouterr().err)
+    assert line.startswith("stereosim: error: the run would take about 3,520.002 s of chip time")
+    assert not any((tmp_path / "out").rglob("*"))  # nothing written
