@@ -12,10 +12,11 @@ decides which engine runs.
   line.
 
 A run the engines cannot simulate is refused before either starts, in one line
-(:func:`check_run_time`): one whose expected chip time, or whose watchdog window, is longer
-than :data:`~sim.cycle.plan.MAX_RUN_FS` (the compiled engine's time is int64 femtoseconds) --
-a network on the lent NNA submodules that leaves the stereo pair a sliver of the DRAM channel
-does that.
+(:func:`check_run_time`): one whose expected chip time is longer than
+:data:`~sim.cycle.plan.MAX_RUN_FS`, or whose watchdog window is beyond what the engine's time
+holds (the compiled engine's time is int64 femtoseconds) -- a network on the lent NNA
+submodules that leaves the stereo pair a sliver of the DRAM channel does that, and so does a
+stream of too many frames.
 
 The first frame after an install or an edit compiles the numba kernels it uses; one line on
 stderr says so when the first one starts, and one more how long it took
@@ -28,6 +29,7 @@ to the stop).
 
 from __future__ import annotations
 
+from stereosim.sim.cycle.compiled.layout import INF
 from stereosim.sim.cycle.compiled.prewarm import prewarm
 from stereosim.sim.cycle.compiled.run import run_compiled
 from stereosim.sim.cycle.contract import FrameResult, RunStopped
@@ -52,20 +54,23 @@ def check_run_time(plan: ChipPlan) -> None:
     """Raise :class:`ConfigError` for a run longer than the engines simulate: its budget is
     capped (:attr:`ChipPlan.budget_reason` ``time_limit``) and the run is expected to take
     longer than that (it could only stop there), or its watchdog's window -- with the DRAM
-    channel's longest wait -- is longer (no stretch of it could be told from a deadlock)."""
-    limit_s = MAX_RUN_FS / 1e15
+    channel's longest wait -- is beyond what the compiled engine's time holds at all
+    (:data:`.compiled.layout.INF`, "never"; an instant plus the window must fit 64 bits)."""
     ways = ["simulate the stream in parts (fewer --frames)"] if plan.frames > 1 else []
     if plan.dram is not None:
         ways.append("give the stereo pair more of the DRAM channel (a lower fps in "
                     "nna.lent_network, a wider dram.gbps)")
     ways.append("faster clocks")
     remedy = ", ".join(ways[:-1]) + f" or {ways[-1]}" if len(ways) > 1 else ways[0]
-    if plan.budget_reason == "time_limit" and plan.expected_run_s > limit_s:
-        why = f"the run would take about {plan.expected_run_s:,.3f} s of chip time"
-    elif plan.watchdog_fs > MAX_RUN_FS:
+    if plan.budget_reason == "time_limit" and plan.expected_run_s > MAX_RUN_FS / 1e15:
+        why = (f"the run would take about {plan.expected_run_s:,.3f} s of chip time, longer "
+               f"than the {MAX_RUN_FS / 1e15:,.3f} s the cycle engines simulate (their time "
+               "counts femtoseconds in 64 bits)")
+    elif plan.watchdog_fs >= INF:
         why = (f"its watchdog waits {plan.watchdog_fs / 1e15:,.3f} s of chip time "
                f"(sim.watchdog_cycles = {plan.cfg.sim.watchdog_cycles} periods of the slowest "
-               "clock, with the DRAM channel's longest wait)")
+               f"clock, with the DRAM channel's longest wait), more than the {INF / 1e15:,.3f} s "
+               "the compiled engine's time holds (femtoseconds in 64 bits)")
         remedy = f"lower sim.watchdog_cycles, or {remedy}"
     else:
         return
@@ -73,8 +78,7 @@ def check_run_time(plan: ChipPlan) -> None:
     if plan.dram is not None and plan.dram.reads is not None:
         slots = (f"; the stereo pair's reads get {plan.dram.reads.count} of the DRAM channel's "
                  f"{plan.dram.round_slots:,} slots a round")
-    raise ConfigError(f"{why}, longer than the {limit_s:,.3f} s the cycle engines simulate "
-                      f"(their time counts femtoseconds in 64 bits){slots}: {remedy}")
+    raise ConfigError(f"{why}{slots}: {remedy}")
 
 
 def simulate(plan: ChipPlan, left, right=None, *, sink_stall=None,

@@ -316,3 +316,14 @@ def test_a_stream_longer_than_the_engines_simulate_is_one_line(tmp_path, capsys)
     line = _one_line(capsys.readouterr().err)
     assert line.startswith("stereosim: error: the run would take about 3,520.002 s of chip time")
     assert not any((tmp_path / "out").rglob("*"))  # nothing written
+
+
+def test_a_watchdog_beyond_the_engines_time_is_one_line():
+    """sim.watchdog_cycles at its maximum (2**40) at 1 kHz clocks is a window of 1.1e9 s: it
+    overflowed the compiled engine's int64 femtoseconds; now refused in one line. At the
+    default clocks (2.4e3 s, within what the engine's time holds) the run is not refused."""
+    slow = {**CENSUS, "sim.watchdog_cycles": 1 << 40}
+    check_run_time(build_plan(load_config(overrides=slow), (6, 40)))
+    slow |= {"clocks.nna_mhz": 0.001, "clocks.sva_mhz": 0.001}
+    with pytest.raises(ConfigError, match="lower sim.watchdog_cycles"):
+        simulate(build_plan(load_config(overrides=slow), (6, 40)), *_pair(6, 40))
