@@ -91,6 +91,10 @@ RULES: tuple[tuple[str, str, str], ...] = (
      "raster, blanking included); empty without a camera"),
     (r"throughput\.fifo_items_per_s\.(?P<f>.+)", "frame rate", "items/s {f} can move (its "
      "depth per round trip; analytic)"),
+    (r"throughput\.fps_delivered", "frame rate", "frames/s the chip delivers (analytic: the "
+     "work bound, the camera's rate when the camera is the bottleneck, fewer with one frame "
+     "buffer); the estimate's power is given at it"),
+    (r"throughput\.fps_delivered_basis", "frame rate", "why fps_delivered is that rate"),
     (r"throughput\.merge_depth_needed", "frame rate", "descriptors: the least "
      "fifo.nna_to_merge_depth at which column tiles reach fps_bound (analytic; empty without "
      "column tiles)"),
@@ -150,6 +154,17 @@ RULES: tuple[tuple[str, str, str], ...] = (
      "NNA submodule together"),
     (r"(architecture\.)?sram_bits_total\.sva", "SRAM", "bits of SRAM of the SVA"),
     (r"(architecture\.)?sram_bits_total\.fifos", "SRAM", "bits of SRAM of every FIFO"),
+    (r"(architecture\.)?chip_sram\.total", "SRAM", "bits of the chip's SRAM, every instance "
+     "counted once: all nna.submodules NNA submodules (stereo, lent or idle, each sized for the "
+     "widest tile), the SVA's buffers and every FIFO (the figure to quote for the chip)"),
+    (r"(architecture\.)?chip_sram\.nna_per_submodule", "SRAM", "bits of SRAM of one NNA "
+     "submodule instance"),
+    (r"(architecture\.)?chip_sram\.nna_submodules", "SRAM", "NNA submodule instances on the "
+     "chip (nna.submodules)"),
+    (r"(architecture\.)?chip_sram\.by_block\.(?P<blk>.+)", "SRAM", "bits of the chip's SRAM "
+     "in {blk}"),
+    (r"(architecture\.)?chip_sram\.by_kind\.(?P<kind>.+)", "SRAM", "bits of the chip's SRAM "
+     "of the kind {kind}, every instance counted"),
     (r"(architecture\.)?actions\.(?P<who>[^.]+)\.(?P<what>.+)", "architecture", "{what} per "
      "frame ({who}), as the energy model counts them"),
     (r"macs_per_frame", "architecture", "multiply-accumulates per frame, both cameras"),
@@ -188,6 +203,8 @@ RULES: tuple[tuple[str, str, str], ...] = (
     (r"energy\.fps_basis", "energy", "which rate energy.power_at_fps is"),
     (r"energy\.table\.(?P<k>node|source)", "energy", "the energy table's {k}"),
     (r"energy\.items", "energy", "the energy table's entries (JSON)"),
+    (r"energy\.analytic", "energy", "what the estimate's clock counts are (every other count is "
+     "the chip plan's, as a run counts it)"),
     (r"stream\.(?P<k>.+)", "stream", "the stream's figure {k} (docs/report.md, stream): a "
      "sweep runs one frame, so there is no sustained rate"),
     (r"dram\.read_bound_fps", "DRAM", f"frames/s, {BOUND} of the channel's read slots"),
@@ -242,14 +259,15 @@ RULES: tuple[tuple[str, str, str], ...] = (
     (r"lent_network\.dram_gbps", "lent network", "GB/s of DRAM traffic of the lent network at "
      "its fps (the DRAM channel's lent client)"),
     (r"lent_network\.stereo_pair\.dram_channel", "lent network", "True when a DRAM channel "
-     "is modelled (dram.model), where the lent traffic takes slots from the stereo pair"),
+     "is modelled (dram.model), whose slots the lent traffic shares with the stereo pair"),
     (r"lent_network\.stereo_pair\.note", "lent network", "why the lent traffic takes nothing "
-     "from the stereo pair; empty when a channel is modelled"),
+     "from the stereo pair (no DRAM channel, or too light a traffic for a slot); empty when it "
+     "takes slots"),
     (r"lent_network\.stereo_pair\.lent_slots_per_round", "lent network", "DRAM slots of the "
      "lent client in every round"),
     (r"lent_network\.stereo_pair\.round_slots", "lent network", "DRAM slots in a round"),
     (r"lent_network\.stereo_pair\.lent_slot_gbps", "lent network", "GB/s the lent client's "
-     "slots take (whole slots: at least its dram_gbps)"),
+     "slots take (whole slots, so more than its dram_gbps; 0 without a slot)"),
     (r"lent_network\.stereo_pair\.lent_share_of_channel", "lent network", "the fraction "
      "(0..1) of the DRAM channel's slots the lent client takes"),
     (r"lent_network\.stereo_pair\.read_bound_fps", "lent network", f"frames/s, {BOUND} of "
@@ -262,6 +280,21 @@ RULES: tuple[tuple[str, str, str], ...] = (
     (r"output\.fractional_bits", "output and report", "fractional bits of the disparity words"),
     (r"descriptor\.kind", "output and report", "the NNA's descriptor"),
     (r"descriptor\.bits", "output and report", "bits per descriptor"),
+    (r"descriptor\.network\.file", "output and report", "the CNN's weight file "
+     "(nna.cnn.weights; default: the shipped nna/single9x9.npz)"),
+    (r"descriptor\.network\.name", "output and report", "the CNN's weight file's name "
+     "without .npz"),
+    (r"descriptor\.network\.layers", "output and report", "the CNN's layers (JSON: each as "
+     "KxKxC_inxC_out)"),
+    (r"descriptor\.network\.macs_per_pixel", "output and report", "multiply-accumulates of "
+     "the CNN per pixel"),
+    (r"descriptor\.backend\.(?P<key>p1|p2|p2_adaptive|p2_slope|box_size)", "output and report",
+     "the SVA back end the run used: sva.{key}"),
+    (r"descriptor\.backend\.tuned_with", "output and report", "what the back end was tuned "
+     "with: the network's weight file (which carries its back end) or the descriptor's "
+     "defaults"),
+    (r"descriptor\.backend\.changed", "output and report", "the back-end keys the "
+     "configuration changed from what it was tuned with (JSON)"),
     (r"image\.(?P<k>width|height)", "output and report", "pixels: the frame's {k}"),
     (r"report_version", "output and report", "the report's layout (docs/report.md)"),
     (r"stereosim", "output and report", "the simulator's version"),
