@@ -30,9 +30,20 @@ row instead of per cycle:
   either way: when it is within a beat of its round trip (:func:`fills`) its handshake is walked
   beat by beat (:class:`LinkWalk`, with the FIFO's own visibility and free-slot rules), as its mean
   rate puts a row's last pop up to a cycle off and the rows add up (exact when its producer's row
-  times are: one submodule per camera). Through the DRAM channel a memory source's pixel is
-  taken to leave once read burst b is in from round b (a lower bound: the prefetch never
-  waits).
+  times are: one submodule per camera).
+- **Sources** (:class:`SourceTimes`, the rules of the cycle model's sources): a camera
+  streaming into the NNA delivers at its pixel clock; a memory source at its token bucket, or
+  through the DRAM channel once its read burst is in (the bursts take the read slots in turn,
+  requested at once: a lower bound, the prefetch never waits) and a burst's pixels one a
+  cycle; a memory source reading a camera's DRAM frame buffers not before the first NNA edge
+  after the camera wrote the pixel, and a burst requested once the camera wrote its last
+  pixel. Exact to the cycle behind frame buffers (tests/sim/test_estimate.py,
+  test_estimate_presets.py).
+- **Delivered rate, totals** (:func:`delivered_fps`): the frame rate the chip delivers (the
+  work bound, a camera's rate, or fewer behind one frame buffer), the chip's SRAM with every
+  instance counted once (:func:`~sim.cycle.plan.chip_sram`) and the energy a frame and the
+  power at the delivered rate (:func:`~sim.cycle.energy.estimate_energy`: a run's items from
+  the plan's counts; the clocks over a frame period at that rate).
 - **FIFO rate.** A FIFO of depth d moves at most d items per round trip (push -> visible -> pop
   -> free seen by the producer): ``(latency + 1)`` cycles in one domain, about
   ``(latency + sync - 1.5) T_consumer + (sync - 0.5) T_producer`` across domains (half a period
@@ -320,10 +331,11 @@ class SourceTimes:
         return first
 
 
-def _tile_rows(plan: ChipPlan, sub, pops: list | None = None) -> dict[int, tuple[float, float]]:
+def _tile_rows(plan: ChipPlan, sub, pops: list | None = None,
+               times: SourceTimes | None = None) -> dict[int, tuple[float, float]]:
     """NNA cycles of the first and last descriptor push of every output row of one submodule
     (``sub``: its block in the plan); ``pops`` (a list) receives the NNA cycle it pops its
-    last input pixel."""
+    last input pixel; ``times``: its camera's source (one for the tiles of a camera)."""
     h_img, w_img = plan.shape
     first_layer = sub.layers[0]
     tile: Tile = first_layer.tile
@@ -331,7 +343,7 @@ def _tile_rows(plan: ChipPlan, sub, pops: list | None = None) -> dict[int, tuple
     tw_in = tile.in_x1 - tile.in_x0
     tw = tile.x1 - tile.x0
     src = plan.fifo(sub.inputs[0])
-    times = SourceTimes(plan)
+    times = times or SourceTimes(plan)
     p_nna = plan.domains["nna"].period_fs
     # the source -> NNA link: one pop per NNA cycle, at most depth items per round trip
     ii_in = max(1.0, round_trip_fs(src, plan) / src.depth / p_nna)
@@ -394,7 +406,8 @@ def _merged_rows(plan: ChipPlan, side: int):
     subs = [b for b in plan.blocks if b.kind == "nna" and b.side == side]
     c = subs[0].cycles
     pops: list = []
-    per_tile = [_tile_rows(plan, b, pops) for b in subs]
+    times = SourceTimes(plan)
+    per_tile = [_tile_rows(plan, b, pops, times) for b in subs]
     if len(subs) == 1:
         return per_tile[0], float(c), max(pops)
     rows_split = plan.cfg.nna.split == "rows"

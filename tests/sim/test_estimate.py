@@ -13,7 +13,7 @@ import pytest
 from stereosim.sim.api import run, run_stream
 from stereosim.sim.config import load_config
 from stereosim.sim.cycle.contract import CameraOverflow, FrameBufferFull
-from stereosim.sim.cycle.estimate import estimate, paper_analysis, parse_size
+from stereosim.sim.cycle.estimate import estimate, format_estimate, paper_analysis, parse_size
 from stereosim.sim.errors import InputError
 
 SMALL, SPLIT = (20, 112), (16, 48)  # split frames run on the readable engine: keep them tiny
@@ -260,3 +260,20 @@ def test_no_merge_depth_without_column_tiles():
 def test_bad_sizes_are_refused(text):
     with pytest.raises(InputError):
         parse_size(text)
+
+
+def test_the_printed_estimate_gives_chip_totals_a_user_can_quote():
+    """The chip's SRAM with every NNA submodule instance counted once (not one submodule's),
+    in bits and Mbit, and the energy a frame and the power at the rate it names."""
+    cfg = load_config(overrides={"nna.descriptor": "cnn", "source.kind": "camera",
+                                 "source.frame_buffers": 2, "source.on_overflow": "drop_frame"})
+    est = estimate(cfg, (720, 1280))
+    chip = est["chip_sram"]
+    assert chip["total"] > cfg.nna.submodules * chip["nna_per_submodule"]
+    assert chip["total"] == sum(chip["by_block"].values()) == sum(chip["by_kind"].values())
+    text = format_estimate(est)
+    assert f"chip SRAM: {chip['total']:,} bits ({chip['total'] / 1e6:.2f} Mbit" in text
+    energy = est["energy"]
+    assert energy["power_at_fps"] == est["throughput"]["fps_delivered"] == 55.459
+    assert (f"energy: {energy['per_frame_uj']['total'] / 1e3:.3f} mJ a frame" in text
+            and f"power {energy['power_mw'] / 1e3:.3f} W at 55.459 fps (the work bound" in text)
