@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from stereosim.nna.descriptor import network
 from stereosim.sim import formats, signals, train_cli, whatif_cli
 from stereosim.sim.api import run, version_text
 from stereosim.sim.argtypes import (
@@ -160,6 +161,8 @@ def _notes(args, cfg) -> None:
     if getattr(args, "_noted", False):
         return
     args._noted = True
+    if cfg.nna.descriptor == "cnn":
+        network(cfg.nna)  # a bad weight file is its one line, before any note about it
     lines = layer_notes(args.config) if len(args.config or ()) > 1 else []
     note = backend_note(cfg.nna.cnn.weights, cfg.nna.descriptor,
                         keys_set(args.config, _overrides(args)))
