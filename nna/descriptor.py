@@ -6,7 +6,6 @@ import os
 import threading
 import time
 from collections import OrderedDict
-from pathlib import Path
 
 import numpy as np
 
@@ -17,21 +16,15 @@ from stereosim.quant.intconv import IntNetwork
 from stereosim.sim.config import NnaConfig, check_section
 from stereosim.sim.errors import ConfigError
 
-# stereosim's folder (the repository, in the README's editable install): where a relative
-# weight path that the working directory lacks is looked up next (the presets name
-# benchmarks/models/... and run from anywhere)
-PROJECT_ROOT = Path(__file__).resolve().parents[1]
-
 
 def weights_file(weights: str) -> str:
-    """The file ``nna.cnn.weights`` names: the shipped layer for "default"; a relative path from
-    the working directory, else from :data:`PROJECT_ROOT` if it is there."""
-    if weights == "default":
-        return SHIPPED_WEIGHTS
-    path = Path(weights)
-    if not path.is_absolute() and not path.exists() and (PROJECT_ROOT / path).exists():
-        return str(PROJECT_ROOT / path)
-    return weights
+    """The file ``nna.cnn.weights`` names: the shipped layer for "default"; else the path as
+    given -- a config file's already made absolute from that file's folder
+    (:func:`sim.config.loader.read_layer`), one given on the command line relative to the
+    working directory, as every other file option is (no second place is looked in: the
+    configuration's back end is read from the same file,
+    :func:`sim.config.loader.tuned_backend`)."""
+    return SHIPPED_WEIGHTS if weights == "default" else weights
 
 
 # (absolute path, device, inode, size, mtime in ns) -> the network read from that file as it
