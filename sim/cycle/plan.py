@@ -30,7 +30,7 @@ import functools
 from dataclasses import dataclass, field
 from functools import cached_property
 
-from stereosim.nna.descriptor import descriptor_bits, network
+from stereosim.nna.descriptor import descriptor_bits, file_identity, network, weights_file
 from stereosim.nna.geometry import (
     Tile,
     check_line_buffer,
@@ -782,7 +782,7 @@ def submodule_report(plan: ChipPlan) -> dict:
            "idle": n.submodules - n.stereo_submodules - n.lent_submodules,
            "nna_fps": _nna_fps(plan)}
     if most > n.stereo_submodules:
-        fps = _nna_fps_with_all(plan.cfg, plan.shape)
+        fps = _nna_fps_with_all(plan.cfg, plan.shape, _network_identity(plan.cfg))
         out["with_all"] = None if fps is None else {"stereo_submodules": most, "nna_fps": fps}
     return out
 
@@ -793,12 +793,21 @@ def _nna_fps(p: ChipPlan) -> float:
     return round(p.domains["nna"].freq_hz / p.work_cycles(sub, 0), 3)
 
 
+def _network_identity(cfg: ChipConfig) -> tuple | None:
+    """What identifies the CNN's weight file as it is now (:func:`nna.descriptor.file_identity`;
+    None for the census): a cache of figures that follow from the network keys on it."""
+    if cfg.nna.descriptor != "cnn":
+        return None
+    return file_identity(weights_file(cfg.nna.cnn.weights))
+
+
 @functools.lru_cache(maxsize=64)
-def _nna_fps_with_all(cfg: ChipConfig, shape: tuple[int, int]) -> float | None:
+def _nna_fps_with_all(cfg: ChipConfig, shape: tuple[int, int], network: tuple | None
+                      ) -> float | None:
     """:func:`_nna_fps` of ``cfg`` with every submodule on the pair (the largest even count,
     none lent), None when the frame cannot be split that far. A whole plan to build for one
-    figure of every report: kept for the configurations and shapes seen (a configuration is
-    frozen, and its network file is read once a process, :func:`nna.descriptor.network`)."""
+    figure of every report: kept for the configurations, shapes and weight files seen
+    (``network``, :func:`_network_identity`: a file rewritten since is another key)."""
     n = cfg.nna
     most = n.submodules - n.submodules % 2
     other = dataclasses.replace(cfg, nna=dataclasses.replace(

@@ -162,3 +162,20 @@ def test_a_relative_path_is_read_from_the_working_directory_of_the_call(
     for name in "abab":
         monkeypatch.chdir(tmp_path / name)
         assert np.array_equal(_disparity("net.npz"), networks["want"][name])
+
+
+def test_the_reports_all_submodules_rate_follows_a_rewritten_file(tmp_path):
+    """architecture.nna_submodules.with_all (a second plan, kept per configuration) is worked
+    out again for a file rewritten with heavier layers, not served from the first file's."""
+    path = _artifact(tmp_path / "w.npz", SMALL)
+    _settle(path)
+
+    def with_all():
+        return run(*_pair(), mode="functional", overrides={
+            "nna.descriptor": "cnn", "nna.cnn.weights": path, "sva.disparities": 16}
+        ).report["architecture"]["nna_submodules"]["with_all"]["nna_fps"]
+
+    light = with_all()
+    _artifact(tmp_path / "w.npz", ((9, 1, 8), (9, 8, 32)))
+    _settle(path)
+    assert with_all() < light / 10  # 81x the MACs of each layer
