@@ -32,6 +32,7 @@ the analytic estimate alike.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 from stereosim.nna.descriptor import network
@@ -182,7 +183,8 @@ def layer_rows(cfg: NnaConfig) -> tuple[int, ...]:
 
 def check_line_buffer(cfg: NnaConfig) -> None:
     """A line buffer must hold its layer's window: layer 0's K_0 rows, the descriptor window
-    for a network of one layer (ConfigError otherwise)."""
+    for a network of one layer; and no later layer's (:func:`layer_rows`) may need more rows
+    than ``nna.line_buffer_rows`` may be (ConfigError otherwise)."""
     need = 2 * layer_halves(cfg)[0] + 1
     if cfg.line_buffer_rows < need:
         what = ("descriptor window" if len(layer_halves(cfg)) == 1
@@ -191,6 +193,15 @@ def check_line_buffer(cfg: NnaConfig) -> None:
             f"nna.line_buffer_rows={cfg.line_buffer_rows} cannot hold the {need}-row "
             f"{what}: use at least {need}"
         )
+    most = next(f.metadata["hi"] for f in dataclasses.fields(NnaConfig)
+                if f.name == "line_buffer_rows")
+    for i, rows in enumerate(layer_rows(cfg)[1:], start=1):
+        if rows > most:  # a later layer's window plus layer 0's slack
+            raise ConfigError(
+                f"layer {i}'s line buffer would need {rows} rows (its window and the "
+                f"nna.line_buffer_rows - K_0 = {cfg.line_buffer_rows - need} rows of slack), "
+                f"more than the {most} a line buffer holds (nna.line_buffer_rows' largest "
+                "value): use a smaller nna.line_buffer_rows or a network with smaller kernels")
 
 
 @dataclass(frozen=True)

@@ -179,3 +179,21 @@ def test_the_reports_all_submodules_rate_follows_a_rewritten_file(tmp_path):
     _artifact(tmp_path / "w.npz", ((9, 1, 8), (9, 8, 32)))
     _settle(path)
     assert with_all() < light / 10  # 81x the MACs of each layer
+
+
+def test_a_later_layers_line_buffer_over_64_rows_is_refused(tmp_path):
+    """Layer 1's buffer holds its window and layer 0's slack: a 3x3 then a 63x63 layer with
+    nna.line_buffer_rows = 64 would need 63 + 61 = 124 rows; 10 rows of layer 0 leave it 70, also
+    too many; 4 rows leave it 64, which is taken."""
+    from stereosim.sim.config import load_config
+    from stereosim.sim.cycle.plan import build_plan
+
+    path = _artifact(tmp_path / "w.npz", ((3, 1, 4), (63, 4, 32)))
+    for rows, need in ((64, 124), (10, 70)):
+        cfg = load_config(overrides={"nna.descriptor": "cnn", "nna.cnn.weights": path,
+                                     "nna.line_buffer_rows": rows, "sva.disparities": 16})
+        with pytest.raises(ConfigError, match=f"layer 1's line buffer would need {need} rows"):
+            build_plan(cfg, (80, 96))
+    cfg = load_config(overrides={"nna.descriptor": "cnn", "nna.cnn.weights": path,
+                                 "nna.line_buffer_rows": 4, "sva.disparities": 16})
+    build_plan(cfg, (80, 96))
