@@ -19,6 +19,7 @@ from numba import typeof
 from stereosim.sim.config import load_config
 from stereosim.sim.cycle.compiled import prewarm as pw
 from stereosim.sim.cycle.compiled.layout import serialise
+from stereosim.sim.cycle.compiled.sampler import record_window, sample
 from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.cycle.simulate import simulate
 from stereosim.sim.progress import COMPILE_MESSAGE, COMPILED_WITH_HELPER, compile_notice
@@ -100,9 +101,9 @@ def test_the_notice_counts_the_helpers_kernels_and_the_wait():
 
 
 def test_the_helpers_report_names_what_it_compiled(plan, tmp_path, monkeypatch):
-    """On an empty cache of its own, the helper's report lists the walkers and the SVA's
-    stream among its kernels (the stand-in frame is small: a few seconds of compiling the
-    walkers and the SVA's kernels)."""
+    """On an empty cache of its own, the helper's report lists the walkers, the SVA's stream
+    and the trace sampler among its kernels (the stand-in frame is small: a few seconds of
+    compiling the walkers, the SVA's and the sampler's kernels)."""
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "cache"))  # the helper inherits it
     helper = pw._start_helper(plan)
     line = helper.stdout.readline()
@@ -111,6 +112,16 @@ def test_the_helpers_report_names_what_it_compiled(plan, tmp_path, monkeypatch):
     helper.stdout.close()
     names = {k[1] for k in json.loads(line)["kernels"]}
     assert {"walk_nna", "walk_sva", "walk_fifos", "stream_rows"} <= names
+    # and the trace sampler's, which a traced run (--vcd) compiled after the helper had gone:
+    # for the very types a traced run calls them with (this process loads them, warm)
+    assert {"record_window", "sample", "next_instant", "cursors_at", "sample_sva"} <= names
+    reported = {(k[1], k[2]) for k in json.loads(line)["kernels"]}
+    left, right = _pair()
+    simulate(plan, left, right, window=(10**6, 10**8))  # (a start > 0 samples it first)
+    for kernel in (record_window, sample):
+        assert kernel.signatures
+        for sig in kernel.signatures:
+            assert (kernel.py_func.__qualname__, str(sig)) in reported
     assert "advance_streams" not in names  # the parent's part
 
 

@@ -5,17 +5,21 @@ another: the stream loop (:func:`.schedule.advance_streams`, with every block's 
 into it) is about 45 % of it, the walkers and the data kernels (the NNA's descriptors, the
 SVA's stream) most of the rest. They do not depend on each other, so :func:`prewarm` compiles
 them at the same time: a helper process (``python -m`` this module) compiles the walkers, the
-pass a stopped run makes (``note_source_wait``) and the SVA's data kernels of the run's
-configuration into numba's on-disk cache, while this
+pass a stopped run makes (``note_source_wait``), the SVA's data kernels of the run's
+configuration and the trace sampler (:func:`.sampler.record_window`, which a traced run --
+``--vcd``, ``--timeline`` -- calls after its pass; the first traced run after an install
+compiled it alone in the run's process) into numba's on-disk cache, while this
 process compiles the stream loop and the NNA's data kernels; then this process waits for the
 helper, and the run finds every kernel compiled (its own in memory, the helper's in the
 cache). Nothing changes in what runs:
 the kernels are the same functions with the same types, whichever process compiled them.
 
-- The helper compiles by *running* the kernels on stand-ins of the run's types: the walkers on
-  the event net of a small frame of the same configuration before any event (they find
-  nothing to do), the data kernels on a small random pair (the SVA's on random descriptors of
-  the run's type).
+- The helper compiles by *running* the kernels on stand-ins of the run's types: the walkers
+  and the trace sampler on the event net of a small frame of the same configuration before
+  any event (the walkers find nothing to do, the sampler records a few idle clock edges), the
+  data kernels on a small random pair (the SVA's on random descriptors of the run's type).
+  The trace writers' kernels (``traces/vcd.py``) stay with the run: they belong to a layer
+  above the cycle model.
 - The stream loop is compiled for the net's types without running
   (``Dispatcher.compile``); the net's numba type is the same for every configuration.
 - Only when the stream loop is not in the cache (a fresh install or an edit) is a helper
@@ -46,7 +50,9 @@ from numba import typeof
 
 from stereosim.nna.descriptor import compute_descriptor
 from stereosim.quant.intconv import descriptor_dtype
-from stereosim.sim.cycle.compiled.layout import serialise
+from stereosim.sim.cycle.compiled.layout import TraceData, serialise
+from stereosim.sim.cycle.compiled.ring import cursors_at
+from stereosim.sim.cycle.compiled.sampler import next_instant, record_window, sample
 from stereosim.sim.cycle.compiled.schedule import advance_streams, walk_all
 from stereosim.sim.cycle.compiled.source import note_source_wait
 from stereosim.sim.cycle.plan import ChipPlan, build_plan
@@ -159,6 +165,30 @@ def _compile_walkers(plan: ChipPlan) -> None:
     note_source_wait(net)
 
 
+def _compile_sampler(plan: ChipPlan) -> None:
+    """The trace sampler's kernels, which a traced run (``--vcd``, ``--timeline``) compiles
+    after its pass (:func:`.run._trace`): run as it runs them, on the stand-in's event net
+    before any event, over its first few clock edges, with stand-in data of the run's types
+    (:class:`.layout.TraceData`)."""
+    stand_in = _stand_in_plan(plan)
+    net, _ = serialise(stand_in)
+    h, w = stand_in.shape
+    data = TraceData(np.zeros((1, 2, h, w), np.uint64), np.zeros((1, h, w), np.int32),
+                     np.int64((1 << stand_in.word_bits) - 1), np.int64(0))
+    periods = np.array([d.period_fs for d in stand_in.domains.values()], np.int64)
+    n_sig = len(stand_in.signals)
+    scratch = np.zeros(n_sig, np.uint64)
+    done = np.full((len(stand_in.blocks) + len(stand_in.fifos), 2), -1)
+    start = int(periods.max())
+    cursors_at(net, start - 1, True)
+    sample(net, data, start - 1, scratch, done)
+    size = max(1 << 10, 4 * n_sig)
+    ctl = np.array([0, next_instant(periods, start - 1)], np.int64)
+    record_window(net, data, periods, 3 * start, (
+        ctl, scratch.copy(), np.zeros(size, np.int64), np.zeros(size, np.int32),
+        np.zeros(size, np.uint64), scratch.copy(), done))
+
+
 def _stand_in_view(plan: ChipPlan, rng) -> np.ndarray:
     """A small random grey view, a little wider than the disparity range."""
     w = min(plan.shape[1], plan.cfg.sva.disparities + 32)
@@ -199,6 +229,7 @@ def _helper_main() -> None:
         plan = build_plan(cfg, shape)
         _compile_walkers(plan)
         _compile_sva_stream(plan)
+        _compile_sampler(plan)
     sys.stdout.write(json.dumps({"kernels": sorted(watch.kernels)}) + "\n")
     sys.stdout.flush()
     os._exit(0)  # not a normal shutdown: the watcher thread is blocked reading stdin
