@@ -339,9 +339,10 @@ def _prose(text: str) -> list[str]:
 
 
 def _error_line(argv: list[str]) -> str:
-    """The one line ``stereosim ARGV`` refuses with (exit status 2)."""
+    """The one line ``stereosim ARGV`` refuses or stops with (exit status 2)."""
     status, _, err = _stereosim(argv)
-    lines = [line for line in err.splitlines() if line.startswith("stereosim: error:")]
+    lines = [line for line in err.splitlines()
+             if line.startswith(("stereosim: error:", "stereosim: stopped"))]
     if status != 2 or len(lines) != 1:
         raise OutcomeChanged(f"stereosim {' '.join(argv)} exited {status}, not 2 with one line")
     return lines[0]

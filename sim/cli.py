@@ -78,7 +78,7 @@ from stereosim.sim.outputs import (
     publish,
 )
 from stereosim.sim.progress import compile_notice
-from stereosim.sim.run_files import publish_stop, with_report
+from stereosim.sim.run_files import StopAsked, publish_stop, with_report
 from stereosim.sim.stream_cli import cmd_run_stream, config_sources
 from stereosim.sim.summary import eval_document, eval_line, eval_tables, eval_timing, print_summary
 from stereosim.sim.tracing import TraceRequest, parse_window, trace_files, trace_paths
@@ -639,6 +639,8 @@ def main(argv: list[str] | None = None) -> int:
 def _failure(exc: Exception) -> int | None:
     """Exit 2 with the one line of a command stopped by ``exc`` (a user mistake, a file-system
     problem, memory); None for an exception no command anticipated."""
+    if isinstance(exc, StopAsked):  # a stop the user asked for is not an error
+        return _fail(str(exc), prefix="stereosim: ")
     if isinstance(exc, UserError):
         return _fail(str(exc))
     if isinstance(exc, OSError):  # a file-system problem no command anticipated
@@ -689,11 +691,12 @@ def _silence_stdout() -> None:
         os.close(devnull)
 
 
-def _fail(message: str) -> int:
-    """The one-line error on stderr; exit status 2."""
+def _fail(message: str, prefix: str = "stereosim: error: ") -> int:
+    """The one line on stderr (``prefix``: an error's, or a stop's that the user asked for);
+    exit status 2."""
     if not _stdout_works():
         message = f"{message} (and standard output cannot be written)"
-    print(f"stereosim: error: {' '.join(message.split())}", file=sys.stderr)
+    print(f"{prefix}{' '.join(message.split())}", file=sys.stderr)
     return 2
 
 

@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 
 from stereosim.sim.argtypes import finite_float, nonempty_path
+from stereosim.sim.cycle.energy import energy_table
 from stereosim.sim.cycle.estimate import estimate, format_estimate, parse_size
 from stereosim.sim.cycle.plan import frame_size
 from stereosim.sim.errors import InputError, UserError
@@ -111,9 +112,10 @@ def register(sub, add_config_options, scene_config) -> None:
             ndisp = data.get("ndisp")
         else:
             shape = parse_size(size)
+        table = energy_table(args.energy) if args.energy is not None else None
         cfg = scene_config(args, ndisp)
         shape = shape or frame_size(cfg)
-        est = estimate(cfg, shape)  # the plan refuses a chip it cannot build (D not below W)
+        est = estimate(cfg, shape, table)  # the plan refuses a chip it cannot build
         if args.json:
             sys.stdout.write(json_text(est))
         else:
@@ -125,6 +127,9 @@ def register(sub, add_config_options, scene_config) -> None:
                    help="frame size (default: the configured camera's, source.camera_width x "
                    "camera_height, else 1280x720), 'default' or a scene folder")
     e.add_argument("--json", action="store_true", help="print the estimate as JSON")
+    e.add_argument("--energy", metavar="FILE", type=nonempty_path,
+                   help="energy table (TOML) for the energy and power (default: stereosim's "
+                   "45 nm table; docs/energy.md)")
     add_config_options(e)
     e.set_defaults(func=cmd_estimate)
 

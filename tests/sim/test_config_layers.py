@@ -126,3 +126,20 @@ def test_config_plan_is_for_the_cameras_size_and_quotes_the_chips_energy_and_pow
     cfg = load_config(PRESETS / "1080p60.toml")
     (line,) = energy_lines(estimate(cfg, (1080, 1920))["energy"])
     assert line in out.splitlines() and " W at " in line
+
+
+def test_estimate_prices_with_the_energy_table_given(tmp_path, capsys):
+    from stereosim.sim.cycle.plan import DEFAULT_FRAME
+
+    source = (PRESETS.parent / "sim" / "energy.toml").read_text()
+    table = tmp_path / "e.toml"
+    table.write_text(source.replace("node = ", 'node = "a test node" #', 1))
+    assert main(["estimate", "--json", "--energy", str(table)]) == 0
+    got = json.loads(capsys.readouterr().out)["energy"]
+    assert got["table"]["node"] == "a test node"
+    from stereosim.sim.cycle.energy import energy_table
+    from stereosim.sim.cycle.estimate import estimate
+
+    assert got == estimate(load_config(), DEFAULT_FRAME, energy_table(table))["energy"]
+    assert main(["estimate", "--energy", str(tmp_path / "missing.toml")]) == 2
+    assert capsys.readouterr().err.count("\n") == 1
