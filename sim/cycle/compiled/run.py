@@ -65,7 +65,12 @@ from stereosim.sim.cycle.contract import (
 from stereosim.sim.cycle.frames import FrameSupply, camera_frames
 from stereosim.sim.cycle.plan import ChipPlan
 from stereosim.sim.cycle.report import cycle_report
-from stereosim.sim.cycle.rules import camera_busy_cycles, camera_frame_start, seen_from
+from stereosim.sim.cycle.rules import (
+    camera_busy_cycles,
+    camera_frame_start,
+    edges_through,
+    seen_from,
+)
 from stereosim.sim.kernel_cache import njit
 from stereosim.sva.pipeline import sva_stream
 from stereosim.traces.log import TraceLog
@@ -173,7 +178,7 @@ def _stats(plan: ChipPlan, net: Net, names: dict, t_end: int) -> dict:
     short = taken < plan.frames
     n = taken * h * w
     per = {name: d.period_fs for name, d in plan.domains.items()}
-    cycles = {name: t_end // p + 1 for name, p in per.items()}
+    cycles = {name: edges_through(t_end, p) for name, p in per.items()}
     nf = len(plan.fifos)
     fcyc = np.array([[cycles[f.dst], cycles[f.src]] for f in plan.fifos], np.int64)
     finish_fifos(net, fcyc)
