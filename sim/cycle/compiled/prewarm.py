@@ -35,6 +35,7 @@ the kernels are the same functions with the same types, whichever process compil
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import io
 import json
 import math
@@ -68,12 +69,16 @@ SMALL_ROWS = 24  # the stand-in frame of the helper's walkers: enough rows for e
 
 def _stand_in_plan(plan: ChipPlan) -> ChipPlan:
     """A plan of the same configuration on a few rows (the same kernels and types, a small
-    net); the plan itself where the configuration needs more rows."""
+    net; a chip built for its camera's frame size is built for these rows instead, which
+    changes no type); the plan itself where the configuration needs more rows."""
     h, w = plan.shape
     if h <= SMALL_ROWS:
         return plan
+    cfg = plan.cfg
+    any_size = dataclasses.replace(cfg, source=dataclasses.replace(
+        cfg.source, camera_width=0, camera_height=0))
     try:
-        return build_plan(plan.cfg, (SMALL_ROWS, w))
+        return build_plan(any_size, (SMALL_ROWS, w))
     except UserError:
         return plan
 
