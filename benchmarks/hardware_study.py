@@ -46,7 +46,8 @@ from stereosim.nna.geometry import (
 from stereosim.nna.trainconfig import VARIANTS
 from stereosim.sim.api import run, run_stream
 from stereosim.sim.config import load_config
-from stereosim.sim.cycle.plan import build_plan, submodule_report
+from stereosim.sim.cycle.figures import submodule_report
+from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.sweep import synthetic_pair
 from stereosim.sim.tracing import TraceRequest
 from stereosim.sva.geometry import box_radius, median_radius

@@ -17,13 +17,15 @@ ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("sim", "nna", "sva", "quant", "traces")
 # the modules whose public definitions are the chip's rules, in the table's order
 SOURCES = ("sim/cycle/rules.py", "sim/cycle/stages.py", "sim/cycle/plan.py",
-           "sim/cycle/buffers.py", "sim/cycle/contract.py", "nna/geometry.py", "sva/geometry.py")
+           "sim/cycle/figures.py", "sim/cycle/buffers.py", "sim/cycle/contract.py",
+           "nna/geometry.py", "sva/geometry.py")
 # who reads a rule, by where the reading module lives (the first match names it)
 READERS = (("readable engine", "sim/cycle/readable/"), ("compiled engine", "sim/cycle/compiled/"),
            ("driver", "sim/cycle/simulate.py"), ("estimate", "sim/cycle/estimate.py"),
            ("plan", "sim/cycle/plan.py"), ("stages", "sim/cycle/stages.py"),
            ("buffers", "sim/cycle/buffers.py"), ("contract", "sim/cycle/contract.py"),
            ("reports", "sim/cycle/report.py"), ("reports", "sim/cycle/energy.py"),
+           ("reports", "sim/cycle/figures.py"),
            ("frames", "sim/cycle/frames.py"), ("traces", "traces/"), ("traces", "sim/tracing.py"),
            ("application", "sim/"), ("NNA stages", "nna/"), ("SVA stages", "sva/"),
            ("integer arithmetic", "quant/"))

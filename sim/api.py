@@ -22,9 +22,10 @@ from stereosim.sim.config.backend import BACKEND_KEYS, carried_backend
 from stereosim.sim.config.loader import tuned_backend
 from stereosim.sim.cycle.contract import RunStopped, stop_report
 from stereosim.sim.cycle.energy import energy_report, energy_table
+from stereosim.sim.cycle.figures import architecture_report, chip_sram
 from stereosim.sim.cycle.frames import FrameSupply, check_frame_count, functional_words
 from stereosim.sim.cycle.lent import lent_report
-from stereosim.sim.cycle.plan import ChipPlan, architecture_report, build_plan, chip_sram
+from stereosim.sim.cycle.plan import ChipPlan, build_plan
 from stereosim.sim.cycle.report import power_basis
 from stereosim.sim.cycle.simulate import simulate
 from stereosim.sim.datasets import default_scene, find_scene, parse_calib

@@ -6,7 +6,7 @@ both read off a :class:`~sim.cycle.plan.ChipPlan` (nothing here knows the topolo
 :func:`plan_text` lists every domain (frequency, period, blocks), every block (kind, domain,
 items, cycles per item, latency, buffers) and every FIFO as ``producer --name--> consumer`` with
 its depth, width, configuration key and, for a crossing, the edges after which data and free
-slots are seen, then the chip's SRAM (:func:`~sim.cycle.plan.chip_sram`: every instance counted
+slots are seen, then the chip's SRAM (:func:`~sim.cycle.figures.chip_sram`: every instance counted
 once, by block and by kind; one NNA submodule's labelled as such), the lent network and the
 run's cycle budget per clock domain; :func:`plan_png` draws the blocks as boxes coloured by
 domain in pipeline columns (a frame-buffered camera and its DRAM, source, NNA, merge, SVA, sink)
@@ -23,8 +23,9 @@ import io
 from dataclasses import dataclass
 from pathlib import Path
 
+from stereosim.sim.cycle.figures import chip_sram, sram_bits
 from stereosim.sim.cycle.lent import lent_lines, lent_report
-from stereosim.sim.cycle.plan import BlockPlan, ChipPlan, chip_sram, sram_bits
+from stereosim.sim.cycle.plan import BlockPlan, ChipPlan
 from stereosim.sim.errors import InputError
 from stereosim.sim.outputs import atomic_write_bytes
 
@@ -69,7 +70,7 @@ def _block_line(plan: ChipPlan, b: BlockPlan) -> str:
 
 
 def _sram_lines(plan: ChipPlan) -> list[str]:
-    """The chip's SRAM (:func:`~sim.cycle.plan.chip_sram`: every instance counted once) by
+    """The chip's SRAM (:func:`~sim.cycle.figures.chip_sram`: every instance counted once) by
     block and by kind, then one NNA submodule's, labelled as one instance."""
     sram = chip_sram(plan)
     per_sub = sram["nna_per_submodule"]

@@ -7,7 +7,7 @@ size (written: ``write_factor`` reads), a bit pushed or popped through a FIFO, a
 clock cycle per domain. The actions of one frame:
 
 - **NNA** (both cameras): its MACs and requantising multiplies
-  (:func:`~sim.cycle.plan.action_counts`); the census unit's comparisons as bit-adds (8 per
+  (:func:`~sim.cycle.figures.action_counts`); the census unit's comparisons as bit-adds (8 per
   window sample);
 - **SRAM**: every buffer's declared accesses per output pixel (:class:`BufferPlan`:
   ``pixel_reads``, ``pixel_writes`` of ``word_bits`` bits), priced at the size of one of its
@@ -36,8 +36,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from stereosim.sim.config import read_toml
+from stereosim.sim.cycle.figures import action_counts
 from stereosim.sim.cycle.lent import LentPlan
-from stereosim.sim.cycle.plan import ChipPlan, action_counts
+from stereosim.sim.cycle.plan import ChipPlan
 from stereosim.sim.cycle.stages import lg
 from stereosim.sim.errors import ConfigError
 from stereosim.sva.geometry import bits_for

@@ -41,7 +41,7 @@ row instead of per cycle:
   test_estimate_presets.py).
 - **Delivered rate, totals** (:func:`delivered_fps`): the frame rate the chip delivers (the
   work bound, a camera's rate, or fewer behind one frame buffer), the chip's SRAM with every
-  instance counted once (:func:`~sim.cycle.plan.chip_sram`) and the energy a frame and the
+  instance counted once (:func:`~sim.cycle.figures.chip_sram`) and the energy a frame and the
   power at the delivered rate (:func:`~sim.cycle.energy.estimate_energy`: a run's items from
   the plan's counts; the clocks over a frame period at that rate).
 - **FIFO rate.** A FIFO of depth d moves at most d items per round trip (push -> visible -> pop
@@ -62,16 +62,9 @@ import math
 from stereosim.nna.geometry import Tile
 from stereosim.sim.config import ChipConfig, config_to_dict
 from stereosim.sim.cycle.energy import EnergyTable, energy_table, estimate_energy
+from stereosim.sim.cycle.figures import action_counts, chip_sram, layer_report, sram_bits
 from stereosim.sim.cycle.lent import lent_lines, lent_report
-from stereosim.sim.cycle.plan import (
-    ChipPlan,
-    FifoPlan,
-    action_counts,
-    build_plan,
-    chip_sram,
-    layer_report,
-    sram_bits,
-)
+from stereosim.sim.cycle.plan import ChipPlan, FifoPlan, build_plan
 from stereosim.sim.cycle.rules import (
     burst_last,
     burst_of,
@@ -710,7 +703,7 @@ def parse_size(text: str) -> tuple[int, int]:
 
 
 def sram_lines(chip: dict) -> list[str]:
-    """The chip's SRAM total (:func:`~sim.cycle.plan.chip_sram`), by block and by kind."""
+    """The chip's SRAM total (:func:`~sim.cycle.figures.chip_sram`), by block and by kind."""
     by_block = ", ".join(f"{k} {v:,}" for k, v in chip["by_block"].items() if v)
     by_kind = ", ".join(f"{k} {v:,}" for k, v in chip["by_kind"].items() if v)
     return [f"chip SRAM: {chip['total']:,} bits ({chip['total'] / 1e6:.2f} Mbit; "

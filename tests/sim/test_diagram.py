@@ -8,8 +8,10 @@ import pytest
 
 from stereosim.sim.cli import main
 from stereosim.sim.config import load_config
+from stereosim.sim.cycle.estimate import energy_lines, estimate
+from stereosim.sim.cycle.figures import chip_sram
 from stereosim.sim.cycle.lent import lent_report
-from stereosim.sim.cycle.plan import build_plan, chip_sram
+from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.diagram import MAX_DRAWN, _span, picture_layout, plan_png, plan_text
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -54,7 +56,9 @@ def test_config_plan_prints_and_draws(tmp_path, capsys):
                  "--png", str(png)])
     out, _ = capsys.readouterr()
     assert code == 0
-    assert out == plan_text(build_plan(load_config(overrides={"sva.disparities": 32}), (40, 120)))
+    cfg = load_config(overrides={"sva.disparities": 32})
+    energy = "\n".join(energy_lines(estimate(cfg, (40, 120))["energy"]))
+    assert out == plan_text(build_plan(cfg, (40, 120))) + energy + "\n"  # then the energy
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 

@@ -10,7 +10,8 @@ from stereosim.sim.cli import main
 from stereosim.sim.config import load_config
 from stereosim.sim.cycle.contract import CameraOverflow
 from stereosim.sim.cycle.estimate import estimate
-from stereosim.sim.cycle.plan import build_plan, chip_sram, sram_bits
+from stereosim.sim.cycle.figures import chip_sram, sram_bits
+from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.cycle.simulate import simulate
 from stereosim.sim.errors import ConfigError, InputError
 from stereosim.sim.io import encode_png

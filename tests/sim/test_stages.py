@@ -12,7 +12,8 @@ import pytest
 from stereosim.sim.api import run
 from stereosim.sim.config import load_config
 from stereosim.sim.cycle.compiled.run import run_compiled
-from stereosim.sim.cycle.plan import architecture_report, build_plan
+from stereosim.sim.cycle.figures import architecture_report
+from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.cycle.readable.chip import run_readable
 from stereosim.sim.cycle.stages import lane_groups, lg, sorting_depth, tree_cycles
 

@@ -384,7 +384,7 @@ def _rows(text: str) -> str:
 
 
 def test_the_summary_quotes_the_chips_sram_with_every_submodule(cycle_report):
-    from stereosim.sim.cycle.plan import chip_sram
+    from stereosim.sim.cycle.figures import chip_sram
 
     sram = cycle_report["architecture"]["chip_sram"]
     cfg = load_config(overrides={"sva.disparities": D})
