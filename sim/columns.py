@@ -95,6 +95,14 @@ RULES: tuple[tuple[str, str, str], ...] = (
      "work bound, the camera's rate when the camera is the bottleneck, fewer with one frame "
      "buffer); the estimate's power is given at it"),
     (r"throughput\.fps_delivered_basis", "frame rate", "why fps_delivered is that rate"),
+    (r"throughput\.submodules_for_camera\.(?P<k>stereo_submodules|per_camera|submodules)",
+     "frame rate", "with a camera: the {k} of the least even nna.stereo_submodules whose NNA "
+     "work bound reaches the camera's rate (analytic; empty when none does)"),
+    (r"throughput\.submodules_for_camera\.(?P<k>fps|nna_fps|merge_depth_needed)", "frame rate",
+     "with a camera: at that count, its {k} (the camera's rate, the NNA's work bound, the "
+     "merge depth its column tiles need; analytic)"),
+    (r"throughput\.submodules_for_camera", "frame rate", "empty: no camera, so no rate to "
+     "keep up with"),
     (r"throughput\.merge_depth_needed", "frame rate", "descriptors: the least "
      "fifo.nna_to_merge_depth at which column tiles reach fps_bound (analytic; empty without "
      "column tiles)"),

@@ -57,12 +57,19 @@ row instead of per cycle:
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 from stereosim.nna.geometry import Tile
 from stereosim.sim.config import ChipConfig, config_to_dict
 from stereosim.sim.cycle.energy import EnergyTable, energy_table, estimate_energy
-from stereosim.sim.cycle.figures import action_counts, chip_sram, layer_report, sram_bits
+from stereosim.sim.cycle.figures import (
+    action_counts,
+    chip_sram,
+    layer_report,
+    nna_fps,
+    sram_bits,
+)
 from stereosim.sim.cycle.lent import lent_lines, lent_report
 from stereosim.sim.cycle.plan import ChipPlan, FifoPlan, build_plan
 from stereosim.sim.cycle.rules import (
@@ -80,7 +87,7 @@ from stereosim.sim.cycle.rules import (
     sva_last_input_row,
     sva_rows_done_before_input,
 )
-from stereosim.sim.errors import InputError
+from stereosim.sim.errors import InputError, UserError
 
 FS_PER_S = 10**15
 
@@ -585,6 +592,49 @@ def one_frame_cycles(plan: ChipPlan, last_output_sva_cycle: int) -> dict[str, in
     return {name: edges_through(t_end, d.period_fs) for name, d in plan.domains.items()}
 
 
+def submodules_for(plan: ChipPlan, fps: float) -> dict | None:
+    """The least even ``nna.stereo_submodules`` whose NNA work bound (:func:`~sim.cycle.figures.
+    nna_fps`, its busiest submodule's) reaches ``fps`` at the plan's frame size, everything
+    else as configured; with the ``nna.submodules`` the chip then needs (the lent ones beside)
+    and the merge depth its column tiles need (:func:`merge_depth_needed`). None when no count
+    up to ``nna.stereo_submodules``' largest does, or the frame cannot be split that far.
+
+    The NNA's rate grows with the count in steps (the widest tile sets it), so the search
+    starts at the count the current rate scales to and walks down, then up, in steps of 2."""
+    cfg = plan.cfg
+    most = next(f.metadata["hi"] for f in dataclasses.fields(type(cfg.nna))
+                if f.name == "stereo_submodules")
+    rates: dict[int, tuple[float, ChipPlan] | None] = {}
+
+    def rate(s: int):
+        if s not in rates:
+            n = cfg.nna
+            other = dataclasses.replace(cfg, nna=dataclasses.replace(
+                n, stereo_submodules=s, submodules=max(n.submodules, s + n.lent_submodules)))
+            try:
+                p = build_plan(other, plan.shape)
+                rates[s] = (nna_fps(p), p)
+            except UserError:  # more tiles than columns, more submodules than the key allows
+                rates[s] = None
+        return rates[s]
+
+    s = cfg.nna.stereo_submodules
+    guess = 2 * math.ceil(s * fps / nna_fps(plan) / 2)
+    s = min(max(2, guess), most)
+    while s > 2 and rate(s - 2) is not None and rate(s - 2)[0] >= fps:
+        s -= 2
+    while s <= most and (rate(s) is None or rate(s)[0] < fps):
+        if rate(s) is None and s > guess:
+            return None  # the frame cannot be split further
+        s += 2
+    if s > most:
+        return None
+    got, p = rate(s)
+    return {"fps": round(fps, 3), "stereo_submodules": s, "per_camera": s // 2,
+            "nna_fps": got, "submodules": p.cfg.nna.submodules,
+            "merge_depth_needed": merge_depth_needed(p)}
+
+
 def estimate(cfg: ChipConfig, shape: tuple[int, int], table: EnergyTable | None = None) -> dict:
     """The analytic report for one frame of ``shape`` = (H, W) (module docstring); keys follow
     the cycle report's where both have the figure. The chip plan is built first, so a chip
@@ -632,10 +682,7 @@ def estimate(cfg: ChipConfig, shape: tuple[int, int], table: EnergyTable | None 
             "nna.line_buffer_rows holds only the window: a row waits for the window to move "
             "(latency estimate approximate)"
         )
-    camera_fps = None
-    if plan.camera:
-        camera = plan.blocks_of("camera")[0]
-        camera_fps = round(plan.domains["camera"].freq_hz / camera.frame_clocks, 3)
+    camera_fps = None if plan.camera_fps is None else round(plan.camera_fps, 3)
     fps, fps_basis = delivered_fps(plan, tl, 1.0 / frame_s, bottleneck)
     fps = round(fps, 3)  # as the report gives it, and the power is given at
     if (plan.frame_buffered and plan.cfg.source.on_overflow == "error"
@@ -663,6 +710,9 @@ def estimate(cfg: ChipConfig, shape: tuple[int, int], table: EnergyTable | None 
             "fps_delivered_basis": fps_basis,
             # the least fifo.nna_to_merge_depth that keeps column tiles at fps_bound
             "merge_depth_needed": merge_depth,
+            # the NNA submodules that keep up with the camera (None: no camera, or none do)
+            "submodules_for_camera": (submodules_for(plan, plan.camera_fps)
+                                      if plan.camera else None),
         },
         "latency": {
             "first_output_us": tl["first_output_cycle"] * p_sva / 1e9,
@@ -753,6 +803,17 @@ def format_estimate(est: dict) -> str:
             f"{lay['line_buffer_rows']} rows, {lay['line_buffer_bits']} bits")
     if "lent_network" in est:
         lines += lent_lines(est["lent_network"])
+    need = thr.get("submodules_for_camera")
+    if need is not None:
+        lines.append(
+            f"to keep up with the camera's {need['fps']:g} fps: nna.stereo_submodules = "
+            f"{need['stereo_submodules']} ({need['per_camera']} a camera; the NNA then bounds "
+            f"{need['nna_fps']:g} fps), nna.submodules >= {need['submodules']}"
+            + (f", fifo.nna_to_merge_depth >= {need['merge_depth_needed']}"
+               if need["merge_depth_needed"] is not None else ""))
+    elif thr.get("camera_fps") is not None:
+        lines.append(f"no nna.stereo_submodules up to the key's largest keeps up with the "
+                     f"camera's {thr['camera_fps']:g} fps at this frame size")
     if thr["merge_depth_needed"] is not None:
         lines.append(
             f"merge FIFOs: fifo.nna_to_merge_depth = "

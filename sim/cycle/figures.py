@@ -151,14 +151,14 @@ def submodule_report(plan: ChipPlan) -> dict:
     most = n.submodules - n.submodules % 2
     out = {"on_chip": n.submodules, "stereo": n.stereo_submodules, "lent": n.lent_submodules,
            "idle": n.submodules - n.stereo_submodules - n.lent_submodules,
-           "nna_fps": _nna_fps(plan)}
+           "nna_fps": nna_fps(plan)}
     if most > n.stereo_submodules:
         fps = _nna_fps_with_all(plan.cfg, plan.shape, _network_identity(plan.cfg))
         out["with_all"] = None if fps is None else {"stereo_submodules": most, "nna_fps": fps}
     return out
 
 
-def _nna_fps(p: ChipPlan) -> float:
+def nna_fps(p: ChipPlan) -> float:
     """The NNA's work bound of plan ``p`` in frames a second (its busiest submodule's)."""
     sub = max(p.blocks_of("nna"), key=lambda b: b.items)
     return round(p.domains["nna"].freq_hz / p.work_cycles(sub, 0), 3)
@@ -175,7 +175,7 @@ def _network_identity(cfg: ChipConfig) -> tuple | None:
 @functools.lru_cache(maxsize=64)
 def _nna_fps_with_all(cfg: ChipConfig, shape: tuple[int, int], network: tuple | None
                       ) -> float | None:
-    """:func:`_nna_fps` of ``cfg`` with every submodule on the pair (the largest even count,
+    """:func:`nna_fps` of ``cfg`` with every submodule on the pair (the largest even count,
     none lent), None when the frame cannot be split that far. A whole plan to build for one
     figure of every report: kept for the configurations, shapes and weight files seen
     (``network``, :func:`_network_identity`: a file rewritten since is another key)."""
@@ -184,7 +184,7 @@ def _nna_fps_with_all(cfg: ChipConfig, shape: tuple[int, int], network: tuple | 
     other = dataclasses.replace(cfg, nna=dataclasses.replace(
         n, stereo_submodules=most, lent_submodules=0, lent_network=""))
     try:
-        return _nna_fps(build_plan(other, shape))
+        return nna_fps(build_plan(other, shape))
     except ConfigError:
         return None  # more tiles than the frame has columns or rows
 
