@@ -45,7 +45,7 @@ from stereosim.sim.config.backend import (
     write_backend,
 )
 from stereosim.sim.cycle.contract import RunStopped
-from stereosim.sim.cycle.estimate import energy_lines, estimate, parse_size
+from stereosim.sim.cycle.estimate import estimate, parse_size
 from stereosim.sim.cycle.frames import MAX_FRAMES
 from stereosim.sim.cycle.plan import build_plan, frame_size
 from stereosim.sim.datasets import (
@@ -80,7 +80,14 @@ from stereosim.sim.outputs import (
 from stereosim.sim.progress import compile_notice
 from stereosim.sim.run_files import StopAsked, publish_stop, with_report
 from stereosim.sim.stream_cli import cmd_run_stream, config_sources
-from stereosim.sim.summary import eval_document, eval_line, eval_tables, eval_timing, print_summary
+from stereosim.sim.summary import (
+    energy_lines,
+    eval_document,
+    eval_line,
+    eval_tables,
+    eval_timing,
+    print_summary,
+)
 from stereosim.sim.tracing import TraceRequest, parse_window, trace_files, trace_paths
 from stereosim.traces.cli import add_wave_parser
 from stereosim.traces.log import parse_patterns

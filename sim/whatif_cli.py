@@ -12,7 +12,7 @@ from pathlib import Path
 
 from stereosim.sim.argtypes import finite_float, nonempty_path
 from stereosim.sim.cycle.energy import energy_table
-from stereosim.sim.cycle.estimate import estimate, format_estimate, parse_size
+from stereosim.sim.cycle.estimate import estimate, parse_size
 from stereosim.sim.cycle.plan import frame_size
 from stereosim.sim.errors import InputError, UserError
 from stereosim.sim.outputs import json_text
@@ -27,6 +27,7 @@ from stereosim.sim.plot import (
     sweep_pareto,
     sweep_plots,
 )
+from stereosim.sim.summary import format_estimate
 from stereosim.sim.sweep import MAX_POINTS, load_scene_spec, load_sweep, run_sweep
 from stereosim.sim.sweep_results import CSV_NAME, GUIDE_NAME, read_rows
 

@@ -70,7 +70,7 @@ from stereosim.sim.cycle.figures import (
     nna_fps,
     sram_bits,
 )
-from stereosim.sim.cycle.lent import lent_lines, lent_report
+from stereosim.sim.cycle.lent import lent_report
 from stereosim.sim.cycle.plan import ChipPlan, FifoPlan, build_plan
 from stereosim.sim.cycle.rules import (
     burst_last,
@@ -750,83 +750,3 @@ def parse_size(text: str) -> tuple[int, int]:
     if w < 2 or h < 1 or w * h > 1 << 26:
         raise InputError(f"size {text!r}: give at least 2x1 and at most 64 M pixels")
     return h, w
-
-
-def sram_lines(chip: dict) -> list[str]:
-    """The chip's SRAM total (:func:`~sim.cycle.figures.chip_sram`), by block and by kind."""
-    by_block = ", ".join(f"{k} {v:,}" for k, v in chip["by_block"].items() if v)
-    by_kind = ", ".join(f"{k} {v:,}" for k, v in chip["by_kind"].items() if v)
-    return [f"chip SRAM: {chip['total']:,} bits ({chip['total'] / 1e6:.2f} Mbit; "
-            f"{chip['nna_submodules']} NNA submodules of {chip['nna_per_submodule']:,} bits "
-            f"each); by block: {by_block}",
-            f"chip SRAM by kind: {by_kind}"]
-
-
-def energy_lines(energy: dict) -> list[str]:
-    """Energy a frame by block and the power at the delivered rate
-    (:func:`~sim.cycle.energy.estimate_energy`)."""
-    per = energy["per_frame_uj"]
-    blocks = ", ".join(f"{k} {v / 1e3:.3f}" for k, v in per["by_block"].items())
-    return [f"energy: {per['total'] / 1e3:.3f} mJ a frame ({blocks} mJ); power "
-            f"{energy['power_mw'] / 1e3:.3f} W at {energy['power_at_fps']:g} fps "
-            f"({energy['fps_basis']}; table: {energy['table']['node']})"]
-
-
-def format_estimate(est: dict) -> str:
-    """The human-readable summary ``stereosim estimate`` prints."""
-    img, thr, lat = est["image"], est["throughput"], est["latency"]
-    sram = est["sram_bits_total"]
-    lines = [
-        f"estimate: {img['width']}x{img['height']}, D={est['config']['sva']['disparities']}, "
-        f"{est['config']['sva']['paths']} paths, descriptor {est['config']['nna']['descriptor']}",
-        f"work bound {thr['fps_bound']} fps (bottleneck {thr['bottleneck']}); latency: first "
-        f"output {lat['first_output_us']:.3f} us, frame {lat['frame_ms']:.4f} ms",
-        "work per frame by block: " + ", ".join(
-            f"{n} {ms:.4f} ms (bound {thr['fps_bound_per_block'][n]} fps)"
-            for n, ms in thr["work_ms_per_frame"].items()
-        ),
-        f"delivered {thr['fps_delivered']} fps: {thr['fps_delivered_basis']}",
-        f"SRAM: NNA {sram['nna_per_submodule']} bits per submodule ({sram['nna_stereo']} for the "
-        f"pair), SVA {sram['sva']} bits, FIFOs {sram['fifos']} bits",
-        *sram_lines(est["chip_sram"]),
-        *energy_lines(est["energy"]),
-        "FIFO bytes per frame: " + ", ".join(
-            f"{n} {b}" for n, b in est["fifo_bytes_per_frame"].items()
-        ),
-        f"MACs per frame (both cameras): {est['macs_per_frame']}",
-    ]
-    for lay in est.get("nna_layers", ()):
-        lines.append(
-            f"NNA layer {lay['layer']}: {lay['kernel']}x{lay['kernel']}x{lay['channels_in']}"
-            f"x{lay['channels_out']}, {lay['macs_per_pixel']} MACs a pixel on "
-            f"{lay['mac_share']} MACs: {lay['cycles_per_pixel']} cycles a pixel; line buffer "
-            f"{lay['line_buffer_rows']} rows, {lay['line_buffer_bits']} bits")
-    if "lent_network" in est:
-        lines += lent_lines(est["lent_network"])
-    need = thr.get("submodules_for_camera")
-    if need is not None:
-        lines.append(
-            f"to keep up with the camera's {need['fps']:g} fps: nna.stereo_submodules = "
-            f"{need['stereo_submodules']} ({need['per_camera']} a camera; the NNA then bounds "
-            f"{need['nna_fps']:g} fps), nna.submodules >= {need['submodules']}"
-            + (f", fifo.nna_to_merge_depth >= {need['merge_depth_needed']}"
-               if need["merge_depth_needed"] is not None else ""))
-    elif thr.get("camera_fps") is not None:
-        lines.append(f"no nna.stereo_submodules up to the key's largest keeps up with the "
-                     f"camera's {thr['camera_fps']:g} fps at this frame size")
-    if thr["merge_depth_needed"] is not None:
-        lines.append(
-            f"merge FIFOs: fifo.nna_to_merge_depth = "
-            f"{est['config']['fifo']['nna_to_merge_depth']}; the column tiles reach the work "
-            f"bound from {thr['merge_depth_needed']} on"
-        )
-    p = est["paper"]
-    lines.append(
-        f"paper: MACs/frame four 3x3 layers {p['macs_per_frame']['four_layer_3x3']:.4g} vs one 9x9 "
-        f"layer {p['macs_per_frame']['single_layer_9x9']:.4g}; feature map float32 "
-        f"{p['feature_map_bytes']['four_layer_float32_frame'] / 1e6:.1f} MB; descriptors float32 "
-        f"{p['descriptor_bytes_per_frame']['float32_32ch'] / 1e6:.1f} MB vs binary "
-        f"{p['descriptor_bytes_per_frame']['binary_32bit'] / 1e6:.2f} MB per frame"
-    )
-    lines += [f"warning: {m}" for m in est["warnings"]]
-    return "\n".join(lines)

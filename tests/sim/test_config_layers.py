@@ -118,7 +118,8 @@ def test_run_and_estimate_refuse_a_pair_of_another_size_in_one_line(tmp_path, ca
 
 
 def test_config_plan_is_for_the_cameras_size_and_quotes_the_chips_energy_and_power(capsys):
-    from stereosim.sim.cycle.estimate import energy_lines, estimate
+    from stereosim.sim.cycle.estimate import estimate
+    from stereosim.sim.summary import energy_lines
 
     assert main(["config", "plan", "--config", "1080p60"]) == 0
     out = capsys.readouterr().out

@@ -8,11 +8,12 @@ import pytest
 
 from stereosim.sim.cli import main
 from stereosim.sim.config import load_config
-from stereosim.sim.cycle.estimate import energy_lines, estimate
+from stereosim.sim.cycle.estimate import estimate
 from stereosim.sim.cycle.figures import chip_sram
 from stereosim.sim.cycle.lent import lent_report
 from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.diagram import MAX_DRAWN, _span, picture_layout, plan_png, plan_text
+from stereosim.sim.summary import energy_lines
 
 ROOT = Path(__file__).resolve().parents[2]
 DOC = ROOT / "docs" / "architecture.md"

@@ -13,8 +13,9 @@ import pytest
 from stereosim.sim.api import run, run_stream
 from stereosim.sim.config import load_config
 from stereosim.sim.cycle.contract import CameraOverflow, FrameBufferFull
-from stereosim.sim.cycle.estimate import estimate, format_estimate, paper_analysis, parse_size
+from stereosim.sim.cycle.estimate import estimate, paper_analysis, parse_size
 from stereosim.sim.errors import InputError
+from stereosim.sim.summary import format_estimate
 
 SMALL, SPLIT = (20, 112), (16, 48)  # split frames run on the readable engine: keep them tiny
 MID = (24, 64)

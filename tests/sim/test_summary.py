@@ -11,13 +11,19 @@ import pytest
 from stereosim.sim.api import REPORT_VERSION, run, run_stream
 from stereosim.sim.cli import main
 from stereosim.sim.config import DESCRIPTOR_DEFAULTS, load_config
-from stereosim.sim.cycle.estimate import estimate, format_estimate
+from stereosim.sim.cycle.estimate import estimate
 from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.errors import InputError
 from stereosim.sim.io import encode_png, pfm_bytes
 from stereosim.sim.metrics import format_table
 from stereosim.sim.plot import plot_xy, point_labels, time_scale
-from stereosim.sim.summary import eval_document, eval_tables, eval_timing, summary_text
+from stereosim.sim.summary import (
+    eval_document,
+    eval_tables,
+    eval_timing,
+    format_estimate,
+    summary_text,
+)
 
 H, W, D = 20, 48, 16
 ACTIVITIES = ("busy", "starved", "blocked", "idle")
