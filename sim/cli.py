@@ -69,6 +69,7 @@ from stereosim.sim.io import (
     read_image,
     read_mask,
 )
+from stereosim.sim.npz import open_npz
 from stereosim.sim.outputs import (
     atomic_write_bytes,
     check_outputs,
@@ -453,7 +454,13 @@ def cmd_config_backend(args) -> int:
     path = args.weights
     if not path.strip():
         raise InputError("the weight file is empty: give the path of a .npz file")
-    carried = carried_backend(path)
+    try:
+        carried = carried_backend(path)
+    except ConfigError:
+        if not args.set:
+            raise
+        carried = None  # a damaged back end is replaced by the one given
+        open_npz(path, "weight file", "give a weight file")  # but the file must be one
     if args.set:
         over = parse_set_options(args.set)
         keys = {f"sva.{k}" for k in BACKEND_KEYS}

@@ -27,6 +27,7 @@ from stereosim.sim.outputs import atomic_write_bytes, path_text
 BACKEND_KEYS = tuple(DESCRIPTOR_DEFAULTS["cnn"])
 MEMBER = "backend"
 _FIX = "write it with stereosim quantize, or give another file"
+_REWRITE = "store a new one with stereosim config backend FILE --set sva.KEY=VALUE"
 
 
 def _check(table, name: str) -> dict:
@@ -35,12 +36,13 @@ def _check(table, name: str) -> dict:
     if not isinstance(table, dict) or set(table) - set(BACKEND_KEYS):
         extra = sorted(set(table) - set(BACKEND_KEYS)) if isinstance(table, dict) else table
         raise ConfigError(f"weight file {name!r}: its back end holds {extra!r}; a back end sets "
-                          f"only {', '.join(BACKEND_KEYS)}")
+                          f"only {', '.join(BACKEND_KEYS)}; {_REWRITE}")
     kinds = {f: type(getattr(SvaConfig(), f)) for f in BACKEND_KEYS}
     for key, value in table.items():
         if type(value) is not kinds[key]:
+            want = "true or false" if kinds[key] is bool else "a whole number"
             raise ConfigError(f"weight file {name!r}: its back end's {key} = {value!r} is not "
-                              f"a {kinds[key].__name__}")
+                              f"{want}; {_REWRITE}")
     return dict(table)
 
 
@@ -51,11 +53,15 @@ def carried_backend(path) -> dict | None:
     archive = open_npz(os.fspath(path), "weight file", _FIX)
     if MEMBER not in archive.files:
         return None
-    text = archive.scalar(MEMBER, "U")
+    try:
+        text = archive.scalar(MEMBER, "U")
+    except ConfigError as exc:
+        raise ConfigError(f"{exc}; {_REWRITE}") from None
     try:
         table = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"weight file {name!r}: its back end is not TOML ({exc})") from None
+        raise ConfigError(f"weight file {name!r}: its back end is not TOML ({exc}); "
+                          f"{_REWRITE}") from None
     return _check(table, name)
 
 

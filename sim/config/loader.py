@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from stereosim.sim.census_layout import comparison_offsets
-from stereosim.sim.config.backend import carried_backend
+from stereosim.sim.config.backend import BACKEND_KEYS, carried_backend
 from stereosim.sim.config.check import _build, checked_chip
 from stereosim.sim.config.files import read_toml
 from stereosim.sim.config.schema import (
@@ -177,8 +177,9 @@ def _descriptor_defaults(tree: dict) -> None:
     descriptor = nna.get("descriptor", DEFAULT_DESCRIPTOR)
     if not isinstance(descriptor, str):
         return
-    for key, value in tuned_backend(tree).items():
-        sva.setdefault(key, value)
+    if not all(key in sva for key in BACKEND_KEYS):  # the file is read for the keys unset
+        for key, value in tuned_backend(tree).items():
+            sva.setdefault(key, value)
     for key, value in derived_widths(sva, descriptor_width(nna)).items():
         sva.setdefault(key, value)
 

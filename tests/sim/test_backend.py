@@ -128,3 +128,16 @@ def test_the_summary_names_the_network_and_the_back_end_it_runs_with(tmp_path):
     default = run(*_pair(), mode="functional", overrides=SMALL).report["descriptor"]
     assert default["network"]["name"] == "single9x9"
     assert default["backend"]["tuned_with"] == "the cnn descriptor's defaults"
+
+
+def test_a_damaged_back_end_says_how_to_replace_it_and_config_backend_does(tmp_path, capsys):
+    path = tmp_path / "w.npz"
+    arrays = dict(open_npz(SHIPPED_WEIGHTS, "weight file", ""))
+    np.savez(path, **{**arrays, "backend": np.arange(3)})
+    assert main(["config", "backend", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "stereosim config backend FILE --set" in err
+    assert main(["config", "backend", str(path), "--set", "sva.p1=99"]) == 0
+    assert carried_backend(path) == {**DESCRIPTOR_DEFAULTS["cnn"], "p1": 99}
+    np.testing.assert_array_equal(open_npz(str(path), "weight file", "")["weights"],
+                                  arrays["weights"])
