@@ -18,11 +18,11 @@ import numpy as np
 from stereosim.nna.descriptor import compute_descriptor
 from stereosim.nna.weights import SHIPPED_WEIGHTS
 from stereosim.sim.config import ChipConfig, check_config, config_to_dict, load_config
-from stereosim.sim.config.backend import BACKEND_KEYS, carried_backend
+from stereosim.sim.config.backend import BACKEND_KEYS
 from stereosim.sim.config.loader import tuned_backend
 from stereosim.sim.cycle.contract import RunStopped, stop_report
 from stereosim.sim.cycle.energy import energy_report, energy_table
-from stereosim.sim.cycle.figures import architecture_report, chip_sram
+from stereosim.sim.cycle.figures import architecture_report
 from stereosim.sim.cycle.frames import FrameSupply, check_frame_count, functional_words
 from stereosim.sim.cycle.lent import lent_report
 from stereosim.sim.cycle.plan import ChipPlan, build_plan
@@ -215,7 +215,6 @@ def run(
     report = build_report(plan, mode, fixed)
     if mode == "cycle":
         report.update(cycle_report)
-        add_camera_rate(plan, report)
         if table is not None:
             report["energy"] = energy_report(plan, frame.stats,
                                              *power_basis(report["throughput"], report["stream"]),
@@ -250,13 +249,6 @@ def _energy_table(path, mode: str):
     return energy_table(path)
 
 
-def add_camera_rate(plan: ChipPlan, report: dict) -> None:
-    """A cycle report of a camera-fed chip gains ``throughput.camera_fps``, the camera's own
-    rate: a lone frame skips the vertical blanking and can measure faster."""
-    if plan.camera_fps is not None:
-        report["throughput"]["camera_fps"] = round(plan.camera_fps, 3)
-
-
 def descriptor_report(plan: ChipPlan) -> dict:
     """The report's ``descriptor``: its kind and bits; for the CNN the network (its file, name
     and layers); and the SVA back end it runs with (:data:`~sim.config.backend.BACKEND_KEYS`),
@@ -273,9 +265,7 @@ def descriptor_report(plan: ChipPlan) -> dict:
             "layers": [f"{2 * lay.half + 1}x{2 * lay.half + 1}x{lay.channels_in}x"
                        f"{lay.channels_out}" for lay in layers],
             "macs_per_pixel": sum(lay.macs_per_pixel for lay in layers)}
-    tuned = tuned_backend({"nna": dataclasses.asdict(cfg.nna)})
-    carried = (cfg.nna.descriptor == "cnn" and cfg.nna.cnn.weights != "default"
-               and carried_backend(cfg.nna.cnn.weights) is not None)
+    tuned, carried = tuned_backend({"nna": dataclasses.asdict(cfg.nna)})
     values = {k: getattr(cfg.sva, k) for k in BACKEND_KEYS}
     out["backend"] = {
         **values,
@@ -292,7 +282,7 @@ def build_report(plan: ChipPlan, mode: str, fixed: np.ndarray | None) -> dict:
     cfg = plan.cfg
     h, w = plan.shape
     report = {
-        "architecture": {**architecture_report(plan), "chip_sram": chip_sram(plan)},
+        "architecture": architecture_report(plan),
         "report_version": REPORT_VERSION,
         "stereosim": VERSION,
         "mode": mode,
@@ -486,7 +476,7 @@ def run_stream(pairs, *, mode: str = "cycle", config: ChipConfig | str | None = 
     plan = build_plan(cfg, supply.shape, supply.count)
     h, w = supply.shape
     report = {
-        "architecture": {**architecture_report(plan), "chip_sram": chip_sram(plan)},
+        "architecture": architecture_report(plan),
         "report_version": REPORT_VERSION,
         "stereosim": VERSION,
         "mode": mode,
@@ -510,7 +500,6 @@ def run_stream(pairs, *, mode: str = "cycle", config: ChipConfig | str | None = 
             stop.plan, stop.supply = plan, supply  # to trace it up to the stop
             raise
         report.update(frame.report)
-        add_camera_rate(plan, report)
         if table is not None:
             report["energy"] = energy_report(plan, frame.stats,
                                              *power_basis(report["throughput"], report["stream"]),

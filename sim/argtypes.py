@@ -51,6 +51,14 @@ def nonempty_path(text: str) -> str:
     return text
 
 
+def nonempty_size(text: str) -> str:
+    """argparse type of a ``--size`` option: the text as given (parsed by the command, which
+    also takes other forms), ``''`` refused like an empty path (:func:`nonempty_path`)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("'' is empty: give WIDTHxHEIGHT, e.g. 1280x720")
+    return text
+
+
 def check_single_output(out: Path, label: str, inputs=()) -> None:
     """Before a long job: its one output can be written (its folder must exist), no input."""
     check_outputs([(out, label)], inputs)

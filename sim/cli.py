@@ -24,6 +24,7 @@ from stereosim.sim.argtypes import (
     check_single_output,
     finite_float,
     nonempty_path,
+    nonempty_size,
     nonnegative_int,
     positive_int,
 )
@@ -421,13 +422,6 @@ def _eval_scene(args, scene, saved: dict | None = None) -> tuple[dict, int, dict
 # stereosim config
 
 
-def nonempty_size(text: str) -> str:
-    """argparse type of --size: ``''`` refused (an unset shell variable, say)."""
-    if not text.strip():
-        raise argparse.ArgumentTypeError("'' is empty: give WIDTHxHEIGHT, e.g. 1280x720")
-    return text
-
-
 def cmd_config_show(args) -> int:
     cfg = _scene_config(args, None)
     sys.stdout.write(config_to_toml(cfg, comments=not args.plain,
@@ -452,8 +446,6 @@ def cmd_config_plan(args) -> int:
 def cmd_config_backend(args) -> int:
     """Show the back end a weight file carries; with --set, store one in it first."""
     path = args.weights
-    if not path.strip():
-        raise InputError("the weight file is empty: give the path of a .npz file")
     try:
         carried = carried_backend(path)
     except ConfigError:
@@ -469,8 +461,8 @@ def cmd_config_backend(args) -> int:
                 raise ConfigError(f"--set {key}: a back end sets only {', '.join(sorted(keys))}")
         base = {f"sva.{k}": v for k, v in (carried or DESCRIPTOR_DEFAULTS["cnn"]).items()}
         cfg = load_config(None, {"nna.descriptor": "cnn", "nna.cnn.weights": path,
-                                 **base, **over})  # every value's range, the file's network
-        build_plan(cfg, frame_size(cfg))
+                                 **base, **over})  # every value's range
+        network(cfg.nna)  # and the file's network
         carried = {k: getattr(cfg.sva, k) for k in BACKEND_KEYS}
         write_backend(path, carried)
         print(f"wrote the back end into {path}")
@@ -603,7 +595,8 @@ def _add_config_parser(sub) -> None:
     cp.set_defaults(func=cmd_config_plan)
     cb = csub.add_parser("backend", help="the SVA back end a CNN weight file carries (the "
                          "P1/P2, adaptive P2 and box it was tuned with); --set stores one")
-    cb.add_argument("weights", metavar="FILE.npz", help="a weight file or quantized artifact")
+    cb.add_argument("weights", metavar="FILE.npz", type=nonempty_path,
+                    help="a weight file or quantized artifact")
     cb.add_argument("--set", metavar="sva.KEY=VALUE", action="append", default=[],
                     help="store this back-end key in the file (repeatable; the keys not given "
                     "keep the file's, else the cnn descriptor's defaults)")

@@ -10,7 +10,7 @@ import os
 import sys
 from pathlib import Path
 
-from stereosim.sim.argtypes import finite_float, nonempty_path
+from stereosim.sim.argtypes import finite_float, nonempty_path, nonempty_size
 from stereosim.sim.cycle.energy import energy_table
 from stereosim.sim.cycle.estimate import estimate, parse_size
 from stereosim.sim.cycle.plan import frame_size
@@ -103,8 +103,6 @@ def register(sub, add_config_options, scene_config) -> None:
 
     def cmd_estimate(args) -> int:
         size, ndisp = args.size, None
-        if size is not None and not size.strip():
-            raise InputError("--size is empty: give WIDTHxHEIGHT, 'default' or a scene folder")
         if size is None:
             shape = None  # the configured camera's frame size, else 720p
         elif size == "default" or Path(size).is_dir():
@@ -124,7 +122,7 @@ def register(sub, add_config_options, scene_config) -> None:
         return 0
 
     e = sub.add_parser("estimate", help="analytic fps, latency, SRAM and traffic (no simulation)")
-    e.add_argument("--size", metavar="WxH|SCENE",
+    e.add_argument("--size", metavar="WxH|SCENE", type=nonempty_size,
                    help="frame size (default: the configured camera's, source.camera_width x "
                    "camera_height, else 1280x720), 'default' or a scene folder")
     e.add_argument("--json", action="store_true", help="print the estimate as JSON")

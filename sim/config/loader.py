@@ -178,20 +178,20 @@ def _descriptor_defaults(tree: dict) -> None:
     if not isinstance(descriptor, str):
         return
     if not all(key in sva for key in BACKEND_KEYS):  # the file is read for the keys unset
-        for key, value in tuned_backend(tree).items():
+        for key, value in tuned_backend(tree)[0].items():
             sva.setdefault(key, value)
     for key, value in derived_widths(sva, descriptor_width(nna)).items():
         sva.setdefault(key, value)
 
 
-def tuned_backend(tree: dict) -> dict:
+def tuned_backend(tree: dict) -> tuple[dict, bool]:
     """The back end (:data:`~sim.config.backend.BACKEND_KEYS`) the configuration tree's
-    descriptor was tuned with: the CNN's weight file's own when it carries one
-    (:func:`~sim.config.backend.carried_backend`), else the descriptor's
+    descriptor was tuned with, and whether its CNN weight file carries it
+    (:func:`~sim.config.backend.carried_backend`); else the descriptor's
     :data:`DESCRIPTOR_DEFAULTS` (none for a malformed tree, left for :func:`_build`)."""
     nna = tree.get("nna", {})
     if not isinstance(nna, dict):
-        return {}
+        return {}, False
     descriptor = nna.get("descriptor", DEFAULT_DESCRIPTOR)
     if descriptor == "cnn":
         cnn = nna.get("cnn", {})
@@ -199,8 +199,10 @@ def tuned_backend(tree: dict) -> dict:
         if isinstance(weights, str) and weights != "default" and os.path.isfile(weights):
             carried = carried_backend(weights)
             if carried is not None:
-                return {**DESCRIPTOR_DEFAULTS["cnn"], **carried}
-    return dict(DESCRIPTOR_DEFAULTS.get(descriptor, {})) if isinstance(descriptor, str) else {}
+                return {**DESCRIPTOR_DEFAULTS["cnn"], **carried}, True
+    if not isinstance(descriptor, str):
+        return {}, False
+    return dict(DESCRIPTOR_DEFAULTS.get(descriptor, {})), False
 
 
 def descriptor_width(nna: dict) -> int:

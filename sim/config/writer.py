@@ -38,9 +38,7 @@ def _auto_keys(cfg, set_keys) -> dict[str, str]:
     user: the descriptor's tuned values (:data:`DESCRIPTOR_DEFAULTS`) and the register widths
     that follow the box, P2 and paths (:func:`~sim.config.loader.derived_widths`): dotted key
     -> why."""
-    tree = {"nna": dataclasses.asdict(cfg.nna)}
-    defaults = tuned_backend(tree)
-    carried = defaults != DESCRIPTOR_DEFAULTS.get(cfg.nna.descriptor, {})
+    defaults, carried = tuned_backend({"nna": dataclasses.asdict(cfg.nna)})
 
     def choices(key: str) -> str:
         return ", ".join(f"{d} {str(v[key]).lower()}" for d, v in DESCRIPTOR_DEFAULTS.items())

@@ -123,6 +123,7 @@ def architecture_report(plan: ChipPlan) -> dict:
         "nna_pipeline": [{"name": st.name, "ii": st.ii, "latency": st.latency,
                           "formula": st.formula} for st in plan.blocks_of("nna")[0].stages],
         "nna_submodules": submodule_report(plan),
+        "chip_sram": chip_sram(plan),
         **({"nna_layers": layer_report(plan)} if len(plan.blocks_of("nna")[0].layers) > 1
            else {}),
     }

@@ -29,6 +29,9 @@ def throughput(plan: ChipPlan, work: dict[str, int]) -> dict:
         # the frame rate each block alone would sustain (1 / its work time per frame)
         "fps_bound_per_block": {n: round(1.0 / v, 3) if v > 0 else None
                           for n, v in sorted(work_s.items())},
+        # a camera's own rate, blanking included: a lone frame skips the vertical blanking
+        # and can measure faster, no stream from it is
+        **({"camera_fps": round(plan.camera_fps, 3)} if plan.camera else {}),
     }
 
 
