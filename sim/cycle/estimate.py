@@ -579,8 +579,7 @@ def delivered_fps(plan: ChipPlan, tl: dict, fps_bound: float, bottleneck: str
     link = plan.fifo(_feeder(plan).outputs[0])
     read_end_fs = (tl["source_last_pop_nna"] - link.data_edges) * plan.domains["nna"].period_fs
     periods = read_end_fs // period_fs + 1
-    camera_fps = plan.domains["camera"].freq_hz / cam.frame_clocks
-    return (min(fps_bound, camera_fps / periods),
+    return (min(fps_bound, plan.camera_fps / periods),
             f"one frame buffer: one camera frame in {periods} (the chip drops the others)")
 
 
