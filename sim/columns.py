@@ -169,6 +169,8 @@ RULES: tuple[tuple[str, str, str], ...] = (
      "submodule instance"),
     (r"(architecture\.)?chip_sram\.nna_submodules", "SRAM", "NNA submodule instances on the "
      "chip (nna.submodules)"),
+    (r"(architecture\.)?chip_sram\.nna_instances\.(?P<use>.+)", "SRAM", "NNA submodule "
+     "instances of the use {use} (stereo pair, lent, idle)"),
     (r"(architecture\.)?chip_sram\.by_block\.(?P<blk>.+)", "SRAM", "bits of the chip's SRAM "
      "in {blk}"),
     (r"(architecture\.)?chip_sram\.by_kind\.(?P<kind>.+)", "SRAM", "bits of the chip's SRAM "

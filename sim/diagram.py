@@ -76,10 +76,7 @@ def _sram_lines(plan: ChipPlan) -> list[str]:
     per_sub = sram["nna_per_submodule"]
     names = {"nna_stereo": "NNA stereo", "nna_lent": "NNA lent", "nna_idle": "NNA idle",
              "sva": "SVA", "fifos": "FIFOs"}
-    counts = {"nna_stereo": plan.cfg.nna.stereo_submodules,
-              "nna_lent": plan.cfg.nna.lent_submodules,
-              "nna_idle": sram["nna_submodules"] - plan.cfg.nna.stereo_submodules
-              - plan.cfg.nna.lent_submodules}
+    counts = sram["nna_instances"]
     blocks = []
     for key, bits in sram["by_block"].items():
         if key in counts:

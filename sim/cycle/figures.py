@@ -36,18 +36,17 @@ def chip_sram(plan: ChipPlan) -> dict:
     each holds the buffers of the widest tile (:func:`sram_bits`) whether it serves the stereo
     pair, is lent to another network (whose line buffers and weight store are the same
     SRAM) or idles. ``by_block``: the NNA's submodules split by their use (``nna_stereo``,
-    ``nna_lent``, ``nna_idle``), the SVA and the FIFOs (depth x width each); ``by_kind``: the
-    NNA's line buffers and weight stores, each SVA buffer, and the FIFOs; ``total``: their
-    sum."""
+    ``nna_lent``, ``nna_idle``; how many of each: ``nna_instances``), the SVA and the FIFOs
+    (depth x width each); ``by_kind``: the NNA's line buffers and weight stores, each SVA
+    buffer, and the FIFOs; ``total``: their sum."""
     n = plan.cfg.nna
     buffers = sram_bits(plan)
     nna = {k: v for k, v in buffers.items() if k.startswith("nna.")}
     per_sub = sum(nna.values())
     fifos = sum(f.sram_bits for f in plan.fifos)
-    idle = n.submodules - n.stereo_submodules - n.lent_submodules
-    by_block = {"nna_stereo": n.stereo_submodules * per_sub,
-                "nna_lent": n.lent_submodules * per_sub,
-                "nna_idle": idle * per_sub,
+    instances = {"nna_stereo": n.stereo_submodules, "nna_lent": n.lent_submodules,
+                 "nna_idle": n.submodules - n.stereo_submodules - n.lent_submodules}
+    by_block = {**{k: count * per_sub for k, count in instances.items()},
                 "sva": sum(v for k, v in buffers.items() if k.startswith("sva.")),
                 "fifos": fifos}
     weights = sum(v for k, v in nna.items() if k == "nna.weights")
@@ -56,7 +55,8 @@ def chip_sram(plan: ChipPlan) -> dict:
                **{k: v for k, v in sorted(buffers.items()) if k.startswith("sva.")},
                "fifos": fifos}
     return {"total": sum(by_block.values()), "nna_per_submodule": per_sub,
-            "nna_submodules": n.submodules, "by_block": by_block, "by_kind": by_kind}
+            "nna_submodules": n.submodules, "nna_instances": instances, "by_block": by_block,
+            "by_kind": by_kind}
 
 
 def action_counts(plan: ChipPlan) -> dict[str, dict[str, int]]:
