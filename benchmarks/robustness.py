@@ -70,15 +70,22 @@ def degrade(left: np.ndarray, right: np.ndarray, condition: str, seed: int, scen
     raise ValueError(condition)
 
 
-def score(method: str, left, right, d: int, gt, masks, cnn: dict) -> dict:
+def score(method: str, left, right, d: int, gt, masks, cnn: dict, config=None) -> dict:
+    """The metrics of ``method`` on a pair; the cnn column runs ``config`` (a preset: built
+    for the pair's own size) when one is given, with the ``cnn`` overrides."""
     if method == "opencv":
         return evaluate(opencv_sgbm(left, right, d), gt, masks)
+    if method == "cnn" and config is not None:
+        over = {"sva.disparities": d, "source.camera_width": 0, "source.camera_height": 0,
+                **cnn}
+        return run(left, right, mode="functional", gt=gt, masks=masks, config=config,
+                   overrides=over).report["metrics"]
     over = {"sva.disparities": d, "nna.descriptor": method, **(cnn if method == "cnn" else {})}
     return run(left, right, mode="functional", gt=gt, masks=masks,
                overrides=over).report["metrics"]
 
 
-def measure(root: Path, seed: int, cnn: dict) -> dict:
+def measure(root: Path, seed: int, cnn: dict, config=None, conditions=CONDITIONS) -> dict:
     """{set: {condition: {method: mean nonocc metrics}}} and the scene counts."""
     jobs = []
     for label, folder in SETS:
@@ -86,16 +93,16 @@ def measure(root: Path, seed: int, cnn: dict) -> dict:
             jobs.append((label, index, scene))
     results: dict = {}
     counts: dict = {}
-    with progress_bar(len(jobs) * len(CONDITIONS) * len(METHODS), "robustness", "run") as bar:
+    with progress_bar(len(jobs) * len(conditions) * len(METHODS), "robustness", "run") as bar:
         for label, index, scene in jobs:
             data = load_scene(scene)
             left, right = to_grey(data["left"]), to_grey(data["right"])
             d = legal_disparities(data["ndisp"]) if data["ndisp"] else D_2003
             counts[label] = counts.get(label, 0) + 1
-            for condition in CONDITIONS:
+            for condition in conditions:
                 pair = degrade(left, right, condition, seed, index)
                 for method in METHODS:
-                    m = score(method, *pair, d, data["gt"], data["masks"], cnn)
+                    m = score(method, *pair, d, data["gt"], data["masks"], cnn, config)
                     results.setdefault(label, {}).setdefault(condition, {}) \
                         .setdefault(method, []).append(m)
                     bar.update(1)
@@ -104,7 +111,8 @@ def measure(root: Path, seed: int, cnn: dict) -> dict:
     return {"means": means, "counts": counts}
 
 
-def table(result: dict, seed: int, seconds: float, cnn: dict) -> list[str]:
+def table(result: dict, seed: int, seconds: float, cnn: dict, config=None,
+          conditions=CONDITIONS) -> list[str]:
     lines = []
     for label, _ in SETS:
         means = result["means"].get(label)
@@ -114,7 +122,7 @@ def table(result: dict, seed: int, seconds: float, cnn: dict) -> list[str]:
         lines += [f"**{label}** ({n} scenes, nonocc mean): totbad (bad2)", "",
                   "| condition | " + " | ".join(METHODS) + " |",
                   "|---|" + "---|" * len(METHODS)]
-        for condition in CONDITIONS:
+        for condition in conditions:
             cells = []
             best = min(means[condition][m]["totbad"] for m in METHODS)
             for m in METHODS:
@@ -125,6 +133,7 @@ def table(result: dict, seed: int, seconds: float, cnn: dict) -> list[str]:
         lines.append("")
     lines.append(f"(`python benchmarks/robustness.py --seed {seed} --write docs/ablation.md`, "
                  f"{seconds:.0f} s; bold: the lowest totbad of the row"
+                 + (f"; the cnn column: {config}" if config else "")
                  + (f"; cnn with {cnn}" if cnn else "") + ".)")
     return lines
 
@@ -137,6 +146,11 @@ def main(argv=None) -> int:
     ap.add_argument("--cnn", action="append", default=[], metavar="KEY=VALUE",
                     help="overrides for the cnn column only, e.g. nna.cnn.weights=w.npz "
                     "(a candidate; the defaults otherwise)")
+    ap.add_argument("--config", metavar="FILE",
+                    help="the cnn column runs this configuration (a preset, such as "
+                    "configs/hybrid-720p.toml), built for each pair's own size")
+    ap.add_argument("--condition", action="append", choices=CONDITIONS,
+                    help="only these conditions (default: all six)")
     args = ap.parse_args(argv)
     root = Path(args.data) if args.data else shared_data_dir()
     if root is None or not (root / SETS[0][1]).is_dir():
@@ -145,8 +159,9 @@ def main(argv=None) -> int:
         return 2
     t0 = time.perf_counter()
     cnn = parse_set_options(args.cnn)
-    result = measure(root, args.seed, cnn)
-    lines = table(result, args.seed, time.perf_counter() - t0, cnn)
+    conditions = tuple(args.condition or CONDITIONS)
+    result = measure(root, args.seed, cnn, args.config, conditions)
+    lines = table(result, args.seed, time.perf_counter() - t0, cnn, args.config, conditions)
     print("\n".join(lines))
     return write_between(Path(args.write), BEGIN, END, lines) if args.write else 0
 

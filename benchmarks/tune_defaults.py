@@ -159,6 +159,7 @@ class Study:
 
 
 _HELD: list = []  # a worker's scenes (sweep with jobs > 1)
+_SCORER: list = [scene_scores]  # how a point is scored (forked workers inherit it)
 
 
 def _hold(scenes: list) -> None:
@@ -166,13 +167,15 @@ def _hold(scenes: list) -> None:
 
 
 def _score_held(point: dict) -> np.ndarray:
-    return scene_scores(_HELD, point)
+    return _SCORER[0](_HELD, point)
 
 
 def sweep(scenes: list, base: dict, grid: dict, folds: int, bar_label: str = "points",
-          jobs: int = 1) -> Study:
+          jobs: int = 1, scorer=None) -> Study:
     """Score every point of ``grid`` (over ``base``) on ``scenes`` and choose by the criterion,
-    on all the scenes and per cross-validation fold."""
+    on all the scenes and per cross-validation fold. ``scorer(scenes, point)`` gives the
+    (scenes, KEYS) metrics of a point (default :func:`scene_scores`: the functional model)."""
+    _SCORER[0] = scorer or scene_scores
     points = [{**base, **dict(zip(grid, values, strict=True))}
               for values in itertools.product(*grid.values())]
     points = [p for p in points
@@ -187,7 +190,7 @@ def sweep(scenes: list, base: dict, grid: dict, folds: int, bar_label: str = "po
                     bar.update(1)
         else:
             for point in points:
-                table.append(scene_scores(scenes, point))
+                table.append(_SCORER[0](scenes, point))
                 bar.update(1)
     every = np.arange(len(scenes))
     names = [name for name, _, _ in scenes]

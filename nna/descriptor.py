@@ -1,4 +1,14 @@
-"""The descriptor the configuration selects (``nna.descriptor``): census or the int8 CNN."""
+"""The descriptor the configuration selects (``nna.descriptor``): census, the int8 CNN, or the
+hybrid of the two.
+
+The hybrid descriptor is one word per pixel of two parts: the CNN's ``C`` sign bits in bits
+``0 .. C - 1`` and the census signature's ``B`` bits in bits ``C .. C + B - 1`` (at most 64 in
+all). The NNA computes both: the census unit sits beside the MAC array and reads the same
+input rows (:mod:`nna.geometry`: the census rows a network of several layers adds to its
+submodule). The SVA matches the word part by part with the weighted sum of the two Hamming
+distances (:mod:`sva.cost`). A census window taller than the network's receptive field would
+make a descriptor wait for rows the network does not, so its half height is at most the
+network's reach."""
 
 from __future__ import annotations
 
@@ -89,18 +99,59 @@ def network(cfg: NnaConfig) -> IntNetwork:
     return net
 
 
-def descriptor_bits(cfg: NnaConfig) -> int:
-    """Width in bits of the configured descriptor (the largest Hamming cost)."""
+def descriptor_parts(cfg: NnaConfig) -> tuple[tuple[str, int], ...]:
+    """The parts of the configured descriptor, in bit order, as (kind, bits): one part for the
+    census or the CNN, two for the hybrid (the CNN's, then the census's). A hybrid of more than
+    64 bits, or whose census is taller than the network's receptive field, is a
+    :class:`ConfigError` saying what to change."""
+    c = cfg.census
     if cfg.descriptor == "census":
-        c = cfg.census
-        return census_bits(c.window, c.kind, c.stride)
-    return network(cfg).channels  # = nna.cnn.channels (network() checks it)
+        return (("census", census_bits(c.window, c.kind, c.stride)),)
+    net = network(cfg)  # nna.cnn.channels outputs (network() checks it)
+    if cfg.descriptor == "cnn":
+        return (("cnn", net.channels),)
+    bits = census_bits(c.window, c.kind, c.stride)
+    if net.channels + bits > 64:
+        raise ConfigError(
+            f"the hybrid descriptor would have {net.channels} CNN bits + {bits} census bits = "
+            f"{net.channels + bits}, more than the 64 a descriptor word holds: use a smaller "
+            "nna.census.window (or kind symmetric, or a stride)")
+    if c.window[1] // 2 > net.reach:
+        raise ConfigError(
+            f"the census window {c.window[0]}x{c.window[1]} reaches {c.window[1] // 2} rows "
+            f"above and below, beyond the network's {net.reach} (its receptive field): the "
+            "hybrid descriptor would wait for rows the network does not read; use a census "
+            f"window at most {2 * net.reach + 1} rows tall")
+    return (("cnn", net.channels), ("census", bits))
+
+
+def descriptor_bits(cfg: NnaConfig) -> int:
+    """Width in bits of the configured descriptor: the sum of its parts' bits."""
+    return sum(bits for _, bits in descriptor_parts(cfg))
+
+
+def census_of(img: np.ndarray, cfg: NnaConfig) -> np.ndarray:
+    """The census signatures (H, W) of a grey uint8 image with the configured window."""
+    c = cfg.census
+    return census(img, c.window, c.kind, c.stride)
+
+
+def hybrid_word(cnn_bits: np.ndarray, census_bits_: np.ndarray, channels: int,
+                total: int) -> np.ndarray:
+    """The hybrid descriptor words of ``total`` bits: the CNN's ``channels`` bits below, the
+    census's shifted above them; uint32 when ``total`` <= 32, else uint64 (as every
+    descriptor's words)."""
+    word = cnn_bits.astype(np.uint64) | (census_bits_.astype(np.uint64) << np.uint64(channels))
+    return word.astype(np.uint32) if total <= 32 else word
 
 
 def compute_descriptor(img: np.ndarray, cfg: NnaConfig) -> np.ndarray:
     """Descriptor image (H, W) uint32/uint64 of a grey uint8 image."""
     cfg = check_section(cfg, "nna.")  # checked once: a checked configuration's is trusted
     if cfg.descriptor == "census":
-        c = cfg.census
-        return census(img, c.window, c.kind, c.stride)
-    return network_descriptor(img, network(cfg))
+        return census_of(img, cfg)
+    net = network(cfg)
+    if cfg.descriptor == "cnn":
+        return network_descriptor(img, net)
+    total = descriptor_bits(cfg)  # a hybrid that does not fit is refused before it is computed
+    return hybrid_word(network_descriptor(img, net), census_of(img, cfg), net.channels, total)

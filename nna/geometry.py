@@ -50,10 +50,31 @@ def half_window(cfg: NnaConfig) -> int:
 
 def half_window_width(cfg: NnaConfig) -> int:
     """Columns left and right of a pixel that its descriptor reads: the sum of the layers'
-    K // 2, or w // 2."""
+    K // 2, or w // 2 (the hybrid: the larger of the two)."""
     if cfg.descriptor == "census":
         return cfg.census.window[0] // 2
+    if cfg.descriptor == "hybrid":
+        return max(network(cfg).reach, cfg.census.window[0] // 2)
     return network(cfg).reach
+
+
+def census_rows(cfg: NnaConfig) -> int:
+    """Input rows the hybrid descriptor's census unit must hold beside a network of several
+    layers (0: it reads layer 0's line buffer -- one layer, whose window holds the census's --
+    or the descriptor has no census part).
+
+    The census of output row y is taken when the last layer emits y, from input rows
+    y - r_c .. y + r_c (r_c the census's half height). By the room rules
+    (:func:`~sim.cycle.rules.nna_rows_started_before_input`) layer l takes input row r only
+    while r <= y_l - h_l + rows_l - 1 (y_l its next output row), and its input rows are layer
+    l - 1's output rows, so the newest input row is at most y + sum_l (rows_l - h_l - 1) +
+    L - 1 rows below the last layer's next output row y; the census rows span from y - r_c:
+    sum_l (rows_l - h_l) + r_c rows (:func:`layer_rows`). Both engines track the window
+    against this capacity (:mod:`sim.cycle.buffers`)."""
+    if cfg.descriptor != "hybrid" or len(layer_halves(cfg)) == 1:
+        return 0
+    return (sum(r - h for r, h in zip(layer_rows(cfg), layer_halves(cfg), strict=True))
+            + cfg.census.window[1] // 2)
 
 
 def window_rows(cfg: NnaConfig) -> int:

@@ -37,7 +37,8 @@ from stereosim.sim.io import MAX_PIXELS, check_gt_values, pixel_cap, to_grey
 from stereosim.sim.metrics import check_truth, evaluate, mean_metrics, undefined_metrics
 from stereosim.sim.progress import compile_notice
 from stereosim.sim.tracing import run_traced, trace_section
-from stereosim.sva.pipeline import sva_stream
+from stereosim.sva.noise import band_rows
+from stereosim.sva.pipeline import frame_cost, sva_stream
 from stereosim.sva.wta import to_float
 
 MODES = ("functional", "cycle")
@@ -210,9 +211,11 @@ def run(
         with compile_notice():
             desc_l = compute_descriptor(gl, cfg.nna)
             desc_r = compute_descriptor(gr, cfg.nna)
-            fixed = sva_stream(desc_l, desc_r, gl, cfg.sva, plan.descriptor_bits)
+            fixed = sva_stream(desc_l, desc_r, gl, cfg.sva, plan.part_bits)
     disp = to_float(fixed, cfg.sva.subpixel_bits)
     report = build_report(plan, mode, fixed)
+    if plan.hybrid:
+        report["descriptor"]["frame"] = frame_cost_report(plan, gl)
     if mode == "cycle":
         report.update(cycle_report)
         if table is not None:
@@ -249,14 +252,45 @@ def _energy_table(path, mode: str):
     return energy_table(path)
 
 
+def part_report(cfg: ChipConfig, kind: str, bits: int) -> dict:
+    """One part of the descriptor as the report gives it: its kind and bits, the census's
+    window, kind and stride."""
+    out = {"kind": kind, "bits": bits}
+    if kind == "census":
+        c = cfg.nna.census
+        out.update(window=list(c.window), census_kind=c.kind, stride=c.stride)
+    return out
+
+
+def frame_cost_report(plan: ChipPlan, left: np.ndarray) -> dict:
+    """The cost a hybrid frame whose left view is ``left`` is matched with: its weights [cnn,
+    census], its largest cost, and with automatic weights the noise statistic that chose them
+    (:func:`sva.pipeline.frame_cost`, the rule the SVA applies)."""
+    cost, noise = frame_cost(plan.part_bits, plan.cfg.sva, left)
+    out = {"weights": list(cost.weights), "cost_max": cost.top}
+    if noise is not None:
+        out["noise"] = noise
+    return out
+
+
 def descriptor_report(plan: ChipPlan) -> dict:
     """The report's ``descriptor``: its kind and bits; for the CNN the network (its file, name
     and layers); and the SVA back end it runs with (:data:`~sim.config.backend.BACKEND_KEYS`),
     what it was tuned with (the weight file's own back end, else the descriptor's defaults) and
     which keys the configuration changed from that."""
     cfg = plan.cfg
-    out = {"kind": cfg.nna.descriptor, "bits": plan.descriptor_bits}
-    if cfg.nna.descriptor == "cnn":
+    out = {"kind": cfg.nna.descriptor, "bits": plan.descriptor_bits,
+           "parts": [part_report(cfg, kind, bits) for kind, bits in plan.descriptor_parts],
+           "cost_max": plan.cost_max, "cost_bits": cfg.sva.cost_bits}
+    if plan.hybrid:
+        s = cfg.sva
+        out["weights"] = {"mode": s.weight_mode, "cost_weights": list(s.cost_weights)}
+        if s.weight_mode == "auto":
+            out["weights"].update(noisy_weights=list(s.noisy_weights),
+                                  noise_threshold=s.noise_threshold,
+                                  noise_gradient=s.noise_gradient,
+                                  band_rows=band_rows(s, plan.shape[0]))
+    if cfg.nna.descriptor in ("cnn", "hybrid"):
         weights = cfg.nna.cnn.weights
         path = SHIPPED_WEIGHTS if weights == "default" else weights
         layers = plan.blocks_of("nna")[0].layers
@@ -390,13 +424,16 @@ class Stream:
             elif shown[0] == i:
                 fixed = shown[1]
             else:
-                fixed = functional_words(plan.cfg, plan.descriptor_bits, *self._supply.pair(i))
+                fixed = functional_words(plan.cfg, plan.part_bits, *self._supply.pair(i))
             disparity = to_float(fixed, bits)
             metrics = None
             if self._truth is not None:  # pairs showing one input frame share its words
                 metrics = shown[2] if shown[0] == i else evaluate(disparity, *self._truth)
                 scored.append({"frame": f, "metrics": metrics})
             shown = (i, fixed, metrics)
+            if plan.hybrid:  # the weights each frame was matched with
+                self.report["descriptor"].setdefault("frames", []).append(
+                    {"frame": f, **frame_cost_report(plan, self._supply.pair(i)[0])})
             yield FrameOutput(f, disparity, fixed, f % pairs, i, metrics)
         if self._truth is not None:
             self._score(scored)
@@ -482,7 +519,7 @@ def run_stream(pairs, *, mode: str = "cycle", config: ChipConfig | str | None = 
         "mode": mode,
         "image": {"width": w, "height": h},
         "frames": supply.count,
-        "descriptor": {"kind": cfg.nna.descriptor, "bits": plan.descriptor_bits},
+        "descriptor": descriptor_report(plan),
         "config": config_to_dict(cfg),
     }
     words = None

@@ -138,7 +138,8 @@ def _add_config_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--disparities", type=int, metavar="N",
                    help="disparity range D (sva.disparities)")
     p.add_argument(
-        "--descriptor", choices=("census", "cnn"), help="per-pixel descriptor (nna.descriptor)"
+        "--descriptor", choices=("census", "cnn", "hybrid"),
+        help="per-pixel descriptor (nna.descriptor)"
     )
 
 
@@ -170,7 +171,7 @@ def _notes(args, cfg) -> None:
     if getattr(args, "_noted", False):
         return
     args._noted = True
-    if cfg.nna.descriptor == "cnn":
+    if cfg.nna.descriptor in ("cnn", "hybrid"):
         network(cfg.nna)  # a bad weight file is its one line, before any note about it
     lines = layer_notes(args.config) if len(args.config or ()) > 1 else []
     note = backend_note(cfg.nna.cnn.weights, cfg.nna.descriptor,

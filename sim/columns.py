@@ -290,6 +290,27 @@ RULES: tuple[tuple[str, str, str], ...] = (
     (r"output\.fractional_bits", "output and report", "fractional bits of the disparity words"),
     (r"descriptor\.kind", "output and report", "the NNA's descriptor"),
     (r"descriptor\.bits", "output and report", "bits per descriptor"),
+    (r"descriptor\.parts", "output and report", "the descriptor's parts in bit order (JSON: "
+     "each its kind and bits; the census's window, kind and stride)"),
+    (r"descriptor\.cost_max", "output and report", "the largest matching cost of a pixel (the "
+     "hybrid's: its parts' bits weighted by the heaviest weight set)"),
+    (r"descriptor\.cost_bits", "output and report", "bits of the aggregated cost register "
+     "(sva.cost_bits)"),
+    (r"descriptor\.weights\.(?P<key>mode|cost_weights|noisy_weights|noise_threshold|"
+     r"noise_gradient)", "output and report", "the hybrid's weight registers: sva.{key} "
+     "(mode: sva.weight_mode)"),
+    (r"descriptor\.weights\.band_rows", "output and report", "rows of the left view the "
+     "noise statistic reads (box and median radius + 1)"),
+    (r"descriptor\.frame\.weights", "output and report", "the weights [cnn, census] the "
+     "frame was matched with"),
+    (r"descriptor\.frame\.cost_max", "output and report", "the frame's largest matching cost"),
+    (r"descriptor\.frame\.noise\.(?P<k>sum|count)", "output and report", "the noise "
+     "statistic's {k}: sum of |Laplacian| (S) or pixels counted (N)"),
+    (r"descriptor\.frame\.noise\.mean", "output and report", "the noise statistic S / N "
+     "(grey levels of |Laplacian|)"),
+    (r"descriptor\.frame\.noise\.threshold", "output and report", "sva.noise_threshold"),
+    (r"descriptor\.frame\.noise\.noisy", "output and report", "the frame counted as noisy "
+     "(S > threshold x N): matched with sva.noisy_weights"),
     (r"descriptor\.network\.file", "output and report", "the CNN's weight file "
      "(nna.cnn.weights; default: the shipped nna/single9x9.npz)"),
     (r"descriptor\.network\.name", "output and report", "the CNN's weight file's name "

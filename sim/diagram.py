@@ -98,8 +98,13 @@ def plan_text(plan: ChipPlan) -> str:
     budget: the cycles of each clock domain a run may take before it stops)."""
     cfg = plan.cfg
     h, w = plan.shape
-    lines = [f"chip plan: {w}x{h}, {cfg.nna.descriptor} descriptor ({plan.descriptor_bits} "
-             f"bits), D = {cfg.sva.disparities}, {plan.parts} NNA submodule"
+    bits = (f"{plan.descriptor_bits} bits" if not plan.hybrid else
+            " + ".join(f"{b} {k}" for k, b in plan.descriptor_parts) + " bits, cost "
+            + " + ".join(f"{w} x {k}" for (k, _), w in zip(plan.descriptor_parts,
+                                                           cfg.sva.cost_weights, strict=True))
+            + (" (auto weights)" if cfg.sva.weight_mode == "auto" else ""))
+    lines = [f"chip plan: {w}x{h}, {cfg.nna.descriptor} descriptor ({bits}), "
+             f"D = {cfg.sva.disparities}, {plan.parts} NNA submodule"
              f"{'s' if plan.parts > 1 else ''} per camera"
              + (f" ({cfg.nna.split})" if plan.parts > 1 else "")
              + f", {cfg.source.kind} source",

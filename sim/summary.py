@@ -104,6 +104,9 @@ def _run_rows(report: dict, seconds: float, t: Table) -> None:
     t.add_row("size", f"{img['width']} x {img['height']} pixels{frames}")
     t.add_row("disparities D", str(cfg["sva"]["disparities"]))
     t.add_row("descriptor", _descriptor(report["descriptor"]))
+    weights = _weights(report["descriptor"])
+    if weights:
+        t.add_row("matching cost", weights)
     backend = report["descriptor"].get("backend")
     if backend:
         changed = backend["changed"]
@@ -119,14 +122,44 @@ def _run_rows(report: dict, seconds: float, t: Table) -> None:
         t.add_row("valid pixels (last frame)", f"{100 - out['last_frame_invalid_percent']:.2f} %")
 
 
+def _weights(d: dict) -> str:
+    """The hybrid's cost: ``3 x cnn + 1 x census, largest 128 (13-bit box sums); automatic:
+    frame noisy (statistic 40.2 > 31): 2 x cnn + 0 x census``; "" for one part."""
+    w = d.get("weights")
+    if not w:
+        return ""
+    kinds = [p["kind"] for p in d["parts"]]
+
+    def cost(ws):
+        return " + ".join(f"{x} x {k}" for x, k in zip(ws, kinds, strict=True))
+
+    text = f"{cost(w['cost_weights'])}, largest {d['cost_max']} ({d['cost_bits']}-bit box sums)"
+    frames = [d["frame"]] if "frame" in d else d.get("frames", [])
+    if w["mode"] == "auto":
+        text += f"; automatic, noisy frames {cost(w['noisy_weights'])}"
+        noisy = [f for f in frames if f.get("noise", {}).get("noisy")]
+        if "frame" in d:
+            n = d["frame"]["noise"]
+            text += (f"; this frame {'noisy' if n['noisy'] else 'clean'} (statistic "
+                     f"{n['mean']:.1f} {'>' if n['noisy'] else '<='} {n['threshold']})")
+        elif frames:
+            text += f"; {len(noisy)} of {len(frames)} frames noisy"
+    return text
+
+
 def _descriptor(d: dict) -> str:
     """``cnn: mixed5x5-wide-n6.int8 (5x5x1x32, 3x3x32x32, ...; 19,232 MACs a pixel), 32 bits``."""
     net = d.get("network")
     if not net:
         return f"{d['kind']} ({d['bits']} bits)"
+    bits = f"{d['bits']} bits"
+    census = next((p for p in d.get("parts", []) if p["kind"] == "census"), None)
+    if census:  # the hybrid: the network's bits beside the census's
+        bits = (f"{d['bits']} bits = {d['parts'][0]['bits']} cnn + {census['bits']} census "
+                f"{census['window'][0]}x{census['window'][1]} {census['census_kind']}")
     return (f"{d['kind']}: {net['name']} ({len(net['layers'])} layer"
             f"{'s' if len(net['layers']) > 1 else ''} {', '.join(net['layers'])}; "
-            f"{net['macs_per_pixel']:,} MACs a pixel), {d['bits']} bits")
+            f"{net['macs_per_pixel']:,} MACs a pixel), {bits}")
 
 
 def _measured(st: dict) -> str:

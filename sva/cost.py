@@ -8,27 +8,94 @@ descriptor at (x, y) is compared with the right descriptor at (x - d, y):
 
 where B is the descriptor width in bits -- the largest Hamming distance, so a match that would
 fall outside the right image never wins against one that lies inside. Costs are uint8 (B <= 64).
+
+A descriptor of two parts (the hybrid: the CNN's bits 0 .. b_0 - 1, the census's b_0 ..
+b_0 + b_1 - 1; :mod:`nna.descriptor`) is matched part by part with a weight w_k in 0..3 each
+(:class:`CostParts`):
+
+    C(x, y, d) = sum_k w_k popcount(part_k(DL(x, y) XOR DR(x - d, y)))   if x - d >= 0
+    C(x, y, d) = B = sum_k w_k b_k                                        otherwise
+
+with ``part_k(v) = (v >> o_k) & (2^b_k - 1)``, o_k the bits below part k. A weight of 0..3 is
+a 2-bit register: the weighted distance is the distance, itself shifted left by one, or their
+sum (a multiplexer and an adder). B <= 3 x 64 = 192, so costs stay uint8. One part of weight 1
+is the plain Hamming distance above.
 """
+
+from typing import NamedTuple
 
 import numpy as np
 from numba import types
 from numba.extending import intrinsic
 
+from stereosim.sim.config.widths import largest_cost
 from stereosim.sim.errors import InputError
 from stereosim.sim.kernel_cache import njit
 
 
-def hamming_cost_ref(desc_l, desc_r, disparities: int, bits: int) -> np.ndarray:
-    """Naive reference: the whole cost volume (H, W, D) as uint8, exactly as defined above."""
+class CostParts(NamedTuple):
+    """The descriptor's parts as the cost sees them: each part's ``bits`` (in bit order) and
+    ``weights`` (one per part, 0..3)."""
+
+    bits: tuple[int, ...]
+    weights: tuple[int, ...]
+
+    @property
+    def top(self) -> int:
+        """B: the largest cost, sum_k w_k b_k (a match outside the right image;
+        :func:`~sim.config.widths.largest_cost`, the rule the register widths follow)."""
+        if len(self.bits) == 1:
+            return self.weights[0] * self.bits[0]
+        return largest_cost(self.bits, (self.weights,))
+
+    @property
+    def total_bits(self) -> int:
+        return sum(self.bits)
+
+    def kernel_args(self, dtype) -> tuple:
+        """(mask of part 0, shift of part 1, w_0, w_1, B, two parts?) for the numba kernels
+        (descriptor words of ``dtype``)."""
+        low = self.bits[0]
+        mask = dtype.type((1 << low) - 1) if low < 8 * dtype.itemsize else \
+            dtype.type(np.iinfo(dtype).max)
+        w1 = self.weights[1] if len(self.bits) > 1 else 0
+        two = len(self.bits) > 1
+        return (mask, dtype.type(low if two else 0), np.uint16(self.weights[0]), np.uint16(w1),
+                np.uint16(self.top), two)
+
+
+def cost_parts(bits, weights=None) -> CostParts:
+    """The :class:`CostParts` of a descriptor of ``bits`` (an int: one part of weight 1; a
+    tuple: each part's bits) with ``weights`` (default: 1 each). Bad widths or weights raise
+    :class:`InputError`."""
+    parts = (int(bits),) if isinstance(bits, (int, np.integer)) else tuple(int(b) for b in bits)
+    weights = (1,) * len(parts) if weights is None else tuple(int(w) for w in weights)
+    if not 1 <= len(parts) <= 2 or any(b < 1 for b in parts) or sum(parts) > 64:
+        raise InputError(f"a descriptor is one or two parts of 1..64 bits in all, got {parts}")
+    if len(weights) != len(parts) or any(not 0 <= w <= 3 for w in weights) or not any(weights):
+        raise InputError(f"each of the descriptor's {len(parts)} part(s) needs a weight in "
+                         f"0..3, not all 0; got {weights}")
+    return CostParts(parts, weights)
+
+
+def hamming_cost_ref(desc_l, desc_r, disparities: int, bits) -> np.ndarray:
+    """Naive reference: the whole cost volume (H, W, D) as uint8, exactly as defined above.
+    ``bits``: the descriptor width, or its :class:`CostParts`."""
+    spec = bits if isinstance(bits, CostParts) else cost_parts(bits)
     h, w = desc_l.shape
     cost = np.empty((h, w, disparities), np.uint8)
     for y in range(h):
         for x in range(w):
             for d in range(disparities):
-                if x - d >= 0:
-                    cost[y, x, d] = bin(int(desc_l[y, x]) ^ int(desc_r[y, x - d])).count("1")
-                else:
-                    cost[y, x, d] = bits
+                if x - d < 0:
+                    cost[y, x, d] = spec.top
+                    continue
+                v = int(desc_l[y, x]) ^ int(desc_r[y, x - d])
+                total, below = 0, 0
+                for b, weight in zip(spec.bits, spec.weights, strict=True):
+                    total += weight * bin((v >> below) & ((1 << b) - 1)).count("1")
+                    below += b
+                cost[y, x, d] = total
     return cost
 
 
@@ -46,17 +113,31 @@ def popcount(typingctx, value):
     return value(value), codegen
 
 
+@njit(cache=True, inline="always")
+def weighted(v, cost):
+    """The cost of the XOR ``v`` of two descriptors: ``cost`` = :meth:`CostParts.kernel_args`
+    (two parts: w_0 popcount(v & mask) + w_1 popcount(v >> shift))."""
+    mask, shift, w0, w1, _, _ = cost
+    return np.uint16(w0 * np.uint16(popcount(v & mask)) + w1 * np.uint16(popcount(v >> shift)))
+
+
 @njit(cache=True)
-def cost_row(dl_row, dr_row, disparities, bits, out):
-    """One row of the cost volume into ``out`` (W, D) uint8."""
+def cost_row(dl_row, dr_row, disparities, cost, out):
+    """One row of the cost volume into ``out`` (W, D) uint8; ``cost``: the parts'
+    :meth:`CostParts.kernel_args`."""
     w = dl_row.shape[0]
+    top = np.uint8(cost[4])
     for x in range(w):
         a = dl_row[x]
         lim = min(disparities, x + 1)
-        for d in range(lim):
-            out[x, d] = np.uint8(popcount(a ^ dr_row[x - d]))
+        if cost[5]:
+            for d in range(lim):
+                out[x, d] = np.uint8(weighted(a ^ dr_row[x - d], cost))
+        else:
+            for d in range(lim):
+                out[x, d] = np.uint8(popcount(a ^ dr_row[x - d]))
         for d in range(lim, disparities):
-            out[x, d] = bits
+            out[x, d] = top
 
 
 @njit(cache=True)
@@ -70,24 +151,29 @@ def reverse_row(row, out):
 
 
 @njit(cache=True)
-def cost_row_add(dl_row, dr_rev, bits, sums):
+def cost_row_add(dl_row, dr_rev, cost, sums):
     """``sums[x, d] += C(x, d)`` (uint16) for one row of the cost volume; ``dr_rev`` is the
-    right row reversed (:func:`reverse_row`)."""
+    right row reversed (:func:`reverse_row`), ``cost`` the parts' :meth:`CostParts.
+    kernel_args`."""
     w, dn = sums.shape
-    bits16 = np.uint16(bits)
+    top = np.uint16(cost[4])
     for x in range(w):
         a = dl_row[x]
         lim = min(dn, x + 1)
         right = dr_rev[w - 1 - x :]
         sx = sums[x]
-        for d in range(lim):
-            sx[d] = np.uint16(sx[d] + np.uint16(popcount(a ^ right[d])))
+        if cost[5]:
+            for d in range(lim):
+                sx[d] = np.uint16(sx[d] + weighted(a ^ right[d], cost))
+        else:
+            for d in range(lim):
+                sx[d] = np.uint16(sx[d] + np.uint16(popcount(a ^ right[d])))
         for d in range(lim, dn):
-            sx[d] = np.uint16(sx[d] + bits16)
+            sx[d] = np.uint16(sx[d] + top)
 
 
 @njit(cache=True)
-def cost_row_update(dl_in, dr_rev_in, dl_out, dr_rev_out, sums):
+def cost_row_update(dl_in, dr_rev_in, dl_out, dr_rev_out, cost, sums):
     """``sums[x, d] += C_in(x, d) - C_out(x, d)`` (uint16, modulo 2^16) for two rows of the
     cost volume: the vertical box sum slides down one row (the row entering the window in,
     the one leaving it out) without storing cost rows. Where x - d < 0 both costs are B and
@@ -100,16 +186,21 @@ def cost_row_update(dl_in, dr_rev_in, dl_out, dr_rev_out, sums):
         r_in = dr_rev_in[w - 1 - x :]
         r_out = dr_rev_out[w - 1 - x :]
         sx = sums[x]
-        for d in range(lim):
-            c_in = np.uint16(popcount(a_in ^ r_in[d]))
-            c_out = np.uint16(popcount(a_out ^ r_out[d]))
-            sx[d] = np.uint16(np.uint16(sx[d] + c_in) - c_out)
+        if cost[5]:
+            for d in range(lim):
+                sx[d] = np.uint16(np.uint16(sx[d] + weighted(a_in ^ r_in[d], cost))
+                                  - weighted(a_out ^ r_out[d], cost))
+        else:
+            for d in range(lim):
+                c_in = np.uint16(popcount(a_in ^ r_in[d]))
+                c_out = np.uint16(popcount(a_out ^ r_out[d]))
+                sx[d] = np.uint16(np.uint16(sx[d] + c_in) - c_out)
 
 
 @njit(cache=True)
-def _cost_volume(desc_l, desc_r, disparities, bits, out):
+def _cost_volume(desc_l, desc_r, disparities, cost, out):
     for y in range(desc_l.shape[0]):
-        cost_row(desc_l[y], desc_r[y], disparities, bits, out[y])
+        cost_row(desc_l[y], desc_r[y], disparities, cost, out[y])
 
 
 def check_descriptor_pair(desc_l, desc_r) -> None:
@@ -126,17 +217,18 @@ def check_descriptor_pair(desc_l, desc_r) -> None:
         )
 
 
-def hamming_cost(desc_l, desc_r, disparities: int, bits: int) -> np.ndarray:
-    """Cost volume (H, W, D) uint8 with the numba kernel. ``bits`` = descriptor width."""
+def hamming_cost(desc_l, desc_r, disparities: int, bits) -> np.ndarray:
+    """Cost volume (H, W, D) uint8 with the numba kernel. ``bits`` = descriptor width, or its
+    :class:`CostParts`."""
     check_descriptor_pair(desc_l, desc_r)
-    if not 1 <= bits <= 64:
+    if not isinstance(bits, CostParts) and not 1 <= bits <= 64:
         raise InputError(f"descriptor width must be 1..64 bits, got {bits}")
+    spec = bits if isinstance(bits, CostParts) else cost_parts(bits)
     if disparities < 1:
         raise InputError(f"the disparity range must be at least 1, got {disparities}")
     out = np.empty(desc_l.shape + (disparities,), np.uint8)
-    _cost_volume(
-        np.ascontiguousarray(desc_l), np.ascontiguousarray(desc_r), disparities, np.uint8(bits), out
-    )
+    _cost_volume(np.ascontiguousarray(desc_l), np.ascontiguousarray(desc_r), disparities,
+                 spec.kernel_args(desc_l.dtype), out)
     return out
 
 

@@ -21,7 +21,9 @@ from stereosim.sim.errors import InputError
 from stereosim.sim.kernel_cache import njit
 from stereosim.sva.aggregation import box_filter, box_filter_ref, box_start
 from stereosim.sva.cost import (
+    CostParts,
     check_descriptor_pair,
+    cost_parts,
     cost_row_add,
     cost_row_update,
     hamming_cost_ref,
@@ -38,29 +40,45 @@ from stereosim.sva.lr_check import (
     right_disparity_ref,
 )
 from stereosim.sva.median import NARROW_MAX, median, median_ref, median_rows
+from stereosim.sva.noise import band_rows, frame_weights
 from stereosim.sva.sgm import new_path_buffers, sgm, sgm_params, sgm_pixel, sgm_ref, sgm_row_start
 from stereosim.sva.wta import disparity_index, subpixel_mode_code, wta, wta_ref, wta_select
 
 
-def check_inputs(desc_l, desc_r, img_l, cfg: SvaConfig, bits: int) -> SvaConfig:
+def check_inputs(desc_l, desc_r, img_l, cfg: SvaConfig, bits) -> SvaConfig:
     """The checks of the SVA's entry points before a kernel sees anything: the descriptor pair
-    and the left image alike in shape, D below the width, the descriptor's bits, and the
-    section's values (returned checked; a section of a checked configuration is trusted)."""
+    and the left image alike in shape, D below the width, the descriptor's bits (an int, or
+    a tuple of its parts' bits: :func:`frame_cost`), and the section's values (returned
+    checked; a section of a checked configuration is trusted)."""
     check_descriptor_pair(desc_l, desc_r)
     h, w = desc_l.shape
     if img_l.shape != (h, w) or img_l.dtype != np.uint8:
         raise InputError(f"the left grey image must be uint8 {h}x{w} like the descriptors")
     cfg = check_section(cfg, "sva.")
     check_disparity_range(cfg, w, InputError)
-    if not 1 <= bits <= 64:
-        raise InputError(f"descriptor width must be 1..64 bits, got {bits}")
+    parts = cost_parts(bits).bits  # one or two parts of 1..64 bits in all
+    if 8 * desc_l.dtype.itemsize < sum(parts):
+        raise InputError(f"{desc_l.dtype} descriptors cannot hold {sum(parts)} bits")
     return cfg
 
 
-def sva_ref(desc_l, desc_r, img_l, cfg: SvaConfig, bits: int) -> np.ndarray:
+def frame_cost(bits, cfg: SvaConfig, img_l) -> tuple[CostParts, dict | None]:
+    """The cost of a frame: a descriptor of one part (``bits`` an int or a 1-tuple) is matched
+    with its Hamming distance; the hybrid's two parts (``bits`` = (CNN bits, census bits))
+    with the frame's weights -- ``sva.cost_weights``, or with ``sva.weight_mode = "auto"`` the
+    weights the noise statistic of ``img_l``'s first rows picks (:mod:`sva.noise`; the second
+    value says what it found, None when fixed)."""
+    parts = cost_parts(bits).bits
+    if len(parts) == 1:
+        return cost_parts(parts), None
+    weights, noise = frame_weights(cfg, img_l)
+    return cost_parts(parts, weights), noise
+
+
+def sva_ref(desc_l, desc_r, img_l, cfg: SvaConfig, bits) -> np.ndarray:
     """Output words (H, W) int32 (-1 invalid) from the naive references, stage by stage."""
     cfg = check_inputs(desc_l, desc_r, img_l, cfg, bits)
-    cost = hamming_cost_ref(desc_l, desc_r, cfg.disparities, bits)
+    cost = hamming_cost_ref(desc_l, desc_r, cfg.disparities, frame_cost(bits, cfg, img_l)[0])
     agg = box_filter_ref(cost, cfg.box_size, cfg.cost_bits)
     s = sgm_ref(
         agg, p1=cfg.p1, p2=cfg.p2, paths=cfg.paths, path_bits=cfg.path_bits,
@@ -81,8 +99,9 @@ def stream_rows(views, img, box, sgm_args, select, out, rows):
     """The fused SVA, row by row and, inside a row, pixel by pixel with every stage's D-vector
     in the L1 cache.
 
-    ``box`` = (k, bits, agg_cap): the box size, the descriptor width and the cap of the
-    aggregated cost fed to SGM, min(2^cost_bits, 2^path_bits) - 1 (clamping A to the path cap
+    ``box`` = (k, cost, agg_cap): the box size, the cost of the descriptor's parts
+    (:meth:`sva.cost.CostParts.kernel_args`) and the cap of the aggregated cost fed to SGM,
+    min(2^cost_bits, 2^path_bits) - 1 (clamping A to the path cap
     first is exact: min(A + x, cap) = min(min(A, cap) + x, cap) for x >= 0).
     ``sgm_args`` = (state, params) of :func:`sva.sgm.sgm_pixel`.
     ``select`` = (uniqueness, mode, frac_bits, lr, max_diff, diag).
@@ -105,7 +124,7 @@ def stream_rows(views, img, box, sgm_args, select, out, rows):
     desc_l, desc_r = views
     q_out, colsum = out
     y_start, y_stop = rows
-    k, bits, agg_cap = box
+    k, cost, agg_cap = box
     state, params = sgm_args
     uniqueness, mode, frac_bits, lr, max_diff, diag = select
     h, w = desc_l.shape
@@ -124,7 +143,7 @@ def stream_rows(views, img, box, sgm_args, select, out, rows):
         for j in range(-r, r + 1):
             yy = min(max(j, 0), h - 1)
             reverse_row(desc_r[yy], rev_in)
-            cost_row_add(desc_l[yy], rev_in, bits, colsum)
+            cost_row_add(desc_l[yy], rev_in, cost, colsum)
     for y in range(y_start, y_stop):
         # vertical sums of rows clamp(y - r) .. clamp(y + r): slide down from y - 1
         y_in = min(y + r, h - 1)
@@ -132,7 +151,7 @@ def stream_rows(views, img, box, sgm_args, select, out, rows):
         if y > 0 and y_in != y_out:
             reverse_row(desc_r[y_in], rev_in)
             reverse_row(desc_r[y_out], rev_out)
-            cost_row_update(desc_l[y_in], rev_in, desc_l[y_out], rev_out, colsum)
+            cost_row_update(desc_l[y_in], rev_in, desc_l[y_out], rev_out, cost, colsum)
         box_start(colsum, k, hacc)
         img_row = img[y]
         img_prev = img[y - 1] if y > 0 else img[0]
@@ -177,10 +196,18 @@ class SvaStream:
 
     Memory: the compiled loop's W x D buffers, the output words ``q`` and, with the median on,
     a ring of 2 m + 32 rows of words before the median (not a second frame).
+
+    The frame's cost (:func:`frame_cost`: a hybrid's weights) is fixed when the first rows are
+    computed, from the first :func:`sva.noise.band_rows` rows of ``img_l`` -- all of them in
+    by then (a call that computes with fewer is a model bug, :class:`RuntimeError`).
+    ``cost`` and ``noise`` hold it from then on.
     """
 
-    def __init__(self, desc_l, desc_r, img_l, cfg: SvaConfig, bits: int):
+    def __init__(self, desc_l, desc_r, img_l, cfg: SvaConfig, bits):
         cfg = check_inputs(desc_l, desc_r, img_l, cfg, bits)
+        self._bits = bits
+        self.cost: CostParts | None = None
+        self.noise: dict | None = None
         h, w = desc_l.shape
         dn = cfg.disparities
         self.cfg = cfg
@@ -190,7 +217,7 @@ class SvaStream:
         params = sgm_params(
             cfg.paths, cfg.p1, cfg.p2, cfg.p2_adaptive, cfg.p2_slope, cfg.path_bits, cfg.sum_bits
         )
-        self._box = (np.int64(cfg.box_size), np.uint16(bits), np.uint16(agg_cap))
+        self._agg_cap = agg_cap
         self._sgm = (new_path_buffers(w, dn), params)
         self._select = (
             np.int64(cfg.uniqueness),
@@ -217,12 +244,24 @@ class SvaStream:
         self.rows_checked = 0
         self.rows_final = 0
 
+    def _fix_cost(self, rows_in: int) -> None:
+        """The frame's cost, from the first rows of the left view (class docstring)."""
+        auto = self.cfg.weight_mode == "auto" and len(cost_parts(self._bits).bits) == 2
+        if auto and rows_in < band_rows(self.cfg, self.height):
+            raise RuntimeError(f"the SVA computed costs with {rows_in} rows of the left view "
+                               "in, before its noise statistic's rows (a bug in the model)")
+        self.cost, self.noise = frame_cost(self._bits, self.cfg, self.img_l)
+        self._box = (np.int64(self.cfg.box_size), self.cost.kernel_args(self.desc_l.dtype),
+                     np.uint16(self._agg_cap))
+
     def advance(self, rows_in: int) -> int:
         h = self.height
         r = self._r
         m = self._m
         # output row y is computable once rows up to min(y + r, h - 1) are in
         stop = h if rows_in >= h else max(0, rows_in - r)
+        if self.cost is None and stop > self.rows_checked:
+            self._fix_cost(rows_in)
         ring = self._checked
         while stop > self.rows_checked:
             # the ring must keep checked rows rows_final - m .. for the median of the rows
@@ -239,14 +278,20 @@ class SvaStream:
         return self.rows_final
 
 
-def sva_stream(desc_l, desc_r, img_l, cfg: SvaConfig, bits: int) -> np.ndarray:
-    """Output words (H, W) int32 (-1 invalid) from the compiled streaming pipeline."""
+def sva_frame(desc_l, desc_r, img_l, cfg: SvaConfig, bits) -> SvaStream:
+    """The compiled streaming pipeline run over a whole frame: its ``q`` holds the output words
+    (H, W) int32 (-1 invalid), its ``cost`` and ``noise`` the frame's cost."""
     stream = SvaStream(
         np.ascontiguousarray(desc_l), np.ascontiguousarray(desc_r), np.ascontiguousarray(img_l),
         cfg, bits,
     )
     stream.advance(desc_l.shape[0])
-    return stream.q
+    return stream
+
+
+def sva_stream(desc_l, desc_r, img_l, cfg: SvaConfig, bits) -> np.ndarray:
+    """Output words (H, W) int32 (-1 invalid) from the compiled streaming pipeline."""
+    return sva_frame(desc_l, desc_r, img_l, cfg, bits).q
 
 
 def sva_cost_volume(cost, img_l, cfg: SvaConfig) -> np.ndarray:

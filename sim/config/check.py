@@ -212,6 +212,7 @@ def check_combinations(cfg: ChipConfig) -> ChipConfig:
             f"source.camera_width={src.camera_width} and source.camera_height="
             f"{src.camera_height}: give both (the camera's frame size) or set both to 0 (the "
             "pair's own size)")
+    _check_weights(cfg)
     d = cfg.dram
     if d.model == "none" and d.spill != "none":
         raise ConfigError("dram.spill needs the DRAM channel: add --set dram.model=tdm")
@@ -232,3 +233,25 @@ def check_combinations(cfg: ChipConfig) -> ChipConfig:
             "(--set source.kind=camera --set source.frame_buffers=2): a camera streaming "
             "straight into the NNA cannot take back a frame it has started sending")
     return cfg
+
+
+def _check_weights(cfg: ChipConfig) -> None:
+    """The hybrid descriptor's weight registers: a cost needs a weight that is not 0, and a
+    descriptor of one part has no weights to set (a value would be ignored)."""
+    s = cfg.sva
+    defaults = {f.name: f.default for f in dataclasses.fields(type(s))}
+    if cfg.nna.descriptor != "hybrid":
+        for key in ("cost_weights", "weight_mode", "noisy_weights"):
+            if getattr(s, key) != defaults[key]:
+                raise ConfigError(
+                    f"sva.{key} weighs the two parts of the hybrid descriptor, but "
+                    f"nna.descriptor is {cfg.nna.descriptor}: add --set nna.descriptor=hybrid "
+                    f"or leave sva.{key} unset")
+        return
+    sets = [("cost_weights", s.cost_weights)]
+    if s.weight_mode == "auto":
+        sets.append(("noisy_weights", s.noisy_weights))
+    for key, weights in sets:
+        if not any(weights):
+            raise ConfigError(f"sva.{key} = {list(weights)} weighs both distances by 0, so "
+                              "every disparity would cost the same: give one a weight of 1..3")

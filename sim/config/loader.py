@@ -28,7 +28,7 @@ from stereosim.sim.config.schema import (
     CnnConfig,
     SvaConfig,
 )
-from stereosim.sim.config.widths import CNN_BITS, sgm_widths
+from stereosim.sim.config.widths import CNN_BITS, largest_cost, sgm_widths
 from stereosim.sim.errors import ConfigError
 
 
@@ -180,7 +180,7 @@ def _descriptor_defaults(tree: dict) -> None:
     if not all(key in sva for key in BACKEND_KEYS):  # the file is read for the keys unset
         for key, value in tuned_backend(tree)[0].items():
             sva.setdefault(key, value)
-    for key, value in derived_widths(sva, descriptor_width(nna)).items():
+    for key, value in derived_widths(sva, table_largest_cost(nna, sva)).items():
         sva.setdefault(key, value)
 
 
@@ -205,28 +205,58 @@ def tuned_backend(tree: dict) -> tuple[dict, bool]:
     return dict(DESCRIPTOR_DEFAULTS.get(descriptor, {})), False
 
 
-def descriptor_width(nna: dict) -> int:
-    """Bits of the descriptor the NNA table ``nna`` selects (defaults where unset), as far as the
-    configuration knows it: the census's comparisons (:mod:`sim.census_layout`; at most 64, more
-    is refused when the census is built), else the CNN's ``nna.cnn.channels``. A malformed table
-    gives :data:`CNN_BITS`; :func:`_build` reports it when the whole tree is built."""
-    is_census = nna.get("descriptor", DEFAULT_DESCRIPTOR) == "census"
-    cls, key = (CensusConfig, "census") if is_census else (CnnConfig, "cnn")
+def _part_bits(nna: dict, key: str) -> int | None:
+    """Bits of the descriptor part ``key`` (census or cnn) of the NNA table ``nna`` (defaults
+    where unset), as far as the configuration knows it: the census's comparisons
+    (:mod:`sim.census_layout`; at most 64, more is refused when the census is built), the CNN's
+    ``nna.cnn.channels``; None for a malformed table (:func:`_build` reports it)."""
+    cls = CensusConfig if key == "census" else CnnConfig
     sub = nna.get(key, {})
     try:  # the keys' own rules (types, ranges, odd sizes), read from their declarations
         table = _build(cls, sub, f"nna.{key}.") if isinstance(sub, dict) else None
     except ConfigError:
         table = None
     if table is None:
-        return CNN_BITS
-    if not is_census:
+        return None
+    if key == "cnn":
         return table.channels
     offsets = comparison_offsets(*table.window, table.kind, table.stride)
     return max(1, min(len(offsets), 64))
 
 
+def descriptor_parts_bits(nna: dict) -> tuple[int, ...]:
+    """Bits of each part of the descriptor the NNA table ``nna`` selects: (census,), (cnn,) or
+    the hybrid's (cnn, census); a malformed table counts :data:`CNN_BITS` for its part."""
+    descriptor = nna.get("descriptor", DEFAULT_DESCRIPTOR)
+    keys = {"census": ("census",), "hybrid": ("cnn", "census")}.get(descriptor, ("cnn",))
+    return tuple(_part_bits(nna, k) or CNN_BITS for k in keys)
+
+
+def descriptor_width(nna: dict) -> int:
+    """Bits of the descriptor the NNA table ``nna`` selects (defaults where unset): the sum of
+    its parts' (:func:`descriptor_parts_bits`)."""
+    return sum(descriptor_parts_bits(nna))
+
+
+def table_largest_cost(nna: dict, sva: dict) -> int:
+    """:func:`~sim.config.widths.largest_cost` of the NNA and SVA tables (defaults where
+    unset; a malformed weight set counts as its default, left for :func:`_build` to
+    report)."""
+    meta = {f.name: f.default for f in dataclasses.fields(SvaConfig)}
+    keys = ["cost_weights"] + (["noisy_weights"] if sva.get("weight_mode") == "auto" else [])
+    sets = []
+    for key in keys:
+        weights = sva.get(key, meta[key])
+        ok = (isinstance(weights, (list, tuple)) and len(weights) == 2
+              and all(isinstance(w, int) and not isinstance(w, bool) and 0 <= w <= 3
+                      for w in weights))
+        sets.append(tuple(weights) if ok else meta[key])
+    return largest_cost(descriptor_parts_bits(nna), tuple(sets))
+
+
 def derived_widths(sva: dict, bits: int) -> dict:
-    """The register widths :func:`sgm_widths` gives for a ``bits``-bit descriptor and the box,
+    """The register widths :func:`sgm_widths` gives for a largest cost of ``bits`` a pixel (a
+    ``bits``-bit descriptor; :func:`largest_cost`) and the box,
     P2 and paths of the SVA table ``sva`` (their defaults where unset), each clamped into its
     key's legal range (a P2 too large for the widest path register saturates it); none when one
     of them is malformed (left for :func:`_build` to report)."""

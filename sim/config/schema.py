@@ -26,10 +26,23 @@ LEGAL_DISPARITIES = tuple(range(16, 257, 16))
 DESCRIPTOR_DEFAULTS = {
     "census": {"p1": 256, "p2": 2048, "p2_adaptive": True, "p2_slope": 512, "box_size": 7},
     "cnn": {"p1": 256, "p2": 1792, "p2_adaptive": True, "p2_slope": 512, "box_size": 7},
+    # the hybrid's: chosen with the robust network beside a plain 9x3 census, weights 3, 2 and
+    # 2, 0 per frame (benchmarks/hybrid_tuning.py, docs/hybrid.md; configs/hybrid-720p.toml)
+    "hybrid": {"p1": 800, "p2": 5120, "p2_adaptive": True, "p2_slope": 2048, "box_size": 7},
 }
 # The shipped learned descriptor beats the 32-bit census on clean and on noisy MiddEval3
 # (docs/ablation.md), so it is the default; census stays selectable.
 DEFAULT_DESCRIPTOR = "cnn"
+#: The hybrid descriptor's weights (``sva.cost_weights``, ``noisy_weights``): each a 2-bit
+#: register, so a weighted distance is the distance, itself shifted by one, or both added. The
+#: defaults and the noise threshold are the hybrid preset's, chosen on the tuning scenes
+#: (benchmarks/hybrid_tuning.py: the threshold is the middle of the gap between the clean and
+#: the sigma-8 pairs' statistic); the gradient bound is the statistic's definition (sva.noise)
+MAX_WEIGHT = 3
+HYBRID_WEIGHTS = (3, 2)
+NOISY_WEIGHTS = (2, 0)
+NOISE_THRESHOLD = 31
+NOISE_GRADIENT = 16
 _DEFAULT_WIDTHS = sgm_widths(DESCRIPTOR_DEFAULTS[DEFAULT_DESCRIPTOR]["p2"],
                              DESCRIPTOR_DEFAULTS[DEFAULT_DESCRIPTOR]["box_size"])
 
@@ -83,8 +96,10 @@ class CnnConfig:
 class NnaConfig:
     descriptor: str = param(
         DEFAULT_DESCRIPTOR,
-        "per-pixel binary descriptor: census or cnn (each brings its own tuned sva.p1/p2)",
-        choices=("census", "cnn"),
+        "per-pixel binary descriptor: census, cnn, or hybrid (the CNN's bits beside a census "
+        "signature, matched with the weighted sum of the two Hamming distances: "
+        "sva.cost_weights); each brings its own tuned sva.p1/p2",
+        choices=("census", "cnn", "hybrid"),
     )
     census: CensusConfig = field(default_factory=CensusConfig)
     cnn: CnnConfig = field(default_factory=CnnConfig)
@@ -203,6 +218,30 @@ class SvaConfig:
         "1r1w", "ports of each SVA SRAM bank: 1r1w (a read and a write port per cycle) or 1rw "
         "(one shared port: a stage that reads and writes a bank in one pixel takes both)",
         choices=("1r1w", "1rw"),
+    )
+    cost_weights: tuple[int, int] = param(
+        HYBRID_WEIGHTS, "hybrid descriptor only: the weights [cnn, census] of its two Hamming "
+        "distances in the matching cost, 0..3 each (2-bit registers: a shift and an add)",
+        lo=0, hi=MAX_WEIGHT,
+    )
+    weight_mode: str = param(
+        "fixed", "hybrid descriptor only: fixed (sva.cost_weights on every frame) or auto "
+        "(per frame, sva.noisy_weights when the left view's noise statistic exceeds "
+        "sva.noise_threshold: sva.noise)", choices=("fixed", "auto"),
+    )
+    noisy_weights: tuple[int, int] = param(
+        NOISY_WEIGHTS, "hybrid descriptor, weight_mode auto: the weights [cnn, census] of a "
+        "frame found noisy", lo=0, hi=MAX_WEIGHT,
+    )
+    noise_threshold: int = param(
+        NOISE_THRESHOLD, "weight_mode auto: a frame is noisy when its mean |Laplacian| over the "
+        "statistic's pixels exceeds this (Gaussian noise of sigma s gives about 4.8 s)",
+        lo=0, hi=1020,
+    )
+    noise_gradient: int = param(
+        NOISE_GRADIENT, "weight_mode auto: the statistic leaves out pixels whose gradient "
+        "|dI/dx| + |dI/dy| (central differences) exceeds this (edges are not noise)",
+        lo=0, hi=1020,
     )
     pairs: int = param(
         1, "camera pairs sharing the chip frame by frame (each writes its frames into its own "

@@ -6,7 +6,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Any
 
-from stereosim.sim.config.loader import derived_widths, descriptor_width, tuned_backend
+from stereosim.sim.config.loader import derived_widths, table_largest_cost, tuned_backend
 from stereosim.sim.config.schema import DESCRIPTOR_DEFAULTS, ChipConfig
 
 
@@ -41,7 +41,8 @@ def _auto_keys(cfg, set_keys) -> dict[str, str]:
     defaults, carried = tuned_backend({"nna": dataclasses.asdict(cfg.nna)})
 
     def choices(key: str) -> str:
-        return ", ".join(f"{d} {str(v[key]).lower()}" for d, v in DESCRIPTOR_DEFAULTS.items())
+        return ", ".join(f"{d} {str(v[key]).lower()}" for d, v in DESCRIPTOR_DEFAULTS.items()
+                         if key in v)
 
     def why(key: str) -> str:
         if carried:
@@ -51,8 +52,8 @@ def _auto_keys(cfg, set_keys) -> dict[str, str]:
     auto = {f"sva.{k}": why(k)
             for k, v in defaults.items()
             if f"sva.{k}" not in set_keys and getattr(cfg.sva, k) == v}
-    bits = descriptor_width(dataclasses.asdict(cfg.nna))
-    derived = derived_widths(dataclasses.asdict(cfg.sva), bits)
+    sva = dataclasses.asdict(cfg.sva)
+    derived = derived_widths(sva, table_largest_cost(dataclasses.asdict(cfg.nna), sva))
     widths = "auto: the narrowest that never saturates at this descriptor, box, P2 and paths"
     auto.update({f"sva.{k}": widths
                  for k, v in derived.items()

@@ -45,22 +45,34 @@ class BufferOverflow(RuntimeError):
     rule is broken (a model bug)."""
 
 
-def tracked(plan: ChipPlan) -> list[tuple[str, str, int, int, int, int, int, int]]:
-    """``(block, buffer, capacity rows, capacity bits, row slot in the engines' arrays,
-    offset, input rows per frame, output rows per frame)`` of every row window, in plan order
-    (NNA submodules side-major, then the SVA)."""
+def tracked(plan: ChipPlan) -> list[tuple[str, str, int, int, int, int, int, int, int]]:
+    """``(block, buffer, capacity rows, capacity bits, row slot of its input rows, row slot of
+    its output rows in the engines' arrays, offset, input rows per frame, output rows per
+    frame)`` of every row window, in plan order (NNA submodules side-major -- each layer's
+    line buffer, then a hybrid's census rows -- then the SVA). The engines keep two row slots
+    per layer and for the SVA (input rows 2 k, output rows 2 k + 1); the census rows' window
+    reads layer 0's input rows and the last layer's output rows."""
     out = []
+    slots = 0
     for b in plan.blocks_of("nna"):
+        first = slots
         for lay in b.layers:  # one line buffer per layer (one layer: nna.line_buffer)
             buf = next(x for x in b.buffers if x.name == lay.buffer.name)
             t = lay.tile
-            out.append((b.name, buf.name, buf.rows, buf.bits, 2 * len(out),
+            out.append((b.name, buf.name, buf.rows, buf.bits, slots, slots + 1,
                         t.top_halo - lay.half, t.in_shape[0], t.shape[0]))
+            slots += 2
+        census = next((x for x in b.buffers if x.name == "nna.census_rows"), None)
+        if census is not None:  # the census of output row y reads from input row y - r_c
+            t0, last = b.layers[0].tile, b.layers[-1].tile
+            r_c = plan.cfg.nna.census.window[1] // 2
+            out.append((b.name, census.name, census.rows, census.bits, first, slots - 1,
+                        last.y0 - t0.in_y0 - r_c, t0.in_shape[0], last.shape[0]))
     sva = plan.block("sva")
     buf = next(x for x in sva.buffers if x.name == "sva.descriptor_rows")
     s = plan.cfg.sva
     h = plan.shape[0]
-    out.append(("sva", buf.name, buf.rows, buf.bits, 2 * len(out),
+    out.append(("sva", buf.name, buf.rows, buf.bits, slots, slots + 1,
                 median_radius(s) - box_radius(s), h, h))
     return out
 
@@ -128,5 +140,5 @@ def buffer_report(plan: ChipPlan, windows: list[tuple[int, int]],
 def windows_of(plan: ChipPlan, occ: np.ndarray) -> list[tuple[int, int]]:
     """(peak, cycle) of every row window from whole arrays of row instants (the readable
     kernel's :meth:`~sim.cycle.readable.chip.Chip.window_rows`)."""
-    return [window_peaks(occ[slot], occ[slot + 1], offset, in_rows, out_rows)
-            for _, _, _, _, slot, offset, in_rows, out_rows in tracked(plan)]
+    return [window_peaks(occ[slot], occ[out_slot], offset, in_rows, out_rows)
+            for _, _, _, _, slot, out_slot, offset, in_rows, out_rows in tracked(plan)]

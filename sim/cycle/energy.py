@@ -42,6 +42,7 @@ from stereosim.sim.cycle.plan import ChipPlan
 from stereosim.sim.cycle.stages import lg
 from stereosim.sim.errors import ConfigError
 from stereosim.sva.geometry import bits_for
+from stereosim.sva.noise import band_rows
 
 DEFAULT_TABLE = Path(__file__).resolve().parents[1] / "energy.toml"
 
@@ -147,9 +148,14 @@ def sva_bit_adds_per_cell(plan: ChipPlan) -> dict[str, int]:
     """The SVA datapath's bit-adds per pixel and disparity, stage by stage (module docstring)."""
     s = plan.cfg.sva
     b = plan.descriptor_bits
-    box = bits_for(s.box_size * s.box_size * b)
+    box = bits_for(s.box_size * s.box_size * plan.cost_max)
+    # the XOR, each part's popcount; the hybrid's two weighted distances (a distance plus
+    # itself shifted) and their sum, adders of the cost's width
+    hamming = b + sum(popcount_bit_adds(p) for p in plan.part_bits)
+    if plan.hybrid:
+        hamming += 3 * bits_for(plan.cost_max)
     out = {
-        "hamming": b + popcount_bit_adds(b),
+        "hamming": hamming,
         "box_filter": 4 * box,
         "sgm": s.paths * 7 * s.path_bits,
         "path_sum": (s.paths - 1) * s.sum_bits,
@@ -182,10 +188,15 @@ def energy_items(plan: ChipPlan, table: EnergyTable, stats: dict) -> list[dict]:
             table.mac_int8_pj)
         add("nna", "multiply", f"{of}requantising multiplies, both cameras",
             2 * c["requant_multiplies"], "32-bit multiply", table.mult32_pj)
-    if cfg.nna.descriptor == "census":
+    if cfg.nna.descriptor in ("census", "hybrid"):
         ww, wh = cfg.nna.census.window
         add("nna", "logic", "census comparisons (8-bit), both cameras", 2 * n * ww * wh * 8,
             "bit-add", table.add_pj_per_bit)
+    if plan.hybrid and cfg.sva.weight_mode == "auto":  # the noise unit over the band's pixels
+        add("sva", "logic", "noise statistic: a 3x3 Laplacian and gradient (10 adds of 12 "
+            "bits) and the accumulators, over the band's pixels",
+            (band_rows(cfg.sva, h) - 2) * max(0, w - 2) * (10 * 12 + 2 * 32), "bit-add",
+            table.add_pj_per_bit)
     for block, copies in (("nna", 2), ("sva", 1)):
         bufs = {}
         for b in plan.blocks_of(block):

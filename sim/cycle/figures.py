@@ -168,7 +168,7 @@ def nna_fps(p: ChipPlan) -> float:
 def _network_identity(cfg: ChipConfig) -> tuple | None:
     """What identifies the CNN's weight file as it is now (:func:`nna.descriptor.file_identity`;
     None for the census): a cache of figures that follow from the network keys on it."""
-    if cfg.nna.descriptor != "cnn":
+    if cfg.nna.descriptor == "census":
         return None
     return file_identity(weights_file(cfg.nna.cnn.weights))
 

@@ -98,7 +98,7 @@ def camera_frames(supply: FrameSupply, plan) -> FrameSupply:
     return FrameSupply(supply.count * pairs, supply.shape, lambda f: supply.pair(f // pairs))
 
 
-def functional_words(cfg, bits: int, left: np.ndarray, right: np.ndarray) -> np.ndarray:
+def functional_words(cfg, bits, left: np.ndarray, right: np.ndarray) -> np.ndarray:
     """One frame's output words by the functional model (the chip's words: every engine's
     timing is independent of them, and the readable kernel computes the same from the beats
     it moves)."""

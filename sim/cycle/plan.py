@@ -28,9 +28,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from functools import cached_property
 
-from stereosim.nna.descriptor import descriptor_bits, network
+from stereosim.nna.descriptor import descriptor_parts, network
 from stereosim.nna.geometry import (
     Tile,
+    census_rows,
     check_line_buffer,
     cycles_per_descriptor,
     half_window,
@@ -40,6 +41,7 @@ from stereosim.nna.geometry import (
     split_frame,
 )
 from stereosim.sim.config import AUTO_BUDGET_FACTOR, ChipConfig, check_config
+from stereosim.sim.config.widths import largest_cost, weight_sets
 from stereosim.sim.cycle.dram import DramPlan, dram_plan
 from stereosim.sim.cycle.lent import LentPlan, lent_plan
 from stereosim.sim.cycle.rules import ClockDomain, fifo_edges, period_fs
@@ -175,12 +177,24 @@ class ChipPlan:
     tiles: tuple[Tile, ...]
     budget: dict[str, int]
     descriptor_bits: int
-    beat_bits: int  # NNA -> SVA beat: the descriptor (+ 8 bits of intensity for adaptive P2)
+    beat_bits: int  # NNA -> SVA beat: the descriptor (+ 8 bits of intensity: adaptive P2, auto)
     word_bits: int  # SVA output word
     frames: int = 1  # camera frames of the stream (all of ``shape``; every pair's: ``pairs``)
     signals: tuple[SignalPlan, ...] = field(default=())
     dram: DramPlan | None = None  # the DRAM channel (dram.model = "tdm"), else None
     lent: LentPlan | None = None  # the network on the lent NNA submodules (nna.lent_network)
+    # the descriptor's parts in bit order, (kind, bits): one, or the hybrid's CNN and census
+    descriptor_parts: tuple[tuple[str, int], ...] = ()
+    cost_max: int = 0  # the largest matching cost of a pixel (the hybrid: weighted)
+
+    @property
+    def part_bits(self) -> tuple[int, ...]:
+        """Each descriptor part's bits, as the SVA's kernels take them (:mod:`sva.cost`)."""
+        return tuple(b for _, b in self.descriptor_parts)
+
+    @property
+    def hybrid(self) -> bool:
+        return len(self.descriptor_parts) > 1
 
     # ---- lookups ----------------------------------------------------------------------------
 
@@ -432,9 +446,20 @@ def expected_frame_s(cfg: ChipConfig, shape: tuple[int, int], freqs: dict[str, f
 
 def nna_buffers(cfg: ChipConfig, layers: tuple[LayerPlan, ...]) -> tuple[BufferPlan, ...]:
     """SRAM of one NNA submodule: its layers' line buffers (:func:`~sim.cycle.stages.
-    nna_layers`) and the network's weights."""
+    nna_layers`), the hybrid's census rows beside a network of several layers
+    (:func:`~nna.geometry.census_rows`, of layer 0's input width) and the network's weights."""
     out = [lay.buffer for lay in layers]
-    if cfg.nna.descriptor == "cnn":
+    rows = census_rows(cfg.nna)
+    if rows:
+        width = layers[0].buffer.bits // (layers[0].rows * 8)
+        r_c = cfg.nna.census.window[1] // 2
+        out.append(BufferPlan("nna.census_rows", rows * width * 8,
+                              f"{rows} input rows x {width} pixels x 8 bits the census unit "
+                              "reads beside the layers (a bank per row: per descriptor the "
+                              f"census window's next column, {2 * r_c + 1} reads; per pixel 1 "
+                              "write)", rows=rows, banks=rows, word_bits=8,
+                              pixel_reads=2 * r_c + 1, pixel_writes=1))
+    if cfg.nna.descriptor in ("cnn", "hybrid"):
         net = network(cfg.nna)
         shapes = " + ".join(f"{w.shape[2]}x{w.shape[3]}x{w.shape[1]}x{w.shape[0]}"
                             for w in net.weights)
@@ -500,8 +525,13 @@ def build_plan(cfg: ChipConfig, shape: tuple[int, int], frames: int = 1) -> Chip
     if camera:
         freqs["camera"] = cfg.clocks.camera_mhz * 1e6
     domains = {name: DomainPlan(name, f, period_fs(f)) for name, f in freqs.items()}
-    bits = descriptor_bits(cfg.nna)
-    beat_bits = bits + (8 if cfg.sva.p2_adaptive else 0)
+    desc_parts = descriptor_parts(cfg.nna)
+    bits = sum(b for _, b in desc_parts)
+    cost_max = largest_cost(tuple(b for _, b in desc_parts), weight_sets(cfg.sva))
+    # the left pixel rides with its descriptor where the SVA reads it: the adaptive P2, the
+    # hybrid's noise statistic (sva.noise)
+    auto = len(desc_parts) > 1 and cfg.sva.weight_mode == "auto"
+    beat_bits = bits + (8 if cfg.sva.p2_adaptive or auto else 0)
     word_bits = output_word_bits(cfg.sva)
     cpd = cycles_per_descriptor(cfg.nna)
     half = half_window(cfg.nna)
@@ -562,7 +592,7 @@ def build_plan(cfg: ChipConfig, shape: tuple[int, int], frames: int = 1) -> Chip
                                     f"top.nna.{side}.merge", n))
     to_sink = fifo("sva_to_sink", "fifo.sva_to_sink_depth", f.sva_to_sink_depth, word_bits,
                    "sva", "sink", "sva", "sva", n)
-    stages = sva_stages(cfg, w, bits, word_bits)
+    stages = sva_stages(cfg, w, tuple(b for _, b in desc_parts), word_bits, cost_max)
     sva_ii = pipeline_ii(stages)
     blocks.append(BlockPlan("sva", "sva", "sva", None, ("nna_left_to_sva", "nna_right_to_sva"),
                             (to_sink,), "top.sva", n, cycles=sva_ii,
@@ -583,7 +613,8 @@ def build_plan(cfg: ChipConfig, shape: tuple[int, int], frames: int = 1) -> Chip
                     budget=frame_budget(cfg, shape, freqs, cpd, sva_ii,
                                         frames * cfg.sva.pairs, dram),
                     descriptor_bits=bits, beat_bits=beat_bits, word_bits=word_bits,
-                    frames=frames * cfg.sva.pairs, dram=dram, lent=lent)
+                    frames=frames * cfg.sva.pairs, dram=dram, lent=lent,
+                    descriptor_parts=desc_parts, cost_max=cost_max)
     object.__setattr__(plan, "signals", tuple(_signals(plan)))
     return plan
 

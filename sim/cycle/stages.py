@@ -12,7 +12,8 @@ The stages, in stream order (their docstrings give the formulas the tests check)
 ======================  =================================  ==================================
 stage                   II (cycles per pixel)              latency (cycles)
 ======================  =================================  ==================================
-hamming cost            max(G, ports)                      G + tree(lg(bits))
+hamming cost            max(G, ports)                      G + tree(lg(bits)); hybrid:
+                                                           G + tree(lg(max b_k) + 2)
 box filter              max(G, ports)                      G + 2 (column sum, row sum)
 SGM (per path)          max(left path's recurrence, ports) G + tree(lg(L) + [G > 1])
 path sum                G                                  tree(lg(paths))
@@ -58,6 +59,7 @@ from dataclasses import dataclass
 from stereosim.nna.descriptor import network
 from stereosim.nna.geometry import (
     Tile,
+    census_rows,
     layer_cycles,
     layer_halves,
     layer_macs_per_pixel,
@@ -68,6 +70,7 @@ from stereosim.nna.geometry import (
 )
 from stereosim.sim.config import ChipConfig
 from stereosim.sva.geometry import bits_for, disparity_bits
+from stereosim.sva.noise import noise_unit_bits
 
 
 @dataclass(frozen=True)
@@ -161,9 +164,41 @@ def left_path_ii(cfg: ChipConfig) -> int:
     return g + tree_cycles(lg(lanes) + (1 if g > 1 else 0), s.compare_levels)
 
 
-def sva_stages(cfg: ChipConfig, width: int, bits: int, word_bits: int) -> tuple[StagePlan, ...]:
-    """The SVA's stages for frames ``width`` pixels wide, ``bits``-bit descriptors and
-    ``word_bits``-bit output words, in stream order (see the module docstring)."""
+def hamming_levels(parts: tuple[int, ...]) -> int:
+    """Adder levels of the matching cost of a descriptor of ``parts`` (each part's bits): one
+    part, its popcount tree lg(b); two (the hybrid), their popcount trees side by side, then
+    each weighted (w in 0..3: the distance plus itself shifted, one level) and the two added
+    (one level): lg(max b_k) + 2."""
+    if len(parts) == 1:
+        return lg(parts[0])
+    return lg(max(parts)) + 2
+
+
+def noise_buffers(cfg: ChipConfig, width: int) -> list[BufferPlan]:
+    """The noise unit of the hybrid's automatic weights (:mod:`sva.noise`): the two rows of
+    left pixels above the arriving one that its 3x3 window reads (written once per pixel of
+    the band, each read once), and its registers -- S, N and the product T N, the two weight
+    sets and the threshold and gradient registers."""
+    regs = noise_unit_bits(cfg.sva, width)
+    return [
+        BufferPlan("sva.noise_rows", 2 * width * 8,
+                   f"the two rows of left pixels above the arriving one, 2 x {width} x 8 bits "
+                   "(the noise statistic's 3x3 window; only the frame's first rows)",
+                   rows=0, reads=0, writes=0, banks=2, word_bits=8),
+        BufferPlan("sva.noise_registers", regs + 2 * 2 * 2 + 2 * 10,
+                   f"S, N and T N ({regs} bits), the two weight sets (2 x 2 x 2 bits), the "
+                   "threshold and the gradient (10 bits each)"),
+    ]
+
+
+def sva_stages(cfg: ChipConfig, width: int, parts: tuple[int, ...], word_bits: int,
+               cost_max: int) -> tuple[StagePlan, ...]:
+    """The SVA's stages for frames ``width`` pixels wide, descriptors of ``parts`` (each
+    part's bits), a largest matching cost of ``cost_max`` (:func:`~sim.config.widths.
+    largest_cost`) and ``word_bits``-bit output words, in stream order (see the module
+    docstring)."""
+    bits = sum(parts)
+    levels = hamming_levels(parts)
     s = cfg.sva
     d = s.disparities
     v = s.compare_levels
@@ -176,10 +211,10 @@ def sva_stages(cfg: ChipConfig, width: int, bits: int, word_bits: int) -> tuple[
                           "each; a bank per view: the arriving row written, the leaving read)",
                           rows=s.box_size + 1, reads=1, writes=1, ports=ports, banks=2,
                           word_bits=bits, pixel_reads=2, pixel_writes=2)
-    sums_buf = BufferPlan("sva.column_sums", width * d * bits_for(s.box_size * bits),
+    sums_buf = BufferPlan("sva.column_sums", width * d * bits_for(s.box_size * cost_max),
                           "the vertical box sums, W x D (a lane group read and written per "
                           "group)", reads=g, writes=g, ports=ports,
-                          word_bits=lanes * bits_for(s.box_size * bits), pixel_reads=g,
+                          word_bits=lanes * bits_for(s.box_size * cost_max), pixel_reads=g,
                           pixel_writes=g)
     top = 1 if s.paths > 1 else 0
     sgm_buf = BufferPlan("sva.sgm_previous_row", (s.paths - 1) * width * d * s.path_bits
@@ -190,15 +225,20 @@ def sva_stages(cfg: ChipConfig, width: int, bits: int, word_bits: int) -> tuple[
                          banks=max(1, s.paths - 1), word_bits=lanes * s.path_bits,
                          pixel_reads=g * (s.paths - 1), pixel_writes=g * (s.paths - 1))
     ham_ii = max(g, rows_buf.port_cycles)
+    ham_bufs = [rows_buf, BufferPlan("sva.right_window", d * bits,
+                                     "the right descriptors x - D + 1 .. x (registers)")]
+    if len(parts) > 1 and s.weight_mode == "auto":
+        ham_bufs += noise_buffers(cfg, width)
     box_ii = max(g, sums_buf.port_cycles)
     stages = [
         StagePlan(
-            "hamming", ham_ii, g + tree_cycles(lg(bits), v),
+            "hamming", ham_ii, g + tree_cycles(levels, v),
             f"II = max(G = ceil({d}/{lanes}) = {g}, descriptor rows' ports {ports}: "
-            f"{rows_buf.port_cycles}) = {ham_ii}; latency = G + tree(lg({bits})) = "
-            f"{g} + {tree_cycles(lg(bits), v)}",
-            (rows_buf, BufferPlan("sva.right_window", d * bits,
-                                  "the right descriptors x - D + 1 .. x (registers)")),
+            f"{rows_buf.port_cycles}) = {ham_ii}; latency = G + tree("
+            + (f"lg({bits})" if len(parts) == 1 else
+               f"lg(max({parts[0]}, {parts[1]})) + 2: two popcounts, weighted, added")
+            + f") = {g} + {tree_cycles(levels, v)}",
+            tuple(ham_bufs),
         ),
         StagePlan(
             "box_filter", box_ii, g + 2,
@@ -256,10 +296,11 @@ def sva_stages(cfg: ChipConfig, width: int, bits: int, word_bits: int) -> tuple[
         ))
     stages.append(StagePlan("output", 1, 1, "II = 1; latency = 1 (the output register)"))
     # each stage's pipeline registers: the words in flight in it, and what one of them carries
-    cost_bits = bits_for(bits)
-    box_bits = bits_for(s.box_size * s.box_size * bits)
+    cost_bits = bits_for(cost_max)
+    box_bits = bits_for(s.box_size * s.box_size * cost_max)
     carried = {
-        "hamming": (d * cost_bits, f"D = {d} Hamming costs of {cost_bits} bits"),
+        "hamming": (d * cost_bits, f"D = {d} {'Hamming' if len(parts) == 1 else 'weighted'} "
+                    f"costs of {cost_bits} bits"),
         "box_filter": (d * box_bits, f"D = {d} box sums of {box_bits} bits"),
         "sgm": (s.paths * d * s.path_bits,
                 f"{s.paths} path(s) x D = {d} path costs of {s.path_bits} bits"),
@@ -373,6 +414,14 @@ def nna_stages(cfg: ChipConfig, layers: tuple[LayerPlan, ...]) -> tuple[StagePla
         else:
             out.append(StagePlan(f"{pre}requantise", 1, 0, "per channel a multiply-shift and "
                                  "the clamp to 0..127, in the MAC array's last cycle"))
+    if n.descriptor == "hybrid":
+        c = n.census
+        source = ("layer 0's line buffer" if single else
+                  f"its own {census_rows(n)} input rows (nna.census_rows)")
+        out.append(StagePlan("census_unit", 1, 0,
+                             f"the {c.window[0]}x{c.window[1]} {c.kind} census of the output "
+                             f"pixel from {source}, in the MAC array's last cycle: its bits "
+                             "join the sign bits above them"))
     return tuple(out)
 
 

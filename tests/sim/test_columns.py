@@ -14,7 +14,7 @@ from stereosim.sim.sweep_results import CSV_NAME, GUIDE_NAME, finish_results, wr
 AXES = ["nna.stereo_submodules"]
 # the keys the sample's points set besides the axis
 FIXED = ["sva.disparities", "source.kind", "source.frame_buffers", "dram.model",
-         "nna.lent_submodules", "nna.lent_network"]
+         "nna.lent_submodules", "nna.lent_network", "nna.descriptor", "sva.weight_mode"]
 
 
 def _scene(root):
@@ -35,7 +35,7 @@ def _scene(root):
 def sample(tmp_path_factory, lent_toml):
     """Rows of every kind a sweep writes -- cycle (column tiles; a camera; a camera behind
     frame buffers and the DRAM channel; a lent network beside the DRAM channel), functional
-    with GT, estimate (tiles, a camera; a lent network without a channel) -- as results.csv
+    with GT (and the hybrid descriptor's, with automatic weights), estimate (tiles, a camera; a lent network without a channel) -- as results.csv
     and its guide."""
     tmp = tmp_path_factory.mktemp("columns")
     scene = str(_scene(tmp / "scene"))
@@ -48,6 +48,8 @@ def sample(tmp_path_factory, lent_toml):
                             "source.frame_buffers": 2, "dram.model": "tdm"}),
         ("cycle", "64x24", {"nna.stereo_submodules": 2, "dram.model": "tdm", **lent}),
         ("functional", scene, {"nna.stereo_submodules": 2}),
+        ("functional", scene, {"nna.stereo_submodules": 2, "nna.descriptor": "hybrid",
+                               "sva.weight_mode": "auto"}),
         ("estimate", "64x24", {"nna.stereo_submodules": 4, "source.kind": "camera"}),
         ("estimate", "64x24", {"nna.stereo_submodules": 2, **lent}),
     ]

@@ -94,7 +94,9 @@ def test_sgm_widths_are_the_narrowest_that_hold_a_path_cost():
         assert 2 ** (w["sum_bits"] - 1) <= 4 * (2 ** w["path_bits"] - 1) < 2 ** w["sum_bits"]
     for descriptor, tuned in DESCRIPTOR_DEFAULTS.items():
         cfg = load_config(None, {"nna.descriptor": descriptor}).sva
-        widths = sgm_widths(tuned["p2"], cfg.box_size)
+        # the hybrid's largest cost: its weights times its parts' bits (32 CNN + 32 census)
+        top = 32 * sum(cfg.cost_weights) if descriptor == "hybrid" else 32
+        widths = sgm_widths(tuned["p2"], cfg.box_size, top)
         assert (cfg.cost_bits, cfg.path_bits, cfg.sum_bits) == tuple(widths.values())
 
 
@@ -179,9 +181,10 @@ def test_default_sgm_registers_never_saturate(descriptor):
         return run(left, right, mode="functional", overrides=over).disparity_fixed
 
     shipped = disparity()
-    assert np.array_equal(shipped, disparity(cost_bits=cfg.cost_bits + 2,
-                                             path_bits=cfg.path_bits + 2,
-                                             sum_bits=cfg.sum_bits + 2))
+    # two bits wider, up to each register's widest (the hybrid's path register is at its 14)
+    assert np.array_equal(shipped, disparity(cost_bits=min(cfg.cost_bits + 2, 15),
+                                             path_bits=min(cfg.path_bits + 2, 14),
+                                             sum_bits=min(cfg.sum_bits + 2, 16)))
     assert not np.array_equal(shipped, disparity(path_bits=8, sum_bits=8))  # saturation shows
 
 

@@ -33,7 +33,8 @@ def configurations(draw):
     """A small frame and a configuration drawn over every timing parameter of the chip: sizes,
     D, paths, LR check, median, the NNA's descriptor (census, the shipped CNN or a random
     network of 1 to 4 layers of 1x1, 3x3 or 5x5 kernels and 1 to 8 channels, with MAC shares
-    given or split), every FIFO depth (1 included), latency and synchroniser,
+    given or split; or the hybrid of such a network and a census within its reach, with
+    random weights, fixed or automatic), every FIFO depth (1 included), latency and synchroniser,
     clocks, memory or camera sources with blanking, frames split over two or three submodules
     per camera (column tiles or row bands), periodic sink stalls and watchdogs that fire,
     streams of one to three frames, camera pairs sharing the chip, reads and write-back through
@@ -41,7 +42,7 @@ def configurations(draw):
     d = draw(st.sampled_from([16, 16, 32]))
     h = draw(st.integers(2, 9))
     w = draw(st.integers(d + 1, d + 20))
-    descriptor = draw(st.sampled_from(["census", "cnn"]))
+    descriptor = draw(st.sampled_from(["census", "cnn", "hybrid"]))
     over = {
         "sva.disparities": d,
         "nna.descriptor": descriptor,
@@ -60,11 +61,11 @@ def configurations(draw):
         "sva.median": draw(st.sampled_from([0, 3, 5])),
         "sva.paths": draw(st.integers(1, 4)),
         "sva.lr_check": draw(st.booleans()),
-        "nna.line_buffer_rows": draw(st.integers(9 if descriptor == "cnn" else 3, 11)),
+        "nna.line_buffer_rows": draw(st.integers(3 if descriptor == "census" else 9, 11)),
         "nna.macs": draw(st.sampled_from([288, 500, 2592])),
     }
     net = None
-    if descriptor == "cnn" and draw(st.booleans()):  # a network of 1 to 4 layers
+    if descriptor != "census" and draw(st.booleans()):  # a network of 1 to 4 layers
         shapes, c_in = [], 1
         for _ in range(draw(st.integers(1, 4))):
             shapes.append((draw(st.sampled_from([1, 3, 5])), c_in, draw(st.integers(1, 8))))
@@ -80,6 +81,17 @@ def configurations(draw):
         else:  # nna.macs split in proportion
             over["nna.macs"] = draw(st.integers(max(len(macs), min(2592, sum(macs) // 10)),
                                                 min(2592, max(len(macs), sum(macs)))))
+    if descriptor == "hybrid":  # a census within the network's reach, beside its bits
+        reach = sum(k // 2 for k, _, _ in net[0]) if net is not None else 4
+        channels = net[0][-1][2] if net is not None else 32
+        height = draw(st.sampled_from([h_ for h_ in (1, 3) if h_ // 2 <= reach]))
+        widths = [w_ for w_ in (3, 5, 7, 11) if 1 <= w_ * height - 1 <= 64 - channels]
+        weights = [list(x) for x in itertools.product(range(4), repeat=2) if any(x)]
+        over.update({"nna.census.window": [draw(st.sampled_from(widths)), height],
+                     "sva.cost_weights": draw(st.sampled_from(weights)),
+                     "sva.weight_mode": draw(st.sampled_from(["fixed", "auto"])),
+                     "sva.noisy_weights": draw(st.sampled_from(weights)),
+                     "sva.noise_threshold": draw(st.sampled_from([0, 8, 40]))})
     parts = draw(st.sampled_from([1, 1, 2, 3]))
     if parts > 1:
         split = draw(st.sampled_from(["columns", "rows"]))

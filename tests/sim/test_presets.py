@@ -7,7 +7,7 @@ from stereosim.sim.cli import PRESETS, main
 from stereosim.sim.config import DESCRIPTOR_DEFAULTS, load_config
 from stereosim.sim.cycle.estimate import estimate
 
-NAMES = ("paper-720p", "1080p60", "census-baseline", "robust-720p")
+NAMES = ("paper-720p", "1080p60", "census-baseline", "robust-720p", "hybrid-720p")
 
 
 def test_the_shipped_presets_are_the_documented_ones():
@@ -64,6 +64,23 @@ def test_robust_720p_sustains_30_fps_on_the_ten_submodules(monkeypatch, tmp_path
     assert cfg.nna.stereo_submodules == cfg.nna.submodules == 10
     block, ms = _bound(cfg, 720, 1280)
     assert block.startswith("nna_") and 1e3 / ms >= 30.0
+
+
+def test_hybrid_720p_is_the_robust_chip_with_census_bits_beside_the_network(monkeypatch,
+                                                                             tmp_path):
+    """The robust preset's network, submodules and clocks, the 11x3 census beside it, the
+    weights picked per frame; the census adds no MAC cycles, so its work bound is the robust
+    chip's, at least 30 fps at 720p."""
+    monkeypatch.chdir(tmp_path)
+    hybrid = load_config(PRESETS / "hybrid-720p.toml")
+    robust = load_config(PRESETS / "robust-720p.toml")
+    assert hybrid.nna.descriptor == "hybrid" and hybrid.sva.weight_mode == "auto"
+    assert hybrid.nna.cnn.weights == robust.nna.cnn.weights
+    assert (hybrid.nna.stereo_submodules, hybrid.clocks) == (10, robust.clocks)
+    assert {k: getattr(hybrid.sva, k) for k in DESCRIPTOR_DEFAULTS["hybrid"]} == \
+        DESCRIPTOR_DEFAULTS["hybrid"]
+    block, ms = _bound(hybrid, 720, 1280)
+    assert (block, ms) == _bound(robust, 720, 1280) and 1e3 / ms >= 30.0
 
 
 @pytest.mark.parametrize("name", NAMES)

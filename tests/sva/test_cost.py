@@ -8,6 +8,7 @@ from numpy.testing import assert_array_equal
 
 from stereosim.sim.errors import InputError
 from stereosim.sva.cost import (
+    cost_parts,
     cost_row_add,
     cost_row_update,
     hamming_cost,
@@ -111,10 +112,11 @@ def test_row_sums_of_costs_equal_ref(w, disparities, bits):
     cost = hamming_cost_ref(dl, dr, disparities, bits).astype(np.uint16)
     sums = np.zeros((w, disparities), np.uint16)
     for y in (0, 1, 1):
-        cost_row_add(dl[y], reversed_row(dr[y]), np.uint16(bits), sums)
+        cost_row_add(dl[y], reversed_row(dr[y]), cost_parts(bits).kernel_args(dl.dtype), sums)
     assert_array_equal(sums, cost[0] + 2 * cost[1])
     # replace row 0 by row 3: only d <= x changes, the B entries cancel
-    cost_row_update(dl[3], reversed_row(dr[3]), dl[0], reversed_row(dr[0]), sums)
+    cost_row_update(dl[3], reversed_row(dr[3]), dl[0], reversed_row(dr[0]),
+                    cost_parts(bits).kernel_args(dl.dtype), sums)
     assert_array_equal(sums, cost[3] + 2 * cost[1])
 
 

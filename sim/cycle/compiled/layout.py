@@ -185,11 +185,11 @@ STAGE = np.dtype([
     ("done", np.int64),  # the cycle after which the frame's last word has left it (-1: not yet)
 ])
 
-# a row window's walk (sim.cycle.buffers.window_peaks, behind the streams): the slot of its row
-# instants in ``occ`` (input rows; output rows at slot + 1), the streams whose counts say how
+# a row window's walk (sim.cycle.buffers.window_peaks, behind the streams): the slots of its row
+# instants in ``occ`` (input rows, output rows), the streams whose counts say how
 # many rows are known and their row widths, the window's offset and rows per frame, and the walk
 WINDOW = np.dtype([
-    ("slot", np.int64), ("in_stream", np.int64), ("in_width", np.int64),
+    ("slot", np.int64), ("out_slot", np.int64), ("in_stream", np.int64), ("in_width", np.int64),
     ("out_stream", np.int64), ("out_width", np.int64), ("offset", np.int64),
     ("in_rows", np.int64), ("out_rows", np.int64),
     ("row", np.int64), ("done", np.int64),  # the next input row; output rows done before it
@@ -487,19 +487,31 @@ def _constants(plan: ChipPlan, sides: int, sink_stall, cap_fs: int, stats: bool)
 
 
 def _windows(plan: ChipPlan, layers: np.ndarray, idx, sides: int) -> np.ndarray:
-    """The :data:`WINDOW` walks: the tiles computed (side-major), per layer, then the SVA's."""
+    """The :data:`WINDOW` walks: the tiles computed (side-major), per layer (and a hybrid's
+    census rows: layer 0's input, the last layer's output), then the SVA's."""
     w = plan.shape[1]
-    n = sides * plan.parts * len(plan.blocks_of("nna")[0].layers)
-    win = np.zeros(n + 1, WINDOW)
-    for i, (block, _, _, _, slot, offset, in_rows, out_rows) in enumerate(tracked(plan)):
-        if i < n:  # a layer of an NNA tile: the items entering its line buffer, its outputs
-            lr = layers[i]
-            win[i] = (slot, lr["in_stream"], lr["iw"], lr["out_stream"], lr["ow"], offset,
-                      in_rows, out_rows, 0, 0, 0, -1)
-        elif block == "sva":
-            win[-1] = (slot, idx["sva_pop"], w, idx["sva_issue"], w, offset, in_rows, out_rows,
-                       0, 0, 0, -1)
-    return win
+    n_layers = len(plan.blocks_of("nna")[0].layers)
+    n = sides * plan.parts * n_layers
+    rows = []
+    k = 0  # the layer records walked so far
+    for block, name, _, _, slot, out_slot, offset, in_rows, out_rows in tracked(plan):
+        if block == "sva":
+            rows.append((slot, out_slot, idx["sva_pop"], w, idx["sva_issue"], w, offset,
+                         in_rows, out_rows, 0, 0, 0, -1))
+        elif name == "nna.census_rows":  # the tile's layer 0 in, its last layer out
+            if k > n:
+                continue  # a mirrored right side: its walks are the left side's
+            first, last = layers[k - n_layers], layers[k - 1]
+            rows.append((slot, out_slot, first["in_stream"], first["iw"], last["out_stream"],
+                         last["ow"], offset, in_rows, out_rows, 0, 0, 0, -1))
+        elif k >= n:
+            k += 1  # a mirrored right side: its walks are the left side's
+        else:  # a layer of an NNA tile: the items entering its line buffer, its outputs
+            lr = layers[k]
+            rows.append((slot, out_slot, lr["in_stream"], lr["iw"], lr["out_stream"], lr["ow"],
+                         offset, in_rows, out_rows, 0, 0, 0, -1))
+            k += 1
+    return np.array(rows, WINDOW)
 
 
 def serialise(plan: ChipPlan, *, sink_stall=None, cap_fs: int = INF, stats: bool = True,

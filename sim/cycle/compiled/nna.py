@@ -727,7 +727,8 @@ def sample_nna(ring, streams, cursors, prm, tile, data, c, out):
         out[k + 4] = lr.x0 + emitted % lr.ow
         k += 5
     out[k] = 1 if push_at else 0
-    value = 0
+    value = np.uint64(0)  # (a plain 0 would make numba unify it with the uint64 descriptor as a
+    # float64, losing the low bits of a descriptor above 2^53)
     if emitted > 0:
         j = emitted - 1
         fr = j // tl.n_out

@@ -450,7 +450,9 @@ def _windows(plan: ChipPlan, net: Net) -> list[tuple[int, int]]:
     """(peak, cycle) of every row window, in ``buffers.tracked`` order, from the window walks
     (a mirrored right side's are the left side's)."""
     walks = [(int(w["peak"]), int(w["at"])) for w in net.win]
-    per_side = plan.parts * len(plan.blocks_of("nna")[0].layers)
+    nna = plan.blocks_of("nna")[0]
+    per_side = plan.parts * (len(nna.layers) + any(b.name == "nna.census_rows"
+                                                    for b in nna.buffers))
     tiles = walks[:-1]
     if int(net.prm[0]["sides"]) == 1:
         tiles = tiles + tiles
@@ -492,7 +494,7 @@ def _stop_trace(plan: ChipPlan, sink_stall, window: tuple[int, int], supply, net
         left_f, right_f = supply.pair(src)
         desc = (compute_descriptor(left_f, plan.cfg.nna), compute_descriptor(right_f, plan.cfg.nna))
         descs.append(np.stack(desc).astype(np.uint64))
-        words.append(sva_stream(desc[0], desc[1], left_f, plan.cfg.sva, plan.descriptor_bits))
+        words.append(sva_stream(desc[0], desc[1], left_f, plan.cfg.sva, plan.part_bits))
     data = _trace_data(plan, descs, words, traced.start)
     return _trace(plan, sink_stall, window, stop.time_fs, data)
 
@@ -557,7 +559,7 @@ def run_compiled(plan: ChipPlan, left, right=None, *, sink_stall=None,
         ta = time.process_time()
         desc = (compute_descriptor(left_f, plan.cfg.nna), compute_descriptor(right_f, plan.cfg.nna))
         tb = time.process_time()
-        last = sva_stream(desc[0], desc[1], left_f, plan.cfg.sva, plan.descriptor_bits)
+        last = sva_stream(desc[0], desc[1], left_f, plan.cfg.sva, plan.part_bits)
         nna_s += tb - ta
         sva_s += time.process_time() - tb
         if f in traced:

@@ -34,7 +34,7 @@ def walk_windows(net, final):
             state.error = ERR_RING
         while r < n_in:
             t = occ[slot, r & mask]
-            while y < n_out and occ[slot + 1, y & mask] < t:
+            while y < n_out and occ[wn.out_slot, y & mask] < t:
                 y += 1
             if y == n_out and n_out < out_total and not final:
                 break  # an output row not yet known may be done before t

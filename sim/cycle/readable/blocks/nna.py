@@ -51,7 +51,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from stereosim.nna.descriptor import compute_descriptor, network
+from stereosim.nna.descriptor import census_of, compute_descriptor, hybrid_word, network
 from stereosim.quant.intconv import int_layer_rows
 from stereosim.sim.config import NnaConfig
 from stereosim.sim.cycle.plan import STATUS_CODES, BlockPlan, ChipPlan
@@ -167,12 +167,16 @@ class MacArray:
     ``activity`` (cycles busy, starved, blocked, idle)."""
 
     def __init__(self, layer: LayerPlan, frames: int, cfg: NnaConfig, image_rows: int,
-                 last: bool):
+                 last: bool, census_source: LineBuffer | None = None, bits: int = 0):
         self.tile = layer.tile
         self.index, self.last = layer.index, last
         self.half, self.cycles = layer.half, layer.cycles
         self.cfg = cfg
-        self.net = network(cfg) if cfg.descriptor == "cnn" else None
+        self.net = network(cfg) if cfg.descriptor in ("cnn", "hybrid") else None
+        # the hybrid's last layer: layer 0's line buffer, whose rows its census unit reads,
+        # and the descriptor's bits
+        self.census_source = census_source
+        self.bits = bits
         self.image_rows = image_rows
         self.height, self.width = layer.tile.shape
         self.total = frames * self.height * self.width
@@ -209,7 +213,8 @@ class MacArray:
     def _outputs_of_row(self, buffer: LineBuffer, f: int, y: int) -> np.ndarray:
         """Outputs of image row y of frame f over the region's columns, from the received items
         (computed once per row): descriptors (W_l,) for the last layer, activations (C, W_l)
-        before it."""
+        before it. The hybrid's last layer adds the census of the row, from the input rows
+        layer 0's line buffer received (:meth:`_census_of_row`)."""
         if self._row_key != (f, y):
             t = self.tile
             lo, window = buffer.window(f, y)
@@ -217,9 +222,26 @@ class MacArray:
                 row = compute_descriptor(np.ascontiguousarray(window), self.cfg)[y - lo]
             else:
                 row = int_layer_rows(self.net, self.index, window, lo, y, y + 1)[..., 0, :]
-            self._row = row[..., t.x0 - t.in_x0:t.x1 - t.in_x0].copy()
+            row = row[..., t.x0 - t.in_x0:t.x1 - t.in_x0]
+            if self.census_source is not None:
+                row = hybrid_word(row, self._census_of_row(f, y), self.net.channels,
+                                  self.bits)
+            self._row = row.copy()
             self._row_key = (f, y)
         return self._row
+
+    def _census_of_row(self, f: int, y: int) -> np.ndarray:
+        """The census signatures of image row y of frame f over this region's columns, from
+        the input rows y - r_c .. y + r_c (clipped to the tile's input rows: the image's
+        borders replicate) that layer 0's line buffer received -- the census unit's rows
+        (both engines track them against their capacity, :mod:`sim.cycle.buffers`)."""
+        src, t = self.census_source, self.tile
+        t0 = src.tile
+        r_c = self.cfg.census.window[1] // 2
+        lo = max(t0.in_y0, y - r_c)
+        hi = min(t0.in_y1, y + r_c + 1)
+        rows = np.ascontiguousarray(src.values[f][lo:hi, t0.in_x0:t0.in_x1])
+        return census_of(rows, self.cfg)[y - lo, t.x0 - t0.in_x0:t.x1 - t0.in_x0]
 
     def evaluate(self, buffer: LineBuffer, room: bool, now_cycle: int):
         """One MAC cycle; ``room``: the finished output may leave now. Returns (status, output)
@@ -291,7 +313,10 @@ class NnaSubmodule(ChipBlock):
         (self.inp,), (self.out,) = inputs, outputs
         n = len(entry.layers)
         self.buffers = [LineBuffer(lay, plan.shape, self.frames) for lay in entry.layers]
-        self.macs = [MacArray(lay, self.frames, plan.cfg.nna, plan.shape[0], lay.index == n - 1)
+        hybrid = plan.hybrid
+        self.macs = [MacArray(lay, self.frames, plan.cfg.nna, plan.shape[0], lay.index == n - 1,
+                              self.buffers[0] if hybrid and lay.index == n - 1 else None,
+                              plan.descriptor_bits)
                      for lay in entry.layers]
         self.line_buffer, self.mac = self.buffers[0], self.macs[-1]
         self._popped = False

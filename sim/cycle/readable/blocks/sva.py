@@ -90,6 +90,7 @@ class SvaBlock(ChipBlock):
         self.offsets = stage_offsets(entry.stages)
         self.n = self.height * self.width
         self.bits = plan.descriptor_bits
+        self.parts = plan.part_bits
         # per frame in flight: the descriptors and pixels received, and the functional
         # streaming kernels over them
         self.data: dict[int, tuple] = {}
@@ -129,7 +130,7 @@ class SvaBlock(ChipBlock):
             shape = (self.height, self.width)
             d_l, d_r, img = np.zeros(shape, dtype), np.zeros(shape, dtype), np.zeros(shape,
                                                                                    np.uint8)
-            self.data[f] = (d_l, d_r, img, SvaStream(d_l, d_r, img, self.cfg, self.bits))
+            self.data[f] = (d_l, d_r, img, SvaStream(d_l, d_r, img, self.cfg, self.parts))
         return self.data[f]
 
     def _rows_complete(self, f: int) -> int:
