@@ -618,6 +618,12 @@ ELSEWHERE = {
                    "python benchmarks/robustness.py --seed 0 --write docs/ablation.md"),
     "spill-study": ("energy.md", "python benchmarks/descriptor_dram_study.py --write"),
     "hardware-study": ("hardware-study.md", "python benchmarks/hardware_study.py --write"),
+    "hybrid-tuning": ("hybrid.md", "python benchmarks/hybrid_tuning.py --jobs 2 --write "
+                      "docs/hybrid.md"),
+    "hybrid-curve": ("hybrid.md", "python benchmarks/hybrid_plot.py --write docs/hybrid.md"),
+    "hybrid-whatif": ("hybrid.md", "python benchmarks/hybrid_whatif.py --write"),
+    "hybrid-hardware": ("hardware-study.md", "python benchmarks/hybrid_whatif.py --write"),
+    "hybrid-accuracy": ("learned-descriptor.md", "python benchmarks/hybrid_whatif.py --write"),
     "shared-sva": ("streams.md", "python benchmarks/shared_sva.py --frames 60 --write"),
     "protocol-results": ("tuning.md", "python benchmarks/tuning_report.py --write docs/tuning.md"),
 }

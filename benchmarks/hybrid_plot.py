@@ -67,7 +67,8 @@ def main(argv=None) -> int:
     models = sorted(Path("benchmarks/models").glob("*.int8.npz"))
     for path in [Path("default")] + models:
         over = {"nna.descriptor": "cnn", "nna.cnn.weights": str(path)}
-        networks[path.name.removesuffix(".int8.npz")] = by_condition(
+        name = "single9x9" if path.name == "default" else path.name.removesuffix(".int8.npz")
+        networks[name] = by_condition(
             pure, scene_scores(pure, over))
     census = by_condition(pure, scene_scores(pure, {"nna.descriptor": "census"}))
     _NET[0] = ROBUST
@@ -100,7 +101,8 @@ def main(argv=None) -> int:
                label="census 11x3, alone")
     hx = [v["clean"] for v in hybrid.values()]
     hy = [v["noise 8"] for v in hybrid.values()]
-    ax.plot(hx, hy, "-o", color="tab:orange", label="hybrid, fixed weights [cnn, census]")
+    ax.scatter(hx, hy, color="tab:orange",
+               label="hybrid, fixed weights [cnn, census] (the preset's penalties)")
     for w, x, y in zip(hybrid, hx, hy, strict=True):
         ax.annotate(str(list(w)), (x, y), fontsize=7, xytext=(3, -9),
                     textcoords="offset points", color="tab:orange")

@@ -194,6 +194,9 @@ def main(argv=None) -> int:
     ap.add_argument("--jobs", type=int, default=1)
     ap.add_argument("--write", metavar="DOC", help="put the record into DOC between its markers")
     args = ap.parse_args(argv)
+    if args.write and args.weights != ROBUST:
+        raise UserError("--weights explores another network; the page holds the preset "
+                        "network's chain: drop --write")
     _NET[0] = args.weights
     t0 = time.perf_counter()
     scenes = prepared(tuning_root(args.data))

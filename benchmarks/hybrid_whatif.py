@@ -2,7 +2,7 @@
 alone and the hybrid, on one 720p chip, under the four conditions -- measured once, on the
 held-out sets, after every choice was made (benchmarks/hybrid_tuning.py).
 
-    python benchmarks/hybrid_whatif.py [--data DIR] [--write docs/hybrid.md ...]
+    python benchmarks/hybrid_whatif.py [--data DIR] [--write]
 
 Three configurations:
 
@@ -46,7 +46,10 @@ PRESETS = {"cnn": [CONFIGS / "robust-720p.toml"],
            "census": [CONFIGS / "robust-720p.toml", CONFIGS / "census-baseline.toml"],
            "hybrid": [CONFIGS / "hybrid-720p.toml"]}
 CONDITIONS = ("clean", "noise 8", "exposure", "blur")
-BEGIN, END = "<!-- hybrid-whatif:begin -->", "<!-- hybrid-whatif:end -->"
+#: the pages the tables go into (``--write``), each between markers of its own block name
+PAGES = {"hybrid-whatif": "docs/hybrid.md", "hybrid-hardware": "docs/hardware-study.md",
+         "hybrid-accuracy": "docs/learned-descriptor.md"}
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def hardware(cfg) -> dict:
@@ -55,7 +58,8 @@ def hardware(cfg) -> dict:
     parts = " + ".join(f"{b} {k}" for k, b in descriptor_parts(cfg.nna))
     return {"parts": parts, "macs": macs_per_descriptor(cfg.nna),
             "bound": thr["fps_bound"], "delivered": thr.get("fps_delivered", thr["fps_bound"]),
-            "sram": sram, "uj": est["energy"]["per_frame_uj"], "mw": est["energy"]["power_mw"]}
+            "sram": sram, "uj": est["energy"]["per_frame_uj"]["total"],
+            "mw": est["energy"]["power_mw"]}
 
 
 def accuracy(root: Path, cfgs: dict, seed: int = 0) -> dict:
@@ -88,8 +92,9 @@ def cfg_for(paths: list, over: dict):
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", help="the shared data folder (default: ../shared/data)")
-    ap.add_argument("--write", metavar="DOC", action="append", default=[],
-                    help="put the tables into DOC between its markers (repeatable)")
+    ap.add_argument("--write", action="store_true",
+                    help="put the tables into docs/hybrid.md, hardware-study.md and "
+                    "learned-descriptor.md, each between its markers")
     args = ap.parse_args(argv)
     root = Path(args.data) if args.data else shared_data_dir()
     if root is None or not (root / SETS[0][1]).is_dir():
@@ -119,11 +124,13 @@ def main(argv=None) -> int:
                 cells.append(f"**{cell}**" if v["totbad"] == best else cell)
             lines.append(f"| {c} | " + " | ".join(cells) + " |")
         lines.append("")
-    lines.append("(`python benchmarks/hybrid_whatif.py --write docs/hybrid.md --write "
-                 "docs/hardware-study.md --write docs/learned-descriptor.md`, "
+    lines.append(f"(`python benchmarks/hybrid_whatif.py --write`, "
                  f"{time.perf_counter() - t0:.0f} s; bold: the lowest totbad of the row.)")
     print("\n".join(lines))
-    return max([write_between(Path(doc), BEGIN, END, lines) for doc in args.write] or [0])
+    if not args.write:
+        return 0
+    return max(write_between(ROOT / doc, f"<!-- {name}:begin -->", f"<!-- {name}:end -->", lines)
+               for name, doc in PAGES.items())
 
 
 if __name__ == "__main__":

@@ -66,15 +66,17 @@ def census_rows(cfg: NnaConfig) -> int:
     The census of output row y is taken when the last layer emits y, from input rows
     y - r_c .. y + r_c (r_c the census's half height). By the room rules
     (:func:`~sim.cycle.rules.nna_rows_started_before_input`) layer l takes input row r only
-    while r <= y_l - h_l + rows_l - 1 (y_l its next output row), and its input rows are layer
-    l - 1's output rows, so the newest input row is at most y + sum_l (rows_l - h_l - 1) +
-    L - 1 rows below the last layer's next output row y; the census rows span from y - r_c:
-    sum_l (rows_l - h_l) + r_c rows (:func:`layer_rows`). Both engines track the window
-    against this capacity (:mod:`sim.cycle.buffers`)."""
+    while its window -- from max(the frame's first row, y_l - h_l), y_l its next output row --
+    and r fit in its rows_l rows, so r <= y_l + rows_l - 1 (at a frame's first rows the window
+    is clamped to the frame, so the h_l rows above y_l are not held and do not count); its
+    input rows are layer l - 1's output rows, so the newest input row is at most
+    y + sum_l rows_l - 1 rows below the last layer's next output row y, and the census rows
+    span from y - r_c: sum_l rows_l + r_c rows (:func:`layer_rows`). Both engines track the
+    window against this capacity (:mod:`sim.cycle.buffers`), which the first frames of a
+    stream can reach."""
     if cfg.descriptor != "hybrid" or len(layer_halves(cfg)) == 1:
         return 0
-    return (sum(r - h for r, h in zip(layer_rows(cfg), layer_halves(cfg), strict=True))
-            + cfg.census.window[1] // 2)
+    return sum(layer_rows(cfg)) + cfg.census.window[1] // 2
 
 
 def window_rows(cfg: NnaConfig) -> int:

@@ -191,14 +191,39 @@ def noise_buffers(cfg: ChipConfig, width: int) -> list[BufferPlan]:
     ]
 
 
+def hamming_stage(cfg: ChipConfig, width: int, parts: tuple[int, ...]) -> StagePlan:
+    """The SVA's first stage for frames ``width`` pixels wide and descriptors of ``parts``:
+    the descriptor rows it reads (both views, k + 1 rows each), the right window, the hybrid's
+    noise unit with automatic weights, its II and its latency (the module docstring)."""
+    s = cfg.sva
+    d, v, g, ports = s.disparities, s.compare_levels, lane_groups(cfg), s.sram_ports
+    lanes = min(s.lanes, d)
+    bits, levels = sum(parts), hamming_levels(parts)
+    rows_buf = BufferPlan("sva.descriptor_rows", 2 * (s.box_size + 1) * width * bits,
+                          "both views' descriptor rows the box filter slides over (k + 1 "
+                          "each; a bank per view: the arriving row written, the leaving read)",
+                          rows=s.box_size + 1, reads=1, writes=1, ports=ports, banks=2,
+                          word_bits=bits, pixel_reads=2, pixel_writes=2)
+    ii = max(g, rows_buf.port_cycles)
+    bufs = [rows_buf, BufferPlan("sva.right_window", d * bits,
+                                 "the right descriptors x - D + 1 .. x (registers)")]
+    if len(parts) > 1 and s.weight_mode == "auto":
+        bufs += noise_buffers(cfg, width)
+    tree = (f"lg({bits})" if len(parts) == 1 else
+            f"lg(max({parts[0]}, {parts[1]})) + 2: two popcounts, weighted, added")
+    return StagePlan(
+        "hamming", ii, g + tree_cycles(levels, v),
+        f"II = max(G = ceil({d}/{lanes}) = {g}, descriptor rows' ports {ports}: "
+        f"{rows_buf.port_cycles}) = {ii}; latency = G + tree({tree}) = {g} + "
+        f"{tree_cycles(levels, v)}", tuple(bufs))
+
+
 def sva_stages(cfg: ChipConfig, width: int, parts: tuple[int, ...], word_bits: int,
                cost_max: int) -> tuple[StagePlan, ...]:
     """The SVA's stages for frames ``width`` pixels wide, descriptors of ``parts`` (each
     part's bits), a largest matching cost of ``cost_max`` (:func:`~sim.config.widths.
     largest_cost`) and ``word_bits``-bit output words, in stream order (see the module
     docstring)."""
-    bits = sum(parts)
-    levels = hamming_levels(parts)
     s = cfg.sva
     d = s.disparities
     v = s.compare_levels
@@ -206,11 +231,6 @@ def sva_stages(cfg: ChipConfig, width: int, parts: tuple[int, ...], word_bits: i
     lanes = min(s.lanes, d)
     d_bits = disparity_bits(s)
     ports = s.sram_ports
-    rows_buf = BufferPlan("sva.descriptor_rows", 2 * (s.box_size + 1) * width * bits,
-                          "both views' descriptor rows the box filter slides over (k + 1 "
-                          "each; a bank per view: the arriving row written, the leaving read)",
-                          rows=s.box_size + 1, reads=1, writes=1, ports=ports, banks=2,
-                          word_bits=bits, pixel_reads=2, pixel_writes=2)
     sums_buf = BufferPlan("sva.column_sums", width * d * bits_for(s.box_size * cost_max),
                           "the vertical box sums, W x D (a lane group read and written per "
                           "group)", reads=g, writes=g, ports=ports,
@@ -224,22 +244,9 @@ def sva_stages(cfg: ChipConfig, width: int, parts: tuple[int, ...], word_bits: i
                          reads=g * top, writes=g * top, ports=ports if top else "",
                          banks=max(1, s.paths - 1), word_bits=lanes * s.path_bits,
                          pixel_reads=g * (s.paths - 1), pixel_writes=g * (s.paths - 1))
-    ham_ii = max(g, rows_buf.port_cycles)
-    ham_bufs = [rows_buf, BufferPlan("sva.right_window", d * bits,
-                                     "the right descriptors x - D + 1 .. x (registers)")]
-    if len(parts) > 1 and s.weight_mode == "auto":
-        ham_bufs += noise_buffers(cfg, width)
     box_ii = max(g, sums_buf.port_cycles)
     stages = [
-        StagePlan(
-            "hamming", ham_ii, g + tree_cycles(levels, v),
-            f"II = max(G = ceil({d}/{lanes}) = {g}, descriptor rows' ports {ports}: "
-            f"{rows_buf.port_cycles}) = {ham_ii}; latency = G + tree("
-            + (f"lg({bits})" if len(parts) == 1 else
-               f"lg(max({parts[0]}, {parts[1]})) + 2: two popcounts, weighted, added")
-            + f") = {g} + {tree_cycles(levels, v)}",
-            tuple(ham_bufs),
-        ),
+        hamming_stage(cfg, width, parts),
         StagePlan(
             "box_filter", box_ii, g + 2,
             f"II = max(G = {g}, column sums' ports {ports}: {sums_buf.port_cycles}) = "

@@ -71,3 +71,38 @@ def test_cross_validating_weights_on_a_held_out_set_is_refused(tmp_path):
     assert done.returncode == 2 and done.stdout == ""
     assert done.stderr.strip() == (f"descriptor_cv: {folder} is a held-out test set: tune on "
                                    "the shared data folder (its 2005/2006 scenes)")
+
+
+@pytest.mark.parametrize("held_out", ["middlebury2014_trainingQ", "middlebury2003_quarter"])
+def test_the_hybrid_is_never_tuned_on_a_held_out_set(tmp_path, held_out):
+    folder = tmp_path / "data" / held_out
+    folder.mkdir(parents=True)
+    done = subprocess.run([sys.executable, str(SCRIPT.with_name("hybrid_tuning.py")), "--data",
+                           str(folder)], capture_output=True, text=True, timeout=120,
+                          check=False)
+    assert done.returncode == 2 and done.stdout == ""
+    assert done.stderr.strip().startswith(f"hybrid_tuning: {folder} is a held-out test set")
+
+
+def test_the_hybrid_tunings_scorer_is_the_functional_model(monkeypatch):
+    """benchmarks/hybrid_tuning.py scores a point on descriptors it computed once; the metrics
+    are stereosim.run's on the same pair and configuration."""
+    import numpy as np
+
+    monkeypatch.syspath_prepend(str(SCRIPT.parent))
+    import hybrid_tuning
+
+    from stereosim.sim.api import run
+
+    rng = np.random.default_rng(3)
+    left = rng.integers(0, 256, (30, 90), dtype=np.uint8)
+    right = np.roll(left, -5, axis=1)
+    gt = np.full((30, 90), 5.0, np.float32)
+    masks = {"nonocc": np.ones((30, 90), bool)}
+    data = {"gl": left, "gr": right, "gt": gt, "masks": masks}
+    point = {**hybrid_tuning.START, "sva.weight_mode": "auto", "sva.noisy_weights": "[1,0]"}
+    got = hybrid_tuning.hybrid_scores([("synthetic", data, 32)], point)[0]
+    cfg = hybrid_tuning._config(point, 32)
+    want = run(left, right, mode="functional", config=cfg, gt=gt,
+               masks=masks).report["metrics"]["nonocc"]
+    assert np.allclose(got, [want[k] for k in hybrid_tuning.KEYS], equal_nan=True)

@@ -35,7 +35,8 @@ def _scene(root):
 def sample(tmp_path_factory, lent_toml):
     """Rows of every kind a sweep writes -- cycle (column tiles; a camera; a camera behind
     frame buffers and the DRAM channel; a lent network beside the DRAM channel), functional
-    with GT (and the hybrid descriptor's, with automatic weights), estimate (tiles, a camera; a lent network without a channel) -- as results.csv
+    with GT (and the hybrid descriptor's, with automatic weights), estimate (tiles, a camera;
+    a lent network without a channel) -- as results.csv
     and its guide."""
     tmp = tmp_path_factory.mktemp("columns")
     scene = str(_scene(tmp / "scene"))

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from stereosim.nna.descriptor import compute_descriptor, descriptor_parts
-from stereosim.nna.geometry import census_rows, layer_halves, layer_rows
+from stereosim.nna.geometry import census_rows, layer_rows
 from stereosim.sim.api import run, run_stream
 from stereosim.sim.config import load_config
 from stereosim.sim.cycle.plan import build_plan
@@ -86,7 +86,8 @@ def test_the_descriptor_word_is_the_cnn_bits_below_the_census_bits():
 def test_the_plan_follows_the_wider_words_and_the_weighted_cost():
     plan = build_plan(load_config(overrides={**HYBRID, "sva.weight_mode": "auto"}), (40, 80))
     one = build_plan(load_config(overrides={"sva.disparities": 16}), (40, 80))
-    assert plan.descriptor_bits == 64 and plan.cost_max == 3 * 32 + 32 == 128
+    w_cnn, w_census = plan.cfg.sva.cost_weights
+    assert plan.descriptor_bits == 64 and plan.cost_max == 32 * (w_cnn + w_census)
     assert plan.beat_bits == 64 + 8 and plan.fifo("nna_left_to_sva").width_bits == 72
     rows = next(b for b in plan.block("sva").buffers if b.name == "sva.descriptor_rows")
     assert rows.bits == 2 * 8 * 80 * 64  # k + 1 rows of each view, 64 bits a descriptor
@@ -95,7 +96,7 @@ def test_the_plan_follows_the_wider_words_and_the_weighted_cost():
     assert hamming_levels((32, 32)) == lg(32) + 2
     assert ham.latency == 1 + tree_cycles(lg(32) + 2, v)
     assert one.block("sva").stages[0].latency == 1 + tree_cycles(lg(32), v)
-    assert plan.cfg.sva.cost_bits == (49 * 128).bit_length()  # box 7 of costs up to 128
+    assert plan.cfg.sva.cost_bits == (49 * plan.cost_max).bit_length()  # a 7x7 box of them
     names = [b.name for b in plan.block("sva").buffers]
     assert "sva.noise_rows" in names and "sva.noise_registers" in names
     assert "census_unit" in [st.name for st in plan.block("nna_left").stages]
@@ -105,7 +106,7 @@ def test_census_rows_beside_a_network_of_several_layers():
     cfg = load_config(overrides={**HYBRID, "nna.cnn.weights": ROBUST})
     plan = build_plan(cfg, (40, 80))
     buf = next(b for b in plan.block("nna_left").buffers if b.name == "nna.census_rows")
-    want = sum(r - h for r, h in zip(layer_rows(cfg.nna), layer_halves(cfg.nna), strict=True)) + 1
+    want = sum(layer_rows(cfg.nna)) + 1  # every layer's rows and the census's half height
     assert buf.rows == census_rows(cfg.nna) == want
     assert buf.bits == want * 80 * 8
     # one layer: the census reads layer 0's line buffer, no rows of its own
