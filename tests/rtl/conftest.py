@@ -42,20 +42,38 @@ def rtl_run(tmp_path_factory):
     runner = get_runner("verilator")
     built = set()
 
-    def run(source: str, top: str, parameters: dict, test_module: str, case: dict) -> None:
-        key = hashlib.sha256(json.dumps([source, top, parameters], sort_keys=True)
+    runs = [0]
+
+    def run(source, top: str, parameters: dict, test_module: str, case: dict,
+            fails: bool = False) -> str:
+        """``source``: a path relative to the repository, or the text of a mutant. Returns
+        the cocotb results (XML); with ``fails`` the run must fail."""
+        text = (RTL / source).read_text() if isinstance(source, str) else source[0]
+        key = hashlib.sha256(json.dumps([text, top, parameters], sort_keys=True)
                              .encode()).hexdigest()[:12]
         build = root / f"{top}-{key}"
         if key not in built:
-            runner.build(sources=[RTL / source], hdl_toplevel=top, parameters=parameters,
-                         build_dir=build, always=True, build_args=["-Wno-fatal"])
+            build.mkdir(parents=True, exist_ok=True)
+            (build / f"{top}.sv").write_text(text)
+            runner.build(sources=[build / f"{top}.sv"], hdl_toplevel=top,
+                         parameters=parameters, build_dir=build, always=True,
+                         build_args=["-Wno-fatal"])
             built.add(key)
-        results = runner.test(hdl_toplevel=top, test_module=test_module, build_dir=build,
-                              test_dir=Path(__file__).parent,
-                              extra_env={"STEREOSIM_RTL_CASE": json.dumps(case)},
-                              results_xml=str(build / f"results-{len(built)}.xml"))
+        runs[0] += 1
+        xml = build / f"results-{runs[0]}.xml"
+        try:
+            runner.test(hdl_toplevel=top, test_module=test_module, build_dir=build,
+                        test_dir=Path(__file__).parent,
+                        extra_env={"STEREOSIM_RTL_CASE": json.dumps(case)},
+                        results_xml=str(xml))
+        except SystemExit:  # cocotb's runner exits when a test failed
+            pass
         from cocotb_tools.runner import get_results
-        total, failed = get_results(results)
-        assert failed == 0 and total > 0, f"{failed} of {total} cocotb tests failed ({build})"
+        total, failed = get_results(xml)
+        if fails:
+            assert failed > 0, f"the run should have failed ({build})"
+        else:
+            assert failed == 0 and total > 0, f"{failed} of {total} cocotb tests failed ({build})"
+        return xml.read_text()
 
     return run

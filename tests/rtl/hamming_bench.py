@@ -7,6 +7,7 @@ the stage must take a pixel every II cycles when offered one -- the plan's II an
 (sim.cycle.stages.hamming_stage), read from the plan, not from the RTL's parameters.
 """
 
+import dataclasses
 import json
 import os
 
@@ -45,6 +46,8 @@ async def one_run(dut, p: dict) -> None:
     cfg = load_config(overrides=p["overrides"])
     parts = tuple(p["parts"])
     stage = hamming_stage(cfg, 64, parts)
+    if p.get("rule_mutant"):  # the rule one cycle late: the RTL must catch it by name
+        stage = dataclasses.replace(stage, latency=stage.latency + 1)
     d, width = cfg.sva.disparities, sum(parts)
     rng = np.random.default_rng(p["seed"])
     dut.rst.value = 1
