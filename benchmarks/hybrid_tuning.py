@@ -159,13 +159,18 @@ def noise_threshold(scenes: list, point: dict) -> tuple[int, list[str]]:
     return threshold, lines
 
 
+def label(key: str) -> str:
+    """A grid key as the record names it: its last part; a joint key's parts joined by /."""
+    return "/".join(k.split(".", 2)[-1] for k in key.split("|"))
+
+
 def study_lines(n: int, what: str, grid: dict, study, top: int = 4) -> list[str]:
     lines = [f"**{n}. {what}** ({len(study.points)} points, {study.seconds:.0f} s); criterion "
              "(2 bad2 + invalid, mean of the four conditions) / bad2 / invalid / totbad:", ""]
     for i in study.order()[:top]:
         m = study.mean(i)
         mark = " **chosen**" if i == study.chosen else ""
-        shown = ", ".join(f"{k.rpartition('.')[2]} {study.points[i][k]}" for k in grid)
+        shown = ", ".join(f"{label(k)} {study.points[i][k]}" for k in grid)
         lines.append(f"- {shown}: {criterion(m):.3f} / {m['bad2']:.3f} / {m['invalid']:.3f} / "
                      f"{m['totbad']:.3f}{mark}")
     picks = sum(1 for _, p in study.cv_picks if p == study.chosen)
@@ -238,7 +243,8 @@ def main(argv=None) -> int:
     lines += [f"automatic {best_auto:.3f} against fixed {best_fixed:.3f}: the preset uses "
               f"**{'auto' if use is final else 'fixed'}**, per condition totbad (bad2): "
               f"{per_condition(scenes, use)}", "",
-              "The choice: " + ", ".join(f"`{k} = {v}`" for k, v in sorted(use.items())), "",
+              "The choice: " + ", ".join(f"`{label(k)} = {v}`" for k, v in sorted(use.items())),
+              "",
               f"(`python benchmarks/hybrid_tuning.py --jobs {args.jobs}`, "
               f"{time.perf_counter() - t0:.0f} s.)"]
     print("\n".join(lines))
