@@ -415,25 +415,31 @@ class Stream:
         plan = self._plan
         pairs = plan.pairs
         bits = plan.cfg.sva.subpixel_bits
-        shown = (-1, None, None)  # the input frame last computed, its words and metrics
+        # the input frame last computed, its words, metrics and (the hybrid) cost
+        shown = (-1, None, None, None)
         scored = []
         for f in self._taken():
             i = f // pairs
+            new = shown[0] != i
+            # the pair is read once: for its words (functional) and the hybrid's weights
+            pair = (self._supply.pair(i) if new and (self._words is None or plan.hybrid)
+                    else None)
             if self._words is not None:
                 fixed = self._words.pop(f)
-            elif shown[0] == i:
+            elif not new:
                 fixed = shown[1]
             else:
-                fixed = functional_words(plan.cfg, plan.part_bits, *self._supply.pair(i))
+                fixed = functional_words(plan.cfg, plan.part_bits, *pair)
             disparity = to_float(fixed, bits)
             metrics = None
             if self._truth is not None:  # pairs showing one input frame share its words
-                metrics = shown[2] if shown[0] == i else evaluate(disparity, *self._truth)
+                metrics = evaluate(disparity, *self._truth) if new else shown[2]
                 scored.append({"frame": f, "metrics": metrics})
-            shown = (i, fixed, metrics)
+            cost = None
             if plan.hybrid:  # the weights each frame was matched with
-                self.report["descriptor"].setdefault("frames", []).append(
-                    {"frame": f, **frame_cost_report(plan, self._supply.pair(i)[0])})
+                cost = frame_cost_report(plan, pair[0]) if new else shown[3]
+                self.report["descriptor"].setdefault("frames", []).append({"frame": f, **cost})
+            shown = (i, fixed, metrics, cost)
             yield FrameOutput(f, disparity, fixed, f % pairs, i, metrics)
         if self._truth is not None:
             self._score(scored)

@@ -48,10 +48,6 @@ class CostParts(NamedTuple):
             return self.weights[0] * self.bits[0]
         return largest_cost(self.bits, (self.weights,))
 
-    @property
-    def total_bits(self) -> int:
-        return sum(self.bits)
-
     def kernel_args(self, dtype) -> tuple:
         """(mask of part 0, shift of part 1, w_0, w_1, B, two parts?) for the numba kernels
         (descriptor words of ``dtype``)."""
