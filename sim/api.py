@@ -503,9 +503,10 @@ def run_stream(pairs, *, mode: str = "cycle", config: ChipConfig | str | None = 
     latency beside the work bound; the frames' words then come one by one as the returned
     :class:`Stream` is iterated. ``mode="functional"``: the words alone. ``gt`` and ``masks``
     (as :func:`run` takes them) score every frame -- the ground truth of a pair repeated, or of
-    a scene that does not move. ``sink_stall``: a periodic pattern ``(period, allowed_phase)``
-    for the sink. Mistakes raise a :class:`sim.errors.UserError` before any kernel runs (a
-    frame of another size, when it is read). A stream that stops early raises
+    a scene that does not move. ``sink_stall``: the sink's pattern -- periodic ``(period,
+    allowed_phase)`` or a script of 0/1 (:func:`~sim.cycle.rules.sink_pattern`). Mistakes
+    raise a :class:`sim.errors.UserError` before any kernel runs (a frame of another size,
+    when it is read). A stream that stops early raises
     :class:`~sim.cycle.contract.RunStopped` as :func:`run` does (its ``report`` adds ``frames``;
     its ``plan`` and ``supply`` let :func:`sim.tracing.run_traced` trace it up to the stop).
     ``progress(frames)``: how many frames the compiled engine's timing pass has finished, said

@@ -16,6 +16,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
 from numba.extending import register_jitable
 
 from stereosim.sim.errors import ConfigError
@@ -325,29 +326,67 @@ def sva_cycle_of_tick(tick, last_push, last_exit):
     return last_push + tick - last_exit
 
 
-@register_jitable
-def sink_may_pop(cycle, stall_period, stall_phase):
-    """A sink with the periodic stall pattern (period, phase) pops only in cycles with
-    ``cycle % period == phase``; period 0: in every cycle."""
-    return stall_period == 0 or cycle % stall_period == stall_phase
+def sink_pattern(sink_stall) -> np.ndarray:
+    """The sink's pattern as both engines read it: int64 ``[P, i_0, i_1, ...]``, a period of P
+    cycles repeated from cycle 0 and, ascending, the cycles of a period in which the sink may
+    pop. ``sink_stall``: None (every cycle), a periodic pattern ``(period, allowed_phase)``
+    (only cycles with c % period == phase; period 0: every cycle), or a script -- a 1-D
+    sequence of 0/1 (or bool) of length P >= 1 with at least one 1: the sink may pop in cycle
+    c iff ``script[c % P]`` (as long as the run: any back-pressure at all; random 0/1: random
+    back-pressure). Raises ValueError for anything else."""
+    if sink_stall is None:
+        return np.array([1, 0], np.int64)
+    if isinstance(sink_stall, tuple) and len(sink_stall) == 2:
+        period, phase = (int(v) for v in sink_stall)
+        if period == 0:
+            return np.array([1, 0], np.int64)
+        if period < 0 or not 0 <= phase < period:
+            raise ValueError(f"sink stall (period, phase) needs period >= 0 and 0 <= phase < "
+                             f"period; got {sink_stall!r}")
+        return np.array([period, phase], np.int64)
+    script = np.asarray(sink_stall)
+    if script.ndim != 1 or script.size == 0 or not np.isin(script, (0, 1)).all():
+        raise ValueError("a sink script must be a non-empty 1-D sequence of 0/1 (1: the sink "
+                         "may pop in that cycle)")
+    if not script.any():
+        raise ValueError("a sink script must allow at least one cycle (a 1 somewhere)")
+    return np.concatenate(([script.size], np.flatnonzero(script))).astype(np.int64)
 
 
 @register_jitable
-def sink_allowed_between(lo, hi, stall_period, stall_phase):
+def sink_may_pop(cycle, pattern):
+    """Whether the sink may pop in ``cycle`` (its :func:`sink_pattern`)."""
+    i = cycle % pattern[0]
+    k = np.searchsorted(pattern[1:], i)
+    return k < len(pattern) - 1 and pattern[1 + k] == i
+
+
+@register_jitable
+def sink_allowed_before(cycle, pattern):
+    """Cycles in [0, ``cycle``) in which the sink may pop: whole periods, then those of the
+    last period before ``cycle % P``."""
+    p = pattern[0]
+    return (cycle // p) * (len(pattern) - 1) + np.searchsorted(pattern[1:], cycle % p)
+
+
+@register_jitable
+def sink_allowed_between(lo, hi, pattern):
     """Cycles in [lo, hi) in which the sink may pop."""
     if hi <= lo:
         return 0
-    if stall_period == 0:
-        return hi - lo
-    return (hi - 1 - stall_phase) // stall_period - (lo - 1 - stall_phase) // stall_period
+    return sink_allowed_before(hi, pattern) - sink_allowed_before(lo, pattern)
 
 
 @register_jitable
-def sink_next_allowed(cycle, stall_period, stall_phase):
-    """The first cycle >= ``cycle`` in which the sink may pop."""
-    if stall_period == 0:
-        return cycle
-    return cycle + (stall_phase - cycle) % stall_period
+def sink_next_allowed(cycle, pattern):
+    """The first cycle >= ``cycle`` in which the sink may pop: the period's first allowed
+    cycle at or after ``cycle % P``, else the next period's first."""
+    p = pattern[0]
+    i = cycle % p
+    k = np.searchsorted(pattern[1:], i)
+    if k < len(pattern) - 1:
+        return cycle - i + pattern[1 + k]
+    return cycle - i + p + pattern[1]
 
 
 def check_int(what: str, value, lo: int, fix: str) -> int:

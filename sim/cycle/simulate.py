@@ -46,7 +46,7 @@ def _needs_readable(plan: ChipPlan, sink_stall, order_seed) -> str | None:
         return "a shuffled evaluation order (order_seed) runs on the readable kernel"
     if callable(sink_stall):
         return ("a sink stall given as a function runs on the readable kernel (the compiled "
-                "engine takes a periodic pattern (period, allowed_phase))")
+                "engine takes a periodic pattern (period, allowed_phase) or a script of 0/1)")
     return None
 
 
@@ -88,8 +88,9 @@ def simulate(plan: ChipPlan, left, right=None, *, sink_stall=None,
     W) stacks, or a :class:`~sim.cycle.frames.FrameSupply` as ``left``): the last frame's
     words, cycle report (with ``engine``), statistics, row and frame instants and, with
     ``window`` = (start_fs, end_fs), the trace of that window; ``on_frame(f, words)`` receives
-    every frame's words in order. ``sink_stall``: ``(period, allowed_phase)`` (or, readable
-    kernel only, a function of the cycle that returns True when the sink refuses to pop).
+    every frame's words in order. ``sink_stall``: ``(period, allowed_phase)`` or a script of 0/1
+    (:func:`~sim.cycle.rules.sink_pattern`; or, readable kernel only, a function of the cycle
+    that returns True when the sink refuses to pop).
     ``words=False``: the compiled engine computes no words (``words`` is None; the readable
     kernel moves them anyway). ``progress(frames)``: the compiled engine says now and then how
     many frames the sink has taken (the readable kernel draws its own bar)."""

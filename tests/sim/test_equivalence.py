@@ -36,9 +36,9 @@ def configurations(draw):
     given or split; or the hybrid of such a network and a census within its reach, with
     random weights, fixed or automatic), every FIFO depth (1 included), latency and synchroniser,
     clocks, memory or camera sources with blanking, frames split over two or three submodules
-    per camera (column tiles or row bands), periodic sink stalls and watchdogs that fire,
-    streams of one to three frames, camera pairs sharing the chip, reads and write-back through
-    the DRAM channel; and a trace window (which may span frames)."""
+    per camera (column tiles or row bands), periodic and scripted (random) sink stalls and
+    watchdogs that fire, streams of one to three frames, camera pairs sharing the chip, reads
+    and write-back through the DRAM channel; and a trace window (which may span frames)."""
     d = draw(st.sampled_from([16, 16, 32]))
     h = draw(st.integers(2, 9))
     w = draw(st.integers(d + 1, d + 20))
@@ -127,10 +127,15 @@ def configurations(draw):
         if over["dram.gbps"] < 1:  # a spill on a slow channel: long runs for the readable
             over["dram.spill"] = "none"
     stall = None
-    kind = draw(st.sampled_from(["none", "none", "periodic", "periodic", "never"]))
+    kind = draw(st.sampled_from(["none", "none", "periodic", "periodic", "never", "script"]))
     if kind == "periodic":  # short periods fill the sink's FIFO; long ones stall the SVA long
         period = draw(st.sampled_from([2, 3, 4, 7, 12]))
         stall = (period, draw(st.integers(0, period - 1)))
+    elif kind == "script":  # random back-pressure: a random 0/1 script, repeated
+        rng = np.random.default_rng(draw(st.integers(0, 999)))
+        script = rng.random(draw(st.integers(1, 400))) < draw(st.sampled_from([0.2, 0.5, 0.9]))
+        script[rng.integers(script.size)] = True
+        stall = script
     elif kind == "never":
         stall = NEVER
     if kind == "never" or draw(st.integers(0, 9)) == 0:
@@ -223,6 +228,9 @@ for _k in range(SHARDS):
         ((40, 150), {"nna.descriptor": "cnn", "sva.disparities": 64}, None),
         ((33, 140), {"nna.descriptor": "census", "sva.disparities": 48,
                      "fifo.nna_to_sva_depth": 3, "sva.lanes": 24}, (3, 1)),
+        ((33, 140), {"nna.descriptor": "census", "sva.disparities": 48,
+                     "fifo.sva_to_sink_depth": 2, "sva.lanes": 24},
+         np.random.default_rng(5).random(1009) < 0.4),
         ((30, 120), {"nna.descriptor": "cnn", "sva.disparities": 32, "source.kind": "camera",
                      "clocks.camera_mhz": 30, "fifo.sva_to_sink_depth": 2}, None),
         ((30, 120), {"nna.descriptor": "cnn", "sva.disparities": 32,

@@ -43,6 +43,7 @@ import numpy as np
 
 from stereosim.sim.cycle.buffers import tracked
 from stereosim.sim.cycle.plan import MAX_RUN_FS, ChipPlan
+from stereosim.sim.cycle.rules import sink_pattern
 from stereosim.sim.cycle.stages import stage_offsets
 
 #: "never" (an event not computed, a stop that does not come): above every instant a run
@@ -74,7 +75,7 @@ CONSTANTS = np.dtype([
     ("merge", np.int64), ("camera", np.int64), ("line_clocks", np.int64),
     ("mem_hz", np.int64), ("mem_bps", np.int64), ("half", np.int64), ("rows", np.int64),
     ("cpd", np.int64), ("lookahead", np.int64), ("pipe_latency", np.int64), ("cpp", np.int64),
-    ("latency", np.int64), ("stall_period", np.int64), ("stall_phase", np.int64),
+    ("latency", np.int64),
     ("per_src", np.int64), ("per_nna", np.int64), ("per_sva", np.int64), ("p_max", np.int64),
     ("cap_fs", np.int64),  # events at instants >= cap_fs are not computed
     ("watchdog_fs", np.int64), ("stats", np.int64),  # 1: accumulate statistics and gaps
@@ -250,6 +251,8 @@ class Net(NamedTuple):
     # (side-major) then the SVA's
     fbuf: np.ndarray  # int64 (2, frames): with frame buffers, per camera frame whether it was
     # dropped ([0]: 1) and per frame taken the instant (fs) the reader finished it ([1])
+    sink: np.ndarray  # int64: the sink's pattern, [P, the allowed cycles of a period]
+    # (sim.cycle.rules.sink_pattern)
 
 
 class TraceData(NamedTuple):
@@ -437,7 +440,7 @@ def _blocks(plan: ChipPlan, names: dict, fifo_index: dict) -> np.ndarray:
     return blocks
 
 
-def _constants(plan: ChipPlan, sides: int, sink_stall, cap_fs: int, stats: bool) -> np.ndarray:
+def _constants(plan: ChipPlan, sides: int, cap_fs: int, stats: bool) -> np.ndarray:
     """The :data:`CONSTANTS` record of the run."""
     cfg, doms = plan.cfg, plan.domains
     h, w = plan.shape
@@ -459,8 +462,6 @@ def _constants(plan: ChipPlan, sides: int, sink_stall, cap_fs: int, stats: bool)
     sva = plan.block("sva")
     p["lookahead"], p["pipe_latency"], p["cpp"] = sva.lookahead, sva.latency, sva.cycles
     p["latency"] = cfg.fifo.latency_cycles
-    period, phase = (0, 0) if sink_stall is None else sink_stall
-    p["stall_period"], p["stall_phase"] = period, phase
     p["per_src"] = doms[plan.source_domain].period_fs
     p["per_nna"], p["per_sva"] = doms["nna"].period_fs, doms["sva"].period_fs
     p["p_max"] = plan.p_max_fs
@@ -554,7 +555,7 @@ def serialise(plan: ChipPlan, *, sink_stall=None, cap_fs: int = INF, stats: bool
     for i, (st, off) in enumerate(zip(sva.stages, stage_offsets(sva.stages))):
         stages[i] = (off, st.latency, st.slots, 0, 0, 0, -1)
     net = Net(
-        prm=_constants(plan, sides, sink_stall, cap_fs, stats), state=state, ids=ids,
+        prm=_constants(plan, sides, cap_fs, stats), state=state, ids=ids,
         streams=streams, ring=ring, tiles=tiles, layers=layers, fifos=_fifos(plan, names, ids[0]),
         blocks=_blocks(plan, names, fifo_index), acc=acc, walks=walks,
         hist=np.zeros(hoff, np.int64),
@@ -562,5 +563,5 @@ def serialise(plan: ChipPlan, *, sink_stall=None, cap_fs: int = INF, stats: bool
         occ=np.full((2 * len(layers) + 2, _row_ring(plan, cap)), -1, np.int64),
         scratch=np.zeros(plan.parts, TABLE), cursors=np.zeros(len(specs), np.int64),
         stages=stages, frame_fs=frame_fs, win=_windows(plan, layers, ids[0], sides),
-        fbuf=np.full((2, nf), -1, np.int64))
+        fbuf=np.full((2, nf), -1, np.int64), sink=sink_pattern(sink_stall))
     return net, dict(names, streams=specs, block_index=block_index, fifo_index=fifo_index)

@@ -70,6 +70,7 @@ from stereosim.sim.cycle.rules import (
     camera_frame_start,
     edges_through,
     seen_from,
+    sink_allowed_between,
 )
 from stereosim.sim.kernel_cache import njit
 from stereosim.sva.pipeline import sva_stream
@@ -219,9 +220,9 @@ def _stats(plan: ChipPlan, net: Net, names: dict, t_end: int) -> dict:
                                              acc["blocked"], 0 if short else tail)
         else:
             q_last = _last(net, int(net.ids[0]["sink_pop"]))
-            period, phase = int(prm["stall_period"]), int(prm["stall_phase"])
-            allowed = c_d if period == 0 else (q_last - phase) // period + 1 \
-                if q_last >= phase else 0
+            pattern = net.sink  # the sink's pattern (every cycle: [1, 0])
+            allowed = c_d if pattern[0] == len(pattern) - 1 else \
+                int(sink_allowed_between(0, q_last + 1, pattern))
             blocked = int(acc["blocked"])  # waiting on the DRAM write buffer
             blocks[b.name] = activity_counts(n, allowed - n - blocked, blocked, c_d - allowed)
     fifos = {}
@@ -505,13 +506,14 @@ def run_compiled(plan: ChipPlan, left, right=None, *, sink_stall=None,
     """One frame or a stream of frames (the plan's: (N, H, W) stacks or a
     :class:`~sim.cycle.frames.FrameSupply`) on the compiled engine: the readable kernel's
     words, report and statistics, or its exception; ``window`` = (start_fs, end_fs) records
-    the trace of that window. ``sink_stall``: ``(period, allowed_phase)``, the sink pops only
-    in cycles ``c`` with ``c % period == allowed_phase``. ``on_frame(f, words)`` receives each
-    frame's output words, in order, as they are computed (the timing does not depend on the
-    pixels: frame f is read only then); ``words=False`` computes none (the result's ``words``
-    is None: the caller takes them from :func:`~sim.cycle.frames.functional_words`, frame by
-    frame). ``progress(frames)`` hears, now and then while the event streams run, how many
-    frames the sink has taken whole (:func:`.schedule.run_pass`). ``timings`` (a dict) receives
+    the trace of that window. ``sink_stall``: the sink's pattern
+    (:func:`~sim.cycle.rules.sink_pattern`: ``(period, allowed_phase)`` or a script of 0/1).
+    ``on_frame(f, words)`` receives each frame's output words, in order, as they are computed
+    (the timing does not depend on the pixels: frame f is read only then); ``words=False``
+    computes none (the result's ``words`` is None: the caller takes them from
+    :func:`~sim.cycle.frames.functional_words`, frame by frame). ``progress(frames)``
+    hears, now and then while the event streams run, how many frames the sink has taken whole
+    (:func:`.schedule.run_pass`). ``timings`` (a dict) receives
     the CPU seconds of the event streams and statistics (``engine_s``), the NNA's descriptors
     (``nna_kernels_s``) and the SVA's stream (``sva_kernels_s``). A run that stops raises the
     readable kernel's :class:`~sim.cycle.contract.RunStopped`, with the row instants reached by

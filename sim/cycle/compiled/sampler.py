@@ -37,7 +37,7 @@ from stereosim.sim.kernel_cache import njit
 def _block_status(events, prm, state, tables, layers, b, c):
     """(activity, FIFO waited on or a code of :mod:`.source`, or -1) that block ``b`` (its
     record) reports in its cycle c; ``events`` = (ring, streams, cursors), ``tables`` =
-    (tiles, FIFOs, frame instants, ids), ``layers`` the NNA tiles' layers."""
+    (tiles, FIFOs, frame instants, ids, the sink's pattern), ``layers`` the NNA tiles' layers."""
     ring, streams, cursors = events
     kind = b.kind
     if kind == K_MEMORY:
@@ -59,7 +59,7 @@ def block_status(net, blk, c):
     """(activity, FIFO waited on or -1) that block ``blk`` reports in its cycle c (after
     :func:`.ring.cursors_at` for the instant)."""
     return _block_status((net.ring, net.streams, net.cursors), net.prm[0], net.state[0],
-                         (net.tiles, net.fifos, net.frame_fs, net.ids[0]), net.layers,
+                         (net.tiles, net.fifos, net.frame_fs, net.ids[0], net.sink), net.layers,
                          net.blocks[blk], c)
 
 
@@ -85,7 +85,7 @@ def sample(net, data, t, out, done):
     ring, streams, cursors, tiles, fifos = net.ring, net.streams, net.cursors, net.tiles, net.fifos
     prm = net.prm[0]
     ids = net.ids[0]
-    tables = (tiles, fifos, net.frame_fs, ids)
+    tables = (tiles, fifos, net.frame_fs, ids, net.sink)
     blocks = net.blocks
     n_blocks = blocks.shape[0]
     n_layers = tiles[0].n_layers

@@ -53,7 +53,7 @@ def pops_begin(net):
     fi = net.fifos[ids.fifo_sink]
     acc = net.acc[sq.block]
     k = (q_off, q_mask, o_off, o_mask, w_off, w_mask, fi.data_edges, sq.period, sq.block,
-         (prm.stall_period, prm.stall_phase, prm.dram, prm.cap_fs, prm.w, prm.n, prm.stats,
+         (net.sink, prm.dram, prm.cap_fs, prm.w, prm.n, prm.stats,
           prm.watchdog_fs, prm.d_wwords, prm.d_wbuf, prm.d_slot, prm.d_round, prm.d_wfirst,
           prm.d_wcount))
     arrays = (net.ring, net.gaps, net.rows[1], net.frame_fs[1], net.state[0])
@@ -68,13 +68,13 @@ def pops(k, arrays, cur, ko):
     room). Returns (cursor, moved)."""
     ring, gaps, row_fs, frame_out, state = arrays
     q_off, q_mask, o_off, o_mask, w_off, w_mask, de, per, blk, consts = k
-    (period, phase, dram, cap, w, n, stats, g, d_wwords, d_wbuf, d_slot, d_round, d_wfirst,
+    (allowed, dram, cap, w, n, stats, g, d_wwords, d_wbuf, d_slot, d_round, d_wfirst,
      d_wcount) = consts
     kq, q_prev, xq, kw, d_wait, empty, first, n_gaps, last_busy, err = cur
     moved = False
     while kq < ko:
         vis = rd(ring, o_off, o_mask, kq) + de
-        q = sink_next_allowed(max(q_prev + 1, vis), period, phase)
+        q = sink_next_allowed(max(q_prev + 1, vis), allowed)
         wait = 0
         last = -1
         if dram == 1:
@@ -84,8 +84,8 @@ def pops(k, arrays, cur, ko):
                 room = rd(ring, w_off, w_mask, u - d_wbuf)
                 if room > q:
                     q0 = q
-                    q = sink_next_allowed(room, period, phase)
-                    wait = sink_allowed_between(q0, q, period, phase)
+                    q = sink_next_allowed(room, allowed)
+                    wait = sink_allowed_between(q0, q, allowed)
         if q * per >= cap:
             break
         d_wait += wait
@@ -141,12 +141,12 @@ def pops_end(net, k, cur):
 def status_sink(ring, streams, cursors, prm, tables, b, c):
     """(activity, FIFO waited on, DRAM or -1) the sink ``b`` (its record) reports in its cycle
     c (the readable ``Sink.evaluate``)."""
-    fifos, ids = tables[1], tables[3]
+    fifos, ids, allowed = tables[1], tables[3], tables[4]
     q_s, o_s = ids.sink_pop, ids.sva_push
     received, at_c = lt_at(ring, streams[q_s], cursors[q_s], c)
     if received >= prm.frames * prm.n:
         return A_IDLE, -1
-    if not sink_may_pop(c, prm.stall_period, prm.stall_phase):
+    if not sink_may_pop(c, allowed):
         return A_IDLE, -1
     if at_c:
         return A_BUSY, -1

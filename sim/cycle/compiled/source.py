@@ -590,7 +590,7 @@ def _tile_full(ring, streams, shape, tl, f, k, c):
 def status_memory(ring, streams, cursors, prm, state, tables, b, c):
     """(activity, FIFO waited on, or FRAME_BUFFERS or DRAM, or -1) that memory source ``b``
     (its record) reports in its cycle c (the readable ``MemorySource.evaluate``)."""
-    tiles, fifos, frame_fs, ids = tables
+    tiles, fifos, frame_fs, ids = tables[:4]
     k, at_c = lt_at(ring, streams[b.stream], cursors[b.stream], c)
     if prm.fb > 0:  # reading a camera's frame buffers: frames are decided at their start
         instant = c * b.period

@@ -39,7 +39,7 @@ from stereosim.sim.cycle.readable.blocks.sva import SvaBlock
 from stereosim.sim.cycle.readable.fifo import Fifo
 from stereosim.sim.cycle.readable.kernel import Simulator
 from stereosim.sim.cycle.report import cycle_report
-from stereosim.sim.cycle.rules import camera_frame_start, sink_may_pop
+from stereosim.sim.cycle.rules import camera_frame_start, sink_may_pop, sink_pattern
 from stereosim.sim.errors import UserError
 from stereosim.sim.progress import poller, progress_bar
 from stereosim.traces.log import TraceRecorder
@@ -168,12 +168,13 @@ class Chip:
 
 
 def _stall_function(sink_stall) -> Callable | None:
-    """The sink's stall: a function of the cycle (True: refuse to pop), or a periodic pattern
-    ``(period, allowed_phase)``."""
+    """The sink's stall: a function of the cycle (True: refuse to pop), or a pattern both
+    engines take (:func:`~sim.cycle.rules.sink_pattern`: a periodic ``(period, allowed_phase)``
+    or a script of 0/1, one a cycle, repeated)."""
     if sink_stall is None or callable(sink_stall):
         return sink_stall
-    period, phase = sink_stall
-    return lambda c: not sink_may_pop(c, period, phase)
+    allowed = sink_pattern(sink_stall)
+    return lambda c: not sink_may_pop(c, allowed)
 
 
 def _view(supply: FrameSupply, side: int) -> Callable[[int], np.ndarray]:
