@@ -14,24 +14,35 @@ stage                   II (cycles per pixel)              latency (cycles)
 ======================  =================================  ==================================
 hamming cost            max(G, ports)                      G + tree(lg(bits)); hybrid:
                                                            G + tree(lg(max b_k) + 2)
-box filter              max(G, ports)                      G + 2 (column sum, row sum)
-SGM (per path)          max(left path's recurrence, ports) G + tree(lg(L) + [G > 1])
-path sum                G                                  tree(lg(paths))
-WTA / uniqueness / sub  G                                  G + tree(lg(D)) + [uniq] + sub
+box filter              max(G, ports)                      G + tree(2) + tree(lg(k) + 1)
+SGM (per path)          max(left path's recurrence, ports) G + tree(5)
+path sum                G                                  tree(lg(paths) + 1)
+WTA / uniqueness / sub  G                                  G + tree(lg(L) + [G > 1]) + [uniq]
+                                                           + sub
 LR check (optional)     G                                  (D - 1) II + 1
 median (optional)       max(1, ports)                      tree(depth of the sorting network)
 output register         1                                  1
 ======================  =================================  ==================================
 
+The box filter slides its column sums (an add and a subtract: tree(2)), then sums k of them
+and caps the sum (tree(lg(k) + 1)). One lane's SGM step is five levels
+(:data:`SGM_STEP_LEVELS`); the path sum adds the paths and caps at sum_bits (lg(paths) + 1);
+WTA's minimum is a tree over a group's L lanes and, G > 1, one level folding it into the
+earlier groups'. These are the levels of the RTL twin's stages (``sva/rtl/``, docs/rtl.md),
+which first showed that the plan's earlier G + 2, tree(lg(paths)) and tree(lg(D)) were right
+only for V >= 4 or 5.
+
 The SVA's II is the largest stage II. The left-to-right SGM path carries a dependency from one
 pixel to the next: pixel p's first lane group needs ``min_d L(p - 1, d)``, the minimum over all
-D of the previous pixel's path costs, which is complete ``tree(lg(L) + [G > 1])`` cycles after
-that pixel's last group (the lanes' minimum, then one level to fold in the running minimum of
-the earlier groups). So this path cannot overlap two pixels, and its II is ``G + tree(lg(L) +
-[G > 1])``. The other paths read the previous *row* and overlap freely.
+D of the previous pixel's path costs. Its last group leaves the step tree(5) cycles after it
+entered (G - 1 after the first), and the minimum is complete ``tree(lg(L) + [G > 1])`` cycles
+later (the lanes' minimum, then one level to fold in the running minimum of the earlier
+groups). So this path cannot overlap two pixels, and its II is ``G - 1 + tree(5) + tree(lg(L)
++ [G > 1])``. The other paths read the previous *row* and overlap freely.
 
-The defaults (D = 128, L = 128, V = 8) give G = 1 and II = 1 + tree(7) = 2: the paper's "one
-disparity every two clock ticks", 1280 x 720 x 2 / 465 MHz = 3.964 ms per frame, 252.3 fps.
+The defaults (D = 128, L = 128, V = 8) give G = 1 and II = 0 + tree(5) + tree(7) = 2: the
+paper's "one disparity every two clock ticks", 1280 x 720 x 2 / 465 MHz = 3.964 ms per frame,
+252.3 fps.
 
 SRAM ports (``sva.sram_ports``): every SRAM bank declares its reads and writes per pixel
 (:class:`BufferPlan`) -- a descriptor-row bank per view and a median-row bank per row 1 and 1,
@@ -155,13 +166,24 @@ def sorting_depth(n: int) -> int:
     return k * (k + 1) // 2
 
 
+# Levels of one lane's SGM step (sva.sgm): L(p-1, d) - m beside the min of its neighbours
+# L(p-1, d -+ 1); + P1 beside min(P2 path); the min of the candidates; + the aggregated cost;
+# the cap at path_bits. The RTL twin (sva/rtl/sva_sgm.sv) builds them so.
+SGM_STEP_LEVELS = 5
+
+
 def left_path_ii(cfg: ChipConfig) -> int:
-    """II of the left-to-right SGM path: G + tree(lg(L) + [G > 1]) (the min over the previous
-    pixel's D costs must be complete before the next pixel's first group)."""
+    """II of the left-to-right SGM path: G - 1 + tree(5) + tree(lg(L) + [G > 1]). A pixel's
+    last lane group leaves the step's five levels (:data:`SGM_STEP_LEVELS`) tree(5) cycles
+    after it entered, G - 1 after the first; then the min over the pixel's D costs (its lanes'
+    tree and, G > 1, one level folding in the earlier groups') must be complete before the
+    next pixel's first group enters."""
     s = cfg.sva
     g = lane_groups(cfg)
     lanes = min(s.lanes, s.disparities)
-    return g + tree_cycles(lg(lanes) + (1 if g > 1 else 0), s.compare_levels)
+    v = s.compare_levels
+    return g - 1 + tree_cycles(SGM_STEP_LEVELS, v) + tree_cycles(
+        lg(lanes) + (1 if g > 1 else 0), v)
 
 
 def hamming_levels(parts: tuple[int, ...]) -> int:
@@ -245,36 +267,41 @@ def sva_stages(cfg: ChipConfig, width: int, parts: tuple[int, ...], word_bits: i
                          banks=max(1, s.paths - 1), word_bits=lanes * s.path_bits,
                          pixel_reads=g * (s.paths - 1), pixel_writes=g * (s.paths - 1))
     box_ii = max(g, sums_buf.port_cycles)
+    slide, row_sum = tree_cycles(2, v), tree_cycles(lg(s.box_size) + 1, v)
     stages = [
         hamming_stage(cfg, width, parts),
         StagePlan(
-            "box_filter", box_ii, g + 2,
+            "box_filter", box_ii, g + slide + row_sum,
             f"II = max(G = {g}, column sums' ports {ports}: {sums_buf.port_cycles}) = "
-            f"{box_ii}; latency = G + 2 (column sum, row sum) = {g + 2}",
+            f"{box_ii}; latency = G + tree(2: the column sum's add and subtract) + "
+            f"tree(lg({s.box_size}) + 1: the row sum, its cap) = {g} + {slide} + {row_sum}",
             (sums_buf,),
         ),
     ]
     left_ii = left_path_ii(cfg)
-    left_tree = left_ii - g
+    step = tree_cycles(SGM_STEP_LEVELS, v)
     sgm_ii = max(left_ii, sgm_buf.port_cycles)
     stages.append(StagePlan(
-        "sgm", sgm_ii, g + left_tree,
-        f"{s.paths} path unit(s); II = max(left path G + tree(lg({lanes}) + [G > 1]) = {g} + "
-        f"{left_tree} (min over the previous pixel's D costs), previous row's ports {ports}: "
-        f"{sgm_buf.port_cycles}) = {sgm_ii}; latency = G + {left_tree}",
+        "sgm", sgm_ii, g + step,
+        f"{s.paths} path unit(s); II = max(left path G - 1 + tree({SGM_STEP_LEVELS}) + "
+        f"tree(lg({lanes}) + [G > 1]) = {left_ii} (the step, then the min over the pixel's D "
+        f"costs), previous row's ports {ports}: {sgm_buf.port_cycles}) = {sgm_ii}; latency = "
+        f"G + tree({SGM_STEP_LEVELS} levels of the step) = {g} + {step}",
         (sgm_buf,),
     ))
-    sum_tree = tree_cycles(lg(s.paths), v)
+    sum_tree = tree_cycles(lg(s.paths) + 1, v)
     stages.append(StagePlan(
         "path_sum", g, sum_tree,
-        f"II = G = {g}; latency = tree(lg({s.paths} paths)) = {sum_tree}"))
+        f"II = G = {g}; latency = tree(lg({s.paths} paths) + 1: the adds, the cap at sum_bits) "
+        f"= {sum_tree}"))
     sub = 0 if s.subpixel == "off" else s.subpixel_bits + 1
     uniq = 1 if s.uniqueness else 0
-    wta_tree = tree_cycles(lg(d), v)
+    wta_tree = tree_cycles(lg(lanes) + (1 if g > 1 else 0), v)
     stages.append(StagePlan(
         "wta", g, g + wta_tree + uniq + sub,
-        f"II = G = {g}; latency = G + tree(lg({d})) + uniqueness {uniq} + sub-pixel "
-        f"({s.subpixel}: F + 1 = {sub}) = {g + wta_tree + uniq + sub}"))
+        f"II = G = {g}; latency = G + tree(lg({lanes}) + [G > 1]: the lanes' min, the fold "
+        f"into the earlier groups') + uniqueness {uniq} + sub-pixel ({s.subpixel}: F + 1 = "
+        f"{sub}) = {g + wta_tree + uniq + sub}"))
     med_buf = BufferPlan("sva.median_rows", s.median * width * word_bits,
                          "the median's output rows (a bank per row: its column read, the new "
                          "word written)", reads=1, writes=1, ports=ports,

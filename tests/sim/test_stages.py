@@ -34,13 +34,14 @@ def expected_ii_and_latency(d, lanes, paths, lr, *, levels=8, bits=32, box=5, me
     lanes = min(lanes, d)
     g = -(-d // lanes)
     tree = lambda depth: -(-depth // levels) if depth else 0  # noqa: E731
-    left = g + tree(_ceil_log2(lanes) + (1 if g > 1 else 0))
+    fold = 1 if g > 1 else 0
+    left = g - 1 + tree(5) + tree(_ceil_log2(lanes) + fold)  # the step, then the min
     ii = max(g, left)
     latency = (g + tree(_ceil_log2(bits))  # hamming: groups + popcount tree
-               + g + 2                     # box filter: column and row sums
-               + left                      # SGM: the left path's groups and min tree
-               + tree(_ceil_log2(paths))   # sum of the paths
-               + g + tree(_ceil_log2(d)) + subpixel_bits + 1  # WTA, equiangular fit
+               + g + tree(2) + tree(_ceil_log2(box) + 1)  # box: slide, row sum and cap
+               + g + tree(5)                # SGM: the groups through the step's 5 levels
+               + tree(_ceil_log2(paths) + 1)  # sum of the paths, cap
+               + g + tree(_ceil_log2(lanes) + fold) + subpixel_bits + 1  # WTA, equiangular
                + ((d - 1) * ii + 1 if lr else 0)             # LR: the diagonal
                + (tree(10) if median == 3 else 0)            # 3x3 sorting network
                + 1)                                          # output register
@@ -84,14 +85,15 @@ def test_the_paper_configuration_gives_250_fps():
 
 
 def test_lanes_trade_against_the_left_path_recurrence():
-    """Fewer lanes: more groups per pixel; the left path adds its minimum tree once per pixel,
-    so halving the lanes of D = 128 from 128 to 64 turns II 2 into 2 + 1 = 3 (two groups, then
-    tree(lg 64 + 1) = 1)."""
+    """Fewer lanes: more groups per pixel; the left path adds its step and its minimum tree
+    once per pixel, so halving the lanes of D = 128 from 128 to 64 turns II 2 into 2 - 1 + 1 +
+    1 = 3 (two groups, the step's tree(5) = 1, then tree(lg 64 + 1) = 1)."""
     ii = {lanes: build_plan(load_config(overrides={"sva.lanes": lanes}), (64, 300)).block("sva")
           .cycles for lanes in (128, 64, 32, 16, 1)}
     assert ii == {128: 2, 64: 3, 32: 5, 16: 9, 1: 129}
     few_levels = load_config(overrides={"sva.compare_levels": 2})
-    assert build_plan(few_levels, (64, 300)).block("sva").cycles == 1 + 4  # tree(7) = 4
+    # 0 + tree(5 levels of the step) + tree(7) = 3 + 4
+    assert build_plan(few_levels, (64, 300)).block("sva").cycles == 3 + 4
 
 
 def test_helpers():

@@ -107,11 +107,11 @@ def test_the_stages_words_add_up_to_the_pipelines_and_the_lr_window_fills(run):
 @pytest.mark.parametrize("ports, ii", [("1r1w", 3), ("1rw", 4)])
 def test_single_port_sram_spaces_the_issues_in_the_trace(run, ports, ii):
     """64 lanes at D = 128: two lane groups per pixel. With a read and a write port per SGM
-    bank the left path's recurrence sets the II (2 + tree(6 + 1) = 3); with one shared port
-    each top path's bank needs 2 reads + 2 writes = 4 cycles per pixel. The trace's
-    ``pipeline.issue`` pulses every II cycles; the SGM stage holds each pixel for its latency
-    of G + tree(lg 64 + 1) = 3 cycles of every II (with one port its bank is busy in the
-    fourth, writing back)."""
+    bank the left path's recurrence sets the II (2 - 1 + tree(5) + tree(6 + 1) = 3); with one
+    shared port each top path's bank needs 2 reads + 2 writes = 4 cycles per pixel. The
+    trace's ``pipeline.issue`` pulses every II cycles; the SGM stage holds each pixel for
+    its latency of G + tree(5 levels of its step) = 3 cycles of every II (with one port its
+    bank is busy in the fourth, writing back)."""
     over = {**SAME, "sva.disparities": 128, "sva.lanes": 64, "sva.sram_ports": ports}
     h, w = 4, 140
     plan = build_plan(load_config(overrides=over), (h, w))

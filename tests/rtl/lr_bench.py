@@ -1,0 +1,107 @@
+"""cocotb runs (wta_bench runs them): the RTL left-right check (sva/rtl/sva_lr.sv) against
+stereosim.
+
+A random summed-cost volume S (H, W, D) -- each pixel a valley of random depth, so that right and
+left disparities agree on some pixels and not on others -- gives the words and winners of
+sva/wta.py's reference; its pixels go to the stage in raster order, a pixel every II ticks
+within a row (II: the plan's pipeline II), each row k II ticks after the previous row's last
+(random k >= 1) or at a random tick once that row has drained, with random stalls (en = 0).
+Every checked word must equal sva/lr_check.py's reference (``lr_check_ref`` with
+``right_disparity_ref``) and leave the plan's lr_check latency (sim.cycle.stages.sva_stages,
+read from the plan) after its pixel arrived.
+"""
+
+import numpy as np
+from cocotb.triggers import ReadOnly, RisingEdge
+
+from stereosim.sim.config import load_config
+from stereosim.sim.cycle.stages import pipeline_ii, sva_stages
+from stereosim.sva.geometry import output_word_bits
+from stereosim.sva.lr_check import lr_check_ref, right_disparity_ref
+from stereosim.sva.wta import wta_ref
+
+
+def volume(rng, h: int, w: int, d: int, sw: int) -> np.ndarray:
+    """S (H, W, D) below 2^sw: per pixel a valley at a disparity drifting along the row; every
+    other row's costs coarse (multiples of 64), full of ties."""
+    top = (1 << sw) - 1
+    s = np.empty((h, w, d), np.int64)
+    for y in range(h):
+        c = rng.integers(0, d)
+        for x in range(w):
+            if rng.random() < 0.3:
+                c = rng.integers(0, d)
+            slope = rng.integers(1, 40)
+            s[y, x] = rng.integers(0, 200) + slope * np.abs(np.arange(d) - c) \
+                + rng.integers(0, 60, d)
+        if y % 2:  # coarse costs: ties along the diagonals (the smallest d must win)
+            s[y] = s[y] // 64 * 64
+    return np.minimum(s, top).astype(np.uint16)
+
+
+async def one_run(dut, p: dict) -> None:
+    pre = p.get("prefix", "")
+
+    def sig(name):
+        return getattr(dut, pre + name)
+
+    cfg = load_config(overrides=p["overrides"])
+    stages = sva_stages(cfg, 64, (32,), output_word_bits(cfg.sva), 32)
+    stage = next(st for st in stages if st.name == "lr_check")
+    ii = pipeline_ii(stages)
+    d, sw, wb, f = cfg.sva.disparities, p["sw"], p["wb"], cfg.sva.subpixel_bits
+    rng = np.random.default_rng(p["seed"])
+    h, w = p["height"], p["width"]
+    s = volume(rng, h, w, d, sw)
+    q, dint = wta_ref(s, uniqueness=0, subpixel="parabola", frac_bits=f)
+    want = lr_check_ref(q, dint, right_disparity_ref(s), cfg.sva.lr_max_diff)
+    # the tick each pixel is offered: II apart in a row; a row k II after the last, or late
+    start, t = [], 3
+    for _ in range(h):
+        for _ in range(w):
+            start.append(t)
+            t += ii
+        t += ii * int(rng.integers(0, 3)) if rng.random() < 0.6 else \
+            (d - 1) * ii + int(rng.integers(0, 3 * ii))
+    sig("rst").value = 1
+    sig("en").value = 1
+    sig("in_valid").value = 0
+    sig("width").value = w
+    sig("ii").value = ii
+    sig("max_diff").value = cfg.sva.lr_max_diff
+    await RisingEdge(dut.clk)
+    await RisingEdge(dut.clk)
+    sig("rst").value = 0
+    outs = []
+    tick = cycle = 0
+    nxt = 0
+    while len(outs) < h * w and cycle < 4 * (start[-1] + stage.latency) + 100:
+        en = rng.random() >= p["stall"]
+        offer = nxt < h * w and start[nxt] == tick
+        sig("en").value = int(en)
+        sig("in_valid").value = int(offer)
+        if offer:
+            y, x = divmod(nxt, w)
+            sig("s_in").value = sum(int(v) << (i * sw) for i, v in enumerate(s[y, x]))
+            sig("q_in").value = int(q[y, x]) & ((1 << wb) - 1)
+            sig("d_in").value = int(dint[y, x])
+        await ReadOnly()
+        if en:
+            nxt += int(offer)
+            if int(sig("out_valid").value):
+                v = int(sig("q_out").value)
+                outs.append((tick, v - (1 << wb) if v >> (wb - 1) else v))
+        await RisingEdge(dut.clk)
+        cycle += 1
+        tick += int(en)
+    assert len(outs) == h * w, f"{len(outs)} of {h * w} words left the stage"
+    rejected = 0
+    for j, (t_out, got) in enumerate(outs):
+        y, x = divmod(j, w)
+        assert got == int(want[y, x]), (
+            f"pixel ({y}, {x}): word {got} != {int(want[y, x])} (d* {int(dint[y, x])})")
+        rejected += int(got == -1 and q[y, x] != -1)
+        assert t_out - start[j] == stage.latency, (
+            f"pixel ({y}, {x}): in at tick {start[j]}, out at {t_out}: {t_out - start[j]} "
+            f"ticks, the plan's lr_check latency is {stage.latency} ({stage.formula})")
+    assert 0 < rejected < h * w, f"{rejected} words rejected: the case checks nothing"
