@@ -29,6 +29,7 @@ GROUPS = (
     "latency",
     "accuracy",
     "SRAM",
+    "silicon",
     "blocks",
     "FIFOs",
     "buffers",
@@ -175,6 +176,30 @@ RULES: tuple[tuple[str, str, str], ...] = (
      "in {blk}"),
     (r"(architecture\.)?chip_sram\.by_kind\.(?P<kind>.+)", "SRAM", "bits of the chip's SRAM "
      "of the kind {kind}, every instance counted"),
+    (r"(architecture\.)?silicon\.library", "silicon", "the standard-cell library of the RTL "
+     "twin's synthesis figures (docs/rtl-synth.md)"),
+    (r"(architecture\.)?silicon\.table", "silicon", "the cached synthesis table the figures "
+     "come from (a run never synthesises)"),
+    (r"(architecture\.)?silicon\.config\.(?P<key>.+)", "silicon", "the configuration's {key} "
+     "the table's rows are looked up by"),
+    (r"(architecture\.)?silicon\.clock_mhz", "silicon", "the SVA clock the stages are judged "
+     "against (clocks.sva_mhz)"),
+    (r"(architecture\.)?silicon\.nand2_logic", "silicon", "NAND2 equivalents of the logic of "
+     "the SVA stages synthesised at this configuration (flip-flops apart)"),
+    (r"(architecture\.)?silicon\.nand2_flip_flops", "silicon", "NAND2 equivalents of the "
+     "flip-flops of the SVA stages synthesised at this configuration"),
+    (r"(architecture\.)?silicon\.meets_clock", "silicon", "whether every stage synthesised at "
+     "this configuration meets the SVA clock (empty: none is)"),
+    (r"(architecture\.)?silicon\.stages\.(?P<stage>[^.]+)\.small_build\.(?P<what>.+)",
+     "silicon", "{what} of {stage}'s RTL synthesised once at its co-simulation test's size "
+     "(not this configuration)"),
+    (r"(architecture\.)?silicon\.stages\.(?P<stage>[^.]+)\.(?P<what>.+)", "silicon",
+     "{what} of the SVA stage {stage} at this configuration (rtl: its RTL exists; config_row: "
+     "the table has this configuration; gates, flip-flops, NAND2 equivalents, depth in gate "
+     "levels, fmax)"),
+    (r"(architecture\.)?silicon\.compare_levels\.(?P<kind>[^.]+)\.(?P<what>.+)", "silicon",
+     "{what} of sva.compare_levels levels of {kind} operators against the SVA clock (the "
+     "synthesised probes: gates a level, gate delay, levels that fit, whether it holds)"),
     (r"(architecture\.)?actions\.(?P<who>[^.]+)\.(?P<what>.+)", "architecture", "{what} per "
      "frame ({who}), as the energy model counts them"),
     (r"macs_per_frame", "architecture", "multiply-accumulates per frame, both cameras"),

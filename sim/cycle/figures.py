@@ -17,6 +17,7 @@ from stereosim.nna.geometry import cycles_per_descriptor, macs_per_descriptor, w
 from stereosim.sim.config import ChipConfig
 from stereosim.sim.cycle.plan import ChipPlan, build_plan
 from stereosim.sim.errors import ConfigError
+from stereosim.sim.rtl_synth import silicon_section
 
 
 def sram_bits(plan: ChipPlan) -> dict[str, int]:
@@ -124,6 +125,7 @@ def architecture_report(plan: ChipPlan) -> dict:
                           "formula": st.formula} for st in plan.blocks_of("nna")[0].stages],
         "nna_submodules": submodule_report(plan),
         "chip_sram": chip_sram(plan),
+        "silicon": silicon_section(plan.cfg),
         **({"nna_layers": layer_report(plan)} if len(plan.blocks_of("nna")[0].layers) > 1
            else {}),
     }

