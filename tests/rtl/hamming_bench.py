@@ -42,7 +42,19 @@ async def costs_and_cycles(dut):
         await one_run(dut, {**case, **run})
 
 
-async def one_run(dut, p: dict) -> None:
+class Pins:
+    """The stage's ports on ``dut``, named ``prefix`` + port (the twin's one build holds
+    several instances side by side)."""
+
+    def __init__(self, dut, prefix: str):
+        self._dut, self._prefix = dut, prefix
+
+    def __getattr__(self, name):
+        return getattr(self._dut, self._prefix + name)
+
+
+async def one_run(top, p: dict) -> None:
+    dut = Pins(top, p.get("prefix", ""))
     cfg = load_config(overrides=p["overrides"])
     parts = tuple(p["parts"])
     stage = hamming_stage(cfg, 64, parts)
@@ -50,10 +62,10 @@ async def one_run(dut, p: dict) -> None:
         stage = dataclasses.replace(stage, latency=stage.latency + 1)
     d, width = cfg.sva.disparities, sum(parts)
     rng = np.random.default_rng(p["seed"])
-    dut.rst.value = 1
+    top.rst.value = 1
     dut.in_valid.value = 0
-    await RisingEdge(dut.clk)
-    dut.rst.value = 0
+    await RisingEdge(top.clk)
+    top.rst.value = 0
     pixels, taken, outs = [], [], []
     cycle = 0
     n = p["pixels"]
@@ -83,7 +95,7 @@ async def one_run(dut, p: dict) -> None:
             word = int(dut.cost.value)
             cw = p["cost_w"]
             outs.append((cycle, [(word >> (i * cw)) & ((1 << cw) - 1) for i in range(d)]))
-        await RisingEdge(dut.clk)
+        await RisingEdge(top.clk)
         cycle += 1
     assert len(outs) == n, f"{len(outs)} of {n} pixels left the stage"
     for i, ((dl, dr, outside), t, (t_out, got)) in enumerate(zip(pixels, taken, outs)):

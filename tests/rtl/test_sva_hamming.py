@@ -1,7 +1,10 @@
 """The RTL matching-cost stage (sva/rtl/sva_hamming.sv) co-simulated against stereosim: every
 cost bit-exact with sva/cost.py and every pixel out in the cycle the chip plan's stage says
 (tests/rtl/hamming_bench.py). Structure is build-time (D, lanes, levels a cycle, the parts'
-bits); the weights are run-time registers, so one build serves several weight pairs."""
+bits); the weights are run-time registers, so one build serves several weight pairs.
+
+One Verilator build: a twin top holds the four structures below and a one-cycle mutant of the
+stage side by side, each instance's ports prefixed (h0_ .. h3_, late_)."""
 
 from pathlib import Path
 
@@ -19,53 +22,88 @@ BUILDS = [
     (16, 5, 1, (32, 26)),
     (48, 48, 3, (24,)),
 ]
+HYBRID = (16, 8, 4, (32, 26))  # the mutants' structure
 
 
-@pytest.mark.parametrize(("d", "lanes", "levels", "parts"), BUILDS)
-def test_the_rtl_stage_equals_the_model(rtl_run, d, lanes, levels, parts):
+def _params(d, lanes, levels, parts) -> dict:
     cost_w = bits_for(largest_cost(parts, ((3, 3),)) if len(parts) > 1 else parts[0])
-    params = {"D": d, "LANES": lanes, "V": levels, "B0": parts[0],
-              "B1": parts[1] if len(parts) > 1 else 0, "COST_W": cost_w}
-    over = {"sva.disparities": 16 if d == 16 else 32 if d == 32 else 48,
-            "sva.lanes": lanes, "sva.compare_levels": levels}
-    weight_sets = [(3, 2), (0, 1), (2, 0)] if len(parts) > 1 else [(1, 0)]
-    runs = [{"weights": list(w), "seed": 7 * i + int(10 * offer), "offer": offer}
-            for i, w in enumerate(weight_sets) for offer in (1.0, 0.4)]
-    rtl_run("sva/rtl/sva_hamming.sv", "sva_hamming", params, "hamming_bench",
-            {"overrides": over, "parts": list(parts), "pixels": 12, "cost_w": cost_w,
-             "runs": runs})
+    return {"D": d, "LANES": lanes, "V": levels, "B0": parts[0],
+            "B1": parts[1] if len(parts) > 1 else 0, "COST_W": cost_w}
 
 
-def _hybrid_case():
-    parts, d, lanes, levels = (32, 26), 16, 8, 4
-    params = {"D": d, "LANES": lanes, "V": levels, "B0": 32, "B1": 26,
-              "COST_W": bits_for(largest_cost(parts, ((3, 3),)))}
-    case = {"overrides": {"sva.disparities": d, "sva.lanes": lanes,
-                          "sva.compare_levels": levels},
-            "parts": list(parts), "pixels": 6, "cost_w": params["COST_W"],
-            "runs": [{"weights": [3, 2], "seed": 1, "offer": 1.0}]}
-    return params, case
-
-
-def test_a_one_cycle_mutant_of_the_rtl_stage_is_caught_by_name(rtl_run):
-    """One more pipeline register in the tree (after its first level too, the lane-group
-    delay line one longer to match): the words stay right, the stage is a cycle late, and the
-    co-simulation names the plan's hamming latency."""
-    params, case = _hybrid_case()
-    text = RTL_SOURCE.read_text()
+def late(text: str) -> str:
+    """The stage one cycle late: one more pipeline register in the tree (after its first level
+    too, the lane-group delay line one longer to match), renamed sva_hamming_late."""
     mutant = text.replace("(l < LEVELS) && (l % V == 0)", "(l < LEVELS) && (l % V == 0 || l == 1)")
     mutant = mutant.replace("localparam int T = (LEVELS + V - 1) / V;",
                             "localparam int T = (LEVELS + V - 1) / V + 1;")
-    assert mutant.count("l == 1") == 1 and "/ V + 1;" in mutant
-    xml = rtl_run((mutant,), "sva_hamming", params, "hamming_bench", case, fails=True)
+    mutant = mutant.replace("module sva_hamming #(", "module sva_hamming_late #(")
+    assert mutant.count("l == 1") == 1 and "/ V + 1;" in mutant and "_late #(" in mutant
+    return mutant
+
+
+def twin_text() -> str:
+    """The stage's text, its mutant's and a top instantiating every build, each instance's
+    ports brought out with its prefix (clk and rst shared)."""
+    text = RTL_SOURCE.read_text()
+    ports, insts = [], []
+    builds = [(f"h{i}_", "sva_hamming", b) for i, b in enumerate(BUILDS)]
+    builds.append(("late_", "sva_hamming_late", HYBRID))
+    for prefix, module, (d, lanes, levels, parts) in builds:
+        p = _params(d, lanes, levels, parts)
+        bits = p["B0"] + p["B1"]
+        plist = [("input", "in_valid", 1), ("output", "in_ready", 1), ("input", "dl", bits),
+                 ("input", "dr", d * bits), ("input", "outside", d), ("input", "w0", 2),
+                 ("input", "w1", 2), ("output", "out_valid", 1),
+                 ("output", "cost", d * p["COST_W"])]
+        ports += [f"    {io} logic [{w - 1}:0] {prefix}{n}" for io, n, w in plist]
+        conns = ", ".join(f".{n}({prefix}{n})" for _, n, _ in plist)
+        binds = ", ".join(f".{k}({v})" for k, v in p.items())
+        insts.append(f"  {module} #({binds}) u_{prefix[:-1]} (.clk(clk), .rst(rst), {conns});")
+    top = ("module sva_hamming_twin (\n    input logic clk,\n    input logic rst,\n"
+           + ",\n".join(ports) + "\n);\n" + "\n".join(insts) + "\nendmodule\n")
+    return "\n".join([text, late(text), top])
+
+
+@pytest.fixture(scope="module")
+def twin():
+    return (twin_text(),)
+
+
+def _case(prefix, d, lanes, levels, parts, runs, pixels=12) -> dict:
+    return {"prefix": prefix, "parts": list(parts), "pixels": pixels,
+            "cost_w": _params(d, lanes, levels, parts)["COST_W"], "runs": runs,
+            "overrides": {"sva.disparities": d, "sva.lanes": lanes,
+                          "sva.compare_levels": levels}}
+
+
+@pytest.mark.parametrize("i", range(len(BUILDS)))
+def test_the_rtl_stage_equals_the_model(rtl_run, twin, i):
+    d, lanes, levels, parts = BUILDS[i]
+    weight_sets = [(3, 2), (0, 1), (2, 0)] if len(parts) > 1 else [(1, 0)]
+    runs = [{"weights": list(w), "seed": 7 * k + int(10 * offer), "offer": offer}
+            for k, w in enumerate(weight_sets) for offer in (1.0, 0.4)]
+    rtl_run(twin, "sva_hamming_twin", {}, "hamming_bench",
+            _case(f"h{i}_", d, lanes, levels, parts, runs))
+
+
+def _hybrid_runs() -> list:
+    return [{"weights": [3, 2], "seed": 1, "offer": 1.0}]
+
+
+def test_a_one_cycle_mutant_of_the_rtl_stage_is_caught_by_name(rtl_run, twin):
+    """One more pipeline register in the tree (:func:`late`): the words stay right, the stage
+    is a cycle late, and the co-simulation names the plan's hamming latency."""
+    xml = rtl_run(twin, "sva_hamming_twin", {}, "hamming_bench",
+                  _case("late_", *HYBRID, _hybrid_runs(), pixels=6), fails=True)
     assert "the plan's hamming latency" in xml
 
 
-def test_a_one_cycle_mutant_of_the_rule_is_caught_by_name(rtl_run):
+def test_a_one_cycle_mutant_of_the_rule_is_caught_by_name(rtl_run, twin):
     """The plan's hamming latency one cycle more than the structure gives: the unchanged RTL
-    catches it, by name."""
-    params, case = _hybrid_case()
-    case["runs"][0]["rule_mutant"] = True
-    xml = rtl_run("sva/rtl/sva_hamming.sv", "sva_hamming", params, "hamming_bench", case,
-                  fails=True)
+    (the same structure as the RTL mutant's) catches it, by name."""
+    d, lanes, levels, parts = HYBRID
+    twin_case = _case("h2_", *BUILDS[2], [{**_hybrid_runs()[0], "rule_mutant": True}], pixels=6)
+    assert (d, parts) == (BUILDS[2][0], BUILDS[2][3])
+    xml = rtl_run(twin, "sva_hamming_twin", {}, "hamming_bench", twin_case, fails=True)
     assert "the plan's hamming latency" in xml
