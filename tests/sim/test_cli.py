@@ -166,3 +166,15 @@ def test_eval_on_the_2003_layout(capsys):
         assert out["mean"][mask]["bad2"] == pytest.approx(sum(per_scene) / 2)
     # a working matcher on real data: far better than chance on these easy scenes
     assert out["mean"]["nonocc"]["bad2"] < 20
+
+
+def test_rtl_synth_prints_the_cached_table_and_judges_the_clock(capsys):
+    """``stereosim rtl synth``: the RTL twin's table from sva/rtl/synth_table.json (no Yosys
+    run), the stages' rows and the compare_levels verdict at the clock asked for."""
+    code, stdout, _ = _run(["rtl", "synth", "--mhz", "200"], capsys)
+    assert code == 0
+    assert "hamming" in stdout and "compare_levels = 8 at 200 MHz" in stdout
+    for bad in (["rtl", "synth", "--mhz", "-3"], ["rtl", "synth", "--mhz", "nan"], ["rtl"]):
+        code, _, stderr = _run(bad, capsys)
+        lines = stderr.strip().splitlines()
+        assert code == 2 and len(lines) == 1 and lines[0].startswith("stereosim: error: "), stderr
