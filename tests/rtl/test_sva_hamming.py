@@ -4,7 +4,8 @@ cost bit-exact with sva/cost.py and every pixel out in the cycle the chip plan's
 bits); the weights are run-time registers, so one build serves several weight pairs.
 
 One Verilator build: a twin top holds the four structures below and a one-cycle mutant of the
-stage side by side, each instance's ports prefixed (h0_ .. h3_, late_)."""
+stage side by side, each instance's ports prefixed (h0_ .. h3_, late_), and the RTL of the
+worked example of docs/rtl.md (tests/rtl/user_example_bench.py) with its ports unprefixed."""
 
 from pathlib import Path
 
@@ -23,6 +24,7 @@ BUILDS = [
     (48, 48, 3, (24,)),
 ]
 HYBRID = (16, 8, 4, (32, 26))  # the mutants' structure
+USER = (16, 16, 8, (32,))  # the worked example's RTL (tests/rtl/user_example_bench.py)
 
 
 def _params(d, lanes, levels, parts) -> dict:
@@ -58,6 +60,7 @@ def twin(rtl_twin_top):
     text = RTL_SOURCE.read_text()
     insts = [instance(f"h{i}_", "sva_hamming", *b) for i, b in enumerate(BUILDS)]
     insts.append(instance("late_", "sva_hamming_late", *HYBRID))
+    insts.append(instance("", "sva_hamming", *USER))  # user_example_bench's RTL, unprefixed
     return ("\n".join([text, late(text), rtl_twin_top("sva_hamming_twin", insts)]),)
 
 
@@ -98,3 +101,9 @@ def test_a_one_cycle_mutant_of_the_rule_is_caught_by_name(rtl_run, twin):
     assert (d, parts) == (BUILDS[2][0], BUILDS[2][3])
     xml = rtl_run(twin, "sva_hamming_twin", {}, "hamming_bench", twin_case, fails=True)
     assert "the plan's hamming latency" in xml
+
+
+def test_the_worked_example_of_a_users_own_test_passes(rtl_run, twin):
+    """docs/rtl.md's worked example: a user's cocotb test that takes its expected costs and
+    cycles from stereosim (tests/rtl/user_example_bench.py)."""
+    rtl_run(twin, "sva_hamming_twin", {}, "user_example_bench", {})

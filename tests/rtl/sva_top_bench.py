@@ -1,0 +1,56 @@
+"""cocotb test module: the SVA as one block (sva/rtl/sva_top.sv) driven as the readable cycle
+engine's SVA was on the same frame (tests/rtl/test_sva_top.py records it).
+
+The case holds, per pair in raster order, the SVA cycle from which the model's input FIFOs made
+it visible (both views), its descriptors and left pixel, and per cycle whether the model's
+output FIFO had room (its ``can_push`` as the SVA saw it: the scripted sink's back-pressure).
+The bench offers the next pair from its cycle on, sets ``out_ready`` to the model's room, and
+writes every pop (cycle) and push (cycle, word) of the RTL to ``case["out"]`` as JSON; the
+pytest compares them with the model's."""
+
+import json
+import os
+
+import cocotb
+from cocotb.clock import Clock
+from cocotb.triggers import ReadOnly, RisingEdge
+
+
+@cocotb.test()
+async def boundary(dut):
+    """Run one frame; record the RTL's boundary handshakes."""
+    p = json.loads(os.environ["STEREOSIM_RTL_CASE"])
+    cocotb.start_soon(Clock(dut.clk, 10, unit="ns").start())
+    dut.rst.value = 1
+    dut.in_valid.value = 0
+    dut.out_ready.value = 0
+    for name, value in p["regs"].items():
+        getattr(dut, name).value = value
+    await RisingEdge(dut.clk)
+    await RisingEdge(dut.clk)
+    dut.rst.value = 0
+    vis, dl, dr, pix, ready = p["visible"], p["dl"], p["dr"], p["pix"], p["ready"]
+    n, words = len(vis), p["words"]
+    pops, pushes, got = [], [], []
+    nxt = 0
+    cycle = 0
+    overrun_at = None
+    while len(got) < words and cycle < p["limit"]:
+        offer = nxt < n and vis[nxt] <= cycle
+        dut.in_valid.value = int(offer)
+        if offer:
+            dut.dl.value, dut.dr.value, dut.pix.value = dl[nxt], dr[nxt], pix[nxt]
+        dut.out_ready.value = ready[cycle] if cycle < len(ready) else 1
+        await ReadOnly()
+        if offer and int(dut.in_ready.value):
+            pops.append(cycle)
+            nxt += 1
+        if int(dut.out_valid.value) and int(dut.out_ready.value):
+            pushes.append(cycle)
+            got.append(int(dut.word.value))
+        if overrun_at is None and int(dut.overrun.value):
+            overrun_at = cycle
+        await RisingEdge(dut.clk)
+        cycle += 1
+    with open(p["out"], "w") as f:
+        json.dump({"pops": pops, "pushes": pushes, "words": got, "overrun": overrun_at}, f)
