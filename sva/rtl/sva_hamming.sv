@@ -13,6 +13,8 @@
 //   output register after the last, so a lane group takes T = ceil(levels / V) cycles;
 // - the last lane group's costs are written with the others' into the output register:
 //   out_valid is high in cycle t0 + G + T for a pixel taken in cycle t0.
+// Cycles are the lock-step pipeline's ticks: with en low every register holds (the model's
+// stall; the SVA top, sva_top.sv, drives it), with en high the stage advances.
 // So the stage takes a pixel every G cycles (II = G) and its latency is G + T -- the plan's rule
 // "G + tree(lg(bits))" (one part), "G + tree(lg(max b_k) + 2)" (the hybrid).
 module sva_hamming #(
@@ -25,6 +27,7 @@ module sva_hamming #(
 ) (
     input  logic                      clk,
     input  logic                      rst,
+    input  logic                      en,        // the pipeline advances (0: every register holds)
     input  logic                      in_valid,
     output logic                      in_ready,
     input  logic [B0+B1-1:0]          dl,
@@ -52,7 +55,7 @@ module sva_hamming #(
   logic [GW-1:0]    group;     // the lane group going into the tree
   logic             busy;      // lane groups of the taken pixel still to go
   assign in_ready = !busy || (group == GW'(G - 1));
-  always_ff @(posedge clk) begin
+  always_ff @(posedge clk) if (en || rst) begin
     if (rst) begin
       busy <= 1'b0;
       group <= '0;
@@ -139,7 +142,7 @@ module sva_hamming #(
           assign co = lvl[l-1].o; assign ca0 = lvl[l-1].a0; assign ca1 = lvl[l-1].a1;
         end
         if (REG) begin : pipe
-          always_ff @(posedge clk) begin
+          always_ff @(posedge clk) if (en || rst) begin
             p0 <= c0; p1 <= c1; o <= co; a0 <= ca0; a1 <= ca1;
           end
         end else begin : wire_
@@ -162,7 +165,7 @@ module sva_hamming #(
   genvar t;
   generate
     for (t = 1; t < T; t++) begin : delay
-      always_ff @(posedge clk) begin
+      always_ff @(posedge clk) if (en || rst) begin
         if (rst) vld_d[t] <= 1'b0; else vld_d[t] <= vld_d[t-1];
         grp_d[t] <= grp_d[t-1];
       end
@@ -172,7 +175,7 @@ module sva_hamming #(
   assign valid_at_end = vld_d[T-1];
 
   // ---- the output register: each lane group's costs in their place -----------------------
-  always_ff @(posedge clk) begin
+  always_ff @(posedge clk) if (en || rst) begin
     if (rst) begin
       out_valid <= 1'b0;
     end else begin

@@ -49,7 +49,8 @@ def instance(prefix: str, module: str, d, lanes, levels, parts):
     p = _params(d, lanes, levels, parts)
     bits = p["B0"] + p["B1"]
     return (module, prefix, p, [
-        ("input", "in_valid", 1), ("output", "in_ready", 1), ("input", "dl", bits),
+        ("input", "en", 1), ("input", "in_valid", 1), ("output", "in_ready", 1),
+        ("input", "dl", bits),
         ("input", "dr", d * bits), ("input", "outside", d), ("input", "w0", 2),
         ("input", "w1", 2), ("output", "out_valid", 1), ("output", "cost", d * p["COST_W"])])
 

@@ -28,7 +28,8 @@ async def my_costs_arrive_when_stereosim_says(dut):
     want = hamming_cost_ref(left, right, D, cost_parts(BITS))[0]  # (W, D): stereosim's costs
 
     cocotb.start_soon(Clock(dut.clk, 10, unit="ns").start())
-    dut.rst.value, dut.in_valid.value, dut.w0.value, dut.w1.value = 1, 0, 1, 0
+    dut.rst.value, dut.en.value, dut.in_valid.value = 1, 1, 0  # en: the pipeline advances
+    dut.w0.value, dut.w1.value = 1, 0  # one part: the distance itself
     await RisingEdge(dut.clk)
     dut.rst.value = 0
     taken, out, x, cycle = [], [], 0, 0
