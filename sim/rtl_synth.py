@@ -51,7 +51,7 @@ from stereosim.sva.geometry import bits_for
 
 ROOT = Path(__file__).resolve().parents[1]
 TABLE = ROOT / "sva" / "rtl" / "synth_table.json"
-SCHEMA = 1
+SCHEMA = 2
 
 LIBRARY = {
     "name": "Nangate Open Cell Library (FreePDK45, 45 nm), typical corner TypTyp 1.1 V 25 C",
@@ -136,43 +136,103 @@ def levels_per_cycle(mhz: float, gate_ps: float) -> int:
 
 # ---- the entries: one line per stage ------------------------------------------------------
 
-def _hamming_params(d: int, lanes: int, v: int, parts: tuple[int, ...]) -> dict[str, int]:
-    """sva_hamming's parameters; COST_W holds the largest cost (the hybrid: weights 3, 3)."""
-    top = parts[0] if len(parts) == 1 else largest_cost(parts, ((3, 3),))
+def _cost_w(parts: tuple[int, ...]) -> int:
+    """Bits of a matching cost: the largest cost of the descriptor (the hybrid: weights 3, 3)."""
+    return bits_for(parts[0] if len(parts) == 1 else largest_cost(parts, ((3, 3),)))
+
+
+def _word_bits(d: int, s) -> tuple[int, int]:
+    """(DB, WB): bits of d* (bits_for(D - 1)) and of an output word (1 + DB + F)."""
+    db = bits_for(d - 1)
+    return db, 1 + db + s.subpixel_bits
+
+
+def _hamming_params(d, lanes, v, parts, s) -> dict[str, int]:
+    """sva_hamming's parameters."""
     return {"D": d, "LANES": min(lanes, d), "V": v, "B0": parts[0],
-            "B1": parts[1] if len(parts) > 1 else 0, "COST_W": bits_for(top)}
+            "B1": parts[1] if len(parts) > 1 else 0, "COST_W": _cost_w(parts)}
+
+
+def _box_params(d, lanes, v, parts, s) -> dict[str, int] | None:
+    """sva_box's parameters (none: box 1, no box filter); the memory's W_MAX apart."""
+    if s.box_size <= 1:
+        return None
+    return {"D_MAX": d, "LANES": min(lanes, d), "V": v, "K_MAX": s.box_size,
+            "COST_W": _cost_w(parts), "A_W": s.cost_bits}
+
+
+def _sgm_params(d, lanes, v, parts, s) -> dict[str, int]:
+    """sva_sgm's parameters (all four path units are built; ``paths`` is a run-time
+    register); the previous rows' W_MAX apart."""
+    return {"D_MAX": d, "LANES": min(lanes, d), "V": v, "A_W": s.cost_bits,
+            "PATH_W": s.path_bits, "SUM_W": s.sum_bits}
+
+
+def _wta_params(d, lanes, v, parts, s) -> dict[str, int]:
+    """sva_wta's parameters."""
+    return {"D": d, "LANES": min(lanes, d), "V": v, "SW": s.sum_bits, "F": s.subpixel_bits,
+            "DB": _word_bits(d, s)[0]}
+
+
+def _lr_params(d, lanes, v, parts, s) -> dict[str, int] | None:
+    """sva_lr's parameters (none: LR off); XW holds a column of the widest frame."""
+    if not s.lr_check:
+        return None
+    db, wb = _word_bits(d, s)
+    return {"D": d, "SW": s.sum_bits, "DB": db, "WB": wb, "XW": bits_for(FRAME[0] - 1)}
+
+
+def _median_params(d, lanes, v, parts, s) -> dict[str, int] | None:
+    """sva_median's parameters (none: median off); the row banks' WMAX apart."""
+    if not s.median:
+        return None
+    return {"K": s.median, "V": v, "WB": _word_bits(d, s)[1], "XW": bits_for(FRAME[0] - 1),
+            "YW": bits_for(FRAME[1] + s.median)}
+
+
+# the widest frame the column and row counters hold (720p: the paper's frame)
+FRAME = (1280, 720)
+
+
+@dataclass(frozen=True)
+class Memory:
+    """A stage's frame-width memory, an SRAM macro on the chip (its bits are in the plan's
+    ``sram_bits``): the parameter that sizes it, two small values it is synthesised at and the
+    offset of its words' count (words proportional to value + offset)."""
+
+    param: str
+    values: tuple[int, int]
+    offset: int = 0
 
 
 @dataclass(frozen=True)
 class Stage:
     """A stage's RTL: the plan's stage name, the source (relative to the repository), the top
-    module and its parameters for (D, lanes, V, parts)."""
+    module, its parameters for (D, lanes, V, the descriptor's parts, the SvaConfig) -- None
+    where the configuration has no such stage --, whether its size scales with the lanes
+    (``lanes``: rows scaled from lane slices unless synthesised whole) and its memory."""
 
     name: str
     source: str
     top: str
-    params: object  # (d, lanes, v, parts) -> dict[str, int]
+    params: object  # (d, lanes, v, parts, sva) -> dict[str, int] | None
+    lanes: bool = True
+    memory: Memory | None = None
 
 
 STAGES = (
     Stage("hamming", "sva/rtl/sva_hamming.sv", "sva_hamming", _hamming_params),
+    Stage("box_filter", "sva/rtl/sva_box.sv", "sva_box", _box_params,
+          memory=Memory("W_MAX", (2, 4))),
+    Stage("sgm", "sva/rtl/sva_sgm.sv", "sva_sgm", _sgm_params, memory=Memory("W_MAX", (1, 2), 2)),
+    Stage("wta", "sva/rtl/sva_wta.sv", "sva_wta", _wta_params),
+    Stage("lr_check", "sva/rtl/sva_lr.sv", "sva_lr", _lr_params, lanes=False),
+    Stage("median", "sva/rtl/sva_median.sv", "sva_median", _median_params, lanes=False,
+          memory=Memory("WMAX", (2, 4))),
 )
-# the other stages' RTL at the sizes of their co-simulation tests (tests/rtl), synthesised
-# whole -- one line each: (the plan's stage, source, top module, parameters). Their memories
-# (column sums, previous rows, median rows) are frame-width arrays that Yosys maps to
-# flip-flops here (no SRAM macro), so their flip-flop counts hold those bits.
+STAGE = {st.name: st for st in STAGES}
+# other RTL synthesised once at fixed parameters: (the plan's block, source, top, parameters)
 SMALL_BUILDS = (
-    ("box_filter", "sva/rtl/sva_box.sv", "sva_box", {"D_MAX": 32, "LANES": 16, "V": 8,
-                                                     "K_MAX": 7, "W_MAX": 24, "COST_W": 6,
-                                                     "A_W": 8}),
-    ("sgm", "sva/rtl/sva_sgm.sv", "sva_sgm", {"D_MAX": 32, "LANES": 16, "V": 8, "W_MAX": 24,
-                                              "A_W": 8, "PATH_W": 9, "SUM_W": 10}),
-    ("wta", "sva/rtl/sva_wta.sv", "sva_wta", {"D": 16, "LANES": 16, "V": 8, "SW": 12, "F": 4,
-                                              "DB": 4}),
-    ("lr_check", "sva/rtl/sva_lr.sv", "sva_lr", {"D": 16, "SW": 12, "DB": 4, "WB": 9,
-                                                 "XW": 8}),
-    ("median", "sva/rtl/sva_median.sv", "sva_median", {"K": 5, "V": 8, "WB": 9, "WMAX": 32,
-                                                       "XW": 6, "YW": 6}),
     ("nna", "nna/rtl/nna_submodule.sv", "nna_submodule", {"LAYERS": 1, "W": 20, "H": 13}),
 )
 # plan stages a build's RTL holds besides its own (sva_sgm ends with the path sum)
@@ -184,6 +244,13 @@ PLAN_STAGES = ("hamming", "box_filter", "sgm", "path_sum", "wta", "lr_check", "m
 
 # the configurations the table holds: the defaults' lanes and V, D = 64 / 128 / 256
 TABLE_CONFIGS = tuple((d, 128, 8, (32,)) for d in (64, 128, 256))
+
+
+def default_sva():
+    """The SvaConfig whose widths (box, cost, path and sum bits, F, median) the table's rows
+    are built with: the defaults'."""
+    return ChipConfig().sva
+
 
 # probes of the plan's reductions (not the twin): a tree of L levels of two-input operators
 # on W-bit words between an input and an output register -- "min" a compare-select (the SGM's
@@ -300,6 +367,36 @@ def row_figures(row: dict) -> dict:
             "fmax_mhz": round(fmax_mhz(row["depth"], gate), 1)}
 
 
+# A scaling rule holds where its checks against builds synthesised whole (that the fit did not
+# use) are within these: a stage whose lanes rule misses a check has no valid scaled rows.
+CHECK_CELLS_PCT = 3.0
+CHECK_DEPTH_GATES = 3
+
+
+def check_holds(check: dict) -> bool:
+    """Whether a recorded scaling check is within :data:`CHECK_CELLS_PCT` of the cells and
+    :data:`CHECK_DEPTH_GATES` gates of the depth."""
+    return (abs(check["error_pct"]) <= CHECK_CELLS_PCT
+            and abs(check["depth_scaled"] - check["depth_measured"]) <= CHECK_DEPTH_GATES)
+
+
+def scaling_failures(table: dict) -> dict[str, str]:
+    """Per stage whose lanes rule missed a check: what the check found (its scaled rows are
+    not valid figures: :func:`row_valid`)."""
+    out = {}
+    for c in table.get("scaling_checks", []):
+        if "lanes" in c["what"] and not check_holds(c) and c["stage"] not in out:
+            out[c["stage"]] = (f"its lanes rule missed the check at {c['params'].get('LANES')} "
+                               f"lanes: cells {c['error_pct']:+.2f} %, depth scaled "
+                               f"{c['depth_scaled']} against {c['depth_measured']} synthesised")
+    return out
+
+
+def row_valid(row: dict, failures: dict[str, str]) -> bool:
+    """A row is a valid figure unless it was scaled by a rule that missed its check."""
+    return not (row["how"].startswith("scaled") and row["stage"] in failures)
+
+
 def _config_key(d: int, lanes: int, v: int, parts) -> list:
     return [d, min(lanes, d), v, list(parts)]
 
@@ -312,103 +409,136 @@ def rows_for(table: dict, d: int, lanes: int, v: int, parts) -> list[dict]:
 
 def silicon_section(cfg, table: dict | None = None) -> dict:
     """The plan/report's ``silicon`` section for ``cfg`` from the cached table: per SVA stage
-    of the plan its logic in NAND2 equivalents (flip-flops apart), its flip-flops, depth (gate
-    levels) and fmax where the table has a row for this configuration (``config_row``), else
-    ``rtl`` (whether its RTL exists) and, if it was synthesised at a small size, that build's
-    depth and fmax (``small_build``); the SVA clock, whether every stage with a row meets it,
-    and (``compare_levels``, :func:`verdict`) whether ``sva.compare_levels`` levels of each
-    kind of the probes settle in one cycle of it."""
+    of the plan its gates, flip-flops, logic and flip-flops in NAND2 equivalents, depth (gate
+    levels), fmax and whether it meets ``clocks.sva_mhz``, where the table has a row of this
+    configuration (``config_row``: the same D, lanes, V and descriptor, and the row's build
+    parameters equal the ones ``cfg`` gives -- box, widths, F, median); the path sum is in
+    the SGM's row (``in_row``); a stage the configuration turns off says ``"off": true``; the
+    totals over the rows (memories excluded: SRAM, in ``sram_bits``), whether every row meets
+    the clock, and (``compare_levels``, :func:`verdict`) whether ``sva.compare_levels`` levels
+    of each kind of the probes settle in one cycle of it."""
     table = _default_table() if table is None else table
     s = cfg.sva
     parts = tuple(b for _, b in descriptor_parts(cfg.nna))
-    rows = {r["stage"]: r for r in rows_for(table, s.disparities, s.lanes, s.compare_levels,
-                                           parts)}
+    d, lanes, v = s.disparities, min(s.lanes, s.disparities), s.compare_levels
+    rows = {r["stage"]: r for r in rows_for(table, d, lanes, v, parts)}
+    failures = scaling_failures(table)
     mhz = cfg.clocks.sva_mhz
-    small = {}
-    for b in table.get("small_builds", []):
-        if "cells" in b:
-            for name in (b["stage"], *ALSO_COVERS.get(b["stage"], ())):
-                small[name] = {"top": b["top"], "depth_gates": b["depth"],
-                               "fmax_mhz": row_figures(b)["fmax_mhz"]}
     stages = {}
     for name in PLAN_STAGES:
+        st = STAGE.get(name)
+        if st is None:
+            owner = next((k for k, c in ALSO_COVERS.items() if name in c), None)
+            stages[name] = ({"rtl": True, "config_row": owner in stages
+                             and stages[owner]["config_row"], "in_row": owner}
+                            if owner else {"rtl": False, "config_row": False})
+            continue
+        want = st.params(d, lanes, v, parts, s)
+        if want is None:
+            stages[name] = {"rtl": True, "config_row": False, "off": True}
+            continue
         row = rows.get(name)
-        if row is None:
-            stages[name] = {"rtl": name in small, "config_row": False,
-                            **({"small_build": small[name]} if name in small else {})}
+        if row is None or row["params"] != want:
+            stages[name] = {"rtl": True, "config_row": False}
+            continue
+        if not row_valid(row, failures):
+            stages[name] = {"rtl": True, "config_row": False, "scaling_failed": failures[name]}
             continue
         fig = row_figures(row)
-        stages[name] = {"rtl": True, "config_row": True, "how": row["how"], "gates": row["gates"],
-                        "flip_flops": row["flip_flops"], "depth_gates": row["depth"],
-                        "nand2_logic": fig["nand2_logic"],
+        stages[name] = {"rtl": True, "config_row": True, "how": row["how"],
+                        "gates": row["gates"], "flip_flops": row["flip_flops"],
+                        "depth_gates": row["depth"], "nand2_logic": fig["nand2_logic"],
                         "nand2_flip_flops": fig["nand2_flip_flops"],
                         "fmax_mhz": fig["fmax_mhz"], "meets_clock": fig["fmax_mhz"] >= mhz}
-    measured = [st for st in stages.values() if st["config_row"]]
+    measured = [st for st in stages.values() if "gates" in st]
     return {"library": LIBRARY["name"], "table": str(TABLE.relative_to(ROOT)),
-            "config": {"disparities": s.disparities, "lanes": min(s.lanes, s.disparities),
-                       "compare_levels": s.compare_levels, "parts": list(parts)},
+            "config": {"disparities": d, "lanes": lanes, "compare_levels": v,
+                       "parts": list(parts)},
             "clock_mhz": mhz, "stages": stages,
             "nand2_logic": sum(st["nand2_logic"] for st in measured),
             "nand2_flip_flops": sum(st["nand2_flip_flops"] for st in measured),
             "meets_clock": all(st["meets_clock"] for st in measured) if measured else None,
-            "compare_levels": verdict(table, mhz, s.compare_levels) if table.get("probes")
-            else {}}
+            "compare_levels": verdict(table, mhz, v) if table.get("probes") else {}}
 
 
 # ---- stereosim rtl synth ------------------------------------------------------------------
 
 def format_table(table: dict, mhz: float = 465.0) -> str:
-    """The per-stage table of every configuration the cached table holds, the probes and the
-    verdict on ``mhz`` (text)."""
+    """The per-stage table of every configuration the cached table holds (a total per
+    configuration), the scaling checks, the probes' verdict on ``mhz`` (text)."""
     out = [f"RTL twin synthesis ({table['tool']}; {LIBRARY['name']})",
            f"table: {TABLE.relative_to(ROOT)}, written {table['written']} by "
            f"`{table['command']}`: Yosys {yosys_seconds(table):.0f} s in all (that run "
-           f"{table['wall_s']:.0f} s; a cached build is not rerun)", ""]
-    head = (f"{'stage':10} {'D':>4} {'lanes':>5} {'V':>2} {'parts':>7} {'gates':>8} "
+           f"{table['wall_s']:.0f} s; a cached build is not rerun)",
+           "memories (column sums, SGM previous rows, median row banks) are SRAM macros: "
+           "excluded from every row (sram_bits counts them)", ""]
+    head = (f"{'stage':10} {'D':>4} {'lanes':>5} {'V':>2} {'parts':>5} {'gates':>9} "
             f"{'FFs':>7} {'NAND2 logic':>11} {'NAND2 FFs':>9} {'depth':>5} {'t_gate':>6} "
             f"{'fmax MHz':>8}  how")
-    out += [head, "-" * len(head)]
+    configs: list = []
     for r in table["rows"]:
-        d, lanes, v, parts = r["config"]
-        f = row_figures(r)
-        out.append(f"{r['stage']:10} {d:>4} {lanes:>5} {v:>2} {'+'.join(map(str, parts)):>7} "
-                   f"{r['gates']:>8,} {r['flip_flops']:>7,} {f['nand2_logic']:>11,} "
-                   f"{f['nand2_flip_flops']:>9,} {r['depth']:>5} {f['gate_ps']:>6.1f} "
-                   f"{f['fmax_mhz']:>8.0f}  {r['how']}")
-    checks = table.get("scaling_checks", [])
-    if any(r["how"].startswith("scaled") for r in table["rows"]):
-        out.append(f"scaled: {table.get('scaling_rule', '')}; checked against builds "
-                   "synthesised whole: " + ", ".join(
-                       f"{c['stage']} {c['config'][1]} lanes {c['cells_scaled']:,} cells scaled "
-                       f"/ {c['cells_measured']:,} measured ({c['error_pct']:+.2f} %), depth "
-                       f"{c['depth_scaled']} / {c['depth_measured']}" for c in checks))
-    small = table.get("small_builds", [])
-    if small:
-        out += ["", "other stages, one build each at their co-simulation tests' sizes "
-                "(memories as flip-flops):"]
-        for b in small:
-            ps = " ".join(f"{k}={v}" for k, v in b["params"].items())
-            if "cells" not in b:
-                out.append(f"  {b['stage']:10} {b['top']} {ps}: {b['failed']}")
+        if r["config"] not in configs:
+            configs.append(r["config"])
+    failures = scaling_failures(table)
+    for key in configs:
+        out += [head, "-" * len(head)]
+        tot = {"gates": 0, "flip_flops": 0, "nand2_logic": 0, "nand2_flip_flops": 0}
+        slow, left_out = None, []
+        for r in (r for r in table["rows"] if r["config"] == key):
+            d, lanes, v, parts = r["config"]
+            f = row_figures(r)
+            valid = row_valid(r, failures)
+            how = r["how"] if valid else f"NOT VALID ({r['how']}: {failures[r['stage']]})"
+            out.append(f"{r['stage']:10} {d:>4} {lanes:>5} {v:>2} "
+                       f"{'+'.join(map(str, parts)):>5} {r['gates']:>9,} {r['flip_flops']:>7,} "
+                       f"{f['nand2_logic']:>11,} {f['nand2_flip_flops']:>9,} {r['depth']:>5} "
+                       f"{f['gate_ps']:>6.1f} {f['fmax_mhz']:>8.0f}  {how}")
+            if not valid:
+                left_out.append(r["stage"])
                 continue
-            f = row_figures(b)
-            out.append(f"  {b['stage']:10} {b['top']} {ps}: {b['gates']:,} gates, "
-                       f"{b['flip_flops']:,} FFs, NAND2 logic {f['nand2_logic']:,}, depth "
-                       f"{b['depth']}, fmax {f['fmax_mhz']:.0f} MHz")
-    have = {r["stage"] for r in table["rows"]} | {b["stage"] for b in small if "cells" in b}
+            for k in ("gates", "flip_flops"):
+                tot[k] += r[k]
+            for k in ("nand2_logic", "nand2_flip_flops"):
+                tot[k] += f[k]
+            if slow is None or f["fmax_mhz"] < slow[1]:
+                slow = (r["stage"], f["fmax_mhz"])
+        out.append(f"{'SVA total':10} {key[0]:>4} {key[1]:>5} {key[2]:>2} {'':>5} "
+                   f"{tot['gates']:>9,} {tot['flip_flops']:>7,} {tot['nand2_logic']:>11,} "
+                   f"{tot['nand2_flip_flops']:>9,} {'':>5} {'':>6} {slow[1]:>8.0f}  "
+                   f"(slowest: {slow[0]}; path_sum is in sgm's row"
+                   + (f"; without {', '.join(left_out)}: not valid" if left_out else "") + ")")
+        out.append("")
+    if any("scaled" in r["how"] for r in table["rows"]):
+        out.append(f"scaled: {table.get('scaling_rule', '')}")
+    for c in table.get("scaling_checks", []):
+        out.append(f"  check {c['stage']} {c['params']}: {c['cells_scaled']:,} cells scaled / "
+                   f"{c['cells_measured']:,} synthesised ({c['error_pct']:+.2f} %), depth "
+                   f"{c['depth_scaled']} / {c['depth_measured']} ({c['what']})")
+    small = table.get("small_builds", [])
+    for b in small:
+        ps = " ".join(f"{k}={v}" for k, v in b["params"].items())
+        if "cells" not in b:
+            out.append(f"{b['stage']}: {b['top']} {ps}: {b['failed']}")
+            continue
+        f = row_figures(b)
+        out.append(f"{b['stage']}: {b['top']} {ps}: {b['gates']:,} gates, "
+                   f"{b['flip_flops']:,} FFs, NAND2 logic {f['nand2_logic']:,}, depth "
+                   f"{b['depth']}, fmax {f['fmax_mhz']:.0f} MHz")
+    have = {r["stage"] for r in table["rows"]}
     have |= {c for h in list(have) for c in ALSO_COVERS.get(h, ())}
     missing = [s for s in PLAN_STAGES if s not in have]
     if missing:
-        out.append(f"not synthesised: {', '.join(missing)}")
+        out.append(f"no rows: {', '.join(missing)}"
+                   + (" (the output register has no RTL of its own)" if "output" in missing
+                      else ""))
     out += ["", verdict_text(table, mhz)]
     return "\n".join(out)
 
 
 def yosys_seconds(table: dict) -> float:
     """Yosys's wall time summed over every build the table holds (cached or not)."""
-    builds = (table.get("probes", []) + table.get("slices", [])
-              + table.get("scaling_checks", []) + table.get("small_builds", [])
-              + [r for r in table["rows"] if r.get("how") == "measured"])
+    builds = (table.get("probes", []) + table.get("builds", [])
+              + table.get("small_builds", []))
     return sum(b.get("seconds", 0.0) for b in builds)
 
 
