@@ -53,7 +53,7 @@ def rtl_twin_top():
 def rtl_run(tmp_path_factory):
     """``run(source, top, parameters, test_module, case)``: build ``top`` from ``source``
     (relative to the repository) with ``parameters`` once per session and parameter set (the
-    session's pytest-xdist workers share the builds), then
+    session's pytest-xdist workers share a build one of them finished), then
     run the cocotb ``test_module`` (in tests/rtl) with ``case`` (JSON in
     STEREOSIM_RTL_CASE); fails with the cocotb results if a test failed."""
     import cocotb_tools.runner as cocotb_runner
@@ -70,19 +70,28 @@ def rtl_run(tmp_path_factory):
     runner = get_runner("verilator")
     runs = [0]
 
-    def build_once(build: Path, text: str, top: str, parameters: dict) -> None:
-        """Build ``top`` into ``build`` unless a worker of this session has: the first to
-        take the lock builds, the others wait for it and find it done."""
-        with open(build.with_suffix(".lock"), "w") as lock:
-            fcntl.flock(lock, fcntl.LOCK_EX)
-            if (build / "built").exists():
-                return
-            build.mkdir(parents=True, exist_ok=True)
-            (build / f"{top}.sv").write_text(text)
-            runner.build(sources=[build / f"{top}.sv"], hdl_toplevel=top,
-                         parameters=parameters, build_dir=build, always=True,
-                         build_args=["-Wno-fatal"])
-            (build / "built").touch()
+    def build(where: Path, text: str, top: str, parameters: dict) -> None:
+        where.mkdir(parents=True, exist_ok=True)
+        (where / f"{top}.sv").write_text(text)
+        runner.build(sources=[where / f"{top}.sv"], hdl_toplevel=top, parameters=parameters,
+                     build_dir=where, always=True, build_args=["-Wno-fatal"])
+        (where / "built").touch()
+
+    def build_once(shared: Path, text: str, top: str, parameters: dict) -> Path:
+        """The folder of ``top``'s build: the session's shared one if it is built or this
+        worker takes its lock first (and builds it); while another worker holds the lock,
+        a build of this worker's own -- never an idle wait on the other's compiler."""
+        with open(shared.with_suffix(".lock"), "w") as lock:
+            try:
+                fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                mine = shared.with_name(f"{shared.name}-{worker}")
+                if not (mine / "built").exists():
+                    build(mine, text, top, parameters)
+                return mine
+            if not (shared / "built").exists():
+                build(shared, text, top, parameters)
+            return shared
 
     def run(source, top: str, parameters: dict, test_module: str, case: dict,
             fails: bool = False) -> str:
@@ -91,8 +100,7 @@ def rtl_run(tmp_path_factory):
         text = (RTL / source).read_text() if isinstance(source, str) else source[0]
         key = hashlib.sha256(json.dumps([text, top, parameters], sort_keys=True)
                              .encode()).hexdigest()[:12]
-        build = root / f"{top}-{key}"
-        build_once(build, text, top, parameters)
+        build = build_once(root / f"{top}-{key}", text, top, parameters)
         runs[0] += 1
         xml = build / f"results-{worker or 'main'}-{runs[0]}.xml"
         try:
