@@ -9,14 +9,11 @@ was taken; a slot offered without a gap is taken ``II`` ticks after the one befo
 numbers are the plan's box_filter stage (sim.cycle.stages.sva_stages), read at run time.
 """
 
-import json
-import os
 
 import cocotb
 import numpy as np
-from cocotb.clock import Clock
 from cocotb.triggers import ReadOnly, RisingEdge
-from twin import Pins
+from twin import Pins, each_run
 
 from stereosim.sim.config import load_config
 from stereosim.sim.cycle.stages import sva_stages
@@ -60,10 +57,7 @@ def schedule(cost: np.ndarray, k: int) -> list[dict]:
 @cocotb.test()
 async def sums_and_cycles(dut):
     """Every run of the case (volumes, box sizes, D) on the one build, reset between."""
-    case = json.loads(os.environ["STEREOSIM_RTL_CASE"])
-    cocotb.start_soon(Clock(dut.clk, 10, unit="ns").start())
-    for run in case["runs"]:
-        await one_run(dut, {**case, **run})
+    await each_run(dut, one_run)
 
 
 async def one_run(dut, p: dict) -> None:

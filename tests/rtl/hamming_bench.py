@@ -8,14 +8,11 @@ the stage must take a pixel every II cycles when offered one -- the plan's II an
 """
 
 import dataclasses
-import json
-import os
 
 import cocotb
 import numpy as np
-from cocotb.clock import Clock
 from cocotb.triggers import ReadOnly, RisingEdge
-from twin import Pins
+from twin import Pins, each_run
 
 from stereosim.sim.config import load_config
 from stereosim.sim.cycle.stages import hamming_stage
@@ -37,10 +34,7 @@ def expected(dl: int, dr: list[int], outside: list[bool], parts, weights) -> lis
 @cocotb.test()
 async def costs_and_cycles(dut):
     """Every run of the case (weight pairs, offer rates) on the one build, reset between."""
-    case = json.loads(os.environ["STEREOSIM_RTL_CASE"])
-    cocotb.start_soon(Clock(dut.clk, 10, unit="ns").start())
-    for run in case["runs"]:
-        await one_run(dut, {**case, **run})
+    await each_run(dut, one_run)
 
 
 async def one_run(top, p: dict) -> None:

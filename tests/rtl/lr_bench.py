@@ -13,6 +13,7 @@ read from the plan) after its pixel arrived.
 
 import numpy as np
 from cocotb.triggers import ReadOnly, RisingEdge
+from twin import Pins
 
 from stereosim.sim.config import load_config
 from stereosim.sim.cycle.stages import pipeline_ii, sva_stages
@@ -40,10 +41,7 @@ def volume(rng, h: int, w: int, d: int, sw: int) -> np.ndarray:
 
 
 async def one_run(dut, p: dict) -> None:
-    pre = p.get("prefix", "")
-
-    def sig(name):
-        return getattr(dut, pre + name)
+    pins = Pins(dut, p.get("prefix", ""))
 
     cfg = load_config(overrides=p["overrides"])
     stages = sva_stages(cfg, 64, (32,), output_word_bits(cfg.sva), 32)
@@ -63,33 +61,33 @@ async def one_run(dut, p: dict) -> None:
             t += ii
         t += ii * int(rng.integers(0, 3)) if rng.random() < 0.6 else \
             (d - 1) * ii + int(rng.integers(0, 3 * ii))
-    sig("rst").value = 1
-    sig("en").value = 1
-    sig("in_valid").value = 0
-    sig("width").value = w
-    sig("ii").value = ii
-    sig("max_diff").value = cfg.sva.lr_max_diff
+    pins.rst.value = 1
+    pins.en.value = 1
+    pins.in_valid.value = 0
+    pins.width.value = w
+    pins.ii.value = ii
+    pins.max_diff.value = cfg.sva.lr_max_diff
     await RisingEdge(dut.clk)
     await RisingEdge(dut.clk)
-    sig("rst").value = 0
+    pins.rst.value = 0
     outs = []
     tick = cycle = 0
     nxt = 0
     while len(outs) < h * w and cycle < 4 * (start[-1] + stage.latency) + 100:
         en = rng.random() >= p["stall"]
         offer = nxt < h * w and start[nxt] == tick
-        sig("en").value = int(en)
-        sig("in_valid").value = int(offer)
+        pins.en.value = int(en)
+        pins.in_valid.value = int(offer)
         if offer:
             y, x = divmod(nxt, w)
-            sig("s_in").value = sum(int(v) << (i * sw) for i, v in enumerate(s[y, x]))
-            sig("q_in").value = int(q[y, x]) & ((1 << wb) - 1)
-            sig("d_in").value = int(dint[y, x])
+            pins.s_in.value = sum(int(v) << (i * sw) for i, v in enumerate(s[y, x]))
+            pins.q_in.value = int(q[y, x]) & ((1 << wb) - 1)
+            pins.d_in.value = int(dint[y, x])
         await ReadOnly()
         if en:
             nxt += int(offer)
-            if int(sig("out_valid").value):
-                v = int(sig("q_out").value)
+            if int(pins.out_valid.value):
+                v = int(pins.q_out.value)
                 outs.append((tick, v - (1 << wb) if v >> (wb - 1) else v))
         await RisingEdge(dut.clk)
         cycle += 1

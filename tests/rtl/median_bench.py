@@ -11,6 +11,7 @@ plan's median II with 1r1w banks).
 
 import numpy as np
 from cocotb.triggers import ReadOnly, RisingEdge
+from twin import Pins
 
 from stereosim.sim.config import load_config
 from stereosim.sim.cycle.stages import sva_stages
@@ -19,10 +20,7 @@ from stereosim.sva.median import median_ref
 
 
 async def one_run(dut, p: dict) -> None:
-    pre = p.get("prefix", "")
-
-    def sig(name):
-        return getattr(dut, pre + name)
+    pins = Pins(dut, p.get("prefix", ""))
 
     cfg = load_config(overrides=p["overrides"])
     stages = sva_stages(cfg, 64, (32,), output_word_bits(cfg.sva), 32)
@@ -38,30 +36,30 @@ async def one_run(dut, p: dict) -> None:
     q[narrow] = rng.integers(-1, 3, (int(narrow.sum()), w))
     want = median_ref(q.astype(np.int32), k)
     slots = h * w + m * w + m
-    sig("rst").value = 1
-    sig("en").value = 1
-    sig("in_valid").value = 0
-    sig("width").value = w
-    sig("height").value = h
+    pins.rst.value = 1
+    pins.en.value = 1
+    pins.in_valid.value = 0
+    pins.width.value = w
+    pins.height.value = h
     await RisingEdge(dut.clk)
     await RisingEdge(dut.clk)
-    sig("rst").value = 0
+    pins.rst.value = 0
     fed, outs = [], []
     tick = cycle = 0
     while len(outs) < h * w and cycle < 20 * slots + 100:
         en = rng.random() >= p["stall"]
         offer = len(fed) < slots and rng.random() >= p["gap"]
-        sig("en").value = int(en)
-        sig("in_valid").value = int(offer)
+        pins.en.value = int(en)
+        pins.in_valid.value = int(offer)
         if offer:
             j = len(fed)
-            sig("word").value = int(q.flat[j]) & ((1 << wb) - 1) if j < h * w else 0
+            pins.word.value = int(q.flat[j]) & ((1 << wb) - 1) if j < h * w else 0
         await ReadOnly()
         if en:
             if offer:
                 fed.append(tick)
-            if int(sig("out_valid").value):
-                v = int(sig("med").value)
+            if int(pins.out_valid.value):
+                v = int(pins.med.value)
                 outs.append((tick, v - (1 << wb) if v >> (wb - 1) else v))
         await RisingEdge(dut.clk)
         cycle += 1

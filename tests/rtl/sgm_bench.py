@@ -10,14 +10,11 @@ them, and a pixel offered back to back be taken one plan's sgm II after the one 
 (sim.cycle.stages.sva_stages, read at run time).
 """
 
-import json
-import os
 
 import cocotb
 import numpy as np
-from cocotb.clock import Clock
 from cocotb.triggers import ReadOnly, RisingEdge
-from twin import Pins
+from twin import Pins, each_run
 
 from stereosim.sim.config import load_config
 from stereosim.sim.cycle.stages import sva_stages
@@ -41,10 +38,7 @@ def references(agg, img, s) -> tuple[np.ndarray, np.ndarray]:
 @cocotb.test()
 async def paths_sums_and_cycles(dut):
     """Every run of the case (volumes, D, P1/P2, adaptive P2, paths) on the one build."""
-    case = json.loads(os.environ["STEREOSIM_RTL_CASE"])
-    cocotb.start_soon(Clock(dut.clk, 10, unit="ns").start())
-    for run in case["runs"]:
-        await one_run(dut, {**case, **run})
+    await each_run(dut, one_run)
 
 
 async def one_run(dut, p: dict) -> None:
