@@ -50,7 +50,8 @@ def _block_line(plan: ChipPlan, b: BlockPlan) -> str:
         if plan.parts > 1:
             parts.append(f"tile x {t.x0}..{t.x1 - 1}, y {t.y0}..{t.y1 - 1}")
     if b.kind == "sva":
-        parts.append(f"look-ahead {b.lookahead} rows, latency {b.latency}")
+        parts.append(f"look-ahead {b.lookahead} rows, {b.passes} passes, slot II "
+                     f"{b.slot_cycles}, median skew {b.skew} words, latency {b.latency}")
     if b.kind == "memory":
         parts.append(f"{b.bytes_per_s / 1e9:g} GB/s")
     if b.kind == "camera":

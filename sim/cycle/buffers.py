@@ -9,10 +9,9 @@ Two buffers hold a sliding window of image rows:
   LayerPlan`): when the layer's MAC array's next output row is y (rows of its output region),
   it still reads input rows from ``y + top_halo - half`` (the layer's); a row arriving is held
   with them;
-- the SVA's **descriptor rows** (``sva.descriptor_rows``, k + 1 rows of each view, k the box
-  size): the box filter runs m rows ahead of the output (the median needs m output rows below),
-  so with output row y next it still reads rows from ``y + m - r`` (r box and m median radius);
-  a row arriving is held with them.
+- the SVA's **descriptor rows** (``sva.descriptor_rows``, k + 2 rows of each view, k the box
+  size): with box row y next its slots still read rows from ``y - 1 - r`` (the row leaving the
+  column sums; r the box radius); a row arriving is held with them.
 
 Both engines record, per buffer, the cycle each input row started to enter (its first beat)
 and the cycle each output row was done (its last beat pushed). From those alone
@@ -37,7 +36,7 @@ from __future__ import annotations
 import numpy as np
 
 from stereosim.sim.cycle.plan import ChipPlan
-from stereosim.sva.geometry import box_radius, median_radius
+from stereosim.sva.geometry import box_radius
 
 
 class BufferOverflow(RuntimeError):
@@ -70,10 +69,9 @@ def tracked(plan: ChipPlan) -> list[tuple[str, str, int, int, int, int, int, int
                         last.y0 - t0.in_y0 - r_c, t0.in_shape[0], last.shape[0]))
     sva = plan.block("sva")
     buf = next(x for x in sva.buffers if x.name == "sva.descriptor_rows")
-    s = plan.cfg.sva
     h = plan.shape[0]
     out.append(("sva", buf.name, buf.rows, buf.bits, slots, slots + 1,
-                median_radius(s) - box_radius(s), h, h))
+                -box_radius(plan.cfg.sva) - 1, h, h))
     return out
 
 

@@ -19,13 +19,17 @@ row instead of per cycle:
   the formula says; it is then not the bottleneck).
 - **Latency.** Times are carried per image row: the cycle each stage receives the first and the
   last beat of a row. A stage's output row y is ready the cycle after the input row it needs is
-  complete (NNA: row min(y + h, H - 1), h the window's half height; SVA: row min(y + r + m,
-  H - 1), r box and m median radius); its first word leaves ``max(ready + latency, previous
-  word + II)`` and the rest of the row follows at the II. FIFOs add their visibility delay,
+  complete (NNA: row min(y + h, H - 1), h the window's half height; SVA: box row y needs row
+  min(y + r, H - 1), r the box radius); the NNA's first output leaves ``max(ready + latency,
+  previous + II)`` and the rest of the row follows at the II. The SVA's sequencer (its rules
+  in :mod:`sim.cycle.rules`) issues a frame's k - 1 passes, then box row y's first word at
+  ``sva_first_word_tick`` / ``sva_row_issue_tick`` (r look-ahead slots) and its others at the
+  II; word j leaves L after the word it leaves with (``sva_exit_item``: the median's skew of
+  m W + m words, the last ones with flush ticks). FIFOs add their visibility delay,
   ``first_edge_after(push instant) + latency + (sync - 1 if crossing) - 1`` consumer cycles,
   computed on the same femtosecond grid as :class:`sim.cycle.rules.ClockDomain`. The line buffer's
-  room rule and the SVA's look-ahead window (row y_in enters once the last word of output row
-  y_in - r - m - 2 has entered the SVA's pipeline) are applied. Exact (to the cycle) when no FIFO
+  room rule and the SVA's look-ahead window (row y_in enters once the last word of box row
+  y_in - r - 2 has entered the SVA's pipeline) are applied. Exact (to the cycle) when no FIFO
   fills; see docs/whatif.md for what is approximated when one does. The NNA -> SVA FIFO is exact
   either way: when it is within a beat of its round trip (:func:`fills`) its handshake is walked
   beat by beat (:class:`LinkWalk`, with the FIFO's own visibility and free-slot rules), as its mean
@@ -84,7 +88,13 @@ from stereosim.sim.cycle.rules import (
     nna_last_input_row,
     nna_rows_started_before_input,
     seen_from,
+    sva_exit_item,
+    sva_first_word_tick,
+    sva_frame_start,
+    sva_frame_ticks,
     sva_last_input_row,
+    sva_pass_row,
+    sva_pass_start,
     sva_rows_done_before_input,
 )
 from stereosim.sim.errors import InputError, UserError
@@ -209,8 +219,9 @@ def merge_depth_needed(plan: ChipPlan) -> int | None:
     The merge drains a camera's tiles in raster order: row y of tile 0, of tile 1, ..., then
     row y + 1. In the steady state each row takes T NNA cycles (the slowest block's work per
     row; a camera streaming into the NNA: its line), of which the merge serves tile t for
-    G_t >= w_t a cycles (w_t the tile's width, a = max(1, II_sva f_nna / f_sva) cycles a
-    descriptor at the SVA's pace), sum_t G_t = T. Meanwhile tile t goes on computing one
+    G_t >= w_t a cycles (w_t the tile's width, a = max(1, R f_nna / (W f_sva)) cycles a
+    descriptor at the SVA's pace, R = (W - 1) II + max(II, (r + 1) a_slot) its ticks a row,
+    :func:`~sim.cycle.rules.sva_frame_ticks`), sum_t G_t = T. Meanwhile tile t goes on computing one
     descriptor per c cycles, less the slack T - w_t c it has each row, so its FIFO must hold
     P_t = w_t - G_t / c descriptors. The tiles settle (by blocking) into the sharing that
     minimises the largest P_t: P with sum_t max(w_t a, c (w_t - P)) = T (P = 0 if T leaves room
@@ -225,7 +236,13 @@ def merge_depth_needed(plan: ChipPlan) -> int | None:
     the tiles by itself (each receives its part of a line later than the one to its left), so
     there the figure is an upper bound (1-2 entries over where measured). At this depth tiles
     still wait a little while they settle, so the frame latency can be a few cycles per row
-    above this estimate's."""
+    above this estimate's. Not included: the SVA's frame start. Between frames it issues no
+    word for (r + 1) a + S + (k - 1) W a ticks (the column sums' passes and the median's
+    flush, :func:`~sim.cycle.rules.sva_frame_ticks`) while its row buffers let the next
+    frame's rows run at most 2r + 2 rows ahead; an SVA only a little faster than the NNA
+    then holds the NNA back at each frame boundary, and a stream needs deeper FIFOs than
+    this figure to stay at the bound (40 x 410, 8 submodules, the SVA at 465 MHz: 400 entries
+    against 77)."""
     if plan.cfg.nna.split != "columns" or plan.parts < 2:
         return None
     h = plan.shape[0]
@@ -233,10 +250,14 @@ def merge_depth_needed(plan: ChipPlan) -> int | None:
     c = subs[0].cycles
     f_nna = plan.domains["nna"].freq_hz
     sva = plan.block("sva")
-    a = max(1.0, sva.cycles * f_nna / plan.domains["sva"].freq_hz)
+    # the SVA's pace a descriptor inside a frame: a row's words and the gap before the next
+    sva_row = sva_frame_ticks(1, plan.shape[1], sva.cycles, sva.lookahead, sva.slot_cycles,
+                              0, 0)
+    a = max(1.0, sva_row / plan.shape[1] * f_nna / plan.domains["sva"].freq_hz)
     work = block_work(plan)
-    row_s = max(cycles / hz for name, (cycles, hz) in work.items()
-                if plan.block(name).kind != "camera") / h
+    # each block's time a row inside a frame (the SVA: its row, without the frame's start)
+    row_s = max(sva_row / plan.domains["sva"].freq_hz if name == "sva" else cycles / hz / h
+                for name, (cycles, hz) in work.items() if plan.block(name).kind != "camera")
     if plan.camera_direct:
         camera = plan.blocks_of("camera")[0]
         row_s = max(row_s, camera.line_clocks / plan.domains["camera"].freq_hz)
@@ -473,16 +494,18 @@ def timeline(plan: ChipPlan) -> dict:
         producer = plan.block(link.producer)
         walk = LinkWalk(link, plan, producer.cycles if producer.kind == "nna" else 1)
     in_end: dict[int, float] = {}
-    out_rows: dict[int, tuple[float, float]] = {}
+    box_rows: dict[int, tuple[float, float]] = {}  # each box row's first and last issue
+    r, a, skew = la, sva.slot_cycles, sva.skew
+    never = -(1 << 40)
     next_out = 0
     prev_end = -1.0
-    prev_out = -math.inf
+    prev_out = never
     for y in range(h):
         first, last = nna_rows[y]
-        done = sva_rows_done_before_input(y, la)
-        # the row window is released when the last word of output row done - 1 enters the
-        # pipeline: L cycles before it leaves (the estimate has no stalls)
-        released = out_rows[done - 1][1] - sva.latency + 1 if done > 0 else 0
+        done = sva_rows_done_before_input(y, la, h)
+        # the row window is released when the last word of box row done - 1 enters the
+        # pipeline (the estimate has no stalls: ticks are cycles)
+        released = box_rows[done - 1][1] + 1 if done > 0 else 0
         if walk is not None:
             # a FIFO within a beat of its round trip: its handshake beat by beat (LinkWalk)
             end = walk.row(first, last, w, released)
@@ -501,19 +524,35 @@ def timeline(plan: ChipPlan) -> dict:
         prev_end = end
         while next_out < h and sva_last_input_row(next_out, la, h) <= y:
             ready = in_end[sva_last_input_row(next_out, la, h)] + 1
-            o_first = max(ready + sva.latency, prev_out + ii_out)
-            o_first = math.ceil(o_first)
+            passes_end = never
+            if next_out == 0:  # the column sums' passes (their rows are in: rows <= r)
+                passes_end = sva_frame_start(never, a, skew)
+                for q in range(sva.passes):
+                    passes_end = sva_pass_start(in_end[sva_pass_row(q, r, h)] + 1,
+                                                passes_end) + w * a
+            o_first = math.ceil(sva_first_word_tick(ready, prev_out, ii_out, r, a,
+                                                    passes_end))
             o_last = math.ceil(o_first + (w - 1) * ii_out)
-            out_rows[next_out] = (o_first, o_last)
+            box_rows[next_out] = (o_first, o_last)
             prev_out = o_last
             next_out += 1
     lat = to_sink.latency_cycles
+
+    def leaves(j: int) -> float:
+        """The cycle word j of the frame reaches the output register: L after the word it
+        leaves with; the last S words with flush ticks, one a tick or at the sink FIFO's
+        rate."""
+        item, extra = sva_exit_item(j, skew, h * w)
+        y_i, x_i = divmod(item, w)
+        flush = extra * max(1.0, (to_sink.latency_cycles + 1) / to_sink.depth)
+        return box_rows[y_i][0] + x_i * ii_out + flush + sva.latency
+
     return {
         "nna_first_push": nna_rows[0][0],
         "sva_first_ready": in_end[sva_last_input_row(0, la, h)] + 1,
         "source_last_pop_nna": last_pop,
-        "first_output_cycle": out_rows[0][0] + lat,
-        "last_output_cycle": out_rows[h - 1][1] + lat,
+        "first_output_cycle": math.ceil(leaves(0)) + lat,
+        "last_output_cycle": math.ceil(leaves(h * w - 1)) + lat,
         "period_fs": {name: d.period_fs for name, d in plan.domains.items()},
         "stream_ii_sva_cycles": {"nna_to_sva": ii_in, "sva_to_sink": ii_out},
     }

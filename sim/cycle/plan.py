@@ -44,7 +44,7 @@ from stereosim.sim.config import AUTO_BUDGET_FACTOR, ChipConfig, check_config
 from stereosim.sim.config.widths import largest_cost, weight_sets
 from stereosim.sim.cycle.dram import DramPlan, dram_plan
 from stereosim.sim.cycle.lent import LentPlan, lent_plan
-from stereosim.sim.cycle.rules import ClockDomain, fifo_edges, period_fs
+from stereosim.sim.cycle.rules import ClockDomain, fifo_edges, period_fs, sva_frame_ticks
 from stereosim.sim.cycle.stages import (
     BufferPlan,
     LayerPlan,
@@ -53,10 +53,16 @@ from stereosim.sim.cycle.stages import (
     nna_stages,
     pipeline_ii,
     pipeline_latency,
+    slot_ii,
     sva_stages,
 )
 from stereosim.sim.errors import ConfigError, InputError
-from stereosim.sva.geometry import check_disparity_range, output_word_bits, row_lookahead
+from stereosim.sva.geometry import (
+    box_radius,
+    check_disparity_range,
+    median_radius,
+    output_word_bits,
+)
 
 SIDES = ("left", "right")
 STATUS_CODES = {"idle": 0, "busy": 1, "starved": 2, "blocked": 3}  # as traced
@@ -122,9 +128,13 @@ class BlockPlan:
       :class:`~sim.cycle.stages.LayerPlan`: one stage per layer, one for a single layer or
       the census);
     - merge: ``items`` descriptors moved, one per cycle;
-    - sva: ``lookahead`` rows (box + median radius), ``stages`` (its pipeline,
-      :mod:`sim.cycle.stages`), ``latency`` (row ready -> first word: the stages' latencies),
-      ``cycles`` per word (initiation interval: the slowest stage's);
+    - sva: ``lookahead`` rows (the box radius r: box row y needs input row y + r),
+      ``passes`` (k - 1: the column sums' seeding passes before a frame's row 0), ``skew``
+      (S = m W + m: the median's words behind, 0 without it), ``slot_cycles`` (a: the
+      sequencer's slot II), ``stages`` (its pipeline, :mod:`sim.cycle.stages`), ``latency``
+      (a word issued -> in the output register: the stages' latencies), ``cycles`` per word
+      (initiation interval: the slowest stage's) -- the rules are
+      :func:`~sim.cycle.rules.sva_slot` and the issue rules after it;
     - sink: one word per cycle.
     """
 
@@ -142,6 +152,9 @@ class BlockPlan:
     half: int = 0
     rows: int = 0
     lookahead: int = 0
+    passes: int = 0  # sva: the column sums' seeding passes (k - 1)
+    skew: int = 0  # sva: the median's skew in words, m W + m
+    slot_cycles: int = 1  # sva: the slot II
     bytes_per_s: int = 0
     line_clocks: int = 0
     frame_clocks: int = 0
@@ -367,8 +380,9 @@ class ChipPlan:
 
     def work_cycles(self, block: BlockPlan, busy: int) -> int:
         """A block's work per frame, the cycles its critical resource is occupied: the MAC
-        array's descriptors x cycles (NNA), the output pipeline's words x II (SVA), one beat per
-        cycle (merge), the whole raster with blanking (camera: a camera delivers frames no
+        array's descriptors x cycles (NNA), the sequencer's ticks of a frame (SVA,
+        :func:`~sim.cycle.rules.sva_frame_ticks`: words x II and its row and frame gaps), one
+        beat per cycle (merge), the whole raster with blanking (camera: a camera delivers frames no
         faster), and the cycles its port transferred (memory source: ``busy``, measured over the
         stream and shared out per frame -- a bandwidth-limited source that is back-pressured
         banks tokens while blocked; through the DRAM channel: the rounds of its frame's read
@@ -386,6 +400,10 @@ class ChipPlan:
         if block.kind == "nna":  # its busiest layer's MAC array (one layer: items x cycles)
             return pipeline_cycles(tuple(lay.items for lay in block.layers),
                                    tuple(lay.cycles for lay in block.layers))
+        if block.kind == "sva":  # its sequencer's ticks: words, row starts, passes, flush
+            h, w = self.shape
+            return sva_frame_ticks(h, w, block.cycles, block.lookahead, block.slot_cycles,
+                                   block.skew, block.passes)
         return block.items * block.cycles
 
 
@@ -597,7 +615,8 @@ def build_plan(cfg: ChipConfig, shape: tuple[int, int], frames: int = 1) -> Chip
     blocks.append(BlockPlan("sva", "sva", "sva", None, ("nna_left_to_sva", "nna_right_to_sva"),
                             (to_sink,), "top.sva", n, cycles=sva_ii,
                             latency=pipeline_latency(stages),
-                            lookahead=row_lookahead(cfg.sva),
+                            lookahead=box_radius(cfg.sva), passes=cfg.sva.box_size - 1,
+                            skew=median_radius(cfg.sva) * (w + 1), slot_cycles=slot_ii(stages),
                             buffers=tuple(b for st in stages for b in st.buffers),
                             stages=stages))
     blocks.append(BlockPlan("sink", "sink", "sva", None, (to_sink,), (), "top.sink", n))
@@ -654,7 +673,7 @@ def _signals(plan: ChipPlan) -> list[SignalPlan]:
                                ("output.col", _nb(w)), ("output.valid", 1),
                                ("output.disparity", plan.word_bits), ("lr_check.reject", 1),
                                ("pipeline.issue", 1), ("pipeline.stall", 1),
-                               ("pipeline.words", _nb(-(-b.latency // b.cycles)))):
+                               ("pipeline.words", _nb(b.skew + 1 - (-b.latency // b.cycles)))):
                 sig(b.name, b.scope, key, width, d)
             for st in b.stages:
                 sig(b.name, b.scope, f"stage.{st.name}.status", 2, d)

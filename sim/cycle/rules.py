@@ -250,21 +250,29 @@ def nna_rows_started_before_input(r, rows, half, top_halo, out_rows, in_rows):
 
 
 @register_jitable
-def sva_last_input_row(y, lookahead, image_rows):
-    """The last input row the SVA's output row y needs: min(y + r + m, H - 1) (box radius r,
-    median radius m)."""
-    return min(y + lookahead, image_rows - 1)
+def sva_last_input_row(y, radius, image_rows):
+    """The last input row the SVA's box row y needs: min(y + r, H - 1) (r the box radius; the
+    SGM paths and the LR check's diagonal stay within rows already in, and the median reads
+    words the pipeline made, not input rows: its skew, :func:`sva_exit_item`)."""
+    return min(y + radius, image_rows - 1)
 
 
 @register_jitable
-def sva_rows_done_before_input(y_in, lookahead):
-    """Output rows the SVA must have *issued* into its pipeline (every word of the row read
-    from the row buffers) before it takes input row ``y_in``: its row buffers hold the rows of
-    the next output row to issue plus one row arriving, y_in <= y_issued + r + m + 1. Rows are
-    counted over the stream of frames (frame f's row y is f H + y): the last output rows of a
-    frame read that frame's last rows, so the next frame's first rows wait for them the same
-    way."""
-    return max(0, y_in - lookahead - 1)
+def sva_rows_done_before_input(y_in, radius, image_rows):
+    """Box rows the SVA must have *issued* (every slot of the row, its last word included, read
+    from the row buffers) before it takes input row ``y_in``. Its row buffers are a ring of
+    k + 2 = 2r + 3 rows: with box row y next (local row y_l of its frame) the oldest row still
+    read is row max(0, y_l - r - 1) of that frame (the row leaving the column sums; a frame
+    reads none of the previous frame's), and a row may arrive while it is at most 2r + 2
+    rows below it. So row y_in (local q of frame g) waits for box rows up to y_in - r - 1,
+    except rows r + 2 .. 2r + 2 of a frame, which only wait for the previous frame's last
+    box row (g H). Rows are counted over the stream of frames (frame g's row q is g H +
+    q)."""
+    g = y_in // image_rows
+    q = y_in - g * image_rows
+    if radius + 1 < q <= 2 * radius + 2:
+        return g * image_rows
+    return max(0, y_in - radius - 1)
 
 
 @register_jitable
@@ -279,8 +287,8 @@ def frame_row(row, rows, frames):
 
 @register_jitable
 def rows_ready_in_frame(rows_in, image_rows, lookahead, frames):
-    """The SVA's output rows ready in the frame whose input rows arrive, ``rows_in`` input rows
-    being complete over the stream: max(0, r - r_box - m) of r complete rows of that frame,
+    """The SVA's box rows ready in the frame whose input rows arrive, ``rows_in`` input rows
+    being complete over the stream: max(0, q - r) of q complete rows of that frame,
     every row once the stream is in (:func:`sva_last_input_row`)."""
     if rows_in >= frames * image_rows:
         return image_rows
@@ -288,22 +296,112 @@ def rows_ready_in_frame(rows_in, image_rows, lookahead, frames):
 
 
 # ---- the SVA's pipeline ------------------------------------------------------------------------
-# The SVA is a lock-step pipeline (sim.cycle.stages): a word enters it (is *issued*) and moves one
-# position per *advancing* cycle; when the word in the output register cannot be pushed (the
-# output FIFO is full) the whole pipeline stalls -- no position moves, nothing is issued. Its
-# *tick* counts the advancing cycles so far (a stalled cycle does not count), so word j issued
-# at tick t_j is in stage s while t_j + offset_s < tick <= t_j + offset_s + latency_s and
-# reaches the output register at its exit tick x_j = t_j + L. The readable kernel applies the
-# issue rule below cycle by cycle; the compiled engine finds the same cycles in closed form with
-# the other two.
+# The SVA is a lock-step pipeline (sim.cycle.stages) fed by a slot sequencer (sva_slot): a slot
+# enters it (is *issued*) and moves one position per *advancing* cycle; when the word in the
+# output register cannot be pushed (the output FIFO is full) the whole pipeline stalls -- no
+# position moves, nothing is issued. Its *tick* counts the advancing cycles so far (a stalled
+# cycle does not count). The slots that emit are the *words*: word j issued at tick t_j is in
+# stage s while t_j + offset_s < tick <= t_j + offset_s + latency_s; it reaches the output
+# register at its exit tick x_j = t_{item} + extra + L (sva_exit_item: the median's skew; without
+# the median x_j = t_j + L). The readable kernel runs the sequencer slot by slot; the compiled
+# engine finds the same ticks in closed form (sva_row_issue_tick, sva_first_word_tick) and the
+# cycles with the two rules after them.
 
 
 @register_jitable
 def sva_issue_tick(ready_tick, last_tick, ii):
-    """The tick at which the SVA issues a word: once its row is ready (``ready_tick``: the
-    pipeline's tick when the row became ready) and an initiation interval of *ticks* after the
-    previous word (a stalled pipeline's II counter stalls with it)."""
+    """The tick at which the SVA issues a word inside a row: an initiation interval of *ticks*
+    after the previous word (a stalled pipeline's II counter stalls with it); ``ready_tick``
+    (the pipeline's tick when the row became ready) is below it inside a row."""
     return max(ready_tick, last_tick + ii)
+
+
+@register_jitable
+def sva_row_issue_tick(ready_tick, last_tick, ii, radius, slot_ii):
+    """The tick of an output row's first word. A box row is W + r *slots* (:func:`sva_slot`):
+    its first r slots read columns 0 .. r - 1 into the box's row window and emit nothing, so
+    the first word is slot r. A slot goes a slot II (the matching cost's and box filter's, in
+    ticks) after the previous slot, once its input row is complete (``ready_tick``: the tick
+    when row y + r became complete); a word goes a pipeline II after the previous word
+    (``last_tick``): max(ready + r a, last + max(II, (r + 1) a)), a the slot II."""
+    return max(ready_tick + radius * slot_ii, last_tick + max(ii, (radius + 1) * slot_ii))
+
+
+@register_jitable
+def sva_pass_row(p, radius, image_rows):
+    """The input row (of its frame) that pass p (0 .. k - 2) adds into the column sums before
+    the frame's box row 0: min(max(p - r, 0), H - 1). The sums start as rows -r .. r - 1
+    clamped to the frame (row 0 r + 1 times, rows 1 .. r - 1 once); box row 0 adds row
+    min(r, H - 1), the k-th."""
+    return min(max(p - radius, 0), image_rows - 1)
+
+
+@register_jitable
+def sva_pass_start(row_tick, last_end):
+    """The tick of a pass's first slot: once its row is complete (``row_tick``, the pipeline's
+    tick then) and the previous pass (or, for the first, the frame start
+    :func:`sva_frame_start`) is over (``last_end``). Its W slots go one slot II apart, so it
+    ends W a ticks later."""
+    return max(row_tick, last_end)
+
+
+@register_jitable
+def sva_frame_start(last_tick, slot_ii, skew):
+    """The first tick at which a frame's first slot may go: a slot II after the previous
+    frame's last word (``last_tick``; none: a huge negative number), and after the median's S
+    flush ticks (:func:`sva_exit_item`) that follow it."""
+    return last_tick + slot_ii + skew
+
+
+@register_jitable
+def sva_first_word_tick(ready_tick, last_tick, ii, radius, slot_ii, passes_end):
+    """The tick of a frame's first word: :func:`sva_row_issue_tick` of box row 0, and its r
+    first slots after the frame's passes (``passes_end``: the tick after the last pass slot's
+    slot II; no passes (k = 1): the frame start)."""
+    return max(sva_row_issue_tick(ready_tick, last_tick, ii, radius, slot_ii),
+               passes_end + radius * slot_ii)
+
+
+@register_jitable
+def sva_exit_item(i, skew, n):
+    """Which issue word i of a frame (0 .. N - 1, raster order) leaves with: (item, extra) --
+    word i is in the output register L ticks after the tick of the frame's word ``item``
+    plus ``extra``. The median (radius m) emits word i when word i + S enters it, S = m W + m
+    (its K - 1 row banks hold the rows between): item i + S; the frame's last S words leave
+    with S flush ticks that follow its last word, one a tick: item N - 1, extra i + S - N + 1.
+    Without the median S = 0: item i, extra 0."""
+    if i + skew < n:
+        return i + skew, 0
+    return n - 1, i + skew - n + 1
+
+
+@register_jitable
+def sva_frame_ticks(height, width, ii, radius, slot_ii, skew, passes):
+    """The ticks an SVA-bound frame takes in a stream (every input row in before its slots
+    need it): H rows of W words, (W - 1) II inside a row, a row's first word
+    max(II, (r + 1) a) after the previous row's last (:func:`sva_row_issue_tick`) and a
+    frame's first word max(II, (r + 1) a + S + (k - 1) W a) after the previous frame's last
+    (the median's flush, the passes: :func:`sva_first_word_tick`, :func:`sva_frame_start`)."""
+    row_gap = max(ii, (radius + 1) * slot_ii)
+    frame_gap = max(ii, (radius + 1) * slot_ii + skew + passes * width * slot_ii)
+    return height * (width - 1) * ii + (height - 1) * row_gap + frame_gap
+
+
+@register_jitable
+def sva_slot(i, width, height, radius, passes):
+    """Slot i of a frame's slot sequence (the SVA's sequencer, one slot a slot II at most):
+    (input row of the frame it needs complete, the frame-local word it emits or -1). First
+    ``passes`` = k - 1 passes of W slots (pass p adds row :func:`sva_pass_row`), then per box
+    row y W + r slots: column c < W adds row min(y + r, H - 1), c >= r emits word (y, c - r);
+    the last r re-enter column W - 1 and need no new row (-1)."""
+    first = passes * width
+    if i < first:
+        return sva_pass_row(i // width, radius, height), -1
+    j = i - first
+    y = j // (width + radius)
+    c = j - y * (width + radius)
+    row = min(y + radius, height - 1) if c < width else -1
+    return row, y * width + c - radius if c >= radius else -1
 
 
 @register_jitable

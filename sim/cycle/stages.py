@@ -12,6 +12,7 @@ The stages, in stream order (their docstrings give the formulas the tests check)
 ======================  =================================  ==================================
 stage                   II (cycles per pixel)              latency (cycles)
 ======================  =================================  ==================================
+row buffers' read       1                                  1
 hamming cost            max(G, ports)                      G + tree(lg(bits)); hybrid:
                                                            G + tree(lg(max b_k) + 2)
 box filter              max(G, ports)                      G + tree(2) + tree(lg(k) + 1)
@@ -53,7 +54,12 @@ compute II and its banks' port cycles, so a single-port SRAM shows its cost: at 
 none (the left path's recurrence already leaves the second cycle), with 64 lanes at D = 128 the
 SGM's II goes from 3 to 2 G = 4.
 
-The SVA's latency (an output row ready -> its first word) is the sum of the stage latencies.
+The SVA's latency L (a word issued -> it reaches the output register) is the sum of the stage
+latencies. Words are the emitting *slots* of the SVA's sequencer (:func:`~sim.cycle.rules.
+sva_slot`): a frame's k - 1 passes seed the box filter's column sums, and each box row is W + r
+slots, the first r filling the box's row window; every slot passes the row read, the matching
+cost and the box filter, one slot II apart (:func:`slot_ii`), the words one II apart. With the
+median a word leaves with the word m W + m after it (:func:`~sim.cycle.rules.sva_exit_item`).
 The LR check computes the right view's disparities from the same aggregated volume: the right
 pixel ``x_r`` takes the best of ``S(x_r + d, d)`` over d, a diagonal through the next D left
 pixels. So a left pixel's check waits until the D - 1 pixels after it have been aggregated:
@@ -215,16 +221,17 @@ def noise_buffers(cfg: ChipConfig, width: int) -> list[BufferPlan]:
 
 def hamming_stage(cfg: ChipConfig, width: int, parts: tuple[int, ...]) -> StagePlan:
     """The SVA's first stage for frames ``width`` pixels wide and descriptors of ``parts``:
-    the descriptor rows it reads (both views, k + 1 rows each), the right window, the hybrid's
+    the descriptor rows it reads (both views, k + 2 rows each), the right window, the hybrid's
     noise unit with automatic weights, its II and its latency (the module docstring)."""
     s = cfg.sva
     d, v, g, ports = s.disparities, s.compare_levels, lane_groups(cfg), s.sram_ports
     lanes = min(s.lanes, d)
     bits, levels = sum(parts), hamming_levels(parts)
-    rows_buf = BufferPlan("sva.descriptor_rows", 2 * (s.box_size + 1) * width * bits,
-                          "both views' descriptor rows the box filter slides over (k + 1 "
-                          "each; a bank per view: the arriving row written, the leaving read)",
-                          rows=s.box_size + 1, reads=1, writes=1, ports=ports, banks=2,
+    rows_buf = BufferPlan("sva.descriptor_rows", 2 * (s.box_size + 2) * width * bits,
+                          "both views' descriptor rows the box filter slides over (k + 2 "
+                          "each: rows y - 1 - r .. y + r, the one leaving the column sums "
+                          "included, and the row arriving; a bank per view)",
+                          rows=s.box_size + 2, reads=1, writes=1, ports=ports, banks=2,
                           word_bits=bits, pixel_reads=2, pixel_writes=2)
     ii = max(g, rows_buf.port_cycles)
     bufs = [rows_buf, BufferPlan("sva.right_window", d * bits,
@@ -269,6 +276,8 @@ def sva_stages(cfg: ChipConfig, width: int, parts: tuple[int, ...], word_bits: i
     box_ii = max(g, sums_buf.port_cycles)
     slide, row_sum = tree_cycles(2, v), tree_cycles(lg(s.box_size) + 1, v)
     stages = [
+        StagePlan("row_read", 1, 1, "II = 1; latency = 1 (the row buffers' read register: a "
+                  "slot's descriptors and the right window's new column)"),
         hamming_stage(cfg, width, parts),
         StagePlan(
             "box_filter", box_ii, g + slide + row_sum,
@@ -333,6 +342,8 @@ def sva_stages(cfg: ChipConfig, width: int, parts: tuple[int, ...], word_bits: i
     cost_bits = bits_for(cost_max)
     box_bits = bits_for(s.box_size * s.box_size * cost_max)
     carried = {
+        "row_read": (2 * sum(parts), f"a slot's two left descriptors of {sum(parts)} bits "
+                     "(the rows entering and leaving the box)"),
         "hamming": (d * cost_bits, f"D = {d} {'Hamming' if len(parts) == 1 else 'weighted'} "
                     f"costs of {cost_bits} bits"),
         "box_filter": (d * box_bits, f"D = {d} box sums of {box_bits} bits"),
@@ -481,6 +492,13 @@ def stage_offsets(stages: tuple[StagePlan, ...]) -> tuple[int, ...]:
 def pipeline_ii(stages: tuple[StagePlan, ...]) -> int:
     """The SVA's initiation interval: its slowest stage's."""
     return max(st.ii for st in stages)
+
+
+def slot_ii(stages: tuple[StagePlan, ...]) -> int:
+    """The SVA sequencer's slot II a: every slot (a pass's, a row's first r, a word's) passes
+    the row read, the matching cost and the box filter, so slots go the largest of their IIs
+    apart (words: the pipeline's II, :func:`pipeline_ii`)."""
+    return max(st.ii for st in stages if st.name in ("row_read", "hamming", "box_filter"))
 
 
 def pipeline_latency(stages: tuple[StagePlan, ...]) -> int:

@@ -6,15 +6,16 @@
 //
 // Boundary:
 // - in_valid / in_ready / dl, dr, pix: one left/right descriptor pair (and the left pixel) in
-//   raster order; taken (a joint pop) when in_valid && in_ready. in_ready is the model's rule
-//   sva_rows_done_before_input: input row y_in may enter while y_in <= yb_done + r + 1, yb_done
-//   the rows whose every box slot has been issued (the box rows lead the median's output rows
-//   by its m, so this is the model's y_in <= y_issued + r + m + 1). The input side does not
-//   stall with the pipeline.
+//   raster order; taken (a joint pop) when in_valid && in_ready. in_ready is the ring's room
+//   (the model's sva_rows_done_before_input): input row y_in may enter while y_in <= yb_done +
+//   r + 1, yb_done the box rows whose every slot has been issued (the oldest row still read is
+//   yb_done - r - 1, and the ring holds 2r + 3), or while y_in <= 2r + 2 (no row before the
+//   frame's row 0 is read). The input side does not stall with the pipeline.
 // - out_valid / out_ready / word: the output register; a word leaves when both are high.
 // - run-time registers: width, height, k (box, odd, <= K_MAX), p1, p2, adaptive, slope, paths,
 //   uniq, mode (sub-pixel), lr_on, max_diff, med_on, ii (the pipeline's II in ticks: the spacing of
-//   emitting slots, and the LR check's drain cadence).
+//   emitting slots, and the LR check's drain cadence), sii (the slot II: the spacing of any two
+//   slots, the matching cost's and box filter's II).
 //
 // Structure (the cycles come from it; no register is added to meet a number):
 // - row buffers: a ring of NR = K_MAX + 2 rows per view (the box's k + 1 rows, y - 1 - r ..
@@ -26,8 +27,8 @@
 //   W + r slots: columns 0 .. W - 1 adding row min(y + r, H - 1) and, y > 0, subtracting row
 //   max(y - 1 - r, 0) (row 0 adds row min(r, H - 1): the k-th pass), each emitting pixel
 //   col - r once col >= r, then r slots re-entering column W - 1 (the right border). A slot
-//   needs its added row complete; an emitting slot waits ii ticks after the previous emitting
-//   one; the others go one a tick (the box filter's II);
+//   needs its added row complete and waits sii ticks after the previous slot; an emitting slot
+//   also ii ticks after the previous emitting one;
 // - per slot two matching-cost units (sva_hamming): the cost of the row entering the vertical
 //   window and of the row leaving it, each fed by a right window of D descriptors shifted one
 //   column per slot (the plan's right window, twice: open finding 6); every slot goes through
@@ -73,6 +74,7 @@ module sva_top #(
     input  logic           med_on,
     input  logic [7:0]     max_diff,
     input  logic [7:0]     ii,
+    input  logic [7:0]     sii,
     input  logic           in_valid,
     output logic           in_ready,
     input  logic [B-1:0]   dl,
@@ -98,7 +100,8 @@ module sva_top #(
   logic [7:0]   x_in, y_in;        // the next pair's column and row
   logic [7:0]   yb_done;           // box rows whose slots are all issued
   wire  [7:0]   rows_in = y_in;    // input rows complete
-  assign in_ready = (y_in < height) && (int'(y_in) <= int'(yb_done) + int'(r) + 1);
+  assign in_ready = (y_in < height) && ((int'(y_in) <= int'(yb_done) + int'(r) + 1) ||
+                                         (int'(y_in) <= 2 * int'(r) + 2));
   always_ff @(posedge clk) begin
     if (rst) begin
       x_in <= '0; y_in <= '0;
@@ -121,6 +124,7 @@ module sva_top #(
   logic [7:0]  sc;                 // slot in the pass (column) or the row (0 .. W + r - 1)
   logic        done;
   logic [7:0]  since;              // ticks since the last emitting slot (saturating)
+  logic [7:0]  since_slot;         // ticks since the last slot (saturating)
   logic [7:0]  ya, ys;             // the rows added and subtracted
   logic        s_upd, s_fresh, s_fill, s_emit, s_nosub;
   always_comb begin
@@ -137,7 +141,8 @@ module sva_top #(
     end
   end
   wire        k_one = (k <= 4'd1);   // no passes when k = 1
-  wire        slot_ok = !done && (rows_in > ya) && (!s_emit || since >= ii);
+  wire        slot_ok = !done && (rows_in > ya) && (since_slot >= sii) &&
+                        (!s_emit || since >= ii);
   wire        issue = en && slot_ok;
   wire [XW-1:0] col = s_upd ? sc[XW-1:0] : XW'(int'(width) - 1);
 
@@ -150,11 +155,13 @@ module sva_top #(
   always_ff @(posedge clk) begin
     if (rst) begin
       passing <= 1'b1; pass <= '0; yb <= '0; sc <= '0; done <= 1'b0; since <= 8'hff;
+      since_slot <= 8'hff;
       yb_done <= '0; sl_v <= 1'b0;
     end else if (en) begin
       if (k_one && passing) passing <= 1'b0;
       sl_v <= issue;
       since <= issue && s_emit ? 8'd1 : ((since == 8'hff) ? since : since + 1'b1);
+      since_slot <= issue ? 8'd1 : ((since_slot == 8'hff) ? since_slot : since_slot + 1'b1);
       if (issue) begin
         sl_upd <= s_upd; sl_fresh <= s_fresh; sl_fill <= s_fill; sl_emit <= s_emit;
         sl_nosub <= s_nosub; sl_col <= col;

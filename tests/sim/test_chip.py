@@ -40,23 +40,29 @@ def _frame(engine, run_cycle, left, right, cfg):
 @pytest.mark.parametrize("engine", ["readable", "compiled"])
 @pytest.mark.parametrize("h, w", [(11, 53), (7, 57), (5, 64)])
 def test_census_first_and_last_output_cycles(h, w, engine, run_cycle):
-    """Census (1 cycle per descriptor, window half-height 1), memory at one pixel per cycle.
+    """Census (1 cycle per descriptor, window half-height 1), memory at one pixel per cycle;
+    box 5 (r = 2, k - 1 = 4 passes), 3x3 median (m = 1: skew S = W + 1 words), II 2, slot II 1.
 
     Source pixel k leaves in cycle k and is popped by the NNA in cycle k + 1. NNA output row 0
     needs input row 1 complete (popped in cycle 2W), so descriptor (x, y) leaves in cycle
-    (y + 2)W + 1 + x and is popped by the SVA two cycles later. SVA output row 0 needs input row
-    r + m = 2 + 1 = 3, whose last pair is popped in cycle 6W + 2: ready in 6W + 3, first word
-    pushed L cycles later and popped by the sink one cycle after that: 6W + 4 + L. The SVA (2
-    cycles per word) is slower than the census NNA (1), so the words follow at 2 cycles each:
-    the last is popped in 6W + 4 + L + 2(HW - 1). (That needs W > L: row y + 1 is ready W + 1
-    cycles after row y starts leaving, and its first word is due L later; L = 49 here.)
+    (y + 2)W + 1 + x and is popped by the SVA two cycles later: input row q is complete (ready)
+    in c_q = (q + 3)W + 3. The sink is free, so the SVA's tick is its cycle. The passes add rows
+    0, 0, 0, 1: they start in c_0 = 3W + 3, W slots each, the fourth waits for nothing (c_1 =
+    4W + 3 is before 6W + 3), and end in 7W + 3. Box row 0's first word goes r slots later,
+    7W + 5 (its row r = 2 was ready in 5W + 3), its others an II apart; each later row's first
+    word r + 1 = 3 ticks after the previous row's last (3 > II; its input row y + 2 is in by
+    then: input row q may enter once box row q - 4 is issued). So box row y starts in
+    7W + 5 + y(2W + 1). Word 0 leaves with word S = (1, 1), issued in 9W + 8, reaches the
+    output register L later and the sink pops it one cycle after: 9W + 9 + L. The last word
+    leaves with the S-th flush tick after the frame's last word, issued in 9W + 3 + (H - 1)(2W
+    + 1): the sink pops it in 10W + 5 + (H - 1)(2W + 1) + L.
     """
     left, right = _pair(h, w)
     cfg = load_config(overrides=SAME_CLOCKS)
     words, report, first, last = _frame(engine, run_cycle, left, right, cfg)
     lat = build_plan(cfg, (h, w)).block("sva").latency  # tests/sim/test_stages.py checks it
-    assert first == 6 * w + 4 + lat
-    assert last == 6 * w + 4 + lat + 2 * (h * w - 1)
+    assert first == 9 * w + 9 + lat
+    assert last == 10 * w + 5 + (h - 1) * (2 * w + 1) + lat
     assert report["throughput"]["bottleneck"] == "sva"
     functional = run(left, right, mode="functional", config=cfg).disparity_fixed
     np.testing.assert_array_equal(words, functional)
@@ -65,21 +71,26 @@ def test_census_first_and_last_output_cycles(h, w, engine, run_cycle):
 @pytest.mark.parametrize("engine", ["readable", "compiled"])
 @pytest.mark.parametrize("h, w", [(11, 37), (7, 41), (5, 33)])
 def test_cnn_first_and_last_output_cycles(h, w, engine, run_cycle):
-    """CNN: ceil(81 * 32 / 288) = 9 cycles per descriptor, window half-height 4.
+    """CNN: ceil(81 * 32 / 288) = 9 cycles per descriptor, window half-height 4; the SVA as
+    in the census test (box 5: r = 2, passes on rows 0, 0, 0, 1; 3x3 median: S = W + 1).
 
     NNA output row 0 needs input row 4 (popped in cycle 5W): it starts in 5W + 1 and pushes
     descriptor j in cycle 5W + 9 + 9j (the line buffer of 10 rows always has the next rows in
-    time). The SVA pops pair j in 5W + 11 + 9j; input row 3 completes with pair 4W - 1 in
-    41W + 2, so the first word reaches the sink in 41W + 4 + L. Input row y' completes in
-    (9y' + 14)W + 2; output rows H-4 .. H-1 all wait for row H-1, ready in (9H + 5)W + 3, and
-    then leave back to back: the last word reaches the sink in (9H + 5)W + 3 + L + 2(4W - 1) + 1.
+    time). The SVA pops pair j in 5W + 11 + 9j: input row q is ready in c_q = (9q + 14)W + 3.
+    The passes end long before box row 0's row 2 is in; box row y (y <= H - 3) starts r = 2
+    ticks after its row y + 2 is ready, (9y + 32)W + 5, and its words follow an II apart
+    (the input is slower than the SVA). Word 0 leaves with word S = (1, 1), issued in
+    41W + 7: the sink pops it in 41W + 8 + L. Box rows H - 3 .. H - 1 all wait for input row
+    H - 1 (ready in (9H + 5)W + 3): row H - 3 starts in (9H + 5)W + 5 and the three go back
+    to back, 2W + 1 ticks a row, so the frame's last word is issued in (9H + 11)W + 5 and
+    leaves with the S-th flush tick after it: the sink pops it in (9H + 12)W + 7 + L.
     """
     left, right = _pair(h, w, seed=1)
     cfg = load_config(overrides={**SAME_CLOCKS, "nna.descriptor": "cnn"})
     words, report, first, last = _frame(engine, run_cycle, left, right, cfg)
     lat = build_plan(cfg, (h, w)).block("sva").latency
-    assert first == 41 * w + 4 + lat
-    assert last == (9 * h + 5) * w + 3 + lat + 2 * (4 * w - 1) + 1
+    assert first == 41 * w + 8 + lat
+    assert last == (9 * h + 12) * w + 7 + lat
     assert report["throughput"]["bottleneck"] in ("nna_left", "nna_right")
     # the bottleneck's busy time per frame is its descriptors x 9 cycles
     assert report["blocks"]["nna_left"]["busy"] >= 9 * h * w

@@ -114,14 +114,15 @@ def test_the_grid_is_large_and_mostly_exact():
 
 def test_a_fifo_too_shallow_for_its_round_trip_is_seen_by_the_estimate():
     """A 1-deep NNA->SVA FIFO moves one descriptor per clock-crossing round trip (~4 cycles),
-    slower than the SVA's 2 cycles per pixel: the frame takes longer than the block rates say,
+    slower than the SVA's 2 cycles per pixel: the frame takes longer than the block rates say
+    (1.4 x here: the SVA's passes and flush take the same time either way),
     and the estimate, walking the FIFO's handshake, says by how much to the cycle."""
     shape = SMALL
     deep = load_config(overrides=BASE)
     shallow = load_config(overrides={**BASE, "fifo.nna_to_sva_depth": 1})
     rep = run(*_pair(shape, 1), mode="cycle", config=shallow).report
     e_deep, e_shallow = estimate(deep, shape), estimate(shallow, shape)
-    assert e_shallow["latency"]["frame_ms"] > 1.5 * e_deep["latency"]["frame_ms"]
+    assert e_shallow["latency"]["frame_ms"] > 1.3 * e_deep["latency"]["frame_ms"]
     assert e_shallow["latency"]["last_output_sva_cycle"] == rep["cycles"]["last_output"]["sva"]
 
 
@@ -131,8 +132,11 @@ def test_720p_calibration_matches_the_paper_figures():
     # ~55 fps, rounded to 3 decimals
     assert cnn["throughput"]["fps_bound"] == pytest.approx(460e6 / (9 * 921_600), abs=1e-3)
     census = estimate(load_config(overrides={"nna.descriptor": "census"}), (720, 1280))
+    # the SVA's frame (box 7: r = 3, 6 passes; 5x5 median: S = 2 x 1281; II 2, slot II 1):
+    # 720 rows of 1279 II, 719 row starts of (r + 1) = 4, the frame start 4 + S + 6 x 1280
+    ticks = 720 * 1279 * 2 + 719 * 4 + 4 + 2 * 1281 + 6 * 1280
     assert census["throughput"]["fps_bound_per_block"]["sva"] == pytest.approx(
-        465e6 / (2 * 921_600), abs=1e-3)  # ~250
+        465e6 / ticks, abs=1e-3)  # 250.69: the paper's ~250
     # 40-bit beats: the 32-bit descriptor (the paper's 3.69 MB) and the pixel the adaptive P2
     # compares
     assert cnn["fifo_bytes_per_frame"]["nna_left_to_sva"] == 1280 * 720 * 5
@@ -210,7 +214,9 @@ def test_frame_buffers_the_chip_cannot_empty_in_time():
 # the share P of the docstring whole or fractional, tiles equal or not (410 / 4: 102, 103, ...).
 MERGE_CASES = [
     ((40, 300), {"nna.stereo_submodules": 6}),  # the NNA's bound: w (k - 1) / k = 66.7
-    ((40, 410), {"nna.stereo_submodules": 8}),  # unequal tiles: P = 76.75
+    # unequal tiles: P = 76.75; an SVA fast enough that its frame start (passes, the median's
+    # flush) does not hold the NNA back at the frame boundary (merge_depth_needed's docstring)
+    ((40, 410), {"nna.stereo_submodules": 8, "clocks.sva_mhz": 700.0}),
     ((40, 303), {"nna.stereo_submodules": 8, "nna.macs": 162, "fifo.latency_cycles": 4}),
     ((40, 384), {"nna.stereo_submodules": 6, "nna.macs": 576}),  # the SVA's bound
     ((40, 384), {"nna.stereo_submodules": 6, "source.memory_gbps": 0.1}),  # the memory's

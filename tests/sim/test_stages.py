@@ -37,7 +37,8 @@ def expected_ii_and_latency(d, lanes, paths, lr, *, levels=8, bits=32, box=5, me
     fold = 1 if g > 1 else 0
     left = g - 1 + tree(5) + tree(_ceil_log2(lanes) + fold)  # the step, then the min
     ii = max(g, left)
-    latency = (g + tree(_ceil_log2(bits))  # hamming: groups + popcount tree
+    latency = (1                            # the row buffers' read register
+               + g + tree(_ceil_log2(bits))  # hamming: groups + popcount tree
                + g + tree(2) + tree(_ceil_log2(box) + 1)  # box: slide, row sum and cap
                + g + tree(5)                # SGM: the groups through the step's 5 levels
                + tree(_ceil_log2(paths) + 1)  # sum of the paths, cap
@@ -45,7 +46,7 @@ def expected_ii_and_latency(d, lanes, paths, lr, *, levels=8, bits=32, box=5, me
                + ((d - 1) * ii + 1 if lr else 0)             # LR: the diagonal
                + (tree(10) if median == 3 else 0)            # 3x3 sorting network
                + 1)                                          # output register
-    return ii, latency
+    return ii, latency, max(1, g)  # the slot II: the row read's, the hamming's, the box's
 
 
 @pytest.mark.parametrize("d", [16, 64, 128, 256])
@@ -53,7 +54,15 @@ def expected_ii_and_latency(d, lanes, paths, lr, *, levels=8, bits=32, box=5, me
 @pytest.mark.parametrize("paths", [1, 2, 3, 4])
 @pytest.mark.parametrize("lr", [False, True])
 def test_first_and_last_output_cycles_follow_the_stage_formulas(d, lanes, paths, lr):
-    ii, latency = expected_ii_and_latency(d, lanes, paths, lr)
+    """The input side of tests/sim/test_chip.py::test_census_first_and_last_output_cycles
+    (input row q ready in (q + 3)W + 3; a free sink, so ticks are cycles), any II and slot II
+    a: the four passes (rows 0, 0, 0, 1) start in 3W + 3 and take W a ticks each, so box row
+    0 starts r = 2 slots after them, s_0 = 3W + 3 + 4W a + 2a; a row's words are an II
+    apart and the next row starts max(II, 3a) after the last (its input rows are in by then),
+    R = II (W - 1) + max(II, 3a) later. Word 0 leaves with word W + 1 (the 3x3 median's
+    skew), issued at s_0 + R + II: the sink pops it L + 1 later; the last word with the
+    W + 1-th flush tick after the frame's last word."""
+    ii, latency, a = expected_ii_and_latency(d, lanes, paths, lr)
     # D < W; the row buffers are released as a row's words enter the pipeline, so the next
     # row is ready before the SVA needs it even when the frame is narrower than the latency
     w = max(d + 1, 40)
@@ -61,15 +70,24 @@ def test_first_and_last_output_cycles_follow_the_stage_formulas(d, lanes, paths,
     cfg = load_config(overrides={**BASE, "sva.disparities": d, "sva.lanes": lanes,
                                  "sva.paths": paths, "sva.lr_check": lr})
     plan = build_plan(cfg, (h, w))
-    assert (plan.block("sva").cycles, plan.block("sva").latency) == (ii, latency)
+    sva = plan.block("sva")
+    assert (sva.cycles, sva.latency, sva.slot_cycles) == (ii, latency, a)
     rng = np.random.default_rng(d + lanes)
     left = rng.integers(0, 256, (h, w), dtype=np.uint8)
     frame = run_compiled(plan, left, np.roll(left, -2, axis=1))
     cycles = frame.report["cycles"]
-    first = 6 * w + 4 + latency  # row 0 ready at 6W + 3, L later pushed, popped one after
-    assert cycles["first_output"]["sva"] == first
-    assert cycles["last_output"]["sva"] == first + ii * (h * w - 1)
+    assert (cycles["first_output"]["sva"], cycles["last_output"]["sva"]) == census_cycles(
+        h, w, ii, a, latency)
     assert frame.report["throughput"]["bottleneck"] == "sva"
+
+
+def census_cycles(h, w, ii, a, latency):
+    """(first, last) sink pop of :func:`test_first_and_last_output_cycles_follow_the_stage_
+    formulas`'s derivation: box 5, 3x3 median, the census input side, II and slot II a."""
+    start = 3 * w + 3 + 4 * w * a + 2 * a
+    row = ii * (w - 1) + max(ii, 3 * a)
+    return (start + row + ii + latency + 1,
+            start + (h - 1) * row + ii * (w - 1) + w + 1 + latency + 1)
 
 
 def test_the_paper_configuration_gives_250_fps():
@@ -107,7 +125,8 @@ def test_the_report_shows_each_stage_and_its_arithmetic():
     rep = architecture_report(build_plan(load_config(), (720, 1280)))["sva_pipeline"]
     assert rep["initiation_interval"] == 2
     assert [st["name"] for st in rep["stages"]] == [
-        "hamming", "box_filter", "sgm", "path_sum", "wta", "lr_check", "median", "output"]
+        "row_read", "hamming", "box_filter", "sgm", "path_sum", "wta", "lr_check", "median",
+        "output"]
     assert rep["latency"] == sum(st["latency"] for st in rep["stages"])
     lr = next(st for st in rep["stages"] if st["name"] == "lr_check")
     assert lr["latency"] == 127 * 2 + 1 and "127 x 2 + 1" in lr["formula"]
@@ -134,19 +153,18 @@ def test_single_port_srams_cost_what_their_accesses_need(lanes, d, ii_dual, ii_s
 
 def test_a_single_port_chip_runs_at_its_ii():
     """The cycle model follows the plan's II: a census chip (SVA-bound) with 64 lanes and
-    single-port SRAM takes 4 cycles per word."""
+    single-port SRAM takes 4 cycles per word, and 4 per slot too (the column sums' G reads and
+    G writes through one port): the passes take 4 W a = 16 W ticks."""
     cfg = load_config(overrides={**BASE, "sva.disparities": 128, "sva.lanes": 64,
                                  "sva.sram_ports": "1rw"})
-    ii, latency = 4, None
     plan = build_plan(cfg, (5, 400))
-    assert plan.block("sva").cycles == ii
-    latency = plan.block("sva").latency
+    sva = plan.block("sva")
+    assert (sva.cycles, sva.slot_cycles) == (4, 4)
     rng = np.random.default_rng(3)
     left = rng.integers(0, 256, (5, 400), dtype=np.uint8)
     cycles = run_compiled(plan, left, np.roll(left, -2, axis=1)).report["cycles"]
-    first = 6 * 400 + 4 + latency
-    assert cycles["first_output"]["sva"] == first
-    assert cycles["last_output"]["sva"] == first + ii * (5 * 400 - 1)
+    assert (cycles["first_output"]["sva"], cycles["last_output"]["sva"]) == census_cycles(
+        5, 400, 4, 4, sva.latency)
 
 
 def test_the_nna_submodules_report_says_what_the_idle_ones_could_give():
@@ -167,10 +185,12 @@ def test_the_nna_submodules_report_says_what_the_idle_ones_could_give():
 
 
 def test_stage_activity_follows_the_words_through_the_stages():
-    """SVA-bound census chip, words issued every II = 2 ticks without a stall: a stage of
-    latency l holds word j for ticks t_j + offset + 1 .. t_j + offset + l, so it is busy
-    (n - 1) min(l, II) + l cycles, never blocked, and holds at most ceil(l / II) words -- the LR
-    window exactly D; every stage accounts for every cycle of the run."""
+    """SVA-bound census chip, words issued II = 2 ticks apart inside a row and max(II, (r + 1)
+    a) = 3 apart at each of the H - 1 later rows' starts (the box's r = 2 look-ahead slots),
+    without a stall: a stage of latency l holds word j for ticks t_j + offset + 1 .. t_j +
+    offset + l, so it is busy (n - H) min(l, II) + (H - 1) min(l, 3) + l cycles, never
+    blocked, and holds at most ceil(l / II) words -- the LR window exactly D; every stage
+    accounts for every cycle of the run."""
     cfg = load_config(overrides={**BASE, "sva.disparities": 16})
     rng = np.random.default_rng(1)
     h, w = 8, 80
@@ -183,7 +203,8 @@ def test_stage_activity_follows_the_words_through_the_stages():
     for st in plan.block("sva").stages:
         got = stages[st.name]
         assert got["busy"] + got["starved"] + got["blocked"] + got["idle"] == sva["cycles_total"]
-        assert got["busy"] == (n - 1) * min(st.latency, ii) + st.latency, st.name
+        assert got["busy"] == ((n - h) * min(st.latency, ii) + (h - 1) * min(st.latency, 3)
+                               + st.latency), st.name
         assert got["blocked"] == 0
         assert got["peak_words"] == -(-st.latency // ii) <= got["capacity_words"], st.name
         buf = rep["buffers"]["sva"][f"pipeline.{st.name}"]

@@ -62,25 +62,31 @@ def test_every_frame_of_a_stream_is_the_functional_models(run):
 
 @pytest.mark.parametrize("run", ENGINES)
 def test_an_sva_bound_stream_leaves_a_word_every_ii_across_frames(run):
-    """The SVA (II 2) is the bottleneck and the rows of the next frame are ready before it
-    needs them (its row buffers take the next frame's first rows while the last row of this
-    one is issued), so the stream's words leave back to back: frame f's last word reaches the
-    sink at 6W + 4 + L + II ((f + 1) H W - 1), and the stream sustains clock / (II H W)
-    frames per second."""
+    """The SVA (II 2, slot II 1; box 5: r = 2, 4 passes; 3x3 median: S = W + 1) is the
+    bottleneck and the rows of the next frame are ready before it needs them (its row buffers
+    take the next frame's first r + 2 rows while this one's last rows are issued, and rows
+    r + 2 .. 2r + 2 once it is issued), so the frames follow one SVA frame apart:
+    P = H (W - 1) II + (H - 1) max(II, r + 1) + max(II, r + 1 + S + 4W) ticks
+    (``sva_frame_ticks``: a row's words, a row's start, the frame's start). Frame 0's words
+    leave as in tests/sim/test_chip.py::test_census_first_and_last_output_cycles (first
+    9W + 9 + L, last 10W + 5 + (H - 1)(2W + 1) + L), frame f's last P f cycles after frame
+    0's, and the stream sustains clock / P frames per second."""
     h, w, frames = 7, 40, 3
     plan = build_plan(load_config(overrides=SAME), (h, w), frames)
     lat, ii = plan.block("sva").latency, plan.block("sva").cycles
+    assert (ii, plan.block("sva").slot_cycles) == (2, 1)
     left, right = _stream(frames, h, w, seed=2)
     rep = run(plan, left, right).report
-    first = 6 * w + 4 + lat
+    p = h * (w - 1) * ii + (h - 1) * max(ii, 3) + max(ii, 3 + w + 1 + 4 * w)
+    first, last0 = 9 * w + 9 + lat, 10 * w + 5 + (h - 1) * (2 * w + 1) + lat
     assert rep["cycles"]["first_output"]["sva"] == first
-    assert rep["cycles"]["last_output"]["sva"] == first + ii * (frames * h * w - 1)
+    assert rep["cycles"]["last_output"]["sva"] == last0 + p * (frames - 1)
     period = plan.domains["sva"].period_fs
-    ends = [(first + ii * ((f + 1) * h * w - 1)) * period for f in range(frames)]
+    ends = [(last0 + p * f) * period for f in range(frames)]
     stream = rep["stream"]
     assert stream["frames_completed"] == frames
     assert stream["sustained_fps"] == round((frames - 1) / ((ends[-1] - ends[0]) / 1e15), 3)
-    assert stream["sustained_fps"] == round(400e6 / (ii * h * w), 3)
+    assert stream["sustained_fps"] == round(400e6 / p, 3)
 
 
 @pytest.mark.parametrize("run", ENGINES)

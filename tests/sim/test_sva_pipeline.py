@@ -14,7 +14,7 @@ from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.cycle.readable.chip import run_readable
 from stereosim.traces.log import changes_of
 
-# the 3x3 median and 5x5 box of tests/sim/test_chip.py's derivation (latency 49 at D = 16)
+# the 3x3 median and 5x5 box of tests/sim/test_chip.py's derivation (latency 50 at D = 16)
 SAME = {"clocks.nna_mhz": 400, "clocks.sva_mhz": 400, "nna.descriptor": "census",
         "sva.disparities": 16, "sva.median": 3, "sva.box_size": 5}
 
@@ -27,23 +27,27 @@ def _pair(h, w, seed=0):
 
 def test_a_stall_freezes_the_words_in_flight_and_the_next_rows_issue(run_cycle):
     """Rows arrive slowly (the memory gives a pixel every 3 cycles), so row 1 becomes ready
-    while the last words of row 0 are still in the pipeline. The sink (FIFO depth 1) refuses
-    to pop while row 1 becomes ready: word W - k waits in the output register and the pipeline
+    while the last words of row 0 are still in the pipeline; no median, so each word leaves L
+    after its own issue. Box row y's first word is issued r = 2 slots after its row is ready
+    (the passes are long over), its others every II. The sink (FIFO depth 1) refuses to pop
+    while row 1 becomes ready: word W - k waits in the output register and the pipeline
     stalls. When the sink pops again at s1, the FIFO's slot is seen free at s1 + 1: word W - k
     leaves then, the k - 1 words behind it follow every II, and row 1 -- ready during the
-    stall, when the pipeline's tick stood at word W - k's exit tick -- is issued in the cycle
-    the pipeline resumes, s1 + 1, and leaves L cycles later. (A pipeline that did not freeze
-    would have sent it at ready + L.)"""
+    stall, when the pipeline's tick stood at word W - k's exit tick -- has its r look-ahead
+    slots in the cycles the pipeline resumes with and its first word issued in s1 + 1 + r,
+    leaving L cycles later. (A pipeline that did not freeze would have sent it at ready + r +
+    L.)"""
     h, w = 6, 40
-    over = {**SAME, "source.memory_gbps": 0.4 / 3, "fifo.sva_to_sink_depth": 1}
+    over = {**SAME, "sva.median": 0, "source.memory_gbps": 0.4 / 3,
+            "fifo.sva_to_sink_depth": 1}
     cfg = load_config(overrides=over)
     plan = build_plan(cfg, (h, w))
-    lat, ii = plan.block("sva").latency, plan.block("sva").cycles
-    assert (lat, ii) == (49, 2)
+    lat, ii, r = plan.block("sva").latency, plan.block("sva").cycles, 2
+    assert (lat, ii, plan.block("sva").slot_cycles) == (48, 2, 1)
     left, right = _pair(h, w)
     _, rep, chip = run_cycle(left, right, cfg)
     r0, r1 = (int(c) for c in chip.blocks["sva"].ready_cycle[:2])
-    push = [r0 + lat + ii * j for j in range(w)]  # row 0 without a stall
+    push = [r0 + r + lat + ii * j for j in range(w)]  # row 0 without a stall
     assert rep["cycles"]["first_output"]["sva"] == push[0] + 1
     # the first word of row 0 that reaches the output register before row 1 is ready
     k = next(k for k in range(1, w) if push[w - k] < r1 - 1)
@@ -51,10 +55,10 @@ def test_a_stall_freezes_the_words_in_flight_and_the_next_rows_issue(run_cycle):
     s0, s1 = push[w - k - 1] + 1, r1 + 7  # the sink refuses to pop in [s0, s1)
     _, rep, chip = run_cycle(left, right, cfg, sink_stall=lambda c: s0 <= c < s1)
     last0 = (s1 + 1) + ii * (k - 1)  # word W - 1 leaves
-    first1 = (s1 + 1) + lat  # row 1's first word
+    first1 = (s1 + 1) + r + lat  # row 1's first word
     assert chip.sink.row_cycles[0] == last0 + 1
     assert chip.sink.row_cycles[1] == first1 + ii * (w - 1) + 1
-    assert first1 > r1 + lat  # what freezing costs row 1
+    assert first1 > r1 + r + lat  # what freezing costs row 1
     # the stall: word W - k in the output register from its arrival to its push; the block
     # counts those cycles blocked unless it took a pair of the next rows in them
     stall = (s1 + 1) - push[w - k]
@@ -81,22 +85,26 @@ def _values_at(log, sig_id, times):
 
 @pytest.mark.parametrize("run", [run_readable, run_compiled])
 def test_the_stages_words_add_up_to_the_pipelines_and_the_lr_window_fills(run):
-    """In every cycle of a window the words held by the stages are the words in the pipeline
-    (the stages partition its positions), and in steady state the LR window holds D words."""
+    """In every cycle of a window the words in the pipeline (issued, not yet pushed) are the
+    words the stages hold (they partition its positions) and the S = m W + m words the
+    median's row banks hold (3x3: S = W + 1; each word leaves with the word S after it), and
+    in steady state the LR window holds D words."""
     h, w = 6, 60
     plan = build_plan(load_config(overrides=SAME), (h, w))
+    sva = plan.block("sva")
+    assert sva.skew == w + 1
     left, right = _pair(h, w, seed=2)
     per = plan.domains["sva"].period_fs
     first = run_compiled(plan, left, right).report["cycles"]["first_output"]["sva"]
-    start, end = (first - 60) * per, (first + 200) * per
+    start, end = first * per, (first + 200) * per
     _, log, paths = _trace(run, plan, left, right, (start, end))
     times = np.arange(start, end, per)
     total = _values_at(log, paths.index("top.sva.pipeline.words"), times)
-    stages = [s.name for s in plan.block("sva").stages]
+    stages = [s.name for s in sva.stages]
     held = sum(_values_at(log, paths.index(f"top.sva.stage.{s}.words"), times)
                for s in stages)
-    np.testing.assert_array_equal(held, total)
-    assert total.max() == -(-plan.block("sva").latency // plan.block("sva").cycles)
+    np.testing.assert_array_equal(total - held, sva.skew)
+    assert held.max() == -(-sva.latency // sva.cycles)
     lr = _values_at(log, paths.index("top.sva.stage.lr_check.words"), times[-50:])
     assert lr.max() == 16 and lr.min() >= 15  # D = 16: a word leaves as the next enters
     status = _values_at(log, paths.index("top.sva.stage.lr_check.status"), times[-50:])
@@ -128,7 +136,7 @@ def test_single_port_sram_spaces_the_issues_in_the_trace(run, ports, ii):
     assert set(np.diff(rises)) == {ii}
     sgm_lat = next(st.latency for st in plan.block("sva").stages if st.name == "sgm")
     assert sgm_lat == 3
-    off = sum(st.latency for st in plan.block("sva").stages[:2])  # hamming, box filter
+    off = sum(st.latency for st in plan.block("sva").stages[:3])  # row read, hamming, box
     a, b = rises[1] + off + 1, rises[-5] + off + 1  # whole IIs, inside the window
     sgm = _values_at(log, paths.index("top.sva.stage.sgm.status"), np.arange(a, b) * per)
     assert (sgm == 1).sum() == sgm_lat * (b - a) // ii  # busy 3 of every II cycles

@@ -75,6 +75,7 @@ CONSTANTS = np.dtype([
     ("merge", np.int64), ("camera", np.int64), ("line_clocks", np.int64),
     ("mem_hz", np.int64), ("mem_bps", np.int64), ("half", np.int64), ("rows", np.int64),
     ("cpd", np.int64), ("lookahead", np.int64), ("pipe_latency", np.int64), ("cpp", np.int64),
+    ("passes", np.int64), ("skew", np.int64), ("slot_ii", np.int64),  # the SVA's sequencer
     ("latency", np.int64),
     ("per_src", np.int64), ("per_nna", np.int64), ("per_sva", np.int64), ("p_max", np.int64),
     ("cap_fs", np.int64),  # events at instants >= cap_fs are not computed
@@ -286,7 +287,8 @@ def ring_capacity(plan: ChipPlan, scale: int = 1) -> int:
     cfg = plan.cfg
     h, w = plan.shape
     half = max(b.half for b in plan.blocks_of("nna"))
-    la = plan.block("sva").lookahead
+    sva = plan.block("sva")
+    la = sva.lookahead + sva.skew // w + 1  # the box's rows, and the median's skew
     depths = sum(f.depth for f in plan.fifos)
     band = max(t.in_shape[0] for t in plan.tiles) if cfg.nna.split == "rows" else 0
     # the line buffers of every layer (one layer: nna.line_buffer_rows)
@@ -461,6 +463,7 @@ def _constants(plan: ChipPlan, sides: int, cap_fs: int, stats: bool) -> np.ndarr
     p["half"], p["rows"], p["cpd"] = sub.half, sub.rows, sub.cycles
     sva = plan.block("sva")
     p["lookahead"], p["pipe_latency"], p["cpp"] = sva.lookahead, sva.latency, sva.cycles
+    p["passes"], p["skew"], p["slot_ii"] = sva.passes, sva.skew, sva.slot_cycles
     p["latency"] = cfg.fifo.latency_cycles
     p["per_src"] = doms[plan.source_domain].period_fs
     p["per_nna"], p["per_sva"] = doms["nna"].period_fs, doms["sva"].period_fs

@@ -13,17 +13,23 @@ Streams:
 The pipeline's tick counts the cycles in which it advanced; it stalls only while the word in
 its output register waits for a free slot. So between one push and the next word's arrival it
 advances every cycle, and everything follows from the issue ticks, the pushes and the exit
-ticks x_j = t_j + L:
+ticks x_j = t_i + e + L (``sva_exit_item`` gives (i, e): i = j, e = 0 without the median; the
+word S = m W + m later, or a flush tick, with it; :func:`exit_tick`):
 
 - the tick at the start of cycle c, with k words pushed before c:
   ``T(c) = min(x_{k-1} + c - o_{k-1}, x_k)`` (``sva_tick_at``; before any push o = x = 0);
 - word j reaches the output register in cycle ``a_j = o_{j-1} + x_j - x_{j-1}``
   (``sva_cycle_of_tick`` of its exit tick) and is pushed at ``o_j = max(a_j, q[j - depth] +
   1)``, q the sink's pops;
-- word j is issued at tick ``t_j = max(T(ready_j), t_{j-1} + II)`` (``sva_issue_tick``), in the
-  first advancing cycle with that tick: ``o_k`` if it is word k's exit tick (the pipeline
-  resumes with that push), else ``sva_cycle_of_tick(t_j, o_{k-1}, x_{k-1})`` with k the first
-  word whose exit tick is above it.
+- word j is issued at tick ``t_j = t_{j-1} + II`` inside a row (``sva_issue_tick``), the first
+  word of a row at ``sva_row_issue_tick(T(ready_j), t_{j-1}, II, r, a)`` (its r look-ahead
+  slots, a the slot II) and a frame's first word at ``sva_first_word_tick`` after the frame's
+  k - 1 passes (each ``sva_pass_start(T(its row complete), the previous end) + W a`` from
+  ``sva_frame_start``): in the first advancing cycle with that tick: ``o_k`` if it is word
+  k's exit tick (the pipeline resumes with that push), else ``sva_cycle_of_tick(t_j, o_{k-1},
+  x_{k-1})`` with k the first word whose exit tick is above it. The slots that issue no word
+  never wait for anything but their row and the slot II, so these closed forms are the
+  readable kernel's sequencer (``sva_slot``) slot by slot.
 
 Each of these needs only pushes that come before it in time; a value that needs a push not yet
 known waits (the helpers return ok = False) and the loop moves on to the pushes. The helpers
@@ -65,8 +71,13 @@ from stereosim.sim.cycle.rules import (
     seen_from,
     seen_from_scaled,
     sva_cycle_of_tick,
+    sva_exit_item,
+    sva_first_word_tick,
+    sva_frame_start,
     sva_issue_tick,
     sva_last_input_row,
+    sva_pass_row,
+    sva_pass_start,
     sva_rows_done_before_input,
     sva_tick_at,
 )
@@ -76,21 +87,41 @@ from stereosim.sim.kernel_cache import njit, njit_borrowing
 
 
 @njit(cache=True, inline="always")
-def arrival(ring, o, t, lat, j):
-    """The cycle word j reaches the output register (its push o_{j-1} and both issue ticks
+def exit_tick(ring, t, ex, j):
+    """Word j's exit tick (``ex`` = (L, S, N): the latency, the median's skew, a frame's words;
+    ``sva_exit_item``), from the issue ring ``t``; the word it leaves with must be issued."""
+    lat, skew, nf = ex
+    f = j // nf
+    item, extra = sva_exit_item(j - f * nf, skew, nf)
+    return rd(ring, t[0], t[1], f * nf + item) + extra + lat
+
+
+@njit(cache=True, inline="always")
+def exits_known(kt, ex):
+    """Words whose exit tick is known when ``kt`` words are issued: every word of the frames
+    issued whole, and of the frame being issued those S behind the last issued."""
+    _, skew, nf = ex
+    f = kt // nf
+    return f * nf + max(0, kt - f * nf - skew)
+
+
+@njit(cache=True, inline="always")
+def arrival(ring, o, t, ex, j):
+    """The cycle word j reaches the output register (its push o_{j-1} and both exit ticks
     known)."""
-    x = rd(ring, t[0], t[1], j) + lat
+    x = exit_tick(ring, t, ex, j)
     if j == 0:
         return sva_cycle_of_tick(x, 0, 0)
-    return sva_cycle_of_tick(x, rd(ring, o[0], o[1], j - 1), rd(ring, t[0], t[1], j - 1) + lat)
+    return sva_cycle_of_tick(x, rd(ring, o[0], o[1], j - 1), exit_tick(ring, t, ex, j - 1))
 
 
 
 @njit(cache=True, inline="always")
-def tick_at(ring, o, t, lat, ko, kt, c):
+def tick_at(ring, o, t, ex, ko, kt, c):
     """(T(c), ok, ring error): the pipeline's tick at the start of cycle c from the ``ko``
     pushes and ``kt`` issue ticks known; not ok while a push not yet known may come before c.
     ``o``, ``t``: (offset, mask, lowest held index) of the push and issue rings."""
+    kx = exits_known(kt, ex)
     if ko > 0 and rd(ring, o[0], o[1], ko - 1) >= c:
         lo = max(0, o[2] + 1)
         k = first_at_least(ring, o[0], o[1], lo, ko, c)
@@ -98,36 +129,44 @@ def tick_at(ring, o, t, lat, ko, kt, c):
     else:
         k = ko
         err = False
-        if ko < kt and c > arrival(ring, o, t, lat, ko):
+        if ko < kx and c > arrival(ring, o, t, ex, ko):
             return 0, False, err  # word ko waits in the output register: its push decides
     if k == 0:
         last_push, last_exit = 0, 0
     else:
-        last_push, last_exit = rd(ring, o[0], o[1], k - 1), rd(ring, t[0], t[1], k - 1) + lat
-    nxt = rd(ring, t[0], t[1], k) + lat if k < kt else INF
+        last_push, last_exit = rd(ring, o[0], o[1], k - 1), exit_tick(ring, t, ex, k - 1)
+    nxt = exit_tick(ring, t, ex, k) if k < kx else INF
     err = err or (k > 0 and (k - 1 <= o[2] or k - 1 <= t[2]))
     return sva_tick_at(c, last_push, last_exit, nxt), True, err
 
 
 
 @njit(cache=True, inline="always")
-def exiting_from(ring, t, lat, kt, tick):
-    """The first of the ``kt`` issued words whose exit tick is >= ``tick`` (``kt`` if none),
-    and a ring error."""
-    if kt == 0 or rd(ring, t[0], t[1], kt - 1) + lat < tick:
-        return kt, False
+def exiting_from(ring, t, ex, kt, tick):
+    """The first of the words whose exit tick is known (of ``kt`` issued) with exit tick >=
+    ``tick`` (all those known if none), and a ring error."""
+    kx = exits_known(kt, ex)
+    if kx == 0 or exit_tick(ring, t, ex, kx - 1) < tick:
+        return kx, False
     lo = max(0, t[2] + 1)
-    k = first_at_least(ring, t[0], t[1], lo, kt, tick - lat)
-    return k, k == lo and lo > 0  # the answer may lie in what the ring no longer holds
+    a, b = lo, kx - 1  # exit ticks rise with j: a binary search
+    while a < b:
+        mid = (a + b) // 2
+        if exit_tick(ring, t, ex, mid) >= tick:
+            b = mid
+        else:
+            a = mid + 1
+    return a, a == lo and lo > 0  # the answer may lie in what the ring no longer holds
 
 
 
 @njit(cache=True, inline="always")
-def cycle_of_after(ring, o, t, lat, ko, kt, tick, k):
-    """(cycle, ok): the first advancing cycle whose tick is ``tick``, k being the first issued
-    word whose exit tick is >= ``tick`` (:func:`exiting_from`), from the ``ko`` pushes and
-    ``kt`` issue ticks known; not ok while it depends on a push not yet known."""
-    if k < kt and rd(ring, t[0], t[1], k) + lat == tick:
+def cycle_of_after(ring, o, t, ex, ko, kt, tick, k):
+    """(cycle, ok): the first advancing cycle whose tick is ``tick``, k being the first word
+    whose exit tick is >= ``tick`` (:func:`exiting_from`), from the ``ko`` pushes and ``kt``
+    issue ticks known; not ok while it depends on a push not yet known."""
+    kx = exits_known(kt, ex)
+    if k < kx and exit_tick(ring, t, ex, k) == tick:
         if k < ko:
             return rd(ring, o[0], o[1], k), True  # the pipeline resumes with k's push
         return 0, False
@@ -135,16 +174,16 @@ def cycle_of_after(ring, o, t, lat, ko, kt, tick, k):
         return sva_cycle_of_tick(tick, 0, 0), True
     if k - 1 < ko:
         return sva_cycle_of_tick(tick, rd(ring, o[0], o[1], k - 1),
-                                 rd(ring, t[0], t[1], k - 1) + lat), True
+                                 exit_tick(ring, t, ex, k - 1)), True
     return 0, False
 
 
 
 @njit(cache=True, inline="always")
-def cycle_of(ring, o, t, lat, ko, kt, tick):
+def cycle_of(ring, o, t, ex, ko, kt, tick):
     """(cycle, ok, ring error): :func:`cycle_of_after` with the word found by search."""
-    k, err = exiting_from(ring, t, lat, kt, tick)
-    e, ok = cycle_of_after(ring, o, t, lat, ko, kt, tick, k)
+    k, err = exiting_from(ring, t, ex, kt, tick)
+    e, ok = cycle_of_after(ring, o, t, ex, ko, kt, tick, k)
     return e, ok, err or (k > 0 and (k - 1 <= o[2] or k - 1 <= t[2]))
 
 
@@ -204,7 +243,7 @@ def advance_sva_pops(net):
     x = j - y * w
     while j < known:
         if y != window_row:
-            done = sva_rows_done_before_input(y, la)
+            done = sva_rows_done_before_input(y, la, prm.h)
             if done > 0:
                 if done * w > n_issued:
                     break
@@ -247,10 +286,11 @@ def advance_sva_pops(net):
 @njit(cache=True, inline="always")
 def issues_begin(net):
     """What :func:`issues` reads: the constants of its loop, the arrays it writes (taken from
-    the Net once, not per turn) and its cursor (issue ticks known,
-    the last one, the next word's row and column, the first issued word exiting at or after
-    the next issue's tick (-1: search), the row whose readiness is known, its ready cycle and
-    tick, a ring error)."""
+    the Net once, not per turn) and its cursor (issue ticks known, the last one, the next
+    word's row and column, the first issued word exiting at or after the next issue's tick
+    (-1: search), the row whose readiness is known, its ready cycle and tick, the end of its
+    frame's passes (a frame's first row; else never), whether they are known, a ring
+    error)."""
     prm = net.prm[0]
     ids = net.ids[0]
     streams = net.streams
@@ -259,29 +299,30 @@ def issues_begin(net):
     t_off, t_mask, kt, _ = view(streams, ids.sva_issue)
     st = streams[ids.sva_issue]
     k = (p, o_off, o_mask, t_off, t_mask, st.n, st.period,
-         (prm.w, prm.h, prm.cap_fs, prm.lookahead, prm.pipe_latency, prm.cpp))
+         (prm.w, prm.h, prm.cap_fs, prm.lookahead, prm.cpp, prm.passes, prm.slot_ii),
+         (prm.pipe_latency, prm.skew, prm.n))
     arrays = (net.ring, net.occ[ids.occ_sva_out])
     t_prev = rd(net.ring, t_off, t_mask, kt - 1) if kt > 0 else NEVER
     yt = kt // prm.w
-    return k, arrays, (kt, t_prev, yt, kt - yt * prm.w, -1, -1, 0, 0, False, False)
+    return k, arrays, (kt, t_prev, yt, kt - yt * prm.w, -1, -1, 0, 0, NEVER, False, False)
 
 
 @njit(cache=True, inline="always")
 def issues(k, arrays, cur, ko):
-    """The next words issued, each once its row is ready and the pipeline reaches its tick
-    (``ko``: the pushes known). Returns (cursor, moved)."""
+    """The next words issued, each once its row is ready (a frame's first, its passes too)
+    and the pipeline reaches its tick (``ko``: the pushes known). Returns (cursor, moved)."""
     ring, issue_rows = arrays
-    p, o_off, o_mask, t_off, t_mask, n, per, consts = k
+    p, o_off, o_mask, t_off, t_mask, n, per, consts, ex = k
     p_off, p_mask, npop, p_lo = p
-    w, h, cap, la, lat, cpp = consts
-    kt, t_prev, yt, xt, kx, ready_row, ready, ready_tick, ready_known, err = cur
+    w, h, cap, r, cpp, passes, a = consts
+    kt, t_prev, yt, xt, kx, ready_row, ready, ready_tick, pend, ready_known, err = cur
     o = (o_off, o_mask, ko - 1 - o_mask)
     t = (t_off, t_mask, kt - 1 - t_mask)
     moved = False
     while kt < n:
         if yt != ready_row:
-            ft = yt // h  # the frame of output row yt: its rows up to the look-ahead's
-            need = (ft * h + sva_last_input_row(yt - ft * h, la, h) + 1) * w
+            ft = yt // h  # the frame of box row yt: its rows up to the look-ahead's
+            need = (ft * h + sva_last_input_row(yt - ft * h, r, h) + 1) * w
             if need > npop:
                 break
             err |= need - 1 <= p_lo
@@ -290,22 +331,39 @@ def issues(k, arrays, cur, ko):
             ready_known = False
         if xt == 0:
             if not ready_known:
-                ready_tick, ok, bad = tick_at(ring, o, t, lat, ko, kt, ready)
+                ready_tick, ok, bad = tick_at(ring, o, t, ex, ko, kt, ready)
                 err |= bad
                 if not ok:
                     break
+                pend = NEVER
+                ft = yt // h
+                if yt == ft * h:  # a frame's first row: its passes first
+                    pend = sva_frame_start(t_prev, a, ex[1])
+                    for q in range(passes):
+                        row = ft * h + sva_pass_row(q, r, h)
+                        err |= (row + 1) * w - 1 <= p_lo
+                        row_tick, ok, bad = tick_at(ring, o, t, ex, ko, kt,
+                                                    rd(ring, p_off, p_mask, (row + 1) * w - 1)
+                                                    + 1)
+                        err |= bad
+                        if not ok:
+                            break
+                        pend = sva_pass_start(row_tick, pend) + w * a
+                    if not ok:
+                        break
                 ready_known = True
-            tick = sva_issue_tick(ready_tick, t_prev, cpp)
+            tick = sva_first_word_tick(ready_tick, t_prev, cpp, r, a, pend)
         else:  # the row was ready when its first word was issued: T(ready) <= t_prev
             tick = sva_issue_tick(NEVER, t_prev, cpp)
         # the first issued word exiting at or after the tick: it only moves forward
         if kx < 0:
-            kx, bad = exiting_from(ring, t, lat, kt, tick)
+            kx, bad = exiting_from(ring, t, ex, kt, tick)
             err |= bad
-        while kx < kt and rd(ring, t_off, t_mask, kx) + lat < tick:
+        known = exits_known(kt, ex)
+        while kx < known and exit_tick(ring, t, ex, kx) < tick:
             kx += 1
         err |= kx > 0 and (kx - 1 <= o[2] or kx - 1 <= t[2])
-        e, ok = cycle_of_after(ring, o, t, lat, ko, kt, tick, kx)
+        e, ok = cycle_of_after(ring, o, t, ex, ko, kt, tick, kx)
         if not ok or e * per >= cap:
             break
         ring[t_off + (kt & t_mask)] = tick
@@ -318,14 +376,14 @@ def issues(k, arrays, cur, ko):
             issue_rows[yt & (issue_rows.shape[0] - 1)] = e
             xt = 0
             yt += 1
-    return (kt, t_prev, yt, xt, kx, ready_row, ready, ready_tick, ready_known, err), moved
+    return (kt, t_prev, yt, xt, kx, ready_row, ready, ready_tick, pend, ready_known, err), moved
 
 
 @njit(cache=True, inline="always")
 def issues_end(net, cur):
     """Store what :func:`issues` did: the issue ticks known."""
     net.streams[net.ids[0].sva_issue].count = cur[0]
-    if cur[9]:
+    if cur[10]:
         net.state[0].error = ERR_RING
 
 
@@ -338,21 +396,24 @@ def pushes_begin(net):
     o_off, o_mask, _, _ = view(streams, ids.sva_push)
     q_off, q_mask, _, _ = view(streams, ids.sink_pop)
     t_off, t_mask, _, _ = view(streams, ids.sva_issue)
+    prm = net.prm[0]
     return (o_off, o_mask, q_off, q_mask, t_off, t_mask, net.fifos[ids.fifo_sink].depth,
-            streams[ids.sva_push].period, net.prm[0].cap_fs, net.prm[0].pipe_latency)
+            streams[ids.sva_push].period, prm.cap_fs, (prm.pipe_latency, prm.skew, prm.n))
 
 
 @njit(cache=True, inline="always")
 def pushes(k, ring, ko, kt, kq):
-    """The next words pushed, each an issued word (``kt`` known) at its arrival, once the slot
+    """The next words pushed, each a word whose exit is known (``kt`` issued) at its arrival,
+    once the slot
     a FIFO depth back is free (``kq``: the sink's pops known). Returns (pushes known, moved)."""
-    o_off, o_mask, q_off, q_mask, t_off, t_mask, depth, per, cap, lat = k
+    o_off, o_mask, q_off, q_mask, t_off, t_mask, depth, per, cap, ex = k
     o = (o_off, o_mask, ko - 1 - o_mask)
     t = (t_off, t_mask, kt - 1 - t_mask)
     moved = False
-    while ko < kt and ko - depth < kq:
+    kx = exits_known(kt, ex)
+    while ko < kx and ko - depth < kq:
         free = rd(ring, q_off, q_mask, ko - depth) + 1 if ko >= depth else 0
-        out = max(arrival(ring, o, t, lat, ko), free)
+        out = max(arrival(ring, o, t, ex, ko), free)
         if out * per >= cap:
             break
         ring[o_off + (ko & o_mask)] = out
@@ -389,6 +450,8 @@ def walk_sva(net, final):
     o, t = (o_off, o_mask, o_lo), (t_off, t_mask, t_lo)
     n, w, h, la = net.streams[p_s].n, prm.w, prm.h, prm.lookahead
     lat, g = prm.pipe_latency, prm.watchdog_fs
+    ex = (lat, prm.skew, prm.n)
+    kx = exits_known(kt, ex)
     per = net.blocks[blk].period
     j, ptr, prev = a.walk, a.ptr, a.prev
     if j == 0:
@@ -415,7 +478,7 @@ def walk_sva(net, final):
             ready = rd(ring, p_off, p_mask, need - 1) + 1 if need <= npop else INF
             ready_row = y
         lo = max(prev + 1, 0)
-        arrive = arrival(ring, o, t, lat, j) if j < kt else never
+        arrive = arrival(ring, o, t, ex, j) if j < kx else never
         if j >= no:
             if final:
                 ptr, lost = catch_up(ring, p_off, p_mask, ptr, p_lo + 1, lo)
@@ -434,7 +497,7 @@ def walk_sva(net, final):
         out = rd(ring, o_off, o_mask, j)
         if out > known_until:
             break  # a pop before the push may still come
-        if out > arrive and next_tick < rd(ring, t_off, t_mask, j) + lat:
+        if out > arrive and next_tick < exit_tick(ring, t, ex, j):
             break  # a stall: the words in the stages then may not all be issued yet
         if ready > lo:  # waiting for the word's row
             ptr, lost = catch_up(ring, p_off, p_mask, ptr, p_lo + 1, lo)
@@ -473,7 +536,7 @@ def walk_sva(net, final):
             st = net.stages[s]
             st.busy += state.sva_regular * min(st.lat, prm.cpp) + st.lat
             tick = rd(ring, t_off, t_mask, j - 1) + st.off + st.lat
-            st.done, _, bad = cycle_of(ring, o, t, lat, no, kt, tick)
+            st.done, _, bad = cycle_of(ring, o, t, ex, no, kt, tick)
             err |= bad
     a.walk, a.ptr, a.prev = j, ptr, prev
     a.starved += starved
@@ -498,7 +561,7 @@ def _walk_stages(prm, state, stages, ring, t, kt, j, stall):
     err = False
     t_off, t_mask, t_lo = t
     tj = rd(ring, t_off, t_mask, j)
-    lat, ii = prm.pipe_latency, prm.cpp
+    ii = prm.cpp
     gap = tj - rd(ring, t_off, t_mask, j - 1) if j > 0 else -1
     if j > 0 and j - 1 <= t_lo:
         err = True
@@ -522,7 +585,7 @@ def _walk_stages(prm, state, stages, ring, t, kt, j, stall):
         if st.peak < most:
             full = 0
         if stall > 0:
-            x = tj + lat
+            x = exit_tick(ring, t, (prm.pipe_latency, prm.skew, prm.n), j)
             if words_between(ring, t, kt, x - st.off - st.lat, x - st.off) > 0:
                 st.blocked += stall
     state.sva_peaks_full = full
@@ -544,13 +607,13 @@ def _pipeline(streams, ids):
 
 
 @njit(cache=True, inline="always")
-def _tick(ring, o, t, kt, lat, k, c):
+def _tick(ring, o, t, kt, ex, k, c):
     """The SVA pipeline's tick at the start of cycle c, k words pushed before it."""
     if k == 0:
         last_push, last_exit = 0, 0
     else:
-        last_push, last_exit = rd(ring, o[0], o[1], k - 1), rd(ring, t[0], t[1], k - 1) + lat
-    nxt = rd(ring, t[0], t[1], k) + lat if k < kt else INF
+        last_push, last_exit = rd(ring, o[0], o[1], k - 1), exit_tick(ring, t, ex, k - 1)
+    nxt = exit_tick(ring, t, ex, k) if k < exits_known(kt, ex) else INF
     return sva_tick_at(c, last_push, last_exit, nxt)
 
 
@@ -564,10 +627,11 @@ def status_sva(ring, streams, cursors, prm, tables, b, c):
     o, t, kt = _pipeline(streams, ids)
     received, pop_at = lt_at(ring, streams[p_s], cursors[p_s], c)
     emitted, push_at = lt_at(ring, streams[o_s], cursors[o_s], c)
-    issued = issued_before(ring, t, kt, _tick(ring, o, t, kt, prm.pipe_latency, emitted, c))
+    ex = (prm.pipe_latency, prm.skew, prm.n)
+    issued = issued_before(ring, t, kt, _tick(ring, o, t, kt, ex, emitted, c))
     wait = -1
     if received < n and not pop_at and issued // w >= sva_rows_done_before_input(
-            received // w, prm.lookahead):
+            received // w, prm.lookahead, h):
         for f in (b.fifo_in, b.fifo_in2):
             fi = fifos[f]
             e = event(ring, streams[fi.push], received)
@@ -577,7 +641,7 @@ def status_sva(ring, streams, cursors, prm, tables, b, c):
     if pop_at or push_at:
         return A_BUSY, -1
     if emitted < n:
-        if emitted < kt and c >= arrival(ring, o, t, prm.pipe_latency, emitted):
+        if emitted < exits_known(kt, ex) and c >= arrival(ring, o, t, ex, emitted):
             return A_BLOCKED, b.fifo_out  # the pipeline stalls
         y = emitted // w
         fr = y // h
@@ -595,16 +659,17 @@ def sample_sva(ring, streams, cursors, prm, sva, data, c, out):
     """The SVA's signals after its cycle c into out[0:11 + 2 S]; ``sva`` = (its ids, its
     stages)."""
     ids, stages = sva
-    w, h, n, lat = prm.w, prm.h, prm.frames * prm.n, prm.pipe_latency
+    w, h, n = prm.w, prm.h, prm.frames * prm.n
+    ex = (prm.pipe_latency, prm.skew, prm.n)
     o, t, kt = _pipeline(streams, ids)
     received = cursors[ids.sva_pop]
     emitted, push_at = lt_at(ring, streams[ids.sva_push], cursors[ids.sva_push], c)
-    tick = _tick(ring, o, t, kt, lat, emitted, c)  # during cycle c
-    stall = (not push_at and emitted < n and emitted < kt
-             and c >= arrival(ring, o, t, lat, emitted))
+    tick = _tick(ring, o, t, kt, ex, emitted, c)  # during cycle c
+    stall = (not push_at and emitted < n and emitted < exits_known(kt, ex)
+             and c >= arrival(ring, o, t, ex, emitted))
     if push_at:
         emitted += 1
-    after = _tick(ring, o, t, kt, lat, emitted, c + 1)  # after it
+    after = _tick(ring, o, t, kt, ex, emitted, c + 1)  # after it
     issued = issued_before(ring, t, kt, tick)
     rows = received // w
     out[0] = frame_row(rows, h, prm.frames)[1]
