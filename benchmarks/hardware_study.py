@@ -50,7 +50,6 @@ from stereosim.sim.cycle.figures import submodule_report
 from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.sweep import synthetic_pair
 from stereosim.sim.tracing import TraceRequest
-from stereosim.sva.geometry import box_radius, median_radius
 from stereosim.traces.log import changes_of
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -335,18 +334,22 @@ def formula_lines(p: dict) -> list[str]:
 
 
 def sva_drain_line(variant: str, shape=SHAPE) -> str:
-    """The SVA's time after the NNA's last descriptor: its last r + m + 1 output rows wait for
-    the last input row (box radius r, median radius m), then leave at II cycles a word, and
-    the last word leaves L cycles later."""
+    """The SVA's time after the NNA's last descriptor (the SVA keeping up before it): its last
+    r + 1 box rows wait for the last input row (box radius r); the first of them starts r slot
+    IIs a later (its look-ahead slots), the rows' words follow at II and each later row's first
+    max(II, (r + 1) a) after the previous row's last (``sim.cycle.rules.sva_row_issue_tick``);
+    the last word leaves with the median's S = m W + m flush ticks and L cycles later."""
     cfg = load_config(overrides=overrides(variant))
     sva = build_plan(cfg, shape).block("sva")
-    r, m = box_radius(cfg.sva), median_radius(cfg.sva)
+    r, a, ii, s_ = sva.lookahead, sva.slot_cycles, sva.cycles, sva.skew
     w = shape[1]
-    cycles = (r + m + 1) * w * sva.cycles + sva.latency
-    return (f"After the NNA's last descriptor the SVA still owes its last r + m + 1 rows (box "
-            f"radius r = {r}, median radius m = {m}) at II = {sva.cycles} cycles a word plus "
-            f"its latency L = {sva.latency}: ({r} + {m} + 1) x {w} x {sva.cycles} + "
-            f"{sva.latency} = {cycles:,} SVA cycles = {cycles / cfg.clocks.sva_mhz:.1f} us at "
+    gap = max(ii, (r + 1) * a)
+    cycles = r * a + (r + 1) * (w - 1) * ii + r * gap + s_ + sva.latency
+    return (f"After the NNA's last descriptor the SVA still owes its last r + 1 box rows (box "
+            f"radius r = {r}) at II = {ii} cycles a word: r a + (r + 1)(W - 1) II + r max(II, "
+            f"(r + 1) a) + S + L = {r} x {a} + {r + 1} x {w - 1} x {ii} + {r} x {gap} + {s_} + "
+            f"{sva.latency} = {cycles:,} SVA cycles (slot II a = {a}, the median's skew S = "
+            f"{s_}, latency L = {sva.latency}) = {cycles / cfg.clocks.sva_mhz:.1f} us at "
             f"{cfg.clocks.sva_mhz:g} MHz (the same for every network).")
 
 

@@ -35,8 +35,10 @@ def median_radius(cfg: SvaConfig) -> int:
 
 
 def row_lookahead(cfg: SvaConfig) -> int:
-    """Input rows below output row y that it needs: the box filter's r plus the median's m.
-    (The SGM paths and the LR check's diagonal search read rows already in.)"""
+    """Input rows below output row y that its words depend on: the box filter's r plus the
+    median's m (the SGM paths and the LR check's diagonal read rows above). The hybrid's noise
+    band is r + m + 1 rows (:mod:`sva.noise`); the cycle model's timing reads the box's r and
+    the median's skew separately (:mod:`sim.cycle.rules`)."""
     return box_radius(cfg) + median_radius(cfg)
 
 

@@ -2,10 +2,11 @@
 picks the frame's weights from it (``sva.weight_mode = "auto"``).
 
 Definition (the chip's). The statistic is taken over the **first b rows of the left view**,
-b = min(H, r + m + 1) with r the box radius and m the median radius: the rows the SVA's
-descriptor-row buffers hold when it issues the frame's first word (an output row is issued
-once the r + m rows below it are in, :func:`sva.geometry.row_lookahead`), so every cost of the
-frame is computed after the statistic is complete. The intensities arrive with the
+b = min(H, r + m + 1) with r the box radius and m the median radius
+(:func:`sva.geometry.row_lookahead`), rows the SVA's descriptor-row buffers (k + 2 rows) hold
+at once. (The cycle model's SVA starts the column sums' first pass, and with it the frame's
+first matching costs, once row 0 is in, before the band is complete: an open finding of
+docs/rtl.md; the functional model applies the frame's weights to every cost.) The intensities arrive with the
 descriptors (the 8 bits the adaptive P2 reads), so no other block is involved.
 
 For every pixel (x, y) with 1 <= y <= b - 2 and 1 <= x <= W - 2:

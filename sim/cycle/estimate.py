@@ -93,9 +93,9 @@ from stereosim.sim.cycle.rules import (
     sva_frame_start,
     sva_frame_ticks,
     sva_last_input_row,
-    sva_pass_row,
     sva_pass_start,
     sva_rows_done_before_input,
+    sva_slot,
 )
 from stereosim.sim.errors import InputError, UserError
 
@@ -473,6 +473,15 @@ def _delay_band(rows, tile: Tile, merge_start: float, n_band: int, depth: int, c
     return out
 
 
+def _box_row_input(sva, y: int, w: int, h: int) -> int:
+    """The input row box row y waits for: its look-ahead's (``sva_last_input_row``), and for
+    row 0 also the frame's first slot's (``sva_slot``: the automatic weights' band)."""
+    if y == 0:
+        return max(sva_slot(i, w, h, sva.lookahead, sva.passes, sva.first_row)[0]
+                   for i in (0, sva.passes * w))
+    return sva_last_input_row(y, sva.lookahead, h)
+
+
 def timeline(plan: ChipPlan) -> dict:
     """First and last output word of one frame (SVA cycles, as the sink pops them) and the
     cycles of intermediate events, from the row model of the module docstring."""
@@ -522,14 +531,14 @@ def timeline(plan: ChipPlan) -> dict:
             end = max(visible(link, last, plan), math.ceil(start + span))
         in_end[y] = end
         prev_end = end
-        while next_out < h and sva_last_input_row(next_out, la, h) <= y:
-            ready = in_end[sva_last_input_row(next_out, la, h)] + 1
+        while next_out < h and _box_row_input(sva, next_out, w, h) <= y:
+            ready = in_end[_box_row_input(sva, next_out, w, h)] + 1
             passes_end = never
-            if next_out == 0:  # the column sums' passes (their rows are in: rows <= r)
+            if next_out == 0:  # the column sums' passes (their rows are in)
                 passes_end = sva_frame_start(never, a, skew)
                 for q in range(sva.passes):
-                    passes_end = sva_pass_start(in_end[sva_pass_row(q, r, h)] + 1,
-                                                passes_end) + w * a
+                    row = sva_slot(q * w, w, h, r, sva.passes, sva.first_row)[0]
+                    passes_end = sva_pass_start(in_end[row] + 1, passes_end) + w * a
             o_first = math.ceil(sva_first_word_tick(ready, prev_out, ii_out, r, a,
                                                     passes_end))
             o_last = math.ceil(o_first + (w - 1) * ii_out)

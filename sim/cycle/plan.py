@@ -44,7 +44,13 @@ from stereosim.sim.config import AUTO_BUDGET_FACTOR, ChipConfig, check_config
 from stereosim.sim.config.widths import largest_cost, weight_sets
 from stereosim.sim.cycle.dram import DramPlan, dram_plan
 from stereosim.sim.cycle.lent import LentPlan, lent_plan
-from stereosim.sim.cycle.rules import ClockDomain, fifo_edges, period_fs, sva_frame_ticks
+from stereosim.sim.cycle.rules import (
+    ClockDomain,
+    fifo_edges,
+    period_fs,
+    sva_first_slot_row,
+    sva_frame_ticks,
+)
 from stereosim.sim.cycle.stages import (
     BufferPlan,
     LayerPlan,
@@ -63,6 +69,7 @@ from stereosim.sva.geometry import (
     median_radius,
     output_word_bits,
 )
+from stereosim.sva.noise import band_rows
 
 SIDES = ("left", "right")
 STATUS_CODES = {"idle": 0, "busy": 1, "starved": 2, "blocked": 3}  # as traced
@@ -131,9 +138,10 @@ class BlockPlan:
     - sva: ``lookahead`` rows (the box radius r: box row y needs input row y + r),
       ``passes`` (k - 1: the column sums' seeding passes before a frame's row 0), ``skew``
       (S = m W + m: the median's words behind, 0 without it), ``slot_cycles`` (a: the
-      sequencer's slot II), ``stages`` (its pipeline, :mod:`sim.cycle.stages`), ``latency``
-      (a word issued -> in the output register: the stages' latencies), ``cycles`` per word
-      (initiation interval: the slowest stage's) -- the rules are
+      sequencer's slot II), ``first_row`` (the input row a frame's first slot waits for: the
+      automatic weights' noise band), ``stages`` (its pipeline, :mod:`sim.cycle.stages`),
+      ``latency`` (a word issued -> in the output register: the stages' latencies), ``cycles``
+      per word (initiation interval: the slowest stage's) -- the rules are
       :func:`~sim.cycle.rules.sva_slot` and the issue rules after it;
     - sink: one word per cycle.
     """
@@ -155,6 +163,7 @@ class BlockPlan:
     passes: int = 0  # sva: the column sums' seeding passes (k - 1)
     skew: int = 0  # sva: the median's skew in words, m W + m
     slot_cycles: int = 1  # sva: the slot II
+    first_row: int = 0  # sva: the input row a frame's first slot waits for (automatic weights)
     bytes_per_s: int = 0
     line_clocks: int = 0
     frame_clocks: int = 0
@@ -617,6 +626,9 @@ def build_plan(cfg: ChipConfig, shape: tuple[int, int], frames: int = 1) -> Chip
                             latency=pipeline_latency(stages),
                             lookahead=box_radius(cfg.sva), passes=cfg.sva.box_size - 1,
                             skew=median_radius(cfg.sva) * (w + 1), slot_cycles=slot_ii(stages),
+                            first_row=sva_first_slot_row(
+                                band_rows(cfg.sva, h) if len(desc_parts) > 1
+                                and cfg.sva.weight_mode == "auto" else 0, h),
                             buffers=tuple(b for st in stages for b in st.buffers),
                             stages=stages))
     blocks.append(BlockPlan("sink", "sink", "sva", None, (to_sink,), (), "top.sink", n))

@@ -388,20 +388,33 @@ def sva_frame_ticks(height, width, ii, radius, slot_ii, skew, passes):
 
 
 @register_jitable
-def sva_slot(i, width, height, radius, passes):
+def sva_slot(i, width, height, radius, passes, first_row):
     """Slot i of a frame's slot sequence (the SVA's sequencer, one slot a slot II at most):
     (input row of the frame it needs complete, the frame-local word it emits or -1). First
     ``passes`` = k - 1 passes of W slots (pass p adds row :func:`sva_pass_row`), then per box
     row y W + r slots: column c < W adds row min(y + r, H - 1), c >= r emits word (y, c - r);
-    the last r re-enter column W - 1 and need no new row (-1)."""
+    the last r re-enter column W - 1 and need no new row (-1). The frame's first slot also
+    waits for row ``first_row`` (:func:`sva_first_slot_row`)."""
     first = passes * width
     if i < first:
-        return sva_pass_row(i // width, radius, height), -1
+        row = sva_pass_row(i // width, radius, height)
+        return (max(row, first_row) if i == 0 else row), -1
     j = i - first
     y = j // (width + radius)
     c = j - y * (width + radius)
     row = min(y + radius, height - 1) if c < width else -1
+    if i == 0:
+        row = max(row, first_row)
     return row, y * width + c - radius if c >= radius else -1
+
+
+@register_jitable
+def sva_first_slot_row(band_rows, image_rows):
+    """The input row a frame's first slot (its first matching costs) waits for besides its
+    own: with the hybrid's automatic weights the noise band's last row, min(b, H) - 1 (the
+    frame's weights come from the band's statistic, :mod:`sva.noise`); else row 0 (``band_rows``
+    0)."""
+    return max(0, min(band_rows, image_rows) - 1)
 
 
 @register_jitable

@@ -41,6 +41,8 @@ GRID = [
     (SMALL, {"sva.disparities": 16, "sva.paths": 2, "sva.median": 0, "sva.box_size": 3}, True),
     (SMALL, {"sva.median": 5, "sva.box_size": 7, "sva.paths": 1}, True),
     (SMALL, {"clocks.sva_mhz": 200.0}, True),
+    # the hybrid's automatic weights: the frame's first slot waits for the noise band
+    (SMALL, {"nna.descriptor": "hybrid", "sva.weight_mode": "auto", "sva.median": 5}, True),
     (SMALL, {"fifo.sync_cycles": 3, "fifo.latency_cycles": 2}, True),
     (SMALL, {"nna.line_buffer_rows": 9, "nna.descriptor": "cnn"}, True),
     (SPLIT, {"nna.stereo_submodules": 4}, True),

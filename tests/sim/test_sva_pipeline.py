@@ -141,3 +141,35 @@ def test_single_port_sram_spaces_the_issues_in_the_trace(run, ports, ii):
     sgm = _values_at(log, paths.index("top.sva.stage.sgm.status"), np.arange(a, b) * per)
     assert (sgm == 1).sum() == sgm_lat * (b - a) // ii  # busy 3 of every II cycles
     assert set(sgm) <= {1, 2}  # otherwise starved: never blocked, never idle
+
+
+@pytest.mark.parametrize("run", [run_readable, run_compiled])
+def test_automatic_weights_hold_the_first_costs_until_the_noise_band_is_in(run):
+    """The hybrid's automatic weights come from the noise statistic of the left view's first
+    r + m + 1 rows (sva/noise.py: box 7, 5x5 median: rows 0 .. 5), so the frame's first slot --
+    the column sums' first pass, the frame's first matching costs -- waits for row r + m
+    (``rules.sva_first_slot_row``). The NNA gives a descriptor every 9 cycles, far slower than
+    the SVA: with fixed weights the six passes start after row 0 and are over before row r = 3
+    is in, so the first word goes r = 3 slots after row 3 is ready (the cycle after it is
+    complete); with automatic weights the passes start once row 5 is, and the first word goes
+    6 W + 3 after that."""
+    h, w = 12, 40
+    left, right = _pair(h, w)
+    first = {}
+    for mode in ("fixed", "auto"):
+        cfg = load_config(overrides={"nna.descriptor": "hybrid", "sva.weight_mode": mode,
+                                     "sva.disparities": 16})
+        plan = build_plan(cfg, (h, w))
+        sva = plan.block("sva")
+        assert (sva.lookahead, sva.passes, sva.slot_cycles) == (3, 6, 1)
+        assert sva.first_row == (5 if mode == "auto" else 0)
+        _, log, paths = _trace(run, plan, left, right, (0, 10**13))
+        per = plan.domains["sva"].period_fs
+        t, v = changes_of(log, paths.index("top.sva.pipeline.issue"))
+        t_row, v_row = changes_of(log, paths.index("top.sva.input.row"))
+        # input row y is complete in the cycle `input.row` becomes y + 1: ready the next
+        ready = {int(y) - 1: int(c) // per + 1 for c, y in zip(t_row, v_row, strict=True) if y}
+        first[mode] = int(t[v == 1][0]) // per
+        want = ready[3] + 3 if mode == "fixed" else ready[5] + 6 * w + 3
+        assert first[mode] == want, mode
+    assert first["auto"] > first["fixed"]

@@ -76,9 +76,9 @@ from stereosim.sim.cycle.rules import (
     sva_frame_start,
     sva_issue_tick,
     sva_last_input_row,
-    sva_pass_row,
     sva_pass_start,
     sva_rows_done_before_input,
+    sva_slot,
     sva_tick_at,
 )
 from stereosim.sim.kernel_cache import njit, njit_borrowing
@@ -299,7 +299,8 @@ def issues_begin(net):
     t_off, t_mask, kt, _ = view(streams, ids.sva_issue)
     st = streams[ids.sva_issue]
     k = (p, o_off, o_mask, t_off, t_mask, st.n, st.period,
-         (prm.w, prm.h, prm.cap_fs, prm.lookahead, prm.cpp, prm.passes, prm.slot_ii),
+         (prm.w, prm.h, prm.cap_fs, prm.lookahead, prm.cpp, prm.passes, prm.slot_ii,
+          prm.first_row),
          (prm.pipe_latency, prm.skew, prm.n))
     arrays = (net.ring, net.occ[ids.occ_sva_out])
     t_prev = rd(net.ring, t_off, t_mask, kt - 1) if kt > 0 else NEVER
@@ -314,7 +315,7 @@ def issues(k, arrays, cur, ko):
     ring, issue_rows = arrays
     p, o_off, o_mask, t_off, t_mask, n, per, consts, ex = k
     p_off, p_mask, npop, p_lo = p
-    w, h, cap, r, cpp, passes, a = consts
+    w, h, cap, r, cpp, passes, a, first_row = consts
     kt, t_prev, yt, xt, kx, ready_row, ready, ready_tick, pend, ready_known, err = cur
     o = (o_off, o_mask, ko - 1 - o_mask)
     t = (t_off, t_mask, kt - 1 - t_mask)
@@ -322,7 +323,10 @@ def issues(k, arrays, cur, ko):
     while kt < n:
         if yt != ready_row:
             ft = yt // h  # the frame of box row yt: its rows up to the look-ahead's
-            need = (ft * h + sva_last_input_row(yt - ft * h, r, h) + 1) * w
+            row = sva_last_input_row(yt - ft * h, r, h)
+            if yt == ft * h:  # a frame's box row 0: its first slot's row (sva_slot)
+                row = sva_slot(passes * w, w, h, r, passes, first_row)[0]
+            need = (ft * h + row + 1) * w
             if need > npop:
                 break
             err |= need - 1 <= p_lo
@@ -340,7 +344,10 @@ def issues(k, arrays, cur, ko):
                 if yt == ft * h:  # a frame's first row: its passes first
                     pend = sva_frame_start(t_prev, a, ex[1])
                     for q in range(passes):
-                        row = ft * h + sva_pass_row(q, r, h)
+                        row = ft * h + sva_slot(q * w, w, h, r, passes, first_row)[0]
+                        if (row + 1) * w > npop:  # its row is not in yet
+                            ok = False
+                            break
                         err |= (row + 1) * w - 1 <= p_lo
                         row_tick, ok, bad = tick_at(ring, o, t, ex, ko, kt,
                                                     rd(ring, p_off, p_mask, (row + 1) * w - 1)

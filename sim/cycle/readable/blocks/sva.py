@@ -94,6 +94,7 @@ class SvaBlock(ChipBlock):
         self.passes = entry.passes
         self.skew = entry.skew
         self.slot_ii = entry.slot_cycles
+        self.first_row = entry.first_row
         self.latency = entry.latency
         self.ii = entry.cycles
         self.stages = entry.stages
@@ -177,7 +178,8 @@ class SvaBlock(ChipBlock):
         if self.slots >= self.frames * self.frame_slots:
             return None
         f, i = divmod(self.slots, self.frame_slots)
-        row, word = sva_slot(i, self.width, self.height, self.radius, self.passes)
+        row, word = sva_slot(i, self.width, self.height, self.radius, self.passes,
+                             self.first_row)
         if row >= 0 and self._rows_complete(f) <= row:
             return None
         earliest = self.last_slot + self.slot_ii
