@@ -33,8 +33,9 @@ def main() -> None:
                "--png", os.path.join(IMG, name)]
         print("$", shlex.join(["stereosim", *cmd[3:]]))
         out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
-        if not options:
-            listing = out
+        if not options:  # the plan's listing (sim.diagram.plan_text), without the energy line
+            listing = "".join(line for line in out.splitlines(True)
+                              if not line.startswith("energy:"))
     text = open(DOC, encoding="utf-8").read()
     block = f"<!-- plan:begin -->\n```\n{listing}```\n<!-- plan:end -->"
     new = re.sub(r"<!-- plan:begin -->.*?<!-- plan:end -->", lambda _: block, text, flags=re.S)

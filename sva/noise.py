@@ -4,9 +4,9 @@ picks the frame's weights from it (``sva.weight_mode = "auto"``).
 Definition (the chip's). The statistic is taken over the **first b rows of the left view**,
 b = min(H, r + m + 1) with r the box radius and m the median radius
 (:func:`sva.geometry.row_lookahead`), rows the SVA's descriptor-row buffers (k + 2 rows) hold
-at once. (The cycle model's SVA starts the column sums' first pass, and with it the frame's
-first matching costs, once row 0 is in, before the band is complete: an open finding of
-docs/rtl.md; the functional model applies the frame's weights to every cost.) The intensities arrive with the
+at once; the SVA's first slot of a frame (the column sums' first pass, its first matching
+costs) waits for row b - 1 (:func:`sim.cycle.rules.sva_first_slot_row`), so every cost of the
+frame is computed after the statistic is complete. The intensities arrive with the
 descriptors (the 8 bits the adaptive P2 reads), so no other block is involved.
 
 For every pixel (x, y) with 1 <= y <= b - 2 and 1 <= x <= W - 2:

@@ -7,24 +7,36 @@
 // Interface (a stage of the lock-step pipeline; every register moves only in a tick, en = 1):
 //   in_valid, s_in, q_in, d_in   a left pixel's D summed costs S(x, d), its word and its
 //                    winner d*, in raster order; within a row a pixel every II ticks, a row's
-//                    first pixel k II ticks after the previous row's last (k >= 1) or once
-//                    that row has drained (D - 1 II ticks after its last pixel);
+//                    first pixel any number >= II of ticks after the previous row's last
+//                    (rows of W > D - 1 pixels);
 //   width, ii, max_diff   run-time registers: the frame's W, the pipeline's II, the largest
 //                    |d* - dR| accepted;
 //   out_valid, q_out the checked word of the pixel that arrived (D - 1) II + 1 ticks before.
 //
 // Structure (the cycles come from it):
-// - the window shifts one pixel at each arriving pixel and, after a row's last pixel, D - 1
-//   times more, one every II ticks (the row's drain: nothing arrives beyond x = W - 1);
-// - right pixels x .. x - D + 2 in D - 1 registers of (best cost, its d): at a shift the new
+// - the window (R = D - 1 pixels) shifts one pixel at each arriving pixel;
+// - right pixels x .. x - D + 2 in R registers of (best cost, its d): at a shift the new
 //   pixel x's S(x, d) competes (strict <: the smallest d on ties) in the register of right
 //   pixel x - d for d <= x; right pixel x - D + 1 takes its last candidate S(x, D - 1) and is
-//   complete: its dR goes into a shift register of the D - 1 dRs completed before;
-// - the left words x .. x - D + 2 wait in D - 1 registers (with x - d* >= 0); at a shift the
+//   complete: its dR goes into a shift register of the R dRs completed before;
+// - the left words x .. x - D + 2 wait in R registers (with x - d* >= 0); at a shift the
 //   word of x - D + 1 reads dR(x - D + 1 - d*) (the one completing now or the shift register)
-//   and the output register takes it checked.
-// So a pixel's word leaves D - 1 shifts after it arrived, plus the output register: (D - 1) II
-// + 1 ticks when the shifts are II apart.
+//   and the output register takes it checked;
+// - the drain: at the shift of a row's last pixel the window after that shift moves into a
+//   drain copy, and the window starts the next row empty (no left word waiting; its right
+//   registers' stale values are never read: a word of x reads right pixels x - d* >= 0 of its
+//   own row). The drain copy shifts by itself every II ticks, R times, with no candidate (its
+//   right pixels' bests are final, so it holds their d only, not their costs), each shift
+//   checking the next of the row's last R words into the output register. The next row's
+//   arrivals shift the window meanwhile, whatever their phase: its first word leaves at
+//   >= t_last + II + R II + 1, after the drain's last (t_last + R II + 1), so the two never
+//   load the output register in the same tick (the testbench checks emit_main / emit_drain).
+// So a pixel's word leaves R shifts after it arrived (its row's later pixels or the drain's,
+// II apart either way), plus the output register: (D - 1) II + 1 ticks.
+// Storage: the window R (SW + DB) + R DB + R (WB + DB + 2) bits (right bests, completed dRs,
+// left words with d*, x - d* >= 0, valid); the drain copy R DB + R DB + R (WB + DB + 2) bits
+// (no costs) and its two counters (DB + 1 + 8 bits) -- at D 16, SW 12, DB 4, WB 9: the window
+// 525 bits, the drain copy 345 + 13 (Yosys: 871 flip-flops against 541 without the copy).
 module sva_lr #(
     parameter int D = 16,       // disparities
     parameter int SW = 12,      // bits of a summed cost S
@@ -47,11 +59,12 @@ module sva_lr #(
 );
   localparam int R = D - 1;     // registers of each chain
 
+  // ---- the window: shifted by the arriving pixels ----------------------------------------
   logic [XW-1:0] xc;            // the arriving pixel's column
-  logic [DB:0]   drain;         // shifts left of the row's drain
-  logic [7:0]    phase;         // ticks since the last shift
   logic          shift;
-  assign shift = en && (in_valid || (drain != '0 && phase == ii - 8'd1));
+  logic          last;          // the arriving pixel is its row's last
+  assign shift = en && in_valid;
+  assign last = (xc == width - 1'b1);
 
   logic [SW-1:0] rb [R];        // right pixel xc - 1 - i: best cost (before this shift)
   logic [DB-1:0] rd [R];        //   and its d
@@ -59,7 +72,7 @@ module sva_lr #(
   logic [WB-1:0] lq [R];        // left pixel xc - 1 - i: its word,
   logic [DB-1:0] ld [R];        //   d*,
   logic          lok [R];       //   x - d* >= 0,
-  logic          lv [R];        //   and whether it holds a word (not a drain bubble)
+  logic          lv [R];        //   and whether it holds a word of this row
 
   // the shift: each right register takes its new candidate, the last completes
   logic [SW-1:0] nb [R+1];      // after the shift: right pixel x - i (i = R: complete)
@@ -70,7 +83,7 @@ module sva_lr #(
     for (int i = 1; i <= R; i++) begin
       logic [SW-1:0] cand;
       cand = s_in[i*SW +: SW];
-      if (in_valid && i <= int'(xc) && cand < rb[i-1]) begin
+      if (i <= int'(xc) && cand < rb[i-1]) begin
         nb[i] = cand; nd[i] = DB'(i);
       end else begin
         nb[i] = rb[i-1]; nd[i] = rd[i-1];
@@ -78,7 +91,7 @@ module sva_lr #(
     end
   end
 
-  // the word leaving: left pixel x - D + 1, checked against dR(x - D + 1 - d*)
+  // the word leaving at a shift: left pixel x - D + 1, checked against dR(x - D + 1 - d*)
   logic [DB-1:0] dr_of;
   logic [DB:0]   diff;
   logic          keep;
@@ -90,32 +103,83 @@ module sva_lr #(
     keep = lok[R-1] && (9'(diff) <= {1'b0, max_diff});
   end
 
+  // ---- the drain copy: a row's window after its last pixel, shifting by itself ------------
+  logic [DB:0]   dleft;         // drain shifts to go
+  logic [7:0]    dphase;        // ticks since the drain's last shift (or its start)
+  logic          dshift;
+  assign dshift = en && dleft != '0 && dphase == ii - 8'd1;
+
+  logic [DB-1:0] erd [R];       // right pixel (last - i): its final d
+  logic [DB-1:0] ehd [R];       // dRs completed before
+  logic [WB-1:0] elq [R];       // left words waiting: word, d*, x - d* >= 0, valid
+  logic [DB-1:0] eld [R];
+  logic          elok [R];
+  logic          elv [R];
+
+  logic [DB-1:0] edr_of;
+  logic [DB:0]   ediff;
+  logic          ekeep;
+  always_comb begin
+    int j;
+    j = int'(eld[R-1]);
+    edr_of = (j == 0) ? erd[R-1] : ehd[j-1];
+    ediff = (eld[R-1] >= edr_of) ? (DB+1)'(eld[R-1] - edr_of) : (DB+1)'(edr_of - eld[R-1]);
+    ekeep = elok[R-1] && (9'(ediff) <= {1'b0, max_diff});
+  end
+
+  // which of the two loads the output register this tick (never both: the bench checks)
+  logic emit_main, emit_drain;
+  assign emit_main = shift && lv[R-1];
+  assign emit_drain = dshift && elv[R-1];
+
   always_ff @(posedge clk) begin
     if (rst) begin
-      xc <= '0; drain <= '0; phase <= '0; out_valid <= 1'b0;
-      for (int i = 0; i < R; i++) lv[i] <= 1'b0;
+      xc <= '0; dleft <= '0; dphase <= '0; out_valid <= 1'b0;
+      for (int i = 0; i < R; i++) begin
+        lv[i] <= 1'b0; elv[i] <= 1'b0;
+      end
     end else if (en) begin
-      out_valid <= 1'b0;
-      phase <= shift ? 8'd0 : ((phase == 8'hff) ? phase : phase + 8'd1);
+      out_valid <= emit_main || emit_drain;
+      if (emit_drain) q_out <= ekeep ? elq[R-1] : '1;
+      else if (emit_main) q_out <= keep ? lq[R-1] : '1;
+      // the window
       if (shift) begin
         for (int i = 0; i < R; i++) begin
           rb[i] <= nb[i]; rd[i] <= nd[i];
         end
         hd[0] <= nd[R];
         for (int j = 1; j < R; j++) hd[j] <= hd[j-1];
-        lq[0] <= q_in; ld[0] <= d_in; lok[0] <= in_valid && (int'(d_in) <= int'(xc));
-        lv[0] <= in_valid;
+        lq[0] <= q_in; ld[0] <= d_in; lok[0] <= (int'(d_in) <= int'(xc));
+        lv[0] <= !last;
         for (int i = 1; i < R; i++) begin
-          lq[i] <= lq[i-1]; ld[i] <= ld[i-1]; lok[i] <= lok[i-1]; lv[i] <= lv[i-1];
+          lq[i] <= lq[i-1]; ld[i] <= ld[i-1]; lok[i] <= lok[i-1]; lv[i] <= lv[i-1] && !last;
         end
-        out_valid <= lv[R-1];
-        q_out <= keep ? lq[R-1] : '1;
-        if (in_valid) begin
-          xc <= (xc == width - 1'b1) ? '0 : xc + 1'b1;
-          drain <= (xc == width - 1'b1) ? (DB+1)'(R) : ((drain != '0) ? drain - 1'b1 : '0);
-        end else begin
-          drain <= drain - 1'b1;
+        xc <= last ? '0 : xc + 1'b1;
+      end
+      // the drain copy: loaded at a row's last shift, else shifted every II ticks
+      if (shift && last) begin
+        for (int i = 0; i < R; i++) erd[i] <= nd[i];
+        ehd[0] <= nd[R];
+        for (int j = 1; j < R; j++) ehd[j] <= hd[j-1];
+        elq[0] <= q_in; eld[0] <= d_in; elok[0] <= (int'(d_in) <= int'(xc)); elv[0] <= 1'b1;
+        for (int i = 1; i < R; i++) begin
+          elq[i] <= lq[i-1]; eld[i] <= ld[i-1]; elok[i] <= lok[i-1]; elv[i] <= lv[i-1];
         end
+        dleft <= (DB+1)'(R);
+        dphase <= '0;
+      end else if (dshift) begin
+        erd[0] <= '0;
+        for (int i = 1; i < R; i++) erd[i] <= erd[i-1];
+        ehd[0] <= erd[R-1];
+        for (int j = 1; j < R; j++) ehd[j] <= ehd[j-1];
+        elv[0] <= 1'b0;
+        for (int i = 1; i < R; i++) begin
+          elq[i] <= elq[i-1]; eld[i] <= eld[i-1]; elok[i] <= elok[i-1]; elv[i] <= elv[i-1];
+        end
+        dleft <= dleft - 1'b1;
+        dphase <= '0;
+      end else if (dleft != '0) begin
+        dphase <= dphase + 1'b1;
       end
     end
   end

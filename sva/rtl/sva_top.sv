@@ -309,9 +309,10 @@ module sva_top #(
   end
   logic          md_v;
   logic [WB-1:0] md_q;
-  sva_median #(.K(K_MED), .V(V), .WB(WB), .WMAX(W_MAX), .XW(6), .YW(6)) u_median (
+  localparam int MXW = $clog2(W_MAX + 1);  // a column counter that holds W_MAX
+  sva_median #(.K(K_MED), .V(V), .WB(WB), .WMAX(W_MAX), .XW(MXW), .YW(6)) u_median (
       .clk(clk), .rst(rst), .en(en && med_on), .in_valid(pre_v || flushing), .word(pre_q),
-      .width(6'(width)), .height(6'(height)), .out_valid(md_v), .med(md_q));
+      .width(MXW'(width)), .height(6'(height)), .out_valid(md_v), .med(md_q));
 
   // ---- the output register --------------------------------------------------------------
   always_ff @(posedge clk) begin

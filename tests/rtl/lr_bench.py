@@ -4,11 +4,13 @@ stereosim.
 A random summed-cost volume S (H, W, D) -- each pixel a valley of random depth, so that right and
 left disparities agree on some pixels and not on others -- gives the words and winners of
 sva/wta.py's reference; its pixels go to the stage in raster order, a pixel every II ticks
-within a row (II: the plan's pipeline II), each row k II ticks after the previous row's last
-(random k >= 1) or at a random tick once that row has drained, with random stalls (en = 0).
-Every checked word must equal sva/lr_check.py's reference (``lr_check_ref`` with
-``right_disparity_ref``) and leave the plan's lr_check latency (sim.cycle.stages.sva_stages,
-read from the plan) after its pixel arrived.
+within a row (II: the plan's pipeline II), each row's first any number g >= II of ticks after
+the previous row's last (:func:`row_gaps`: II itself, gaps that are not whole IIs, gaps around
+the end of the previous row's drain), with random stalls (en = 0). Every checked word must
+equal sva/lr_check.py's reference (``lr_check_ref`` with ``right_disparity_ref``) and leave the
+plan's lr_check latency (sim.cycle.stages.sva_stages, read from the plan) after its pixel
+arrived; with the instance named (``inst``), the window and the drain copy must never load the
+output register in the same tick (its emit_main / emit_drain), and the drain must have emitted.
 """
 
 import numpy as np
@@ -40,6 +42,17 @@ def volume(rng, h: int, w: int, d: int, sw: int) -> np.ndarray:
     return np.minimum(s, top).astype(np.uint16)
 
 
+def row_gaps(rng, n: int, ii: int, d: int) -> list[int]:
+    """``n`` gaps in ticks from a row's last pixel to the next row's first, each >= II, in
+    random order: II itself, II + 1 (not a whole number of IIs where II > 1), and the rest
+    random -- II + 1 .. 3 II, or around the previous row's drain ((D - 1) II +- 2 II)."""
+    fixed = [ii, ii + 1][:n]
+    rest = [int(rng.integers(ii + 1, 3 * ii + 1)) if rng.random() < 0.5 else
+            int(rng.integers(max(ii, (d - 3) * ii), (d + 1) * ii + 1))
+            for _ in range(n - len(fixed))]
+    return [int(g) for g in rng.permutation(fixed + rest)]
+
+
 async def one_run(dut, p: dict) -> None:
     pins = Pins(dut, p.get("prefix", ""))
 
@@ -53,14 +66,14 @@ async def one_run(dut, p: dict) -> None:
     s = volume(rng, h, w, d, sw)
     q, dint = wta_ref(s, uniqueness=0, subpixel="parabola", frac_bits=f)
     want = lr_check_ref(q, dint, right_disparity_ref(s), cfg.sva.lr_max_diff)
-    # the tick each pixel is offered: II apart in a row; a row k II after the last, or late
+    # the tick each pixel is offered: II apart in a row, a row g >= II after the last
+    gaps = row_gaps(rng, h - 1, ii, d)
     start, t = [], 3
-    for _ in range(h):
+    for y in range(h):
         for _ in range(w):
             start.append(t)
             t += ii
-        t += ii * int(rng.integers(0, 3)) if rng.random() < 0.6 else \
-            (d - 1) * ii + int(rng.integers(0, 3 * ii))
+        t += gaps[y] - ii if y < h - 1 else 0
     pins.rst.value = 1
     pins.en.value = 1
     pins.in_valid.value = 0
@@ -71,6 +84,8 @@ async def one_run(dut, p: dict) -> None:
     await RisingEdge(dut.clk)
     pins.rst.value = 0
     outs = []
+    inst = getattr(dut, p["inst"]) if "inst" in p else None
+    drained = 0
     tick = cycle = 0
     nxt = 0
     while len(outs) < h * w and cycle < 4 * (start[-1] + stage.latency) + 100:
@@ -84,6 +99,11 @@ async def one_run(dut, p: dict) -> None:
             pins.q_in.value = int(q[y, x]) & ((1 << wb) - 1)
             pins.d_in.value = int(dint[y, x])
         await ReadOnly()
+        if en and inst is not None:
+            main, drain = int(inst.emit_main.value), int(inst.emit_drain.value)
+            assert not (main and drain), (
+                f"tick {tick}: the window and the drain copy load the output register together")
+            drained += drain
         if en:
             nxt += int(offer)
             if int(pins.out_valid.value):
@@ -103,3 +123,5 @@ async def one_run(dut, p: dict) -> None:
             f"pixel ({y}, {x}): in at tick {start[j]}, out at {t_out}: {t_out - start[j]} "
             f"ticks, the plan's lr_check latency is {stage.latency} ({stage.formula})")
     assert 0 < rejected < h * w, f"{rejected} words rejected: the case checks nothing"
+    assert inst is None or drained == h * (d - 1), (
+        f"{drained} words left through the drain copy, not {h} rows x {d - 1}")

@@ -1,5 +1,5 @@
 """cocotb test module: the SVA as one block (sva/rtl/sva_top.sv) driven as the readable cycle
-engine's SVA was on the same frame (tests/rtl/sva_top_check.py records it).
+engine's SVA was on the same frame (tests/rtl/test_sva_top.py records it).
 
 The case holds, per pair in raster order, the SVA cycle from which the model's input FIFOs made
 it visible (both views), its descriptors and left pixel, and per cycle whether the model's

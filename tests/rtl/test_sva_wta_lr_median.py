@@ -12,11 +12,13 @@ A finding of this co-simulation, resolved in the plan: the plan's wta latency wa
 tree(lg(D)) + [uniq] + sub, the RTL's is G + tree(lg(LANES) + [G > 1]) + [uniq] + sub -- its
 lane groups fold one by one into a running node, one level after the lane tree, not a tree
 over D; with G > 2 the two differed (D 16, 4 lanes, V 1: 7 ticks against 8). The plan now
-states the structure's (sim/cycle/stages.py), and the instance "wc_" holds it to that. Two
-more the benches' contracts state, open (docs/rtl.md): the median's latency is the plan's
+states the structure's (sim/cycle/stages.py), and the instance "wc_" holds it to that. One
+more the median bench's contract states, open (docs/rtl.md): the median's latency is the plan's
 counted from the slot that completes its window (the word at (y + M, x + M)): the stream is
-skewed by M W + M slots, which the plan's stage latency leaves out; the LR check's (D - 1) II +
-1 holds when a row starts on the II cadence of the previous row's drain or after it.
+skewed by M W + M slots, which the plan's stage latency leaves out. The LR check's (D - 1) II
++ 1 holds for any row gap >= II: a row's last D - 1 words leave from a drain copy of the window
+that shifts by itself (sva_lr.sv), so the runs below start rows at random gaps, whole IIs or
+not.
 """
 
 from pathlib import Path
@@ -107,11 +109,13 @@ def _median_runs(pre: str, k: int, levels: int) -> list:
 
 
 def _lr_runs() -> list:
-    """Two pipeline IIs: 2 (the SGM left path at 16 lanes, V 2) and 4 (4 lanes, V 1)."""
-    return [{"stage": "lr", "prefix": "lr_", "height": 5, "width": 20, "stall": 0.0,
-             "seed": 4, "overrides": _over(16, 2)},
-            {"stage": "lr", "prefix": "lr_", "height": 6, "width": 18, "stall": 0.2,
-             "seed": 5, "overrides": _over(4, 1, **{"sva.lr_max_diff": 1})}]
+    """Two pipeline IIs, the plan's (sim.cycle.stages.pipeline_ii) at 16 lanes, V 2 and at 4
+    lanes, V 1; rows at random gaps >= II (lr_bench.row_gaps: II, II + 1 and others), the
+    drain copy checked."""
+    return [{"stage": "lr", "prefix": "lr_", "inst": "u_lr", "height": 5, "width": 20,
+             "stall": 0.0, "seed": 4, "overrides": _over(16, 2)},
+            {"stage": "lr", "prefix": "lr_", "inst": "u_lr", "height": 6, "width": 18,
+             "stall": 0.2, "seed": 5, "overrides": _over(4, 1, **{"sva.lr_max_diff": 1})}]
 
 
 def test_the_rtl_stages_equal_the_model(rtl_run, top):

@@ -90,12 +90,13 @@ def test_the_plan_follows_the_wider_words_and_the_weighted_cost():
     assert plan.descriptor_bits == 64 and plan.cost_max == 32 * (w_cnn + w_census)
     assert plan.beat_bits == 64 + 8 and plan.fifo("nna_left_to_sva").width_bits == 72
     rows = next(b for b in plan.block("sva").buffers if b.name == "sva.descriptor_rows")
-    assert rows.bits == 2 * 8 * 80 * 64  # k + 1 rows of each view, 64 bits a descriptor
-    ham = plan.block("sva").stages[0]
+    assert rows.bits == 2 * 9 * 80 * 64  # k + 2 rows of each view, 64 bits a descriptor
+    ham = next(st for st in plan.block("sva").stages if st.name == "hamming")
     v = plan.cfg.sva.compare_levels
     assert hamming_levels((32, 32)) == lg(32) + 2
     assert ham.latency == 1 + tree_cycles(lg(32) + 2, v)
-    assert one.block("sva").stages[0].latency == 1 + tree_cycles(lg(32), v)
+    assert next(st for st in one.block("sva").stages
+                if st.name == "hamming").latency == 1 + tree_cycles(lg(32), v)
     assert plan.cfg.sva.cost_bits == (49 * plan.cost_max).bit_length()  # a 7x7 box of them
     names = [b.name for b in plan.block("sva").buffers]
     assert "sva.noise_rows" in names and "sva.noise_registers" in names
