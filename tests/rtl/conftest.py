@@ -99,8 +99,10 @@ def rtl_run(tmp_path_factory):
         runs[0] += 1
         xml = build / f"results-{worker or 'main'}-{runs[0]}.xml"
         try:
-            runner.test(hdl_toplevel=top, test_module=test_module, build_dir=build,
-                        test_dir=Path(__file__).parent,
+            # the language named: a worker that only waited for the other's build has
+            # built nothing with this runner, which would otherwise infer it from its sources
+            runner.test(hdl_toplevel=top, hdl_toplevel_lang="verilog", test_module=test_module,
+                        build_dir=build, test_dir=Path(__file__).parent,
                         extra_env={"STEREOSIM_RTL_CASE": json.dumps(case)},
                         results_xml=str(xml))
         except SystemExit:  # cocotb's runner exits when a test failed
