@@ -91,16 +91,23 @@ module sva_lr #(
     end
   end
 
+  // the check of a leaving word (the window's and the drain copy's, each its own logic):
+  // x - d* >= 0 and |d* - dR(x - d*)| <= max_diff
+  function automatic logic kept(input logic ok, input logic [DB-1:0] d_star,
+                                input logic [DB-1:0] d_right, input logic [7:0] limit);
+    logic [DB:0] diff;
+    diff = (d_star >= d_right) ? (DB+1)'(d_star - d_right) : (DB+1)'(d_right - d_star);
+    kept = ok && (9'(diff) <= {1'b0, limit});
+  endfunction
+
   // the word leaving at a shift: left pixel x - D + 1, checked against dR(x - D + 1 - d*)
   logic [DB-1:0] dr_of;
-  logic [DB:0]   diff;
   logic          keep;
   always_comb begin
     int j;
     j = int'(ld[R-1]);
     dr_of = (j == 0) ? nd[R] : hd[j-1];
-    diff = (ld[R-1] >= dr_of) ? (DB+1)'(ld[R-1] - dr_of) : (DB+1)'(dr_of - ld[R-1]);
-    keep = lok[R-1] && (9'(diff) <= {1'b0, max_diff});
+    keep = kept(lok[R-1], ld[R-1], dr_of, max_diff);
   end
 
   // ---- the drain copy: a row's window after its last pixel, shifting by itself ------------
@@ -117,14 +124,12 @@ module sva_lr #(
   logic          elv [R];
 
   logic [DB-1:0] edr_of;
-  logic [DB:0]   ediff;
   logic          ekeep;
   always_comb begin
     int j;
     j = int'(eld[R-1]);
     edr_of = (j == 0) ? erd[R-1] : ehd[j-1];
-    ediff = (eld[R-1] >= edr_of) ? (DB+1)'(eld[R-1] - edr_of) : (DB+1)'(edr_of - eld[R-1]);
-    ekeep = elok[R-1] && (9'(ediff) <= {1'b0, max_diff});
+    ekeep = kept(elok[R-1], eld[R-1], edr_of, max_diff);
   end
 
   // which of the two loads the output register this tick (never both: the bench checks)
