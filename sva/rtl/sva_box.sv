@@ -23,10 +23,20 @@
 //
 // Structure (the cycles come from it; nothing is delayed to meet a number):
 // - slot taken in cycle t: lane group g (LANES disparities) reads its word of column col's
-//   sums from the column-sum memory (W_MAX x G words of LANES sums, one read and one write
-//   port, synchronous read) in cycle t + g: a group a cycle, so II = G;
+//   sums from the column-sum memory (W_MAX x G words of LANES sums, synchronous read) in cycle
+//   t + g: a group a cycle, so II = G with a read and a write port (ONE_PORT = 0);
 // - the column update, old + c_add - c_sub (two adder levels: tree(2) cycles, V levels a
-//   cycle), is written back in its last cycle and registered;
+//   cycle), is written back in its last cycle (cycle t + g + tree(2)) and registered;
+// - ONE_PORT = 1 (sva.sram_ports = "1rw"): the memory has one port, one access a cycle (one
+//   address, one write enable, the read register). Reads keep their cycles (a slot's groups
+//   at t .. t + G - 1: the latency does not change); a write that meets a read waits in a
+//   queue of pending writes and is written in the first cycle without a read. A slot is taken
+//   when no write is still being computed and the writes waiting (queued or arriving) fit in
+//   the cycles between its own reads and its own first write (tree(2) - G of them, none when
+//   G >= tree(2)). So the next slot waits for an updating slot's G reads and its G writes:
+//   II = 2 G; a slot that updates nothing (the right border's) writes nothing, and
+//   the next is taken G cycles after it. A column is read again W slots later, long after
+//   its writes;
 // - the row sum: a window of the K_MAX newest column sums per disparity (registers), the
 //   updated one with the k - 1 before it summed by a tree of lg(K_MAX) adder levels and one
 //   level that saturates: tree(lg(K_MAX) + 1) cycles, into the output register.
@@ -39,7 +49,8 @@ module sva_box #(
     parameter int K_MAX = 7,    // largest box size
     parameter int W_MAX = 32,   // widest row (columns of the column-sum memory)
     parameter int COST_W = 6,   // bits of a matching cost
-    parameter int A_W = 8       // bits of a box sum: sva.cost_bits (saturating)
+    parameter int A_W = 8,      // bits of a box sum: sva.cost_bits (saturating)
+    parameter bit ONE_PORT = 0  // the column sums' memory: 0 a read and a write port, 1 one
 ) (
     input  logic                      clk,
     input  logic                      rst,
@@ -79,7 +90,8 @@ module sva_box #(
   logic                      busy;
   wire                       take = en && in_valid && in_ready;
   wire  [GW-1:0]             last_g = GW'(int'(ngroups) - 1);
-  assign in_ready = !busy;   // the taken slot issues its group 0 itself
+  logic                      port_ok;   // the column-sum memory's port can take a slot
+  assign in_ready = !busy && port_ok;   // the taken slot issues its group 0 itself
   always_ff @(posedge clk) begin
     if (rst) begin
       busy <= 1'b0;
@@ -107,16 +119,12 @@ module sva_box #(
   wire  [GW-1:0]             iss_g = take ? '0 : group;
   wire  [CW-1:0]             iss_col = take ? col : col_q;
 
-  // ---- the column-sum memory: W_MAX x G_MAX words, one read and one write port -------------
+  // ---- the column-sum memory: W_MAX x G_MAX words ------------------------------------------
   logic [WORD-1:0] mem [W_MAX * G_MAX];
   logic [WORD-1:0] rd_q;
   logic            wr_en;
   int              wr_addr;
   logic [WORD-1:0] wr_data;
-  always_ff @(posedge clk) begin
-    if (en && iss_v) rd_q <= mem[int'(iss_col) * G_MAX + int'(iss_g)];
-    if (en && wr_en) mem[wr_addr] <= wr_data;
-  end
 
   // ---- the column update: old + c_add - c_sub, tree(2) cycles -------------------------------
   // cu[0]: the cycle after the issue (the read word arrives); a register after every V levels
@@ -194,6 +202,66 @@ module sva_box #(
     wr_addr = int'(cu_col[CU_T - 1]) * G_MAX + int'(cu_g[CU_T - 1]);
     for (int i = 0; i < LANES; i++) wr_data[i*CS_W +: CS_W] = cs_new[i];
   end
+
+  // the memory's ports (the reads at the lane groups' issue, the write-backs above)
+  generate
+    if (!ONE_PORT) begin : two_ports   // a read and a write port
+      always_ff @(posedge clk) begin
+        if (en && iss_v) rd_q <= mem[int'(iss_col) * G_MAX + int'(iss_g)];
+        if (en && wr_en) mem[wr_addr] <= wr_data;
+      end
+      assign port_ok = 1'b1;
+    end else begin : one_port          // one port; writes that meet a read wait in a queue
+      // pending writes: a slot's own arriving while its later groups read (G - tree(2) at
+      // most), or those waiting when it is taken (tree(2) - G at most, G = 1: one)
+      localparam int QD = (G_MAX - CU_T > 1) ? G_MAX - CU_T : 1;
+      localparam int QW = $clog2(QD + 1);
+      localparam int AW = (W_MAX * G_MAX > 1) ? $clog2(W_MAX * G_MAX) : 1;
+      logic [AW-1:0]   q_addr [QD];
+      logic [WORD-1:0] q_data [QD];
+      logic [QW-1:0]   q_n;
+      // the port this cycle: a read first, else the oldest pending write, else the arriving
+      wire             rd = iss_v;
+      wire             from_q = !rd && (q_n != '0);
+      wire             direct = !rd && (q_n == '0) && wr_en;
+      wire             push = wr_en && !direct;
+      wire             we = from_q || direct;
+      wire  [AW-1:0]   addr = rd ? AW'(int'(iss_col) * G_MAX + int'(iss_g))
+                            : from_q ? q_addr[0] : AW'(wr_addr);
+      wire  [WORD-1:0] wdata = from_q ? q_data[0] : wr_data;
+      always_ff @(posedge clk) begin
+        if (en) begin
+          if (we) mem[addr] <= wdata;
+          else if (rd) rd_q <= mem[addr];
+        end
+      end
+      always_ff @(posedge clk) begin
+        if (rst) begin
+          q_n <= '0;
+        end else if (en) begin
+          if (from_q)
+            for (int i = 0; i < QD - 1; i++) begin
+              q_addr[i] <= q_addr[i+1]; q_data[i] <= q_data[i+1];
+            end
+          if (push) begin
+            q_addr[int'(q_n) - int'(from_q)] <= AW'(wr_addr);
+            q_data[int'(q_n) - int'(from_q)] <= wr_data;
+          end
+          q_n <= q_n - QW'(from_q) + QW'(push);
+        end
+      end
+      // a slot's reads take cycles t .. t + G - 1, its first write arrives in t + CU_T: the
+      // writes waiting now must fit in the CU_T - G cycles between, none still computed
+      logic computing;
+      always_comb begin
+        computing = 1'b0;
+        for (int i = 0; i < CU_T - 1; i++) computing = computing || (cu_v[i] && cu_upd[i]);
+      end
+      wire [QW:0] waiting = (QW + 1)'(q_n) + (QW + 1)'(wr_en);
+      wire [8:0]  gap = (CU_T > int'(ngroups)) ? 9'(CU_T - int'(ngroups)) : 9'd0;
+      assign port_ok = !computing && (9'(waiting) <= gap);
+    end
+  endgenerate
 
   // ---- the row window and the row sum: tree(lg K_MAX + 1) cycles ----------------------------
   // the updated column sums are registered (end of the update) with the group's control

@@ -4,7 +4,9 @@
 // (invalid) below every disparity).
 //
 // Interface (a stage of the lock-step pipeline; every register moves only in a tick, en = 1):
-//   in_valid, word   one slot of the stream: the frame's words in raster order, then
+//   in_valid, in_ready, word
+//                    one slot of the stream (taken in a tick with in_valid and in_ready):
+//                    the frame's words in raster order, then
 //                    M W + M flush slots (M = K / 2; word ignored) -- the window centred at
 //                    (y, x) is complete when the word at (y + M, x + M) arrives (clamped to
 //                    the frame), so the slot of raster index j + M W + M emits centre j;
@@ -13,10 +15,16 @@
 // The stream is skewed by M W + M slots: the stage sees row y + M while it emits row y.
 //
 // Structure (the cycles come from it):
-// - K - 1 row banks of WMAX words (register arrays, read asynchronously: a bank per row above
-//   the arriving one, the arriving word written over the oldest row's after its read), a
-//   column of K words per slot: the banks' words at x and the arriving word, rows above the
-//   frame's first and below its last replaced by the first / last (replicate borders);
+// - K - 1 row banks of WMAX words (a bank per row above the arriving one, the arriving word
+//   written over the oldest row's after its read), a column of K words per slot: the banks'
+//   words at x and the arriving word, rows above the frame's first and below its last
+//   replaced by the first / last (replicate borders). ONE_PORT = 0: register arrays with a
+//   read and a write port, read asynchronously in the slot's tick (in_ready is 1: a slot a
+//   tick). ONE_PORT = 1 (sva.sram_ports = "1rw"): each bank has one port, one access a tick
+//   (one address, one write enable, the read register): the banks' words at the next column
+//   are read in the tick after a slot into the read registers (in_ready rises then), and the
+//   slot's tick uses them and writes the arriving word over the oldest row's -- two accesses
+//   of the oldest row's bank a slot, so a slot every two ticks at most;
 // - a K x K window register shifted one column per slot; the first M slots of a row shift in
 //   a copy of the window's last column (the previous row's right border) and keep the new
 //   row's first M columns aside; slot M loads [c0 x (M + 1), c1 .. c_{M-1}, c_M];
@@ -25,20 +33,23 @@
 //   every V levels, the output register after the last), T = ceil(k (k + 1) / 2 / V); the
 //   median is its element K K / 2.
 // So centre j leaves T ticks after the slot that completes its window (that slot's tick holds
-// the bank read, the window's shift and the first V levels): the plan's rule for the
-// network; the M W + M slots of skew are outside it (a finding: test_sva_wta_lr_median.py).
+// the bank read -- or, with one port, the read registers' words --, the window's shift and the
+// first V levels): the plan's rule for the network; the M W + M slots of skew are outside it
+// (a finding: test_sva_wta_lr_median.py). II: 1 slot a tick with two ports, 2 with one.
 module sva_median #(
     parameter int K = 5,        // the window (odd)
     parameter int V = 8,        // compare levels that settle in one tick
     parameter int WB = 9,       // bits of a word (two's complement, -1 invalid)
     parameter int WMAX = 32,    // the widest frame
     parameter int XW = 6,       // bits of a column (> log2 WMAX)
-    parameter int YW = 6        // bits of a row counter (> log2 (H + K))
+    parameter int YW = 6,       // bits of a row counter (> log2 (H + K))
+    parameter bit ONE_PORT = 0  // the row banks: 0 a read and a write port, 1 one
 ) (
     input  logic              clk,
     input  logic              rst,
     input  logic              en,
     input  logic              in_valid,
+    output logic              in_ready,
     input  logic [WB-1:0]     word,
     input  logic [XW-1:0]     width,
     input  logic [YW-1:0]     height,
@@ -56,7 +67,7 @@ module sva_median #(
   logic [XW-1:0] xc;
   logic [YW-1:0] yc;
   logic          slot;
-  assign slot = en && in_valid;
+  assign slot = en && in_valid && in_ready;
   logic last_slot;   // the slot of centre (H - 1, W - 1): the frame's last
   assign last_slot = (yc == height + YW'(M)) && (xc == XW'(M - 1));
   always_ff @(posedge clk) begin
@@ -81,6 +92,24 @@ module sva_median #(
     else if (slot && xc == width - 1'b1)
       top <= (int'(top) == K - 2) ? '0 : top + 1'b1;
   end
+  // ONE_PORT = 1: words[b], bank b's word at column xc, read in the tick after a slot (ready)
+  logic [WB-1:0] words [K-1];
+  logic          ready;
+  always_ff @(posedge clk) begin
+    if (rst) ready <= 1'b0;
+    else if (en) ready <= ready ? !slot : 1'b1;
+  end
+  assign in_ready = ONE_PORT ? ready : 1'b1;
+  always_ff @(posedge clk) begin
+    if (!ONE_PORT) begin   // a read and a write port: the write after the read
+      if (slot && yc < height) bank[top][xc] <= word;   // over the oldest row, after its read
+    end else begin         // one port a bank: one address (xc), one write enable
+      for (int b = 0; b < K - 1; b++) begin
+        if (slot && yc < height && b == int'(top)) bank[b][xc] <= word;
+        else if (en && !ready) words[b] <= bank[b][xc];
+      end
+    end
+  end
   // col[i]: row yc - 2M + i at column xc (i = K - 1: the arriving word), clamped to the frame
   logic [K-1:0][WB-1:0] raw;   // packed: a column is one word
   logic [K-1:0][WB-1:0] col;
@@ -88,7 +117,7 @@ module sva_median #(
     for (int i = 0; i < K - 1; i++) begin
       int b;
       b = (int'(top) + i) % (K - 1);
-      raw[i] = bank[b][xc];
+      raw[i] = ONE_PORT ? words[b] : bank[b][xc];   // two ports: read asynchronously
     end
     raw[K-1] = word;
     for (int i = 0; i < K; i++) begin
@@ -97,9 +126,6 @@ module sva_median #(
       rc = (r < 0) ? 0 : (r > int'(height) - 1) ? int'(height) - 1 : r;
       col[i] = raw[i + rc - r];
     end
-  end
-  always_ff @(posedge clk) begin
-    if (slot && yc < height) bank[top][xc] <= word;   // over the oldest row, after its read
   end
 
   // ---- the window register; the network reads the window this slot makes ----------------

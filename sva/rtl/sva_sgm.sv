@@ -34,12 +34,22 @@
 //   wrote. A word holds a group's L lanes and the next group's first cost (the d + 1 of its
 //   last lane: L + 1 entries), written once that group is computed; a side ring holds each
 //   pixel's minimum;
+// - ONE_PORT = 1 (sva.sram_ports = "1rw"): each of those memories has one port, one access a
+//   cycle (one address, one write enable, the read register). Reads keep their cycles (the
+//   latency does not change); a write that meets a read waits in a queue of pending writes
+//   and is written in the first cycle without a read. With the top paths on (paths > 1) a
+//   pixel is taken when the row words waiting (queued or arriving) fit in the cycles between
+//   its own reads (t .. t + G - 1) and its own first write (t + tree(5) + 1): tree(5) + 1 - G
+//   of them, none when G > tree(5). A word is read again W - 1 pixels or more after it is
+//   written (top-right), its queue long empty for W >= 3. The minima's ring is read at a
+//   take and written once a pixel, at least two cycles apart: its write waits a cycle at most;
 // - the path sum: per lane the enabled paths' costs added (lg(4) levels) and saturated (one
 //   level): tree(3) cycles after the path costs.
 // So the next pixel's group 0 may start once m is registered: II = G + tree(5) - 1 + tree(lg(L)
-// + [G_MAX > 1]) (the plan's, with G_MAX the build's); the path costs leave G + tree(5) cycles
-// after the pixel is taken; the sums tree(3) after them (the plan's tree(lg(paths) + 1) for
-// four paths, or where V >= 3).
+// + [G_MAX > 1]) (the plan's, with G_MAX the build's), with one port and paths > 1 at least
+// 2 G (G reads and G writes a pixel); the path costs leave G + tree(5) cycles after the pixel
+// is taken; the sums tree(3) after them (the plan's tree(lg(paths) + 1) for four paths, or
+// where V >= 3).
 module sva_sgm #(
     parameter int D_MAX = 32,
     parameter int LANES = 16,
@@ -47,7 +57,8 @@ module sva_sgm #(
     parameter int W_MAX = 24,
     parameter int A_W = 8,       // bits of an aggregated cost (sva.cost_bits)
     parameter int PATH_W = 9,    // sva.path_bits
-    parameter int SUM_W = 10     // sva.sum_bits
+    parameter int SUM_W = 10,    // sva.sum_bits
+    parameter bit ONE_PORT = 0   // the previous rows' memories: 0 a read and a write port, 1 one
 ) (
     input  logic                      clk,
     input  logic                      rst,
@@ -163,19 +174,118 @@ module sva_sgm #(
   logic [WORD-1:0]   row_wd [4];
   logic              min_we;
   logic [PATH_W-1:0] min_wd [4];
+  logic       port_ok;     // the memories' ports can take a pixel
+  logic [7:0] rslot_q [4];
+  always_ff @(posedge clk) if (en && take) rslot_q <= rslot;
+  // ONE_PORT = 1: each memory's one access this cycle (one_port below picks it)
+  localparam int RAW = $clog2(SLOTS * G_MAX);
+  logic              op_rd, op_we, om_rd, om_we;
+  logic [RAW-1:0]    op_addr [4];
+  logic [WORD-1:0]   op_wd [4];
+  logic [7:0]        om_addr [4];
+  logic [PATH_W-1:0] om_wd [4];
   always_ff @(posedge clk) begin
     if (en) begin
-      for (int k = 1; k < 4; k++) begin
-        if (rd_v)
-          row_rd[k] <= row_mem[k][int'(take ? rslot[k] : rslot_q[k]) * G_MAX + int'(rd_g)];
-        if (take) min_rd[k] <= min_mem[k][rslot[k]];
-        if (row_we) row_mem[k][int'(wslot_q[k]) * G_MAX + int'(row_wg)] <= row_wd[k];
-        if (min_we) min_mem[k][wslot_q[k]] <= min_wd[k];
+      if (!ONE_PORT) begin   // a read and a write port each
+        for (int k = 1; k < 4; k++) begin
+          if (rd_v)
+            row_rd[k] <= row_mem[k][int'(take ? rslot[k] : rslot_q[k]) * G_MAX + int'(rd_g)];
+          if (take) min_rd[k] <= min_mem[k][rslot[k]];
+          if (row_we) row_mem[k][int'(wslot_q[k]) * G_MAX + int'(row_wg)] <= row_wd[k];
+          if (min_we) min_mem[k][wslot_q[k]] <= min_wd[k];
+        end
+      end else begin         // one port each: one address, one write enable
+        for (int k = 1; k < 4; k++) begin
+          if (op_we) row_mem[k][op_addr[k]] <= op_wd[k];
+          else if (op_rd) row_rd[k] <= row_mem[k][op_addr[k]];
+          if (om_we) min_mem[k][om_addr[k]] <= om_wd[k];
+          else if (om_rd) min_rd[k] <= min_mem[k][om_addr[k]];
+        end
       end
     end
   end
-  logic [7:0] rslot_q [4];
-  always_ff @(posedge clk) if (en && take) rslot_q <= rslot;
+  generate
+    if (!ONE_PORT) begin : two_ports
+      assign port_ok = 1'b1;
+      always_comb begin   // no single-port accesses
+        op_rd = 1'b0; op_we = 1'b0; om_rd = 1'b0; om_we = 1'b0;
+        for (int k = 0; k < 4; k++) begin
+          op_addr[k] = '0; op_wd[k] = '0; om_addr[k] = '0; om_wd[k] = '0;
+        end
+      end
+    end else begin : one_port          // one port each; writes that meet a read wait
+      // pending row words: a pixel's own arriving while its later groups read (G - tree(5) - 1
+      // at most), or, when it is taken, the last word of the pixel before (once pend is low
+      // every word of that pixel has arrived but, with tree(lg(L) + [G_MAX > 1]) = 1, its last)
+      localparam int QD = (G_MAX - TA - 1 > 1) ? G_MAX - TA - 1 : 1;
+      localparam int QW = $clog2(QD + 1);
+      localparam int AW = RAW;
+      // the three top paths' memories move in step (the same cycles, their own slots)
+      wire             top_on = (paths > 3'd1);       // paths 1 .. 3 read and written
+      wire             rd = top_on && rd_v;
+      wire             wr = top_on && row_we;
+      logic [AW-1:0]   wr_addr [4];
+      logic [AW-1:0]   q_addr [QD][4];
+      logic [WORD-1:0] q_data [QD][4];
+      logic [QW-1:0]   q_n;
+      wire             from_q = !rd && (q_n != '0);
+      wire             direct = !rd && (q_n == '0) && wr;
+      wire             push = wr && !direct;
+      always_comb
+        for (int k = 0; k < 4; k++)
+          wr_addr[k] = AW'(int'(wslot_q[k]) * G_MAX + int'(row_wg));
+      always_comb begin
+        op_rd = rd;
+        op_we = from_q || direct;
+        for (int k = 0; k < 4; k++) begin
+          op_addr[k] = rd ? AW'(int'(take ? rslot[k] : rslot_q[k]) * G_MAX + int'(rd_g))
+                     : from_q ? q_addr[0][k] : wr_addr[k];
+          op_wd[k] = from_q ? q_data[0][k] : row_wd[k];
+        end
+      end
+      always_ff @(posedge clk) begin
+        if (rst) begin
+          q_n <= '0;
+        end else if (en) begin
+          if (from_q)
+            for (int i = 0; i < QD - 1; i++) begin
+              q_addr[i] <= q_addr[i+1]; q_data[i] <= q_data[i+1];
+            end
+          if (push)
+            for (int k = 1; k < 4; k++) begin
+              q_addr[int'(q_n) - int'(from_q)][k] <= wr_addr[k];
+              q_data[int'(q_n) - int'(from_q)][k] <= row_wd[k];
+            end
+          q_n <= q_n - QW'(from_q) + QW'(push);
+        end
+      end
+      // the minima: read at a take, written once a pixel (takes are two cycles apart or more:
+      // a write that meets a take's read is written in the next cycle)
+      logic             mq_v;
+      logic [7:0]       mq_slot [4];
+      logic [PATH_W-1:0] mq_data [4];
+      wire              min_rd_now = top_on && take;
+      always_ff @(posedge clk) begin
+        if (rst) mq_v <= 1'b0;
+        else if (en) mq_v <= min_we && top_on && min_rd_now;
+        if (en) begin mq_slot <= wslot_q; mq_data <= min_wd; end
+      end
+      always_comb begin
+        om_rd = min_rd_now;
+        om_we = !min_rd_now && (mq_v || (min_we && top_on));
+        for (int k = 0; k < 4; k++) begin
+          om_addr[k] = min_rd_now ? rslot[k] : mq_v ? mq_slot[k] : wslot_q[k];
+          om_wd[k] = mq_v ? mq_data[k] : min_wd[k];
+        end
+      end
+      // a pixel's reads take cycles t .. t + G - 1, its first word arrives in t + TA + 1: the
+      // words waiting now must fit in the TA + 1 - G cycles between (no group is computed once
+      // pend is low: the last group's word arrives in the cycle in_ready rises, or before)
+      wire [QW:0] waiting = (QW + 1)'(q_n) + (QW + 1)'(wr);
+      wire [8:0]  gap = (TA + 1 > int'(ngroups)) ? 9'(TA + 1 - int'(ngroups)) : 9'd0;
+      assign port_ok = 9'(waiting) <= gap;
+    end
+  endgenerate
 
   // ---- the lane groups: predecessor lanes, five levels of arithmetic -----------------------
   // cycle t + 1 + g: group g (busy, group) with its word read in the cycle before
@@ -397,7 +507,7 @@ module sva_sgm #(
     for (int j = 0; j < TT - 1; j++) pend = pend || tree_tok[j];
   end
   assign take = en && in_valid && in_ready;
-  assign in_ready = !pend;
+  assign in_ready = !pend && port_ok;
 
   // ---- the path costs out; the path sum: tree(3) -------------------------------------------
   always_ff @(posedge clk) begin

@@ -56,7 +56,8 @@ module sva_top #(
     parameter int F = 4,         // sub-pixel bits
     parameter int DB = 4,        // bits of d
     parameter int WB = 1 + DB + F,
-    parameter int K_MED = 3      // the median's window (med_on)
+    parameter int K_MED = 3,     // the median's window (med_on)
+    parameter bit ONE_PORT = 0   // the stages' memories: 0 a read and a write port, 1 one
 ) (
     input  logic           clk,
     input  logic           rst,
@@ -228,7 +229,7 @@ module sva_top #(
   logic              bo_v;
   logic [D*A_W-1:0]  agg;
   sva_box #(.D_MAX(D), .LANES(LANES), .V(V), .K_MAX(K_MAX), .W_MAX(W_MAX), .COST_W(COST_W),
-            .A_W(A_W)) u_box (
+            .A_W(A_W), .ONE_PORT(ONE_PORT)) u_box (
       .clk(clk), .rst(rst), .en(en), .ngroups(8'(G)), .k(k), .in_valid(bx_v),
       .in_ready(box_rdy), .col(cq_head[XW+4:5]), .upd(head_upd), .fresh(cq_head[3]),
       .fill(cq_head[2]), .emit(cq_head[1]),
@@ -255,7 +256,7 @@ module sva_top #(
   logic [4*D*PATH_W-1:0] lc;
   logic [D*SUM_W-1:0]  s;
   sva_sgm #(.D_MAX(D), .LANES(LANES), .V(V), .W_MAX(W_MAX), .A_W(A_W), .PATH_W(PATH_W),
-            .SUM_W(SUM_W)) u_sgm (
+            .SUM_W(SUM_W), .ONE_PORT(ONE_PORT)) u_sgm (
       .clk(clk), .rst(rst), .en(en), .ngroups(8'(G)), .dn(9'(D)), .width(width), .p1(p1),
       .p2(p2), .adaptive(adaptive), .slope(slope), .paths(paths), .in_valid(bo_v),
       .in_ready(sg_rdy), .a(agg), .grey(grey), .grey_up(grey_up), .x_first(xo == 0),
@@ -310,8 +311,10 @@ module sva_top #(
   logic          md_v;
   logic [WB-1:0] md_q;
   localparam int MXW = $clog2(W_MAX + 1);  // a column counter that holds W_MAX
-  sva_median #(.K(K_MED), .V(V), .WB(WB), .WMAX(W_MAX), .XW(MXW), .YW(6)) u_median (
-      .clk(clk), .rst(rst), .en(en && med_on), .in_valid(pre_v || flushing), .word(pre_q),
+  sva_median #(.K(K_MED), .V(V), .WB(WB), .WMAX(W_MAX), .XW(MXW), .YW(6),
+               .ONE_PORT(ONE_PORT)) u_median (
+      .clk(clk), .rst(rst), .en(en && med_on), .in_valid(pre_v || flushing), .in_ready(),
+      .word(pre_q),
       .width(MXW'(width)), .height(6'(height)), .out_valid(md_v), .med(md_q));
 
   // ---- the output register --------------------------------------------------------------

@@ -5,8 +5,9 @@ then the M W + M flush slots, with random bubbles and random stalls (en = 0); ev
 equal sva/median.py's reference (``median_ref``, replicate borders, -1 below every disparity),
 in raster order, leave the plan's median latency (sim.cycle.stages.sva_stages, read from the
 plan) after the slot that completes its window -- the word at (y + M, x + M), clamped to the
-frame, i.e. slot j + M W + M for centre j -- and the stage must take a slot every tick (the
-plan's median II with 1r1w banks).
+frame, i.e. slot j + M W + M for centre j -- and a slot offered back to back must be taken
+one plan median II after the one before (1 with 1r1w row banks, 2 with 1rw: the run's
+sva.sram_ports), none closer.
 """
 
 import numpy as np
@@ -44,20 +45,25 @@ async def one_run(dut, p: dict) -> None:
     await RisingEdge(dut.clk)
     await RisingEdge(dut.clk)
     pins.rst.value = 0
-    fed, outs = [], []
+    fed, outs, back_to_back = [], [], []
     tick = cycle = 0
+    offered_since = None  # the tick the slot now offered was first offered in
     while len(outs) < h * w and cycle < 20 * slots + 100:
         en = rng.random() >= p["stall"]
-        offer = len(fed) < slots and rng.random() >= p["gap"]
+        if offered_since is None and len(fed) < slots and rng.random() >= p["gap"]:
+            offered_since = tick
         pins.en.value = int(en)
-        pins.in_valid.value = int(offer)
-        if offer:
+        pins.in_valid.value = int(offered_since is not None)
+        if offered_since is not None:
             j = len(fed)
             pins.word.value = int(q.flat[j]) & ((1 << wb) - 1) if j < h * w else 0
         await ReadOnly()
         if en:
-            if offer:
+            if offered_since is not None and int(pins.in_ready.value):
+                if fed and offered_since <= fed[-1] + 1:  # offered from the next tick on
+                    back_to_back.append(tick - fed[-1])
                 fed.append(tick)
+                offered_since = None
             if int(pins.out_valid.value):
                 v = int(pins.med.value)
                 outs.append((tick, v - (1 << wb) if v >> (wb - 1) else v))
@@ -74,4 +80,8 @@ async def one_run(dut, p: dict) -> None:
             f"centre ({y}, {x}): window complete in tick {t_in}, out in {t_out}: "
             f"{t_out - t_in} ticks, the plan's median latency is {stage.latency} "
             f"({stage.formula})")
-    assert stage.ii == 1, f"the plan's median II is {stage.ii}, the stage takes a slot a tick"
+    gaps = np.diff(fed)
+    rule = f"the plan's median II is {stage.ii} ({stage.formula})"
+    assert gaps.min() >= stage.ii, f"two slots {gaps.min()} ticks apart, {rule}"
+    assert back_to_back and set(back_to_back) == {stage.ii}, (
+        f"slots offered back to back were taken {sorted(set(back_to_back))} ticks apart, {rule}")

@@ -9,8 +9,18 @@ Structure is build-time (the largest D, lanes, levels a cycle V, the largest box
 row, the widths); D (so G = ceil(D / lanes)), the box size, P1, P2, the adaptive P2 and its
 slope and the paths enabled are run-time registers. One Verilator build serves every test: a
 twin top holding the box filter, the SGM stage and the one-cycle mutant of the box filter side
-by side, and the box filter and the SGM stage again at V = 2, each bench driving its own
-stage's ports (prefixed box_, sgm_, late_, box2_, sgm2_).
+by side, the box filter and the SGM stage again at V = 2, and again at V = 8 with single-port
+memories (ONE_PORT: sva.sram_ports = "1rw"), each bench driving its own stage's ports
+(prefixed box_, sgm_, late_, box2_, sgm2_, box1_, sgm1_).
+
+With one port the column sums need G reads and G writes a slot, the top paths' previous rows
+G and G a pixel: the plan's II 2 G (the SGM's the larger of it and the left path's
+recurrence; one path: no previous rows, no port), its latencies unchanged -- the runs of the
+box1_ and sgm1_ instances read the plan with sva.sram_ports = "1rw", at G = 1 and G = 2. A
+finding, the box filter: a slot that updates no column (a row's r right-border slots) writes
+nothing, and the structure takes the next slot G ticks after it, not the plan's 2 G (the top
+issues every slot one slot II apart, so only the stage alone shows it; box_bench.py checks
+both spacings).
 """
 
 import math
@@ -32,6 +42,8 @@ SGM = {"D_MAX": 32, "LANES": 16, "V": 8, "W_MAX": 24, "A_W": 8, "PATH_W": 9, "SU
 # their runs keep to what a build for the largest box, D and paths shares with the config's
 # plan -- boxes 3..7 (lg(k) + 1 = 3 or 4 levels: 2 cycles), D = 32 (G = 2), 3 or 4 paths
 BOX2, SGM2 = {**BOX, "V": 2}, {**SGM, "V": 2}
+# single-port memories (sva.sram_ports = "1rw") at V = 8: D = 16 (G = 1) and D = 32 (G = 2)
+BOX1, SGM1 = {**BOX, "ONE_PORT": 1}, {**SGM, "ONE_PORT": 1}
 
 
 def box_ports(b: dict) -> list[tuple[str, str, int]]:
@@ -73,12 +85,18 @@ def twin(rtl_twin_top):
     top = rtl_twin_top("sva_box_sgm_twin", [
         ("sva_box", "box_", BOX, box_ports(BOX)), ("sva_sgm", "sgm_", SGM, sgm_ports(SGM)),
         ("sva_box", "box2_", BOX2, box_ports(BOX2)), ("sva_sgm", "sgm2_", SGM2, sgm_ports(SGM2)),
+        ("sva_box", "box1_", BOX1, box_ports(BOX1)), ("sva_sgm", "sgm1_", SGM1, sgm_ports(SGM1)),
         ("sva_box_late", "late_", BOX, box_ports(BOX))])
     return ("\n".join([box, (RTL / "sva_sgm.sv").read_text(), late_box(box), top]),)
 
 
 def run_twin(rtl_run, twin, bench: str, case: dict, fails: bool = False) -> str:
     return rtl_run(twin, "sva_box_sgm_twin", {}, bench, case, fails=fails)
+
+
+def ports(build: dict) -> str:
+    """The plan's sva.sram_ports for an instance built with ``build``."""
+    return "1rw" if build.get("ONE_PORT") else "1r1w"
 
 
 def box_runs():
@@ -88,12 +106,14 @@ def box_runs():
         ("box_", BOX, 16, 7, 5, 20, 0.8, 0.1), ("box_", BOX, 32, 1, 4, 12, 1.0, 0.2),
         ("box_", BOX, 32, 7, 6, 14, 1.0, 0.0),
         ("box2_", BOX2, 32, 5, 5, 13, 0.8, 0.1), ("box2_", BOX2, 16, 3, 4, 12, 1.0, 0.0),
+        ("box1_", BOX1, 16, 3, 4, 12, 1.0, 0.0), ("box1_", BOX1, 32, 5, 5, 13, 1.0, 0.0),
+        ("box1_", BOX1, 32, 7, 4, 12, 0.8, 0.15),
     ]):
         runs.append({"seed": 11 + i, "h": h, "w": w, "offer": offer, "stall": stall,
                      "prefix": pre,
                      "overrides": {"sva.disparities": d, "sva.lanes": b["LANES"],
                                    "sva.compare_levels": b["V"], "sva.box_size": k,
-                                   "sva.cost_bits": b["A_W"]}})
+                                   "sva.cost_bits": b["A_W"], "sva.sram_ports": ports(b)}})
     return runs
 
 
@@ -112,6 +132,10 @@ def sgm_runs():
         ("sgm_", SGM, 32, 3, 50, 30, True, 64, 4, 12, 0.8, 0.1),
         ("sgm2_", SGM2, 32, 4, 12, 250, True, 512, 5, 13, 0.8, 0.1),
         ("sgm2_", SGM2, 32, 3, 9, 180, False, 16, 4, 12, 1.0, 0.0),
+        ("sgm1_", SGM1, 16, 4, 30, 200, True, 512, 4, 12, 1.0, 0.0),
+        ("sgm1_", SGM1, 32, 3, 20, 300, False, 16, 4, 12, 1.0, 0.0),
+        ("sgm1_", SGM1, 32, 2, 12, 250, True, 1024, 4, 13, 0.8, 0.15),
+        ("sgm1_", SGM1, 32, 1, 10, 120, False, 16, 3, 12, 1.0, 0.0),
     ]):
         runs.append({"seed": 31 + i, "h": h, "w": w, "offer": offer, "stall": stall,
                      "prefix": pre,
@@ -119,7 +143,8 @@ def sgm_runs():
                                    "sva.compare_levels": b["V"], "sva.paths": paths,
                                    "sva.p1": p1, "sva.p2": p2, "sva.p2_adaptive": adaptive,
                                    "sva.p2_slope": slope, "sva.cost_bits": b["A_W"],
-                                   "sva.path_bits": b["PATH_W"], "sva.sum_bits": b["SUM_W"]}})
+                                   "sva.path_bits": b["PATH_W"], "sva.sum_bits": b["SUM_W"],
+                                   "sva.sram_ports": ports(b)}})
     return runs
 
 

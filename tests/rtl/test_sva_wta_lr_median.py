@@ -4,7 +4,8 @@ sva/lr_check.py and sva/median.py, every word out in the tick the chip plan's st
 (tests/rtl/wta_bench.py, lr_bench.py, median_bench.py).
 
 One Verilator build: a wrapper top holds every instance (three WTA structures, the LR check,
-the 5x5 and 3x3 medians, and a one-cycle mutant of the WTA), each behind its own ports. The
+the 5x5 and 3x3 medians, the 5x5 median with single-port row banks (ONE_PORT: sva.sram_ports =
+"1rw", the plan's median II 2), and a one-cycle mutant of the WTA), each behind its own ports. The
 uniqueness margin, the sub-pixel mode, the frame size, the pipeline's II and max_diff are
 run-time registers, so the one build serves every configuration below.
 
@@ -32,7 +33,8 @@ SW, F, DB, WB = 12, 4, 4, 9  # summed costs < 2^12, 4 fractional bits, D = 16: 9
 # the WTA instances: prefix, lanes, compare levels (wc_: G = 4 at V = 1, where the plan's old
 # tree over D was a tick longer than the structure's fold)
 WTAS = [("wa_", 16, 2), ("wb_", 5, 2), ("wc_", 4, 1)]
-MEDIANS = [("md_", 5, 4), ("m3_", 3, 3)]
+# the medians: prefix, window, compare levels, one port (the row banks: sva.sram_ports 1rw)
+MEDIANS = [("md_", 5, 4, 0), ("m3_", 3, 3, 0), ("m1_", 5, 4, 1)]
 MUTANT = "(l < LEVELS) && (l % V == 0)"  # a register after every V levels of the lane tree
 
 
@@ -66,12 +68,13 @@ def wrapper() -> str:
     body.append(f"  sva_lr #(.D(16), .SW({SW}), .DB({DB}), .WB({WB}), .XW(8)) u_lr(.clk(clk), "
                 f"{_ports('lr_', [x for x, _, _ in lr_io])});")
     md_io = [("rst", 1, "input"), ("en", 1, "input"), ("in_valid", 1, "input"),
-             ("word", WB, "input"), ("width", 6, "input"), ("height", 6, "input"),
-             ("out_valid", 1, "output"), ("med", WB, "output")]
-    for pre, k, v in MEDIANS:
+             ("in_ready", 1, "output"), ("word", WB, "input"), ("width", 6, "input"),
+             ("height", 6, "input"), ("out_valid", 1, "output"), ("med", WB, "output")]
+    for pre, k, v, one in MEDIANS:
         ports += [f"{io} logic [{n - 1}:0] {pre}{name}" for name, n, io in md_io]
-        body.append(f"  sva_median #(.K({k}), .V({v}), .WB({WB}), .WMAX(32), .XW(6), .YW(6)) "
-                    f"u_{pre}(.clk(clk), {_ports(pre, [x for x, _, _ in md_io])});")
+        body.append(f"  sva_median #(.K({k}), .V({v}), .WB({WB}), .WMAX(32), .XW(6), .YW(6), "
+                    f".ONE_PORT({one})) u_{pre}(.clk(clk), "
+                    f"{_ports(pre, [x for x, _, _ in md_io])});")
     top = ("module sva_select_top (\n  " + ",\n  ".join(ports) + "\n);\n" + "\n".join(body)
            + "\nendmodule\n")
     return "\n".join([wta, mutant, (RTL / "sva_lr.sv").read_text(),
@@ -98,14 +101,16 @@ def _wta_runs(pre: str, lanes: int, levels: int, pixels: int = 24) -> list:
             for i, (u, m, o, s) in enumerate(runs)]
 
 
-def _median_runs(pre: str, k: int, levels: int) -> list:
-    """Frames of 5 x 12 .. 8 x 23 words, with bubbles and stalls or without."""
-    over = _over(16, levels, **{"sva.median": k})
+def _median_runs(pre: str, k: int, levels: int, one: int) -> list:
+    """Frames of 5 x 12 .. 8 x 23 words, with bubbles and stalls or without (one port: two
+    frames)."""
+    over = _over(16, levels, **{"sva.median": k, "sva.sram_ports": "1rw" if one else "1r1w"})
     top = (15 << F) + (1 << (F - 1))  # the largest word at D = 16
+    frames = ({"height": 5, "width": 12, "gap": 0.0, "stall": 0.0, "seed": 1},
+              {"height": 8, "width": 23, "gap": 0.3, "stall": 0.2, "seed": 2},
+              {"height": 6, "width": 17, "gap": 0.1, "stall": 0.0, "seed": 3})
     return [{"stage": "median", "prefix": pre, "overrides": over, "top": top, **r}
-            for r in ({"height": 5, "width": 12, "gap": 0.0, "stall": 0.0, "seed": 1},
-                      {"height": 8, "width": 23, "gap": 0.3, "stall": 0.2, "seed": 2},
-                      {"height": 6, "width": 17, "gap": 0.1, "stall": 0.0, "seed": 3})]
+            for r in (frames[:2] if one else frames)]
 
 
 def _lr_runs() -> list:
@@ -119,11 +124,12 @@ def _lr_runs() -> list:
 
 
 def test_the_rtl_stages_equal_the_model(rtl_run, top):
-    """Every WTA instance (four runs each), the LR check (two pipeline IIs) and both medians
-    (three frames each) in one simulation: words bit-exact, latency and II the plan's."""
+    """Every WTA instance (four runs each), the LR check (two pipeline IIs) and the medians
+    (three frames each, two with one port) in one simulation: words bit-exact, latency and II
+    the plan's."""
     runs = [r for pre, lanes, levels in WTAS for r in _wta_runs(pre, lanes, levels)]
     runs += _lr_runs()
-    runs += [r for pre, k, levels in MEDIANS for r in _median_runs(pre, k, levels)]
+    runs += [r for pre, k, levels, one in MEDIANS for r in _median_runs(pre, k, levels, one)]
     rtl_run(top, "sva_select_top", {}, "wta_bench", {"sw": SW, "wb": WB, "runs": runs})
 
 
