@@ -46,8 +46,10 @@ paper's "one disparity every two clock ticks", 1280 x 720 x 2 / 465 MHz = 3.964 
 252.3 fps.
 
 SRAM ports (``sva.sram_ports``): every SRAM bank declares its reads and writes per pixel
-(:class:`BufferPlan`) -- a descriptor-row bank per view and a median-row bank per row 1 and 1,
-the column sums and each top SGM path's previous-row bank G and G (one lane group per access).
+(:class:`BufferPlan`) -- a median-row bank per row 1 and 1, the column sums and each top SGM
+path's previous-row bank G and G (one lane group per access); the descriptor rows are a bank per
+row and view, each either the arriving row's (written) or a row a slot reads (the rows entering
+and leaving the column sums are two banks): one access a bank, whatever the ports.
 With ``1r1w`` banks (a read and a write port) a stage needs max(reads, writes) cycles per pixel
 for them, with ``1rw`` (one shared port) reads + writes; a stage's II is the larger of its
 compute II and its banks' port cycles, so a single-port SRAM shows its cost: at the defaults
@@ -227,12 +229,17 @@ def hamming_stage(cfg: ChipConfig, width: int, parts: tuple[int, ...]) -> StageP
     d, v, g, ports = s.disparities, s.compare_levels, lane_groups(cfg), s.sram_ports
     lanes = min(s.lanes, d)
     bits, levels = sum(parts), hamming_levels(parts)
+    # a bank per row and view: the arriving row's bank is only written (a slot reads complete
+    # rows), and a slot's reads (the row entering the column sums, the row leaving them) are
+    # in different banks -- each bank does one access a slot, so one port serves it
     rows_buf = BufferPlan("sva.descriptor_rows", 2 * (s.box_size + 2) * width * bits,
                           "both views' descriptor rows the box filter slides over (k + 2 "
                           "each: rows y - 1 - r .. y + r, the one leaving the column sums "
-                          "included, and the row arriving; a bank per view)",
-                          rows=s.box_size + 2, reads=1, writes=1, ports=ports, banks=2,
-                          word_bits=bits, pixel_reads=2, pixel_writes=2)
+                          "included, and the row arriving; a bank per row and view, each "
+                          "read or written, never both, in a slot)",
+                          rows=s.box_size + 2, reads=1, writes=0, ports=ports,
+                          banks=2 * (s.box_size + 2), word_bits=bits, pixel_reads=2,
+                          pixel_writes=2)
     ii = max(g, rows_buf.port_cycles)
     bufs = [rows_buf, BufferPlan("sva.right_window", d * bits,
                                  "the right descriptors x - D + 1 .. x (registers)")]

@@ -15,7 +15,13 @@ from stereosim.sim.cycle.compiled.run import run_compiled
 from stereosim.sim.cycle.figures import architecture_report
 from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.cycle.readable.chip import run_readable
-from stereosim.sim.cycle.stages import lane_groups, lg, sorting_depth, tree_cycles
+from stereosim.sim.cycle.stages import (
+    hamming_stage,
+    lane_groups,
+    lg,
+    sorting_depth,
+    tree_cycles,
+)
 
 # census (1 NNA cycle per descriptor, 32 bits), equal clocks: the input side is the one of
 # tests/sim/test_chip.py::test_census_first_and_last_output_cycles (row 0 ready at 6W + 3); the
@@ -149,6 +155,22 @@ def test_single_port_srams_cost_what_their_accesses_need(lanes, d, ii_dual, ii_s
     assert (ii["1r1w"], ii["1rw"]) == (ii_dual, ii_single)
     g = -(-d // lanes)
     assert ii_single == max(ii_dual, 2 * g)
+
+
+@pytest.mark.parametrize("lanes, d", [(16, 16), (16, 32), (8, 64)])
+def test_the_descriptor_rows_cost_no_port_cycle_with_one_port(lanes, d):
+    """The descriptor rows are a bank per row and view (the RTL top's ring): the arriving row's
+    bank is only written, and a slot's two reads -- the row entering the column sums and the
+    row leaving them -- are two other banks. One access a bank a slot: the matching cost's II
+    is G with one port as with two (a bank per view would need a read and a write, 2)."""
+    for ports in ("1r1w", "1rw"):
+        cfg = load_config(overrides={"sva.lanes": lanes, "sva.disparities": d,
+                                     "sva.sram_ports": ports})
+        stage = hamming_stage(cfg, 100, (32,))
+        rows = next(b for b in stage.buffers if b.name == "sva.descriptor_rows")
+        assert rows.banks == 2 * (cfg.sva.box_size + 2)
+        assert rows.port_cycles == 1
+        assert stage.ii == -(-d // min(lanes, d))
 
 
 def test_a_single_port_chip_runs_at_its_ii():
