@@ -12,7 +12,7 @@ import numpy as np
 
 from stereosim.sim.io import encode_png
 
-TRIALS = 16
+TRIALS = 6
 
 
 def _consistent_set(out):
