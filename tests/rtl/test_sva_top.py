@@ -11,7 +11,8 @@ clocks, the FIFO depths) and random back-pressure (a 0/1 sink script,
 sim.cycle.rules.sink_pattern). The model runs first, recorded at the SVA's boundary (the cycle
 each descriptor pair became visible in both input FIFOs, each joint pop, each output push and
 its word, per SVA cycle whether the output FIFO had room); the RTL is offered each pair from
-that cycle with out_ready the model's room (tests/rtl/sva_top_bench.py), and per configuration
+that cycle with out_ready the model's room -- the recording, the build, the cocotb bench and
+the comparison are stereosim.sim.rtl_check's (``stereosim rtl check``) -- and per configuration
 
 (a) every word equals the model's bit for bit (the readable engine's words, which are
     sva/pipeline.py's functional model's);
@@ -41,24 +42,18 @@ benchmarks/rtl_sva_top.py runs the same check on hundreds of configurations.
 from __future__ import annotations
 
 import dataclasses
-import json
 import os
-from pathlib import Path
 
 import numpy as np
 import pytest
 
+from stereosim.sim import rtl_check
 from stereosim.sim.config import load_config
 from stereosim.sim.cycle import stages
 from stereosim.sim.cycle.compiled.run import run_compiled
 from stereosim.sim.cycle.plan import build_plan
-from stereosim.sim.cycle.readable.chip import build_chip, run_readable
+from stereosim.sim.cycle.readable.chip import run_readable
 
-ROOT = Path(__file__).resolve().parents[2]
-SOURCES = ["sva/rtl/sva_hamming.sv", "sva/rtl/sva_box.sv", "sva/rtl/sva_sgm.sv",
-           "sva/rtl/sva_wta.sv", "sva/rtl/sva_lr.sv", "sva/rtl/sva_median.sv",
-           "sva/rtl/sva_top.sv"]
-MODES = {"off": 0, "parabola": 1, "equiangular": 2}
 # build-time structure: sva_top's parameters; "ks" the box sizes the build's rule agrees on
 BUILDS = {
     "a": {"params": {"D": 16, "LANES": 16, "V": 8, "B": 32, "K_MAX": 7, "W_MAX": 64,
@@ -98,7 +93,7 @@ def draw(build: str, count: int, seed: int) -> list[dict]:
             "median": int(rng.choice([0, b["params"]["K_MED"]])), "p1": p1,
             "p2": int(rng.integers(p1, 2048)), "adaptive": bool(rng.random() < 0.5),
             "slope": int(rng.integers(0, 1024)), "uniq": int(rng.choice([0, 0, 10, 30])),
-            "subpixel": str(rng.choice(list(MODES))), "max_diff": int(rng.integers(0, 4)),
+            "subpixel": str(rng.choice(list(rtl_check.MODES))), "max_diff": int(rng.integers(0, 4)),
             "gbps": float(np.exp(rng.uniform(np.log(0.15), np.log(4.0)))),
             "nna_mhz": float(rng.uniform(150, 600)), "sva_mhz": float(rng.uniform(150, 600)),
             "in_depth": int(rng.integers(2, 65)), "out_depth": int(rng.integers(1, 17)),
@@ -123,78 +118,6 @@ def overrides(c: dict) -> dict:
             "fifo.sva_to_sink_depth": c["out_depth"]}
 
 
-def frame(c: dict) -> tuple[np.ndarray, np.ndarray]:
-    """A random left image and the right one (the left shifted by 3 columns)."""
-    base = np.random.default_rng(c["seed"]).integers(0, 256, (c["h"], c["w"] + 3))
-    base = base.astype(np.uint8)
-    return np.ascontiguousarray(base[:, 3:]), np.ascontiguousarray(base[:, :-3])
-
-
-def sva_entry(plan):
-    """The plan's SVA block."""
-    blocks = plan.blocks.values() if isinstance(plan.blocks, dict) else plan.blocks
-    return next(b for b in blocks if b.name == "sva")
-
-
-def model_run(cfg, left, right, script) -> tuple[dict, object]:
-    """The readable engine on the pair, recorded at the SVA's boundary: per pair the cycle it
-    became visible in each input FIFO and its beats, each pop, each push and word, and per SVA
-    cycle whether the output FIFO had room."""
-    plan = build_plan(cfg, left.shape, 1)
-    chip = build_chip(left, right, plan, sink_stall=script)
-    sva = chip.blocks["sva"]
-    rec = {"vis_l": [], "vis_r": [], "beats_l": [], "beats_r": [], "pops": [], "pushes": [],
-           "words": [], "room": []}
-    for fifo, side in ((sva.in_left, "l"), (sva.in_right, "r")):
-        def on_commit(now_fs, fifo=fifo, side=side, commit=fifo._commit):
-            before = fifo._pushes
-            moved = commit(now_fs)
-            if fifo._pushes > before:
-                rec["vis_" + side].append(int(fifo._items[-1][0]))
-                rec["beats_" + side].append(fifo._items[-1][1])
-            return moved
-        fifo._commit = on_commit
-    pop, push, evaluate = sva.in_left.pop, sva.out.push, sva.evaluate
-
-    def on_pop():
-        rec["pops"].append(int(sva.in_left._dst_cycle))
-        return pop()
-
-    def on_push(beat):
-        rec["pushes"].append(int(sva.out._src_cycle))
-        rec["words"].append(int(beat.word))
-        push(beat)
-
-    def on_evaluate(cycle):
-        rec["room"].append(int(sva.out.can_push()))
-        return evaluate(cycle)
-
-    sva.in_left.pop, sva.out.push, sva.evaluate = on_pop, on_push, on_evaluate
-    chip.run()
-    return rec, plan
-
-
-def rtl_case(c: dict, cfg, entry, rec, out_path) -> dict:
-    """The bench's case: run-time registers, the pairs and their visible cycles, the room."""
-    s = cfg.sva
-    regs = {"width": c["w"], "height": c["h"], "k": s.box_size, "p1": s.p1, "p2": s.p2,
-            "adaptive": int(s.p2_adaptive), "slope": s.p2_slope, "paths": s.paths,
-            "uniq": s.uniqueness, "mode": MODES[s.subpixel], "lr_on": int(s.lr_check),
-            "max_diff": s.lr_max_diff, "med_on": int(s.median > 1), "ii": entry.cycles,
-            "sii": entry.slot_cycles}
-    return {"regs": regs,
-            "visible": [max(a, b) for a, b in zip(rec["vis_l"], rec["vis_r"], strict=True)],
-            "dl": [int(b.descriptor) for b in rec["beats_l"]],
-            "dr": [int(b.descriptor) for b in rec["beats_r"]],
-            "pix": [int(b.pixel) for b in rec["beats_l"]], "ready": rec["room"],
-            "words": len(rec["words"]), "limit": len(rec["room"]) + 400, "out": str(out_path)}
-
-
-def sources() -> str:
-    """The top and its stages, one text (one Verilator build)."""
-    return "\n".join((ROOT / f).read_text() for f in SOURCES)
-
-
 def engines_agree(plan, left, right, script, rec) -> None:
     """(c): the compiled engine's report, statistics and words are the readable engine's, and
     the recorded boundary's words are the readable run's."""
@@ -207,32 +130,32 @@ def engines_agree(plan, left, right, script, rec) -> None:
     assert fast.stats == slow.stats, "compiled statistics != readable statistics"
 
 
-def check(rtl_run, tmp_path, text: str, c: dict, equivalence: bool = True) -> str:
+def check(builds, c: dict, text: str | None = None, equivalence: bool = True) -> str:
     """One configuration ``c``: the model, the compiled engine against it ((c)), the RTL of
-    ``text`` on ``c``'s build, (a) and (b). Returns a line of what was measured."""
+    ``text`` (default: the sources) on ``c``'s build in ``builds``, (a) and (b). Returns a line
+    of what was measured."""
     p = BUILDS[c["build"]]["params"]
     cfg = load_config(overrides=overrides(c))
-    left, right = frame(c)
+    left, right = rtl_check.random_frame(c["w"], c["h"], c["seed"])
     script = None if c["sink"] is None else np.asarray(c["sink"], np.int64)
-    rec, plan = model_run(cfg, left, right, script)
-    entry = sva_entry(plan)
+    rec, plan, _ = rtl_check.model_run(cfg, left, right, script)
+    entry = rtl_check.sva_entry(plan)
     if equivalence:
         engines_agree(plan, left, right, script, rec)
-    out = tmp_path / f"rtl-{c['build']}-{c['index']}.json"
-    rtl_run((text,), "sva_top", p, "sva_top_bench", rtl_case(c, cfg, entry, rec, out))
-    got = json.loads(out.read_text())
-    assert got["overrun"] is None, (
-        f"{c}: cycle {got['overrun']}: a box pixel reached the SGM before its recurrence let "
+    where = rtl_check.build(p, text=text, root=builds)
+    got = rtl_check.run_rtl(where, rtl_check.rtl_case(cfg, entry, rec, c["w"], c["h"]))
+    found = rtl_check.compare(rec, got, rtl_check.word_bits(p))
+    assert found.overrun is None, (
+        f"{c}: cycle {found.overrun}: a box pixel reached the SGM before its recurrence let "
         f"it in (the plan's II {entry.cycles}, sim.cycle.stages.left_path_ii, too short for "
         "the structure)")
     # (a) the words
-    wb = 1 + p["DB"] + p["F"]
-    rtl_words = [v - (1 << wb) if v >> (wb - 1) else v for v in got["words"]]
-    assert len(rtl_words) == len(rec["words"]), (
-        f"{c}: {len(rtl_words)} of {len(rec['words'])} words left the RTL")
-    bad = [i for i, (a, b) in enumerate(zip(rtl_words, rec["words"], strict=True)) if a != b]
+    words = found.kinds["word"]
+    assert len(words.rtl) == len(words.model), (
+        f"{c}: {len(words.rtl)} of {len(words.model)} words left the RTL")
+    bad = words.off
     assert not bad, (f"{c}: {len(bad)} words differ from the model's, first at {bad[:6]}: "
-                     f"{[rtl_words[i] for i in bad[:6]]} != {[rec['words'][i] for i in bad[:6]]}")
+                     f"{[words.rtl[i] for i in bad[:6]]} != {[words.model[i] for i in bad[:6]]}")
     # (b) every boundary handshake in the model's cycle, named by the plan's rule
     lat = ", ".join(f"{s.name} {s.latency}" for s in entry.stages)
     rules = {
@@ -242,9 +165,9 @@ def check(rtl_run, tmp_path, text: str, c: dict, equivalence: bool = True) -> st
         "push": ("pushes", f"the plan's SVA latency {entry.latency} = the sum of "
                  f"sim.cycle.stages.sva_stages' latencies ({lat}) with sva_first_word_tick, "
                  f"sva_exit_item (median skew {entry.skew})")}
-    for what, rtl, model in (("pop", got["pops"], rec["pops"]),
-                             ("push", got["pushes"], rec["pushes"])):
+    for what in ("pop", "push"):
         name, rule = rules[what]
+        rtl, model = found.kinds[what].rtl, found.kinds[what].model
         assert len(rtl) == len(model), f"{c}: {len(rtl)} {name} in the RTL, {len(model)} model"
         lag = np.array(rtl) - np.array(model)
         nz = np.flatnonzero(lag)
@@ -253,35 +176,35 @@ def check(rtl_run, tmp_path, text: str, c: dict, equivalence: bool = True) -> st
             f"pixel {divmod(int(nz[0]), c['w'])} (row, col): RTL cycle {rtl[nz[0]]}, model "
             f"{model[nz[0]]}; lags min/max {lag.min()}/{lag.max()} (plan: II {entry.cycles}, "
             f"slot II {entry.slot_cycles}, passes {entry.passes}); case {c}")
-    return (f"{len(rtl_words)} words, pops {got['pops'][0]}..{got['pops'][-1]}, pushes "
+    assert found.equal
+    return (f"{len(words.rtl)} words, pops {got['pops'][0]}..{got['pops'][-1]}, pushes "
             f"{got['pushes'][0]}..{got['pushes'][-1]} as the model's (latency {entry.latency},"
             f" II {entry.cycles}, slot II {entry.slot_cycles})")
 
 
-def run_build(rtl_run, tmp_path, build: str, count: int, seed: int) -> None:
+def run_build(builds, build: str, count: int, seed: int) -> None:
     """Every drawn configuration of ``build``, printed as it runs."""
-    text = sources()
     for c in draw(build, count, seed):
         print(f"sva_top {c}")
-        print("   ", check(rtl_run, tmp_path, text, c))
+        print("   ", check(builds, c))
 
 
-def test_sva_top_build_a(rtl_run, tmp_path):
+def test_sva_top_build_a(rtl_builds):
     """Build "a" (D 16 on 16 lanes, V 8, K_MAX 7, 3x3 median): :data:`COUNT` configurations."""
-    run_build(rtl_run, tmp_path, "a", COUNT, SEED)
+    run_build(rtl_builds, "a", COUNT, SEED)
 
 
-def test_sva_top_build_b(rtl_run, tmp_path):
+def test_sva_top_build_b(rtl_builds):
     """Build "b" (D 48 on 16 lanes: G 3, V 3, K_MAX 7, 5x5 median): :data:`COUNT`
     configurations."""
-    run_build(rtl_run, tmp_path, "b", COUNT, SEED)
+    run_build(rtl_builds, "b", COUNT, SEED)
 
 
 MUTANT_CASE = {**draw("a", 1, SEED)[0], "lr": False, "median": 0, "sink": None, "w": 20,
                "h": 4, "index": 99}  # the rule mutant's case: small, LR and median off
 
 
-def test_rule_mutant_caught(rtl_run, tmp_path, monkeypatch):
+def test_rule_mutant_caught(rtl_builds, monkeypatch):
     """The plan's matching-cost stage a cycle longer (hamming_stage's latency + 1): the
     model's every push a cycle after the RTL's, caught naming the hamming stage's rule."""
     rule = stages.hamming_stage
@@ -290,10 +213,14 @@ def test_rule_mutant_caught(rtl_run, tmp_path, monkeypatch):
         s = rule(*args, **kwargs)
         return dataclasses.replace(s, latency=s.latency + 1)
 
-    plain = sva_entry(build_plan(load_config(overrides=overrides(MUTANT_CASE)), (4, 20), 1))
+    def entry():
+        return rtl_check.sva_entry(build_plan(load_config(overrides=overrides(MUTANT_CASE)),
+                                              (4, 20), 1))
+
+    plain = entry()
     monkeypatch.setattr(stages, "hamming_stage", longer)
-    moved = sva_entry(build_plan(load_config(overrides=overrides(MUTANT_CASE)), (4, 20), 1))
+    moved = entry()
     assert moved.latency == plain.latency + 1
     with pytest.raises(AssertionError, match=r"pushes off the model's cycle -- the plan's SVA "
                        r"latency .*hamming \d+.*lags min/max -1/-1"):
-        check(rtl_run, tmp_path, sources(), MUTANT_CASE, equivalence=False)
+        check(rtl_builds, MUTANT_CASE, equivalence=False)

@@ -1,12 +1,14 @@
-"""cocotb test module: the SVA as one block (sva/rtl/sva_top.sv) driven as the readable cycle
-engine's SVA was on the same frame (tests/rtl/test_sva_top.py records it).
+"""cocotb test module of ``stereosim rtl check`` (:mod:`stereosim.sim.rtl_check`): the SVA as one
+block (sva/rtl/sva_top.sv, under its boundary wrapper ``top.sva``) driven as the readable cycle
+engine's SVA was on the same frame.
 
-The case holds, per pair in raster order, the SVA cycle from which the model's input FIFOs made
-it visible (both views), its descriptors and left pixel, and per cycle whether the model's
+The case (JSON in ``STEREOSIM_RTL_CASE``, :func:`stereosim.sim.rtl_check.rtl_case`) holds the
+run-time registers, per pair in raster order the SVA cycle from which the model's input FIFOs
+made it visible (both views), its descriptors and left pixel, and per cycle whether the model's
 output FIFO had room (its ``can_push`` as the SVA saw it: the scripted sink's back-pressure).
 The bench offers the next pair from its cycle on, sets ``out_ready`` to the model's room, and
-writes every pop (cycle) and push (cycle, word) of the RTL to ``case["out"]`` as JSON; the
-pytest compares them with the model's."""
+writes every pop (cycle) and push (cycle, word) of the RTL to ``case["out"]`` as JSON, with the
+first cycle ``overrun`` was high (None if never). cocotb imports it by its dotted name."""
 
 import json
 import os
