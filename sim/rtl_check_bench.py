@@ -1,14 +1,16 @@
 """cocotb test module of ``stereosim rtl check`` (:mod:`stereosim.sim.rtl_check`): the SVA as one
 block (sva/rtl/sva_top.sv, under its boundary wrapper ``top.sva``) driven as the readable cycle
-engine's SVA was on the same frame.
+engine's SVA was on the same frames.
 
-The case (JSON in ``STEREOSIM_RTL_CASE``, :func:`stereosim.sim.rtl_check.rtl_case`) holds the
-run-time registers, per pair in raster order the SVA cycle from which the model's input FIFOs
-made it visible (both views), its descriptors and left pixel, and per cycle whether the model's
-output FIFO had room (its ``can_push`` as the SVA saw it: the scripted sink's back-pressure).
-The bench offers the next pair from its cycle on, sets ``out_ready`` to the model's room, and
-writes every pop (cycle) and push (cycle, word) of the RTL to ``case["out"]`` as JSON, with the
-first cycle ``overrun`` was high (None if never). cocotb imports it by its dotted name."""
+``STEREOSIM_RTL_CASES`` names a JSON file: ``cases``, run one after the other with the RTL reset
+before each, and ``out``, the file for the results. A case (:func:`stereosim.sim.rtl_check.
+rtl_case`) holds the run-time registers, per pair in raster order the SVA cycle from which the
+model's input FIFOs made it visible (both views), its descriptors and left pixel, and per cycle
+whether the model's output FIFO had room (its ``can_push`` as the SVA saw it: the scripted
+sink's back-pressure). The bench offers the next pair from its cycle on, sets ``out_ready`` to
+the model's room, and records every pop (cycle) and push (cycle, word) of the RTL, with the
+first cycle ``overrun`` was high (None if never); cycles count from the end of each case's
+reset. cocotb imports it by its dotted name."""
 
 import json
 import os
@@ -18,11 +20,8 @@ from cocotb.clock import Clock
 from cocotb.triggers import ReadOnly, RisingEdge
 
 
-@cocotb.test()
-async def boundary(dut):
-    """Run one frame; record the RTL's boundary handshakes."""
-    p = json.loads(os.environ["STEREOSIM_RTL_CASE"])
-    cocotb.start_soon(Clock(dut.clk, 10, unit="ns").start())
+async def frame(dut, p: dict) -> dict:
+    """Reset the RTL with the case's registers, run its frame, record the boundary."""
     dut.rst.value = 1
     dut.in_valid.value = 0
     dut.out_ready.value = 0
@@ -54,5 +53,15 @@ async def boundary(dut):
             overrun_at = cycle
         await RisingEdge(dut.clk)
         cycle += 1
+    return {"pops": pops, "pushes": pushes, "words": got, "overrun": overrun_at}
+
+
+@cocotb.test()
+async def boundary(dut):
+    """Run every case's frame; record the RTL's boundary handshakes."""
+    with open(os.environ["STEREOSIM_RTL_CASES"]) as f:
+        p = json.load(f)
+    cocotb.start_soon(Clock(dut.clk, 10, unit="ns").start())
+    results = [await frame(dut, case) for case in p["cases"]]
     with open(p["out"], "w") as f:
-        json.dump({"pops": pops, "pushes": pushes, "words": got, "overrun": overrun_at}, f)
+        json.dump(results, f)

@@ -252,7 +252,7 @@ def merge_depth_needed(plan: ChipPlan) -> int | None:
     sva = plan.block("sva")
     # the SVA's pace a descriptor inside a frame: a row's words and the gap before the next
     sva_row = sva_frame_ticks(1, plan.shape[1], sva.cycles, sva.lookahead, sva.slot_cycles,
-                              0, 0)
+                              0, 0, 1)
     a = max(1.0, sva_row / plan.shape[1] * f_nna / plan.domains["sva"].freq_hz)
     work = block_work(plan)
     # each block's time a row inside a frame (the SVA: its row, without the frame's start)
@@ -535,7 +535,7 @@ def timeline(plan: ChipPlan) -> dict:
             ready = in_end[_box_row_input(sva, next_out, w, h)] + 1
             passes_end = never
             if next_out == 0:  # the column sums' passes (their rows are in)
-                passes_end = sva_frame_start(never, a, skew)
+                passes_end = sva_frame_start(never, a, skew, sva.flush_ii)
                 for q in range(sva.passes):
                     row = sva_slot(q * w, w, h, r, sva.passes, sva.first_row)[0]
                     passes_end = sva_pass_start(in_end[row] + 1, passes_end) + w * a
@@ -549,11 +549,11 @@ def timeline(plan: ChipPlan) -> dict:
 
     def leaves(j: int) -> float:
         """The cycle word j of the frame reaches the output register: L after the word it
-        leaves with; the last S words with flush ticks, one a tick or at the sink FIFO's
-        rate."""
-        item, extra = sva_exit_item(j, skew, h * w)
+        leaves with; the last S words with flush slots, one a median II f or at the sink
+        FIFO's rate."""
+        item, slots = sva_exit_item(j, skew, h * w, 1)  # flush slots after the last word
         y_i, x_i = divmod(item, w)
-        flush = extra * max(1.0, (to_sink.latency_cycles + 1) / to_sink.depth)
+        flush = slots * max(float(sva.flush_ii), (to_sink.latency_cycles + 1) / to_sink.depth)
         return box_rows[y_i][0] + x_i * ii_out + flush + sva.latency
 
     return {

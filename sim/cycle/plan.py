@@ -55,6 +55,7 @@ from stereosim.sim.cycle.stages import (
     BufferPlan,
     LayerPlan,
     StagePlan,
+    flush_ii,
     nna_layers,
     nna_stages,
     pipeline_ii,
@@ -137,7 +138,8 @@ class BlockPlan:
     - merge: ``items`` descriptors moved, one per cycle;
     - sva: ``lookahead`` rows (the box radius r: box row y needs input row y + r),
       ``passes`` (k - 1: the column sums' seeding passes before a frame's row 0), ``skew``
-      (S = m W + m: the median's words behind, 0 without it), ``slot_cycles`` (a: the
+      (S = m W + m: the median's words behind, 0 without it), ``flush_ii`` (f: the ticks
+      between its flush slots, the median's II), ``slot_cycles`` (a: the
       sequencer's slot II), ``first_row`` (the input row a frame's first slot waits for: the
       automatic weights' noise band), ``stages`` (its pipeline, :mod:`sim.cycle.stages`),
       ``latency`` (a word issued -> in the output register: the stages' latencies), ``cycles``
@@ -162,6 +164,7 @@ class BlockPlan:
     lookahead: int = 0
     passes: int = 0  # sva: the column sums' seeding passes (k - 1)
     skew: int = 0  # sva: the median's skew in words, m W + m
+    flush_ii: int = 1  # sva: ticks between the median's flush slots (its II)
     slot_cycles: int = 1  # sva: the slot II
     first_row: int = 0  # sva: the input row a frame's first slot waits for (automatic weights)
     bytes_per_s: int = 0
@@ -412,7 +415,7 @@ class ChipPlan:
         if block.kind == "sva":  # its sequencer's ticks: words, row starts, passes, flush
             h, w = self.shape
             return sva_frame_ticks(h, w, block.cycles, block.lookahead, block.slot_cycles,
-                                   block.skew, block.passes)
+                                   block.skew, block.passes, block.flush_ii)
         return block.items * block.cycles
 
 
@@ -625,7 +628,8 @@ def build_plan(cfg: ChipConfig, shape: tuple[int, int], frames: int = 1) -> Chip
                             (to_sink,), "top.sva", n, cycles=sva_ii,
                             latency=pipeline_latency(stages),
                             lookahead=box_radius(cfg.sva), passes=cfg.sva.box_size - 1,
-                            skew=median_radius(cfg.sva) * (w + 1), slot_cycles=slot_ii(stages),
+                            skew=median_radius(cfg.sva) * (w + 1), flush_ii=flush_ii(stages),
+                            slot_cycles=slot_ii(stages),
                             first_row=sva_first_slot_row(
                                 band_rows(cfg.sva, h) if len(desc_parts) > 1
                                 and cfg.sva.weight_mode == "auto" else 0, h),

@@ -346,11 +346,11 @@ def sva_pass_start(row_tick, last_end):
 
 
 @register_jitable
-def sva_frame_start(last_tick, slot_ii, skew):
+def sva_frame_start(last_tick, slot_ii, skew, flush_ii):
     """The first tick at which a frame's first slot may go: a slot II after the previous
     frame's last word (``last_tick``; none: a huge negative number), and after the median's S
-    flush ticks (:func:`sva_exit_item`) that follow it."""
-    return last_tick + slot_ii + skew
+    flush slots, one a median II f, that follow it (S f ticks: :func:`sva_exit_item`)."""
+    return last_tick + slot_ii + skew * flush_ii
 
 
 @register_jitable
@@ -363,27 +363,29 @@ def sva_first_word_tick(ready_tick, last_tick, ii, radius, slot_ii, passes_end):
 
 
 @register_jitable
-def sva_exit_item(i, skew, n):
+def sva_exit_item(i, skew, n, flush_ii):
     """Which issue word i of a frame (0 .. N - 1, raster order) leaves with: (item, extra) --
     word i is in the output register L ticks after the tick of the frame's word ``item``
     plus ``extra``. The median (radius m) emits word i when word i + S enters it, S = m W + m
     (its K - 1 row banks hold the rows between): item i + S; the frame's last S words leave
-    with S flush ticks that follow its last word, one a tick: item N - 1, extra i + S - N + 1.
-    Without the median S = 0: item i, extra 0."""
+    with S flush slots that follow its last word, one a median II f (``flush_ii``: 1, 2 with
+    single-port banks): item N - 1, extra (i + S - N + 1) f. Without the median S = 0: item
+    i, extra 0."""
     if i + skew < n:
         return i + skew, 0
-    return n - 1, i + skew - n + 1
+    return n - 1, (i + skew - n + 1) * flush_ii
 
 
 @register_jitable
-def sva_frame_ticks(height, width, ii, radius, slot_ii, skew, passes):
+def sva_frame_ticks(height, width, ii, radius, slot_ii, skew, passes, flush_ii):
     """The ticks an SVA-bound frame takes in a stream (every input row in before its slots
     need it): H rows of W words, (W - 1) II inside a row, a row's first word
     max(II, (r + 1) a) after the previous row's last (:func:`sva_row_issue_tick`) and a
-    frame's first word max(II, (r + 1) a + S + (k - 1) W a) after the previous frame's last
-    (the median's flush, the passes: :func:`sva_first_word_tick`, :func:`sva_frame_start`)."""
+    frame's first word max(II, (r + 1) a + S f + (k - 1) W a) after the previous frame's
+    last (the median's flush, S slots one a median II f; the passes:
+    :func:`sva_first_word_tick`, :func:`sva_frame_start`)."""
     row_gap = max(ii, (radius + 1) * slot_ii)
-    frame_gap = max(ii, (radius + 1) * slot_ii + skew + passes * width * slot_ii)
+    frame_gap = max(ii, (radius + 1) * slot_ii + skew * flush_ii + passes * width * slot_ii)
     return height * (width - 1) * ii + (height - 1) * row_gap + frame_gap
 
 

@@ -508,6 +508,14 @@ def slot_ii(stages: tuple[StagePlan, ...]) -> int:
     return max(st.ii for st in stages if st.name in ("row_read", "hamming", "box_filter"))
 
 
+def flush_ii(stages: tuple[StagePlan, ...]) -> int:
+    """Ticks between the median's flush slots (after a frame's last word its S slots drain
+    the window; :func:`~sim.cycle.rules.sva_exit_item`): the median's II -- 1, or 2 with
+    single-port row banks (each flush slot reads them, then the next may) -- and 1 without
+    the median."""
+    return next((st.ii for st in stages if st.name == "median"), 1)
+
+
 def pipeline_latency(stages: tuple[StagePlan, ...]) -> int:
     """The SVA's latency (an output row ready -> its first word): the stages' latencies."""
     return sum(st.latency for st in stages)

@@ -39,9 +39,14 @@
 //   issue, popped as the box filter takes them);
 // - box filter -> SGM (grey levels read from the left pixels' ring for the pixel it emits) ->
 //   WTA -> LR check (the S vector waits for the WTA's word in a queue: open finding 7) ->
-//   median (K_MED, on/off: after the frame's words, M W + M flush slots one a tick; its
-//   stream is skewed by M W + M slots) -> output register. overrun flags a box pixel the SGM
-//   was not ready for (a slot paced faster than its recurrence).
+//   median (K_MED, on/off: after the frame's words, M W + M flush slots, each as soon as the
+//   median takes it -- one a tick, with ONE_PORT one every second tick; its stream is skewed
+//   by M W + M slots) -> output register. overrun flags a box pixel the SGM was not ready for
+//   (a slot paced faster than its recurrence).
+// - ONE_PORT: the box filter's, the SGM's and the median's memories single-port (sva.sram_ports
+//   = 1rw: their IIs 2 G, 2 G and 2, which the sii and ii registers then carry); the row
+//   buffers are a bank per row and view either way (a slot reads two rows, the input writes
+//   a third).
 module sva_top #(
     parameter int D = 16,        // disparities
     parameter int LANES = 16,
@@ -293,13 +298,15 @@ module sva_top #(
       .d_in(dstar), .width(width), .ii(ii), .max_diff(max_diff), .out_valid(lr_v),
       .q_out(lr_q));
 
-  // ---- the median (med_on): the words, then M W + M flush slots one a tick ---------------
+  // ---- the median (med_on): the words, then M W + M flush slots, each as soon as the median
+  // takes it (one a tick; with single-port row banks one every second tick: its in_ready) ----
   localparam int MM = K_MED / 2;
   wire           pre_v = lr_on ? lr_v : wt_v;
   wire [WB-1:0]  pre_q = lr_on ? lr_q : q;
   logic [15:0]   words_in, flush;
+  logic          med_rdy;
   wire           frame_in = (int'(words_in) == int'(width) * int'(height));
-  wire           flushing = frame_in && (int'(flush) < MM * int'(width) + MM);
+  wire           flushing = frame_in && (int'(flush) < MM * int'(width) + MM) && med_rdy;
   always_ff @(posedge clk) begin
     if (rst) begin
       words_in <= '0; flush <= '0;
@@ -313,7 +320,7 @@ module sva_top #(
   localparam int MXW = $clog2(W_MAX + 1);  // a column counter that holds W_MAX
   sva_median #(.K(K_MED), .V(V), .WB(WB), .WMAX(W_MAX), .XW(MXW), .YW(6),
                .ONE_PORT(ONE_PORT)) u_median (
-      .clk(clk), .rst(rst), .en(en && med_on), .in_valid(pre_v || flushing), .in_ready(),
+      .clk(clk), .rst(rst), .en(en && med_on), .in_valid(pre_v || flushing), .in_ready(med_rdy),
       .word(pre_q),
       .width(MXW'(width)), .height(6'(height)), .out_valid(md_v), .med(md_q));
 

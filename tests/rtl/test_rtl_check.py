@@ -7,7 +7,7 @@ command line (issue 48).
 - The comparison without Verilator: the model's recorded boundary against itself with one
   push moved a cycle, one word changed, one pop missing -- each reported, with its index and
   both cycles.
-- Bad input: one line and exit status 2 (the hybrid's two parts, 1rw memories, a frame wider
+- Bad input: one line and exit status 2 (the hybrid's two parts, a frame wider
   than the 8-bit registers or not wider than D, a bad --sink), and cocotb missing.
 - ``--waves``: the RTL's VCD and the model's under the same scope names, read back with
   traces.vcdread (every build has the wrapper's tracing compiled in).
@@ -108,8 +108,6 @@ def test_comparison_reports_a_moved_push():
 
 @pytest.mark.parametrize("args, says", [
     (["--descriptor", "hybrid"], "one descriptor part"),
-    (["--descriptor", "census", "--disparities", "16", "--set", "sva.sram_ports=1rw"],
-     "sva.sram_ports=1r1w"),
     (["--descriptor", "census", "--disparities", "16", "--width", "300"], "8-bit"),
     (["--descriptor", "census", "--disparities", "32", "--width", "32"], "wider than D = 32"),
     (["--descriptor", "census", "--disparities", "16", "--set", "sva.box_size=1"],

@@ -2,7 +2,8 @@
 engine (sim/cycle/readable/blocks/sva.py) on random small configurations (issue 48,
 acceptance 2).
 
-Two builds (the structure: D, lanes, V, K_MAX, the median's K, widths -- :data:`BUILDS`), each
+Two builds (the structure: D, lanes, V, K_MAX, the median's K, widths, the memories' ports --
+:data:`BUILDS`: "a" 1r1w at G = 1, "b" single-port (1rw, ``sva.sram_ports``) at G = 3), each
 run on configurations drawn with a fixed seed (:func:`draw`): frames 4-6 rows by 16-64 columns,
 paths 1/2/4, the LR check on/off, the box size, the median off or the build's, P1/P2 and the
 adaptive P2, uniqueness, the sub-pixel fit, the LR's max_diff (run-time registers of the
@@ -19,7 +20,7 @@ the comparison are stereosim.sim.rtl_check's (``stereosim rtl check``) -- and pe
 (b) every joint pop and every output push happens in the model's cycle: the input flow
     control is sim.cycle.rules.sva_rows_done_before_input, the slots sva_slot and the issue
     rules after it, a word's exit the sum of sim.cycle.stages.sva_stages' latencies and
-    sva_exit_item (the median's skew);
+    sva_exit_item (the median's skew, its flush slots one a median II apart);
 (c) the compiled engine (run_compiled) gives the readable engine's (run_readable) report,
     statistics and words for the same plan and sink script.
 
@@ -58,10 +59,10 @@ from stereosim.sim.cycle.readable.chip import run_readable
 BUILDS = {
     "a": {"params": {"D": 16, "LANES": 16, "V": 8, "B": 32, "K_MAX": 7, "W_MAX": 64,
                      "COST_W": 6, "A_W": 11, "PATH_W": 12, "SUM_W": 14, "F": 4, "DB": 4,
-                     "K_MED": 3}, "ks": (3, 5, 7)},
+                     "K_MED": 3, "ONE_PORT": 0}, "ks": (3, 5, 7)},
     "b": {"params": {"D": 48, "LANES": 16, "V": 3, "B": 32, "K_MAX": 7, "W_MAX": 64,
                      "COST_W": 6, "A_W": 11, "PATH_W": 12, "SUM_W": 14, "F": 4, "DB": 6,
-                     "K_MED": 5}, "ks": (5, 7)},
+                     "K_MED": 5, "ONE_PORT": 1}, "ks": (5, 7)},
 }
 # configurations per build (the suite: 10; benchmarks/rtl_sva_top.py sets more) and the seed
 COUNT = int(os.environ.get("STEREOSIM_SVA_TOP_COUNT", "10"))
@@ -108,7 +109,8 @@ def overrides(c: dict) -> dict:
     return {"nna.descriptor": "census", "sva.disparities": p["D"], "sva.lanes": p["LANES"],
             "sva.compare_levels": p["V"], "sva.cost_bits": p["A_W"],
             "sva.path_bits": p["PATH_W"], "sva.sum_bits": p["SUM_W"],
-            "sva.subpixel_bits": p["F"], "sva.sram_ports": "1r1w", "sva.box_size": c["k"],
+            "sva.subpixel_bits": p["F"], "sva.box_size": c["k"],
+            "sva.sram_ports": "1rw" if p["ONE_PORT"] else "1r1w",
             "sva.median": c["median"], "sva.paths": c["paths"], "sva.lr_check": c["lr"],
             "sva.p1": c["p1"], "sva.p2": c["p2"], "sva.p2_adaptive": c["adaptive"],
             "sva.p2_slope": c["slope"], "sva.uniqueness": c["uniq"],
@@ -130,20 +132,23 @@ def engines_agree(plan, left, right, script, rec) -> None:
     assert fast.stats == slow.stats, "compiled statistics != readable statistics"
 
 
-def check(builds, c: dict, text: str | None = None, equivalence: bool = True) -> str:
-    """One configuration ``c``: the model, the compiled engine against it ((c)), the RTL of
-    ``text`` (default: the sources) on ``c``'s build in ``builds``, (a) and (b). Returns a line
-    of what was measured."""
-    p = BUILDS[c["build"]]["params"]
+def prepare(c: dict, equivalence: bool = True):
+    """Case ``c``'s model run recorded at the SVA's boundary (and with ``equivalence`` the
+    compiled engine held to it, (c)): (plan entry, recording, the bench's case)."""
     cfg = load_config(overrides=overrides(c))
     left, right = rtl_check.random_frame(c["w"], c["h"], c["seed"])
     script = None if c["sink"] is None else np.asarray(c["sink"], np.int64)
     rec, plan, _ = rtl_check.model_run(cfg, left, right, script)
-    entry = rtl_check.sva_entry(plan)
     if equivalence:
         engines_agree(plan, left, right, script, rec)
-    where = rtl_check.build(p, text=text, root=builds)
-    got = rtl_check.run_rtl(where, rtl_check.rtl_case(cfg, entry, rec, c["w"], c["h"]))
+    entry = rtl_check.sva_entry(plan)
+    return entry, rec, rtl_check.rtl_case(cfg, entry, rec, c["w"], c["h"])
+
+
+def judge(c: dict, entry, rec, got) -> str:
+    """(a) and (b) for case ``c``: the RTL's boundary ``got`` against the model's ``rec``, each
+    disagreement named by the plan's rule. Returns a line of what was measured."""
+    p = BUILDS[c["build"]]["params"]
     found = rtl_check.compare(rec, got, rtl_check.word_bits(p))
     assert found.overrun is None, (
         f"{c}: cycle {found.overrun}: a box pixel reached the SGM before its recurrence let "
@@ -164,7 +169,7 @@ def check(builds, c: dict, text: str | None = None, equivalence: bool = True) ->
                 "sva_row_issue_tick"),
         "push": ("pushes", f"the plan's SVA latency {entry.latency} = the sum of "
                  f"sim.cycle.stages.sva_stages' latencies ({lat}) with sva_first_word_tick, "
-                 f"sva_exit_item (median skew {entry.skew})")}
+                 f"sva_exit_item (median skew {entry.skew}, flush II {entry.flush_ii})")}
     for what in ("pop", "push"):
         name, rule = rules[what]
         rtl, model = found.kinds[what].rtl, found.kinds[what].model
@@ -182,11 +187,24 @@ def check(builds, c: dict, text: str | None = None, equivalence: bool = True) ->
             f" II {entry.cycles}, slot II {entry.slot_cycles})")
 
 
+def check(builds, c: dict, text: str | None = None, equivalence: bool = True) -> str:
+    """One configuration ``c``: the model (and the compiled engine against it, (c)), the RTL of
+    ``text`` (default: the sources) on ``c``'s build in ``builds``, (a) and (b)."""
+    entry, rec, case = prepare(c, equivalence)
+    where = rtl_check.build(BUILDS[c["build"]]["params"], text=text, root=builds)
+    return judge(c, entry, rec, rtl_check.run_rtl(where, [case])[0])
+
+
 def run_build(builds, build: str, count: int, seed: int) -> None:
-    """Every drawn configuration of ``build``, printed as it runs."""
-    for c in draw(build, count, seed):
+    """Every drawn configuration of ``build``: the models first, then the RTL on all of them
+    in one simulator run (reset between), each judged and printed."""
+    cs = draw(build, count, seed)
+    prepared = [prepare(c) for c in cs]
+    where = rtl_check.build(BUILDS[build]["params"], root=builds)
+    got = rtl_check.run_rtl(where, [case for _, _, case in prepared])
+    for c, (entry, rec, _), g in zip(cs, prepared, got, strict=True):
         print(f"sva_top {c}")
-        print("   ", check(builds, c))
+        print("   ", judge(c, entry, rec, g))
 
 
 def test_sva_top_build_a(rtl_builds):
@@ -224,3 +242,22 @@ def test_rule_mutant_caught(rtl_builds, monkeypatch):
     with pytest.raises(AssertionError, match=r"pushes off the model's cycle -- the plan's SVA "
                        r"latency .*hamming \d+.*lags min/max -1/-1"):
         check(rtl_builds, MUTANT_CASE, equivalence=False)
+
+
+FLUSH_CASE = {**draw("b", 1, SEED)[0], "lr": False, "median": 5, "sink": None, "h": 4,
+              "index": 98}  # single-port build "b", the 5x5 median on
+
+
+def test_flush_rule_mutant_caught(rtl_builds, monkeypatch):
+    """The median's flush slots one a tick (the rule before single-port banks: the plan's
+    ``flush_ii`` 1 where the 1rw median takes a slot every second tick): the frame's last
+    m W + m words' pushes off the RTL's, caught naming the flush II; the words before them
+    stay in their cycles."""
+    from stereosim.sim.cycle import plan as plan_module
+
+    real = rtl_check.sva_entry(build_plan(load_config(overrides=overrides(FLUSH_CASE)),
+                                          (FLUSH_CASE["h"], FLUSH_CASE["w"]), 1))
+    assert real.flush_ii == 2 and real.skew == 2 * (FLUSH_CASE["w"] + 1)
+    monkeypatch.setattr(plan_module, "flush_ii", lambda stages: 1)
+    with pytest.raises(AssertionError, match=r"pushes off the model's cycle -- .*flush II 1"):
+        check(rtl_builds, FLUSH_CASE, equivalence=False)

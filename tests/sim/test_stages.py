@@ -87,13 +87,14 @@ def test_first_and_last_output_cycles_follow_the_stage_formulas(d, lanes, paths,
     assert frame.report["throughput"]["bottleneck"] == "sva"
 
 
-def census_cycles(h, w, ii, a, latency):
+def census_cycles(h, w, ii, a, latency, flush=1):
     """(first, last) sink pop of :func:`test_first_and_last_output_cycles_follow_the_stage_
-    formulas`'s derivation: box 5, 3x3 median, the census input side, II and slot II a."""
+    formulas`'s derivation: box 5, 3x3 median, the census input side, II and slot II a; the
+    median's W + 1 flush slots after the last word one ``flush`` ticks apart (its II)."""
     start = 3 * w + 3 + 4 * w * a + 2 * a
     row = ii * (w - 1) + max(ii, 3 * a)
     return (start + row + ii + latency + 1,
-            start + (h - 1) * row + ii * (w - 1) + w + 1 + latency + 1)
+            start + (h - 1) * row + ii * (w - 1) + (w + 1) * flush + latency + 1)
 
 
 def test_the_paper_configuration_gives_250_fps():
@@ -176,17 +177,18 @@ def test_the_descriptor_rows_cost_no_port_cycle_with_one_port(lanes, d):
 def test_a_single_port_chip_runs_at_its_ii():
     """The cycle model follows the plan's II: a census chip (SVA-bound) with 64 lanes and
     single-port SRAM takes 4 cycles per word, and 4 per slot too (the column sums' G reads and
-    G writes through one port): the passes take 4 W a = 16 W ticks."""
+    G writes through one port): the passes take 4 W a = 16 W ticks. The single-port median
+    takes a slot every second tick, so its W + 1 flush slots take 2 (W + 1) ticks."""
     cfg = load_config(overrides={**BASE, "sva.disparities": 128, "sva.lanes": 64,
                                  "sva.sram_ports": "1rw"})
     plan = build_plan(cfg, (5, 400))
     sva = plan.block("sva")
-    assert (sva.cycles, sva.slot_cycles) == (4, 4)
+    assert (sva.cycles, sva.slot_cycles, sva.flush_ii) == (4, 4, 2)
     rng = np.random.default_rng(3)
     left = rng.integers(0, 256, (5, 400), dtype=np.uint8)
     cycles = run_compiled(plan, left, np.roll(left, -2, axis=1)).report["cycles"]
     assert (cycles["first_output"]["sva"], cycles["last_output"]["sva"]) == census_cycles(
-        5, 400, 4, 4, sva.latency)
+        5, 400, 4, 4, sva.latency, flush=2)
 
 
 def test_the_nna_submodules_report_says_what_the_idle_ones_could_give():

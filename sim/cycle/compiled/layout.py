@@ -75,8 +75,8 @@ CONSTANTS = np.dtype([
     ("merge", np.int64), ("camera", np.int64), ("line_clocks", np.int64),
     ("mem_hz", np.int64), ("mem_bps", np.int64), ("half", np.int64), ("rows", np.int64),
     ("cpd", np.int64), ("lookahead", np.int64), ("pipe_latency", np.int64), ("cpp", np.int64),
-    ("passes", np.int64), ("skew", np.int64), ("slot_ii", np.int64),  # the SVA's sequencer
-    ("first_row", np.int64),
+    ("passes", np.int64), ("skew", np.int64), ("flush_ii", np.int64),  # the SVA's sequencer
+    ("slot_ii", np.int64), ("first_row", np.int64),
     ("latency", np.int64),
     ("per_src", np.int64), ("per_nna", np.int64), ("per_sva", np.int64), ("p_max", np.int64),
     ("cap_fs", np.int64),  # events at instants >= cap_fs are not computed
@@ -465,6 +465,7 @@ def _constants(plan: ChipPlan, sides: int, cap_fs: int, stats: bool) -> np.ndarr
     sva = plan.block("sva")
     p["lookahead"], p["pipe_latency"], p["cpp"] = sva.lookahead, sva.latency, sva.cycles
     p["passes"], p["skew"], p["slot_ii"] = sva.passes, sva.skew, sva.slot_cycles
+    p["flush_ii"] = sva.flush_ii
     p["first_row"] = sva.first_row
     p["latency"] = cfg.fifo.latency_cycles
     p["per_src"] = doms[plan.source_domain].period_fs

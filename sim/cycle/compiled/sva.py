@@ -88,11 +88,12 @@ from stereosim.sim.kernel_cache import njit, njit_borrowing
 
 @njit(cache=True, inline="always")
 def exit_tick(ring, t, ex, j):
-    """Word j's exit tick (``ex`` = (L, S, N): the latency, the median's skew, a frame's words;
-    ``sva_exit_item``), from the issue ring ``t``; the word it leaves with must be issued."""
-    lat, skew, nf = ex
+    """Word j's exit tick (``ex`` = (L, S, N, F): the latency, the median's skew, a frame's
+    words, the ticks between its flush slots; ``sva_exit_item``), from the issue ring ``t``;
+    the word it leaves with must be issued."""
+    lat, skew, nf, flush = ex
     f = j // nf
-    item, extra = sva_exit_item(j - f * nf, skew, nf)
+    item, extra = sva_exit_item(j - f * nf, skew, nf, flush)
     return rd(ring, t[0], t[1], f * nf + item) + extra + lat
 
 
@@ -100,7 +101,7 @@ def exit_tick(ring, t, ex, j):
 def exits_known(kt, ex):
     """Words whose exit tick is known when ``kt`` words are issued: every word of the frames
     issued whole, and of the frame being issued those S behind the last issued."""
-    _, skew, nf = ex
+    _, skew, nf, _ = ex
     f = kt // nf
     return f * nf + max(0, kt - f * nf - skew)
 
@@ -301,7 +302,7 @@ def issues_begin(net):
     k = (p, o_off, o_mask, t_off, t_mask, st.n, st.period,
          (prm.w, prm.h, prm.cap_fs, prm.lookahead, prm.cpp, prm.passes, prm.slot_ii,
           prm.first_row),
-         (prm.pipe_latency, prm.skew, prm.n))
+         (prm.pipe_latency, prm.skew, prm.n, prm.flush_ii))
     arrays = (net.ring, net.occ[ids.occ_sva_out])
     t_prev = rd(net.ring, t_off, t_mask, kt - 1) if kt > 0 else NEVER
     yt = kt // prm.w
@@ -342,7 +343,7 @@ def issues(k, arrays, cur, ko):
                 pend = NEVER
                 ft = yt // h
                 if yt == ft * h:  # a frame's first row: its passes first
-                    pend = sva_frame_start(t_prev, a, ex[1])
+                    pend = sva_frame_start(t_prev, a, ex[1], ex[3])
                     for q in range(passes):
                         row = ft * h + sva_slot(q * w, w, h, r, passes, first_row)[0]
                         if (row + 1) * w > npop:  # its row is not in yet
@@ -405,7 +406,8 @@ def pushes_begin(net):
     t_off, t_mask, _, _ = view(streams, ids.sva_issue)
     prm = net.prm[0]
     return (o_off, o_mask, q_off, q_mask, t_off, t_mask, net.fifos[ids.fifo_sink].depth,
-            streams[ids.sva_push].period, prm.cap_fs, (prm.pipe_latency, prm.skew, prm.n))
+            streams[ids.sva_push].period, prm.cap_fs,
+            (prm.pipe_latency, prm.skew, prm.n, prm.flush_ii))
 
 
 @njit(cache=True, inline="always")
@@ -457,7 +459,7 @@ def walk_sva(net, final):
     o, t = (o_off, o_mask, o_lo), (t_off, t_mask, t_lo)
     n, w, h, la = net.streams[p_s].n, prm.w, prm.h, prm.lookahead
     lat, g = prm.pipe_latency, prm.watchdog_fs
-    ex = (lat, prm.skew, prm.n)
+    ex = (lat, prm.skew, prm.n, prm.flush_ii)
     kx = exits_known(kt, ex)
     per = net.blocks[blk].period
     j, ptr, prev = a.walk, a.ptr, a.prev
@@ -592,7 +594,7 @@ def _walk_stages(prm, state, stages, ring, t, kt, j, stall):
         if st.peak < most:
             full = 0
         if stall > 0:
-            x = exit_tick(ring, t, (prm.pipe_latency, prm.skew, prm.n), j)
+            x = exit_tick(ring, t, (prm.pipe_latency, prm.skew, prm.n, prm.flush_ii), j)
             if words_between(ring, t, kt, x - st.off - st.lat, x - st.off) > 0:
                 st.blocked += stall
     state.sva_peaks_full = full
@@ -634,7 +636,7 @@ def status_sva(ring, streams, cursors, prm, tables, b, c):
     o, t, kt = _pipeline(streams, ids)
     received, pop_at = lt_at(ring, streams[p_s], cursors[p_s], c)
     emitted, push_at = lt_at(ring, streams[o_s], cursors[o_s], c)
-    ex = (prm.pipe_latency, prm.skew, prm.n)
+    ex = (prm.pipe_latency, prm.skew, prm.n, prm.flush_ii)
     issued = issued_before(ring, t, kt, _tick(ring, o, t, kt, ex, emitted, c))
     wait = -1
     if received < n and not pop_at and issued // w >= sva_rows_done_before_input(
@@ -667,7 +669,7 @@ def sample_sva(ring, streams, cursors, prm, sva, data, c, out):
     stages)."""
     ids, stages = sva
     w, h, n = prm.w, prm.h, prm.frames * prm.n
-    ex = (prm.pipe_latency, prm.skew, prm.n)
+    ex = (prm.pipe_latency, prm.skew, prm.n, prm.flush_ii)
     o, t, kt = _pipeline(streams, ids)
     received = cursors[ids.sva_pop]
     emitted, push_at = lt_at(ring, streams[ids.sva_push], cursors[ids.sva_push], c)

@@ -93,6 +93,7 @@ class SvaBlock(ChipBlock):
         self.radius = entry.lookahead
         self.passes = entry.passes
         self.skew = entry.skew
+        self.flush_ii = entry.flush_ii
         self.slot_ii = entry.slot_cycles
         self.first_row = entry.first_row
         self.latency = entry.latency
@@ -166,7 +167,7 @@ class SvaBlock(ChipBlock):
         """The tick word j is in the output register (:func:`~sim.cycle.rules.
         sva_exit_item`), None while the word it leaves with is not issued."""
         f, i = divmod(j, self.n)
-        item, extra = sva_exit_item(i, self.skew, self.n)
+        item, extra = sva_exit_item(i, self.skew, self.n, self.flush_ii)
         g = f * self.n + item
         if g >= self.issued:
             return None
@@ -184,7 +185,8 @@ class SvaBlock(ChipBlock):
             return None
         earliest = self.last_slot + self.slot_ii
         if i == 0 and f > 0:
-            earliest = max(earliest, sva_frame_start(self.last_tick, self.slot_ii, self.skew))
+            earliest = max(earliest, sva_frame_start(self.last_tick, self.slot_ii, self.skew,
+                                                        self.flush_ii))
         if word >= 0:  # a word: an II after the previous word
             earliest = sva_issue_tick(earliest, self.last_tick, self.ii)
         return earliest, word
