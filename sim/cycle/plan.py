@@ -531,6 +531,21 @@ def check_frame_size(source, shape: tuple[int, int]) -> None:
             "source.camera_height=0 to build it for these")
 
 
+def sva_block(cfg: ChipConfig, stages, shape: tuple[int, int], n: int, to_sink,
+              parts: int) -> BlockPlan:
+    """The SVA's block: its ``stages`` (:func:`~sim.cycle.stages.sva_stages`) on frames of
+    ``shape``, ``n`` words a frame into ``to_sink``, a descriptor of ``parts`` parts."""
+    h, w = shape
+    band = band_rows(cfg.sva, h) if parts > 1 and cfg.sva.weight_mode == "auto" else 0
+    return BlockPlan("sva", "sva", "sva", None, ("nna_left_to_sva", "nna_right_to_sva"),
+                     (to_sink,), "top.sva", n, cycles=pipeline_ii(stages),
+                     latency=pipeline_latency(stages), lookahead=box_radius(cfg.sva),
+                     passes=cfg.sva.box_size - 1, skew=median_radius(cfg.sva) * (w + 1),
+                     flush_ii=flush_ii(stages), slot_cycles=slot_ii(stages),
+                     first_row=sva_first_slot_row(band, h),
+                     buffers=tuple(b for st in stages for b in st.buffers), stages=stages)
+
+
 def build_plan(cfg: ChipConfig, shape: tuple[int, int], frames: int = 1) -> ChipPlan:
     """The plan of ``cfg`` for a stream of ``frames`` frames of ``shape`` = (H, W), back to back
     -- per camera pair: with ``sva.pairs`` = P pairs sharing the chip the stream has P x
@@ -624,17 +639,7 @@ def build_plan(cfg: ChipConfig, shape: tuple[int, int], frames: int = 1) -> Chip
                    "sva", "sink", "sva", "sva", n)
     stages = sva_stages(cfg, w, tuple(b for _, b in desc_parts), word_bits, cost_max)
     sva_ii = pipeline_ii(stages)
-    blocks.append(BlockPlan("sva", "sva", "sva", None, ("nna_left_to_sva", "nna_right_to_sva"),
-                            (to_sink,), "top.sva", n, cycles=sva_ii,
-                            latency=pipeline_latency(stages),
-                            lookahead=box_radius(cfg.sva), passes=cfg.sva.box_size - 1,
-                            skew=median_radius(cfg.sva) * (w + 1), flush_ii=flush_ii(stages),
-                            slot_cycles=slot_ii(stages),
-                            first_row=sva_first_slot_row(
-                                band_rows(cfg.sva, h) if len(desc_parts) > 1
-                                and cfg.sva.weight_mode == "auto" else 0, h),
-                            buffers=tuple(b for st in stages for b in st.buffers),
-                            stages=stages))
+    blocks.append(sva_block(cfg, stages, (h, w), n, to_sink, len(desc_parts)))
     blocks.append(BlockPlan("sink", "sink", "sva", None, (to_sink,), (), "top.sink", n))
     lent = lent_plan(cfg, nna_buffers(cfg, layers[0]),
                      cfg.nna.line_buffer_rows - 2 * layer_halves(cfg.nna)[0] - 1)
