@@ -67,6 +67,7 @@ BOUNDARY = ("in_valid", "pop", "dl", "dr", "pix", "out_ready", "push", "word")
 MODEL_SIGNALS = ("top.sva.*", "top.fifo.*sva*")
 REG_BITS = 8  # width, height, ii and sii are 8-bit registers (sva_top.sv)
 INSTALL = "pip install -e '.[test]'"
+RTL_PERIOD_NS = 10  # the bench's clock (the RTL's time axis before retime_vcd)
 
 
 # ---- the structure -----------------------------------------------------------------------
@@ -345,7 +346,8 @@ def run_rtl(where: Path, cases: list[dict], waves: Path | None = None) -> list[d
     with tempfile.TemporaryDirectory(prefix="stereosim-rtl-") as tmp:
         out, xml = Path(tmp) / "rtl.json", Path(tmp) / "results.xml"
         given = Path(tmp) / "cases.json"
-        given.write_text(json.dumps({"cases": list(cases), "out": str(out)}))
+        given.write_text(json.dumps({"cases": list(cases), "out": str(out),
+                                     "period_ns": RTL_PERIOD_NS}))
         with contextlib.suppress(SystemExit):  # cocotb's runner exits when a test failed
             runner.test(hdl_toplevel="top", hdl_toplevel_lang="verilog", test_module=BENCH,
                         build_dir=where, test_dir=tmp, results_xml=str(xml),
@@ -479,6 +481,34 @@ def boundary_log(log: TraceLog, rec: dict, params: dict[str, int]) -> TraceLog:
         values=np.concatenate([log.values, np.asarray(val, np.uint64)])[order]))
 
 
+_SCALE = {"s": 10**15, "ms": 10**12, "us": 10**9, "ns": 10**6, "ps": 10**3, "fs": 1}
+
+
+def retime_vcd(text: str, t0_fs: int, rtl_period_fs: int, phase_fs: int,
+               period_fs: int) -> str:
+    """The RTL's VCD ``text`` on the model's time axis, in fs: the bench's cycle c (from its
+    ``t0_fs``, ``rtl_period_fs`` a cycle) at the model's SVA cycle c, ``phase_fs + c x
+    period_fs``; the reset before cycle 0 folds into time 0. So the RTL's and the model's
+    boundary signals change at the same instants in GTKWave."""
+    head, sep, body = text.partition("$enddefinitions")
+    m = re.search(r"\$timescale\s*(\d+)\s*(s|ms|us|ns|ps|fs)\s*\$end", head)
+    if not sep or m is None:
+        raise ValueError("not a VCD with a $timescale")
+    unit = int(m.group(1)) * _SCALE[m.group(2)]
+    head = head[:m.start()] + "$timescale 1fs $end" + head[m.end():]
+    out, last = [], None
+    for line in body.splitlines(keepends=True):
+        if line.startswith("#"):
+            t = int(line[1:]) * unit - t0_fs
+            t = max(0, phase_fs + t * period_fs // rtl_period_fs)
+            if t == last:
+                continue
+            last = t
+            line = f"#{t}\n"
+        out.append(line)
+    return head + sep + "".join(out)
+
+
 # ---- the whole check ---------------------------------------------------------------------
 
 
@@ -514,7 +544,10 @@ def check(cfg, left, right, script=None, *, text: str | None = None, root=None,
             got = run_rtl(where, [case], waves=rtl_vcd)[0]
             model = trace_files(boundary_log(log, rec, params),
                                 TraceRequest(vcd=str(folder / "model.vcd"), force=True))
-            files = publish({**model, str(folder / "rtl.vcd"): rtl_vcd.read_bytes()})
+            clock = next(c for c in log.clocks if c.name == "sva")
+            rtl = retime_vcd(rtl_vcd.read_text(), got["t0_fs"], RTL_PERIOD_NS * 10**6,
+                             clock.phase_fs, clock.period_fs)
+            files = publish({**model, str(folder / "rtl.vcd"): rtl.encode()})
     comparison = compare(rec, got, word_bits(params))
     return CheckResult(comparison, rec, params, plan, list(files or []))
 

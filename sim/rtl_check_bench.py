@@ -10,7 +10,8 @@ whether the model's output FIFO had room (its ``can_push`` as the SVA saw it: th
 sink's back-pressure). The bench offers the next pair from its cycle on, sets ``out_ready`` to
 the model's room, and records every pop (cycle) and push (cycle, word) of the RTL, with the
 first cycle ``overrun`` was high (None if never); cycles count from the end of each case's
-reset. cocotb imports it by its dotted name."""
+reset, whose simulation time (``t0_fs``) is recorded. The clock's period is
+:data:`stereosim.sim.rtl_check.RTL_PERIOD_NS`. cocotb imports it by its dotted name."""
 
 import json
 import os
@@ -18,6 +19,7 @@ import os
 import cocotb
 from cocotb.clock import Clock
 from cocotb.triggers import ReadOnly, RisingEdge
+from cocotb.utils import get_sim_time
 
 
 async def frame(dut, p: dict) -> dict:
@@ -30,6 +32,7 @@ async def frame(dut, p: dict) -> dict:
     await RisingEdge(dut.clk)
     await RisingEdge(dut.clk)
     dut.rst.value = 0
+    t0_fs = int(get_sim_time("fs"))  # cycle 0's inputs go in now
     vis, dl, dr, pix, ready = p["visible"], p["dl"], p["dr"], p["pix"], p["ready"]
     n, words = len(vis), p["words"]
     pops, pushes, got = [], [], []
@@ -53,7 +56,7 @@ async def frame(dut, p: dict) -> dict:
             overrun_at = cycle
         await RisingEdge(dut.clk)
         cycle += 1
-    return {"pops": pops, "pushes": pushes, "words": got, "overrun": overrun_at}
+    return {"pops": pops, "pushes": pushes, "words": got, "overrun": overrun_at, "t0_fs": t0_fs}
 
 
 @cocotb.test()
@@ -61,7 +64,7 @@ async def boundary(dut):
     """Run every case's frame; record the RTL's boundary handshakes."""
     with open(os.environ["STEREOSIM_RTL_CASES"]) as f:
         p = json.load(f)
-    cocotb.start_soon(Clock(dut.clk, 10, unit="ns").start())
+    cocotb.start_soon(Clock(dut.clk, p["period_ns"], unit="ns").start())
     results = [await frame(dut, case) for case in p["cases"]]
     with open(p["out"], "w") as f:
         json.dump(results, f)

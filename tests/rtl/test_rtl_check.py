@@ -174,6 +174,9 @@ def test_check_equal_with_waves_under_the_same_scope_names(rtl_builds, monkeypat
     model_high, model_words = pushed(model, model_vars)
     assert len(rtl_high) == len(model_high) > 0
     assert rtl_words == model_words
+    # one time axis: the RTL's VCD retimed to the model's SVA clock, so each push (and each
+    # word) is at the same instant in both files
+    assert [t * rtl.unit_fs for t in rtl_high] == [t * model.unit_fs for t in model_high]
 
 
 def test_the_runtime_library_is_compiled_once_a_builds_folder(tmp_path):
