@@ -126,8 +126,9 @@ def sva_entry(plan):
 def model_run(cfg, left, right, script, trace: bool = False):
     """The readable engine on the pair, recorded at the SVA's boundary: ``(rec, plan, log)``,
     ``rec`` per pair the cycle it became visible in each input FIFO and its beats, each pop,
-    each push and word, and per SVA cycle whether the output FIFO had room; ``log`` the whole
-    run's trace (``trace``; else None)."""
+    each push and word, and per SVA cycle whether the output FIFO had room, and the run's
+    ``readable`` words, report and statistics; ``log`` the whole run's trace (``trace``; else
+    None)."""
     plan = build_plan(cfg, left.shape, 1)
     recorder = None
     if trace:
@@ -162,7 +163,8 @@ def model_run(cfg, left, right, script, trace: bool = False):
         return evaluate(cycle)
 
     sva.in_left.pop, sva.out.push, sva.evaluate = on_pop, on_push, on_evaluate
-    chip.run()
+    stats, report = chip.run()
+    rec["readable"] = {"words": chip.sink.words.copy(), "report": report, "stats": stats}
     return rec, plan, (recorder.log() if recorder is not None else None)
 
 
