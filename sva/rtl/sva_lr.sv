@@ -133,7 +133,8 @@ module sva_lr #(
   end
 
   // which of the two loads the output register this tick (never both: the bench checks)
-  logic emit_main, emit_drain;
+  // readable by the testbench through VPI (a Verilator metacomment; synthesis ignores it)
+  logic emit_main /*verilator public*/, emit_drain /*verilator public*/;
   assign emit_main = shift && lv[R-1];
   assign emit_drain = dshift && elv[R-1];
 
