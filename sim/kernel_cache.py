@@ -86,6 +86,8 @@ class PackageLocator(caching._CacheLocator):
 
     def __init__(self, inner: caching._CacheLocator):
         self.inner = inner
+        # numba's warning that a kernel cannot be cached names the locator's file
+        self._py_file = getattr(inner, "_py_file", None)
 
     def ensure_cache_path(self):
         self.inner.ensure_cache_path()

@@ -51,6 +51,18 @@ def test_the_stamp_is_the_files_and_the_packages_digest():
     assert locator.get_cache_path() == inner.get_cache_path()
 
 
+def test_the_locator_names_the_kernels_file_as_numba_does():
+    """numba's warning that a compiled kernel cannot be cached (dynamic globals, lifted code)
+    names ``locator._py_file``; the package's locator keeps the file numba's own one found, so
+    that warning is a warning and not an AttributeError (seen with NUMBA_OPT=0)."""
+    from stereosim.sva import pipeline
+
+    locator = pipeline.stream_rows._cache._impl.locator
+    assert isinstance(locator, PackageLocator)
+    assert locator._py_file == locator.inner._py_file
+    assert locator._py_file.endswith("pipeline.py")
+
+
 def test_the_digest_changes_with_any_module(tmp_path):
     for name, text in (("a.py", "x = 1\n"), ("b.py", "y = 2\n")):
         (tmp_path / name).write_text(text)
