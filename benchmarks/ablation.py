@@ -37,19 +37,19 @@ from pathlib import Path
 
 import numpy as np
 
+from stereosim.core.config import load_config
+from stereosim.core.datasets import find_scenes, legal_disparities, load_scene, shared_data_dir
+from stereosim.core.errors import UserError
+from stereosim.core.io import to_grey
+from stereosim.core.outputs import atomic_write_bytes
+from stereosim.core.progress import progress_bar
 from stereosim.nna.census import census
 from stereosim.nna.floatmodel import load_float_model
 from stereosim.nna.trainconfig import VARIANTS
 from stereosim.quant.artifact import load_quantized
 from stereosim.quant.intconv import int_forward
 from stereosim.quant.quantizer import float_forward
-from stereosim.sim.config import load_config
-from stereosim.sim.datasets import find_scenes, legal_disparities, load_scene, shared_data_dir
-from stereosim.sim.errors import UserError
-from stereosim.sim.io import to_grey
 from stereosim.sim.metrics import evaluate
-from stereosim.sim.outputs import atomic_write_bytes
-from stereosim.sim.progress import progress_bar
 from stereosim.sva.cost import cosine_cost
 from stereosim.sva.pipeline import sva_cost_volume, sva_stream
 from stereosim.sva.wta import to_float

@@ -17,10 +17,10 @@ import sys
 import cv2
 import numpy as np
 
+from stereosim.core.config import load_config, parse_set_options
+from stereosim.core.datasets import find_scenes, legal_disparities, load_scene, shared_data_dir
+from stereosim.core.io import to_grey
 from stereosim.sim.api import run
-from stereosim.sim.config import load_config, parse_set_options
-from stereosim.sim.datasets import find_scenes, legal_disparities, load_scene, shared_data_dir
-from stereosim.sim.io import to_grey
 from stereosim.sim.metrics import evaluate, mean_metrics
 
 KEYS = ("bad2", "invalid", "totbad", "avgerr")

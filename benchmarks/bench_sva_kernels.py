@@ -27,9 +27,9 @@ import cv2
 import numpy as np
 import skimage.data
 
+from stereosim.core.config import load_config
+from stereosim.core.kernel_cache import njit
 from stereosim.nna.descriptor import compute_descriptor, descriptor_bits
-from stereosim.sim.config import load_config
-from stereosim.sim.kernel_cache import njit
 from stereosim.sva.aggregation import box_filter, box_start, box_step
 from stereosim.sva.cost import cost_row_update, hamming_cost, reverse_row
 from stereosim.sva.lr_check import lr_check_row, new_diagonal_buffers, right_disparity_row

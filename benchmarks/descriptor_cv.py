@@ -28,8 +28,8 @@ import numpy as np
 from robustness import CONDITIONS
 from tune_defaults import KEYS, fmt, mean_of, sweep, tuning_root, tuning_scenes
 
+from stereosim.core.errors import UserError
 from stereosim.nna.traindata import cv_folds
-from stereosim.sim.errors import UserError
 
 
 def fold_held_rows(table: list, fold_of: np.ndarray) -> np.ndarray:

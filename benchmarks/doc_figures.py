@@ -39,23 +39,23 @@ import reading_traces
 import rule_table
 from markers import write_between
 
+from stereosim.core.config import load_config
+from stereosim.core.io import encode_png
 from stereosim.quant.quantizer import search_mul_shift
 from stereosim.sim.api import run, run_stream
 from stereosim.sim.cli import main as stereosim_main
-from stereosim.sim.config import load_config
 from stereosim.sim.cycle.contract import CameraOverflow
 from stereosim.sim.cycle.estimate import estimate
 from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.cycle.readable.beats import BEATS
 from stereosim.sim.cycle.rules import ClockDomain
-from stereosim.sim.io import encode_png
 from stereosim.sim.plot import rate_gaps
 from stereosim.sim.sweep import load_sweep, run_task, synthetic_pair
 from stereosim.sim.sweep_results import read_rows, write_rows
+from stereosim.sim.synthetic_trace import synthetic_log
 from stereosim.sim.whatif_cli import sweep_summary
 from stereosim.traces.fst import fst_bytes
 from stereosim.traces.log import Clock, Signal, TraceLog
-from stereosim.traces.synthetic import synthetic_log
 from stereosim.traces.vcd import vcd_bytes
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -477,7 +477,7 @@ def fst_size() -> list[str]:
     log = synthetic_log(2000, seed=0)
     vcd, fst = len(vcd_bytes(log)), len(fst_bytes(log))
     return _prose(f"For the synthetic 2,000-SVA-cycle log of "
-                  f"`traces.synthetic.synthetic_log(2000)`: {vcd / 1e3:,.0f} kB of VCD, "
+                  f"`sim.synthetic_trace.synthetic_log(2000)`: {vcd / 1e3:,.0f} kB of VCD, "
                   f"{fst / 1e3:,.0f} kB of FST ({vcd / fst:.1f} times smaller).")
 
 

@@ -10,8 +10,8 @@ benchmarks/gpu_sweep.sh runs it.
 import argparse
 import sys
 
+from stereosim.core.errors import UserError
 from stereosim.sim import train_cli
-from stereosim.sim.errors import UserError
 
 
 def main(argv=None) -> int:

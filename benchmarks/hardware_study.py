@@ -36,6 +36,7 @@ from pathlib import Path
 import ablation
 from markers import write_between
 
+from stereosim.core.config import load_config
 from stereosim.nna.geometry import (
     cycles_per_descriptor,
     layer_cycles,
@@ -45,7 +46,6 @@ from stereosim.nna.geometry import (
 )
 from stereosim.nna.trainconfig import VARIANTS
 from stereosim.sim.api import run, run_stream
-from stereosim.sim.config import load_config
 from stereosim.sim.cycle.figures import submodule_report
 from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.sweep import synthetic_pair

@@ -26,8 +26,8 @@ from hybrid_tuning import _NET, ROBUST, hybrid_scores, prepared
 from markers import write_between
 from tune_defaults import mean_of, scene_scores, tuning_root
 
-from stereosim.sim.config import load_config
-from stereosim.sim.outputs import atomic_write_bytes
+from stereosim.core.config import load_config
+from stereosim.core.outputs import atomic_write_bytes
 
 PRESET = Path(__file__).resolve().parents[1] / "configs" / "hybrid-720p.toml"
 BEGIN, END = "<!-- hybrid-curve:begin -->", "<!-- hybrid-curve:end -->"

@@ -43,11 +43,11 @@ import numpy as np
 from markers import write_between
 from tune_defaults import KEYS, criterion, mean_of, sweep, tuning_root, tuning_scenes
 
+from stereosim.core.config import load_config
+from stereosim.core.errors import UserError
+from stereosim.core.io import to_grey
 from stereosim.nna.descriptor import compute_descriptor, descriptor_parts, hybrid_word
 from stereosim.sim.api import run
-from stereosim.sim.config import load_config
-from stereosim.sim.errors import UserError
-from stereosim.sim.io import to_grey
 from stereosim.sim.metrics import evaluate
 from stereosim.sva.noise import band_rows, noise_statistic
 from stereosim.sva.pipeline import sva_stream

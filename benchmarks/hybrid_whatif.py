@@ -31,15 +31,15 @@ from pathlib import Path
 from markers import write_between
 from robustness import D_2003, SETS, degrade
 
+from stereosim.core.config import load_config
+from stereosim.core.datasets import find_scenes, legal_disparities, load_scene, shared_data_dir
+from stereosim.core.io import to_grey
+from stereosim.core.progress import progress_bar
 from stereosim.nna.descriptor import descriptor_parts
 from stereosim.nna.geometry import macs_per_descriptor
 from stereosim.sim.api import run
-from stereosim.sim.config import load_config
 from stereosim.sim.cycle.estimate import estimate
-from stereosim.sim.datasets import find_scenes, legal_disparities, load_scene, shared_data_dir
-from stereosim.sim.io import to_grey
 from stereosim.sim.metrics import mean_metrics
-from stereosim.sim.progress import progress_bar
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
 PRESETS = {"cnn": [CONFIGS / "robust-720p.toml"],

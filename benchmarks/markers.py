@@ -6,7 +6,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from stereosim.sim.outputs import atomic_write_bytes
+from stereosim.core.outputs import atomic_write_bytes
 
 
 def write_between(doc: Path, begin: str, end: str, lines: list[str]) -> int:

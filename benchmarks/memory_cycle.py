@@ -19,12 +19,12 @@ import sys
 
 import cv2
 
+from stereosim.core.config import load_config
+from stereosim.core.datasets import default_scene
+from stereosim.core.io import to_grey
 from stereosim.sim.api import run
-from stereosim.sim.config import load_config
 from stereosim.sim.cycle.compiled.layout import ring_capacity
 from stereosim.sim.cycle.plan import build_plan
-from stereosim.sim.datasets import default_scene
-from stereosim.sim.io import to_grey
 
 CONFIG = {"nna.descriptor": "cnn", "sva.disparities": 128}
 

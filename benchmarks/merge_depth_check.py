@@ -18,8 +18,8 @@ from __future__ import annotations
 
 import argparse
 
+from stereosim.core.config import load_config
 from stereosim.sim.api import run_stream
-from stereosim.sim.config import load_config
 from stereosim.sim.cycle.estimate import estimate
 from stereosim.sim.sweep import synthetic_pair
 

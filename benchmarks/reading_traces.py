@@ -30,10 +30,10 @@ from functools import cache
 
 import numpy as np
 
+from stereosim.core.config import ChipConfig
+from stereosim.core.datasets import default_scene
 from stereosim.sim.api import run
-from stereosim.sim.config import ChipConfig
 from stereosim.sim.cycle.plan import ChipPlan, build_plan
-from stereosim.sim.datasets import default_scene
 from stereosim.sim.tracing import TraceRequest
 from stereosim.traces.gtkw import STATUS_NAMES
 from stereosim.traces.log import TraceLog, changes_of

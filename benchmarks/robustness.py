@@ -36,12 +36,12 @@ import numpy as np
 from accuracy_vs_opencv import opencv_sgbm
 from markers import write_between
 
+from stereosim.core.config import parse_set_options
+from stereosim.core.datasets import find_scenes, legal_disparities, load_scene, shared_data_dir
+from stereosim.core.io import to_grey
+from stereosim.core.progress import progress_bar
 from stereosim.sim.api import run
-from stereosim.sim.config import parse_set_options
-from stereosim.sim.datasets import find_scenes, legal_disparities, load_scene, shared_data_dir
-from stereosim.sim.io import to_grey
 from stereosim.sim.metrics import evaluate, mean_metrics
-from stereosim.sim.progress import progress_bar
 
 SETS = (("MiddEval3 trainingQ", "middlebury2014_trainingQ"), ("2003", "middlebury2003_quarter"))
 METHODS = ("cnn", "census", "opencv")

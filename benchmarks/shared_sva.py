@@ -24,7 +24,7 @@ import cv2
 from markers import write_between
 
 import stereosim
-from stereosim.sim.datasets import default_scene
+from stereosim.core.datasets import default_scene
 
 DOC = Path(__file__).resolve().parent.parent / "docs" / "streams.md"
 LENT = Path(__file__).resolve().parent.parent / "configs" / "lent" / "backbone224.toml"

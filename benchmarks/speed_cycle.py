@@ -34,13 +34,13 @@ import time
 import cv2
 from machine import describe
 
+from stereosim.core.config import load_config
+from stereosim.core.config.loader import parse_set_options
+from stereosim.core.datasets import default_scene
+from stereosim.core.io import to_grey
 from stereosim.sim.api import run
-from stereosim.sim.config import load_config
-from stereosim.sim.config.loader import parse_set_options
 from stereosim.sim.cycle.compiled.run import run_compiled
 from stereosim.sim.cycle.plan import build_plan
-from stereosim.sim.datasets import default_scene
-from stereosim.sim.io import to_grey
 
 CONFIG = {"nna.descriptor": "cnn", "sva.disparities": 128, "sva.paths": 4, "sva.lr_check": True}
 

@@ -19,9 +19,9 @@ import cv2
 import numpy as np
 from machine import describe
 
+from stereosim.core.datasets import default_scene
+from stereosim.core.io import to_grey
 from stereosim.sim.api import run
-from stereosim.sim.datasets import default_scene
-from stereosim.sim.io import to_grey
 
 #: the goals of the speed issue (35): the functional model at most this fraction of OpenCV
 GOALS = {"census": 0.4, "cnn": 0.6}

@@ -26,7 +26,7 @@ def child(frames: int, overrides: dict) -> dict:
     import numpy as np
 
     import stereosim
-    from stereosim.sim.datasets import default_scene
+    from stereosim.core.datasets import default_scene
 
     cv2.setNumThreads(1)
     scene = default_scene()

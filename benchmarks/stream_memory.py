@@ -16,8 +16,8 @@ import tracemalloc
 
 import numpy as np
 
+from stereosim.core.outputs import json_text
 from stereosim.sim.api import run_stream
-from stereosim.sim.outputs import json_text
 
 OVERRIDES = {"nna.descriptor": "census", "sva.disparities": 16}
 H, W = 24, 64

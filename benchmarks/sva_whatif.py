@@ -21,8 +21,8 @@ from pathlib import Path
 
 from markers import write_between
 
+from stereosim.core.config import load_config
 from stereosim.sim.api import run
-from stereosim.sim.config import load_config
 from stereosim.sim.sweep import synthetic_pair
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "architecture.md"

@@ -28,7 +28,7 @@ from pathlib import Path
 from distributed import Client, LocalCluster
 
 import stereosim
-from stereosim.sim.config import LEGAL_DISPARITIES
+from stereosim.core.config import LEGAL_DISPARITIES
 from stereosim.sim.sweep import load_sweep, run_sweep, run_task
 from stereosim.sim.sweep_results import CSV_NAME, read_rows
 

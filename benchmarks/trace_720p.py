@@ -20,7 +20,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 from speed_cycle import CONFIG, frame  # noqa: E402
 
-from stereosim.sim.config import load_config  # noqa: E402
+from stereosim.core.config import load_config  # noqa: E402
 from stereosim.sim.cycle.plan import build_plan  # noqa: E402
 from stereosim.sim.cycle.simulate import simulate  # noqa: E402
 from stereosim.sim.tracing import TraceRequest, run_traced, write_traces  # noqa: E402

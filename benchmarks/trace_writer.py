@@ -2,7 +2,7 @@
 
     python benchmarks/trace_writer.py [--cycles 100000] [--repeat 3] [--no-pyvcd]
 
-Builds the synthetic chip log of ``traces.synthetic`` (three clocks, ~75 signals: status,
+Builds the synthetic chip log of ``sim.synthetic_trace`` (three clocks, ~75 signals: status,
 valid/ready toggles, counters, FIFO occupancy, 32-bit descriptors every cycle) for a window of
 ``--cycles`` SVA cycles, then prints, for each writer, the value changes in the log, the events
 in the file (changes left after dropping repeats, plus clock edges), the best wall time over
@@ -16,7 +16,7 @@ from __future__ import annotations
 import argparse
 import time
 
-from stereosim.traces.synthetic import synthetic_log
+from stereosim.sim.synthetic_trace import synthetic_log
 from stereosim.traces.timeline import timeline_bytes
 from stereosim.traces.vcd import estimate_vcd_bytes, vcd_bytes, vcd_text_pyvcd
 

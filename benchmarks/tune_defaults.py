@@ -44,18 +44,18 @@ from pathlib import Path
 import numpy as np
 from robustness import CONDITIONS, degrade
 
-from stereosim.nna.traindata import cv_folds, training_scene_dirs
-from stereosim.sim.api import run
-from stereosim.sim.datasets import (
+from stereosim.core.datasets import (
     find_scene,
     find_scenes,
     legal_disparities,
     load_scene,
     shared_data_dir,
 )
-from stereosim.sim.errors import UserError
-from stereosim.sim.io import to_grey
-from stereosim.sim.progress import progress_bar
+from stereosim.core.errors import UserError
+from stereosim.core.io import to_grey
+from stereosim.core.progress import progress_bar
+from stereosim.nna.traindata import cv_folds, training_scene_dirs
+from stereosim.sim.api import run
 
 KEYS = ("bad2", "invalid", "totbad", "avgerr")
 D_TUNING, D_2003 = 96, 64

@@ -28,8 +28,8 @@ from markers import write_between
 from robustness import CONDITIONS as CONDITION_CHOICES
 from tune_defaults import Study, criterion, heldout_scores, sweep, tuning_root, tuning_scenes
 
-from stereosim.sim.config import DESCRIPTOR_DEFAULTS, load_config
-from stereosim.sim.errors import UserError
+from stereosim.core.config import DESCRIPTOR_DEFAULTS, load_config
+from stereosim.core.errors import UserError
 
 BEGIN, END = "<!-- protocol-results:begin -->", "<!-- protocol-results:end -->"
 
@@ -51,7 +51,7 @@ STUDIES = (
 #: Cost, path and sum registers wide enough that no point of a grid saturates (a 7x7 box of
 #: 32-bit costs stays below 1568 < 2^12, a path cost below 1568 + P2 < 2^13, four of them below
 #: 2^15): the choice is made on the SGM itself, and the shipped widths are then the narrowest
-#: that never saturate at the chosen box and P2 (sim.config.sgm_widths).
+#: that never saturate at the chosen box and P2 (core.config.sgm_widths).
 WIDE = {"sva.cost_bits": "12", "sva.path_bits": "13", "sva.sum_bits": "15"}
 #: Where the chain starts for the keys a study has not chosen yet, whatever the shipped defaults
 #: are (so the block does not depend on them): the back end before the protocol's choices.

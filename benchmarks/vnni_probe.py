@@ -19,11 +19,11 @@ import cv2
 import numpy as np
 from machine import describe
 
+from stereosim.core.config import load_config
+from stereosim.core.datasets import default_scene
+from stereosim.core.io import to_grey
 from stereosim.nna.descriptor import compute_descriptor
 from stereosim.quant import vnni
-from stereosim.sim.config import load_config
-from stereosim.sim.datasets import default_scene
-from stereosim.sim.io import to_grey
 
 
 def _best(repeat: int, vnni: bool, img, cfg) -> tuple[float, np.ndarray]:

@@ -27,16 +27,16 @@ Border policy: replicate. Coordinates outside the image are clamped into it
 the NNA convolution) uses this same policy.
 
 Output: one descriptor per pixel, ``uint32`` when the descriptor has at most 32 bits, else
-``uint64``. More than 64 bits (e.g. plain 9x9 = 80 bits) is a :class:`~sim.errors.ConfigError`.
+``uint64``. More than 64 bits (e.g. plain 9x9 = 80 bits) is a :class:`~core.errors.ConfigError`.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from stereosim.sim.census_layout import comparison_offsets
-from stereosim.sim.errors import ConfigError, InputError
-from stereosim.sim.kernel_cache import njit
+from stereosim.core.census_layout import comparison_offsets
+from stereosim.core.errors import ConfigError, InputError
+from stereosim.core.kernel_cache import njit
 
 KINDS = ("plain", "symmetric")
 MAX_WINDOW = 15

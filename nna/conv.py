@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from stereosim.core.errors import ConfigError
 from stereosim.nna.census import as_image_u8
 from stereosim.quant.intconv import (
     IntNetwork,
@@ -39,7 +40,6 @@ from stereosim.quant.intconv import (
     int_signs,
     network,
 )
-from stereosim.sim.errors import ConfigError
 
 MAX_CHANNELS = 64
 # The largest kernel size K: a K x K window needs K input rows in a submodule's line buffer

@@ -19,21 +19,21 @@ from collections import OrderedDict
 
 import numpy as np
 
+from stereosim.core.config import NnaConfig, check_section
+from stereosim.core.errors import ConfigError
 from stereosim.nna.census import census, census_bits
 from stereosim.nna.conv import network_descriptor
 from stereosim.nna.weights import SHIPPED_WEIGHTS, load_network
 from stereosim.quant.intconv import IntNetwork
-from stereosim.sim.config import NnaConfig, check_section
-from stereosim.sim.errors import ConfigError
 
 
 def weights_file(weights: str) -> str:
     """The file ``nna.cnn.weights`` names: the shipped layer for "default"; else the path as
     given -- a config file's already made absolute from that file's folder
-    (:func:`sim.config.loader.read_layer`), one given on the command line relative to the
+    (:func:`core.config.loader.read_layer`), one given on the command line relative to the
     working directory, as every other file option is (no second place is looked in: the
     configuration's back end is read from the same file,
-    :func:`sim.config.loader.tuned_backend`)."""
+    :func:`core.config.loader.tuned_backend`)."""
     return SHIPPED_WEIGHTS if weights == "default" else weights
 
 

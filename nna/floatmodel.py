@@ -9,11 +9,11 @@ import os
 
 import numpy as np
 
+from stereosim.core.errors import ConfigError
+from stereosim.core.npz import open_npz
+from stereosim.core.outputs import atomic_write_bytes
 from stereosim.nna.trainconfig import VARIANTS
 from stereosim.quant.quantizer import FloatModel
-from stereosim.sim.errors import ConfigError
-from stereosim.sim.npz import open_npz
-from stereosim.sim.outputs import atomic_write_bytes
 
 FORMAT = "stereosim-float-v1"
 
@@ -45,7 +45,7 @@ def save_float_model(path, result: dict) -> None:
 def load_float_model(path):
     """Read a file written by :func:`save_float_model`: ``(FloatModel, variant, training dict)``.
 
-    Problems (missing, unreadable or unbounded file -- :func:`sim.npz.open_npz` --, a missing
+    Problems (missing, unreadable or unbounded file -- :func:`core.npz.open_npz` --, a missing
     field, a field of the wrong kind, wrong shapes for the variant) raise :class:`ConfigError`.
     """
 

@@ -35,9 +35,9 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
+from stereosim.core.config import NnaConfig
+from stereosim.core.errors import ConfigError
 from stereosim.nna.descriptor import network
-from stereosim.sim.config import NnaConfig
-from stereosim.sim.errors import ConfigError
 
 
 def half_window(cfg: NnaConfig) -> int:

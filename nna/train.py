@@ -51,6 +51,8 @@ from dataclasses import asdict
 
 import numpy as np
 
+from stereosim.core.errors import InputError
+from stereosim.core.progress import progress_bar
 from stereosim.nna.trainconfig import TrainConfig
 from stereosim.nna.traindata import load_strip_set, load_training_set, sample_batch, sample_strips
 from stereosim.nna.trainloss import (
@@ -71,8 +73,6 @@ from stereosim.nna.trainrun import (
     training_device,
     use_threads,
 )
-from stereosim.sim.errors import InputError
-from stereosim.sim.progress import progress_bar
 
 
 def _scale_at(cfg: TrainConfig, frac: float) -> float:

@@ -26,8 +26,8 @@ import dataclasses
 import math
 from dataclasses import dataclass
 
-from stereosim.sim.config import SvaConfig
-from stereosim.sim.errors import ConfigError
+from stereosim.core.config import SvaConfig
+from stereosim.core.errors import ConfigError
 
 # (C_in, C_out, K) per layer
 VARIANTS = {

@@ -19,11 +19,9 @@ from pathlib import Path
 
 import numpy as np
 
-from stereosim.nna.augment import photometric, rows_at, vertical_offsets
-from stereosim.nna.trainconfig import TrainConfig, receptive_field
-from stereosim.sim.datasets import find_scene, find_scenes, load_scene, occluded_by_cross_check
-from stereosim.sim.errors import ConfigError, InputError
-from stereosim.sim.io import (
+from stereosim.core.datasets import find_scene, find_scenes, load_scene, occluded_by_cross_check
+from stereosim.core.errors import ConfigError, InputError
+from stereosim.core.io import (
     is_folder,
     path_kind,
     path_text,
@@ -32,6 +30,8 @@ from stereosim.sim.io import (
     sub_folders,
     to_grey,
 )
+from stereosim.nna.augment import photometric, rows_at, vertical_offsets
+from stereosim.nna.trainconfig import TrainConfig, receptive_field
 
 # Training collections under the shared data folder and the scenes left out of them.
 TRAIN_COLLECTIONS = ("middlebury2005_third", "middlebury2006_third")

@@ -32,9 +32,9 @@ import warnings
 import zipfile
 from pathlib import Path
 
+from stereosim.core.errors import ConfigError, InputError
+from stereosim.core.outputs import atomic_write_bytes, path_text
 from stereosim.nna.trainconfig import box_range
-from stereosim.sim.errors import ConfigError, InputError
-from stereosim.sim.outputs import atomic_write_bytes, path_text
 
 CHECKPOINT_FORMAT = "stereosim-train-checkpoint-v1"
 # Settings that change how the weights are computed, not the recipe: a run may resume with

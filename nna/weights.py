@@ -23,11 +23,11 @@ import os
 
 import numpy as np
 
+from stereosim.core.errors import ConfigError
+from stereosim.core.npz import open_npz
 from stereosim.nna.conv import MAX_KERNEL_SIZE, check_layer
 from stereosim.quant.artifact import load_quantized, to_nna_weights
 from stereosim.quant.intconv import IntNetwork, network
-from stereosim.sim.errors import ConfigError
-from stereosim.sim.npz import open_npz
 
 DEFAULT_SEED = 20261122
 DEFAULT_SHAPE = (32, 9, 9)
@@ -120,7 +120,7 @@ def load_weights(path) -> tuple[np.ndarray, np.ndarray, int]:
     """Read and validate a layer saved by :func:`save_weights`.
 
     Returns ``(weights int8 (C, K, K), bias int32 (C,), input_offset int)``. Every problem (missing
-    or unreadable file, not an .npz, a member that fails :func:`sim.npz.open_npz`'s bounds, missing
+    or unreadable file, not an .npz, a member that fails :func:`core.npz.open_npz`'s bounds, missing
     key, wrong dtype, shape or range) raises :class:`ConfigError` with the file name and a
     one-line reason.
     """

@@ -16,11 +16,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from stereosim.core.errors import ConfigError
+from stereosim.core.npz import open_npz
+from stereosim.core.outputs import atomic_write_bytes
 from stereosim.quant.distances import DISTANCES
 from stereosim.quant.intconv import INT32_MAX, check_network
-from stereosim.sim.errors import ConfigError
-from stereosim.sim.npz import open_npz
-from stereosim.sim.outputs import atomic_write_bytes
 
 FORMAT = "stereosim-quant-v1"
 
@@ -171,7 +171,7 @@ def _int32(value, key, name):
 
 def load_quantized(path) -> QuantizedModel:
     """Read and validate a file written by :func:`save_quantized`; problems (including those
-    :func:`sim.npz.open_npz` checks before anything is unpacked) raise ConfigError."""
+    :func:`core.npz.open_npz` checks before anything is unpacked) raise ConfigError."""
     name = os.fspath(path)
     archive = open_npz(name, "quantized model", "write it with quant.save_quantized")
     with archive:

@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from stereosim.sim.errors import ConfigError
+from stereosim.core.errors import ConfigError
 
 DEFAULT_BINS = 2048
 DEFAULT_EPS = 1e-10

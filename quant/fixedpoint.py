@@ -6,7 +6,7 @@ Python with Python ints. (Saturation is a plain ``min(value, 2^bits - 1)`` where
 stated in each stage's docstring; the int8 multiply-shift lives in :mod:`quant.intconv`.)
 """
 
-from stereosim.sim.kernel_cache import njit
+from stereosim.core.kernel_cache import njit
 
 
 @njit(cache=True, inline="always")

@@ -40,9 +40,9 @@ from typing import NamedTuple
 
 import numpy as np
 
+from stereosim.core.errors import ConfigError
+from stereosim.core.kernel_cache import njit
 from stereosim.quant.vnni import vnni_applies, vnni_signs
-from stereosim.sim.errors import ConfigError
-from stereosim.sim.kernel_cache import njit
 
 MAX_LAYERS = 4
 MAX_OUT_CHANNELS = 64

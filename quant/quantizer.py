@@ -46,6 +46,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from stereosim.core.errors import ConfigError
+from stereosim.core.kernel_cache import njit
+from stereosim.core.progress import progress_bar
 from stereosim.quant.artifact import QuantizedModel, check_quantized
 from stereosim.quant.distances import get_distance, l1
 from stereosim.quant.intconv import (
@@ -56,9 +59,6 @@ from stereosim.quant.intconv import (
     mul_shift,
     requantize,
 )
-from stereosim.sim.errors import ConfigError
-from stereosim.sim.kernel_cache import njit
-from stereosim.sim.progress import progress_bar
 
 TAU = 127
 # Largest integer float32 represents exactly: integer matmuls below it are exact in float32.

@@ -28,8 +28,8 @@ from numba import types
 from numba.core import config as numba_config
 from numba.extending import intrinsic
 
+from stereosim.core.kernel_cache import njit
 from stereosim.quant.vectors import VectorCode
-from stereosim.sim.kernel_cache import njit
 
 VNNI_LANES = 16  # int32 lanes of one instruction
 VNNI_GROUP = 4  # bytes a lane

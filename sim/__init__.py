@@ -5,17 +5,17 @@ application of stereosim.
 simulates one frame and ``run_stream(pairs, ...)`` a stream of them; see :mod:`sim.api`. The
 command line is ``stereosim`` (:mod:`sim.cli`).
 
-The package holds three layers of the project (docs/architecture.md, "Layers"): the core every
-stage imports (:mod:`sim.errors`, :mod:`sim.config`, :mod:`sim.io`), the cycle model
-(:mod:`sim.cycle`: the chip plan, the readable kernel, the compiled engine, the estimate) and
-the application (:mod:`sim.api`, :mod:`sim.cli`, sweeps, traces, datasets, metrics). Python runs
-this file before any module of the package, so it imports only the core; ``run`` and
-``Result`` (and the stream's names) are resolved on first use (PEP 562) -- importing the API here
-would make every ``import stereosim.nna.census`` load the whole application.
+The package holds the top two layers of the project (docs/architecture.md, "Layers"): the
+cycle model (:mod:`sim.cycle`: the chip plan, the readable kernel, the compiled engine, the
+estimate) and over it the application (:mod:`sim.api`, :mod:`sim.cli`, sweeps, tracing, metrics,
+reports); the core below every folder is :mod:`stereosim.core`. Python runs this file before any
+module of the package, so it imports only the core; ``run`` and ``Result`` (and the stream's
+names) are resolved on first use (PEP 562) -- importing the API here would make every
+``import stereosim.sim.tracing`` load the whole application.
 """
 
-from stereosim.sim.config import ChipConfig, load_config
-from stereosim.sim.errors import ConfigError, InputError, UserError
+from stereosim.core.config import ChipConfig, load_config
+from stereosim.core.errors import ConfigError, InputError, UserError
 
 __all__ = ["ChipConfig", "ConfigError", "FrameOutput", "InputError", "Result", "Stream",
            "UserError", "load_config", "run", "run_stream"]

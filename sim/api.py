@@ -15,11 +15,17 @@ import cv2
 import numba
 import numpy as np
 
+from stereosim.core.config import ChipConfig, check_config, config_to_dict, load_config
+from stereosim.core.config.backend import BACKEND_KEYS
+from stereosim.core.config.loader import tuned_backend
+from stereosim.core.datasets import default_scene, find_scene, parse_calib
+from stereosim.core.datasets import load_scene as read_scene
+from stereosim.core.errors import ConfigError, InputError
+from stereosim.core.heap import keep_freed_memory
+from stereosim.core.io import MAX_PIXELS, check_gt_values, pixel_cap, to_grey
+from stereosim.core.progress import compile_notice
 from stereosim.nna.descriptor import compute_descriptor
 from stereosim.nna.weights import SHIPPED_WEIGHTS
-from stereosim.sim.config import ChipConfig, check_config, config_to_dict, load_config
-from stereosim.sim.config.backend import BACKEND_KEYS
-from stereosim.sim.config.loader import tuned_backend
 from stereosim.sim.cycle.contract import RunStopped, stop_report
 from stereosim.sim.cycle.energy import energy_report, energy_table
 from stereosim.sim.cycle.figures import architecture_report
@@ -28,14 +34,8 @@ from stereosim.sim.cycle.lent import lent_report
 from stereosim.sim.cycle.plan import ChipPlan, build_plan
 from stereosim.sim.cycle.report import power_basis
 from stereosim.sim.cycle.simulate import simulate
-from stereosim.sim.datasets import default_scene, find_scene, parse_calib
-from stereosim.sim.datasets import load_scene as read_scene
-from stereosim.sim.errors import ConfigError, InputError
 from stereosim.sim.formats import read_calibration
-from stereosim.sim.heap import keep_freed_memory
-from stereosim.sim.io import MAX_PIXELS, check_gt_values, pixel_cap, to_grey
 from stereosim.sim.metrics import check_truth, evaluate, mean_metrics, undefined_metrics
-from stereosim.sim.progress import compile_notice
 from stereosim.sim.tracing import run_traced, trace_section
 from stereosim.sva.noise import band_rows
 from stereosim.sva.pipeline import frame_cost, sva_stream
@@ -47,7 +47,7 @@ MODES = ("functional", "cycle")
 REPORT_VERSION = 3
 VERSION = "0.1.0"  # the one place (pyproject.toml reads it: [tool.setuptools.dynamic])
 
-# frame after frame, the arrays of a frame reuse the last one's pages (sim.heap)
+# frame after frame, the arrays of a frame reuse the last one's pages (core.heap)
 keep_freed_memory()
 
 
@@ -78,9 +78,9 @@ class Result:
 def prepare_pair(left, right, max_pixels: int | None = MAX_PIXELS) -> tuple[np.ndarray, np.ndarray]:
     """Validate a stereo pair and return both views as grey uint8 (H, W).
 
-    RGB (H, W, 3) views are converted with the integer BT.601 formula of :func:`sim.io.to_grey`.
+    RGB (H, W, 3) views are converted with the integer BT.601 formula of :func:`core.io.to_grey`.
     A pair of more than ``max_pixels`` pixels per view is refused; None or 0 mean no cap, as
-    ``--max-pixels 0`` does (:func:`sim.io.pixel_cap`).
+    ``--max-pixels 0`` does (:func:`core.io.pixel_cap`).
     """
     for name, img in (("left", left), ("right", right)):
         if not isinstance(img, np.ndarray):
@@ -107,7 +107,7 @@ def prepare_pair(left, right, max_pixels: int | None = MAX_PIXELS) -> tuple[np.n
 
 def resolve_config(config: ChipConfig | str | None, overrides: dict[str, Any] | None) -> ChipConfig:
     """The checked configuration of ``run``'s ``config``/``overrides``: a :class:`ChipConfig`
-    (however built, it passes :func:`sim.config.check_config`), a TOML path or None."""
+    (however built, it passes :func:`core.config.check_config`), a TOML path or None."""
     if isinstance(config, ChipConfig):
         if overrides:
             raise ConfigError("give either a ChipConfig object or overrides, not both")
@@ -129,14 +129,14 @@ def load_scene(folder, *, gt_scale: float | None = None,
                max_pixels: int | None = MAX_PIXELS) -> dict:
     """A scene folder as arrays, as ``stereosim run FOLDER`` reads it: Middlebury 2014
     (``im0.png``, ``im1.png``, ``disp0GT.pfm``, ``mask0nocc.png``, ``calib.txt``), 2005/2006 and
-    2003 layouts (:mod:`sim.datasets`), or ``"default"`` for the embedded scene.
+    2003 layouts (:mod:`core.datasets`), or ``"default"`` for the embedded scene.
 
     Returns a dict: ``name``; ``left``, ``right`` (uint8, grey or RGB); ``gt`` (float32
     disparities in pixels, ``inf`` unknown; None without GT; ``gt_scale``: the value per
     pixel of a PNG GT of a non-standard size); ``masks`` (``nonocc`` and/or ``all``, boolean);
     ``ndisp`` (calib.txt's, or None); ``calibration`` (a :class:`sim.formats.Calibration` from
     calib.txt when it has the camera's keys, else None) and ``note``. Every problem raises a
-    :class:`sim.errors.UserError` with one line."""
+    :class:`core.errors.UserError` with one line."""
     if isinstance(folder, str) and folder == "default":
         data = default_scene()
         data["calibration"] = None
@@ -178,10 +178,10 @@ def run(
     the report gains ``metrics`` over ``masks`` (default: every pixel with known GT).
     ``trace``: a :class:`sim.tracing.TraceRequest` (cycle mode only): the result carries the
     recorded :class:`traces.log.TraceLog` (files are written by :func:`sim.tracing.trace_files`).
-    ``max_pixels``: refuse larger views (default :data:`sim.io.MAX_PIXELS`; None or 0: no cap).
+    ``max_pixels``: refuse larger views (default :data:`core.io.MAX_PIXELS`; None or 0: no cap).
     ``energy``: an energy table (TOML, :mod:`sim.cycle.energy`) for the cycle report's
     ``energy`` section instead of stereosim's 45 nm default.
-    Every mistake raises a :class:`sim.errors.UserError` before any kernel runs. A cycle run
+    Every mistake raises a :class:`core.errors.UserError` before any kernel runs. A cycle run
     that stops early (``sim.max_cycles``, the automatic budget, a deadlock, a camera's
     overflow) raises a :class:`~sim.cycle.contract.RunStopped` whose ``report`` is the stopped
     run's report (:func:`stopped_report`) and whose ``trace`` is the log up to the stop (with
@@ -275,7 +275,7 @@ def frame_cost_report(plan: ChipPlan, left: np.ndarray) -> dict:
 
 def descriptor_report(plan: ChipPlan) -> dict:
     """The report's ``descriptor``: its kind and bits; for the CNN the network (its file, name
-    and layers); and the SVA back end it runs with (:data:`~sim.config.backend.BACKEND_KEYS`),
+    and layers); and the SVA back end it runs with (:data:`~core.config.backend.BACKEND_KEYS`),
     what it was tuned with (the weight file's own back end, else the descriptor's defaults) and
     which keys the configuration changed from that."""
     cfg = plan.cfg
@@ -505,7 +505,7 @@ def run_stream(pairs, *, mode: str = "cycle", config: ChipConfig | str | None = 
     (as :func:`run` takes them) score every frame -- the ground truth of a pair repeated, or of
     a scene that does not move. ``sink_stall``: the sink's pattern -- periodic ``(period,
     allowed_phase)`` or a script of 0/1 (:func:`~sim.cycle.rules.sink_pattern`). Mistakes
-    raise a :class:`sim.errors.UserError` before any kernel runs (a frame of another size,
+    raise a :class:`core.errors.UserError` before any kernel runs (a frame of another size,
     when it is read). A stream that stops early raises
     :class:`~sim.cycle.contract.RunStopped` as :func:`run` does (its ``report`` adds ``frames``;
     its ``plan`` and ``supply`` let :func:`sim.tracing.run_traced` trace it up to the stop).

@@ -8,8 +8,8 @@ import argparse
 import math
 from pathlib import Path
 
-from stereosim.sim.errors import InputError
-from stereosim.sim.outputs import check_outputs
+from stereosim.core.errors import InputError
+from stereosim.core.outputs import check_outputs
 
 
 def finite_float(text: str) -> float:

@@ -17,18 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from stereosim.nna.descriptor import network
-from stereosim.sim import formats, rtl_check, rtl_synth, signals, train_cli, whatif_cli
-from stereosim.sim.api import run, version_text
-from stereosim.sim.argtypes import (
-    check_single_output,
-    finite_float,
-    nonempty_path,
-    nonempty_size,
-    nonnegative_int,
-    positive_int,
-)
-from stereosim.sim.config import (
+from stereosim.core import signals
+from stereosim.core.config import (
     DESCRIPTOR_DEFAULTS,
     config_diff,
     config_to_toml,
@@ -37,7 +27,7 @@ from stereosim.sim.config import (
     load_config,
     parse_set_options,
 )
-from stereosim.sim.config.backend import (
+from stereosim.core.config.backend import (
     BACKEND_KEYS,
     backend_note,
     backend_text,
@@ -45,11 +35,7 @@ from stereosim.sim.config.backend import (
     describe,
     write_backend,
 )
-from stereosim.sim.cycle.contract import RunStopped
-from stereosim.sim.cycle.estimate import estimate, parse_size
-from stereosim.sim.cycle.frames import MAX_FRAMES
-from stereosim.sim.cycle.plan import build_plan, frame_size
-from stereosim.sim.datasets import (
+from stereosim.core.datasets import (
     default_scene,
     find_scene,
     find_scenes,
@@ -57,10 +43,8 @@ from stereosim.sim.datasets import (
     load_scene,
     scene_files,
 )
-from stereosim.sim.diagram import plan_text, write_plan_png
-from stereosim.sim.errors import ConfigError, InputError, UserError
-from stereosim.sim.html_report import html_files
-from stereosim.sim.io import (
+from stereosim.core.errors import ConfigError, InputError, UserError
+from stereosim.core.io import (
     MAX_PIXELS,
     disparity_to_colour,
     encode_png,
@@ -70,8 +54,8 @@ from stereosim.sim.io import (
     read_image,
     read_mask,
 )
-from stereosim.sim.npz import open_npz
-from stereosim.sim.outputs import (
+from stereosim.core.npz import open_npz
+from stereosim.core.outputs import (
     atomic_write_bytes,
     check_outputs,
     describe_os_error,
@@ -79,7 +63,24 @@ from stereosim.sim.outputs import (
     path_text,
     publish,
 )
-from stereosim.sim.progress import compile_notice
+from stereosim.core.progress import compile_notice
+from stereosim.nna.descriptor import network
+from stereosim.sim import formats, rtl_check, rtl_synth, train_cli, whatif_cli
+from stereosim.sim.api import run, version_text
+from stereosim.sim.argtypes import (
+    check_single_output,
+    finite_float,
+    nonempty_path,
+    nonempty_size,
+    nonnegative_int,
+    positive_int,
+)
+from stereosim.sim.cycle.contract import RunStopped
+from stereosim.sim.cycle.estimate import estimate, parse_size
+from stereosim.sim.cycle.frames import MAX_FRAMES
+from stereosim.sim.cycle.plan import build_plan, frame_size
+from stereosim.sim.diagram import plan_text, write_plan_png
+from stereosim.sim.html_report import html_files
 from stereosim.sim.run_files import StopAsked, publish_stop, with_report
 from stereosim.sim.stream_cli import cmd_run_stream, config_sources
 from stereosim.sim.summary import (
@@ -618,7 +619,7 @@ def _add_config_parser(sub) -> None:
 def main(argv: list[str] | None = None) -> int:
     """Run one command: 0 on success; 2 with one line on stderr for every user mistake or file
     system problem; 130 on SIGINT, 143 on SIGTERM and 129 on SIGHUP, after clean-up: nothing
-    half-written (sim.signals; the line says when the outputs were written first)."""
+    half-written (core.signals; the line says when the outputs were written first)."""
     with signals.handling() as handler:
         try:
             try:

@@ -6,7 +6,7 @@ whether a rate is a work bound or a measurement.
 columns of a header, grouped, as Markdown; a sweep writes it beside the CSV as ``columns.md``
 (:data:`sim.sweep_results.GUIDE_NAME`). Each column is described by the first rule of
 :data:`RULES` its name matches, with the block's or FIFO's clock domain read from the rows
-themselves; a configuration key gets the help text it is declared with (:mod:`sim.config`). A
+themselves; a configuration key gets the help text it is declared with (:mod:`core.config`). A
 column no rule describes is listed under "not described" -- tests/sim/test_columns.py runs small
 sweeps of every mode and requires that none is, and that every rule still describes some column,
 so the guide cannot drift from the keys the reports have.
@@ -18,7 +18,7 @@ import dataclasses
 import functools
 import re
 
-from stereosim.sim.config import load_config
+from stereosim.core.config import load_config
 
 # the groups of the guide, in the order it lists them
 GROUPS = (

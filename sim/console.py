@@ -1,6 +1,6 @@
 """The ``stereosim`` console entry (also ``python -m stereosim``).
 
-It installs the signal handler (:mod:`sim.signals`) before it imports the command line, whose
+It installs the signal handler (:mod:`core.signals`) before it imports the command line, whose
 modules (numba, OpenCV, the cycle model) take a second or more to load: a SIGTERM or Ctrl-C in
 that time ends the process with its one line (``stereosim: terminated``, exit 143) instead of a
 silent death or a traceback. The handler stays installed until the process exits, so a signal
@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import sys
 
-from stereosim.sim import signals
+from stereosim.core import signals
 
 
 def main(argv: list[str] | None = None) -> int:

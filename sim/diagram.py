@@ -23,11 +23,11 @@ import io
 from dataclasses import dataclass
 from pathlib import Path
 
+from stereosim.core.errors import InputError
+from stereosim.core.outputs import atomic_write_bytes
 from stereosim.sim.cycle.figures import chip_sram, sram_bits
 from stereosim.sim.cycle.lent import lent_lines, lent_report
 from stereosim.sim.cycle.plan import BlockPlan, ChipPlan
-from stereosim.sim.errors import InputError
-from stereosim.sim.outputs import atomic_write_bytes
 
 DOMAIN_COLOURS = {"camera": "#f4d35e", "nna": "#9ad1d4", "sva": "#f7a072"}
 

@@ -3,7 +3,7 @@ millimetres, PLY point clouds, and the MiddEval3 results layout.
 
 Every converter is a pure function of a ``float32`` disparity map (pixels, non-finite = invalid,
 as :func:`sim.api.run` returns it) and gives an array or the bytes of a file; nothing here writes
-to disk. The CLI adds the bytes to a run's published set (:func:`sim.outputs.publish`), so they
+to disk. The CLI adds the bytes to a run's published set (:func:`core.outputs.publish`), so they
 are written atomically with the rest and listed in ``report.json``'s ``files``. Every output is
 deterministic: the same map gives the same bytes. ``docs/outputs.md`` describes each file and
 how to load it.
@@ -24,10 +24,10 @@ from pathlib import Path
 import numpy as np
 from plyfile import PlyData, PlyElement
 
-from stereosim.sim.datasets import parse_calib
-from stereosim.sim.errors import ConfigError, InputError
-from stereosim.sim.io import encode_png, pfm_bytes
-from stereosim.sim.outputs import path_text
+from stereosim.core.datasets import parse_calib
+from stereosim.core.errors import ConfigError, InputError
+from stereosim.core.io import encode_png, pfm_bytes
+from stereosim.core.outputs import path_text
 
 # --save-as name -> the file it writes in the output folder (in this order).
 SAVE_FORMATS = {

@@ -5,7 +5,7 @@ and, when known, the ground truth and the trace log into one self-contained HTML
 headline figures, the configuration, the disparity map with a colour bar, the error map, block
 activity, FIFO occupancy histograms and a timeline. Every image is a PNG embedded as a ``data:``
 URI, so the page needs no network and no other file. The same inputs give the same bytes: the
-maps are encoded by :func:`sim.io.encode_png`, the charts by matplotlib's Agg backend without
+maps are encoded by :func:`core.io.encode_png`, the charts by matplotlib's Agg backend without
 the ``Software`` metadata entry, and the page holds no date and no path but the scene's source.
 
 The page reads the keys of ``report_version`` 3 (docs/report.md). A functional-mode report has
@@ -22,7 +22,7 @@ from collections.abc import Mapping
 import cv2
 import numpy as np
 
-from stereosim.sim.io import disparity_to_colour, encode_png
+from stereosim.core.io import disparity_to_colour, encode_png
 from stereosim.sim.metrics import MIDDLEBURY_KEYS
 from stereosim.traces.log import changes_of
 from stereosim.traces.timeline import STATUS_NAMES
@@ -152,7 +152,7 @@ def _listed_colormap(rgb: np.ndarray, over=None):
 
 
 def turbo_lut() -> np.ndarray:
-    """The 256 RGB colours of OpenCV's TURBO map, as :func:`sim.io.disparity_to_colour` uses."""
+    """The 256 RGB colours of OpenCV's TURBO map, as :func:`core.io.disparity_to_colour` uses."""
     bgr = cv2.applyColorMap(np.arange(256, dtype=np.uint8).reshape(1, 256), cv2.COLORMAP_TURBO)
     return bgr[0, :, ::-1].copy()
 

@@ -15,7 +15,7 @@ from collections.abc import Iterable, Mapping, Sequence
 
 import numpy as np
 
-from stereosim.sim.errors import InputError
+from stereosim.core.errors import InputError
 
 BAD_THRESHOLDS = (0.5, 1.0, 2.0, 4.0)
 T_THRESHOLDS = (0.125, 0.25, 0.5, 0.75, 1.0, 2.0, 4.0)

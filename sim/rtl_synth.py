@@ -43,10 +43,10 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from stereosim.core.config import ChipConfig
+from stereosim.core.config.widths import largest_cost
+from stereosim.core.errors import InputError
 from stereosim.nna.descriptor import descriptor_parts
-from stereosim.sim.config import ChipConfig
-from stereosim.sim.config.widths import largest_cost
-from stereosim.sim.errors import InputError
 from stereosim.sva.geometry import bits_for
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -18,9 +18,9 @@ import hashlib
 import os
 from pathlib import Path
 
+from stereosim.core.errors import ConfigError, UserError
+from stereosim.core.outputs import json_text, publish
 from stereosim.sim.cycle.contract import RunStopped
-from stereosim.sim.errors import ConfigError, UserError
-from stereosim.sim.outputs import json_text, publish
 from stereosim.sim.tracing import TraceRequest, trace_files
 
 

@@ -24,13 +24,13 @@ import sys
 import time
 from pathlib import Path
 
+from stereosim.core.errors import InputError
+from stereosim.core.io import disparity_to_colour, encode_png, pfm_bytes
+from stereosim.core.outputs import check_outputs, json_text, new_stage, publish
+from stereosim.core.progress import progress_bar
 from stereosim.sim.api import run_stream
 from stereosim.sim.cycle.contract import RunStopped
 from stereosim.sim.cycle.frames import check_frame_count
-from stereosim.sim.errors import InputError
-from stereosim.sim.io import disparity_to_colour, encode_png, pfm_bytes
-from stereosim.sim.outputs import check_outputs, json_text, new_stage, publish
-from stereosim.sim.progress import progress_bar
 from stereosim.sim.run_files import publish_stop
 from stereosim.sim.summary import print_summary
 from stereosim.sim.tracing import run_traced, trace_files, trace_paths, trace_section

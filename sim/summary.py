@@ -24,7 +24,7 @@ from rich import box
 from rich.console import Console
 from rich.table import Table
 
-from stereosim.sim.config.backend import describe
+from stereosim.core.config.backend import describe
 from stereosim.sim.cycle.lent import lent_lines
 from stereosim.sim.metrics import DENSE_KEYS, format_table, mean_metrics
 from stereosim.sim.plot import RATE_GAP

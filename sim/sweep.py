@@ -17,7 +17,7 @@ A sweep file (TOML) names the points and the scenes::
 Scenes: ``default`` (the embedded Motorcycle pair, with GT), ``WxH`` (a synthetic pair for
 timing only: deterministic random texture, the right view the left shifted by min(8, W // 8)
 pixels, no GT), a Middlebury scene folder, or a folder of scenes (every scene in it, sorted);
-``data:NAME`` is NAME inside the shared data folder (:func:`sim.datasets.shared_data_dir`), and a
+``data:NAME`` is NAME inside the shared data folder (:func:`core.datasets.shared_data_dir`), and a
 NAME that resolves outside that folder (``data:../..``, an absolute path, a symbolic link out of
 it) is refused. Relative paths are relative to the sweep file. A Middlebury scene's D comes from
 its ``calib.txt`` unless the sweep sets ``sva.disparities``.
@@ -42,7 +42,7 @@ every point already ok). An interrupted sweep (Ctrl-C) cancels its tasks, closes
 within seconds and leaves every finished row. A failing task is recorded with ``status`` error
 and a one-line ``error`` without stopping the others; the command then exits with status 2.
 While the tasks run, a progress bar counts them on stderr, only when stderr is a terminal
-(:mod:`sim.progress`; ``progress=False``, the command's ``--quiet``: none).
+(:mod:`core.progress`; ``progress=False``, the command's ``--quiet``: none).
 """
 
 from __future__ import annotations
@@ -63,10 +63,8 @@ from typing import Any
 
 import numpy as np
 
-from stereosim.sim.api import prepare_pair, run
-from stereosim.sim.config import load_config, read_toml
-from stereosim.sim.cycle.estimate import estimate
-from stereosim.sim.datasets import (
+from stereosim.core.config import load_config, read_toml
+from stereosim.core.datasets import (
     default_scene,
     find_scene,
     find_scenes,
@@ -74,9 +72,11 @@ from stereosim.sim.datasets import (
     load_scene,
     shared_data_dir,
 )
-from stereosim.sim.errors import ConfigError, InputError, UserError
-from stereosim.sim.outputs import describe_os_error
-from stereosim.sim.progress import progress_bar
+from stereosim.core.errors import ConfigError, InputError, UserError
+from stereosim.core.outputs import describe_os_error
+from stereosim.core.progress import progress_bar
+from stereosim.sim.api import prepare_pair, run
+from stereosim.sim.cycle.estimate import estimate
 from stereosim.sim.sweep_results import CSV_NAME, append_rows, done_point_ids, finish_results
 
 MODES = ("cycle", "functional", "estimate")
@@ -508,7 +508,7 @@ def run_sweep(sweep: Sweep, out_dir: str | Path, *, scheduler: str | None = None
             if client is None:
                 client = stack.enter_context(_dask_client(scheduler, workers, verbose))
             limit = in_flight or IN_FLIGHT_PER_WORKER * _worker_threads(client, workers)
-            # on stderr, and only when it is a terminal (sim/progress.py)
+            # on stderr, and only when it is a terminal (core/progress.py)
             bar = stack.enter_context(progress_bar(len(todo), "sweep", "run",
                                                    quiet=not progress))
 

@@ -7,7 +7,7 @@ twice gives the same bytes. Columns: ``point, scene, status, error, point_id``, 
 then every other column sorted.
 
 Each finished task's row is *appended* (:func:`append_rows`: one ``write`` of the whole line)
-while holding the output folder's lock (:func:`sim.outputs.folder_lock`), so sweeps sharing an
+while holding the output folder's lock (:func:`core.outputs.folder_lock`), so sweeps sharing an
 ``--out`` keep each other's rows; a row with a column the header lacks makes the file be
 rewritten once, atomically, from a fresh read under the lock. A write that fails (disk full) is
 cut back to the last whole row and ends the sweep with a one-line error. Readers ignore a torn
@@ -35,9 +35,9 @@ from pathlib import Path
 
 import numpy as np
 
+from stereosim.core.errors import InputError
+from stereosim.core.outputs import atomic_write_bytes, describe_os_error, folder_lock
 from stereosim.sim.columns import guide_text
-from stereosim.sim.errors import InputError
-from stereosim.sim.outputs import atomic_write_bytes, describe_os_error, folder_lock
 
 LEAD_COLUMNS = ("point", "scene", "status", "error", "point_id")
 CSV_NAME = "results.csv"

@@ -30,12 +30,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from stereosim.core.errors import ConfigError
+from stereosim.core.outputs import publish
+from stereosim.core.progress import compile_notice
 from stereosim.sim.cycle.contract import RunStopped
 from stereosim.sim.cycle.plan import ChipPlan
 from stereosim.sim.cycle.simulate import simulate
-from stereosim.sim.errors import ConfigError
-from stereosim.sim.outputs import publish
-from stereosim.sim.progress import compile_notice
 from stereosim.traces.fst import fst_bytes
 from stereosim.traces.gtkw import gtkw_text, has_status, status_filter_text
 from stereosim.traces.log import select
@@ -177,7 +177,7 @@ def filter_path(vcd: str) -> str:
 @compile_notice()
 def trace_files(log, request: TraceRequest) -> dict[str, bytes]:
     """The bytes of every file the request names (after :func:`check_size`), by path (the
-    writers' kernels compile on first use: :func:`sim.progress.compile_notice`)."""
+    writers' kernels compile on first use: :func:`core.progress.compile_notice`)."""
     files = {}
     if request.vcd and is_fst(request.vcd):
         files[request.vcd] = fst_bytes(log)
@@ -200,5 +200,5 @@ def trace_files(log, request: TraceRequest) -> dict[str, bytes]:
 def write_traces(log, request: TraceRequest) -> list[str]:
     """Write the dump (and its .gtkw and filter file next to it) and the timeline the request
     names, as one set
-    (:func:`sim.outputs.publish`); returns the paths written."""
+    (:func:`core.outputs.publish`); returns the paths written."""
     return publish(trace_files(log, request))

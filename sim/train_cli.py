@@ -15,6 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
+from stereosim.core.datasets import scene_files, shared_data_dir
+from stereosim.core.errors import ConfigError, InputError, UserError
+from stereosim.core.outputs import check_outputs
 from stereosim.nna.augment import RECIPES
 from stereosim.nna.floatmodel import load_float_model, save_float_model
 from stereosim.nna.train import train
@@ -41,9 +44,6 @@ from stereosim.sim.argtypes import (
     nonnegative_int,
     positive_int,
 )
-from stereosim.sim.datasets import scene_files, shared_data_dir
-from stereosim.sim.errors import ConfigError, InputError, UserError
-from stereosim.sim.outputs import check_outputs
 
 
 def register(sub) -> None:

@@ -15,8 +15,8 @@ import re
 import cv2
 import numpy as np
 
-from stereosim.sim.errors import InputError
-from stereosim.sim.io import native_stderr_caught, to_grey
+from stereosim.core.errors import InputError
+from stereosim.core.io import native_stderr_caught, to_grey
 
 
 def _reason(said: list[str]) -> str:

@@ -10,12 +10,12 @@ import os
 import sys
 from pathlib import Path
 
+from stereosim.core.errors import InputError, UserError
+from stereosim.core.outputs import json_text
 from stereosim.sim.argtypes import finite_float, nonempty_path, nonempty_size
 from stereosim.sim.cycle.energy import energy_table
 from stereosim.sim.cycle.estimate import estimate, parse_size
 from stereosim.sim.cycle.plan import frame_size
-from stereosim.sim.errors import InputError, UserError
-from stereosim.sim.outputs import json_text
 from stereosim.sim.plot import (
     BOUND_RATE,
     MEASURED_RATE,

@@ -12,8 +12,8 @@ row functions below do the same.
 
 import numpy as np
 
-from stereosim.sim.errors import InputError
-from stereosim.sim.kernel_cache import njit
+from stereosim.core.errors import InputError
+from stereosim.core.kernel_cache import njit
 
 
 def box_filter_ref(cost, k: int, cost_bits: int) -> np.ndarray:

@@ -28,9 +28,9 @@ import numpy as np
 from numba import types
 from numba.extending import intrinsic
 
-from stereosim.sim.config.widths import largest_cost
-from stereosim.sim.errors import InputError
-from stereosim.sim.kernel_cache import njit
+from stereosim.core.config.widths import largest_cost
+from stereosim.core.errors import InputError
+from stereosim.core.kernel_cache import njit
 
 
 class CostParts(NamedTuple):
@@ -43,7 +43,7 @@ class CostParts(NamedTuple):
     @property
     def top(self) -> int:
         """B: the largest cost, sum_k w_k b_k (a match outside the right image;
-        :func:`~sim.config.widths.largest_cost`, the rule the register widths follow)."""
+        :func:`~core.config.widths.largest_cost`, the rule the register widths follow)."""
         if len(self.bits) == 1:
             return self.weights[0] * self.bits[0]
         return largest_cost(self.bits, (self.weights,))

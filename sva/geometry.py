@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import math
 
-from stereosim.sim.config import SvaConfig
-from stereosim.sim.errors import ConfigError, UserError
+from stereosim.core.config import SvaConfig
+from stereosim.core.errors import ConfigError, UserError
 
 
 def check_disparity_range(cfg: SvaConfig, width: int, error: type[UserError] = ConfigError

@@ -13,8 +13,8 @@ aggregation alone this shear is exact; through SGM's causal paths it is the usua
 
 import numpy as np
 
-from stereosim.sim.errors import InputError
-from stereosim.sim.kernel_cache import njit
+from stereosim.core.errors import InputError
+from stereosim.core.kernel_cache import njit
 from stereosim.sva.wta import INVALID, disparity_index
 
 

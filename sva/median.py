@@ -13,9 +13,9 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
+from stereosim.core.errors import InputError
+from stereosim.core.kernel_cache import njit
 from stereosim.quant.vectors import U16_LANES, VectorCode
-from stereosim.sim.errors import InputError
-from stereosim.sim.kernel_cache import njit
 
 
 def median_ref(q, k: int) -> np.ndarray:

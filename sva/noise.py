@@ -30,8 +30,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from stereosim.sim.config import SvaConfig
-from stereosim.sim.kernel_cache import njit
+from stereosim.core.config import SvaConfig
+from stereosim.core.kernel_cache import njit
 from stereosim.sva.geometry import row_lookahead
 
 #: The Laplacian mask of the statistic (Immerkaer 1996).

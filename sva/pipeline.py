@@ -15,10 +15,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from stereosim.core.config import SvaConfig, check_section
+from stereosim.core.errors import InputError
+from stereosim.core.kernel_cache import njit
 from stereosim.quant.vectors import aligned_full
-from stereosim.sim.config import SvaConfig, check_section
-from stereosim.sim.errors import InputError
-from stereosim.sim.kernel_cache import njit
 from stereosim.sva.aggregation import box_filter, box_filter_ref, box_start
 from stereosim.sva.cost import (
     CostParts,

@@ -27,9 +27,9 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
+from stereosim.core.errors import InputError
+from stereosim.core.kernel_cache import njit
 from stereosim.quant.vectors import U16_LANES, VectorCode, aligned_full, contiguous_rows
-from stereosim.sim.errors import InputError
-from stereosim.sim.kernel_cache import njit
 
 # (dx, dy) of the predecessor p - r, in the order ``sva.paths`` enables them.
 PATHS = ((-1, 0), (0, -1), (-1, -1), (1, -1))

@@ -20,9 +20,9 @@ Invalid output words are -1; the float disparity is q / 2^F with inf for invalid
 
 import numpy as np
 
+from stereosim.core.errors import InputError
+from stereosim.core.kernel_cache import njit
 from stereosim.quant.fixedpoint import div_round_half_up
-from stereosim.sim.errors import InputError
-from stereosim.sim.kernel_cache import njit
 
 INVALID = -1
 SUBPIXEL_MODES = ("off", "parabola", "equiangular")

@@ -104,7 +104,7 @@ def test_the_contracts_set_the_directions_that_keep_circles_out():
         return i
 
     assert (level("sim.api") < level("sim.cycle.readable.chip") < level("nna.census")
-            < level("sim.config"))
+            < level("core.config"))
     assert level("sim.tracing") < level("traces.vcd") < level("sim.cycle") < level("traces.log")
     assert level("quant.quantizer") < level("nna.weights") < level("quant.artifact")
     assert level("sim.cycle.readable.chip") < level("sva.pipeline")
@@ -135,7 +135,7 @@ def _imports_in_functions(tree):
 
 
 # Python runs a package's __init__ before any module in it, and the core the stages import
-# (sim.config, sim.errors, sim.io) lives in the sim package: importing the API eagerly there
+# (core.config, core.errors, core.io) lives in the sim package: importing the API eagerly there
 # would load the whole application on every `import nna.census`. So the public names sim.run
 # and sim.Result resolve on first use (PEP 562). The console entry imports the command line
 # only once it has installed the signal handler (a SIGTERM while numba loads gets its line).
@@ -179,8 +179,8 @@ def test_package_roots_import_only_the_core(pkg):
         modules = [node.module] if isinstance(node, ast.ImportFrom) else [a.name for a in
                                                                             node.names]
         for module in modules:
-            assert module in ("__future__", "stereosim.sim", "stereosim.sim.config",
-                              "stereosim.sim.errors"), module
+            assert module in ("__future__", "stereosim.sim", "stereosim.core.config",
+                              "stereosim.core.errors"), module
 
 
 def test_no_module_is_over_800_lines():

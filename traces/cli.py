@@ -1,6 +1,6 @@
 """The ``stereosim wave`` subcommand: draw signals of a VCD or FST dump as a PNG waveform.
 
-``sim/cli.py`` registers it with :func:`add_wave_parser`; errors are :class:`sim.errors.UserError`
+``sim/cli.py`` registers it with :func:`add_wave_parser`; errors are :class:`core.errors.UserError`
 (one line, exit status 2, from ``sim.cli.main``). The output path is checked before the dump is
 read -- writable, and not the dump itself (compared by real path and by file identity, so a
 symbolic or hard link to the dump is refused too) -- and the PNG is written atomically, only
@@ -12,7 +12,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from stereosim.sim.outputs import atomic_write_bytes, check_outputs
+from stereosim.core.outputs import atomic_write_bytes, check_outputs
 from stereosim.traces.dumpread import read_dump
 from stereosim.traces.log import parse_patterns
 from stereosim.traces.wave import (

@@ -18,7 +18,7 @@ matter.
   end times -- the last instant of a stereosim dump carries no value change (it marks the
   window's end), so the instants that hold changes would lose it. Values are integers, or
   None for unknown bits (``x``, ``z``, ...) and real values, as the VCD reader gives them. A
-  corrupt FST makes pywellen raise, or panic; both become an :class:`sim.errors.InputError`
+  corrupt FST makes pywellen raise, or panic; both become an :class:`core.errors.InputError`
   with one line, and what the panic prints on the process's stderr is swallowed
   (:func:`_stderr_swallowed`).
 """
@@ -33,7 +33,7 @@ import tempfile
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
-from stereosim.sim.errors import InputError, UserError
+from stereosim.core.errors import InputError, UserError
 from stereosim.traces.fstcheck import checked_fst
 from stereosim.traces.vcdread import MAX_TIME, VcdData, VcdVar, read_vcd
 

@@ -35,7 +35,7 @@ import zlib
 from collections.abc import Iterator
 from pathlib import Path
 
-from stereosim.sim.errors import InputError
+from stereosim.core.errors import InputError
 
 #: The most a wrapped file may inflate to (on disk, in a scratch file).
 MAX_FST_BYTES = 1 << 30

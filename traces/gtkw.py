@@ -45,8 +45,8 @@ import os
 
 from vcd.gtkw import GTKWSave, make_translation_filter
 
-from stereosim.sim.errors import ConfigError
-from stereosim.sim.outputs import atomic_write_bytes
+from stereosim.core.errors import ConfigError
+from stereosim.core.outputs import atomic_write_bytes
 from stereosim.traces.log import CLOCK_SCOPE, TraceLog, validate
 
 #: The names and GTKWave colours of the status codes 0..3, as the chip traces them

@@ -33,7 +33,7 @@ from fnmatch import fnmatchcase
 
 import numpy as np
 
-from stereosim.sim.errors import ConfigError
+from stereosim.core.errors import ConfigError
 
 CLOCK_SCOPE = "clocks"
 _IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_$]*\Z")

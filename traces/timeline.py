@@ -39,8 +39,8 @@ import os
 
 import numpy as np
 
-from stereosim.sim.errors import ConfigError
-from stereosim.sim.outputs import atomic_write_bytes
+from stereosim.core.errors import ConfigError
+from stereosim.core.outputs import atomic_write_bytes
 from stereosim.traces.gtkw import STATUS_NAMES, STATUS_SUFFIX, unit_of
 from stereosim.traces.log import TraceLog, changes_of, validate
 

@@ -36,9 +36,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from stereosim.sim.errors import ConfigError
-from stereosim.sim.kernel_cache import njit
-from stereosim.sim.outputs import atomic_write_bytes
+from stereosim.core.errors import ConfigError
+from stereosim.core.kernel_cache import njit
+from stereosim.core.outputs import atomic_write_bytes
 from stereosim.traces.log import CLOCK_SCOPE, Clock, Signal, TraceLog, validate
 
 TIMESCALE = "1 fs"

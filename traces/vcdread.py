@@ -2,7 +2,7 @@
 
 :func:`read_vcd` returns the variables (dotted path, width) and, for the variables asked for, their
 value changes; ``x``/``z`` digits make a value unknown (``None``) and real values are read as
-unknown too. Anything that is not a readable VCD raises :class:`sim.errors.InputError` with one
+unknown too. Anything that is not a readable VCD raises :class:`core.errors.InputError` with one
 line naming the file; so does a timestamp above :data:`MAX_TIME` (2**63 - 1 time units, the
 largest instant numpy's int64 and FST's times hold). :mod:`traces.dumpread` reads FST files
 into the same :class:`VcdData`.
@@ -16,7 +16,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from stereosim.sim.errors import InputError
+from stereosim.core.errors import InputError
 
 _UNITS_FS = {"s": 10**15, "ms": 10**12, "us": 10**9, "ns": 10**6, "ps": 10**3, "fs": 1}
 _RANGE = re.compile(r"\[[^\]]*\]$")

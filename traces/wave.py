@@ -45,7 +45,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from stereosim.sim.errors import ConfigError
+from stereosim.core.errors import ConfigError
 from stereosim.traces.gtkw import STATUS_COLOURS, STATUS_NAMES, STATUS_SUFFIX, datafmt_of
 from stereosim.traces.log import CLOCK_SCOPE, match_paths
 from stereosim.traces.vcdread import MAX_TIME, VcdData, VcdVar

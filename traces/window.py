@@ -25,7 +25,7 @@ import re
 from dataclasses import dataclass
 from fractions import Fraction
 
-from stereosim.sim.errors import ConfigError
+from stereosim.core.errors import ConfigError
 
 UNIT_FS = {"fs": 1, "ps": 10**3, "ns": 10**6, "us": 10**9, "ms": 10**12, "s": 10**15}
 DOMAINS = ("sva", "nna", "camera")

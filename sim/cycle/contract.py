@@ -30,8 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from stereosim.core.errors import UserError
 from stereosim.sim.cycle.plan import ChipPlan
-from stereosim.sim.errors import UserError
 from stereosim.traces.log import Clock, Signal, TraceLog
 
 ACTIVITIES = ("busy", "starved", "blocked", "idle")

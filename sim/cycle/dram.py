@@ -7,8 +7,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from stereosim.sim.config import ChipConfig
-from stereosim.sim.errors import ConfigError
+from stereosim.core.config import ChipConfig
+from stereosim.core.errors import ConfigError
 
 
 @dataclass(frozen=True)

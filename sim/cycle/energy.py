@@ -35,12 +35,12 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
-from stereosim.sim.config import read_toml
+from stereosim.core.config import read_toml
+from stereosim.core.errors import ConfigError
 from stereosim.sim.cycle.figures import action_counts
 from stereosim.sim.cycle.lent import LentPlan
 from stereosim.sim.cycle.plan import ChipPlan
 from stereosim.sim.cycle.stages import lg
-from stereosim.sim.errors import ConfigError
 from stereosim.sva.geometry import bits_for
 from stereosim.sva.noise import band_rows
 

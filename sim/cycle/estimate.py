@@ -64,8 +64,9 @@ from __future__ import annotations
 import dataclasses
 import math
 
+from stereosim.core.config import ChipConfig, config_to_dict
+from stereosim.core.errors import InputError, UserError
 from stereosim.nna.geometry import Tile
-from stereosim.sim.config import ChipConfig, config_to_dict
 from stereosim.sim.cycle.energy import EnergyTable, energy_table, estimate_energy
 from stereosim.sim.cycle.figures import (
     action_counts,
@@ -97,7 +98,6 @@ from stereosim.sim.cycle.rules import (
     sva_rows_done_before_input,
     sva_slot,
 )
-from stereosim.sim.errors import InputError, UserError
 
 FS_PER_S = 10**15
 

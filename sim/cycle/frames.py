@@ -18,8 +18,8 @@ from collections.abc import Callable
 
 import numpy as np
 
+from stereosim.core.errors import ConfigError, InputError
 from stereosim.nna.descriptor import compute_descriptor
-from stereosim.sim.errors import ConfigError, InputError
 from stereosim.sva.pipeline import sva_stream
 
 # The most camera frames one run simulates (input frames x camera pairs). What a stream keeps

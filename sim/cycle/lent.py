@@ -42,6 +42,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from functools import cached_property
 
+from stereosim.core.config import ChipConfig, LentLayer, LentNetwork, read_lent_network
+from stereosim.core.errors import ConfigError
 from stereosim.nna.geometry import (
     buffer_rows,
     cycles_per_pixel,
@@ -50,10 +52,8 @@ from stereosim.nna.geometry import (
     share_macs,
     strided_size,
 )
-from stereosim.sim.config import ChipConfig, LentLayer, LentNetwork, read_lent_network
 from stereosim.sim.cycle.dram import DramPlan
 from stereosim.sim.cycle.stages import BufferPlan
-from stereosim.sim.errors import ConfigError
 
 BYTES_PER_CHANNEL = 8  # an int32 bias and a 32-bit multiply-shift per output channel
 

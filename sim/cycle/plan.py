@@ -9,7 +9,7 @@ in bits), the traced signals and the run's cycle budget. The readable kernel ins
 and traces take their names from it. A constant derived from the configuration and the frame
 shape, or a topology fact, is computed here and nowhere else. The keys the configuration works
 out itself when they are left unset -- the SVA's register widths, the descriptor's tuned back
-end -- are filled in where it is loaded (:mod:`sim.config.loader`, so that ``stereosim config
+end -- are filled in where it is loaded (:mod:`core.config.loader`, so that ``stereosim config
 show`` prints them) and read from it here like any other key.
 
 Topology (the order is the readable kernel's: it fixes the order of FIFOs and blocks in the
@@ -28,6 +28,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from functools import cached_property
 
+from stereosim.core.config import AUTO_BUDGET_FACTOR, ChipConfig, check_config
+from stereosim.core.config.widths import largest_cost, weight_sets
+from stereosim.core.errors import ConfigError, InputError
 from stereosim.nna.descriptor import descriptor_parts, network
 from stereosim.nna.geometry import (
     Tile,
@@ -40,8 +43,6 @@ from stereosim.nna.geometry import (
     pipeline_cycles,
     split_frame,
 )
-from stereosim.sim.config import AUTO_BUDGET_FACTOR, ChipConfig, check_config
-from stereosim.sim.config.widths import largest_cost, weight_sets
 from stereosim.sim.cycle.dram import DramPlan, dram_plan
 from stereosim.sim.cycle.lent import LentPlan, lent_plan
 from stereosim.sim.cycle.rules import (
@@ -63,7 +64,6 @@ from stereosim.sim.cycle.stages import (
     slot_ii,
     sva_stages,
 )
-from stereosim.sim.errors import ConfigError, InputError
 from stereosim.sva.geometry import (
     box_radius,
     check_disparity_range,
@@ -435,7 +435,7 @@ def frame_budget(cfg: ChipConfig, shape: tuple[int, int], freqs: dict[str, float
                  cpd: int, sva_ii: int, frames: int = 1, dram: DramPlan | None = None
                  ) -> dict[str, int]:
     """The cycles each domain may run: ``sim.max_cycles`` for every domain when set, else a
-    generous budget of :data:`~sim.config.AUTO_BUDGET_FACTOR` times the expected run
+    generous budget of :data:`~core.config.AUTO_BUDGET_FACTOR` times the expected run
     (:func:`expected_frame_s` a frame); either at most the cycles of :data:`MAX_RUN_FS`."""
     cap = {name: MAX_RUN_FS // period_fs(f) for name, f in freqs.items()}
     if cfg.sim.max_cycles:

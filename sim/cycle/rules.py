@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba.extending import register_jitable
 
-from stereosim.sim.errors import ConfigError
+from stereosim.core.errors import ConfigError
 
 FS_PER_S = 10**15
 

@@ -20,7 +20,7 @@ stream of too many frames.
 
 The first frame after an install or an edit compiles the numba kernels it uses; one line on
 stderr says so when the first one starts, and one more how long it took
-(:func:`sim.progress.compile_notice`); on an empty cache the compiled engine's kernels compile
+(:func:`core.progress.compile_notice`); on an empty cache the compiled engine's kernels compile
 on two cores (:mod:`sim.cycle.compiled.prewarm`). The readable kernel draws a progress bar on
 stderr when it is a terminal. A run that stops raises its
 :class:`~sim.cycle.contract.RunStopped` with ``engine`` set (and, with ``window``, the trace up
@@ -29,14 +29,14 @@ to the stop).
 
 from __future__ import annotations
 
+from stereosim.core.errors import ConfigError
+from stereosim.core.progress import compile_notice
 from stereosim.sim.cycle.compiled.layout import INF
 from stereosim.sim.cycle.compiled.prewarm import prewarm
 from stereosim.sim.cycle.compiled.run import run_compiled
 from stereosim.sim.cycle.contract import FrameResult, RunStopped
 from stereosim.sim.cycle.plan import MAX_RUN_FS, ChipPlan
 from stereosim.sim.cycle.readable.chip import run_readable
-from stereosim.sim.errors import ConfigError
-from stereosim.sim.progress import compile_notice
 
 ENGINES = ("auto", "fast", "readable")
 

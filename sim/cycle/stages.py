@@ -75,6 +75,7 @@ import dataclasses
 import math
 from dataclasses import dataclass
 
+from stereosim.core.config import ChipConfig
 from stereosim.nna.descriptor import network
 from stereosim.nna.geometry import (
     Tile,
@@ -87,7 +88,6 @@ from stereosim.nna.geometry import (
     line_buffer_bits,
     mac_shares,
 )
-from stereosim.sim.config import ChipConfig
 from stereosim.sva.geometry import bits_for, disparity_bits
 from stereosim.sva.noise import noise_unit_bits
 
@@ -257,7 +257,7 @@ def hamming_stage(cfg: ChipConfig, width: int, parts: tuple[int, ...]) -> StageP
 def sva_stages(cfg: ChipConfig, width: int, parts: tuple[int, ...], word_bits: int,
                cost_max: int) -> tuple[StagePlan, ...]:
     """The SVA's stages for frames ``width`` pixels wide, descriptors of ``parts`` (each
-    part's bits), a largest matching cost of ``cost_max`` (:func:`~sim.config.widths.
+    part's bits), a largest matching cost of ``cost_max`` (:func:`~core.config.widths.
     largest_cost`) and ``word_bits``-bit output words, in stream order (see the module
     docstring)."""
     s = cfg.sva

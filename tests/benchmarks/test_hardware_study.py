@@ -17,10 +17,10 @@ sys.path.insert(0, str(SCRIPT.parent))
 import ablation  # noqa: E402  (benchmarks/ is a folder of scripts, not a package)
 import hardware_study  # noqa: E402
 
+from stereosim.core.config import load_config  # noqa: E402
+from stereosim.core.datasets import find_scenes, load_scene, shared_data_dir  # noqa: E402
 from stereosim.nna.floatmodel import load_float_model  # noqa: E402
 from stereosim.quant.artifact import load_quantized  # noqa: E402
-from stereosim.sim.config import load_config  # noqa: E402
-from stereosim.sim.datasets import find_scenes, load_scene, shared_data_dir  # noqa: E402
 
 
 def test_the_page_holds_the_plan_formula_and_accuracy_figures_of_today():

@@ -14,9 +14,9 @@ from pathlib import Path
 
 import numpy as np
 
+from stereosim.sim.synthetic_trace import synthetic_log
 from stereosim.traces.gtkw import write_gtkw, write_status_filter
 from stereosim.traces.log import TraceLog
-from stereosim.traces.synthetic import synthetic_log
 from stereosim.traces.timeline import write_timeline
 from stereosim.traces.vcd import write_vcd
 

@@ -5,7 +5,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from stereosim.sim.io import encode_png
+from stereosim.core.io import encode_png
 
 
 def write_scene(folder: Path, seed: int, shift: int, h: int = 30, w: int = 400) -> None:

@@ -7,9 +7,9 @@ import cv2
 import numpy as np
 import pytest
 
+from stereosim.core.errors import ConfigError
 from stereosim.nna.augment import RECIPES, photometric, rows_at, vertical_offsets
 from stereosim.nna.trainconfig import TrainConfig
-from stereosim.sim.errors import ConfigError
 
 
 def _old_recipe(patches, cfg, rng, shared_axis=False):

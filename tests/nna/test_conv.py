@@ -12,6 +12,8 @@ from hypothesis import strategies as st
 from numpy.lib.stride_tricks import sliding_window_view
 from numpy.testing import assert_array_equal
 
+from stereosim.core.config import NnaConfig
+from stereosim.core.errors import ConfigError, InputError
 from stereosim.nna.conv import (
     MAX_KERNEL_SIZE,
     check_layer,
@@ -20,8 +22,6 @@ from stereosim.nna.conv import (
     cnn_descriptor_ref,
 )
 from stereosim.nna.weights import load_layer, load_weights, placeholder_weights, save_weights
-from stereosim.sim.config import NnaConfig
-from stereosim.sim.errors import ConfigError, InputError
 
 
 def _layer(seed, n_channels=32, k_size=9, bias_range=20000):

@@ -8,6 +8,10 @@ import numpy as np
 import pytest
 from numpy.testing import assert_array_equal
 
+from stereosim.core.config import load_config
+from stereosim.core.datasets import find_scene, load_scene, shared_data_dir
+from stereosim.core.errors import ConfigError
+from stereosim.core.io import to_grey
 from stereosim.nna.descriptor import compute_descriptor, descriptor_bits, network
 from stereosim.nna.geometry import (
     cycles_per_descriptor,
@@ -20,10 +24,6 @@ from stereosim.nna.trainconfig import VARIANTS
 from stereosim.quant.artifact import load_quantized
 from stereosim.quant.intconv import int_forward, int_forward_ref, signs_ref
 from stereosim.sim.api import run
-from stereosim.sim.config import load_config
-from stereosim.sim.datasets import find_scene, load_scene, shared_data_dir
-from stereosim.sim.errors import ConfigError
-from stereosim.sim.io import to_grey
 
 MODELS = Path(__file__).resolve().parents[2] / "benchmarks" / "models"
 NETWORKS = ("mccnn4", "mccnn4-slim", "mccnn4-mid", "mixed5x5-wide", "mixed5x5-wide-n6")

@@ -19,6 +19,8 @@ import pytest
 import torch  # in the test extra: the smoke epoch must run in CI
 from numpy.testing import assert_array_equal
 
+from stereosim.core.config import DESCRIPTOR_DEFAULTS, load_config
+from stereosim.core.errors import ConfigError, InputError
 from stereosim.nna.conv import cnn_descriptor
 from stereosim.nna.floatmodel import load_float_model, save_float_model
 from stereosim.nna.train import train
@@ -47,8 +49,6 @@ from stereosim.quant.artifact import load_quantized, to_nna_weights
 from stereosim.quant.intconv import int_forward
 from stereosim.quant.quantizer import FloatModel, float_forward
 from stereosim.sim.cli import main
-from stereosim.sim.config import DESCRIPTOR_DEFAULTS, load_config
-from stereosim.sim.errors import ConfigError, InputError
 from stereosim.sva.aggregation import box_filter
 from stereosim.sva.cost import hamming_cost
 

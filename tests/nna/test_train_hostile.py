@@ -11,12 +11,12 @@ from dataclasses import asdict
 import numpy as np
 import pytest
 
+from stereosim.core.errors import ConfigError
 from stereosim.nna.floatmodel import save_float_model
 from stereosim.nna.trainconfig import TrainConfig, box_range, max_disparities
 from stereosim.nna.traindata import load_strip_set, training_scene_dirs
 from stereosim.nna.trainrun import checkpoint_path, cpu_count, parse_threads
 from stereosim.sim.cli import main
-from stereosim.sim.errors import ConfigError
 
 OLD = b"an earlier output"
 

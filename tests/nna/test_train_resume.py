@@ -12,6 +12,7 @@ import torch  # the test extra (train imports it)
 from numpy.testing import assert_array_equal
 
 import stereosim.nna.train as train_module
+from stereosim.core.errors import ConfigError, InputError
 from stereosim.nna.train import train
 from stereosim.nna.trainconfig import TrainConfig
 from stereosim.nna.traindata import training_scene_dirs
@@ -23,7 +24,6 @@ from stereosim.nna.trainrun import (
     threads_line,
 )
 from stereosim.sim.cli import main
-from stereosim.sim.errors import ConfigError, InputError
 
 SHIFT = 4
 

@@ -10,6 +10,8 @@ import pytest
 import torch
 from numpy.testing import assert_array_equal
 
+from stereosim.core.datasets import find_scene, load_scene, shared_data_dir
+from stereosim.core.io import to_grey
 from stereosim.nna.floatmodel import load_float_model, save_float_model
 from stereosim.nna.train import train
 from stereosim.nna.trainconfig import TrainConfig
@@ -19,8 +21,6 @@ from stereosim.quant.artifact import load_quantized
 from stereosim.quant.intconv import int_forward, int_forward_ref
 from stereosim.quant.quantizer import FloatModel, QuantizerConfig, quantize_twin
 from stereosim.sim.cli import main
-from stereosim.sim.datasets import find_scene, load_scene, shared_data_dir
-from stereosim.sim.io import to_grey
 
 DATA = shared_data_dir()
 SHAPES = ((1, 4, 5), (4, 6, 3), (6, 8, 3))  # (C_in, C_out, K): a small mixed network

@@ -12,13 +12,13 @@ import time
 import numpy as np
 import pytest
 
+from stereosim.core.errors import ConfigError
+from stereosim.core.io import encode_png
 from stereosim.nna.conv import MAX_KERNEL_SIZE
 from stereosim.nna.weights import load_network
 from stereosim.quant.artifact import QuantizedModel, save_quantized
 from stereosim.sim.api import run
 from stereosim.sim.cli import main
-from stereosim.sim.errors import ConfigError
-from stereosim.sim.io import encode_png
 
 SMALL = ((3, 1, 8), (3, 8, 32))  # (K, C_in, C_out) of each layer: a 3x3 pair, 32 bits
 
@@ -185,7 +185,7 @@ def test_a_later_layers_line_buffer_over_64_rows_is_refused(tmp_path):
     """Layer 1's buffer holds its window and layer 0's slack: a 3x3 then a 63x63 layer with
     nna.line_buffer_rows = 64 would need 63 + 61 = 124 rows; 10 rows of layer 0 leave it 70, also
     too many; 4 rows leave it 64, which is taken."""
-    from stereosim.sim.config import load_config
+    from stereosim.core.config import load_config
     from stereosim.sim.cycle.plan import build_plan
 
     path = _artifact(tmp_path / "w.npz", ((3, 1, 4), (63, 4, 32)))

@@ -8,6 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
+from stereosim.core.errors import ConfigError
 from stereosim.quant.distances import (
     DISTANCES,
     get_distance,
@@ -18,7 +19,6 @@ from stereosim.quant.distances import (
     l1,
     rms,
 )
-from stereosim.sim.errors import ConfigError
 
 F = np.array([1.0, -2.0, 0.5, 3.0])
 Q = np.array([2, -1, -1, 0])

@@ -10,6 +10,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_array_equal
 
+from stereosim.core.errors import ConfigError
 from stereosim.nna.conv import cnn_accumulators
 from stereosim.nna.weights import SHIPPED_WEIGHTS, load_network
 from stereosim.quant import vnni
@@ -28,7 +29,6 @@ from stereosim.quant.intconv import (
     signs_ref,
     tap_bound,
 )
-from stereosim.sim.errors import ConfigError
 
 
 def _network(seed, channels, k_sizes, z_bits=8, bias_range=5000):

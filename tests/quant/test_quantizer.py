@@ -10,6 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose, assert_array_equal
 
+from stereosim.core.errors import ConfigError
 from stereosim.nna.conv import cnn_accumulators
 from stereosim.nna.weights import load_layer, load_weights
 from stereosim.quant.artifact import load_quantized, save_quantized, to_nna_weights
@@ -27,7 +28,6 @@ from stereosim.quant.quantizer import (
     search_channel_scale,
     search_mul_shift,
 )
-from stereosim.sim.errors import ConfigError
 
 INPUT_SCALE = 1 / 64  # a power of two, so float inputs are exact
 

@@ -17,7 +17,7 @@ import numpy as np
 from cocotb.triggers import ReadOnly, RisingEdge
 from twin import Pins
 
-from stereosim.sim.config import load_config
+from stereosim.core.config import load_config
 from stereosim.sim.cycle.stages import pipeline_ii, sva_stages
 from stereosim.sva.geometry import output_word_bits
 from stereosim.sva.lr_check import lr_check_ref, right_disparity_ref

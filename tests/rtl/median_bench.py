@@ -14,7 +14,7 @@ import numpy as np
 from cocotb.triggers import ReadOnly, RisingEdge
 from twin import Pins
 
-from stereosim.sim.config import load_config
+from stereosim.core.config import load_config
 from stereosim.sim.cycle.stages import sva_stages
 from stereosim.sva.geometry import output_word_bits
 from stereosim.sva.median import median_ref

@@ -16,7 +16,7 @@ import numpy as np
 from cocotb.triggers import ReadOnly, RisingEdge
 from twin import Pins, each_run
 
-from stereosim.sim.config import load_config
+from stereosim.core.config import load_config
 from stereosim.sim.cycle.stages import sva_stages
 from stereosim.sva.sgm import sgm_ref
 

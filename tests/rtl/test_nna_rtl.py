@@ -38,10 +38,10 @@ import dataclasses
 
 import numpy as np
 
+from stereosim.core.config import load_config
 from stereosim.nna.descriptor import compute_descriptor, network
 from stereosim.quant.artifact import QuantizedModel, save_quantized
 from stereosim.quant.intconv import network as int_network
-from stereosim.sim.config import load_config
 from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.cycle.readable.chip import build_chip
 

@@ -23,9 +23,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from stereosim.core.config import load_config
 from stereosim.sim import rtl_check
 from stereosim.sim.cli import main
-from stereosim.sim.config import load_config
 from stereosim.traces.vcdread import read_vcd
 
 HERE = Path(__file__).resolve().parent

@@ -9,10 +9,10 @@ import math
 
 import pytest
 
+from stereosim.core.config import ChipConfig
+from stereosim.core.config.loader import load_config
 from stereosim.nna.descriptor import descriptor_parts
 from stereosim.sim import rtl_synth as rs
-from stereosim.sim.config import ChipConfig
-from stereosim.sim.config.loader import load_config
 
 # the library's cells in placement sites (each 0.19 um x 1.4 um; the LEF's SIZE / 0.19)
 SITES = {"NAND2_X1": 3, "XOR2_X1": 6, "INV_X1": 2, "MUX2_X1": 7, "DFF_X1": 17}

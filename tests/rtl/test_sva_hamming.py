@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from stereosim.sim.config.widths import largest_cost
+from stereosim.core.config.widths import largest_cost
 from stereosim.sva.geometry import bits_for
 
 RTL_SOURCE = Path(__file__).resolve().parents[2] / "sva" / "rtl" / "sva_hamming.sv"

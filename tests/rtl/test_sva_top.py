@@ -48,8 +48,8 @@ import os
 import numpy as np
 import pytest
 
+from stereosim.core.config import load_config
 from stereosim.sim import rtl_check
-from stereosim.sim.config import load_config
 from stereosim.sim.cycle import stages
 from stereosim.sim.cycle.compiled.run import run_compiled
 from stereosim.sim.cycle.plan import build_plan

@@ -19,7 +19,7 @@ import numpy as np
 from cocotb.clock import Clock
 from cocotb.triggers import ReadOnly, RisingEdge
 
-from stereosim.sim.config import load_config
+from stereosim.core.config import load_config
 from stereosim.sim.cycle.stages import sva_stages
 from stereosim.sva.geometry import output_word_bits
 from stereosim.sva.wta import SUBPIXEL_MODES, wta_ref

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import stereosim
-from stereosim.sim.errors import ConfigError, InputError
+from stereosim.core.errors import ConfigError, InputError
 from stereosim.sva.pipeline import sva_ref
 
 

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 import stereosim
-from stereosim.sim.datasets import find_scene, shared_data_dir
-from stereosim.sim.datasets import load_scene as read_scene
-from stereosim.sim.errors import InputError
-from stereosim.sim.io import encode_png
+from stereosim.core.datasets import find_scene, shared_data_dir
+from stereosim.core.datasets import load_scene as read_scene
+from stereosim.core.errors import InputError
+from stereosim.core.io import encode_png
 
 
 def _scene(folder, h=12, w=40, with_calib=True):

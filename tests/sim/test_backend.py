@@ -1,5 +1,5 @@
 """A network and its back end together: a weight file carries the SVA back end it was tuned
-with (sim.config.backend), the configuration takes it for the keys it leaves unset, a file
+with (core.config.backend), the configuration takes it for the keys it leaves unset, a file
 without one keeps the descriptor's with a note, and the report and summary name the network
 and the back end it runs with."""
 
@@ -8,13 +8,13 @@ import shutil
 import numpy as np
 import pytest
 
+from stereosim.core.config import DESCRIPTOR_DEFAULTS, load_config
+from stereosim.core.config.backend import BACKEND_KEYS, carried_backend, write_backend
+from stereosim.core.errors import ConfigError
+from stereosim.core.npz import open_npz
 from stereosim.nna.weights import SHIPPED_WEIGHTS
 from stereosim.sim.api import run
 from stereosim.sim.cli import PRESETS, main
-from stereosim.sim.config import DESCRIPTOR_DEFAULTS, load_config
-from stereosim.sim.config.backend import BACKEND_KEYS, carried_backend, write_backend
-from stereosim.sim.errors import ConfigError
-from stereosim.sim.npz import open_npz
 from stereosim.sim.summary import summary_text
 
 ROBUST = load_config(PRESETS / "robust-720p.toml").nna.cnn.weights

@@ -5,7 +5,7 @@ is listed for, and in raster order, frame after frame, as the beats' place field
 import numpy as np
 import pytest
 
-from stereosim.sim.config import load_config
+from stereosim.core.config import load_config
 from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.cycle.readable.beats import BEATS
 from stereosim.sim.cycle.readable.fifo import Fifo

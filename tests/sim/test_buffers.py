@@ -13,7 +13,7 @@ import pytest
 
 import stereosim.sim.cycle.readable.blocks.nna as nna_block
 import stereosim.sim.cycle.readable.blocks.sva as sva_block
-from stereosim.sim.config import load_config
+from stereosim.core.config import load_config
 from stereosim.sim.cycle.buffers import BufferOverflow, window_peaks
 from stereosim.sim.cycle.compiled.run import run_compiled
 from stereosim.sim.cycle.plan import build_plan

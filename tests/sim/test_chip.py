@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
+from stereosim.core.config import load_config
 from stereosim.sim.api import run
-from stereosim.sim.config import load_config
 from stereosim.sim.cycle.compiled.run import run_compiled
 from stereosim.sim.cycle.contract import CameraOverflow, DeadlockError
 from stereosim.sim.cycle.plan import build_plan
@@ -216,7 +216,7 @@ def test_column_tiles_speed_up_an_nna_bound_frame(run_cycle):
 
 
 def test_bad_split_configurations_are_refused(run_cycle):
-    from stereosim.sim.errors import ConfigError
+    from stereosim.core.errors import ConfigError
 
     with pytest.raises(ConfigError, match="must be even"):
         load_config(overrides={"nna.stereo_submodules": 3})

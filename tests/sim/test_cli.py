@@ -7,9 +7,9 @@ import sys
 import numpy as np
 import pytest
 
+from stereosim.core.datasets import shared_data_dir
+from stereosim.core.io import encode_png, read_pfm
 from stereosim.sim.cli import main
-from stereosim.sim.datasets import shared_data_dir
-from stereosim.sim.io import encode_png, read_pfm
 
 DATA = shared_data_dir()
 

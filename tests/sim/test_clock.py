@@ -3,12 +3,12 @@ watchdog, the cycle budget, order independence and the trace hook -- all in exac
 
 import pytest
 
+from stereosim.core.errors import ConfigError, UserError
 from stereosim.sim.cycle.contract import BudgetExceeded, DeadlockError, count_instants
 from stereosim.sim.cycle.readable.clock import Block, KernelError
 from stereosim.sim.cycle.readable.fifo import Fifo
 from stereosim.sim.cycle.readable.kernel import Simulator
 from stereosim.sim.cycle.rules import ClockDomain
-from stereosim.sim.errors import ConfigError, UserError
 
 P = 10_000_000  # 100 MHz in fs
 

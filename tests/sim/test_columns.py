@@ -6,8 +6,8 @@ import re
 import numpy as np
 import pytest
 
+from stereosim.core.io import encode_png, pfm_bytes
 from stereosim.sim.columns import RULES, config_help, describe, guide_text, rule_of
-from stereosim.sim.io import encode_png, pfm_bytes
 from stereosim.sim.sweep import Task, run_task
 from stereosim.sim.sweep_results import CSV_NAME, GUIDE_NAME, finish_results, write_rows
 

@@ -10,7 +10,7 @@ import sys
 
 import numpy as np
 
-from stereosim.sim.io import encode_png
+from stereosim.core.io import encode_png
 
 TRIALS = 6
 

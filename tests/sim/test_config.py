@@ -4,11 +4,7 @@ import itertools
 import numpy as np
 import pytest
 
-from stereosim.nna.census import census, census_bits
-from stereosim.nna.descriptor import compute_descriptor, descriptor_bits
-from stereosim.nna.weights import save_weights
-from stereosim.sim.api import run
-from stereosim.sim.config import (
+from stereosim.core.config import (
     AUTO_BUDGET_FACTOR,
     DESCRIPTOR_DEFAULTS,
     ChipConfig,
@@ -22,9 +18,13 @@ from stereosim.sim.config import (
     parse_set_options,
     sgm_widths,
 )
+from stereosim.core.errors import ConfigError
+from stereosim.nna.census import census, census_bits
+from stereosim.nna.descriptor import compute_descriptor, descriptor_bits
+from stereosim.nna.weights import save_weights
+from stereosim.sim.api import run
 from stereosim.sim.cycle import plan as plan_module
 from stereosim.sim.cycle.plan import build_plan
-from stereosim.sim.errors import ConfigError
 from stereosim.sva.aggregation import box_filter
 from stereosim.sva.cost import hamming_cost
 from stereosim.sva.pipeline import SvaStream

@@ -8,12 +8,12 @@ import shutil
 import numpy as np
 import pytest
 
+from stereosim.core.config import keys_set, layer_notes, load_config
+from stereosim.core.errors import ConfigError, InputError
+from stereosim.core.io import encode_png
 from stereosim.nna.weights import SHIPPED_WEIGHTS
 from stereosim.sim.cli import PRESETS, main
-from stereosim.sim.config import keys_set, layer_notes, load_config
 from stereosim.sim.cycle.plan import DEFAULT_FRAME, build_plan, frame_size
-from stereosim.sim.errors import ConfigError, InputError
-from stereosim.sim.io import encode_png
 
 
 def _write(path, text):

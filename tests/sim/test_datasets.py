@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 import pytest
 
-from stereosim.sim.datasets import (
+from stereosim.core.datasets import (
     LAYOUT_2003,
     LAYOUT_2005,
     LAYOUT_2014,
@@ -19,8 +19,8 @@ from stereosim.sim.datasets import (
     parse_calib,
     shared_data_dir,
 )
-from stereosim.sim.errors import InputError
-from stereosim.sim.io import read_gt, write_pfm
+from stereosim.core.errors import InputError
+from stereosim.core.io import read_gt, write_pfm
 
 DATA = shared_data_dir()
 needs_data = pytest.mark.skipif(

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
+from stereosim.core.config import load_config
 from stereosim.sim.cli import main
-from stereosim.sim.config import load_config
 from stereosim.sim.cycle.estimate import estimate
 from stereosim.sim.cycle.figures import chip_sram
 from stereosim.sim.cycle.lent import lent_report

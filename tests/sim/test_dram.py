@@ -7,7 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from stereosim.sim.config import load_config
+from stereosim.core.config import load_config
+from stereosim.core.errors import ConfigError
 from stereosim.sim.cycle.compiled.run import run_compiled
 from stereosim.sim.cycle.contract import DeadlockError
 from stereosim.sim.cycle.plan import build_plan
@@ -20,7 +21,6 @@ from stereosim.sim.cycle.rules import (
     dram_write_done_fs,
     first_edge_at,
 )
-from stereosim.sim.errors import ConfigError
 
 H, W = 8, 40
 CHIP = {"clocks.nna_mhz": 400, "clocks.sva_mhz": 400, "sva.disparities": 16,

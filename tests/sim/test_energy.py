@@ -9,8 +9,9 @@ import math
 import numpy as np
 import pytest
 
+from stereosim.core.config import load_config
+from stereosim.core.errors import ConfigError
 from stereosim.sim.api import run, run_stream
-from stereosim.sim.config import load_config
 from stereosim.sim.cycle.compiled.run import run_compiled
 from stereosim.sim.cycle.energy import (
     DEFAULT_TABLE,
@@ -21,7 +22,6 @@ from stereosim.sim.cycle.energy import (
 )
 from stereosim.sim.cycle.estimate import estimate, one_frame_cycles
 from stereosim.sim.cycle.plan import build_plan
-from stereosim.sim.errors import ConfigError
 
 SAME = {"clocks.nna_mhz": 400, "clocks.sva_mhz": 400, "sva.disparities": 16}
 

@@ -5,7 +5,7 @@ and block."""
 import numpy as np
 import pytest
 
-from stereosim.sim.config import load_config
+from stereosim.core.config import load_config
 from stereosim.sim.cycle.compiled.run import run_compiled
 from stereosim.sim.cycle.contract import BudgetExceeded, CameraOverflow, DeadlockError
 from stereosim.sim.cycle.plan import build_plan

@@ -10,13 +10,13 @@ import pytest
 from hypothesis import HealthCheck, given, seed, settings
 from hypothesis import strategies as st
 
-from stereosim.sim.config import load_config
+from stereosim.core.config import load_config
+from stereosim.core.errors import UserError
 from stereosim.sim.cycle.compiled.layout import INF, serialise
 from stereosim.sim.cycle.compiled.ring import count_le
 from stereosim.sim.cycle.compiled.run import first_quiet, run_compiled
 from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.cycle.readable.chip import run_readable
-from stereosim.sim.errors import UserError
 from stereosim.traces.vcd import vcd_bytes
 
 NEVER = (1 << 40, (1 << 40) - 1)  # a sink that pops first in cycle 2^40 - 1

@@ -10,11 +10,11 @@ within a beat of its round trip), and within 1 % everywhere in the grid.
 import numpy as np
 import pytest
 
+from stereosim.core.config import load_config
+from stereosim.core.errors import InputError
 from stereosim.sim.api import run, run_stream
-from stereosim.sim.config import load_config
 from stereosim.sim.cycle.contract import CameraOverflow, FrameBufferFull
 from stereosim.sim.cycle.estimate import estimate, paper_analysis, parse_size
-from stereosim.sim.errors import InputError
 from stereosim.sim.summary import format_estimate
 
 SMALL, SPLIT = (20, 112), (16, 48)  # split frames run on the readable engine: keep them tiny

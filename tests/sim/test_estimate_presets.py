@@ -14,9 +14,9 @@ happen."""
 import numpy as np
 import pytest
 
+from stereosim.core.config import load_config
 from stereosim.sim.api import run, run_stream
 from stereosim.sim.cli import PRESETS
-from stereosim.sim.config import load_config
 from stereosim.sim.cycle.estimate import estimate
 
 NAMES = sorted(p.stem for p in PRESETS.glob("*.toml"))

@@ -7,11 +7,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from stereosim.core.errors import ConfigError
 from stereosim.sim.cycle.readable.clock import Block, KernelError
 from stereosim.sim.cycle.readable.fifo import Fifo
 from stereosim.sim.cycle.readable.kernel import Simulator
 from stereosim.sim.cycle.rules import ClockDomain
-from stereosim.sim.errors import ConfigError
 
 
 def _domain(name, period_fs, phase_fs=0):

@@ -15,14 +15,14 @@ import numpy as np
 import pytest
 from plyfile import PlyData
 
+from stereosim.core.config import load_config
+from stereosim.core.errors import ConfigError, InputError
+from stereosim.core.io import encode_png, pfm_bytes, read_pfm
 from stereosim.sim import formats
 from stereosim.sim.api import run
 from stereosim.sim.cli import main
-from stereosim.sim.config import load_config
 from stereosim.sim.cycle.estimate import estimate
-from stereosim.sim.errors import ConfigError, InputError
 from stereosim.sim.formats import Calibration
-from stereosim.sim.io import encode_png, pfm_bytes, read_pfm
 
 NAN, INF = float("nan"), float("inf")
 

@@ -8,12 +8,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from stereosim.sim.config import load_config
+from stereosim.core.config import load_config
+from stereosim.core.errors import ConfigError
 from stereosim.sim.cycle.compiled.run import run_compiled
 from stereosim.sim.cycle.contract import CameraOverflow
 from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.cycle.readable.chip import run_readable
-from stereosim.sim.errors import ConfigError
 
 H, W, N = 16, 40, 6
 # CNN at 400 MHz: a 16x40 frame is 640 descriptors x 9 MAC cycles = 5,760 NNA cycles of work

@@ -19,12 +19,12 @@ import time
 import numpy as np
 import pytest
 
-from stereosim.sim import outputs, signals
+from stereosim.core import outputs, signals
+from stereosim.core.config import ChipConfig, load_config
+from stereosim.core.errors import ConfigError, InputError
+from stereosim.core.io import encode_png
 from stereosim.sim.api import run
 from stereosim.sim.cli import main
-from stereosim.sim.config import ChipConfig, load_config
-from stereosim.sim.errors import ConfigError, InputError
-from stereosim.sim.io import encode_png
 
 RUN_FILES = ("disparity.pfm", "disparity.png", "report.json")
 
@@ -51,7 +51,7 @@ def _cli(argv, capfd):
 
 
 def _one_line_error(code, err):
-    """The one error line of a command that exit 2; numba's compile notice (sim.progress) may
+    """The one error line of a command that exit 2; numba's compile notice (core.progress) may
     come before it when the kernels' cache is cold, as in a run of this file alone."""
     assert code == 2, err
     lines = [ln for ln in err.strip().splitlines() if not ln.startswith("stereosim: compiling")]
@@ -160,7 +160,7 @@ def test_the_api_caps_the_image_size():
 def test_report_json_is_strict_when_a_metric_is_undefined(tmp_path, capfd):
     left, right = _write_pair(tmp_path / "in")
     gt = np.full((20, 48), np.inf, np.float32)  # no known pixel: every metric undefined
-    from stereosim.sim.io import pfm_bytes
+    from stereosim.core.io import pfm_bytes
 
     (tmp_path / "gt.pfm").write_bytes(pfm_bytes(gt))
     code, _, err = _cli(["run", "--mode", "functional", "--left", left, "--right", right, "--gt",
@@ -313,7 +313,7 @@ def _dataset(tmp_path):
         lp, rp = _write_pair(root / name, h=20, w=48)
         lp.rename(root / name / "im0.png")
         rp.rename(root / name / "im1.png")
-    from stereosim.sim.io import pfm_bytes
+    from stereosim.core.io import pfm_bytes
 
     (root / "a_good" / "disp0GT.pfm").write_bytes(pfm_bytes(np.full((20, 48), 3.0, np.float32)))
     (root / "c_corrupt" / "disp0GT.pfm").write_bytes(pfm_bytes(np.full((20, 48), 3.0,
@@ -606,7 +606,7 @@ def _sigterm_at_instruction(k, function):
 
 
 def test_sigterm_at_any_instruction_of_a_file_open_is_one_line(old_run, capfd):
-    """sim.io.open_file hands a descriptor to a file object; a SIGTERM between the two closed
+    """core.io.open_file hands a descriptor to a file object; a SIGTERM between the two closed
     it there and again in the file object: "Bad file descriptor", exit 2. At every instruction
     of it, for both input images: the signal's line and status, the old set intact -- or,
     after the last, a finished run."""
@@ -634,7 +634,7 @@ def test_sigterm_at_any_instruction_of_a_file_open_is_one_line(old_run, capfd):
 def test_sigterm_at_any_instruction_of_an_atomic_write_leaves_no_file(tmp_path):
     """A SIGTERM just after the temporary file's creation, before the code that removes it on
     failure knew its name, left ``.out.bin.XXXX.tmp`` behind. At every instruction of
-    sim.outputs.atomic_write_bytes: the signal stops it, and the folder holds the whole new
+    core.outputs.atomic_write_bytes: the signal stops it, and the folder holds the whole new
     file or nothing."""
     out = tmp_path / "out.bin"
     data = bytes(range(256)) * 64
@@ -710,7 +710,7 @@ def test_a_finalizer_that_fails_once_a_signal_stops_the_command_prints_nothing(o
 # objects are freed), whose finalizer does {late}.
 _SHUTDOWN = """
 import os, signal, sys
-from stereosim.sim import signals
+from stereosim.core import signals
 
 class Late:
     def __del__(self):

@@ -1,4 +1,4 @@
-"""sim.heap: glibc keeps a frame's freed arrays for the next one (no page faults the second
+"""core.heap: glibc keeps a frame's freed arrays for the next one (no page faults the second
 time), and the switch that turns it off."""
 
 import os
@@ -8,7 +8,7 @@ import textwrap
 
 import pytest
 
-from stereosim.sim import heap
+from stereosim.core import heap
 
 GLIBC = sys.platform.startswith("linux") and os.confstr("CS_GNU_LIBC_VERSION") is not None
 
@@ -16,7 +16,7 @@ GLIBC = sys.platform.startswith("linux") and os.confstr("CS_GNU_LIBC_VERSION") i
 PROBE = textwrap.dedent("""
     import resource
     import numpy as np
-    from stereosim.sim import heap
+    from stereosim.core import heap
     print(heap.keep_freed_memory())
     for _ in range(3):
         before = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
@@ -37,7 +37,7 @@ def probe(env_value=None):
     return first == "True", [int(f) for f in faults]
 
 
-@pytest.mark.skipif(not GLIBC, reason="mallopt is glibc's: elsewhere sim.heap changes nothing")
+@pytest.mark.skipif(not GLIBC, reason="mallopt is glibc's: elsewhere core.heap changes nothing")
 def test_a_freed_frame_array_is_reused_without_page_faults():
     """The first array faults its pages in (fewer than 3,072 where numpy asks for huge
     pages); with the thresholds raised the next two reuse the freed block, where glibc by

@@ -15,6 +15,7 @@ import cv2
 import numpy as np
 import pytest
 
+from stereosim.core.io import disparity_to_colour, encode_png
 from stereosim.sim.api import run
 from stereosim.sim.cli import main
 from stereosim.sim.html_report import (
@@ -29,7 +30,6 @@ from stereosim.sim.html_report import (
     html_report,
     latency_ns,
 )
-from stereosim.sim.io import disparity_to_colour, encode_png
 from stereosim.sim.tracing import TraceRequest
 
 H, W, SHIFT, D = 48, 64, 3, 16

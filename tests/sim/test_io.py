@@ -11,10 +11,10 @@ import cv2
 import numpy as np
 import pytest
 
-from stereosim.sim import npz as sim_npz
-from stereosim.sim.datasets import shared_data_dir
-from stereosim.sim.errors import ConfigError, InputError
-from stereosim.sim.io import (
+from stereosim.core import npz as sim_npz
+from stereosim.core.datasets import shared_data_dir
+from stereosim.core.errors import ConfigError, InputError
+from stereosim.core.io import (
     disparity_to_colour,
     encode_png,
     read_gt,
@@ -26,7 +26,7 @@ from stereosim.sim.io import (
     write_disparity_png,
     write_pfm,
 )
-from stereosim.sim.npz import NpzArrays, open_npz
+from stereosim.core.npz import NpzArrays, open_npz
 
 DATA = shared_data_dir()
 needs_data = pytest.mark.skipif(

@@ -1,4 +1,4 @@
-"""numba's cache follows every module a kernel is built from (sim/kernel_cache.py)."""
+"""numba's cache follows every module a kernel is built from (core/kernel_cache.py)."""
 
 from __future__ import annotations
 
@@ -12,9 +12,9 @@ from numba.core import caching
 from numba.core.dispatcher import Dispatcher
 from numba.core.errors import TypingError
 
-from stereosim.sim import kernel_cache
+from stereosim.core import kernel_cache
+from stereosim.core.kernel_cache import ROOT, PackageLocator, digest_of, source_files
 from stereosim.sim.cycle.compiled import fifo, schedule, sva
-from stereosim.sim.kernel_cache import ROOT, PackageLocator, digest_of, source_files
 
 
 def _cached_kernel_modules():
@@ -28,10 +28,10 @@ def _cached_kernel_modules():
 
 def test_every_cached_kernel_of_the_package_uses_the_package_locator():
     """A module that decorated its kernels before the locator was in would keep numba's stamp
-    of its own file alone: each takes ``njit`` from sim.kernel_cache, which installs it."""
+    of its own file alone: each takes ``njit`` from core.kernel_cache, which installs it."""
     seen = 0
     for name, text in _cached_kernel_modules():
-        assert "from stereosim.sim.kernel_cache import njit" in text, name
+        assert "from stereosim.core.kernel_cache import njit" in text, name
         module = importlib.import_module(name)
         for attr, value in vars(module).items():
             cache = getattr(value, "_cache", None)
@@ -96,7 +96,7 @@ import sys
 from pathlib import Path
 
 if sys.argv[2] == "package":
-    from stereosim.sim import kernel_cache
+    from stereosim.core import kernel_cache
 
     kernel_cache.ROOT = Path(sys.argv[1])  # this folder plays the package
 sys.path.insert(0, sys.argv[1])

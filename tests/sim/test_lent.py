@@ -11,14 +11,14 @@ import json
 import numpy as np
 import pytest
 
+from stereosim.core.config import load_config
+from stereosim.core.errors import ConfigError
+from stereosim.core.io import encode_png
 from stereosim.nna.geometry import buffer_rows, share_macs, strided_size
 from stereosim.sim.cli import main
-from stereosim.sim.config import load_config
 from stereosim.sim.cycle.compiled.run import run_compiled
 from stereosim.sim.cycle.lent import _group_cycles, cut_layers, lent_lines, lent_report
 from stereosim.sim.cycle.plan import MAX_RUN_FS, build_plan
-from stereosim.sim.errors import ConfigError
-from stereosim.sim.io import encode_png
 
 H, W = 8, 40
 # census with a 4-row line buffer (window 3, slack 1): a stereo submodule's line-buffer SRAM is

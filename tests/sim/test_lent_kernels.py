@@ -3,9 +3,9 @@ layer's kernel, not only the first's: a later layer of 17 or 65 is one line nami
 
 import pytest
 
-from stereosim.sim.config import load_config
-from stereosim.sim.config.lent import read_lent_network
-from stereosim.sim.errors import ConfigError
+from stereosim.core.config import load_config
+from stereosim.core.config.lent import read_lent_network
+from stereosim.core.errors import ConfigError
 
 
 @pytest.mark.parametrize("kernel", [17, 65])

@@ -16,15 +16,15 @@ import pytest
 import pywellen
 
 import stereosim
+from stereosim.core.config import load_config
+from stereosim.core.errors import ConfigError
+from stereosim.core.io import encode_png
 from stereosim.sim import tracing
 from stereosim.sim.cli import main
-from stereosim.sim.config import load_config
 from stereosim.sim.cycle.compiled.run import run_compiled
 from stereosim.sim.cycle.contract import BudgetExceeded
 from stereosim.sim.cycle.plan import MAX_RUN_FS, STATUS_CODES, build_plan
 from stereosim.sim.cycle.simulate import check_run_time, simulate
-from stereosim.sim.errors import ConfigError
-from stereosim.sim.io import encode_png
 from stereosim.sim.run_files import StopAsked, publish_stop
 
 CENSUS = {"sva.disparities": 16, "nna.descriptor": "census"}
@@ -103,7 +103,7 @@ class _Wave:
 
 
 def _one_line(err: str) -> str:
-    """The error line on stderr, less numba's first-run compile notice (sim.progress)."""
+    """The error line on stderr, less numba's first-run compile notice (core.progress)."""
     lines = [ln for ln in err.splitlines(True) if not ln.startswith("stereosim: compiling")]
     assert len(lines) == 1, lines
     return lines[0]

@@ -6,7 +6,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from stereosim.sim.errors import InputError
+from stereosim.core.errors import InputError
 from stereosim.sim.metrics import (
     BAD_KEYS,
     BAD_THRESHOLDS,

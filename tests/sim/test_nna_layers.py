@@ -26,6 +26,8 @@ import pytest
 from numpy.testing import assert_array_equal
 
 import stereosim.sim.cycle.readable.blocks.nna as nna_block
+from stereosim.core.config import load_config
+from stereosim.core.errors import ConfigError
 from stereosim.nna.descriptor import compute_descriptor
 from stereosim.nna.geometry import (
     Tile,
@@ -37,7 +39,6 @@ from stereosim.nna.geometry import (
 )
 from stereosim.quant.intconv import int_forward_ref, int_layer_rows, signs_ref
 from stereosim.sim.api import run
-from stereosim.sim.config import load_config
 from stereosim.sim.cycle.buffers import BufferOverflow
 from stereosim.sim.cycle.compiled.layout import INF
 from stereosim.sim.cycle.compiled.run import _last as compiled_last
@@ -47,7 +48,6 @@ from stereosim.sim.cycle.contract import BudgetExceeded
 from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.cycle.readable.chip import build_chip, run_readable
 from stereosim.sim.cycle.simulate import simulate
-from stereosim.sim.errors import ConfigError
 from stereosim.traces.vcd import vcd_bytes
 
 MODELS = Path(__file__).resolve().parents[2] / "benchmarks" / "models"

@@ -1,4 +1,4 @@
-"""Writing outputs whole or not at all: sim.outputs (atomic files, checked sets, publish, JSON)."""
+"""Writing outputs whole or not at all: core.outputs (atomic files, checked sets, publish, JSON)."""
 
 from __future__ import annotations
 
@@ -14,9 +14,9 @@ import time
 import numpy as np
 import pytest
 
-from stereosim.sim import outputs, signals
-from stereosim.sim.errors import InputError
-from stereosim.sim.outputs import atomic_write_bytes, check_outputs, json_text, publish
+from stereosim.core import outputs, signals
+from stereosim.core.errors import InputError
+from stereosim.core.outputs import atomic_write_bytes, check_outputs, json_text, publish
 
 
 def test_atomic_write_replaces_and_leaves_no_temp_files(tmp_path):

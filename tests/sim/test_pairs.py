@@ -10,7 +10,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from stereosim.sim.config import load_config
+from stereosim.core.config import load_config
+from stereosim.core.errors import ConfigError
 from stereosim.sim.cycle.compiled.run import run_compiled
 from stereosim.sim.cycle.contract import CameraOverflow
 from stereosim.sim.cycle.frames import functional_words
@@ -23,7 +24,6 @@ from stereosim.sim.cycle.rules import (
     camera_in_lines,
     camera_pixels_streamed,
 )
-from stereosim.sim.errors import ConfigError
 
 H, W = 16, 40
 # CNN at 400 MHz: a 16x40 frame is 640 descriptors x 9 MAC cycles = 5,760 NNA cycles of work

@@ -5,16 +5,16 @@ both cameras named when they overflow together, one dispatcher)."""
 import numpy as np
 import pytest
 
+from stereosim.core.config import load_config
+from stereosim.core.errors import ConfigError, InputError
+from stereosim.core.io import encode_png
 from stereosim.sim.api import run
 from stereosim.sim.cli import main
-from stereosim.sim.config import load_config
 from stereosim.sim.cycle.contract import CameraOverflow
 from stereosim.sim.cycle.estimate import estimate
 from stereosim.sim.cycle.figures import chip_sram, sram_bits
 from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.cycle.simulate import simulate
-from stereosim.sim.errors import ConfigError, InputError
-from stereosim.sim.io import encode_png
 from stereosim.sva.pipeline import SvaStream
 
 SMALL = {"sva.disparities": 16}

@@ -6,8 +6,8 @@ import math
 
 import pytest
 
+from stereosim.core.errors import InputError
 from stereosim.sim import plot
-from stereosim.sim.errors import InputError
 from stereosim.sim.plot import pareto_plot, plot_xy, sweep_pareto, sweep_plots, target_rate
 
 # (sram bits, frame rate) of five points: two reach 60 fps, one just misses it

@@ -3,8 +3,8 @@ analytic work bound is the one its comment derives by hand."""
 
 import pytest
 
+from stereosim.core.config import DESCRIPTOR_DEFAULTS, load_config
 from stereosim.sim.cli import PRESETS, main
-from stereosim.sim.config import DESCRIPTOR_DEFAULTS, load_config
 from stereosim.sim.cycle.estimate import estimate
 
 NAMES = ("paper-720p", "1080p60", "census-baseline", "robust-720p", "hybrid-720p")
@@ -58,7 +58,7 @@ def test_census_baseline_keeps_the_census_penalties():
 
 
 def test_robust_720p_sustains_30_fps_on_the_ten_submodules(monkeypatch, tmp_path):
-    """Its network's weight file is named relative to the preset (sim.config.loader.read_layer)
+    """Its network's weight file is named relative to the preset (core.config.loader.read_layer)
     and found from any working directory; the NNA's work bound at 720p is at least 30 fps on
     10 submodules (5 per camera)."""
     monkeypatch.chdir(tmp_path)  # not the repository: benchmarks/models/... is not here

@@ -16,13 +16,13 @@ import numpy as np
 import pytest
 from numba import typeof
 
-from stereosim.sim.config import load_config
+from stereosim.core.config import load_config
+from stereosim.core.progress import COMPILE_MESSAGE, COMPILED_WITH_HELPER, compile_notice
 from stereosim.sim.cycle.compiled import prewarm as pw
 from stereosim.sim.cycle.compiled.layout import serialise
 from stereosim.sim.cycle.compiled.sampler import record_window, sample
 from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.cycle.simulate import simulate
-from stereosim.sim.progress import COMPILE_MESSAGE, COMPILED_WITH_HELPER, compile_notice
 
 HELPER_DONE = re.compile(re.escape(COMPILED_WITH_HELPER).replace(r"\{seconds:\.1f\}", r"[0-9.]+")
                          .replace(r"\{kernels\}", "([0-9]+)").replace(r"\{helper\}", "([0-9]+)"))

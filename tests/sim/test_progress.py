@@ -1,4 +1,4 @@
-"""Feedback on long work (sim.progress): when bars show, the readable kernel's bar, and the
+"""Feedback on long work (core.progress): when bars show, the readable kernel's bar, and the
 notice while numba compiles (before the first kernel compiles, and how long it took)."""
 
 import importlib.util
@@ -15,17 +15,17 @@ import numpy as np
 import pytest
 from tqdm import tqdm
 
-from stereosim.quant.quantizer import FloatModel, QuantizerConfig, quantize
-from stereosim.sim import progress
-from stereosim.sim.config import load_config
-from stereosim.sim.cycle.readable import kernel
-from stereosim.sim.progress import (
+from stereosim.core import progress
+from stereosim.core.config import load_config
+from stereosim.core.progress import (
     COMPILE_MESSAGE,
     compile_notice,
     poller,
     progress_bar,
     show_progress,
 )
+from stereosim.quant.quantizer import FloatModel, QuantizerConfig, quantize
+from stereosim.sim.cycle.readable import kernel
 
 
 class _Terminal(io.StringIO):
@@ -288,9 +288,9 @@ def test_a_traced_run_announces_the_trace_writers_compile(tmp_path):
     """The VCD writer's kernels (traces/vcd.py), which the notice of a hand-kept module list
     missed, in a process whose numba cache is an empty folder: the notice and the time (the
     writers' own notice reports through the enclosing one)."""
-    code = ("from stereosim.sim.progress import compile_notice; "
+    code = ("from stereosim.core.progress import compile_notice; "
             "from stereosim.sim.tracing import TraceRequest, trace_files; "
-            "from stereosim.traces.synthetic import synthetic_log; "
+            "from stereosim.sim.synthetic_trace import synthetic_log; "
             "log = synthetic_log(50)\n"
             "with compile_notice(delay_s=0):  # (however fast this machine compiles)\n"
             f"    trace_files(log, TraceRequest(vcd={str(tmp_path / 't.vcd')!r}))")

@@ -21,9 +21,9 @@ import numpy as np
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
+from stereosim.core.config import ChipConfig, config_to_dict, load_config
+from stereosim.core.errors import ConfigError, UserError
 from stereosim.sim.api import run
-from stereosim.sim.config import ChipConfig, config_to_dict, load_config
-from stereosim.sim.errors import ConfigError, UserError
 
 EXAMPLES = int(os.environ.get("STEREOSIM_PROPERTY_EXAMPLES", "60"))
 # fields whose extreme legal values make a tiny frame slow without testing anything new

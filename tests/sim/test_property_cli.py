@@ -28,9 +28,9 @@ import pytest
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
+from stereosim.core.io import encode_png, pfm_bytes
+from stereosim.core.progress import COMPILE_MESSAGE
 from stereosim.sim.cli import main
-from stereosim.sim.io import encode_png, pfm_bytes
-from stereosim.sim.progress import COMPILE_MESSAGE
 
 EXAMPLES = int(os.environ.get("STEREOSIM_PROPERTY_EXAMPLES", "40"))
 RUN_FILES = ("disparity.pfm", "disparity.png", "report.json")

@@ -9,8 +9,8 @@ import math
 import numpy as np
 import pytest
 
+from stereosim.core.config import load_config
 from stereosim.sim.api import run
-from stereosim.sim.config import load_config
 from stereosim.sim.cycle.compiled.run import run_compiled
 from stereosim.sim.cycle.figures import architecture_report
 from stereosim.sim.cycle.plan import build_plan

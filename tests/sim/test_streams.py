@@ -11,17 +11,18 @@ import sys
 import numpy as np
 import pytest
 
+from stereosim.core import progress
+from stereosim.core.config import load_config
+from stereosim.core.errors import ConfigError, InputError
+from stereosim.core.io import encode_png, pfm_bytes
 from stereosim.nna.descriptor import compute_descriptor
-from stereosim.sim import api, progress
+from stereosim.sim import api
 from stereosim.sim.api import run, run_stream
 from stereosim.sim.cli import main
-from stereosim.sim.config import load_config
 from stereosim.sim.cycle.compiled.run import run_compiled
 from stereosim.sim.cycle.frames import MAX_FRAMES, FrameSupply, check_frame_count
 from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.cycle.readable.chip import run_readable
-from stereosim.sim.errors import ConfigError, InputError
-from stereosim.sim.io import encode_png, pfm_bytes
 from stereosim.sva.pipeline import sva_stream
 
 # census (1 NNA cycle per descriptor), equal clocks: the worked example of docs/architecture.md

@@ -6,8 +6,8 @@ import dataclasses
 
 import pytest
 
+from stereosim.core.config import load_config
 from stereosim.sim.cli import PRESETS
-from stereosim.sim.config import load_config
 from stereosim.sim.cycle.estimate import estimate
 from stereosim.sim.cycle.figures import nna_fps
 from stereosim.sim.cycle.plan import build_plan, frame_size

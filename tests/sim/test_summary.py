@@ -8,13 +8,13 @@ import json
 import numpy as np
 import pytest
 
+from stereosim.core.config import DESCRIPTOR_DEFAULTS, load_config
+from stereosim.core.errors import InputError
+from stereosim.core.io import encode_png, pfm_bytes
 from stereosim.sim.api import REPORT_VERSION, run, run_stream
 from stereosim.sim.cli import main
-from stereosim.sim.config import DESCRIPTOR_DEFAULTS, load_config
 from stereosim.sim.cycle.estimate import estimate
 from stereosim.sim.cycle.plan import build_plan
-from stereosim.sim.errors import InputError
-from stereosim.sim.io import encode_png, pfm_bytes
 from stereosim.sim.metrics import format_table
 from stereosim.sim.plot import plot_xy, point_labels, time_scale
 from stereosim.sim.summary import (

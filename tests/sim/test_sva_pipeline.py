@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from stereosim.sim.config import load_config
+from stereosim.core.config import load_config
 from stereosim.sim.cycle.compiled.run import run_compiled
 from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.cycle.readable.chip import run_readable

@@ -16,9 +16,9 @@ from pathlib import Path
 import distributed
 import pytest
 
+from stereosim.core.datasets import shared_data_dir
+from stereosim.core.errors import ConfigError
 from stereosim.sim.cli import main
-from stereosim.sim.datasets import shared_data_dir
-from stereosim.sim.errors import ConfigError
 from stereosim.sim.plot import (
     pareto_front,
     pareto_plot,

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from numpy.testing import assert_array_equal
 
-from stereosim.sim.config import load_config
-from stereosim.sim.errors import InputError
+from stereosim.core.config import load_config
+from stereosim.core.errors import InputError
 from stereosim.sva.cost import cost_parts, cost_row_add, hamming_cost, hamming_cost_ref
 from stereosim.sva.noise import band_rows, frame_weights, noise_statistic, noise_statistic_ref
 from stereosim.sva.pipeline import frame_cost, sva_ref, sva_stream

@@ -6,7 +6,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_array_equal
 
-from stereosim.sim.errors import InputError
+from stereosim.core.errors import InputError
 from stereosim.sva.median import (
     NARROW_MAX,
     column_networks,

@@ -9,9 +9,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_array_equal
 
+from stereosim.core.config import load_config
+from stereosim.core.errors import ConfigError, InputError
 from stereosim.nna.census import census
-from stereosim.sim.config import load_config
-from stereosim.sim.errors import ConfigError, InputError
 from stereosim.sva.aggregation import box_filter_ref
 from stereosim.sva.cost import hamming_cost_ref
 from stereosim.sva.pipeline import sva_ref, sva_stream

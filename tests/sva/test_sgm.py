@@ -6,7 +6,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_array_equal
 
-from stereosim.sim.errors import InputError
+from stereosim.core.errors import InputError
 from stereosim.sva.sgm import effective_p2, sgm, sgm_ref
 
 # (19, 1), (23, 2), (40, 3): taller than W + 2, so the top paths' row rings wrap many times

@@ -11,13 +11,13 @@ import pytest
 import pywellen
 import vcdvcd
 
+from stereosim.core.config import load_config
+from stereosim.core.io import read_pfm
 from stereosim.sim.cli import main
-from stereosim.sim.config import load_config
 from stereosim.sim.cycle.compiled.run import run_compiled
 from stereosim.sim.cycle.contract import BudgetExceeded
 from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.cycle.readable.chip import build_chip
-from stereosim.sim.io import read_pfm
 from stereosim.sim.tracing import TraceRequest, run_traced, write_traces
 
 

@@ -11,8 +11,8 @@ import pytest
 import pywellen
 
 from stereosim.sim.cli import main
+from stereosim.sim.synthetic_trace import synthetic_log
 from stereosim.traces.fst import fst_bytes
-from stereosim.traces.synthetic import synthetic_log
 from stereosim.traces.vcd import vcd_bytes
 
 

@@ -14,11 +14,11 @@ import zlib
 
 import pytest
 
-from stereosim.sim.errors import InputError
+from stereosim.core.errors import InputError
+from stereosim.sim.synthetic_trace import synthetic_log
 from stereosim.traces.dumpread import read_dump
 from stereosim.traces.fst import fst_bytes
 from stereosim.traces.fstcheck import MAX_FST_BYTES, checked_fst
-from stereosim.traces.synthetic import synthetic_log
 from stereosim.traces.vcd import vcd_bytes
 from stereosim.traces.vcdread import read_vcd
 

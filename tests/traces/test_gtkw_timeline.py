@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 import vcdvcd
 
-from stereosim.sim.errors import ConfigError
+from stereosim.core.errors import ConfigError
+from stereosim.sim.synthetic_trace import synthetic_log
 from stereosim.traces.gtkw import (
     STATUS_NAMES,
     aliases,
@@ -16,7 +17,6 @@ from stereosim.traces.gtkw import (
     zoom_to_fit,
 )
 from stereosim.traces.log import Clock, Signal, TraceLog, changes_of, select, window
-from stereosim.traces.synthetic import synthetic_log
 from stereosim.traces.timeline import STATUS_NAMES as TIMELINE_STATUS_NAMES
 from stereosim.traces.timeline import timeline_bytes, timeline_events, write_timeline
 from stereosim.traces.vcd import write_vcd

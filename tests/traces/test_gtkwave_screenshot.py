@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from stereosim.sim.synthetic_trace import synthetic_log
 from stereosim.sim.tracing import TraceRequest, trace_files, write_traces
 from stereosim.traces.gtkw import aliases
 from stereosim.traces.log import window
-from stereosim.traces.synthetic import synthetic_log
 
 DOCS = Path(__file__).resolve().parents[2] / "docs"
 

@@ -5,10 +5,10 @@ import dataclasses
 import numpy as np
 import pytest
 
+from stereosim.core.errors import ConfigError
 from stereosim.sim.cycle.readable.clock import Block
 from stereosim.sim.cycle.readable.kernel import Simulator
 from stereosim.sim.cycle.rules import ClockDomain
-from stereosim.sim.errors import ConfigError
 from stereosim.traces.log import Clock, Signal, TraceLog, TraceRecorder, select, validate, window
 
 

@@ -12,10 +12,10 @@ import vcdvcd
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from stereosim.core.errors import ConfigError
 from stereosim.sim.cycle.rules import ClockDomain
-from stereosim.sim.errors import ConfigError
+from stereosim.sim.synthetic_trace import synthetic_log
 from stereosim.traces.log import Clock, Signal, TraceLog, select, window
-from stereosim.traces.synthetic import synthetic_log
 from stereosim.traces.vcd import (
     bound_vcd_bytes,
     clock_edges,

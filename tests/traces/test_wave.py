@@ -9,11 +9,11 @@ import warnings
 import numpy as np
 import pytest
 
+from stereosim.core.errors import InputError, UserError
 from stereosim.sim.cli import _Parser
-from stereosim.sim.errors import InputError, UserError
+from stereosim.sim.synthetic_trace import synthetic_log
 from stereosim.traces.cli import add_wave_parser
 from stereosim.traces.log import changes_of
-from stereosim.traces.synthetic import synthetic_log
 from stereosim.traces.vcd import write_vcd
 from stereosim.traces.vcdread import read_vcd, value_at
 from stereosim.traces.wave import CycleClock, drawable, window_clock, window_units

@@ -13,12 +13,12 @@ import numpy as np
 import pytest
 import pywellen
 
+from stereosim.core.errors import InputError
 from stereosim.sim.cli import main
-from stereosim.sim.errors import InputError
+from stereosim.sim.synthetic_trace import synthetic_log
 from stereosim.traces.dumpread import read_dump
 from stereosim.traces.fst import fst_bytes
 from stereosim.traces.gtkw import STATUS_NAMES
-from stereosim.traces.synthetic import synthetic_log
 from stereosim.traces.vcd import vcd_bytes
 from stereosim.traces.vcdread import read_vcd
 from stereosim.traces.wave import match_vars, wave_figure

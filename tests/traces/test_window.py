@@ -4,9 +4,9 @@ resolution into femtoseconds for a chip plan (sim.tracing.window_fs)."""
 import numpy as np
 import pytest
 
-from stereosim.sim.config import load_config
+from stereosim.core.config import load_config
+from stereosim.core.errors import ConfigError
 from stereosim.sim.cycle.plan import build_plan
-from stereosim.sim.errors import ConfigError
 from stereosim.sim.tracing import window_fs
 from stereosim.traces.window import Window, parse_window
 

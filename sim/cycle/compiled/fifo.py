@@ -17,10 +17,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from stereosim.core.kernel_cache import njit, njit_borrowing
 from stereosim.sim.cycle.compiled.layout import ERR_RING, FIFO_TO_MERGE, FIFO_TO_NNA, INF
 from stereosim.sim.cycle.compiled.ring import at, rd, view
 from stereosim.sim.cycle.rules import seen_from, seen_from_scaled
-from stereosim.sim.kernel_cache import njit, njit_borrowing
 
 # ---- items and streams --------------------------------------------------------------------------
 

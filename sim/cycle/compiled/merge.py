@@ -11,6 +11,7 @@ off the same events.
 
 from __future__ import annotations
 
+from stereosim.core.kernel_cache import njit, njit_borrowing
 from stereosim.sim.cycle.compiled.layout import (
     A_BLOCKED,
     A_BUSY,
@@ -22,7 +23,6 @@ from stereosim.sim.cycle.compiled.layout import (
 )
 from stereosim.sim.cycle.compiled.ring import busy, event, lt_at, ratio, rd, view
 from stereosim.sim.cycle.rules import seen_from, seen_from_scaled
-from stereosim.sim.kernel_cache import njit, njit_borrowing
 
 
 @njit(cache=True, inline="always")

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from stereosim.core.kernel_cache import njit, njit_borrowing
 from stereosim.sim.cycle.compiled.layout import (
     A_BLOCKED,
     A_BUSY,
@@ -54,7 +55,6 @@ from stereosim.sim.cycle.rules import (
     nna_rows_started_before_input,
     seen_from_scaled,
 )
-from stereosim.sim.kernel_cache import njit, njit_borrowing
 
 # ---- the line buffer's pops ---------------------------------------------------------------------
 

@@ -27,8 +27,8 @@ the kernels are the same functions with the same types, whichever process compil
   its time: whatever it did not compile, the run compiles itself as before. It is killed when
   this process leaves :func:`prewarm` in any way (an interrupt included), and it exits when
   its input closes (this process gone).
-- The compile notice (:func:`sim.progress.compile_notice`) counts the helper's kernels and
-  says how long this process waited for it (:meth:`~sim.progress.CompileWatch.add_helper`).
+- The compile notice (:func:`core.progress.compile_notice`) counts the helper's kernels and
+  says how long this process waited for it (:meth:`~core.progress.CompileWatch.add_helper`).
 - ``STEREOSIM_PREWARM=0`` in the environment switches it off (one process compiles all).
 """
 
@@ -49,6 +49,8 @@ import time
 import numpy as np
 from numba import typeof
 
+from stereosim.core.errors import UserError
+from stereosim.core.progress import compile_notice, current_watch
 from stereosim.nna.descriptor import compute_descriptor
 from stereosim.quant.intconv import descriptor_dtype
 from stereosim.sim.cycle.compiled.layout import TraceData, serialise
@@ -57,8 +59,6 @@ from stereosim.sim.cycle.compiled.sampler import next_instant, record_window, sa
 from stereosim.sim.cycle.compiled.schedule import advance_streams, walk_all
 from stereosim.sim.cycle.compiled.source import note_source_wait
 from stereosim.sim.cycle.plan import ChipPlan, build_plan
-from stereosim.sim.errors import UserError
-from stereosim.sim.progress import compile_notice, current_watch
 from stereosim.sva.pipeline import sva_stream
 
 #: the longest this process waits for the helper before it goes on alone (a safety net:

@@ -8,8 +8,8 @@ reference counting in the loops).
 
 from __future__ import annotations
 
+from stereosim.core.kernel_cache import njit
 from stereosim.sim.cycle.compiled.layout import INF, SVA_ISSUE
-from stereosim.sim.kernel_cache import njit
 
 NEVER = -(1 << 40)  # the previous issue tick before the SVA's first word
 

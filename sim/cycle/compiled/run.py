@@ -18,6 +18,7 @@ import time
 
 import numpy as np
 
+from stereosim.core.kernel_cache import njit
 from stereosim.nna.descriptor import compute_descriptor
 from stereosim.sim.cycle.buffers import buffer_report
 from stereosim.sim.cycle.compiled.fifo import fifo_counts as fifo_state
@@ -72,7 +73,6 @@ from stereosim.sim.cycle.rules import (
     seen_from,
     sink_allowed_between,
 )
-from stereosim.sim.kernel_cache import njit
 from stereosim.sva.pipeline import sva_stream
 from stereosim.traces.log import TraceLog
 

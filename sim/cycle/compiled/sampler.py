@@ -14,6 +14,7 @@ blocked.
 
 from __future__ import annotations
 
+from stereosim.core.kernel_cache import njit
 from stereosim.sim.cycle.compiled.fifo import counts_at, sample_fifo
 from stereosim.sim.cycle.compiled.layout import (
     INF,
@@ -30,7 +31,6 @@ from stereosim.sim.cycle.compiled.ring import cursors_at
 from stereosim.sim.cycle.compiled.sink import sample_sink, status_sink
 from stereosim.sim.cycle.compiled.source import sample_source, status_camera, status_memory
 from stereosim.sim.cycle.compiled.sva import sample_sva, status_sva
-from stereosim.sim.kernel_cache import njit
 
 
 @njit(cache=True)

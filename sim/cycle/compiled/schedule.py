@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from stereosim.core.kernel_cache import njit_borrowing
 from stereosim.sim.cycle.compiled import fifo, merge, nna, sink, source, sva
 from stereosim.sim.cycle.compiled.layout import (
     END_CAP,
@@ -38,7 +39,6 @@ from stereosim.sim.cycle.compiled.layout import (
 )
 from stereosim.sim.cycle.compiled.ring import rd, view
 from stereosim.sim.cycle.compiled.windows import walk_windows
-from stereosim.sim.kernel_cache import njit_borrowing
 
 
 @njit_borrowing(cache=True)

@@ -14,6 +14,7 @@ at an instant is read off the same events.
 
 from __future__ import annotations
 
+from stereosim.core.kernel_cache import njit
 from stereosim.sim.cycle.compiled.layout import (
     A_BLOCKED,
     A_BUSY,
@@ -34,7 +35,6 @@ from stereosim.sim.cycle.rules import (
     sink_may_pop,
     sink_next_allowed,
 )
-from stereosim.sim.kernel_cache import njit
 
 
 @njit(cache=True, inline="always")

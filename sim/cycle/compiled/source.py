@@ -21,6 +21,7 @@ reports at an instant (status, traced signals).
 
 from __future__ import annotations
 
+from stereosim.core.kernel_cache import njit, njit_borrowing
 from stereosim.sim.cycle.compiled.layout import (
     A_BLOCKED,
     A_BUSY,
@@ -49,7 +50,6 @@ from stereosim.sim.cycle.rules import (
     seen_from,
     seen_from_scaled,
 )
-from stereosim.sim.kernel_cache import njit, njit_borrowing
 
 FRAME_BUFFERS = -2  # what a memory source reading a camera's frame buffers waits on
 DRAM = -3  # what a memory source (its read burst) or the sink (its write buffer) waits on

@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from stereosim.core.kernel_cache import njit, njit_borrowing
 from stereosim.sim.cycle.compiled.layout import (
     A_BLOCKED,
     A_BUSY,
@@ -81,7 +82,6 @@ from stereosim.sim.cycle.rules import (
     sva_slot,
     sva_tick_at,
 )
-from stereosim.sim.kernel_cache import njit, njit_borrowing
 
 # ---- the pipeline in closed form ----------------------------------------------------------------
 

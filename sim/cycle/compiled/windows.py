@@ -7,8 +7,8 @@ the row instants the blocks' loops note in ``Net.occ`` (``TILE.occ_in`` / ``occ_
 
 from __future__ import annotations
 
+from stereosim.core.kernel_cache import njit_borrowing
 from stereosim.sim.cycle.compiled.layout import ERR_RING
-from stereosim.sim.kernel_cache import njit_borrowing
 
 
 @njit_borrowing(cache=True)

@@ -13,7 +13,9 @@ from collections.abc import Callable
 
 import numpy as np
 
-from stereosim.sim.config import ChipConfig
+from stereosim.core.config import ChipConfig
+from stereosim.core.errors import UserError
+from stereosim.core.progress import poller, progress_bar
 from stereosim.sim.cycle.buffers import buffer_report, windows_of
 from stereosim.sim.cycle.contract import (
     CameraOverflow,
@@ -40,8 +42,6 @@ from stereosim.sim.cycle.readable.fifo import Fifo
 from stereosim.sim.cycle.readable.kernel import Simulator
 from stereosim.sim.cycle.report import cycle_report
 from stereosim.sim.cycle.rules import camera_frame_start, sink_may_pop, sink_pattern
-from stereosim.sim.errors import UserError
-from stereosim.sim.progress import poller, progress_bar
 from stereosim.traces.log import TraceRecorder
 
 

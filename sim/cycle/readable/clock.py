@@ -24,9 +24,9 @@ checked against it cycle for cycle. docs/clock-kernel.md states the rules with t
 
 from __future__ import annotations
 
+from stereosim.core.errors import ConfigError
 from stereosim.sim.cycle.contract import ACTIVITIES, activity_counts
 from stereosim.sim.cycle.rules import ClockDomain
-from stereosim.sim.errors import ConfigError
 
 
 class KernelError(RuntimeError):

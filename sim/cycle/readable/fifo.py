@@ -25,10 +25,10 @@ from __future__ import annotations
 
 from collections import deque
 
+from stereosim.core.errors import ConfigError
 from stereosim.sim.cycle.contract import fifo_counts
 from stereosim.sim.cycle.readable.clock import KernelError
 from stereosim.sim.cycle.rules import ClockDomain, check_int, fifo_edges
-from stereosim.sim.errors import ConfigError
 
 
 class Fifo:

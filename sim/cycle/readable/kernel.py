@@ -10,6 +10,7 @@ from __future__ import annotations
 import random
 from collections.abc import Callable
 
+from stereosim.core.errors import ConfigError
 from stereosim.sim.cycle.contract import (
     BUDGET_HEAD,
     BudgetExceeded,
@@ -21,7 +22,6 @@ from stereosim.sim.cycle.contract import (
 from stereosim.sim.cycle.readable.clock import Block, KernelError
 from stereosim.sim.cycle.readable.fifo import Fifo
 from stereosim.sim.cycle.rules import ClockDomain, check_int
-from stereosim.sim.errors import ConfigError
 
 # Steps between two calls of Simulator.run's on_progress (some tens per second).
 PROGRESS_STEPS = 4096

@@ -51,9 +51,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from stereosim.core.config import NnaConfig
 from stereosim.nna.descriptor import census_of, compute_descriptor, hybrid_word, network
 from stereosim.quant.intconv import int_layer_rows
-from stereosim.sim.config import NnaConfig
 from stereosim.sim.cycle.plan import STATUS_CODES, BlockPlan, ChipPlan
 from stereosim.sim.cycle.readable.beats import DescriptorBeat
 from stereosim.sim.cycle.readable.blocks.base import ChipBlock

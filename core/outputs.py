@@ -13,7 +13,7 @@ Three tools, used by every command that writes files:
   moved aside first and renamed in last, so a manifest is there only when every file it
   describes is. The switch is journalled: before the first rename the primary staging folder
   (the manifest's) gets ``journal.json``, every rename in order. From the journal to the end
-  of the clean-up SIGINT/SIGTERM/SIGHUP are held back (:func:`sim.signals.held`). If a rename
+  of the clean-up SIGINT/SIGTERM/SIGHUP are held back (:func:`core.signals.held`). If a rename
   fails, the files switched already are put back from hard-link backups. A process killed
   mid-switch (SIGKILL cannot be held back) leaves its staging folders; the next publish into
   any folder of the set finds them (the process id in their name is dead) and rolls a
@@ -26,7 +26,7 @@ Three tools, used by every command that writes files:
 :func:`json_text` is the project's one JSON encoder: non-finite numbers become ``null`` and the
 result is always strict JSON (``allow_nan=False``).
 
-Every ``OSError`` becomes an :class:`sim.errors.InputError` with one line naming the path.
+Every ``OSError`` becomes an :class:`core.errors.InputError` with one line naming the path.
 """
 
 from __future__ import annotations
@@ -45,8 +45,8 @@ from pathlib import Path
 
 import numpy as np
 
-from stereosim.sim import signals
-from stereosim.sim.errors import InputError
+from stereosim.core import signals
+from stereosim.core.errors import InputError
 
 STAGE_PREFIX = ".stereosim-stage-"
 LOCK_TIMEOUT_S = 60.0

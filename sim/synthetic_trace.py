@@ -17,7 +17,7 @@ import dataclasses
 
 import numpy as np
 
-from stereosim.sim.config import ClockConfig
+from stereosim.core.config import ClockConfig
 from stereosim.sim.cycle.rules import ClockDomain
 from stereosim.traces.log import Clock, Signal, TraceLog
 

@@ -1,10 +1,10 @@
 """Loading the configuration: defaults, then a TOML file, then dotted-key overrides.
 
-:func:`load_config` reads the file (:func:`~sim.config.files.read_toml`: one line for every
+:func:`load_config` reads the file (:func:`~core.config.files.read_toml`: one line for every
 way a file can be unusable), applies ``--set`` overrides, fills the keys left unset that depend
-on others -- the descriptor's tuned back end (:data:`~sim.config.schema.DESCRIPTOR_DEFAULTS`)
+on others -- the descriptor's tuned back end (:data:`~core.config.schema.DESCRIPTOR_DEFAULTS`)
 and the register widths that follow the descriptor, box, P2 and paths (:func:`derived_widths`)
--- and checks the result once (:func:`sim.config.check.checked_chip`).
+-- and checks the result once (:func:`core.config.check.checked_chip`).
 """
 
 from __future__ import annotations
@@ -16,11 +16,11 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
-from stereosim.sim.census_layout import comparison_offsets
-from stereosim.sim.config.backend import BACKEND_KEYS, carried_backend
-from stereosim.sim.config.check import _build, checked_chip
-from stereosim.sim.config.files import read_toml
-from stereosim.sim.config.schema import (
+from stereosim.core.census_layout import comparison_offsets
+from stereosim.core.config.backend import BACKEND_KEYS, carried_backend
+from stereosim.core.config.check import _build, checked_chip
+from stereosim.core.config.files import read_toml
+from stereosim.core.config.schema import (
     DEFAULT_DESCRIPTOR,
     DESCRIPTOR_DEFAULTS,
     CensusConfig,
@@ -28,8 +28,8 @@ from stereosim.sim.config.schema import (
     CnnConfig,
     SvaConfig,
 )
-from stereosim.sim.config.widths import CNN_BITS, largest_cost, sgm_widths
-from stereosim.sim.errors import ConfigError
+from stereosim.core.config.widths import CNN_BITS, largest_cost, sgm_widths
+from stereosim.core.errors import ConfigError
 
 
 def _parse_value(text: str, key: str):
@@ -185,9 +185,9 @@ def _descriptor_defaults(tree: dict) -> None:
 
 
 def tuned_backend(tree: dict) -> tuple[dict, bool]:
-    """The back end (:data:`~sim.config.backend.BACKEND_KEYS`) the configuration tree's
+    """The back end (:data:`~core.config.backend.BACKEND_KEYS`) the configuration tree's
     descriptor was tuned with, and whether its CNN weight file carries it
-    (:func:`~sim.config.backend.carried_backend`); else the descriptor's
+    (:func:`~core.config.backend.carried_backend`); else the descriptor's
     :data:`DESCRIPTOR_DEFAULTS` (none for a malformed tree, left for :func:`_build`)."""
     nna = tree.get("nna", {})
     if not isinstance(nna, dict):
@@ -208,7 +208,7 @@ def tuned_backend(tree: dict) -> tuple[dict, bool]:
 def _part_bits(nna: dict, key: str) -> int | None:
     """Bits of the descriptor part ``key`` (census or cnn) of the NNA table ``nna`` (defaults
     where unset), as far as the configuration knows it: the census's comparisons
-    (:mod:`sim.census_layout`; at most 64, more is refused when the census is built), the CNN's
+    (:mod:`core.census_layout`; at most 64, more is refused when the census is built), the CNN's
     ``nna.cnn.channels``; None for a malformed table (:func:`_build` reports it)."""
     cls = CensusConfig if key == "census" else CnnConfig
     sub = nna.get(key, {})
@@ -239,7 +239,7 @@ def descriptor_width(nna: dict) -> int:
 
 
 def table_largest_cost(nna: dict, sva: dict) -> int:
-    """:func:`~sim.config.widths.largest_cost` of the NNA and SVA tables (defaults where
+    """:func:`~core.config.widths.largest_cost` of the NNA and SVA tables (defaults where
     unset; a malformed weight set counts as its default, left for :func:`_build` to
     report)."""
     meta = {f.name: f.default for f in dataclasses.fields(SvaConfig)}

@@ -1,8 +1,8 @@
 """The checks of a configuration, run once where it enters.
 
 One rule set for every configuration, however it was built: each value against its declaration
-in :mod:`sim.config.schema` (type, range, choices, oddness), then the rules that involve several
-keys (:func:`check_combinations`). :func:`sim.config.load_config` runs them on the tree it read,
+in :mod:`core.config.schema` (type, range, choices, oddness), then the rules that involve several
+keys (:func:`check_combinations`). :func:`core.config.load_config` runs them on the tree it read,
 :func:`check_config` on a :class:`ChipConfig` built by hand or with ``dataclasses.replace``,
 :func:`check_section` on one section given to a stage's entry point.
 
@@ -26,9 +26,9 @@ from typing import Any
 
 import numpy as np
 
-from stereosim.sim.config.lent import read_lent_network
-from stereosim.sim.config.schema import RETIRED, SECTIONS, ChipConfig
-from stereosim.sim.errors import ConfigError
+from stereosim.core.config.lent import read_lent_network
+from stereosim.core.config.schema import RETIRED, SECTIONS, ChipConfig
+from stereosim.core.errors import ConfigError
 
 # id -> the object that passed the checks; an entry goes with its object
 _CHECKED: weakref.WeakValueDictionary = weakref.WeakValueDictionary()
@@ -56,7 +56,7 @@ def checked_chip(tree: dict) -> ChipConfig:
 
 
 def check_config(cfg) -> ChipConfig:
-    """The same checks as :func:`sim.config.load_config` for a configuration built any other
+    """The same checks as :func:`core.config.load_config` for a configuration built any other
     way (by hand, with ``dataclasses.replace``): every section of the right class, every value of
     its declared type and in range, every combination legal. Returns the checked configuration
     (values normalised: numpy scalars become Python numbers, lists become tuples) -- ``cfg``

@@ -6,8 +6,8 @@ from __future__ import annotations
 import tomllib
 from pathlib import Path
 
-from stereosim.sim.errors import ConfigError, UserError
-from stereosim.sim.outputs import path_text
+from stereosim.core.errors import ConfigError, UserError
+from stereosim.core.outputs import path_text
 
 
 def read_toml(path, what: str, error: type[UserError] = ConfigError) -> dict:

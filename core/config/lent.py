@@ -27,9 +27,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from stereosim.sim.config.files import read_toml
-from stereosim.sim.errors import ConfigError
-from stereosim.sim.outputs import path_text
+from stereosim.core.config.files import read_toml
+from stereosim.core.errors import ConfigError
+from stereosim.core.outputs import path_text
 
 # field -> (lo, hi) of the integers a file may give
 _INPUT = {"width": (1, 8192), "height": (1, 8192), "channels": (1, 4096)}

@@ -6,7 +6,7 @@ A command's :class:`Handler` turns these signals into exceptions in the main thr
 128 + the signal's number with one line (:func:`exit_line`). Three more rules close the gaps a
 plain handler leaves:
 
-* :func:`held` blocks the signals for a stretch that must not be cut: :func:`sim.outputs.publish`
+* :func:`held` blocks the signals for a stretch that must not be cut: :func:`core.outputs.publish`
   holds them from the moment it switches a set until its clean-up is done, so a signal lands
   before the switch (the old set stays) or after it (the new set is complete, which
   :func:`note_published` records and the exit line says).

@@ -1,5 +1,5 @@
 """Reading and writing images, disparity maps, ground truth and masks (``.npz`` archives:
-:mod:`sim.npz`, on this module's bounded file reader).
+:mod:`core.npz`, on this module's bounded file reader).
 
 Everything here works on plain numpy arrays with fixed dtypes:
 
@@ -10,14 +10,14 @@ Everything here works on plain numpy arrays with fixed dtypes:
 - masks are ``uint8`` ``(H, W)`` grey levels.
 
 Anything wrong with a file the user handed in (missing, unreadable, a folder, a path too long,
-corrupt, too large, wrong bit depth or format) raises :class:`sim.errors.InputError` with one line
+corrupt, too large, wrong bit depth or format) raises :class:`core.errors.InputError` with one line
 naming the file and saying how to fix it: no ``OSError`` gets out, and what OpenCV, libpng, libjpeg
 (and FFmpeg, for videos) print on stderr is caught (:func:`native_stderr_caught`). Every read is
 bounded before memory is committed: an image, GT or mask holds at most ``max_pixels`` pixels
 (:data:`MAX_PIXELS`), read from the PNG or JPEG header before decoding (other formats: after);
 a PFM's declared size is checked the same way.
 
-Files are written atomically (:func:`sim.outputs.atomic_write_bytes`) so a reader never sees half
+Files are written atomically (:func:`core.outputs.atomic_write_bytes`) so a reader never sees half
 a file, and PNG output is byte-identical for identical input.
 """
 
@@ -37,9 +37,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from stereosim.sim import signals
-from stereosim.sim.errors import InputError
-from stereosim.sim.outputs import atomic_write_bytes, describe_os_error, path_text
+from stereosim.core import signals
+from stereosim.core.errors import InputError
+from stereosim.core.outputs import atomic_write_bytes, describe_os_error, path_text
 
 # Integer BT.601 luma weights in 1/256: 77 + 150 + 29 == 256, so white stays 255.
 _LUMA_R, _LUMA_G, _LUMA_B = 77, 150, 29

@@ -6,8 +6,8 @@ from __future__ import annotations
 import dataclasses
 from typing import Any
 
-from stereosim.sim.config.loader import derived_widths, table_largest_cost, tuned_backend
-from stereosim.sim.config.schema import DESCRIPTOR_DEFAULTS, ChipConfig
+from stereosim.core.config.loader import derived_widths, table_largest_cost, tuned_backend
+from stereosim.core.config.schema import DESCRIPTOR_DEFAULTS, ChipConfig
 
 
 def config_to_dict(cfg) -> dict:
@@ -36,7 +36,7 @@ def _toml_value(v) -> str:
 def _auto_keys(cfg, set_keys) -> dict[str, str]:
     """The keys left to be worked out that hold the worked-out value and were not set by the
     user: the descriptor's tuned values (:data:`DESCRIPTOR_DEFAULTS`) and the register widths
-    that follow the box, P2 and paths (:func:`~sim.config.loader.derived_widths`): dotted key
+    that follow the box, P2 and paths (:func:`~core.config.loader.derived_widths`): dotted key
     -> why."""
     defaults, carried = tuned_backend({"nna": dataclasses.asdict(cfg.nna)})
 

@@ -2,16 +2,16 @@
 
 Frozen dataclasses, one per block, nested in :class:`ChipConfig`. Every field declares its type,
 its legal range or choices and a one-line help text (:func:`param`); the checks
-(:mod:`sim.config.check`) read them from here, the loader (:mod:`sim.config.loader`) builds
+(:mod:`core.config.check`) read them from here, the loader (:mod:`core.config.loader`) builds
 the object from the defaults, a TOML file and dotted-key overrides, and the writer
-(:mod:`sim.config.writer`) prints it as TOML.
+(:mod:`core.config.writer`) prints it as TOML.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from stereosim.sim.config.widths import CNN_BITS, sgm_widths
+from stereosim.core.config.widths import CNN_BITS, sgm_widths
 
 LEGAL_DISPARITIES = tuple(range(16, 257, 16))
 
@@ -21,7 +21,7 @@ LEGAL_DISPARITIES = tuple(range(16, 257, 16))
 # the adaptive P2's slope, the box, then the cost, path and sum registers just wide enough for
 # that box and P2. A configuration that does not set a key gets the value of its
 # nna.descriptor; a key set in a file or with --set wins. The register widths it does not set
-# follow its own box, P2 and paths (sim.config.loader.derived_widths), so that a what-if on the
+# follow its own box, P2 and paths (core.config.loader.derived_widths), so that a what-if on the
 # box or the penalties does not saturate the registers sized for the tuned values.
 DESCRIPTOR_DEFAULTS = {
     "census": {"p1": 256, "p2": 2048, "p2_adaptive": True, "p2_slope": 512, "box_size": 7},
@@ -52,13 +52,13 @@ _DEFAULT_WIDTHS = sgm_widths(DESCRIPTOR_DEFAULTS[DEFAULT_DESCRIPTOR]["p2"],
 #: message of a run that exhausts it quote this number.
 AUTO_BUDGET_FACTOR = 20
 
-# Every class below has a weakref slot: the checks (sim.config.check) remember which objects
+# Every class below has a weakref slot: the checks (core.config.check) remember which objects
 # passed them by weak reference, so that a checked configuration is trusted, not checked again.
 
 
 def param(default, help: str, *, lo=None, hi=None, choices=None, odd=False, path=False):
     """A config field with its validation rules in the metadata. ``path``: the value names a
-    file, which a config file gives relative to its own folder (:mod:`sim.config.loader`);
+    file, which a config file gives relative to its own folder (:mod:`core.config.loader`);
     the default value names none."""
     meta = {"help": help, "lo": lo, "hi": hi, "choices": choices, "odd": odd, "path": path}
     return field(default=default, metadata=meta)
@@ -140,10 +140,10 @@ class NnaConfig:
 class SvaConfig:
     """The stereo accelerator. Accuracy defaults (box, P1, P2, adaptive P2, checks, median) come
     from the protocol of docs/tuning.md; register widths left unset are the narrowest that never
-    saturate with the configured descriptor (:func:`sim.config.loader.descriptor_width`: the
+    saturate with the configured descriptor (:func:`core.config.loader.descriptor_width`: the
     census's bits, the CNN's ``nna.cnn.channels``) at the configured box, P2 and paths: box sums
     <= box^2 * bits, a path cost <= that + P2, the sum of the paths' costs
-    (:func:`sim.config.widths.sgm_widths`)."""
+    (:func:`core.config.widths.sgm_widths`)."""
 
     disparities: int = param(
         128, "disparity range D (d in [0, D)); multiple of 16 in [16, 256]",
@@ -374,7 +374,7 @@ RETIRED = {
                       "its layers and frame rate; give them as nna.lent_network (docs/lent.md)",
 }
 
-#: The sections a stage's entry point may check on their own (:func:`sim.config.check_section`).
+#: The sections a stage's entry point may check on their own (:func:`core.config.check_section`).
 SECTIONS = {"nna.": NnaConfig, "sva.": SvaConfig, "clocks.": ClockConfig,
             "source.": SourceConfig, "fifo.": FifoConfig, "sim.": SimConfig,
             "dram.": DramConfig}

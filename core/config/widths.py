@@ -2,7 +2,7 @@
 
 The cost, path and sum registers (``sva.cost_bits``, ``path_bits``, ``sum_bits``) are keys of
 the configuration: a user may set them, and ``stereosim config show`` prints the ones left unset
-as "auto". So they are worked out when the configuration is loaded (:mod:`sim.config.loader`),
+as "auto". So they are worked out when the configuration is loaded (:mod:`core.config.loader`),
 before any chip plan exists, from this one rule; the schema's defaults use it too, and the plan
 and the stages read the widths from the configuration.
 """
@@ -33,7 +33,7 @@ def largest_cost(parts: tuple[int, ...], weight_sets: tuple[tuple[int, ...], ...
 
 
 def weight_sets(sva) -> tuple[tuple[int, ...], ...]:
-    """The weight sets a configured SVA (an :class:`~sim.config.schema.SvaConfig`) may match a
+    """The weight sets a configured SVA (an :class:`~core.config.schema.SvaConfig`) may match a
     hybrid frame with: ``cost_weights``, and ``noisy_weights`` with ``weight_mode`` auto."""
     sets = (tuple(sva.cost_weights),)
     return sets + ((tuple(sva.noisy_weights),) if sva.weight_mode == "auto" else ())

@@ -4,8 +4,8 @@ A descriptor network is only as good as the penalties and box it is matched with
 reports the robust network at 6.24 at its own P1/P2 and 6.87 at the single layer's). So a
 weight file (an ``.npz``: :mod:`nna.weights`, :mod:`quant.artifact`) may carry a member
 ``backend``: a TOML table of the :data:`BACKEND_KEYS` it was tuned with. When the configuration
-runs that file, the keys it leaves unset take the file's values (:mod:`sim.config.loader`), as
-they take :data:`~sim.config.schema.DESCRIPTOR_DEFAULTS` for a file that carries none, of
+runs that file, the keys it leaves unset take the file's values (:mod:`core.config.loader`), as
+they take :data:`~core.config.schema.DESCRIPTOR_DEFAULTS` for a file that carries none, of
 which the CLI says one line (:func:`backend_note`). ``stereosim config backend FILE`` shows a
 file's back end and writes one into it (:func:`write_backend`).
 """
@@ -18,10 +18,10 @@ import tomllib
 
 import numpy as np
 
-from stereosim.sim.config.schema import DESCRIPTOR_DEFAULTS, SvaConfig
-from stereosim.sim.errors import ConfigError
-from stereosim.sim.npz import open_npz
-from stereosim.sim.outputs import atomic_write_bytes, path_text
+from stereosim.core.config.schema import DESCRIPTOR_DEFAULTS, SvaConfig
+from stereosim.core.errors import ConfigError
+from stereosim.core.npz import open_npz
+from stereosim.core.outputs import atomic_write_bytes, path_text
 
 #: The SVA keys a network's back end sets: those each descriptor has a tuned value of.
 BACKEND_KEYS = tuple(DESCRIPTOR_DEFAULTS["cnn"])

@@ -5,25 +5,25 @@ its legal range or choices and a one-line help text; :func:`load_config` builds 
 the defaults, an optional TOML file and dotted-key overrides, and rejects unknown keys and bad
 values with the key's dotted name. ``stereosim config show`` prints the result as TOML.
 
-The package's modules, bottom up: :mod:`~sim.config.widths` (the rule of the automatic register
-widths), :mod:`~sim.config.schema` (the declarations), :mod:`~sim.config.files` (reading a TOML
-file), :mod:`~sim.config.lent` (the file of the network on lent NNA submodules),
-:mod:`~sim.config.check` (the checks, run once where a configuration enters),
-:mod:`~sim.config.loader` (TOML file and overrides) and :mod:`~sim.config.writer` (TOML out,
+The package's modules, bottom up: :mod:`~core.config.widths` (the rule of the automatic register
+widths), :mod:`~core.config.schema` (the declarations), :mod:`~core.config.files` (reading a TOML
+file), :mod:`~core.config.lent` (the file of the network on lent NNA submodules),
+:mod:`~core.config.check` (the checks, run once where a configuration enters),
+:mod:`~core.config.loader` (TOML file and overrides) and :mod:`~core.config.writer` (TOML out,
 diffs). Their public names are imported from here.
 """
 
-from stereosim.sim.config.check import check_config, check_section, is_checked
-from stereosim.sim.config.files import read_toml
-from stereosim.sim.config.lent import LentLayer, LentNetwork, read_lent_network
-from stereosim.sim.config.loader import (
+from stereosim.core.config.check import check_config, check_section, is_checked
+from stereosim.core.config.files import read_toml
+from stereosim.core.config.lent import LentLayer, LentNetwork, read_lent_network
+from stereosim.core.config.loader import (
     descriptor_width,
     keys_set,
     layer_notes,
     load_config,
     parse_set_options,
 )
-from stereosim.sim.config.schema import (
+from stereosim.core.config.schema import (
     AUTO_BUDGET_FACTOR,
     DEFAULT_DESCRIPTOR,
     DESCRIPTOR_DEFAULTS,
@@ -42,8 +42,8 @@ from stereosim.sim.config.schema import (
     SvaConfig,
     param,
 )
-from stereosim.sim.config.widths import CNN_BITS, sgm_widths
-from stereosim.sim.config.writer import config_diff, config_to_dict, config_to_toml
+from stereosim.core.config.widths import CNN_BITS, sgm_widths
+from stereosim.core.config.writer import config_diff, config_to_dict, config_to_toml
 
 __all__ = [
     "AUTO_BUDGET_FACTOR", "CNN_BITS", "DEFAULT_DESCRIPTOR", "DESCRIPTOR_DEFAULTS",

@@ -29,8 +29,8 @@ from pathlib import Path
 
 import numpy as np
 
-from stereosim.sim.errors import InputError
-from stereosim.sim.io import (
+from stereosim.core.errors import InputError
+from stereosim.core.io import (
     MAX_PIXELS,
     is_file,
     is_folder,
@@ -176,7 +176,7 @@ def _scene_subfolders(folder: Path) -> list[Path]:
 
 def scene_files(scenes) -> list[tuple[Path, str]]:
     """The files of these scenes (:class:`Scene` objects or folders) as ``(path, "scene file")``
-    inputs for :func:`sim.outputs.check_outputs`: no output may replace one."""
+    inputs for :func:`core.outputs.check_outputs`: no output may replace one."""
     return [(p, "scene file") for s in scenes
             for p in (s if isinstance(s, Scene) else find_scene(s)).files]
 
@@ -222,7 +222,7 @@ def parse_calib(path: str | os.PathLike) -> dict[str, int | float | str]:
     Numbers become ``int`` or ``float``; anything else (the ``cam0``/``cam1`` matrices such as
     ``[999.421 0 294.182; 0 999.421 252.932; 0 0 1]``) stays a string. Spaces around the key and
     the value are ignored; blank lines are skipped. The file is ASCII and at most
-    :data:`sim.io.MAX_TEXT_FILE_BYTES` long.
+    :data:`core.io.MAX_TEXT_FILE_BYTES` long.
     """
     p = Path(path)
     text = read_text(p, "calibration")

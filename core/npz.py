@@ -1,7 +1,7 @@
 """Reading ``.npz`` archives (NNA weights, quantized artifacts, float models) bounded before
 anything is inflated: the zip directory and every member's ``.npy`` header are checked first
 (:func:`open_npz`), so an empty file, a header claiming 10^13 elements, a member that is not an
-``.npy`` or a zip bomb is one :class:`sim.errors.ConfigError` line naming the file."""
+``.npy`` or a zip bomb is one :class:`core.errors.ConfigError` line naming the file."""
 
 from __future__ import annotations
 
@@ -12,8 +12,8 @@ import zlib
 
 import numpy as np
 
-from stereosim.sim.errors import ConfigError
-from stereosim.sim.io import mib, open_file, path_text
+from stereosim.core.errors import ConfigError
+from stereosim.core.io import mib, open_file, path_text
 
 # The largest total of array bytes an .npz archive may hold: 256 MiB, over 2000 times the
 # largest file the project writes (the shipped layer is 11 KB, a float mccnn4 model 112 KB).
