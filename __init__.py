@@ -12,27 +12,31 @@ This one top-level package holds the project's folders as sub-packages (``pyproj
 them), bottom up: :mod:`stereosim.core` (errors, configuration, files, the kernel cache),
 :mod:`stereosim.quant` (the integer arithmetic and the quantizer), :mod:`stereosim.nna`
 and :mod:`stereosim.sva` (the two accelerators' stages), :mod:`stereosim.traces` (waveforms)
-and :mod:`stereosim.sim` (the cycle model and the application). Like ``stereosim.sim``,
-it imports only the core here: the API's names resolve on first use (PEP 562), so that
-``import stereosim.nna.census`` does not load the whole application.
+and :mod:`stereosim.sim` (the cycle model and the application). The names come from
+``stereosim.sim``, which imports only the core: the API's names resolve on first use (PEP 562,
+by ``stereosim.sim``'s own resolution), as ``read_pfm`` / ``write_pfm`` do, so that
+``import stereosim.nna.census_unit.census`` does not load the whole application.
 """
 
-from stereosim.core.config import ChipConfig, load_config
-from stereosim.core.errors import ConfigError, InputError, UserError
+from stereosim.sim import (
+    API,
+    ChipConfig,
+    ConfigError,
+    InputError,
+    UserError,
+    load_config,
+)
+from stereosim.sim import __getattr__ as _api_name
 
-__all__ = ["ChipConfig", "ConfigError", "FrameOutput", "InputError", "Result", "Stream",
-           "UserError", "load_config", "load_scene", "read_pfm", "run", "run_stream",
-           "write_pfm"]
-_API = ("run", "Result", "run_stream", "Stream", "FrameOutput", "load_scene")
-_IO = ("read_pfm", "write_pfm")
+#: the Middlebury PFM files' reader and writer (:mod:`stereosim.core.io`), resolved on first use
+IO = ("read_pfm", "write_pfm")
+__all__ = ["ChipConfig", "ConfigError", "InputError", "UserError", "load_config", *API, *IO]
 
 
 def __getattr__(name):
-    if name in _API:
-        from stereosim.sim import api
-
-        return getattr(api, name)
-    if name in _IO:
+    if name in API:
+        return _api_name(name)
+    if name in IO:
         from stereosim.core import io
 
         return getattr(io, name)

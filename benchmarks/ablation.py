@@ -4,10 +4,11 @@ Every row goes through the same SVA back end (box filter, SGM, WTA, sub-pixel, L
 with the same settings; only the descriptor and its matching cost change:
 
 * ``census``: the 32-bit census at its own tuned P1/P2 (``nna.descriptor = census``);
-* for each variant of ``nna.trainconfig.VARIANTS`` whose float and int8 files are in the models
+* for each variant of ``nna.training.trainconfig.VARIANTS`` whose float and int8 files are in the
+models
   folder (or those ``--variants`` names), at the CNN's tuned P1/P2:
   ``float cosine`` (the float network's outputs compared by cosine, cost on the Hamming scale,
-  :func:`sva.cost.cosine_cost`), ``float sign`` (signs of the float outputs, Hamming) and
+  :func:`sva.hamming.cost.cosine_cost`), ``float sign`` (signs of the float outputs, Hamming) and
   ``int8 sign`` (signs of the integer network's accumulators, Hamming -- what the chip runs).
 
 Metrics: mean over the 15 scenes of bad2 / invalid / totbad / avgerr on the nonocc mask, in
@@ -43,16 +44,16 @@ from stereosim.core.errors import UserError
 from stereosim.core.io import to_grey
 from stereosim.core.outputs import atomic_write_bytes
 from stereosim.core.progress import progress_bar
-from stereosim.nna.census import census
-from stereosim.nna.floatmodel import load_float_model
-from stereosim.nna.trainconfig import VARIANTS
+from stereosim.nna.census_unit.census import census
+from stereosim.nna.training.floatmodel import load_float_model
+from stereosim.nna.training.trainconfig import VARIANTS
 from stereosim.quant.artifact import load_quantized
 from stereosim.quant.intconv import int_forward
 from stereosim.quant.quantizer import float_forward
 from stereosim.sim.metrics import evaluate
-from stereosim.sva.cost import cosine_cost
-from stereosim.sva.pipeline import sva_cost_volume, sva_stream
-from stereosim.sva.wta import to_float
+from stereosim.sva.hamming.cost import cosine_cost
+from stereosim.sva.pipeline.pipeline import sva_cost_volume, sva_stream
+from stereosim.sva.wta.wta import to_float
 
 ROOT = Path(__file__).resolve().parents[1]
 MODELS = ROOT / "benchmarks" / "models"
@@ -69,7 +70,7 @@ def model_paths(models_dir: Path, variant: str) -> tuple[Path, Path]:
     """(float model, quantized artifact) of a variant; single9x9's artifact is the shipped one."""
     quant = models_dir / f"{variant}.int8.npz"
     if variant == "single9x9" and not quant.exists():
-        quant = ROOT / "nna" / "single9x9.npz"
+        quant = ROOT / "nna" / "conv" / "single9x9.npz"
     return models_dir / f"{variant}.float.npz", quant
 
 

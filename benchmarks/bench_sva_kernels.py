@@ -15,7 +15,7 @@ stream's d-loop does both), the "wta" and "right disparity" lines time the volum
 the median line the 5x5 median of a frame of the middle row's output words (the fused line
 has no median: BENCH_CONFIG).
 
-    python benchmarks/bench_sva_kernels.py [--repeat 9]
+    python benchmarks/bench_sva_kernels.py [--repeat 9] [--write-result]
 """
 
 from __future__ import annotations
@@ -26,17 +26,18 @@ import time
 import cv2
 import numpy as np
 import skimage.data
+from machine import describe, result_file
 
 from stereosim.core.config import load_config
 from stereosim.core.kernel_cache import njit
 from stereosim.nna.descriptor import compute_descriptor, descriptor_bits
-from stereosim.sva.aggregation import box_filter, box_start, box_step
-from stereosim.sva.cost import cost_row_update, hamming_cost, reverse_row
-from stereosim.sva.lr_check import lr_check_row, new_diagonal_buffers, right_disparity_row
-from stereosim.sva.median import median
-from stereosim.sva.pipeline import sva_stream
-from stereosim.sva.sgm import new_path_buffers, sgm, sgm_params, sgm_pixel, sgm_row_start
-from stereosim.sva.wta import disparity_index, subpixel_mode_code, wta, wta_pixel
+from stereosim.sva.box.aggregation import box_filter, box_start, box_step
+from stereosim.sva.hamming.cost import cost_parts, cost_row_update, hamming_cost, reverse_row
+from stereosim.sva.lr.lr_check import lr_check_row, new_diagonal_buffers, right_disparity_row
+from stereosim.sva.median.median import median
+from stereosim.sva.pipeline.pipeline import sva_stream
+from stereosim.sva.sgm.sgm import new_path_buffers, sgm, sgm_params, sgm_pixel, sgm_row_start
+from stereosim.sva.wta.wta import disparity_index, subpixel_mode_code, wta, wta_pixel
 
 WIDTH, HEIGHT = 1280, 720
 # pinned so the figures do not move with the defaults; the rest (penalties, register widths,
@@ -68,7 +69,7 @@ def frame():
 
 
 @njit(cache=True)
-def _bench_cost_vertical(desc_l, desc_r, dn, k):
+def _bench_cost_vertical(desc_l, desc_r, dn, k, cost):
     h, w = desc_l.shape
     r = k // 2
     colsum = np.zeros((w, dn), np.uint16)
@@ -79,7 +80,7 @@ def _bench_cost_vertical(desc_l, desc_r, dn, k):
         y_out = max(y - 1 - r, 0)
         reverse_row(desc_r[y_in], rev_in)
         reverse_row(desc_r[y_out], rev_out)
-        cost_row_update(desc_l[y_in], rev_in, desc_l[y_out], rev_out, colsum)
+        cost_row_update(desc_l[y_in], rev_in, desc_l[y_out], rev_out, cost, colsum)
     return colsum
 
 
@@ -154,7 +155,16 @@ def best_of(fn, repeat):
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=9)
+    parser.add_argument("--write-result", action="store_true",
+                        help="also append the output to "
+                             "benchmarks/results/<script>-<date>-<cpu>.md")
     args = parser.parse_args()
+    with result_file("bench_sva_kernels", args.write_result):
+        measure(args)
+
+
+def measure(args) -> None:
+    print(f"machine: {describe()}")
     cv2.setNumThreads(1)
     grey_l, grey_r, desc_l, desc_r = frame()
     cfg = load_config(overrides=BENCH_CONFIG).sva
@@ -177,7 +187,8 @@ def main() -> None:
     q, dint = wta(s, uniqueness=cfg.uniqueness, subpixel=cfg.subpixel, frac_bits=cfg.subpixel_bits)
     mid = 16
     agg_row = np.minimum(agg[mid], (1 << cfg.path_bits) - 1)
-    colsum = _bench_cost_vertical(desc_l[strip], desc_r[strip], dn, k)
+    regs = cost_parts(BITS).registers(desc_l.dtype)
+    colsum = _bench_cost_vertical(desc_l[strip], desc_r[strip], dn, k, regs)
     mode = subpixel_mode_code(cfg.subpixel)
     params = sgm_params(
         cfg.paths, cfg.p1, cfg.p2, cfg.p2_adaptive, cfg.p2_slope, cfg.path_bits, cfg.sum_bits
@@ -185,7 +196,7 @@ def main() -> None:
 
     words = np.repeat(q[mid:mid + 1], HEIGHT, 0)  # a frame of output words for the median
     stages = {
-        "cost + vertical box (per row)": lambda: _bench_cost_vertical(desc_l, desc_r, dn, k),
+        "cost + vertical box (per row)": lambda: _bench_cost_vertical(desc_l, desc_r, dn, k, regs),
         "horizontal box (per pixel)": lambda: _bench_box_horizontal(
             colsum, k, np.uint16((1 << cfg.cost_bits) - 1), HEIGHT
         ),

@@ -4,7 +4,8 @@ with weights trained without it.
 The shipped weights were trained on all 25 tuning scenes, so on those scenes they are scored on
 their own training data, and a recipe's lead there need not carry over to scenes it never saw
 (docs/learned-descriptor.md). This script scores a recipe the honest way: train it once per
-fold, leaving that fold out (the tuning's own folds, ``nna.traindata.cv_folds``), quantise, then
+fold, leaving that fold out (the tuning's own folds, ``nna.training.traindata.cv_folds``),
+quantise, then
 
     stereosim train --variant single9x9 --seed 0 --leave-out-fold K/5 --out wK.float.npz
     stereosim quantize wK.float.npz --calib ../shared/data --out wK.npz          # K = 0..4
@@ -29,7 +30,7 @@ from robustness import CONDITIONS
 from tune_defaults import KEYS, fmt, mean_of, sweep, tuning_root, tuning_scenes
 
 from stereosim.core.errors import UserError
-from stereosim.nna.traindata import cv_folds
+from stereosim.nna.training.traindata import cv_folds
 
 
 def fold_held_rows(table: list, fold_of: np.ndarray) -> np.ndarray:

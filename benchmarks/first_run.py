@@ -1,6 +1,6 @@
 """The first `stereosim run` after an install: its wall time on an empty numba cache.
 
-    python benchmarks/first_run.py [--repeat 3] [--alone] [-- RUN ARGS ...]
+    python benchmarks/first_run.py [--repeat 3] [--alone] [--write-result] [-- RUN ARGS ...]
 
 Each repetition runs ``stereosim run --out TMP [RUN ARGS]`` (the embedded default scene unless
 the arguments name a pair) in a fresh process whose ``NUMBA_CACHE_DIR`` is a new empty folder,
@@ -21,7 +21,7 @@ import sys
 import tempfile
 import time
 
-from machine import describe
+from machine import describe, result_file
 
 NOTICE = re.compile(r"stereosim: compiling took .*")
 
@@ -44,8 +44,16 @@ def main(argv=None) -> int:
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--alone", action="store_true",
                     help="also run each repetition without the helper process (in turn)")
+    ap.add_argument("--write-result", action="store_true",
+                    help="also append the output to benchmarks/results/<script>-<date>-<cpu>.md")
     ap.add_argument("run_args", nargs="*", help="after --: arguments of stereosim run")
     args = ap.parse_args(argv)
+    with result_file("first_run", args.write_result):
+        measure(args)
+    return 0
+
+
+def measure(args) -> None:
     print(f"machine: {describe()}")
     kinds = [True, False] if args.alone else [True]
     walls: dict[bool, list[float]] = {k: [] for k in kinds}

@@ -44,7 +44,7 @@ from stereosim.nna.geometry import (
     layer_macs_per_pixel,
     mac_shares,
 )
-from stereosim.nna.trainconfig import VARIANTS
+from stereosim.nna.training.trainconfig import VARIANTS
 from stereosim.sim.api import run, run_stream
 from stereosim.sim.cycle.figures import submodule_report
 from stereosim.sim.cycle.plan import build_plan

@@ -49,9 +49,9 @@ from stereosim.core.io import to_grey
 from stereosim.nna.descriptor import compute_descriptor, descriptor_parts, hybrid_word
 from stereosim.sim.api import run
 from stereosim.sim.metrics import evaluate
-from stereosim.sva.noise import band_rows, noise_statistic
-from stereosim.sva.pipeline import sva_stream
-from stereosim.sva.wta import to_float
+from stereosim.sva.hamming.noise import band_rows, noise_statistic
+from stereosim.sva.pipeline.pipeline import sva_stream
+from stereosim.sva.wta.wta import to_float
 
 ROBUST = "benchmarks/models/mixed5x5-wide-n6.int8.npz"
 CONDITIONS = ("clean", "noise 8", "exposure", "blur")

@@ -1,7 +1,7 @@
 """Peak resident memory of one cycle-model frame (CNN descriptor, D = 128) at 1280x720,
 1920x1080 and 3840x2160, each in a fresh process, with the sizes of what it must hold.
 
-    python benchmarks/memory_cycle.py [--sizes 1280x720,1920x1080,3840x2160]
+    python benchmarks/memory_cycle.py [--sizes 1280x720,1920x1080,3840x2160] [--write-result]
 
 The frame is the default scene resized. What the run keeps besides the two images, their
 descriptors and the output: the compiled engine's event rings (a few rows of every stream,
@@ -18,6 +18,7 @@ import subprocess
 import sys
 
 import cv2
+from machine import describe, result_file
 
 from stereosim.core.config import load_config
 from stereosim.core.datasets import default_scene
@@ -47,11 +48,19 @@ def child(size: str) -> None:
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", default="1280x720,1920x1080,3840x2160")
+    ap.add_argument("--write-result", action="store_true",
+                    help="also append the output to benchmarks/results/<script>-<date>-<cpu>.md")
     ap.add_argument("--child", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.child:
         child(args.child)
         return
+    with result_file("memory_cycle", args.write_result):
+        measure(args)
+
+
+def measure(args) -> None:
+    print(f"machine: {describe()}")
     print("peak RSS of one cycle-model frame (CNN, D=128), each in a fresh process:")
     for size in args.sizes.split(","):
         out = subprocess.run([sys.executable, __file__, "--child", size], capture_output=True,

@@ -1,5 +1,5 @@
 """Synthesise the RTL twin's stages with Yosys and write the cached table that `stereosim rtl
-synth` and the plan's `silicon` section read (sva/rtl/synth_table.json).
+synth` and the plan's `silicon` section read (sva/synth_table.json).
 
     python benchmarks/rtl_synth.py [--whole LANES,...] [--out PATH] [--cache PATH]
 

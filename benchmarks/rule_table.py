@@ -14,13 +14,18 @@ import re
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("sim", "nna", "sva", "quant", "traces")
+PACKAGES = ("core", "sim", "nna", "sva", "quant", "traces")
 # the modules whose public definitions are the chip's rules, in the table's order
-SOURCES = ("sim/cycle/rules.py", "sim/cycle/stages.py", "sim/cycle/plan.py",
-           "sim/cycle/figures.py", "sim/cycle/buffers.py", "sim/cycle/contract.py",
-           "nna/geometry.py", "sva/geometry.py")
+# (a block's own rule is in its folder: sva/<stage>/timing.py, nna/submodule/timing.py)
+SOURCES = ("sim/cycle/rules.py", "sim/cycle/fifo/rule.py", "sim/cycle/stages.py",
+           "sim/cycle/plan.py", "sim/cycle/figures.py", "sim/cycle/buffers.py",
+           "sim/cycle/contract.py", "core/timing.py", "nna/geometry.py",
+           "nna/submodule/timing.py", "sva/geometry.py", "sva/hamming/timing.py",
+           "sva/box/timing.py", "sva/sgm/timing.py", "sva/wta/timing.py", "sva/lr/timing.py",
+           "sva/median/timing.py")
 # who reads a rule, by where the reading module lives (the first match names it)
-READERS = (("readable engine", "sim/cycle/readable/"), ("compiled engine", "sim/cycle/compiled/"),
+READERS = (("FIFO block", "sim/cycle/fifo/"), ("readable engine", "sim/cycle/readable/"),
+           ("compiled engine", "sim/cycle/compiled/"),
            ("driver", "sim/cycle/simulate.py"), ("estimate", "sim/cycle/estimate.py"),
            ("plan", "sim/cycle/plan.py"), ("stages", "sim/cycle/stages.py"),
            ("buffers", "sim/cycle/buffers.py"), ("contract", "sim/cycle/contract.py"),
@@ -28,7 +33,7 @@ READERS = (("readable engine", "sim/cycle/readable/"), ("compiled engine", "sim/
            ("reports", "sim/cycle/figures.py"),
            ("frames", "sim/cycle/frames.py"), ("traces", "traces/"), ("traces", "sim/tracing.py"),
            ("application", "sim/"), ("NNA stages", "nna/"), ("SVA stages", "sva/"),
-           ("integer arithmetic", "quant/"))
+           ("integer arithmetic", "quant/"), ("core", "core/"))
 SUMMARY_CHARS = 150
 
 

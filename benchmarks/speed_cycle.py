@@ -9,6 +9,7 @@ machine's load shows in both).
 
     python benchmarks/speed_cycle.py [--repeat 3] [--engine fast|readable] [--split]
                                      [--set KEY=VALUE ...] [--versus KEY=VALUE ...]
+                                     [--write-result]
 
 ``--engine readable`` is the reference kernel (about 1e5 cycles/s: minutes per frame); ``--engine
 fast`` or the default is the compiled engine (sim/cycle/engine). ``--split`` runs one more frame
@@ -32,7 +33,7 @@ import sys
 import time
 
 import cv2
-from machine import describe
+from machine import describe, result_file
 
 from stereosim.core.config import load_config
 from stereosim.core.config.loader import parse_set_options
@@ -94,11 +95,18 @@ def main(argv=None):
     ap.add_argument("--versus", action="append", default=[], metavar="KEY=VALUE",
                     help="a second configuration (the --set ones plus these), run in turn with "
                          "the first; prints its time over the first's")
+    ap.add_argument("--write-result", action="store_true",
+                    help="also append the output to benchmarks/results/<script>-<date>-<cpu>.md")
     ap.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.child:
         one_frame_child(args.engine, args.split, args.set)
         return
+    with result_file("speed_cycle", args.write_result):
+        measure(args)
+
+
+def measure(args) -> None:
     left, right = frame()
     cv2.setNumThreads(1)
     sgbm = cv2.StereoSGBM_create(0, 128, 5, P1=8 * 25, P2=32 * 25, disp12MaxDiff=1,

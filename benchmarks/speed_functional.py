@@ -7,7 +7,7 @@ best of --repeat runs; stereosim and single-threaded OpenCV alternate run by run
 the same (shared, noisy) machine. Single-threaded: cv2.setNumThreads(1); the stereosim kernels
 are single-threaded. The 2-thread OpenCV figure is printed for reference.
 
-    python benchmarks/speed_functional.py [--repeat 5]
+    python benchmarks/speed_functional.py [--repeat 5] [--descriptor cnn] [--write-result]
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ import time
 
 import cv2
 import numpy as np
-from machine import describe
+from machine import describe, result_file
 
 from stereosim.core.datasets import default_scene
 from stereosim.core.io import to_grey
@@ -40,7 +40,14 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--descriptor", default="census", choices=("census", "cnn"))
+    ap.add_argument("--write-result", action="store_true",
+                    help="also append the output to benchmarks/results/<script>-<date>-<cpu>.md")
     args = ap.parse_args(argv)
+    with result_file("speed_functional", args.write_result):
+        measure(args)
+
+
+def measure(args) -> None:
     scene = default_scene()
     left = cv2.resize(to_grey(scene["left"]), (1280, 720), interpolation=cv2.INTER_LINEAR)
     right = cv2.resize(to_grey(scene["right"]), (1280, 720), interpolation=cv2.INTER_LINEAR)

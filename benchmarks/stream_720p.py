@@ -1,7 +1,7 @@
 """A stream of 720p frames through the cycle model: per-frame cost against OpenCV StereoSGBM and
 peak memory for streams of different lengths, each in a fresh process.
 
-    python benchmarks/stream_720p.py [--frames 60 600] [--set KEY=VALUE ...]
+    python benchmarks/stream_720p.py [--frames 60 600] [--set KEY=VALUE ...] [--write-result]
 
 For each length N a child process runs ``stereosim.run_stream`` on the embedded scene resized to
 1280x720 (the pair repeated N times; cycle counts do not depend on the pixels), iterates over
@@ -19,6 +19,8 @@ import resource
 import subprocess
 import sys
 import time
+
+from machine import describe, result_file
 
 
 def child(frames: int, overrides: dict) -> dict:
@@ -65,6 +67,8 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--frames", type=int, nargs="+", default=[60, 600])
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
+    ap.add_argument("--write-result", action="store_true",
+                    help="also append the output to benchmarks/results/<script>-<date>-<cpu>.md")
     ap.add_argument("--child", type=int, help=argparse.SUPPRESS)
     args = ap.parse_args()
     overrides = {}
@@ -74,6 +78,13 @@ def main() -> int:
     if args.child:
         print(json.dumps(child(args.child, overrides)))
         return 0
+    with result_file("stream_720p", args.write_result):
+        measure(args)
+    return 0
+
+
+def measure(args) -> None:
+    print(f"machine: {describe()}")
     results = []
     for n in args.frames:
         cmd = [sys.executable, __file__, "--child", str(n)] + [f"--set={s}" for s in args.set]
@@ -92,7 +103,6 @@ def main() -> int:
         a, b = results[0]["peak_rss_mib"], results[-1]["peak_rss_mib"]
         print(f"peak RSS {results[-1]['frames']} vs {results[0]['frames']} frames: "
               f"{b / a:.3f}x (target within 1.10)")
-    return 0
 
 
 if __name__ == "__main__":

@@ -3,7 +3,8 @@
 The protocol (docs/tuning.md), enforced here:
 
 * **Tuning scenes**: Middlebury 2005 (without Art, which is MiddEval3's ArtL) and 2006,
-  third size -- the scenes the descriptor is trained on (``nna.traindata.training_scene_dirs``).
+  third size -- the scenes the descriptor is trained on
+  (``nna.training.traindata.training_scene_dirs``).
   ``--data`` names the shared data folder; the script reads nothing else for a choice.
 * **Held out**: MiddEval3 trainingQ and the 2003 scenes. They are never used for a choice:
   ``--heldout`` scores the chosen point on them *after* the choice, and prints them as a
@@ -54,7 +55,7 @@ from stereosim.core.datasets import (
 from stereosim.core.errors import UserError
 from stereosim.core.io import to_grey
 from stereosim.core.progress import progress_bar
-from stereosim.nna.traindata import cv_folds, training_scene_dirs
+from stereosim.nna.training.traindata import cv_folds, training_scene_dirs
 from stereosim.sim.api import run
 
 KEYS = ("bad2", "invalid", "totbad", "avgerr")

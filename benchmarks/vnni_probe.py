@@ -3,7 +3,7 @@
 (:func:`quant.vnni.vnni_signs`, what ``int_signs`` takes on a CPU that has them); the
 descriptors must be equal bit for bit.
 
-    python benchmarks/vnni_probe.py [--repeat 7]
+    python benchmarks/vnni_probe.py [--repeat 7] [--write-result]
 
 A CPU without AVX512-VNNI gets one line and exit 2.
 """
@@ -17,7 +17,7 @@ import time
 
 import cv2
 import numpy as np
-from machine import describe
+from machine import describe, result_file
 
 from stereosim.core.config import load_config
 from stereosim.core.datasets import default_scene
@@ -40,11 +40,18 @@ def _best(repeat: int, vnni: bool, img, cfg) -> tuple[float, np.ndarray]:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=7)
+    ap.add_argument("--write-result", action="store_true",
+                    help="also append the output to benchmarks/results/<script>-<date>-<cpu>.md")
     args = ap.parse_args(argv)
     if not vnni.HAS_VNNI:
         print("vnni_probe: this CPU has no AVX512-VNNI; the probe needs it (AMD Zen 4, Intel Ice "
               "Lake and later have it)", file=sys.stderr)
         return 2
+    with result_file("vnni_probe", args.write_result):
+        return measure(args)
+
+
+def measure(args) -> int:
     print(f"machine: {describe()}")
     cfg = load_config(overrides={"nna.descriptor": "cnn"}).nna
     scene = default_scene()

@@ -1,8 +1,9 @@
 """Which pixels the census compares: the layout rule, and so its bit count, in one place.
 
 The configuration (:mod:`core.config`) needs the bit count to size the SVA's registers before any
-stage exists, and :mod:`nna.census` needs the offsets to compute the descriptor; both read them
-from here. No validation: :func:`nna.census.census_offsets` checks the parameters.
+stage exists, and :mod:`nna.census_unit.census` needs the offsets to compute the descriptor; both
+read them
+from here. No validation: :func:`nna.census_unit.census.census_offsets` checks the parameters.
 """
 
 from __future__ import annotations

@@ -1,10 +1,12 @@
 """numba's on-disk cache of the kernels, kept in step with the whole package's source.
 
 numba keys a cached kernel on its own file's content only. A kernel that calls or inlines
-kernels of other modules (the fused SVA stream inlines sva/sgm.py's, sva/cost.py's, ...; the
+kernels of other modules (the fused SVA stream inlines sva/sgm/sgm.py's, sva/hamming/cost.py's,
+...; the
 compiled engine's kernels call each other across sim/cycle/compiled/), or freezes a constant
-of another module, holds their code too: after an edit of sva/sgm.py numba served the fused
-stream of sva/pipeline.py from its cache as it was before the edit -- stale machine code, with
+of another module, holds their code too: after an edit of sva/sgm/sgm.py numba served the fused
+stream of sva/pipeline/pipeline.py from its cache as it was before the edit -- stale machine code,
+with
 nothing to say so.
 
 :class:`PackageLocator` finds the same cache folder as numba's own locators but stamps every
@@ -43,7 +45,7 @@ _IMPL = getattr(caching, "CacheImpl", None) or caching._CacheImpl
 # the package's root: stereosim/ (the checkout in an editable install)
 ROOT = Path(__file__).resolve().parents[1]
 # the folders whose modules kernels are built from (the package's sub-packages)
-SOURCE_FOLDERS = ("sim", "nna", "sva", "quant", "traces")
+SOURCE_FOLDERS = ("core", "sim", "nna", "sva", "quant", "traces")
 
 
 def source_files(root: Path | None = None) -> list[Path]:

@@ -6,7 +6,7 @@ The hybrid descriptor is one word per pixel of two parts: the CNN's ``C`` sign b
 all). The NNA computes both: the census unit sits beside the MAC array and reads the same
 input rows (:mod:`nna.geometry`: the census rows a network of several layers adds to its
 submodule). The SVA matches the word part by part with the weighted sum of the two Hamming
-distances (:mod:`sva.cost`). A census window taller than the network's receptive field would
+distances (:mod:`sva.hamming.cost`). A census window taller than the network's receptive field would
 make a descriptor wait for rows the network does not, so its half height is at most the
 network's reach."""
 
@@ -21,9 +21,9 @@ import numpy as np
 
 from stereosim.core.config import NnaConfig, check_section
 from stereosim.core.errors import ConfigError
-from stereosim.nna.census import census, census_bits
-from stereosim.nna.conv import network_descriptor
-from stereosim.nna.weights import SHIPPED_WEIGHTS, load_network
+from stereosim.nna.census_unit.census import census, census_bits
+from stereosim.nna.conv.conv import network_descriptor
+from stereosim.nna.conv.weights import SHIPPED_WEIGHTS, load_network
 from stereosim.quant.intconv import IntNetwork
 
 

@@ -1,6 +1,6 @@
 """The int8 artifact of a quantised network: :class:`QuantizedModel`, its checks and its file.
 
-``stereosim quantize`` (:mod:`quant.quantizer`) writes it; the NNA (:mod:`nna.weights`) reads
+``stereosim quantize`` (:mod:`quant.quantizer`) writes it; the NNA (:mod:`nna.conv.weights`) reads
 the single-layer descriptor network from it. The file is an ``.npz`` archive in the format
 ``stereosim-quant-v1``: per layer ``weights_l`` (int8), ``bias_l`` (int32), ``weight_scales_l``
 and, between layers, ``mult_l`` / ``shift_l``; plus the input offset and scale, ``z_bits``, the
@@ -101,7 +101,8 @@ def to_nna_weights(qm: QuantizedModel) -> tuple[np.ndarray, np.ndarray, int]:
 def save_quantized(path, qm: QuantizedModel) -> None:
     """Validate ``qm`` and write it as .npz (exact name, atomically: a reader sees the old file
     or the whole new one). A single-layer model also gets the keys
-    ``weights``, ``bias``, ``input_offset`` so :func:`nna.weights.load_weights` reads the file."""
+    ``weights``, ``bias``, ``input_offset`` so :func:`nna.conv.weights.load_weights` reads the
+    file."""
     check_quantized(qm)
     arrays = {
         "format": np.array(FORMAT),

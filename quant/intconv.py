@@ -19,7 +19,7 @@ Definition (for an input image ``img`` uint8 (H, W) and ``L`` layers):
   ``>>`` is an arithmetic shift, i.e. ``floor(v / 2**h)`` also for negative ``v``; a shift of 63 or
   more gives ``0`` or ``-1`` (the limit of the floor), which the clamp turns into 0.
 * The output of the last layer is its int32 accumulator, returned as (H, W, C) like
-  :func:`nna.conv.cnn_accumulators`; bit c of the descriptor is ``acc[c] > 0``.
+  :func:`nna.conv.conv.cnn_accumulators`; bit c of the descriptor is ``acc[c] > 0``.
 
 Overflow: :func:`check_network` bounds every accumulator by ``|bias| + sum |w| * max|x|`` (max|x|
 is ``max(offset, 255 - offset)`` for the first layer and 127 after a requantisation) and refuses a
@@ -356,51 +356,42 @@ def _requant_row(acc, bias_c, m, h, out):
 
 
 @njit(cache=True)
-def _sign_layer(xp, w_pad, bias, masks, out):
-    """out[y, x] = OR of masks[c] over the channels c whose accumulator bias[c] + tap sum (of
-    ``w_pad`` over ``xp``, as :func:`_rows4`) at row y, column x is > 0. Each row's tap sums
-    are thresholded while they are in cache; no accumulator leaves the row's scratch."""
-    rows, width = out.shape
-    acc4 = np.empty((4, width), dtype=xp.dtype)
-    zero = masks[0] ^ masks[0]
-    for y in range(rows):
-        bits = out[y]
-        bits[:] = zero
-        c = np.int64(0)  # not a literal 0: numba would compile _tap_sums once more for it
-        while c < w_pad.shape[0]:
-            n = _tap_sums(xp, w_pad, c, y, acc4)
-            for j in range(n):
-                _sign_row(acc4[j], bias[c + j], masks[c + j], bits)
-            c += n
+def _acc_row(acc, bias_c, out):
+    """out[x] = int32(acc[x]) + bias_c: the int32 accumulators of a row of tap sums."""
+    for x in range(acc.shape[0]):
+        out[x] = np.int32(acc[x]) + bias_c
 
 
 @njit(cache=True)
-def _requant_layer(xp, w_pad, bias, mult, shift, out):
-    """out[c, y, x] = the requantised activation (:func:`_requant_row`) of channel c's
-    accumulator at row y, column x; ``out`` may be a view into the next layer's input."""
+def _layer_rows(xp, w_pad, bias, requant, masks, out):
+    """A layer's output rows from its tap sums (of ``w_pad`` over ``xp``, as :func:`_rows4`),
+    each row's taken while they are in cache (no accumulator leaves the row's scratch), into
+    ``out`` (C, rows, W) in one of three forms, chosen by the arguments that are None (numba
+    compiles one form a combination: a branch on an argument that is None is pruned):
+
+    * ``masks`` given: the descriptor, in out[0] (``out`` (1, rows, W)): the OR of masks[c]
+      over the channels c whose accumulator bias[c] + tap sum at row y, column x is > 0
+      (:func:`_sign_row`);
+    * ``requant`` = (mult, shift) given: the requantised activations (:func:`_requant_row`;
+      ``out`` may be a view into the next layer's input);
+    * neither: the int32 accumulators (:func:`_acc_row`; a transposed view of (rows, W, C)
+      writes them channel last)."""
     rows, width = out.shape[1], out.shape[2]
     acc4 = np.empty((4, width), dtype=xp.dtype)
     for y in range(rows):
+        if masks is not None:
+            out[0, y] = masks[0] ^ masks[0]
         c = np.int64(0)  # not a literal 0: numba would compile _tap_sums once more for it
         while c < w_pad.shape[0]:
             n = _tap_sums(xp, w_pad, c, y, acc4)
             for j in range(n):
-                _requant_row(acc4[j], bias[c + j], mult[c + j], shift[c + j], out[c + j, y])
-            c += n
-
-
-@njit(cache=True)
-def _acc_layer(xp, w_pad, bias, out):
-    """out[y, x, c] = int32(tap sum) + bias[c]: the layer's int32 accumulators (rows, W, C)."""
-    rows, width = out.shape[0], out.shape[1]
-    acc4 = np.empty((4, width), dtype=xp.dtype)
-    for y in range(rows):
-        c = np.int64(0)  # not a literal 0: numba would compile _tap_sums once more for it
-        while c < w_pad.shape[0]:
-            n = _tap_sums(xp, w_pad, c, y, acc4)
-            for j in range(n):
-                for x in range(width):
-                    out[y, x, c + j] = np.int32(acc4[j, x]) + bias[c + j]
+                k = c + j
+                if masks is not None:
+                    _sign_row(acc4[j], bias[k], masks[k], out[0, y])
+                elif requant is not None:
+                    _requant_row(acc4[j], bias[k], requant[0][k], requant[1][k], out[k, y])
+                else:
+                    _acc_row(acc4[j], bias[k], out[k, y])
             c += n
 
 
@@ -518,13 +509,14 @@ def forward_bands(img, net, out, band_rows: int = BAND_ROWS) -> None:
             xp_next = plans[layer + 1].band_input(a_next, b_next, width)
             top = a - (a_next - r_next)
             inner = xp_next[:, top : top + b - a, r_next : r_next + width]
-            _requant_layer(xp, plan.w_pad, biases[layer], *shifts[layer], inner)
+            _layer_rows(xp, plan.w_pad, biases[layer], shifts[layer], None, inner)
             _replicate_border(xp_next, top, b - a, r_next, width)
             xp, a, b = xp_next, a_next, b_next
         if out.ndim == 2:
-            _sign_layer(xp, plans[-1].w_pad, biases[-1], masks, out[y0:y1])
+            _layer_rows(xp, plans[-1].w_pad, biases[-1], None, masks, out[None, y0:y1])
         else:
-            _acc_layer(xp, plans[-1].w_pad, biases[-1], out[y0:y1])
+            _layer_rows(xp, plans[-1].w_pad, biases[-1], None, None,
+                        out[y0:y1].transpose(2, 0, 1))
 
 
 def int_layer_rows(net: IntNetwork, layer: int, x, lo: int, a: int, b: int) -> np.ndarray:
@@ -549,11 +541,11 @@ def int_layer_rows(net: IntNetwork, layer: int, x, lo: int, a: int, b: int) -> n
         out_dtype = descriptor_dtype(w.shape[0])
         masks = np.array([1 << c for c in range(w.shape[0])], dtype=out_dtype)
         out = np.empty((b - a, x.shape[2]), dtype=out_dtype)
-        _sign_layer(xp, w_pad, biases[layer], masks, out)
+        _layer_rows(xp, w_pad, biases[layer], None, masks, out[None])
         return out
     out = np.empty((w.shape[0], b - a, x.shape[2]), dtype=np.int32)
-    _requant_layer(xp, w_pad, biases[layer], np.asarray(mult[layer], np.int64),
-                   np.asarray(shift[layer], np.int64), out)
+    requant = (np.asarray(mult[layer], np.int64), np.asarray(shift[layer], np.int64))
+    _layer_rows(xp, w_pad, biases[layer], requant, None, out)
     return out
 
 
@@ -566,9 +558,9 @@ def int_layer(x_i32, weights, bias) -> np.ndarray:
     height = x_i32.shape[1]
     xp = _padded(np.asarray(x_i32), 0, 0, height, weights.shape[2] // 2, w_pad.shape[3],
                  w_pad.dtype)
-    out = np.empty(x_i32.shape[1:] + (weights.shape[0],), dtype=np.int32)
-    _acc_layer(xp, w_pad, bias.astype(np.int32), out)
-    return np.ascontiguousarray(out.transpose(2, 0, 1))
+    out = np.empty((weights.shape[0],) + x_i32.shape[1:], dtype=np.int32)
+    _layer_rows(xp, w_pad, bias.astype(np.int32), None, None, out)
+    return out
 
 
 def requantize(acc_i32, mult, shift) -> np.ndarray:

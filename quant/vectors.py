@@ -2,9 +2,9 @@
 
 Where numba's own loop is not what the kernel needs, a kernel emits its inner loop as llvmlite
 IR over LLVM vectors: the NNA's single layer by byte dot products (``vpdpbusd``,
-:mod:`quant.vnni`), the SGM's d-loop (:mod:`sva.sgm`), which numba vectorised too but behind
+:mod:`quant.vnni`), the SGM's d-loop (:mod:`sva.sgm.sgm`), which numba vectorised too but behind
 runtime checks, at every pixel, that no written row overlaps a read one -- a long run of scalar
-compares, more than the loop's own work -- and the 5 x 5 median (:mod:`sva.median`), whose 25
+compares, more than the loop's own work -- and the 5 x 5 median (:mod:`sva.median.median`), whose 25
 values a pixel numba's own loop could not keep in registers. :class:`VectorCode` holds what
 they build: an array argument's data pointer, a vector loaded or stored at an element offset,
 a scalar splat over the lanes, an unsigned compare, minimum and maximum, loads and stores

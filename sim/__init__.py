@@ -1,5 +1,5 @@
-"""The simulator's application package, ``stereosim.sim``: the core, the cycle model and the
-application of stereosim.
+"""The simulator's application package, ``stereosim.sim``: the cycle model and the application
+of stereosim.
 
 ``stereosim.run(left, right, mode=..., config=..., overrides=...)`` (also ``stereosim.sim.run``)
 simulates one frame and ``run_stream(pairs, ...)`` a stream of them; see :mod:`sim.api`. The
@@ -10,20 +10,21 @@ cycle model (:mod:`sim.cycle`: the chip plan, the readable kernel, the compiled 
 estimate) and over it the application (:mod:`sim.api`, :mod:`sim.cli`, sweeps, tracing, metrics,
 reports); the core below every folder is :mod:`stereosim.core`. Python runs this file before any
 module of the package, so it imports only the core; ``run`` and ``Result`` (and the stream's
-names) are resolved on first use (PEP 562) -- importing the API here would make every
-``import stereosim.sim.tracing`` load the whole application.
+names, ``load_scene``) are resolved on first use (PEP 562) -- importing the API here would make
+every ``import stereosim.sim.tracing`` load the whole application. stereosim's root package
+exports the same names: its ``__init__`` takes them, and their resolution, from here.
 """
 
 from stereosim.core.config import ChipConfig, load_config
 from stereosim.core.errors import ConfigError, InputError, UserError
 
-__all__ = ["ChipConfig", "ConfigError", "FrameOutput", "InputError", "Result", "Stream",
-           "UserError", "load_config", "run", "run_stream"]
-_API = ("run", "Result", "run_stream", "Stream", "FrameOutput")
+#: the application's names (:mod:`sim.api`), resolved on first use
+API = ("FrameOutput", "Result", "Stream", "load_scene", "run", "run_stream")
+__all__ = ["ChipConfig", "ConfigError", "InputError", "UserError", "load_config", *API]
 
 
 def __getattr__(name):
-    if name in _API:
+    if name in API:
         from stereosim.sim import api
 
         return getattr(api, name)

@@ -24,8 +24,8 @@ from stereosim.core.errors import ConfigError, InputError
 from stereosim.core.heap import keep_freed_memory
 from stereosim.core.io import MAX_PIXELS, check_gt_values, pixel_cap, to_grey
 from stereosim.core.progress import compile_notice
+from stereosim.nna.conv.weights import SHIPPED_WEIGHTS
 from stereosim.nna.descriptor import compute_descriptor
-from stereosim.nna.weights import SHIPPED_WEIGHTS
 from stereosim.sim.cycle.contract import RunStopped, stop_report
 from stereosim.sim.cycle.energy import energy_report, energy_table
 from stereosim.sim.cycle.figures import architecture_report
@@ -37,9 +37,9 @@ from stereosim.sim.cycle.simulate import simulate
 from stereosim.sim.formats import read_calibration
 from stereosim.sim.metrics import check_truth, evaluate, mean_metrics, undefined_metrics
 from stereosim.sim.tracing import run_traced, trace_section
-from stereosim.sva.noise import band_rows
-from stereosim.sva.pipeline import frame_cost, sva_stream
-from stereosim.sva.wta import to_float
+from stereosim.sva.hamming.noise import band_rows
+from stereosim.sva.pipeline.pipeline import frame_cost, sva_stream
+from stereosim.sva.wta.wta import to_float
 
 MODES = ("functional", "cycle")
 # report.json's layout: 2 names every unit and fps kind in its keys; 3 names a stream's span
@@ -265,7 +265,7 @@ def part_report(cfg: ChipConfig, kind: str, bits: int) -> dict:
 def frame_cost_report(plan: ChipPlan, left: np.ndarray) -> dict:
     """The cost a hybrid frame whose left view is ``left`` is matched with: its weights [cnn,
     census], its largest cost, and with automatic weights the noise statistic that chose them
-    (:func:`sva.pipeline.frame_cost`, the rule the SVA applies)."""
+    (:func:`sva.pipeline.pipeline.frame_cost`, the rule the SVA applies)."""
     cost, noise = frame_cost(plan.part_bits, plan.cfg.sva, left)
     out = {"weights": list(cost.weights), "cost_max": cost.top}
     if noise is not None:
@@ -311,8 +311,9 @@ def descriptor_report(plan: ChipPlan) -> dict:
 
 
 def build_report(plan: ChipPlan, mode: str, fixed: np.ndarray | None) -> dict:
-    """The report's sections every run has, and the ``output`` words' (``fixed``; None: a
-    stopped run has no output)."""
+    """The report's sections every run has -- a frame's, a stream's (which adds ``frames``), a
+    stopped run's -- and the ``output`` words' (``fixed``; None: a stream or a stopped run has
+    no one frame's output)."""
     cfg = plan.cfg
     h, w = plan.shape
     report = {
@@ -518,17 +519,7 @@ def run_stream(pairs, *, mode: str = "cycle", config: ChipConfig | str | None = 
     supply = stream_supply(pairs, max_pixels, cfg.sva.pairs)
     masks = check_ground_truth(gt, masks, supply.shape)
     plan = build_plan(cfg, supply.shape, supply.count)
-    h, w = supply.shape
-    report = {
-        "architecture": architecture_report(plan),
-        "report_version": REPORT_VERSION,
-        "stereosim": VERSION,
-        "mode": mode,
-        "image": {"width": w, "height": h},
-        "frames": supply.count,
-        "descriptor": descriptor_report(plan),
-        "config": config_to_dict(cfg),
-    }
+    report = build_report(plan, mode, None) | {"frames": supply.count}
     words = None
     if mode == "cycle":
         try:

@@ -334,7 +334,7 @@ RULES: tuple[tuple[str, str, str], ...] = (
     (r"descriptor\.frame\.noise\.noisy", "output and report", "the frame counted as noisy "
      "(S > threshold x N): matched with sva.noisy_weights"),
     (r"descriptor\.network\.file", "output and report", "the CNN's weight file "
-     "(nna.cnn.weights; default: the shipped nna/single9x9.npz)"),
+     "(nna.cnn.weights; default: the shipped nna/conv/single9x9.npz)"),
     (r"descriptor\.network\.name", "output and report", "the CNN's weight file's name "
      "without .npz"),
     (r"descriptor\.network\.layers", "output and report", "the CNN's layers (JSON: each as "

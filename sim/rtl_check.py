@@ -1,4 +1,4 @@
-"""``stereosim rtl check``: the SVA as one block in RTL (sva/rtl/sva_top.sv and its stages)
+"""``stereosim rtl check``: the SVA as one block in RTL (sva/pipeline/sva_top.sv and its stages)
 co-simulated against the readable cycle engine, for one configuration on a small frame.
 
 1. **The model** (:func:`model_run`): the readable engine on the pair, recorded at the SVA's
@@ -50,14 +50,14 @@ from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.cycle.readable.chip import build_chip
 from stereosim.sim.tracing import TraceRequest, trace_files
 from stereosim.sva.geometry import bits_for
-from stereosim.sva.wta import subpixel_mode_code
+from stereosim.sva.wta.wta import subpixel_mode_code
 from stereosim.traces.log import Signal, TraceLog, TraceRecorder, select, validate
 from stereosim.traces.vcdread import timescale_fs
 
 ROOT = Path(__file__).resolve().parents[1]
-SOURCES = ("sva/rtl/sva_hamming.sv", "sva/rtl/sva_box.sv", "sva/rtl/sva_sgm.sv",
-           "sva/rtl/sva_wta.sv", "sva/rtl/sva_lr.sv", "sva/rtl/sva_median.sv",
-           "sva/rtl/sva_top.sv")
+SOURCES = ("sva/hamming/sva_hamming.sv", "sva/box/sva_box.sv", "sva/sgm/sva_sgm.sv",
+           "sva/wta/sva_wta.sv", "sva/lr/sva_lr.sv", "sva/median/sva_median.sv",
+           "sva/pipeline/sva_top.sv")
 BENCH = "stereosim.sim.rtl_check_bench"
 BUILDS_ENV = "STEREOSIM_RTL_BUILDS"
 SCOPE = "top.sva"  # the plan's SVA block (sim.cycle.plan) and the RTL wrapper's instance
@@ -585,7 +585,7 @@ def add_parser(sub, add_config_options, scene_config) -> None:
     """``check`` under ``sub`` (the ``rtl`` command's subparsers); the configuration options
     and their loading are the CLI's (``add_config_options(parser)``,
     ``scene_config(args, None)``)."""
-    p = sub.add_parser("check", help="co-simulate the SVA's RTL (sva/rtl/sva_top.sv) against "
+    p = sub.add_parser("check", help="co-simulate the SVA's RTL (sva/pipeline/sva_top.sv) against "
                        "the cycle model on a small random frame: equal, or the first "
                        "disagreements (docs/rtl.md)")
     p.add_argument("--width", type=int, default=None, metavar="W",

@@ -1,5 +1,5 @@
 """cocotb test module of ``stereosim rtl check`` (:mod:`stereosim.sim.rtl_check`): the SVA as one
-block (sva/rtl/sva_top.sv, under its boundary wrapper ``top.sva``) driven as the readable cycle
+block (sva/pipeline/sva_top.sv, under its boundary wrapper ``top.sva``) driven as the readable cycle
 engine's SVA was on the same frames.
 
 ``STEREOSIM_RTL_CASES`` names a JSON file: ``cases``, run one after the other with the RTL reset

@@ -1,6 +1,6 @@
 """What the RTL twin costs in silicon: Yosys's cells, NAND2 equivalents, logic depth and fmax.
 
-The figures come from a cached table, ``sva/rtl/synth_table.json``, that
+The figures come from a cached table, ``sva/synth_table.json``, that
 ``benchmarks/rtl_synth.py`` writes (Yosys in WebAssembly takes minutes on the large builds), so
 ``stereosim rtl synth`` and the plan's ``silicon`` section never synthesise.
 
@@ -50,7 +50,7 @@ from stereosim.nna.descriptor import descriptor_parts
 from stereosim.sva.geometry import bits_for
 
 ROOT = Path(__file__).resolve().parents[1]
-TABLE = ROOT / "sva" / "rtl" / "synth_table.json"
+TABLE = ROOT / "sva" / "synth_table.json"
 SCHEMA = 2
 
 LIBRARY = {
@@ -221,19 +221,19 @@ class Stage:
 
 
 STAGES = (
-    Stage("hamming", "sva/rtl/sva_hamming.sv", "sva_hamming", _hamming_params),
-    Stage("box_filter", "sva/rtl/sva_box.sv", "sva_box", _box_params,
+    Stage("hamming", "sva/hamming/sva_hamming.sv", "sva_hamming", _hamming_params),
+    Stage("box_filter", "sva/box/sva_box.sv", "sva_box", _box_params,
           memory=Memory("W_MAX", (2, 4))),
-    Stage("sgm", "sva/rtl/sva_sgm.sv", "sva_sgm", _sgm_params, memory=Memory("W_MAX", (1, 2), 2)),
-    Stage("wta", "sva/rtl/sva_wta.sv", "sva_wta", _wta_params),
-    Stage("lr_check", "sva/rtl/sva_lr.sv", "sva_lr", _lr_params, lanes=False),
-    Stage("median", "sva/rtl/sva_median.sv", "sva_median", _median_params, lanes=False,
+    Stage("sgm", "sva/sgm/sva_sgm.sv", "sva_sgm", _sgm_params, memory=Memory("W_MAX", (1, 2), 2)),
+    Stage("wta", "sva/wta/sva_wta.sv", "sva_wta", _wta_params),
+    Stage("lr_check", "sva/lr/sva_lr.sv", "sva_lr", _lr_params, lanes=False),
+    Stage("median", "sva/median/sva_median.sv", "sva_median", _median_params, lanes=False,
           memory=Memory("WMAX", (2, 4))),
 )
 STAGE = {st.name: st for st in STAGES}
 # other RTL synthesised once at fixed parameters: (the plan's block, source, top, parameters)
 SMALL_BUILDS = (
-    ("nna", "nna/rtl/nna_submodule.sv", "nna_submodule", {"LAYERS": 1, "W": 20, "H": 13}),
+    ("nna", "nna/submodule/nna_submodule.sv", "nna_submodule", {"LAYERS": 1, "W": 20, "H": 13}),
 )
 # plan stages a build's RTL holds besides its own (sva_sgm ends with the path sum)
 ALSO_COVERS = {"sgm": ("path_sum",)}

@@ -18,18 +18,18 @@ import numpy as np
 from stereosim.core.datasets import scene_files, shared_data_dir
 from stereosim.core.errors import ConfigError, InputError, UserError
 from stereosim.core.outputs import check_outputs
-from stereosim.nna.augment import RECIPES
-from stereosim.nna.floatmodel import load_float_model, save_float_model
-from stereosim.nna.train import train
-from stereosim.nna.trainconfig import DEVICES, VARIANTS, TrainConfig
-from stereosim.nna.traindata import (
+from stereosim.nna.training.augment import RECIPES
+from stereosim.nna.training.floatmodel import load_float_model, save_float_model
+from stereosim.nna.training.train import train
+from stereosim.nna.training.trainconfig import DEVICES, VARIANTS, TrainConfig
+from stereosim.nna.training.traindata import (
     calibration_images,
     calibration_scene_dirs,
     leave_fold_out,
     training_scene_dirs,
 )
-from stereosim.nna.trainqat import build_qat_net, export_quantized
-from stereosim.nna.trainrun import (
+from stereosim.nna.training.trainqat import build_qat_net, export_quantized
+from stereosim.nna.training.trainrun import (
     box_width,
     check_checkpoint_option,
     checkpoint_path,
@@ -134,7 +134,7 @@ def _training_dirs(args) -> tuple:
 
 def _cmd_qat(args) -> int:
     """``train --qat BASE``: quantise BASE with the project's quantiser, fine-tune it through the
-    frozen integer arithmetic (:mod:`nna.trainqat`), write the int8 artifact."""
+    frozen integer arithmetic (:mod:`nna.training.trainqat`), write the int8 artifact."""
     if args.out is None:
         raise InputError("--qat needs --out (the int8 artifact to write)")
     out = Path(args.out)
@@ -287,7 +287,7 @@ def _add_train_parser(sub) -> None:
     t.add_argument("--augment", default="basic", choices=sorted(RECIPES),
                    help="what training does to the views: basic (gain, offset, noise up to "
                    "sigma 2), robust (noise up to 10 with shot noise, gamma, defocus, 0.5 px "
-                   "vertical misalignment) or mild (half those ranges); nna/augment.py")
+                   "vertical misalignment) or mild (half those ranges); nna/training/augment.py")
     t.add_argument("--noise-max", type=finite_float, metavar="SIGMA",
                    help="augmentation noise: sigma ~ U(0, SIGMA) grey levels per view (default 2)")
     t.add_argument("--blur-max", type=finite_float, metavar="SIGMA",

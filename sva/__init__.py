@@ -1,5 +1,9 @@
-"""Stereo Vision Accelerator (SVA): Hamming cost, box filter, SGM, WTA, sub-pixel, LR check.
+"""Stereo Vision Accelerator (SVA): Hamming cost, box filter, SGM, WTA, sub-pixel, LR check,
+median.
 
-One module per stage (``cost``, ``aggregation``, ``sgm``, ``wta``, ``lr_check``, ``median``), each
-with a naive ``*_ref`` that defines the chip and numba row kernels; ``pipeline`` chains them.
+A folder per stage -- ``hamming``, ``box``, ``sgm`` (with the path sum), ``wta`` (uniqueness,
+sub-pixel), ``lr``, ``median`` -- each holding its naive ``*_ref`` that defines the chip, its
+numba row kernels, its timing rule (``timing.py``: the chip plan's stage) and its RTL
+(``sva_*.sv``); ``pipeline`` chains the kernels and holds the RTL top; ``geometry`` the facts
+every stage shares (lane groups, rows it reads, word widths).
 """

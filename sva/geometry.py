@@ -1,7 +1,7 @@
 """What the SVA's stages imply for the rows it must hold and the width of its output word.
 
 Facts of the stage, used by the chip plan (``sim.cycle.plan``), the functional pipeline
-(:mod:`sva.pipeline`), the clocked SVA block and the analytic estimate alike.
+(:mod:`sva.pipeline.pipeline`), the clocked SVA block and the analytic estimate alike.
 """
 
 from __future__ import annotations
@@ -37,9 +37,14 @@ def median_radius(cfg: SvaConfig) -> int:
 def row_lookahead(cfg: SvaConfig) -> int:
     """Input rows below output row y that its words depend on: the box filter's r plus the
     median's m (the SGM paths and the LR check's diagonal read rows above). The hybrid's noise
-    band is r + m + 1 rows (:mod:`sva.noise`); the cycle model's timing reads the box's r and
-    the median's skew separately (:mod:`sim.cycle.rules`)."""
+    band is r + m + 1 rows (:mod:`sva.hamming.noise`); the cycle model's timing reads the box's
+    r and the median's skew separately (:mod:`sim.cycle.rules`)."""
     return box_radius(cfg) + median_radius(cfg)
+
+
+def lane_groups(cfg: SvaConfig) -> int:
+    """G = ceil(D / lanes): the cycles one pixel's disparities take through a stage."""
+    return -(-cfg.disparities // min(cfg.lanes, cfg.disparities))
 
 
 def bits_for(max_value: int) -> int:

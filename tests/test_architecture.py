@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("sim", "nna", "sva", "quant", "traces")  # the folders: stereosim's sub-packages
+PACKAGES = ("core", "sim", "nna", "sva", "quant", "traces")  # the folders: stereosim's sub-packages
 TOP = "stereosim"
 
 
@@ -32,6 +32,13 @@ def _modules() -> dict[str, Path]:
                 parts = parts[:-1]
             out[".".join(parts)] = path
     return out
+
+
+def _docstring_only(path: Path) -> bool:
+    """A package's ``__init__.py`` that holds nothing but its docstring."""
+    body = ast.parse(path.read_text()).body
+    return (path.name == "__init__.py" and len(body) == 1 and isinstance(body[0], ast.Expr)
+            and isinstance(body[0].value, ast.Constant) and isinstance(body[0].value.value, str))
 
 
 def _contracts() -> list[dict]:
@@ -74,15 +81,15 @@ MAX_FUNCTION_LINES = 120
 
 
 def test_no_module_or_function_grows_past_one_concern():
-    """No module over 800 lines and no function over 120 lines (from its ``def`` to its last line)
-    in the five packages."""
+    """No module over 800 lines (a last line without its newline counts) and no function over
+    120 lines (from its ``def`` to its last line) in any of the packages."""
     found = []
     for pkg in PACKAGES:
         for path in sorted((ROOT / pkg).rglob("*.py")):
             text = path.read_text()
             name = path.relative_to(ROOT)
-            if text.count("\n") > MAX_MODULE_LINES:
-                found.append(f"{name}: {text.count(chr(10))} lines")
+            if (lines := len(text.splitlines())) > MAX_MODULE_LINES:
+                found.append(f"{name}: {lines} lines")
             for node in ast.walk(ast.parse(text)):
                 if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
                     size = node.end_lineno - node.lineno + 1
@@ -103,10 +110,10 @@ def test_the_contracts_set_the_directions_that_keep_circles_out():
         (i,) = [i for i, members in enumerate(layers) if _covered(module, members)]
         return i
 
-    assert (level("sim.api") < level("sim.cycle.readable.chip") < level("nna.census")
+    assert (level("sim.api") < level("sim.cycle.readable.chip") < level("nna.census_unit.census")
             < level("core.config"))
     assert level("sim.tracing") < level("traces.vcd") < level("sim.cycle") < level("traces.log")
-    assert level("quant.quantizer") < level("nna.weights") < level("quant.artifact")
+    assert level("quant.quantizer") < level("nna.conv.weights") < level("quant.artifact")
     assert level("sim.cycle.readable.chip") < level("sva.pipeline")
     (acyclic,) = [c for c in _contracts() if c["type"] == "acyclic_siblings"]
     assert {_relative(a) for a in acyclic["ancestors"]} == set(PACKAGES)
@@ -114,11 +121,12 @@ def test_the_contracts_set_the_directions_that_keep_circles_out():
 
 def test_every_module_is_in_exactly_one_layer():
     """A new module cannot slip past the contract: each one belongs to one layer (package
-    roots hold only docstrings and the core's names)."""
+    roots hold only docstrings and the core's names; a block folder's root, only its
+    docstring)."""
     layers = _layer_members()
     for name, path in _modules().items():
         hits = [i for i, members in enumerate(layers) if _covered(name, members)]
-        if name in PACKAGES:
+        if name in PACKAGES or _docstring_only(path):
             continue
         assert len(hits) == 1, f"{name} ({path.relative_to(ROOT)}) is in layers {hits}"
 
@@ -181,12 +189,6 @@ def test_package_roots_import_only_the_core(pkg):
         for module in modules:
             assert module in ("__future__", "stereosim.sim", "stereosim.core.config",
                               "stereosim.core.errors"), module
-
-
-def test_no_module_is_over_800_lines():
-    long = {str(p.relative_to(ROOT)): n for p in _modules().values()
-            if (n := len(p.read_text().splitlines())) > 800}
-    assert not long, long
 
 
 def _jitted(node) -> bool:

@@ -8,7 +8,7 @@ import tomllib
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-FOLDERS = ("sim", "nna", "sva", "quant", "traces")
+FOLDERS = ("core", "sim", "nna", "sva", "quant", "traces")
 
 
 def _setuptools() -> dict:

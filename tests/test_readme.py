@@ -2,10 +2,12 @@
 command line (an option renamed or removed fails here), and the lines that answer in seconds
 without files the README leaves to the reader run as written and succeed (the analytic
 estimate, the configuration's listings, a network file's back end, a functional run). The
-waveform example is run in tests/traces/test_readme_wave.py."""
+waveform example is run in tests/traces/test_readme_wave.py. The set-up section quotes no
+commit and no dated figure."""
 
 from __future__ import annotations
 
+import re
 import shlex
 from pathlib import Path
 
@@ -54,3 +56,20 @@ def test_the_quick_tour_lines_run_as_written(args, tmp_path, monkeypatch, capsys
     assert main(args) == 0, capsys.readouterr().err
     out, err = capsys.readouterr()
     assert out.strip() and "Traceback" not in err
+
+
+def _setup_section() -> str:
+    text = README.read_text()
+    return text.split("\n## Set-up", 1)[1].split("\n## ", 1)[0]
+
+
+def test_the_setup_section_quotes_no_commit_and_no_dated_log():
+    """The set-up says what to type and roughly how long it takes; a figure of one machine on
+    one day (a commit hash, a date) belongs in a result file that docs/performance.md links."""
+    setup = _setup_section()
+    assert "pip install -e" in setup and "stereosim run" in setup
+    hashes = [w for w in re.findall(r"\b[0-9a-f]{7,40}\b", setup)
+              if re.search(r"\d", w) and re.search(r"[a-f]", w)]
+    assert not hashes, f"README's set-up quotes commit(s) {hashes}"
+    dates = re.findall(r"\b20\d\d-\d\d-\d\d\b", setup)
+    assert not dates, f"README's set-up quotes dated figures ({dates})"

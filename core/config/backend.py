@@ -2,7 +2,7 @@
 
 A descriptor network is only as good as the penalties and box it is matched with (issue 46
 reports the robust network at 6.24 at its own P1/P2 and 6.87 at the single layer's). So a
-weight file (an ``.npz``: :mod:`nna.weights`, :mod:`quant.artifact`) may carry a member
+weight file (an ``.npz``: :mod:`nna.conv.weights`, :mod:`quant.artifact`) may carry a member
 ``backend``: a TOML table of the :data:`BACKEND_KEYS` it was tuned with. When the configuration
 runs that file, the keys it leaves unset take the file's values (:mod:`core.config.loader`), as
 they take :data:`~core.config.schema.DESCRIPTOR_DEFAULTS` for a file that carries none, of

@@ -26,7 +26,7 @@ def sgm_widths(p2: int, box: int = 5, bits: int = CNN_BITS, paths: int = 4) -> d
 def largest_cost(parts: tuple[int, ...], weight_sets: tuple[tuple[int, ...], ...]) -> int:
     """The largest matching cost of one pixel, which the automatic widths follow: a descriptor
     of one part, its bits; the hybrid's parts (b_0, b_1), sum_k w_k b_k for the heaviest of the
-    weight sets the SVA may use (:mod:`sva.cost`)."""
+    weight sets the SVA may use (:mod:`sva.hamming.cost`)."""
     if len(parts) == 1:
         return parts[0]
     return max(1, max(sum(b * w for b, w in zip(parts, ws, strict=True)) for ws in weight_sets))

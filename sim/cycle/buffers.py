@@ -24,7 +24,7 @@ buffer sized below what the frame needs, stops the run instead of being absorbed
 from the functional kernels and would not show it).
 
 The SVA's pipeline stages hold words in flight in their registers (their delay lines,
-:class:`~sim.cycle.stages.StagePlan`: ``slots`` words). Both engines count the words each
+:class:`~core.timing.StagePlan`: ``slots`` words). Both engines count the words each
 stage holds (a stage's words are those issued at a tick t with offset < tick - t <= offset +
 latency); :func:`buffer_report` reports the most each held beside its capacity and refuses a run
 in which a stage held more (an issue rule that lets words in faster than the stages can hold

@@ -37,12 +37,12 @@ from pathlib import Path
 
 from stereosim.core.config import read_toml
 from stereosim.core.errors import ConfigError
+from stereosim.core.timing import lg
 from stereosim.sim.cycle.figures import action_counts
 from stereosim.sim.cycle.lent import LentPlan
 from stereosim.sim.cycle.plan import ChipPlan
-from stereosim.sim.cycle.stages import lg
 from stereosim.sva.geometry import bits_for
-from stereosim.sva.noise import band_rows
+from stereosim.sva.hamming.noise import band_rows
 
 DEFAULT_TABLE = Path(__file__).resolve().parents[1] / "energy.toml"
 

@@ -68,6 +68,8 @@ from stereosim.core.config import ChipConfig, config_to_dict
 from stereosim.core.errors import InputError, UserError
 from stereosim.nna.geometry import Tile
 from stereosim.sim.cycle.energy import EnergyTable, energy_table, estimate_energy
+from stereosim.sim.cycle.fifo import rule as fifo_rule
+from stereosim.sim.cycle.fifo.rule import room_from, room_seen_within, seen_from, visible_from
 from stereosim.sim.cycle.figures import (
     action_counts,
     chip_sram,
@@ -88,7 +90,6 @@ from stereosim.sim.cycle.rules import (
     memory_first_cycle,
     nna_last_input_row,
     nna_rows_started_before_input,
-    seen_from,
     sva_exit_item,
     sva_first_word_tick,
     sva_frame_start,
@@ -107,19 +108,17 @@ SINGLE_LAYER = ((9, 1, 32),)
 
 
 def visible(f: FifoPlan, cycle: float, plan: ChipPlan) -> float:
-    """The consumer cycle from which an item pushed in producer ``cycle`` can be popped."""
-    if not f.crossing:
-        return cycle + f.data_edges
-    return seen_from(round(cycle), plan.domains[f.src].period_fs, plan.domains[f.dst].period_fs,
-                     f.data_edges)
+    """The consumer cycle from which an item pushed in producer ``cycle`` can be popped
+    (:func:`~sim.cycle.fifo.rule.visible_from`; a fractional cycle kept in one domain)."""
+    p_dst = plan.domains[f.dst].period_fs
+    p_src, cycle = (plan.domains[f.src].period_fs, round(cycle)) if f.crossing else (p_dst, cycle)
+    return visible_from(cycle, p_src, p_dst, p_src / p_dst, f.data_edges)
 
 
 def round_trip_fs(f: FifoPlan, plan: ChipPlan) -> float:
     """Push -> visible -> pop -> free seen by the producer -> next push (module docstring)."""
     p_src, p_dst = plan.domains[f.src].period_fs, plan.domains[f.dst].period_fs
-    if not f.crossing:
-        return (f.latency_cycles + 1) * p_src
-    return ((f.latency_cycles + f.sync_cycles - 1.5) * p_dst + (f.sync_cycles - 0.5) * p_src)
+    return fifo_rule.round_trip_fs(f.data_edges, f.space_edges, p_src, p_dst, f.crossing)
 
 
 def fills(f: FifoPlan, plan: ChipPlan) -> bool:
@@ -130,12 +129,12 @@ def fills(f: FifoPlan, plan: ChipPlan) -> bool:
 
 
 class LinkWalk:
-    """A FIFO's handshake beat by beat, with the FIFO's own rules (:mod:`sim.cycle.readable.fifo`):
+    """A FIFO's handshake beat by beat, with the FIFO's own rules (:mod:`sim.cycle.fifo.rule`):
     the producer pushes beat k once it is made (its row's unobstructed times, and ``step`` cycles
     after its previous push: a blocked producer resumes from its push) and it sees the slot of
-    beat k - depth freed (:func:`seen_from` of that pop, ``space_edges``); the consumer pops
-    it once visible (``data_edges``), a cycle after its previous pop and not before its row is
-    let in.
+    beat k - depth freed (:func:`room_from` of that pop, ``space_edges``); the consumer pops
+    it once visible (:func:`visible_from`, ``data_edges``), a cycle after its previous pop and
+    not before its row is let in.
 
     Shortcut (exact): a slot freed by a pop is seen at most ``K = floor(data_edges P_dst /
     P_src) + space_edges`` producer cycles after the push. If ``depth x step >= K`` and ``step
@@ -153,7 +152,7 @@ class LinkWalk:
         self.p_dst = plan.domains[f.dst].period_fs
         self.data_edges, self.space_edges = f.data_edges, f.space_edges
         self.step = step
-        k = self.data_edges * self.p_dst // self.p_src + self.space_edges
+        k = room_seen_within(self.data_edges, self.space_edges, self.p_src, self.p_dst)
         self.shortcut = f.depth * step >= k and step * self.p_src >= self.p_dst
         self.pops: list[int] = []
         self.push = -(1 << 40)
@@ -174,8 +173,8 @@ class LinkWalk:
             p = max(first + -(-x * span // max(1, w - 1)), p + step)
             own = p
             if len(pops) >= d:
-                p = max(p, seen_from(pops[-d], p_dst, p_src, se))
-            v = seen_from(p, p_src, p_dst, de)
+                p = max(p, room_from(pops[-d], p_src, p_dst, p_dst / p_src, se))
+            v = visible_from(p, p_src, p_dst, p_src / p_dst, de)
             run = run + 1 if p == own and v >= q else 0
             q = max(q, v)
             pops.append(q)
@@ -184,7 +183,7 @@ class LinkWalk:
             if run >= d and even and self.shortcut and x < w:
                 # the rest of the row at the producer's pace (class docstring)
                 p += (w - x) * step
-                pops.extend(seen_from(p - j * step, p_src, p_dst, de)
+                pops.extend(visible_from(p - j * step, p_src, p_dst, p_src / p_dst, de)
                             for j in range(min(d, w - x) - 1, -1, -1))
                 break
         self.push = p
@@ -274,7 +273,7 @@ def merge_depth_needed(plan: ChipPlan) -> int | None:
             share = max(0.0, p)
             break
     link = plan.fifo(subs[0].outputs[0])
-    round_trip = link.data_edges + link.space_edges
+    round_trip = round_trip_fs(link, plan) / plan.domains[link.dst].period_fs  # one domain
     depth = math.ceil((share * c + round_trip + 1) / c - 1e-9) - 1
     return max(1, depth)
 
@@ -496,7 +495,8 @@ def timeline(plan: ChipPlan) -> dict:
     ii_link = max(1.0, round_trip_fs(link, plan) / link.depth / p_sva)
     ii_in = max(ii_link, nna_ii * p_nna / p_sva)
     # the SVA -> sink FIFO: the SVA's II, or depth words per round trip
-    ii_out = max(float(sva.cycles), (to_sink.latency_cycles + 1) / to_sink.depth)
+    sink_trip = round_trip_fs(to_sink, plan) / p_sva  # cycles (one domain)
+    ii_out = max(float(sva.cycles), sink_trip / to_sink.depth)
     walk = None
     if fills(link, plan):
         # the producer's pace after a block: a submodule's II, or the merge's one beat a cycle
@@ -545,7 +545,6 @@ def timeline(plan: ChipPlan) -> dict:
             box_rows[next_out] = (o_first, o_last)
             prev_out = o_last
             next_out += 1
-    lat = to_sink.latency_cycles
 
     def leaves(j: int) -> float:
         """The cycle word j of the frame reaches the output register: L after the word it
@@ -553,15 +552,15 @@ def timeline(plan: ChipPlan) -> dict:
         FIFO's rate."""
         item, slots = sva_exit_item(j, skew, h * w, 1)  # flush slots after the last word
         y_i, x_i = divmod(item, w)
-        flush = slots * max(float(sva.flush_ii), (to_sink.latency_cycles + 1) / to_sink.depth)
+        flush = slots * max(float(sva.flush_ii), sink_trip / to_sink.depth)
         return box_rows[y_i][0] + x_i * ii_out + flush + sva.latency
 
     return {
         "nna_first_push": nna_rows[0][0],
         "sva_first_ready": in_end[sva_last_input_row(0, la, h)] + 1,
         "source_last_pop_nna": last_pop,
-        "first_output_cycle": math.ceil(leaves(0)) + lat,
-        "last_output_cycle": math.ceil(leaves(h * w - 1)) + lat,
+        "first_output_cycle": visible(to_sink, math.ceil(leaves(0)), plan),
+        "last_output_cycle": visible(to_sink, math.ceil(leaves(h * w - 1)), plan),
         "period_fs": {name: d.period_fs for name, d in plan.domains.items()},
         "stream_ii_sva_cycles": {"nna_to_sva": ii_in, "sva_to_sink": ii_out},
     }

@@ -62,7 +62,7 @@ def chip_sram(plan: ChipPlan) -> dict:
 
 def action_counts(plan: ChipPlan) -> dict[str, dict[str, int]]:
     """Per-frame counts of MACs and SRAM reads/writes per block (per camera for the NNA), from
-    the buffers' declared accesses (:class:`~sim.cycle.stages.BufferPlan`: per output pixel).
+    the buffers' declared accesses (:class:`~core.timing.BufferPlan`: per output pixel).
 
     NNA: K*K*C MACs and (CNN) C requantising multiplies per descriptor; its line buffer writes
     each pixel once and reads the window's next column (2h + 1 pixels) per descriptor. A

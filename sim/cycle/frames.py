@@ -20,7 +20,7 @@ import numpy as np
 
 from stereosim.core.errors import ConfigError, InputError
 from stereosim.nna.descriptor import compute_descriptor
-from stereosim.sva.pipeline import sva_stream
+from stereosim.sva.pipeline.pipeline import sva_stream
 
 # The most camera frames one run simulates (input frames x camera pairs). What a stream keeps
 # per frame (python benchmarks/stream_memory.py): the timing pass about 250 bytes at its peak

@@ -44,6 +44,7 @@ from functools import cached_property
 
 from stereosim.core.config import ChipConfig, LentLayer, LentNetwork, read_lent_network
 from stereosim.core.errors import ConfigError
+from stereosim.core.timing import BufferPlan
 from stereosim.nna.geometry import (
     buffer_rows,
     cycles_per_pixel,
@@ -53,7 +54,6 @@ from stereosim.nna.geometry import (
     strided_size,
 )
 from stereosim.sim.cycle.dram import DramPlan
-from stereosim.sim.cycle.stages import BufferPlan
 
 BYTES_PER_CHANNEL = 8  # an int32 bias and a 32-bit multiply-shift per output channel
 

@@ -31,6 +31,7 @@ from functools import cached_property
 from stereosim.core.config import AUTO_BUDGET_FACTOR, ChipConfig, check_config
 from stereosim.core.config.widths import largest_cost, weight_sets
 from stereosim.core.errors import ConfigError, InputError
+from stereosim.core.timing import BufferPlan, StagePlan
 from stereosim.nna.descriptor import descriptor_parts, network
 from stereosim.nna.geometry import (
     Tile,
@@ -43,22 +44,18 @@ from stereosim.nna.geometry import (
     pipeline_cycles,
     split_frame,
 )
+from stereosim.nna.submodule.timing import LayerPlan, nna_layers, nna_stages
 from stereosim.sim.cycle.dram import DramPlan, dram_plan
+from stereosim.sim.cycle.fifo.rule import fifo_edges
 from stereosim.sim.cycle.lent import LentPlan, lent_plan
 from stereosim.sim.cycle.rules import (
     ClockDomain,
-    fifo_edges,
     period_fs,
     sva_first_slot_row,
     sva_frame_ticks,
 )
 from stereosim.sim.cycle.stages import (
-    BufferPlan,
-    LayerPlan,
-    StagePlan,
     flush_ii,
-    nna_layers,
-    nna_stages,
     pipeline_ii,
     pipeline_latency,
     slot_ii,
@@ -70,7 +67,7 @@ from stereosim.sva.geometry import (
     median_radius,
     output_word_bits,
 )
-from stereosim.sva.noise import band_rows
+from stereosim.sva.hamming.noise import band_rows
 
 SIDES = ("left", "right")
 STATUS_CODES = {"idle": 0, "busy": 1, "starved": 2, "blocked": 3}  # as traced
@@ -133,7 +130,7 @@ class BlockPlan:
     - nna: ``tile``, ``half`` (window rows above/below), ``rows`` (line buffer), ``cycles`` per
       descriptor (the MAC array's initiation interval and latency; a network of several
       layers: the slowest layer's cycles per output pixel), ``layers`` (the layer pipeline,
-      :class:`~sim.cycle.stages.LayerPlan`: one stage per layer, one for a single layer or
+      :class:`~nna.submodule.timing.LayerPlan`: one stage per layer, one for a single layer or
       the census);
     - merge: ``items`` descriptors moved, one per cycle;
     - sva: ``lookahead`` rows (the box radius r: box row y needs input row y + r),
@@ -214,7 +211,7 @@ class ChipPlan:
 
     @property
     def part_bits(self) -> tuple[int, ...]:
-        """Each descriptor part's bits, as the SVA's kernels take them (:mod:`sva.cost`)."""
+        """Each descriptor part's bits, as the SVA's kernels take them (:mod:`sva.hamming.cost`)."""
         return tuple(b for _, b in self.descriptor_parts)
 
     @property

@@ -7,7 +7,8 @@ of a clock domain from 0; every clock of the chip has its first edge at t = 0.
 
 What is *not* here is deliberate: the readable kernel applies these rules cycle by cycle to its
 committed state (it is the specification); the compiled engine applies them to whole streams of
-beats (docs/compiled-engine.md). Derived constants (windows, depths, widths, budgets) live in the
+beats (docs/compiled-engine.md). The FIFO's rule is its block's (:mod:`sim.cycle.fifo.rule`).
+Derived constants (windows, depths, widths, budgets) live in the
 chip plan (:mod:`sim.cycle.plan`).
 """
 
@@ -27,44 +28,6 @@ FS_PER_S = 10**15
 def period_fs(freq_hz: float) -> int:
     """A clock's period in whole femtoseconds: round(1e15 / f)."""
     return round(FS_PER_S / freq_hz)
-
-
-def fifo_edges(latency_cycles: int, sync_cycles: int, crossing: bool) -> tuple[int, int]:
-    """(data_edges, space_edges) of a FIFO: an item pushed at a producer edge can be popped from
-    the ``data_edges``-th consumer edge after it (latency, plus the synchroniser less one when
-    the FIFO crosses domains); a slot freed at a consumer edge is seen by the producer from its
-    ``space_edges``-th edge after it (the next one, or the synchroniser's depth across
-    domains)."""
-    if crossing:
-        return latency_cycles + sync_cycles - 1, sync_cycles
-    return latency_cycles, 1
-
-
-@register_jitable
-def seen_from(cycle, period_from, period_to, edges):
-    """The cycle of the receiving domain from which an event of ``cycle`` of the sending domain
-    counts there: the ``edges``-th receiving edge strictly after the instant ``cycle *
-    period_from`` (one domain: ``cycle + edges``). A push is visible to the consumer from
-    ``seen_from(push, P_src, P_dst, data_edges)``; a pop's free slot is seen by the producer from
-    ``seen_from(pop, P_dst, P_src, space_edges)``."""
-    if period_from == period_to:
-        return cycle + edges
-    return (cycle * period_from) // period_to + edges
-
-
-@register_jitable
-def seen_from_scaled(cycle, period_from, period_to, ratio, edges):
-    """:func:`seen_from` without a division: ``ratio`` = period_from / period_to (float), the
-    quotient estimated and then corrected, exactly (the products fit an int64)."""
-    if period_from == period_to:
-        return cycle + edges
-    x = cycle * period_from
-    q = int(cycle * ratio)
-    while q * period_to > x:
-        q -= 1
-    while (q + 1) * period_to <= x:
-        q += 1
-    return q + edges
 
 
 @register_jitable
@@ -414,7 +377,8 @@ def sva_slot(i, width, height, radius, passes, first_row):
 def sva_first_slot_row(band_rows, image_rows):
     """The input row a frame's first slot (its first matching costs) waits for besides its
     own: with the hybrid's automatic weights the noise band's last row, min(b, H) - 1 (the
-    frame's weights come from the band's statistic, :mod:`sva.noise`); else row 0 (``band_rows``
+    frame's weights come from the band's statistic, :mod:`sva.hamming.noise`); else row 0
+    (``band_rows``
     0)."""
     return max(0, min(band_rows, image_rows) - 1)
 

@@ -19,7 +19,7 @@ import hardware_study  # noqa: E402
 
 from stereosim.core.config import load_config  # noqa: E402
 from stereosim.core.datasets import find_scenes, load_scene, shared_data_dir  # noqa: E402
-from stereosim.nna.floatmodel import load_float_model  # noqa: E402
+from stereosim.nna.training.floatmodel import load_float_model  # noqa: E402
 from stereosim.quant.artifact import load_quantized  # noqa: E402
 
 

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from stereosim.core.errors import ConfigError
-from stereosim.nna.augment import RECIPES, photometric, rows_at, vertical_offsets
-from stereosim.nna.trainconfig import TrainConfig
+from stereosim.nna.training.augment import RECIPES, photometric, rows_at, vertical_offsets
+from stereosim.nna.training.trainconfig import TrainConfig
 
 
 def _old_recipe(patches, cfg, rng, shared_axis=False):

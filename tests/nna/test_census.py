@@ -7,7 +7,7 @@ from hypothesis import strategies as st
 from numpy.testing import assert_array_equal
 
 from stereosim.core.errors import ConfigError, InputError
-from stereosim.nna.census import census, census_bits, census_offsets, census_ref
+from stereosim.nna.census_unit.census import census, census_bits, census_offsets, census_ref
 
 # (window, kind, stride) covering both kinds, the 32/64-bit boundaries and the sparse census.
 CONFIGS = [

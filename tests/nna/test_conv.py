@@ -14,14 +14,14 @@ from numpy.testing import assert_array_equal
 
 from stereosim.core.config import NnaConfig
 from stereosim.core.errors import ConfigError, InputError
-from stereosim.nna.conv import (
+from stereosim.nna.conv.conv import (
     MAX_KERNEL_SIZE,
     check_layer,
     cnn_accumulators,
     cnn_descriptor,
     cnn_descriptor_ref,
 )
-from stereosim.nna.weights import load_layer, load_weights, placeholder_weights, save_weights
+from stereosim.nna.conv.weights import load_layer, load_weights, placeholder_weights, save_weights
 
 
 def _layer(seed, n_channels=32, k_size=9, bias_range=20000):

@@ -20,7 +20,7 @@ from stereosim.nna.geometry import (
     macs_per_descriptor,
     window_rows,
 )
-from stereosim.nna.trainconfig import VARIANTS
+from stereosim.nna.training.trainconfig import VARIANTS
 from stereosim.quant.artifact import load_quantized
 from stereosim.quant.intconv import int_forward, int_forward_ref, signs_ref
 from stereosim.sim.api import run

@@ -21,11 +21,12 @@ from numpy.testing import assert_array_equal
 
 from stereosim.core.config import DESCRIPTOR_DEFAULTS, load_config
 from stereosim.core.errors import ConfigError, InputError
-from stereosim.nna.conv import cnn_descriptor
-from stereosim.nna.floatmodel import load_float_model, save_float_model
-from stereosim.nna.train import train
-from stereosim.nna.trainconfig import VARIANTS, TrainConfig, receptive_field
-from stereosim.nna.traindata import (
+from stereosim.nna.conv.conv import cnn_descriptor
+from stereosim.nna.conv.weights import SHIPPED_WEIGHTS, default_weights, load_layer
+from stereosim.nna.training.floatmodel import load_float_model, save_float_model
+from stereosim.nna.training.train import train
+from stereosim.nna.training.trainconfig import VARIANTS, TrainConfig, receptive_field
+from stereosim.nna.training.traindata import (
     calibration_scene_dirs,
     cv_folds,
     leave_fold_out,
@@ -37,20 +38,19 @@ from stereosim.nna.traindata import (
     strip_reach,
     training_scene_dirs,
 )
-from stereosim.nna.trainloss import (
+from stereosim.nna.training.trainloss import (
     bit_regularisers,
     build_network,
     cost_curves,
     curve_loss,
     relaxed_bits,
 )
-from stereosim.nna.weights import SHIPPED_WEIGHTS, default_weights, load_layer
 from stereosim.quant.artifact import load_quantized, to_nna_weights
 from stereosim.quant.intconv import int_forward
 from stereosim.quant.quantizer import FloatModel, float_forward
 from stereosim.sim.cli import main
-from stereosim.sva.aggregation import box_filter
-from stereosim.sva.cost import hamming_cost
+from stereosim.sva.box.aggregation import box_filter
+from stereosim.sva.hamming.cost import hamming_cost
 
 SHIFT = 5  # disparity of the synthetic scenes
 

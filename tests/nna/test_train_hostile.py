@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 from stereosim.core.errors import ConfigError
-from stereosim.nna.floatmodel import save_float_model
-from stereosim.nna.trainconfig import TrainConfig, box_range, max_disparities
-from stereosim.nna.traindata import load_strip_set, training_scene_dirs
-from stereosim.nna.trainrun import checkpoint_path, cpu_count, parse_threads
+from stereosim.nna.training.floatmodel import save_float_model
+from stereosim.nna.training.trainconfig import TrainConfig, box_range, max_disparities
+from stereosim.nna.training.traindata import load_strip_set, training_scene_dirs
+from stereosim.nna.training.trainrun import checkpoint_path, cpu_count, parse_threads
 from stereosim.sim.cli import main
 
 OLD = b"an earlier output"

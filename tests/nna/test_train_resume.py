@@ -11,12 +11,12 @@ import pytest
 import torch  # the test extra (train imports it)
 from numpy.testing import assert_array_equal
 
-import stereosim.nna.train as train_module
+import stereosim.nna.training.train as train_module
 from stereosim.core.errors import ConfigError, InputError
-from stereosim.nna.train import train
-from stereosim.nna.trainconfig import TrainConfig
-from stereosim.nna.traindata import training_scene_dirs
-from stereosim.nna.trainrun import (
+from stereosim.nna.training.train import train
+from stereosim.nna.training.trainconfig import TrainConfig
+from stereosim.nna.training.traindata import training_scene_dirs
+from stereosim.nna.training.trainrun import (
     checkpoint_path,
     load_checkpoint,
     parse_threads,

@@ -12,11 +12,11 @@ from numpy.testing import assert_array_equal
 
 from stereosim.core.datasets import find_scene, load_scene, shared_data_dir
 from stereosim.core.io import to_grey
-from stereosim.nna.floatmodel import load_float_model, save_float_model
-from stereosim.nna.train import train
-from stereosim.nna.trainconfig import TrainConfig
-from stereosim.nna.traindata import training_scene_dirs
-from stereosim.nna.trainqat import build_qat_net, export_quantized, integer_network
+from stereosim.nna.training.floatmodel import load_float_model, save_float_model
+from stereosim.nna.training.train import train
+from stereosim.nna.training.trainconfig import TrainConfig
+from stereosim.nna.training.traindata import training_scene_dirs
+from stereosim.nna.training.trainqat import build_qat_net, export_quantized, integer_network
 from stereosim.quant.artifact import load_quantized
 from stereosim.quant.intconv import int_forward, int_forward_ref
 from stereosim.quant.quantizer import FloatModel, QuantizerConfig, quantize_twin

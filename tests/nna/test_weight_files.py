@@ -14,8 +14,8 @@ import pytest
 
 from stereosim.core.errors import ConfigError
 from stereosim.core.io import encode_png
-from stereosim.nna.conv import MAX_KERNEL_SIZE
-from stereosim.nna.weights import load_network
+from stereosim.nna.conv.conv import MAX_KERNEL_SIZE
+from stereosim.nna.conv.weights import load_network
 from stereosim.quant.artifact import QuantizedModel, save_quantized
 from stereosim.sim.api import run
 from stereosim.sim.cli import main

@@ -11,12 +11,12 @@ from hypothesis import strategies as st
 from numpy.testing import assert_array_equal
 
 from stereosim.core.errors import ConfigError
-from stereosim.nna.conv import cnn_accumulators
-from stereosim.nna.weights import SHIPPED_WEIGHTS, load_network
+from stereosim.nna.conv.conv import cnn_accumulators
+from stereosim.nna.conv.weights import SHIPPED_WEIGHTS, load_network
 from stereosim.quant import vnni
 from stereosim.quant.intconv import (
     F32_EXACT,
-    _acc_layer,
+    _layer_rows,
     _pad_taps,
     _padded,
     check_network,
@@ -186,8 +186,8 @@ def test_float32_lanes_hold_the_worst_case_sums():
     got = {}
     for dtype in (np.float32, np.float64):
         xp = np.full((7, 9, 9), -255, dtype)
-        acc = np.zeros((1, 1, 1), np.int32)
-        _acc_layer(xp, _pad_taps(big, dtype), np.zeros(1, np.int32), acc)
+        acc = np.zeros((1, 1, 1), np.int32)  # (C, rows, W): the accumulators
+        _layer_rows(xp, _pad_taps(big, dtype), np.zeros(1, np.int32), None, None, acc)
         got[dtype] = int(acc[0, 0, 0])
     assert got[np.float64] == exact
     assert got[np.float32] != exact  # what float32 lanes would do: the reason for the rule

@@ -11,8 +11,8 @@ from hypothesis import strategies as st
 from numpy.testing import assert_allclose, assert_array_equal
 
 from stereosim.core.errors import ConfigError
-from stereosim.nna.conv import cnn_accumulators
-from stereosim.nna.weights import load_layer, load_weights
+from stereosim.nna.conv.conv import cnn_accumulators
+from stereosim.nna.conv.weights import load_layer, load_weights
 from stereosim.quant.artifact import load_quantized, save_quantized, to_nna_weights
 from stereosim.quant.distances import DISTANCES, l1
 from stereosim.quant.intconv import int_forward, int_layer, mul_shift_ref, requantize

@@ -1,9 +1,9 @@
-"""cocotb test module: the RTL box filter (sva/rtl/sva_box.sv) against stereosim.
+"""cocotb test module: the RTL box filter (sva/box/sva_box.sv) against stereosim.
 
 A random cost volume per run is streamed through the stage as the SVA top would sequence it
 (the frame's k column passes, then per row W + r slots: see the RTL's header), with random
 input gaps and random lock-step stalls (``en`` low: nothing moves, the tick does not count).
-Every emitted pixel's D sums must equal sva/aggregation.py's ``box_filter_ref`` on the volume
+Every emitted pixel's D sums must equal sva/box/aggregation.py's ``box_filter_ref`` on the volume
 (replicate borders, saturation at 2^cost_bits - 1), and leave ``latency`` ticks after its slot
 was taken; a slot offered without a gap is taken ``II`` ticks after the one before. Both
 numbers are the plan's box_filter stage (sim.cycle.stages.sva_stages), read at run time.
@@ -20,7 +20,7 @@ from twin import Pins, each_run
 
 from stereosim.core.config import load_config
 from stereosim.sim.cycle.stages import sva_stages
-from stereosim.sva.aggregation import box_filter_ref
+from stereosim.sva.box.aggregation import box_filter_ref
 
 
 def pack(values, width: int) -> int:

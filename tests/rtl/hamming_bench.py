@@ -1,10 +1,11 @@
-"""cocotb test module: the RTL matching-cost stage (sva/rtl/sva_hamming.sv) against stereosim.
+"""cocotb test module: the RTL matching-cost stage (sva/hamming/sva_hamming.sv) against stereosim.
 
 Random pixels (left descriptor, the D right descriptors of its window, which lie outside the
 right image, the weights) are offered with random gaps; every output must equal the cost of
-sva/cost.py's definition, leave in the cycle the chip plan's stage says (taken + latency), and
+sva/hamming/cost.py's definition, leave in the cycle the chip plan's stage says (taken + latency),
+and
 the stage must take a pixel every II cycles when offered one -- the plan's II and latency
-(sim.cycle.stages.hamming_stage), read from the plan, not from the RTL's parameters.
+(sva.hamming.timing.hamming_stage), read from the plan, not from the RTL's parameters.
 """
 
 import dataclasses
@@ -15,12 +16,12 @@ from cocotb.triggers import ReadOnly, RisingEdge
 from twin import Pins, each_run
 
 from stereosim.core.config import load_config
-from stereosim.sim.cycle.stages import hamming_stage
-from stereosim.sva.cost import cost_parts, hamming_cost_ref
+from stereosim.sva.hamming.cost import cost_parts, hamming_cost_ref
+from stereosim.sva.hamming.timing import hamming_stage
 
 
 def expected(dl: int, dr: list[int], outside: list[bool], parts, weights) -> list[int]:
-    """The D costs of one pixel by sva/cost.py's reference (a 1 x D view of the volume)."""
+    """The D costs of one pixel by sva/hamming/cost.py's reference (a 1 x D view of the volume)."""
     spec = cost_parts(parts, weights[:len(parts)])
     d = len(dr)
     dtype = np.uint64

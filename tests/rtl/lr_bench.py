@@ -1,13 +1,13 @@
-"""cocotb runs (wta_bench runs them): the RTL left-right check (sva/rtl/sva_lr.sv) against
+"""cocotb runs (wta_bench runs them): the RTL left-right check (sva/lr/sva_lr.sv) against
 stereosim.
 
 A random summed-cost volume S (H, W, D) -- each pixel a valley of random depth, so that right and
 left disparities agree on some pixels and not on others -- gives the words and winners of
-sva/wta.py's reference; its pixels go to the stage in raster order, a pixel every II ticks
+sva/wta/wta.py's reference; its pixels go to the stage in raster order, a pixel every II ticks
 within a row (II: the plan's pipeline II), each row's first any number g >= II of ticks after
 the previous row's last (:func:`row_gaps`: II itself, gaps that are not whole IIs, gaps around
 the end of the previous row's drain), with random stalls (en = 0). Every checked word must
-equal sva/lr_check.py's reference (``lr_check_ref`` with ``right_disparity_ref``) and leave the
+equal sva/lr/lr_check.py's reference (``lr_check_ref`` with ``right_disparity_ref``) and leave the
 plan's lr_check latency (sim.cycle.stages.sva_stages, read from the plan) after its pixel
 arrived; with the instance named (``inst``), the window and the drain copy must never load the
 output register in the same tick (its emit_main / emit_drain), and the drain must have emitted.
@@ -20,8 +20,8 @@ from twin import Pins
 from stereosim.core.config import load_config
 from stereosim.sim.cycle.stages import pipeline_ii, sva_stages
 from stereosim.sva.geometry import output_word_bits
-from stereosim.sva.lr_check import lr_check_ref, right_disparity_ref
-from stereosim.sva.wta import wta_ref
+from stereosim.sva.lr.lr_check import lr_check_ref, right_disparity_ref
+from stereosim.sva.wta.wta import wta_ref
 
 
 def volume(rng, h: int, w: int, d: int, sw: int) -> np.ndarray:

@@ -1,8 +1,9 @@
-"""cocotb runs (wta_bench runs them): the RTL median (sva/rtl/sva_median.sv) against stereosim.
+"""cocotb runs (wta_bench runs them): the RTL median (sva/median/sva_median.sv) against stereosim.
 
 A random frame of output words (-1 among them, narrow ranges full of ties) goes in raster order,
 then the M W + M flush slots, with random bubbles and random stalls (en = 0); every median must
-equal sva/median.py's reference (``median_ref``, replicate borders, -1 below every disparity),
+equal sva/median/median.py's reference (``median_ref``, replicate borders, -1 below every
+disparity),
 in raster order, leave the plan's median latency (sim.cycle.stages.sva_stages, read from the
 plan) after the slot that completes its window -- the word at (y + M, x + M), clamped to the
 frame, i.e. slot j + M W + M for centre j -- and a slot offered back to back must be taken
@@ -17,7 +18,7 @@ from twin import Pins
 from stereosim.core.config import load_config
 from stereosim.sim.cycle.stages import sva_stages
 from stereosim.sva.geometry import output_word_bits
-from stereosim.sva.median import median_ref
+from stereosim.sva.median.median import median_ref
 
 
 async def one_run(dut, p: dict) -> None:

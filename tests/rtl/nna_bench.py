@@ -1,4 +1,4 @@
-"""cocotb test module: the RTL NNA submodule (nna/rtl/nna_submodule.sv) against stereosim.
+"""cocotb test module: the RTL NNA submodule (nna/submodule/nna_submodule.sv) against stereosim.
 
 The case (tests/rtl/test_nna_rtl.py) carries, per run, the frame, the integer network (weights
 in the RTL's tap order, biases, multiply-shift, input offset) and what the readable cycle engine

@@ -1,8 +1,8 @@
-"""cocotb test module: the RTL SGM path units and path sum (sva/rtl/sva_sgm.sv) against stereosim.
+"""cocotb test module: the RTL SGM path units and path sum (sva/sgm/sva_sgm.sv) against stereosim.
 
 A random aggregated volume A and grey image per run are streamed through the stage in raster
 order with random input gaps and random lock-step stalls (``en`` low: nothing moves, the tick
-does not count). Every pixel's path costs must equal sva/sgm.py's ``sgm_ref`` path by path
+does not count). Every pixel's path costs must equal sva/sgm/sgm.py's ``sgm_ref`` path by path
 (path k: sgm_ref over the first k + 1 paths less sgm_ref over the first k, at a sum width that
 never saturates) and its sums S ``sgm_ref`` at the configured widths; the path costs must leave
 the plan's sgm latency after the pixel was taken, the sums the plan's path_sum latency after
@@ -18,7 +18,7 @@ from twin import Pins, each_run
 
 from stereosim.core.config import load_config
 from stereosim.sim.cycle.stages import sva_stages
-from stereosim.sva.sgm import sgm_ref
+from stereosim.sva.sgm.sgm import sgm_ref
 
 
 def pack(values, width: int) -> int:

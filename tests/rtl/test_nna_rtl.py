@@ -1,4 +1,4 @@
-"""The RTL NNA submodule (nna/rtl/nna_submodule.sv) co-simulated against stereosim: a 9x9 x 32
+"""The RTL NNA submodule (nna/submodule/nna_submodule.sv) co-simulated against stereosim: a 9x9 x 32
 layer and a chain of two 3x3 layers on a 20 x 12 frame, the whole frame through one submodule
 (tests/rtl/nna_bench.py). Every descriptor equals the functional model's
 (nna/descriptor.py compute_descriptor) bit for bit, every pixel is popped and every descriptor
@@ -45,7 +45,7 @@ from stereosim.quant.intconv import network as int_network
 from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.cycle.readable.chip import build_chip
 
-SOURCE = "nna/rtl/nna_submodule.sv"
+SOURCE = "nna/submodule/nna_submodule.sv"
 SHAPE = (12, 20)  # (H, W): the whole frame, one tile, through one submodule
 # a 16-disparity SVA on an equal clock: the NNA, at 3 or more cycles a descriptor, never
 # waits for it
@@ -167,7 +167,7 @@ def _runs(configs, mutant: bool = False) -> tuple[dict, list[dict]]:
 
 
 def test_one_9x9_layer_of_32_channels(rtl_run):
-    """The repo's default network (nna/single9x9.npz) on 288 MACs (9 per channel: cpp 9; its
+    """The repo's default network (nna/conv/single9x9.npz) on 288 MACs (9 per channel: cpp 9; its
     10-row line buffer makes rows 10 and 11 wait for room)."""
     params, runs = _runs([("single9x9", load_config(overrides={**BASE, "nna.macs": 288}))])
     assert params["P0"] == 9 and params["ROWS0"] == 10

@@ -1,5 +1,5 @@
 """The synthesis figures of the RTL twin (sim/rtl_synth.py) without Yosys: the NAND2-equivalent
-conversion, the fmax arithmetic, the cached table (sva/rtl/synth_table.json: every SVA stage at
+conversion, the fmax arithmetic, the cached table (sva/synth_table.json: every SVA stage at
 the defaults and D = 64/128/256, its rows re-derived here from its recorded Yosys builds by the
 stated rules, the rules' checks) and the plan's `silicon` section and `stereosim rtl synth`
 that read it."""
@@ -231,7 +231,7 @@ def test_the_silicon_section_reads_the_table(tmp_path):
     d, lanes, v, parts = _default_key()
     cells = {"NAND": 300, "XOR": 30, "DFF_P": 60}
     sva = ChipConfig().sva
-    row = {"stage": "hamming", "source": "sva/rtl/sva_hamming.sv", "top": "sva_hamming",
+    row = {"stage": "hamming", "source": "sva/hamming/sva_hamming.sv", "top": "sva_hamming",
            "config": [d, min(lanes, d), v, parts],
            "params": rs.STAGE["hamming"].params(d, min(lanes, d), v, tuple(parts), sva),
            "cells": cells, "flip_flops": 60, "gates": 330, "depth": 20, "how": "synthesised"}

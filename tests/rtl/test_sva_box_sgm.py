@@ -1,6 +1,6 @@
-"""The RTL box filter (sva/rtl/sva_box.sv) and SGM path units with the path sum
-(sva/rtl/sva_sgm.sv) co-simulated against stereosim (tests/rtl/box_bench.py,
-tests/rtl/sgm_bench.py): every word bit-exact with sva/aggregation.py's and sva/sgm.py's
+"""The RTL box filter (sva/box/sva_box.sv) and SGM path units with the path sum
+(sva/sgm/sva_sgm.sv) co-simulated against stereosim (tests/rtl/box_bench.py,
+tests/rtl/sgm_bench.py): every word bit-exact with sva/box/aggregation.py's and sva/sgm/sgm.py's
 references on random volumes, every pixel out in the tick the chip plan's stage says, and a
 slot offered back to back taken one II after the one before -- the plan's box_filter, sgm and
 path_sum stages (sim.cycle.stages.sva_stages), read at test time.
@@ -28,7 +28,7 @@ from pathlib import Path
 
 import pytest
 
-RTL = Path(__file__).resolve().parents[2] / "sva" / "rtl"
+SVA = Path(__file__).resolve().parents[2] / "sva"
 
 # box: D up to 32 in lanes of 16 (D = 16: G = 1, D = 32: G = 2), boxes up to 7, costs of 6 bits
 # (a 32-bit descriptor's), sums saturating at 8 bits (sva.cost_bits = 8: box 7's auto width
@@ -81,13 +81,13 @@ def late_box(text: str) -> str:
 def twin(rtl_twin_top):
     """The stages' texts and a top instantiating each with its build parameters, every port
     brought out with its stage's prefix."""
-    box = (RTL / "sva_box.sv").read_text()
+    box = (SVA / "box" / "sva_box.sv").read_text()
     top = rtl_twin_top("sva_box_sgm_twin", [
         ("sva_box", "box_", BOX, box_ports(BOX)), ("sva_sgm", "sgm_", SGM, sgm_ports(SGM)),
         ("sva_box", "box2_", BOX2, box_ports(BOX2)), ("sva_sgm", "sgm2_", SGM2, sgm_ports(SGM2)),
         ("sva_box", "box1_", BOX1, box_ports(BOX1)), ("sva_sgm", "sgm1_", SGM1, sgm_ports(SGM1)),
         ("sva_box_late", "late_", BOX, box_ports(BOX))])
-    return ("\n".join([box, (RTL / "sva_sgm.sv").read_text(), late_box(box), top]),)
+    return ("\n".join([box, (SVA / "sgm" / "sva_sgm.sv").read_text(), late_box(box), top]),)
 
 
 def run_twin(rtl_run, twin, bench: str, case: dict, fails: bool = False) -> str:

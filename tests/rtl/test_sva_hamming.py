@@ -1,5 +1,5 @@
-"""The RTL matching-cost stage (sva/rtl/sva_hamming.sv) co-simulated against stereosim: every
-cost bit-exact with sva/cost.py and every pixel out in the cycle the chip plan's stage says
+"""The RTL matching-cost stage (sva/hamming/sva_hamming.sv) co-simulated against stereosim: every
+cost bit-exact with sva/hamming/cost.py and every pixel out in the cycle the chip plan's stage says
 (tests/rtl/hamming_bench.py). Structure is build-time (D, lanes, levels a cycle, the parts'
 bits); the weights are run-time registers, so one build serves several weight pairs.
 
@@ -14,7 +14,7 @@ import pytest
 from stereosim.core.config.widths import largest_cost
 from stereosim.sva.geometry import bits_for
 
-RTL_SOURCE = Path(__file__).resolve().parents[2] / "sva" / "rtl" / "sva_hamming.sv"
+RTL_SOURCE = Path(__file__).resolve().parents[2] / "sva" / "hamming" / "sva_hamming.sv"
 
 # (D, lanes, compare levels, parts): one part (a CNN's 32 bits, a census's), the hybrid's two
 BUILDS = [

@@ -1,4 +1,4 @@
-"""The SVA as one block in RTL (sva/rtl/sva_top.sv) held at its boundary to the readable cycle
+"""The SVA as one block in RTL (sva/pipeline/sva_top.sv) held at its boundary to the readable cycle
 engine (sim/cycle/readable/blocks/sva.py) on random small configurations (issue 48,
 acceptance 2).
 
@@ -16,7 +16,7 @@ that cycle with out_ready the model's room -- the recording, the build, the coco
 the comparison are stereosim.sim.rtl_check's (``stereosim rtl check``) -- and per configuration
 
 (a) every word equals the model's bit for bit (the readable engine's words, which are
-    sva/pipeline.py's functional model's);
+    sva/pipeline/pipeline.py's functional model's);
 (b) every joint pop and every output push happens in the model's cycle: the input flow
     control is sim.cycle.rules.sva_rows_done_before_input, the slots sva_slot and the issue
     rules after it, a word's exit the sum of sim.cycle.stages.sva_stages' latencies and
@@ -25,7 +25,7 @@ the comparison are stereosim.sim.rtl_check's (``stereosim rtl check``) -- and pe
     and words for the same plan and sink script.
 
 A mutant of the rule, caught by the boundary check and named by the plan's rule: the plan's
-matching-cost stage (sim.cycle.stages.hamming_stage) a cycle longer (every push a cycle early).
+matching-cost stage (sva.hamming.timing.hamming_stage) a cycle longer (every push a cycle early).
 The RTL's mutants are the stage tests' (test_sva_hamming.py, test_sva_wta_lr_median.py, ...):
 a mutant of the whole top would cost this file a third Verilator build.
 
@@ -53,7 +53,7 @@ from stereosim.sim import rtl_check
 from stereosim.sim.cycle import stages
 from stereosim.sim.cycle.compiled.run import run_compiled
 from stereosim.sim.cycle.plan import build_plan
-from stereosim.sva.wta import SUBPIXEL_MODES
+from stereosim.sva.wta.wta import SUBPIXEL_MODES
 
 # build-time structure: sva_top's parameters; "ks" the box sizes the build's rule agrees on
 BUILDS = {
@@ -152,7 +152,7 @@ def judge(c: dict, entry, rec, got) -> str:
     found = rtl_check.compare(rec, got, rtl_check.word_bits(p))
     assert found.overrun is None, (
         f"{c}: cycle {found.overrun}: a box pixel reached the SGM before its recurrence let "
-        f"it in (the plan's II {entry.cycles}, sim.cycle.stages.left_path_ii, too short for "
+        f"it in (the plan's II {entry.cycles}, sva.sgm.timing.left_path_ii, too short for "
         "the structure)")
     # (a) the words
     words = found.kinds["word"]

@@ -1,6 +1,6 @@
-"""The RTL disparity selection (sva/rtl/sva_wta.sv), LR check (sva_lr.sv) and median
-(sva_median.sv) co-simulated against stereosim: every word bit-exact with sva/wta.py,
-sva/lr_check.py and sva/median.py, every word out in the tick the chip plan's stage says
+"""The RTL disparity selection (sva/wta/sva_wta.sv), LR check (sva_lr.sv) and median
+(sva_median.sv) co-simulated against stereosim: every word bit-exact with sva/wta/wta.py,
+sva/lr/lr_check.py and sva/median/median.py, every word out in the tick the chip plan's stage says
 (tests/rtl/wta_bench.py, lr_bench.py, median_bench.py).
 
 One Verilator build: a wrapper top holds every instance (three WTA structures, the LR check,
@@ -27,7 +27,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
-RTL = ROOT / "sva" / "rtl"
+SVA = ROOT / "sva"
 SW, F, DB, WB = 12, 4, 4, 9  # summed costs < 2^12, 4 fractional bits, D = 16: 9-bit words
 
 # the WTA instances: prefix, lanes, compare levels (wc_: G = 4 at V = 1, where the plan's old
@@ -45,7 +45,7 @@ def _ports(pre: str, names: list[str]) -> str:
 def wrapper() -> str:
     """The one build's text: the three modules, a WTA mutant with a register after the tree's
     first level too (a cycle late, its words unchanged), and a top with every instance."""
-    wta = (RTL / "sva_wta.sv").read_text()
+    wta = (SVA / "wta" / "sva_wta.sv").read_text()
     mutant = wta.replace("module sva_wta", "module sva_wta_mutant").replace(
         MUTANT, "(l < LEVELS) && (l % V == 0 || l == 1)")
     assert mutant.count("l == 1") == 1 and "sva_wta_mutant" in mutant
@@ -77,8 +77,8 @@ def wrapper() -> str:
                     f"{_ports(pre, [x for x, _, _ in md_io])});")
     top = ("module sva_select_top (\n  " + ",\n  ".join(ports) + "\n);\n" + "\n".join(body)
            + "\nendmodule\n")
-    return "\n".join([wta, mutant, (RTL / "sva_lr.sv").read_text(),
-                      (RTL / "sva_median.sv").read_text(), top])
+    return "\n".join([wta, mutant, (SVA / "lr" / "sva_lr.sv").read_text(),
+                      (SVA / "median" / "sva_median.sv").read_text(), top])
 
 
 @pytest.fixture(scope="module")

@@ -1,7 +1,8 @@
 """A worked example: a user's own cocotb test of their own matching-cost RTL, with stereosim
 as the scoreboard (docs/rtl.md, "Your RTL against stereosim"). stereosim gives the expected
-costs (its reference, sva/cost.py) and the expected cycles (its chip plan's stage for the same
-configuration). The RTL under test here is sva/rtl/sva_hamming.sv built for D = 16, 16 lanes,
+costs (its reference, sva/hamming/cost.py) and the expected cycles (its chip plan's stage for the
+same
+configuration). The RTL under test here is sva/hamming/sva_hamming.sv built for D = 16, 16 lanes,
 V = 8 and one 32-bit descriptor, its ports at the top level; put yours in its place.
 """
 
@@ -11,8 +12,8 @@ from cocotb.clock import Clock
 from cocotb.triggers import ReadOnly, RisingEdge
 
 from stereosim.core.config import load_config
-from stereosim.sim.cycle.stages import hamming_stage
-from stereosim.sva.cost import cost_parts, hamming_cost_ref
+from stereosim.sva.hamming.cost import cost_parts, hamming_cost_ref
+from stereosim.sva.hamming.timing import hamming_stage
 
 D, BITS, W = 16, 32, 24  # disparities, descriptor bits, pixels in the row driven
 

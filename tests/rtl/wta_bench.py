@@ -1,9 +1,9 @@
-"""cocotb test module: the RTL disparity selection (sva/rtl/sva_wta.sv) against stereosim (and
+"""cocotb test module: the RTL disparity selection (sva/wta/sva_wta.sv) against stereosim (and
 the runner of lr_bench's and median_bench's runs in the same simulation).
 
 Random pixels of D summed costs (uniform, narrow ranges full of ties, valleys that give sub-pixel
 offsets of both signs) are offered with random gaps while the global ``en`` stalls the stage at
-random; every word, d* and S1 must equal sva/wta.py's reference (``wta_ref`` on the same costs),
+random; every word, d* and S1 must equal sva/wta/wta.py's reference (``wta_ref`` on the same costs),
 leave ``latency`` ticks (cycles with en = 1) after the pixel was taken and the stage must take
 a pixel every II ticks when offered one -- the plan's wta stage (sim.cycle.stages.sva_stages),
 read from the plan for the run's configuration (uniqueness margin and sub-pixel mode are run-time
@@ -22,7 +22,7 @@ from cocotb.triggers import ReadOnly, RisingEdge
 from stereosim.core.config import load_config
 from stereosim.sim.cycle.stages import sva_stages
 from stereosim.sva.geometry import output_word_bits
-from stereosim.sva.wta import SUBPIXEL_MODES, wta_ref
+from stereosim.sva.wta.wta import SUBPIXEL_MODES, wta_ref
 
 
 def plan_stage(cfg, name: str):

@@ -5,7 +5,7 @@ import pytest
 
 import stereosim
 from stereosim.core.errors import ConfigError, InputError
-from stereosim.sva.pipeline import sva_ref
+from stereosim.sva.pipeline.pipeline import sva_ref
 
 
 def _pair(h=23, w=61, shift=5, seed=0):
@@ -32,7 +32,7 @@ def test_functional_model_equals_the_naive_reference_end_to_end():
     over = {"sva.disparities": 16, "nna.descriptor": "census", "nna.census.window": [5, 5],
             "nna.census.kind": "symmetric"}
     res = stereosim.run(left, right, overrides=over)
-    from stereosim.nna.census import census
+    from stereosim.nna.census_unit.census import census
 
     ref = sva_ref(census(left, (5, 5), "symmetric"), census(right, (5, 5), "symmetric"), left,
                   res.config.sva, 12)

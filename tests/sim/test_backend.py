@@ -12,7 +12,7 @@ from stereosim.core.config import DESCRIPTOR_DEFAULTS, load_config
 from stereosim.core.config.backend import BACKEND_KEYS, carried_backend, write_backend
 from stereosim.core.errors import ConfigError
 from stereosim.core.npz import open_npz
-from stereosim.nna.weights import SHIPPED_WEIGHTS
+from stereosim.nna.conv.weights import SHIPPED_WEIGHTS
 from stereosim.sim.api import run
 from stereosim.sim.cli import PRESETS, main
 from stereosim.sim.summary import summary_text

@@ -169,7 +169,7 @@ def test_eval_on_the_2003_layout(capsys):
 
 
 def test_rtl_synth_prints_the_cached_table_and_judges_the_clock(capsys):
-    """``stereosim rtl synth``: the RTL twin's table from sva/rtl/synth_table.json (no Yosys
+    """``stereosim rtl synth``: the RTL twin's table from sva/synth_table.json (no Yosys
     run), the stages' rows and the compare_levels verdict at the clock asked for."""
     code, stdout, _ = _run(["rtl", "synth", "--mhz", "200"], capsys)
     assert code == 0

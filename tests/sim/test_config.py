@@ -19,15 +19,15 @@ from stereosim.core.config import (
     sgm_widths,
 )
 from stereosim.core.errors import ConfigError
-from stereosim.nna.census import census, census_bits
+from stereosim.nna.census_unit.census import census, census_bits
+from stereosim.nna.conv.weights import save_weights
 from stereosim.nna.descriptor import compute_descriptor, descriptor_bits
-from stereosim.nna.weights import save_weights
 from stereosim.sim.api import run
 from stereosim.sim.cycle import plan as plan_module
 from stereosim.sim.cycle.plan import build_plan
-from stereosim.sva.aggregation import box_filter
-from stereosim.sva.cost import hamming_cost
-from stereosim.sva.pipeline import SvaStream
+from stereosim.sva.box.aggregation import box_filter
+from stereosim.sva.hamming.cost import hamming_cost
+from stereosim.sva.pipeline.pipeline import SvaStream
 
 
 def test_defaults_round_trip_through_toml(tmp_path):

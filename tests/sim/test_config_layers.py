@@ -11,7 +11,7 @@ import pytest
 from stereosim.core.config import keys_set, layer_notes, load_config
 from stereosim.core.errors import ConfigError, InputError
 from stereosim.core.io import encode_png
-from stereosim.nna.weights import SHIPPED_WEIGHTS
+from stereosim.nna.conv.weights import SHIPPED_WEIGHTS
 from stereosim.sim.cli import PRESETS, main
 from stereosim.sim.cycle.plan import DEFAULT_FRAME, build_plan, frame_size
 

@@ -7,11 +7,12 @@ import pytest
 
 from stereosim.core.config import load_config
 from stereosim.core.errors import ConfigError
+from stereosim.core.timing import lg, tree_cycles
 from stereosim.nna.descriptor import compute_descriptor, descriptor_parts
 from stereosim.nna.geometry import census_rows, layer_rows
 from stereosim.sim.api import run, run_stream
 from stereosim.sim.cycle.plan import build_plan
-from stereosim.sim.cycle.stages import hamming_levels, lg, tree_cycles
+from stereosim.sva.hamming.timing import hamming_levels
 
 ROBUST = "benchmarks/models/mixed5x5-wide-n6.int8.npz"
 HYBRID = {"nna.descriptor": "hybrid", "sva.disparities": 16}

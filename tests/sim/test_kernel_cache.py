@@ -5,6 +5,7 @@ from __future__ import annotations
 import importlib
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,7 +15,8 @@ from numba.core.errors import TypingError
 
 from stereosim.core import kernel_cache
 from stereosim.core.kernel_cache import ROOT, PackageLocator, digest_of, source_files
-from stereosim.sim.cycle.compiled import fifo, schedule, sva
+from stereosim.sim.api import run
+from stereosim.sim.cycle.compiled import fifo, schedule
 
 
 def _cached_kernel_modules():
@@ -42,7 +44,7 @@ def test_every_cached_kernel_of_the_package_uses_the_package_locator():
 
 
 def test_the_stamp_is_the_files_and_the_packages_digest():
-    from stereosim.sva import pipeline
+    from stereosim.sva.pipeline import pipeline
 
     locator = pipeline.stream_rows._cache._impl.locator
     inner = locator.inner
@@ -55,7 +57,7 @@ def test_the_locator_names_the_kernels_file_as_numba_does():
     """numba's warning that a compiled kernel cannot be cached (dynamic globals, lifted code)
     names ``locator._py_file``; the package's locator keeps the file numba's own one found, so
     that warning is a warning and not an AttributeError (seen with NUMBA_OPT=0)."""
-    from stereosim.sva import pipeline
+    from stereosim.sva.pipeline import pipeline
 
     locator = pipeline.stream_rows._cache._impl.locator
     assert isinstance(locator, PackageLocator)
@@ -149,9 +151,71 @@ def test_a_borrowing_kernel_works_on_given_arrays_and_cannot_make_one():
         kernel_cache.njit_borrowing()(make)(3)
 
 
+# numba's reference counts: its runtime's functions, named in the machine code of a kernel that
+# counts (the increment may be inlined, the decrement stays a call)
+COUNTS = (b"NRT_incref", b"NRT_decref")
+TWINS = """
+from numba import njit
+
+from stereosim.core.kernel_cache import njit_borrowing
+
+
+def _copy(pair):
+    a, b = pair  # an array taken out of a tuple: numba counts it up and down
+    for i in range(a.shape[0]):
+        b[i] = a[i]
+
+
+counted = njit(cache=True)(_copy)
+
+
+@njit_borrowing(cache=True)
+def borrowing(pair):
+    a, b = pair
+    for i in range(a.shape[0]):
+        b[i] = a[i]
+"""
+
+
+def _machine_code(kernel, sig) -> bytes:
+    """The code numba built for ``kernel`` at ``sig``, as its on-disk cache holds it (numba
+    links the kernels it calls into it; code loaded from the cache cannot be inspected)."""
+    cache = kernel._cache
+    name = cache._cache_file._load_index().get(cache._index_key(sig, kernel.targetctx.codegen()))
+    assert name is not None, f"{kernel.py_func.__name__}{sig} is not in numba's cache"
+    return (Path(cache._cache_path) / name).read_bytes()
+
+
+def test_the_search_for_reference_counts_finds_them(tmp_path, monkeypatch):
+    """What the next test looks for is there in the code of a kernel that counts (a plain
+    ``njit`` one taking arrays out of a tuple) and not in its borrowing twin's."""
+    (tmp_path / "nrt_twins.py").write_text(TWINS)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.delitem(sys.modules, "nrt_twins", raising=False)
+    twins = importlib.import_module("nrt_twins")
+    pair = (np.arange(5), np.zeros(5, np.int64))
+    for kernel in (twins.counted, twins.borrowing):
+        kernel(pair)
+    (counted,), (borrowing,) = twins.counted.signatures, twins.borrowing.signatures
+    assert any(name in _machine_code(twins.counted, counted) for name in COUNTS)
+    assert not any(name in _machine_code(twins.borrowing, borrowing) for name in COUNTS)
+    monkeypatch.delitem(sys.modules, "nrt_twins")
+
+
 def test_the_stream_loop_runs_without_reference_counts():
-    """The compiled engine's stream loop and its walkers are borrowing kernels (the 0.35 us of
-    atomic counts a call are gone; docs/performance.md)."""
-    for kernel in (schedule.advance_streams, schedule.advance_whole_side,
-                   schedule.advance_sva_and_sink, sva.advance_sva_pops, fifo.walk_fifo):
-        assert kernel.targetoptions.get("_nrt") is False, kernel.py_func.__name__
+    """The code a cycle run runs for the compiled engine's stream loop (every block's advance
+    linked into it) and its FIFO walkers counts no array up or down: the 0.35 us of atomic
+    counts a call are gone (docs/performance.md)."""
+    rng = np.random.default_rng(0)
+    img = rng.integers(0, 256, (24, 64), dtype=np.uint8)
+    result = run(img, img, mode="cycle", overrides={"sim.engine": "fast", "sva.disparities": 16})
+    assert result.report["engine"] == "fast"
+    linked = {schedule.advance_streams: (b"advance_whole_side", b"advance_sva_and_sink",
+                                         b"advance_sva_pops"),
+              fifo.walk_fifos: (b"walk_fifo",)}
+    for kernel, callees in linked.items():
+        assert kernel.signatures, kernel.py_func.__name__  # the run called it
+        for sig in kernel.signatures:
+            code = _machine_code(kernel, sig)
+            assert all(callee in code for callee in callees), kernel.py_func.__name__
+            assert not any(name in code for name in COUNTS), kernel.py_func.__name__

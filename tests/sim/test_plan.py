@@ -15,7 +15,7 @@ from stereosim.sim.cycle.estimate import estimate
 from stereosim.sim.cycle.figures import chip_sram, sram_bits
 from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.cycle.simulate import simulate
-from stereosim.sva.pipeline import SvaStream
+from stereosim.sva.pipeline.pipeline import SvaStream
 
 SMALL = {"sva.disparities": 16}
 

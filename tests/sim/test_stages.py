@@ -10,18 +10,15 @@ import numpy as np
 import pytest
 
 from stereosim.core.config import load_config
+from stereosim.core.timing import lg, tree_cycles
 from stereosim.sim.api import run
 from stereosim.sim.cycle.compiled.run import run_compiled
 from stereosim.sim.cycle.figures import architecture_report
 from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.cycle.readable.chip import run_readable
-from stereosim.sim.cycle.stages import (
-    hamming_stage,
-    lane_groups,
-    lg,
-    sorting_depth,
-    tree_cycles,
-)
+from stereosim.sva.geometry import lane_groups
+from stereosim.sva.hamming.timing import hamming_stage
+from stereosim.sva.median.timing import sorting_depth
 
 # census (1 NNA cycle per descriptor, 32 bits), equal clocks: the input side is the one of
 # tests/sim/test_chip.py::test_census_first_and_last_output_cycles (row 0 ready at 6W + 3); the
@@ -125,7 +122,7 @@ def test_helpers():
     assert [lg(n) for n in (1, 2, 3, 4, 5, 128, 129)] == [0, 1, 2, 2, 3, 7, 8]
     assert [tree_cycles(t, 8) for t in (0, 1, 8, 9, 16)] == [0, 1, 1, 2, 2]
     assert sorting_depth(9) == 10 and sorting_depth(25) == 15
-    assert lane_groups(load_config(overrides={"sva.disparities": 48, "sva.lanes": 32})) == 2
+    assert lane_groups(load_config(overrides={"sva.disparities": 48, "sva.lanes": 32}).sva) == 2
 
 
 def test_the_report_shows_each_stage_and_its_arithmetic():

@@ -23,7 +23,7 @@ from stereosim.sim.cycle.compiled.run import run_compiled
 from stereosim.sim.cycle.frames import MAX_FRAMES, FrameSupply, check_frame_count
 from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.cycle.readable.chip import run_readable
-from stereosim.sva.pipeline import sva_stream
+from stereosim.sva.pipeline.pipeline import sva_stream
 
 # census (1 NNA cycle per descriptor), equal clocks: the worked example of docs/architecture.md
 # (row 0 of the first frame ready at 6W + 3, its first word popped at 6W + 4 + L)
@@ -310,3 +310,15 @@ def test_a_stream_shows_progress_on_a_terminal_and_never_in_json(tmp_path, capsy
     captured = capsys.readouterr()
     assert "timing pass" not in captured.err and "frames:" not in captured.err
     assert json.loads(captured.out)["frames"] == 3
+
+
+def test_a_streams_report_has_the_sections_of_one_frames(tmp_path, lent_toml):
+    """A stream's report has the keys of one frame's but the frame's ``output`` and adds
+    ``frames`` (docs/report.md, "Keys of a stream"): the lent network's section too."""
+    path = lent_toml(tmp_path / "n.toml", [(3, 1, 4, 1)], width=16, height=8)
+    over = {**SAME, "nna.lent_submodules": 1, "nna.lent_network": path}
+    left, right = _stream(1, 8, 40)
+    one = run(left[0], right[0], mode="functional", overrides=over).report
+    stream = run_stream([(left[0], right[0])] * 2, mode="functional", overrides=over).report
+    assert set(stream) == set(one) - {"output"} | {"frames"}
+    assert stream["frames"] == 2 and stream["lent_network"] == one["lent_network"]

@@ -146,7 +146,8 @@ def test_single_port_sram_spaces_the_issues_in_the_trace(run, ports, ii):
 @pytest.mark.parametrize("run", [run_readable, run_compiled])
 def test_automatic_weights_hold_the_first_costs_until_the_noise_band_is_in(run):
     """The hybrid's automatic weights come from the noise statistic of the left view's first
-    r + m + 1 rows (sva/noise.py: box 7, 5x5 median: rows 0 .. 5), so the frame's first slot --
+    r + m + 1 rows (sva/hamming/noise.py: box 7, 5x5 median: rows 0 .. 5), so the frame's first
+    slot --
     the column sums' first pass, the frame's first matching costs -- waits for row r + m
     (``rules.sva_first_slot_row``). The NNA gives a descriptor every 9 cycles, far slower than
     the SVA: with fixed weights the six passes start after row 0 and are over before row r = 3

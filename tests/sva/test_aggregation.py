@@ -7,7 +7,7 @@ from hypothesis import strategies as st
 from numpy.testing import assert_array_equal
 
 from stereosim.core.errors import InputError
-from stereosim.sva.aggregation import box_filter, box_filter_ref
+from stereosim.sva.box.aggregation import box_filter, box_filter_ref
 
 SHAPES = [(1, 1), (1, 17), (19, 1), (7, 13), (9, 21)]
 

@@ -7,7 +7,7 @@ from hypothesis import strategies as st
 from numpy.testing import assert_array_equal
 
 from stereosim.core.errors import InputError
-from stereosim.sva.cost import (
+from stereosim.sva.hamming.cost import (
     cost_parts,
     cost_row_add,
     cost_row_update,
@@ -112,11 +112,11 @@ def test_row_sums_of_costs_equal_ref(w, disparities, bits):
     cost = hamming_cost_ref(dl, dr, disparities, bits).astype(np.uint16)
     sums = np.zeros((w, disparities), np.uint16)
     for y in (0, 1, 1):
-        cost_row_add(dl[y], reversed_row(dr[y]), cost_parts(bits).kernel_args(dl.dtype), sums)
+        cost_row_add(dl[y], reversed_row(dr[y]), cost_parts(bits).registers(dl.dtype), sums)
     assert_array_equal(sums, cost[0] + 2 * cost[1])
     # replace row 0 by row 3: only d <= x changes, the B entries cancel
     cost_row_update(dl[3], reversed_row(dr[3]), dl[0], reversed_row(dr[0]),
-                    cost_parts(bits).kernel_args(dl.dtype), sums)
+                    cost_parts(bits).registers(dl.dtype), sums)
     assert_array_equal(sums, cost[3] + 2 * cost[1])
 
 
@@ -133,7 +133,7 @@ def test_bad_inputs_raise():
 
 
 def test_cosine_cost_of_sign_vectors_is_hamming():
-    from stereosim.sva.cost import cosine_cost, hamming_cost
+    from stereosim.sva.hamming.cost import cosine_cost, hamming_cost
 
     rng = np.random.default_rng(11)
     for bits, h, w, dn in ((32, 7, 29, 16), (8, 5, 13, 12)):
@@ -146,7 +146,7 @@ def test_cosine_cost_of_sign_vectors_is_hamming():
 
 
 def test_cosine_cost_by_hand():
-    from stereosim.sva.cost import cosine_cost
+    from stereosim.sva.hamming.cost import cosine_cost
 
     left = np.array([[[1.0, 0.0], [0.0, 2.0], [3.0, 3.0]]])  # (1, 3, 2)
     right = np.array([[[0.0, 1.0], [1.0, 0.0], [-1.0, -1.0]]])

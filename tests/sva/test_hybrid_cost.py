@@ -9,9 +9,14 @@ from numpy.testing import assert_array_equal
 
 from stereosim.core.config import load_config
 from stereosim.core.errors import InputError
-from stereosim.sva.cost import cost_parts, cost_row_add, hamming_cost, hamming_cost_ref
-from stereosim.sva.noise import band_rows, frame_weights, noise_statistic, noise_statistic_ref
-from stereosim.sva.pipeline import frame_cost, sva_ref, sva_stream
+from stereosim.sva.hamming.cost import cost_parts, cost_row_add, hamming_cost, hamming_cost_ref
+from stereosim.sva.hamming.noise import (
+    band_rows,
+    frame_weights,
+    noise_statistic,
+    noise_statistic_ref,
+)
+from stereosim.sva.pipeline.pipeline import frame_cost, sva_ref, sva_stream
 
 from .test_cost import descriptor_pair, reversed_row
 
@@ -33,7 +38,7 @@ def test_two_part_cost_equals_ref(parts, weights):
     assert got[2, 3, 8] == spec.top == weights[0] * parts[0] + weights[1] * parts[1]
     # the streaming row sums take the same cost
     sums = np.zeros((23, 9), np.uint16)
-    cost_row_add(dl[1], reversed_row(dr[1]), spec.kernel_args(dl.dtype), sums)
+    cost_row_add(dl[1], reversed_row(dr[1]), spec.registers(dl.dtype), sums)
     assert_array_equal(sums, got[1].astype(np.uint16))
 
 

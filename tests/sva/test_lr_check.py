@@ -6,8 +6,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_array_equal
 
-from stereosim.sva.lr_check import lr_check, lr_check_ref, right_disparity_ref
-from stereosim.sva.wta import INVALID, wta_ref
+from stereosim.sva.lr.lr_check import lr_check, lr_check_ref, right_disparity_ref
+from stereosim.sva.wta.wta import INVALID, wta_ref
 
 SHAPES = [(1, 1), (1, 17), (19, 1), (7, 13), (9, 21)]
 

@@ -7,7 +7,7 @@ from hypothesis import strategies as st
 from numpy.testing import assert_array_equal
 
 from stereosim.core.errors import InputError
-from stereosim.sva.median import (
+from stereosim.sva.median.median import (
     NARROW_MAX,
     column_networks,
     median,

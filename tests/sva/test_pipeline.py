@@ -11,12 +11,12 @@ from numpy.testing import assert_array_equal
 
 from stereosim.core.config import load_config
 from stereosim.core.errors import ConfigError, InputError
-from stereosim.nna.census import census
-from stereosim.sva.aggregation import box_filter_ref
-from stereosim.sva.cost import hamming_cost_ref
-from stereosim.sva.pipeline import sva_ref, sva_stream
-from stereosim.sva.sgm import sgm_ref
-from stereosim.sva.wta import INVALID
+from stereosim.nna.census_unit.census import census
+from stereosim.sva.box.aggregation import box_filter_ref
+from stereosim.sva.hamming.cost import hamming_cost_ref
+from stereosim.sva.pipeline.pipeline import sva_ref, sva_stream
+from stereosim.sva.sgm.sgm import sgm_ref
+from stereosim.sva.wta.wta import INVALID
 
 
 def sva_config(**overrides):
@@ -286,7 +286,7 @@ def test_bad_inputs_raise():
 def test_stream_fed_row_by_row_equals_whole_frame(box, median, paths):
     """The cycle model feeds SvaStream rows as they arrive; any feeding order of row counts
     must give the whole-frame result, and rows reported final must already be final."""
-    from stereosim.sva.pipeline import SvaStream
+    from stereosim.sva.pipeline.pipeline import SvaStream
 
     desc_l, desc_r, img = descriptor_pair(13, 37, 32, seed=box + median)
     cfg = sva_config(disparities=16, box_size=box, median=median, paths=paths)
@@ -311,7 +311,7 @@ def test_stream_fed_row_by_row_equals_whole_frame(box, median, paths):
 def test_frame_taller_than_the_median_ring(median):
     """The words before the median live in a ring of 2 m + 32 rows: a taller frame, whole or
     fed in uneven steps, must give the reference's words."""
-    from stereosim.sva.pipeline import SvaStream
+    from stereosim.sva.pipeline.pipeline import SvaStream
 
     cfg = sva_config(disparities=16, box_size=3, median=median, paths=4, lr_check=True)
     desc_l, desc_r, img = descriptor_pair(83, 17, 31, seed=median)
@@ -330,7 +330,7 @@ def test_frame_taller_than_the_median_ring(median):
 def test_stream_keeps_no_second_frame(median):
     """Besides its inputs and the output words, the stream's buffers grow with W x D, never
     with H x W: the words before the median are a ring of rows."""
-    from stereosim.sva.pipeline import SvaStream
+    from stereosim.sva.pipeline.pipeline import SvaStream
 
     h, w, dn = 200, 40, 16
     desc_l, desc_r, img = descriptor_pair(h, w, 31, seed=1)
@@ -360,8 +360,8 @@ def test_stream_keeps_no_second_frame(median):
     ],
 )
 def test_cost_volume_backend_equals_stream(overrides):
-    from stereosim.sva.cost import hamming_cost
-    from stereosim.sva.pipeline import sva_cost_volume
+    from stereosim.sva.hamming.cost import hamming_cost
+    from stereosim.sva.pipeline.pipeline import sva_cost_volume
 
     for h, w, bits, seed in ((17, 41, 32, 3), (9, 35, 31, 4)):
         left, right, img = descriptor_pair(h, w, bits, seed)
@@ -373,7 +373,7 @@ def test_cost_volume_backend_equals_stream(overrides):
 
 
 def test_cost_volume_backend_refuses_bad_volumes():
-    from stereosim.sva.pipeline import sva_cost_volume
+    from stereosim.sva.pipeline.pipeline import sva_cost_volume
 
     cfg = sva_config(disparities=16)
     img = np.zeros((8, 30), np.uint8)

@@ -1,13 +1,16 @@
 """SGM: row kernel == naive reference bit for bit; the path recurrence checked by hand."""
 
+import inspect
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_array_equal
 
+from stereosim.core.config import SvaConfig
 from stereosim.core.errors import InputError
-from stereosim.sva.sgm import effective_p2, sgm, sgm_ref
+from stereosim.sva.sgm.sgm import effective_p2, path_step, sgm, sgm_ref
 
 # (19, 1), (23, 2), (40, 3): taller than W + 2, so the top paths' row rings wrap many times
 SHAPES = [(1, 1), (1, 17), (19, 1), (23, 2), (40, 3), (7, 13), (9, 21)]
@@ -145,6 +148,57 @@ def test_adaptive_p2_formula():
     assert effective_p2(10, 100, True, 16, 50, 40) == 90  # 100 - (16 * 10 >> 4)
     assert effective_p2(10, 100, True, 24, 40, 50) == 85  # 100 - (240 >> 4)
     assert effective_p2(10, 100, True, 16, 0, 255) == 10  # floored at P1
+
+
+def test_path_step_by_hand():
+    # the step of test_small_penalties_by_hand's x1 (P1 = 1, P2 = 3, from [5, 1, 7]); a path
+    # start (zero predecessor) is the cost clamped to the cap
+    assert path_step([2, 6, 3], [5, 1, 7], 1, 3, 100) == [3, 6, 4]
+    assert path_step([2, 6, 3], [5, 1, 7], 1, 3, 5) == [3, 5, 4]
+    assert path_step([9, 0, 4], [0, 0, 0], 7, 9, 8) == [8, 0, 4]
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    w=st.integers(1, 9),
+    disparities=st.sampled_from([1, 2, 15, 16, 17, 31, 32, 33, 63, 64, 65, 97]),
+    p1=st.integers(0, 32767),
+    p2=st.integers(0, 32767),
+    path_bits=st.integers(1, 14),
+    adaptive=st.booleans(),
+    slope=st.integers(0, 16384),
+    high=st.sampled_from([4, 600, 65535]),
+    seed=st.integers(0, 2**16),
+)
+def test_the_kernels_step_is_path_step(w, disparities, p1, p2, path_bits, adaptive, slope,
+                                       high, seed):
+    """The kernel's vector step (uint16 lanes, masked tail, ABSENT borders) against the plain
+    :func:`path_step` on its own: a two-row image with the left and top paths, each path
+    iterated here from its start, S their sum (16 bits never saturate two 14-bit paths)."""
+    rng = np.random.default_rng(seed)
+    agg = rng.integers(0, high, size=(2, w, disparities), dtype=np.uint16)
+    img = rng.integers(0, 256, size=(2, w), dtype=np.uint8)
+    cap = (1 << path_bits) - 1
+    zero = [0] * disparities
+
+    def pen(y, x, py, px):
+        return effective_p2(p1, p2, adaptive, slope, img[y, x], img[py, px])
+
+    left = [[path_step(agg[y, 0], zero, p1, p2, cap)] for y in range(2)]
+    for y in range(2):
+        for x in range(1, w):
+            left[y].append(path_step(agg[y, x], left[y][x - 1], p1, pen(y, x, y, x - 1), cap))
+    top = [path_step(agg[0, x], zero, p1, p2, cap) for x in range(w)]
+    top = [top, [path_step(agg[1, x], top[x], p1, pen(1, x, 0, x), cap) for x in range(w)]]
+    want = np.array(left, np.int64) + np.array(top, np.int64)
+    got = sgm(agg, p1=p1, p2=p2, paths=2, path_bits=path_bits, sum_bits=16, img=img,
+              p2_adaptive=adaptive, p2_slope=slope)
+    assert_array_equal(got, want)
+
+
+def test_the_default_slope_is_the_configurations():
+    for fn in (sgm, sgm_ref):
+        assert inspect.signature(fn).parameters["p2_slope"].default == SvaConfig().p2_slope
 
 
 def test_adaptive_p2_changes_the_result():

@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_array_equal
 
-from stereosim.sva.wta import INVALID, subpixel_offset, to_float, wta, wta_ref
+from stereosim.sva.wta.wta import INVALID, subpixel_offset, to_float, wta, wta_ref
 
 SHAPES = [(1, 1), (1, 17), (19, 1), (7, 13), (9, 21)]
 MODES = ["off", "parabola", "equiangular"]

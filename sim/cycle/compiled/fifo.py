@@ -1,7 +1,7 @@
 """The FIFOs on the compiled engine: their occupancy from the push and pop streams of their
 producer and consumer (twin of the readable kernel's :class:`~sim.cycle.readable.fifo.Fifo`,
-:mod:`sim.cycle.readable.fifo`; the visibility and free-slot edges are the plan's, from
-:func:`sim.cycle.rules.fifo_edges`).
+:mod:`sim.cycle.readable.fifo`; the rule -- edges, visibility, room -- is the FIFO block's,
+:mod:`sim.cycle.fifo.rule`, and what a FIFO traces :mod:`sim.cycle.fifo.compiled`).
 
 A FIFO has no stream of its own: its items are its producer's pushes and its consumer's pops
 (a tile's FIFO: the pixels of the tile's input region among the source's pushes, or the
@@ -20,7 +20,7 @@ import numpy as np
 from stereosim.core.kernel_cache import njit, njit_borrowing
 from stereosim.sim.cycle.compiled.layout import ERR_RING, FIFO_TO_MERGE, FIFO_TO_NNA, INF
 from stereosim.sim.cycle.compiled.ring import at, rd, view
-from stereosim.sim.cycle.rules import seen_from, seen_from_scaled
+from stereosim.sim.cycle.fifo.rule import room_from, room_seen_until, seen_from, seen_from_scaled
 
 # ---- items and streams --------------------------------------------------------------------------
 
@@ -177,7 +177,7 @@ def walk_fifo(net, f, producer, c_end):
         idx = item_index(pop_kind, region, w, prm.n, dec)
         err |= idx <= o_lo
         cc = rd(ring, o_off, o_mask, idx)
-        td = seen_from_scaled(cc, per_c, per_p, rat_c, se) if producer else cc + 1
+        td = room_from(cc, per_p, per_c, rat_c, se) if producer else cc + 1
     while True:
         if ti <= td:
             if ti == INF or inc >= inc_limit:
@@ -218,7 +218,7 @@ def walk_fifo(net, f, producer, c_end):
             if dec < npop:
                 idx = item_index(pop_kind, region, w, prm.n, dec)
                 cc = rd(ring, o_off, o_mask, idx)
-                td = seen_from_scaled(cc, per_c, per_p, rat_c, se) if producer else cc + 1
+                td = room_from(cc, per_p, per_c, rat_c, se) if producer else cc + 1
     if final and c_end > cycle and 0 <= level <= depth:
         if keep:
             hist[hoff + level] += c_end - cycle
@@ -264,11 +264,7 @@ def counts_at(ring, streams, cursors, prm, tiles, fi, t):
     c_src = t // fi.per_src
     c_dst = t // fi.per_dst
     # the last pop whose free slot the producer sees at c_src
-    if fi.crossing == 1:
-        x = (c_src - fi.space_edges + 1) * fi.per_src
-        p_seen = (x - 1) // fi.per_dst if x > 0 else -1
-    else:
-        p_seen = c_src - 1
+    p_seen = room_seen_until(c_src, fi.per_src, fi.per_dst, fi.space_edges)
     push = streams[fi.push]
     pop = streams[fi.pop]
     le_push = cursors[fi.push]
@@ -300,15 +296,3 @@ def fifo_counts(net, f, t):
                         t)
 
 
-
-@njit(cache=True, inline="always")
-def sample_fifo(counts, depth, out):
-    """A FIFO's traced values from its ``counts`` (:func:`counts_at`) into out[0:5]:
-    occupancy, pushed and popped in the last edges, full as its producer sees it, empty."""
-    pushes, pops, seen, pushed, popped = counts
-    occ = pushes - pops
-    out[0] = occ
-    out[1] = 1 if pushed else 0
-    out[2] = 1 if popped else 0
-    out[3] = 1 if pushes - seen >= depth else 0
-    out[4] = 1 if occ == 0 else 0

@@ -138,7 +138,7 @@ TILE = np.dtype([
     ("layer0", np.int64), ("n_layers", np.int64),  # its layers' records in ``Net.layers``
 ])
 
-# a layer stage of an NNA tile (:class:`~sim.cycle.stages.LayerPlan`; one per tile for a single
+# a layer stage of an NNA tile (:class:`~nna.submodule.timing.LayerPlan`; one per tile for a single
 # layer and the census): its half kernel, line buffer rows and cycles per output pixel, its
 # regions (output x0 .. x1, y0 .. y1, input ix0 .., iy0 ..; row widths and items per frame),
 # the streams of the items entering its line buffer (layer 0: the tile's pops; else the layer

@@ -22,7 +22,7 @@ from stereosim.sim.cycle.compiled.layout import (
     INF,
 )
 from stereosim.sim.cycle.compiled.ring import busy, event, lt_at, ratio, rd, view
-from stereosim.sim.cycle.rules import seen_from, seen_from_scaled
+from stereosim.sim.cycle.fifo.rule import room_from, visible_from
 
 
 @njit(cache=True, inline="always")
@@ -89,10 +89,9 @@ def advance_merge(net, side):
             if m - depth >= npop:
                 break
             err |= m - depth <= p_lo
-            free = seen_from_scaled(rd(ring, p_off, p_mask, m - depth), per_dst, per_src, rat,
-                                    se)
+            free = room_from(rd(ring, p_off, p_mask, m - depth), per_src, per_dst, rat, se)
         err |= j <= r.lost
-        vis = ring[r.off + (j & r.mask)] + r.edges  # (one domain)
+        vis = visible_from(ring[r.off + (j & r.mask)], per, per, 1.0, r.edges)  # (one domain)
         mg = max(mg_prev + 1, vis, free)
         if mg * per >= cap:
             break
@@ -149,7 +148,8 @@ def status_merge(ring, streams, cursors, prm, tables, b, c):
     tl = tiles[ti]
     e = event(ring, streams[tl.mac_push], fr * tl.n_out + (y - tl.y0) * tl.ow + x - tl.x0)
     fin = fifos[tl.out_fifo]
-    if e == INF or seen_from(e, fin.per_src, fin.per_dst, fin.data_edges) > c:
+    if e == INF or visible_from(e, fin.per_src, fin.per_dst, ratio(fin.per_src, fin.per_dst),
+                                 fin.data_edges) > c:
         return A_STARVED, tl.out_fifo
     return A_BLOCKED, b.fifo_out
 

@@ -2,7 +2,8 @@
 line buffer and a MAC array (twin of the readable kernel's :mod:`sim.cycle.readable.blocks.nna`:
 :class:`~sim.cycle.readable.blocks.nna.LineBuffer`,
 :class:`~sim.cycle.readable.blocks.nna.MacArray`,
-:class:`~sim.cycle.readable.blocks.nna.NnaSubmodule`; the rules are :mod:`sim.cycle.rules`).
+:class:`~sim.cycle.readable.blocks.nna.NnaSubmodule`; the rules are :mod:`sim.cycle.rules`, its
+FIFOs' :mod:`sim.cycle.fifo.rule`).
 One layer (and the census) is one stage: the same streams, loops and walker as ever.
 
 Streams, per tile (layer l of L, its record ``Net.layers``: regions, h_l, rows_l, cpp_l):
@@ -16,8 +17,7 @@ Streams, per tile (layer l of L, its record ``Net.layers``: regions, h_l, rows_l
   (``in_l``: layer 0's pops, else layer l - 1's outputs), finishes at ``f_k = s_k + cpp_l - 1``
   and leaves at ``e[k] = max(f_k, room_l+1(k // W_l))`` into the next layer's line buffer, or,
   the last layer, ``max(f_k, free(p[k - depth]))`` into the tile's FIFO
-  (:func:`advance_layer` for the layers before the last, :func:`advance_last_layer`, layer
-  after layer).
+  (:func:`advance_layer`, layer after layer).
 
 Here also: the submodule's statistics -- one layer: :func:`walk_nna` (the MAC array waits for
 input rows -- starved -- and holds a finished descriptor -- blocked; a pop in such a cycle
@@ -49,11 +49,11 @@ from stereosim.sim.cycle.compiled.ring import (
     rd,
     view,
 )
+from stereosim.sim.cycle.fifo.rule import room_from, visible_from
 from stereosim.sim.cycle.rules import (
     frame_row,
     nna_last_input_row,
     nna_rows_started_before_input,
-    seen_from_scaled,
 )
 
 # ---- the line buffer's pops ---------------------------------------------------------------------
@@ -120,7 +120,7 @@ def advance_line_pops(net, ti):
         if k >= na:
             break
         err |= k <= a_lo
-        vis = seen_from_scaled(rd(ring, a_off, a_mask, k), per_src, per_dst, rat, de)
+        vis = visible_from(rd(ring, a_off, a_mask, k), per_src, per_dst, rat, de)
         b = max(b_prev + 1, vis, room)
         if b * per >= cap:
             break
@@ -193,7 +193,7 @@ def whole_pops(net, k, cur, ka):
                 break
             err |= bad
             room_row = yb
-        vis = seen_from_scaled(rd(ring, a_off, a_mask, kb), p_src, p_nna, rat_in, de)
+        vis = visible_from(rd(ring, a_off, a_mask, kb), p_src, p_nna, rat_in, de)
         b = max(b_prev + 1, vis, room)
         if b * p_nna >= cap:
             break
@@ -230,32 +230,49 @@ def whole_pops_end(net, k, cur):
 
 @njit_borrowing(cache=True)
 def advance_layer(net, ti, li):
-    """Outputs of layer ``li`` (its record) of tile ``ti``, a layer before the last, as far as
-    its input rows and the room in the next layer's line buffer (:func:`line_room` of that
-    layer) allow: each written into that line buffer."""
+    """Outputs of layer ``li`` (its record) of tile ``ti`` as far as its input rows and the room
+    after it allow: a layer before the last writes into the next layer's line buffer (room: its
+    :func:`line_room`, row by row), the last pushes into the tile's FIFO (room: the slot a
+    FIFO depth back, :func:`~sim.cycle.fifo.rule.room_from`, item by item). Output k starts at
+    max(e[k-1] + 1, its input rows in), is done ``cpd - 1`` cycles later and leaves once the
+    room is there."""
     prm = net.prm[0]
     state = net.state[0]
-    ring, streams = net.ring, net.streams
+    ring, streams, occ = net.ring, net.streams, net.occ
+    tl = net.tiles[ti]
     lr = net.layers[li]
+    last = li == tl.layer0 + tl.n_layers - 1
     b_off, b_mask, nb, b_lo = view(streams, lr.in_stream)
-    e_off, e_mask, j, _ = view(streams, lr.out_stream)
-    st = streams[lr.out_stream]
-    per, cap, h = st.period, prm.cap_fs, prm.h
+    out_s = tl.mac_push if last else lr.out_stream
+    e_off, e_mask, j, _ = view(streams, out_s)
+    st = streams[out_s]
+    per, cap, w, h, n = st.period, prm.cap_fs, prm.w, prm.h, prm.n
     cpd, half = lr.cpd, lr.half
-    ow, iw, y0, iy0, n_in = lr.ow, lr.iw, lr.y0, lr.iy0, lr.n_in
-    out_rows = lr.y1 - lr.y0
-    nx = net.layers[li + 1]  # its outputs make room in its line buffer
+    # the output region (the last layer's: the tile's) and the input region
+    ow, y0, x0, n_out, out_rows, occ_out = lr.ow, lr.y0, lr.x0, lr.n_out, lr.y1 - lr.y0, \
+        lr.occ_out
+    iw, iy0, n_in = lr.iw, lr.iy0, lr.n_in
+    if last:
+        ow, y0, x0, n_out, out_rows, occ_out = tl.ow, tl.y0, tl.x0, tl.n_out, tl.y1 - tl.y0, \
+            tl.occ_out
+        if li == tl.layer0:
+            iw, iy0, n_in = tl.iw, tl.iy0, tl.n_in
+    nx = net.layers[li + 1] if not last else lr  # its outputs make room in its line buffer
     nxt = view(streams, nx.out_stream)
     geometry = (nx.rows, nx.half, nx.top_halo, nx.y1 - nx.y0, out_rows, nx.ow)
-    occ = net.occ
-    occ_in, occ_out, occ_mask = nx.occ_in, lr.occ_out, occ.shape[1] - 1
+    f = net.fifos[tl.out_fifo]
+    p_off, p_mask, npop, p_lo = view(streams, f.pop)
+    depth, per_src, per_dst, se = f.depth, f.per_src, f.per_dst, f.space_edges
+    rat = ratio(per_dst, per_src)
+    merge = prm.merge == 1
+    occ_in, occ_mask = nx.occ_in, occ.shape[1] - 1
     err = False
     start = j
     e_prev = rd(ring, e_off, e_mask, j - 1) if j > 0 else -1
     rows_row = -1
     rows_in = 0
     room = 0
-    r = j // ow  # the layer's output row over the stream: row rl of frame fr
+    r = j // ow  # the output row over the stream: row rl of frame fr
     c = j - r * ow
     fr = r // out_rows
     rl = r - fr * out_rows
@@ -266,17 +283,30 @@ def advance_layer(net, ti, li):
                 break
             err |= need - 1 <= b_lo
             rows_in = rd(ring, b_off, b_mask, need - 1) + 1
-            room, ok, bad = line_room(ring, nxt, r, geometry)  # the row it writes
-            if not ok:
-                break
-            err |= bad
+            if not last:
+                room, ok, bad = line_room(ring, nxt, r, geometry)  # the row it writes
+                if not ok:
+                    break
+                err |= bad
             rows_row = r
-        done = max(e_prev + 1, rows_in) + cpd - 1
-        e = max(done, room)
+        if last:
+            room = 0
+            if j >= depth:
+                jj = j - depth
+                if merge:  # its raster index in the merge
+                    fj = jj // n_out
+                    jl = jj - fj * n_out
+                    rr = jl // ow
+                    jj = fj * n + (y0 + rr) * w + x0 + jl - rr * ow
+                if jj >= npop:
+                    break
+                err |= jj <= p_lo
+                room = room_from(rd(ring, p_off, p_mask, jj), per_src, per_dst, rat, se)
+        e = max(max(e_prev + 1, rows_in) + cpd - 1, room)
         if e * per >= cap:
             break
         ring[e_off + (j & e_mask)] = e
-        if c == 0:  # the next layer's input row starts to enter
+        if c == 0 and not last:  # the next layer's input row starts to enter
             occ[occ_in, r & occ_mask] = e
         e_prev = e
         j += 1
@@ -295,90 +325,15 @@ def advance_layer(net, ti, li):
     return j > start
 
 
-@njit(cache=True, inline="always")
-def advance_last_layer(net, ti, li):
-    """Pushes of tile ``ti``'s last layer (record ``li``) into its FIFO, as far as its input
-    rows and the free slots allow."""
-    prm = net.prm[0]
-    state = net.state[0]
-    ring, streams = net.ring, net.streams
-    tl = net.tiles[ti]
-    lr = net.layers[li]
-    b_off, b_mask, nb, b_lo = view(streams, lr.in_stream)
-    e_off, e_mask, j, _ = view(streams, tl.mac_push)
-    st = streams[tl.mac_push]
-    f = net.fifos[tl.out_fifo]
-    p_off, p_mask, npop, p_lo = view(streams, f.pop)
-    depth, per_src, per_dst, se = f.depth, f.per_src, f.per_dst, f.space_edges
-    rat = ratio(per_dst, per_src)
-    per, cap, w, cpd, half, h = st.period, prm.cap_fs, prm.w, lr.cpd, lr.half, prm.h
-    ow, iw, y0, x0, iy0, n_out, n_in = tl.ow, tl.iw, tl.y0, tl.x0, tl.iy0, tl.n_out, tl.n_in
-    if li != tl.layer0:  # a layer after the first: its input region is the layer before's
-        iw, iy0, n_in = lr.iw, lr.iy0, lr.n_in
-    out_rows, n = tl.y1 - tl.y0, prm.n
-    merge = prm.merge == 1
-    err = False
-    start = j
-    e_prev = rd(ring, e_off, e_mask, j - 1) if j > 0 else -1
-    rows_row = -1
-    rows_in = 0
-    r = j // ow  # the tile's output row over the stream: row rl of frame fr
-    c = j - r * ow
-    fr = r // out_rows
-    rl = r - fr * out_rows
-    while j < st.n:
-        if r != rows_row:
-            need = fr * n_in + (nna_last_input_row(y0 + rl, half, h) - iy0 + 1) * iw
-            if need > nb:
-                break
-            err |= need - 1 <= b_lo
-            rows_in = rd(ring, b_off, b_mask, need - 1) + 1
-            rows_row = r
-        free = 0
-        if j >= depth:
-            jj = j - depth
-            if merge:  # its raster index in the merge
-                fj = jj // n_out
-                jl = jj - fj * n_out
-                rr = jl // ow
-                jj = fj * n + (y0 + rr) * w + x0 + jl - rr * ow
-            if jj >= npop:
-                break
-            err |= jj <= p_lo
-            free = seen_from_scaled(rd(ring, p_off, p_mask, jj), per_dst, per_src, rat, se)
-        s_j = max(e_prev + 1, rows_in)
-        e = max(s_j + cpd - 1, free)
-        if e * per >= cap:
-            break
-        ring[e_off + (j & e_mask)] = e
-        e_prev = e
-        j += 1
-        c += 1
-        if c == ow:
-            net.occ[tl.occ_out, r & (net.occ.shape[1] - 1)] = e
-            c = 0
-            r += 1
-            rl += 1
-            if rl == out_rows:
-                rl = 0
-                fr += 1
-    st.count = j
-    if err:
-        state.error = ERR_RING
-    return j > start
-
-
 @njit_borrowing(cache=True)
 def advance_mac_pushes(net, ti):
-    """The MAC arrays' outputs of tile ``ti``, layer after layer: the layers before the last
-    into the next one's line buffer (:func:`advance_layer`), the last into the tile's FIFO
-    (:func:`advance_last_layer`)."""
+    """The MAC arrays' outputs of tile ``ti``, layer after layer (:func:`advance_layer`): the
+    layers before the last into the next one's line buffer, the last into the tile's FIFO."""
     tl = net.tiles[ti]
-    last = tl.layer0 + tl.n_layers - 1
     moved = False
-    for li in range(tl.layer0, last):
+    for li in range(tl.layer0, tl.layer0 + tl.n_layers):
         moved |= advance_layer(net, ti, li)
-    return advance_last_layer(net, ti, last) | moved
+    return moved
 
 
 # ---- statistics ---------------------------------------------------------------------------------

@@ -59,7 +59,7 @@ from stereosim.sim.cycle.compiled.sampler import next_instant, record_window, sa
 from stereosim.sim.cycle.compiled.schedule import advance_streams, walk_all
 from stereosim.sim.cycle.compiled.source import note_source_wait
 from stereosim.sim.cycle.plan import ChipPlan, build_plan
-from stereosim.sva.pipeline import sva_stream
+from stereosim.sva.pipeline.pipeline import sva_stream
 
 #: the longest this process waits for the helper before it goes on alone (a safety net:
 #: whatever the helper has not compiled then, the run compiles itself)

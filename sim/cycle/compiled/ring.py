@@ -43,7 +43,7 @@ def busy(gaps, blk, n_gaps, last_busy, u, v, g):
 
 @njit(cache=True, inline="always")
 def ratio(per_from, per_to):
-    """Two clock periods' ratio (for :func:`~sim.cycle.rules.seen_from_scaled`)."""
+    """Two clock periods' ratio (for :func:`~sim.cycle.fifo.rule.seen_from_scaled`)."""
     return per_from / per_to
 
 

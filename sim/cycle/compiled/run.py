@@ -63,6 +63,7 @@ from stereosim.sim.cycle.contract import (
     trace_signals,
     watchdog_message,
 )
+from stereosim.sim.cycle.fifo.rule import seen_from
 from stereosim.sim.cycle.frames import FrameSupply, camera_frames
 from stereosim.sim.cycle.plan import ChipPlan
 from stereosim.sim.cycle.report import cycle_report
@@ -70,10 +71,9 @@ from stereosim.sim.cycle.rules import (
     camera_busy_cycles,
     camera_frame_start,
     edges_through,
-    seen_from,
     sink_allowed_between,
 )
-from stereosim.sva.pipeline import sva_stream
+from stereosim.sva.pipeline.pipeline import sva_stream
 from stereosim.traces.log import TraceLog
 
 

@@ -15,7 +15,7 @@ blocked.
 from __future__ import annotations
 
 from stereosim.core.kernel_cache import njit
-from stereosim.sim.cycle.compiled.fifo import counts_at, sample_fifo
+from stereosim.sim.cycle.compiled.fifo import counts_at
 from stereosim.sim.cycle.compiled.layout import (
     INF,
     K_CAMERA,
@@ -31,6 +31,7 @@ from stereosim.sim.cycle.compiled.ring import cursors_at
 from stereosim.sim.cycle.compiled.sink import sample_sink, status_sink
 from stereosim.sim.cycle.compiled.source import sample_source, status_camera, status_memory
 from stereosim.sim.cycle.compiled.sva import sample_sva, status_sva
+from stereosim.sim.cycle.fifo.compiled import sample_fifo
 
 
 @njit(cache=True)

@@ -23,14 +23,14 @@ from stereosim.sim.cycle.compiled.layout import (
     ERR_GAPS,
     ERR_RING,
 )
-from stereosim.sim.cycle.compiled.ring import busy, event, lt_at, rd, view
+from stereosim.sim.cycle.compiled.ring import busy, event, lt_at, ratio, rd, view
 from stereosim.sim.cycle.compiled.source import DRAM
+from stereosim.sim.cycle.fifo.rule import visible_from
 from stereosim.sim.cycle.rules import (
     burst_of,
     dram_slot,
     dram_write_done_fs,
     first_edge_at,
-    seen_from,
     sink_allowed_between,
     sink_may_pop,
     sink_next_allowed,
@@ -73,7 +73,7 @@ def pops(k, arrays, cur, ko):
     kq, q_prev, xq, kw, d_wait, empty, first, n_gaps, last_busy, err = cur
     moved = False
     while kq < ko:
-        vis = rd(ring, o_off, o_mask, kq) + de
+        vis = visible_from(rd(ring, o_off, o_mask, kq), per, per, 1.0, de)  # (one domain)
         q = sink_next_allowed(max(q_prev + 1, vis), allowed)
         wait = 0
         last = -1
@@ -152,8 +152,8 @@ def status_sink(ring, streams, cursors, prm, tables, b, c):
         return A_BUSY, -1
     if prm.dram == 1 and received < streams[o_s].count:  # its word is visible: the write
         fi = fifos[b.fifo_in]  # buffer is full
-        if seen_from(event(ring, streams[o_s], received), fi.per_src, fi.per_dst,
-                     fi.data_edges) <= c:
+        if visible_from(event(ring, streams[o_s], received), fi.per_src, fi.per_dst,
+                        ratio(fi.per_src, fi.per_dst), fi.data_edges) <= c:
             return A_BLOCKED, DRAM
     return A_STARVED, b.fifo_in
 

@@ -35,6 +35,7 @@ from stereosim.sim.cycle.compiled.layout import (
     K_MEMORY,
 )
 from stereosim.sim.cycle.compiled.ring import busy, event, lt_at, ratio, rd, view
+from stereosim.sim.cycle.fifo.rule import room_from, seen_from, seen_from_scaled
 from stereosim.sim.cycle.rules import (
     burst_last,
     burst_of,
@@ -47,8 +48,6 @@ from stereosim.sim.cycle.rules import (
     first_edge_at,
     frame_buffer_admits,
     memory_first_cycle,
-    seen_from,
-    seen_from_scaled,
 )
 
 FRAME_BUFFERS = -2  # what a memory source reading a camera's frame buffers waits on
@@ -243,8 +242,7 @@ def _tiles_free(ring, tab, fno, x, y, rat, camera, c):
             if j >= r.count:
                 return free, False, err, full_tile
             err |= j <= r.lost
-            fr = seen_from_scaled(ring[r.off + (j & r.mask)], r.per_dst, r.per_src, rat,
-                                  r.edges)
+            fr = room_from(ring[r.off + (j & r.mask)], r.per_src, r.per_dst, rat, r.edges)
             if fr > free:
                 free = fr
             if camera == 1 and full_tile < 0 and fr > c:
@@ -397,8 +395,7 @@ def whole_pushes(net, k, cur, kb):
     while ka < n and ka - depth < kb:
         free = 0
         if ka >= depth:
-            free = seen_from_scaled(rd(ring, b_off, b_mask, ka - depth), p_nna, p_src,
-                                    rat_back, se)
+            free = room_from(rd(ring, b_off, b_mask, ka - depth), p_src, p_nna, rat_back, se)
         if camera == 1:
             c = camera_cycle(fa, xa, ya - fa * h, line_clocks, frame_clocks, pairs)
             if c * p_src >= cap:
@@ -497,8 +494,8 @@ def pending_overflow(net, side):
         j = fr * tl.n_in + (y - tl.iy0) * tl.iw + x - tl.ix0 - f.depth
         if j >= 0:
             b_off, b_mask, nb, _ = view(streams, tl.line_pop)
-            if j >= nb or seen_from_scaled(rd(ring, b_off, b_mask, j), f.per_dst, f.per_src,
-                                           ratio(f.per_dst, f.per_src), f.space_edges) > a:
+            if j >= nb or room_from(rd(ring, b_off, b_mask, j), f.per_src, f.per_dst,
+                                    ratio(f.per_dst, f.per_src), f.space_edges) > a:
                 acc = net.acc[st.block]
                 acc.over_cycle, acc.over_k, acc.over_tile = a, k, ti
                 net.state[0].end = END_OVERFLOW
@@ -583,7 +580,8 @@ def _tile_full(ring, streams, shape, tl, f, k, c):
     if i < f.depth:
         return False
     b = event(ring, streams[tl.line_pop], i - f.depth)
-    return b == INF or seen_from(b, f.per_dst, f.per_src, f.space_edges) > c
+    return b == INF or room_from(b, f.per_src, f.per_dst, ratio(f.per_dst, f.per_src),
+                                 f.space_edges) > c
 
 
 @njit(cache=True)

@@ -66,11 +66,10 @@ from stereosim.sim.cycle.compiled.ring import (
     rd,
     view,
 )
+from stereosim.sim.cycle.fifo.rule import room_from, visible_from
 from stereosim.sim.cycle.rules import (
     frame_row,
     rows_ready_in_frame,
-    seen_from,
-    seen_from_scaled,
     sva_cycle_of_tick,
     sva_exit_item,
     sva_first_word_tick,
@@ -254,9 +253,9 @@ def advance_sva_pops(net):
                 window = 0
             window_row = y
         err |= j <= l_lo or j <= r_lo
-        vl = seen_from_scaled(rd(ring, l_off, l_mask, j), l_src, l_dst, l_rat, l_de)
-        vr = vl if same else seen_from_scaled(rd(ring, r_off, r_mask, j), r_src, r_dst,
-                                              r_rat, r_de)
+        vl = visible_from(rd(ring, l_off, l_mask, j), l_src, l_dst, l_rat, l_de)
+        vr = vl if same else visible_from(rd(ring, r_off, r_mask, j), r_src, r_dst, r_rat,
+                                          r_de)
         p = max(p_prev + 1, vl, vr, window)
         if p * per >= cap:
             break
@@ -398,14 +397,15 @@ def issues_end(net, cur):
 @njit(cache=True, inline="always")
 def pushes_begin(net):
     """What :func:`pushes` reads: the pushes' and the issues' rings, the sink's pops' ring, the
-    sink FIFO's depth, the clock period, the cap and the pipeline's latency."""
+    sink FIFO's (depth, space edges), the clock period, the cap and the pipeline's latency."""
     ids = net.ids[0]
     streams = net.streams
     o_off, o_mask, _, _ = view(streams, ids.sva_push)
     q_off, q_mask, _, _ = view(streams, ids.sink_pop)
     t_off, t_mask, _, _ = view(streams, ids.sva_issue)
     prm = net.prm[0]
-    return (o_off, o_mask, q_off, q_mask, t_off, t_mask, net.fifos[ids.fifo_sink].depth,
+    fi = net.fifos[ids.fifo_sink]
+    return (o_off, o_mask, q_off, q_mask, t_off, t_mask, (fi.depth, fi.space_edges),
             streams[ids.sva_push].period, prm.cap_fs,
             (prm.pipe_latency, prm.skew, prm.n, prm.flush_ii))
 
@@ -415,13 +415,16 @@ def pushes(k, ring, ko, kt, kq):
     """The next words pushed, each a word whose exit is known (``kt`` issued) at its arrival,
     once the slot
     a FIFO depth back is free (``kq``: the sink's pops known). Returns (pushes known, moved)."""
-    o_off, o_mask, q_off, q_mask, t_off, t_mask, depth, per, cap, ex = k
+    o_off, o_mask, q_off, q_mask, t_off, t_mask, room, per, cap, ex = k
+    depth, se = room
     o = (o_off, o_mask, ko - 1 - o_mask)
     t = (t_off, t_mask, kt - 1 - t_mask)
     moved = False
     kx = exits_known(kt, ex)
     while ko < kx and ko - depth < kq:
-        free = rd(ring, q_off, q_mask, ko - depth) + 1 if ko >= depth else 0
+        # (the sink's FIFO is in the SVA's domain)
+        free = room_from(rd(ring, q_off, q_mask, ko - depth), per, per, 1.0, se) \
+            if ko >= depth else 0
         out = max(arrival(ring, o, t, ex, ko), free)
         if out * per >= cap:
             break
@@ -644,7 +647,8 @@ def status_sva(ring, streams, cursors, prm, tables, b, c):
         for f in (b.fifo_in, b.fifo_in2):
             fi = fifos[f]
             e = event(ring, streams[fi.push], received)
-            if e == INF or seen_from(e, fi.per_src, fi.per_dst, fi.data_edges) > c:
+            if e == INF or visible_from(e, fi.per_src, fi.per_dst, ratio(fi.per_src, fi.per_dst),
+                                        fi.data_edges) > c:
                 wait = f
                 break
     if pop_at or push_at:

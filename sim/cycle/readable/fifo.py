@@ -18,7 +18,10 @@ Consequences in one domain with latency 1: depth 1 moves one item every 2 cycles
 item per cycle; in general a FIFO sustains ``min(1, depth / (latency_cycles + 1))`` items per
 cycle.
 
-Compiled twin: ``sim/cycle/compiled/fifo.py``.
+The rule itself (the edges, visibility and room) is the FIFO block's, :mod:`sim.cycle.fifo.rule`,
+which the compiled engine and the estimate call too; this class is its readable twin (it stays
+beside the readable kernel, whose :class:`KernelError` it raises). Compiled twin:
+``sim/cycle/compiled/fifo.py`` (the walk) and ``sim/cycle/fifo/compiled.py``.
 """
 
 from __future__ import annotations
@@ -27,8 +30,9 @@ from collections import deque
 
 from stereosim.core.errors import ConfigError
 from stereosim.sim.cycle.contract import fifo_counts
+from stereosim.sim.cycle.fifo.rule import fifo_edges, room_at, visible_at
 from stereosim.sim.cycle.readable.clock import KernelError
-from stereosim.sim.cycle.rules import ClockDomain, check_int, fifo_edges
+from stereosim.sim.cycle.rules import ClockDomain, check_int
 
 
 class Fifo:
@@ -235,7 +239,8 @@ class Fifo:
             self.popped = self._pop_staged
         pushed = self._push_staged
         if pushed:
-            ready = self.dst.first_edge_after(now_fs) + self._data_edges - 1
+            dst = self.dst
+            ready = visible_at(now_fs, dst.phase_fs, dst.period_fs, self._data_edges)
             self._items.append((ready, self._push_item))
             self._pushes += 1
             self._push_staged = False
@@ -244,7 +249,8 @@ class Fifo:
         if popped:
             self._items.popleft()
             self._pops += 1
-            self._frees.append(self.src.first_edge_after(now_fs) + self._space_edges - 1)
+            src = self.src
+            self._frees.append(room_at(now_fs, src.phase_fs, src.period_fs, self._space_edges))
             self._pop_staged = False
         if pushed:  # only a push raises the occupancy, or the producer's view of it
             occ = self._pushes - self._pops

@@ -1,7 +1,7 @@
 """The NNA submodule and the merge of split frames as clocked blocks of the readable kernel.
 
 One submodule turns one camera's pixel stream (of its tile) into its descriptor stream through
-a pipeline of layer stages, one per layer of the network (:class:`~sim.cycle.stages.LayerPlan`;
+a pipeline of layer stages, one per layer of the network (:class:`~nna.submodule.timing.LayerPlan`;
 a single layer and the census unit: one stage). Each stage has two halves that work in the same
 cycle, each an object of its own (a :class:`LineBuffer` feeding a :class:`MacArray`):
 
@@ -53,13 +53,13 @@ import numpy as np
 
 from stereosim.core.config import NnaConfig
 from stereosim.nna.descriptor import census_of, compute_descriptor, hybrid_word, network
+from stereosim.nna.submodule.timing import LayerPlan
 from stereosim.quant.intconv import int_layer_rows
 from stereosim.sim.cycle.plan import STATUS_CODES, BlockPlan, ChipPlan
 from stereosim.sim.cycle.readable.beats import DescriptorBeat
 from stereosim.sim.cycle.readable.blocks.base import ChipBlock
 from stereosim.sim.cycle.readable.fifo import Fifo
 from stereosim.sim.cycle.rules import frame_row, nna_last_input_row, nna_rows_started_before_input
-from stereosim.sim.cycle.stages import LayerPlan
 
 ACTIVITIES = ("busy", "starved", "blocked", "idle")
 

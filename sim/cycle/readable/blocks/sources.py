@@ -19,6 +19,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from stereosim.sim.cycle.fifo.rule import seen_from
 from stereosim.sim.cycle.plan import BlockPlan, ChipPlan, DramPlan
 from stereosim.sim.cycle.readable.beats import PixelBeat
 from stereosim.sim.cycle.readable.blocks.base import ChipBlock
@@ -33,7 +34,6 @@ from stereosim.sim.cycle.rules import (
     first_edge_at,
     frame_buffer_admits,
     memory_first_cycle,
-    seen_from,
 )
 
 

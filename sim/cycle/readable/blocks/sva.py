@@ -27,7 +27,8 @@ r % H of frame r // H.
   (:func:`~sim.cycle.rules.sva_exit_item`: itself, or with the median the word m W + m after
   it, or a flush tick): it is pushed then if ``out`` has room; if not, the whole pipeline
   *stalls* (nothing moves, nothing is issued, the tick holds) until it has.
-- **Data**: the functional model's streaming kernels (:class:`sva.pipeline.SvaStream`) run over
+- **Data**: the functional model's streaming kernels (:class:`sva.pipeline.pipeline.SvaStream`) run
+over
   the descriptors this block actually received, row by row as rows complete.
 
 Activity: busy when a pair is popped, a word issued or pushed, a word is in the pipeline, or
@@ -71,7 +72,7 @@ from stereosim.sim.cycle.rules import (
     sva_slot,
 )
 from stereosim.sim.cycle.stages import stage_offsets
-from stereosim.sva.pipeline import SvaStream
+from stereosim.sva.pipeline.pipeline import SvaStream
 
 NEVER = -(1 << 40)  # "the previous tick" before the first slot
 

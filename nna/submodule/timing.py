@@ -1,0 +1,133 @@
+"""The NNA submodule's timing rule: its layers' stages -- each layer's line buffer (a bank per
+row), its MAC array (m_l multiply-accumulates an output pixel on its share of the MACs: cpp_l =
+ceil(m_l / share) cycles) and its requantise or sign stage -- as the RTL builds them
+(nna_submodule.sv). The window and share arithmetic they read is :mod:`nna.geometry`'s; the chip
+plan collects the stages (:mod:`sim.cycle.plan`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from stereosim.core.config import ChipConfig
+from stereosim.core.timing import BufferPlan, StagePlan
+from stereosim.nna.descriptor import network
+from stereosim.nna.geometry import (
+    Tile,
+    census_rows,
+    layer_cycles,
+    layer_halves,
+    layer_macs_per_pixel,
+    layer_rows,
+    layer_tiles,
+    line_buffer_bits,
+    mac_shares,
+)
+
+
+@dataclass(frozen=True)
+class LayerPlan:
+    """One layer's stage of an NNA submodule (:mod:`nna.geometry` gives its rules): ``tile``
+    its regions (output [x0, x1) x [y0, y1), input in_*), ``half`` its half kernel h_l,
+    ``rows`` its line buffer's rows, ``macs`` its MAC share of ``macs_per_pixel`` = m_l MACs
+    an output pixel, ``cycles`` = cpp_l per output pixel, ``channels_in`` / ``channels_out``,
+    ``buffer`` its line buffer (rows x its widest input region x C_in x 8 bits)."""
+
+    index: int
+    tile: Tile
+    half: int
+    rows: int
+    macs: int
+    macs_per_pixel: int
+    cycles: int
+    channels_in: int
+    channels_out: int
+    buffer: BufferPlan
+
+    @property
+    def items(self) -> int:
+        """Output pixels of its region per frame."""
+        return self.tile.shape[0] * self.tile.shape[1]
+
+
+def nna_layers(cfg: ChipConfig, tile: Tile, shape: tuple[int, int], widths: tuple[int, ...]
+               ) -> tuple[LayerPlan, ...]:
+    """The layer stages of a submodule serving ``tile`` of a frame of ``shape``, each line
+    buffer sized for ``widths[l]``, the widest input region of layer l over the camera's
+    tiles. A bank per row: per output pixel the window's next column is read, one word of C_in
+    activations (8 bits each; layer 0: the pixel) from each of its 2 h_l + 1 rows' banks, and
+    per input pixel one word is written. One layer: the buffer ``nna.line_buffer``, else
+    ``nna.layer<l>.line_buffer``."""
+    n = cfg.nna
+    halves = layer_halves(n)
+    if n.descriptor == "census":
+        channels = [(1, 1)]
+    else:
+        channels = [(int(w.shape[1]), int(w.shape[0])) for w in network(n).weights]
+    single = len(halves) == 1
+    out = []
+    for i, (t, h, rows, share, m, cpp, (c_in, c_out)) in enumerate(zip(
+            layer_tiles(tile, n, shape), halves, layer_rows(n), mac_shares(n),
+            layer_macs_per_pixel(n), layer_cycles(n), channels, strict=True)):
+        width = widths[i]
+        what = ("pixels x 8 bits" if c_in == 1 else f"pixels x {c_in} channels x 8 bits")
+        buf = BufferPlan("nna.line_buffer" if single else f"nna.layer{i}.line_buffer",
+                         line_buffer_bits(rows, width, c_in),
+                         f"{rows} input rows x {width} {what} (a bank per row: per "
+                         f"{'descriptor' if single else 'output pixel'} the window's next "
+                         "column read, one pixel from each of its rows' banks; per pixel one "
+                         "written)",
+                         rows=rows, banks=rows, word_bits=8 * c_in, pixel_reads=2 * h + 1,
+                         pixel_writes=1)
+        out.append(LayerPlan(i, t, h, rows, share, m, cpp, c_in, c_out, buf))
+    return tuple(out)
+
+
+def nna_stages(cfg: ChipConfig, layers: tuple[LayerPlan, ...]) -> tuple[StagePlan, ...]:
+    """An NNA submodule's stages, per layer: its line buffer (a bank per row: each output pixel
+    takes the next column of the layer's window, one word from each of its 2 h + 1 banks,
+    while the arriving one is written), its MAC array (m_l multiply-accumulates an output
+    pixel on its share of the MACs, cpp_l = ceil(m_l / share) cycles; the census unit: 1
+    cycle) and its requantise stage (per channel a multiply-shift and the ReLU clamp; the last
+    layer: the sign bit), in the MAC array's last cycle. One layer: ``line_buffer``,
+    ``mac_array`` (or ``census_unit``), ``requantise_sign``; more: the same names prefixed
+    ``layer<l>.``, the last layer's requantise stage named ``layer<l>.sign``."""
+    n = cfg.nna
+    single = len(layers) == 1
+    out = []
+    for lay in layers:
+        pre = "" if single else f"layer{lay.index}."
+        last = lay.index == len(layers) - 1
+        window = 2 * lay.half + 1
+        if n.descriptor == "census":
+            mac = StagePlan("census_unit", 1, 1, "II = latency = 1 (one comparison per window "
+                            "sample, all in one cycle)")
+        else:
+            m, cpp, share = lay.macs_per_pixel, lay.cycles, lay.macs
+            mac = StagePlan(
+                f"{pre}mac_array", cpp, cpp,
+                f"II = latency = ceil({m} MACs / {share}) = {cpp}; {m / cpp:g} MACs per cycle, "
+                f"{100 * m / (cpp * share):.1f} % of {'the array' if single else 'its MACs'} "
+                "busy")
+        out.append(StagePlan(f"{pre}line_buffer", 1, 0,
+                             f"a bank per row: per {'descriptor' if single else 'output pixel'}"
+                             f" {window} reads (one per bank: the window's next column) and per "
+                             "pixel 1 write"))
+        out.append(mac)
+        if single:
+            out.append(StagePlan("requantise_sign", 1, 0, "per channel a multiply-shift and the "
+                                 "sign bit, in the MAC array's last cycle"))
+        elif last:
+            out.append(StagePlan(f"{pre}sign", 1, 0, "per channel the sign bit of the "
+                                 "accumulator, in the MAC array's last cycle"))
+        else:
+            out.append(StagePlan(f"{pre}requantise", 1, 0, "per channel a multiply-shift and "
+                                 "the clamp to 0..127, in the MAC array's last cycle"))
+    if n.descriptor == "hybrid":
+        c = n.census
+        source = ("layer 0's line buffer" if single else
+                  f"its own {census_rows(n)} input rows (nna.census_rows)")
+        out.append(StagePlan("census_unit", 1, 0,
+                             f"the {c.window[0]}x{c.window[1]} {c.kind} census of the output "
+                             f"pixel from {source}, in the MAC array's last cycle: its bits "
+                             "join the sign bits above them"))
+    return tuple(out)

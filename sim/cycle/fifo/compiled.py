@@ -1,0 +1,21 @@
+"""The FIFO's helpers on the compiled engine that are FIFO rules rather than a walk over
+streams (the walk of every FIFO's occupancy is :mod:`sim.cycle.compiled.fifo`): what a FIFO
+traces at an instant, as the readable :meth:`~sim.cycle.readable.fifo.Fifo.signal_values`."""
+
+from __future__ import annotations
+
+from stereosim.core.kernel_cache import njit
+
+
+@njit(cache=True, inline="always")
+def sample_fifo(counts, depth, out):
+    """A FIFO's traced values from its ``counts`` (:func:`~sim.cycle.compiled.fifo.counts_at`)
+    into out[0:5]: occupancy, pushed and popped in the last edges, full as its producer sees
+    it, empty."""
+    pushes, pops, seen, pushed, popped = counts
+    occ = pushes - pops
+    out[0] = occ
+    out[1] = 1 if pushed else 0
+    out[2] = 1 if popped else 0
+    out[3] = 1 if pushes - seen >= depth else 0
+    out[4] = 1 if occ == 0 else 0

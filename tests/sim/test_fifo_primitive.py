@@ -1,0 +1,77 @@
+"""The FIFO primitive (sim/cycle/fifo/rule.py): its cycle forms (the compiled engine, the
+estimate) and its instant forms (the readable FIFO) are one rule, and the room rule read back
+is its inverse."""
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from stereosim.core.kernel_cache import njit
+from stereosim.sim.cycle.fifo.rule import (
+    fifo_edges,
+    room_at,
+    room_from,
+    room_seen_until,
+    round_trip_fs,
+    seen_from,
+    visible_at,
+    visible_from,
+)
+from stereosim.sim.cycle.rules import ClockDomain
+
+PERIODS = st.sampled_from([1_000_000, 2_150_538, 2_173_913, 3_000_000, 13_468_013])
+
+
+@given(c=st.integers(0, 10**7), p_src=PERIODS, p_dst=PERIODS, lat=st.integers(1, 3),
+       sync=st.integers(1, 4))
+@settings(max_examples=400, deadline=None)
+def test_the_cycle_and_instant_forms_are_one_rule(c, p_src, p_dst, lat, sync):
+    crossing = p_src != p_dst
+    de, se = fifo_edges(lat, sync, crossing)
+    push_fs = c * p_src  # every clock of the chip starts at t = 0
+    v = visible_from(c, p_src, p_dst, p_src / p_dst, de)
+    assert v == visible_at(push_fs, 0, p_dst, de) == seen_from(c, p_src, p_dst, de)
+    # the readable FIFO's own domain object says the same
+    dom = ClockDomain("d", 1e15 / p_dst)
+    assert dom.period_fs == p_dst
+    assert v == dom.first_edge_after(push_fs) + de - 1
+    r = room_from(c, p_src, p_dst, p_dst / p_src, se)
+    assert r == room_at(c * p_dst, 0, p_src, se) == seen_from(c, p_dst, p_src, se)
+
+
+@given(c=st.integers(0, 10**6), p_src=PERIODS, p_dst=PERIODS, se=st.integers(1, 4))
+@settings(max_examples=300, deadline=None)
+def test_room_seen_until_is_the_last_pop_the_room_rule_lets_through(c, p_src, p_dst, se):
+    last = room_seen_until(c, p_src, p_dst, se)
+    rat = p_dst / p_src
+    assert last == -1 or room_from(last, p_src, p_dst, rat, se) <= c
+    assert room_from(last + 1, p_src, p_dst, rat, se) > c
+
+
+def test_one_domain_is_whole_cycles():
+    assert fifo_edges(1, 2, False) == (1, 1)
+    assert fifo_edges(2, 3, True) == (4, 3)
+    assert visible_from(7, 5, 5, 1.0, 1) == 8
+    assert room_from(7, 5, 5, 1.0, 1) == 8
+    assert room_seen_until(8, 5, 5, 1) == 7
+    assert round_trip_fs(1, 1, 5, 5, False) == 10
+    assert round_trip_fs(2, 2, 4, 6, True) == 1.5 * 6 + 1.5 * 4
+
+
+@njit(cache=False)
+def _compiled(c, p_src, p_dst, de, se):
+    return (visible_from(c, p_src, p_dst, p_src / p_dst, de),
+            room_from(c, p_src, p_dst, p_dst / p_src, se),
+            room_seen_until(c, p_src, p_dst, se))
+
+
+def test_the_compiled_engine_inlines_the_same_rule():
+    rng = np.random.default_rng(1)
+    for _ in range(200):
+        c = int(rng.integers(0, 10**8))
+        p_src, p_dst = (int(p) for p in rng.choice([1_000_000, 2_173_913, 3_000_000], 2))
+        de, se = (int(v) for v in rng.integers(1, 4, 2))
+        assert _compiled(c, p_src, p_dst, de, se) == (
+            visible_from(c, p_src, p_dst, p_src / p_dst, de),
+            room_from(c, p_src, p_dst, p_dst / p_src, se),
+            room_seen_until(c, p_src, p_dst, se))
