@@ -37,13 +37,8 @@ import ablation
 from markers import write_between
 
 from stereosim.core.config import load_config
-from stereosim.nna.geometry import (
-    cycles_per_descriptor,
-    layer_cycles,
-    layer_halves,
-    layer_macs_per_pixel,
-    mac_shares,
-)
+from stereosim.nna.geometry import layer_halves, layer_macs_per_pixel, mac_shares
+from stereosim.nna.submodule.timing import cycles_per_descriptor, layer_cycles
 from stereosim.nna.training.trainconfig import VARIANTS
 from stereosim.sim.api import run, run_stream
 from stereosim.sim.cycle.figures import submodule_report

@@ -9,7 +9,7 @@ C_out,l output channels):
 - MACs per output pixel m_l = K_l^2 C_in,l C_out,l; the MAC share macs_l: ``nna.layer_macs``
   when given, else ``nna.macs`` split in proportion to m_l by largest remainder, each at least
   1 (:func:`mac_shares`); cycles per output pixel cpp_l = ceil(m_l / macs_l)
-  (:func:`layer_cycles`);
+  (:func:`~nna.submodule.timing.layer_cycles`: the MAC array's timing rule);
 - line buffer rows: layer 0 holds ``nna.line_buffer_rows`` rows (at least K_0), layer l >= 1
   K_l plus the same slack (:func:`layer_rows`); a layer of stride s_l holds K_l + slack s_l
   (:func:`buffer_rows`: the slack counts output rows, and each takes s_l input rows); its line
@@ -18,7 +18,8 @@ C_out,l output channels):
   the input padded by h_l ("same" padding): an input of N pixels gives ceil(N / s) outputs
   (:func:`strided_size`); the stereo descriptor's layers all have stride 1;
 - a layer pipeline's frame: its layers run side by side, so a frame takes the busiest layer's
-  output pixels x cycles per pixel, max_l items_l cpp_l (:func:`pipeline_cycles`);
+  output pixels x cycles per pixel, max_l items_l cpp_l
+  (:func:`~nna.submodule.timing.pipeline_cycles`);
 - regions: layer l's output region is the tile's output region widened by R_l = h_{l+1} + ...
   + h_{L-1} (clipped to the frame), its input region the tile's widened by R_l + h_l -- layer
   l - 1's output region; layer 0's input region is the tile's (:func:`layer_tiles`).
@@ -82,13 +83,6 @@ def census_rows(cfg: NnaConfig) -> int:
 def window_rows(cfg: NnaConfig) -> int:
     """Input rows one output row of descriptors reads: 2 h + 1."""
     return 2 * half_window(cfg) + 1
-
-
-def cycles_per_descriptor(cfg: NnaConfig) -> int:
-    """The submodule's initiation interval, cycles per descriptor: its slowest layer's cycles
-    per output pixel, max_l cpp_l (:func:`layer_cycles`; one layer: ceil(K*K*C / macs)), 1 for
-    the census unit."""
-    return max(layer_cycles(cfg))
 
 
 def macs_per_descriptor(cfg: NnaConfig) -> int:
@@ -155,18 +149,6 @@ def mac_shares(cfg: NnaConfig) -> tuple[int, ...]:
     return share_macs(cfg.macs, m)
 
 
-def cycles_per_pixel(macs_per_pixel: int, share: int) -> int:
-    """Cycles a layer's MAC array of ``share`` units spends on one output pixel of
-    ``macs_per_pixel`` MACs: ceil(m_l / macs_l)."""
-    return -(-macs_per_pixel // share)
-
-
-def pipeline_cycles(items: tuple[int, ...], cycles: tuple[int, ...]) -> int:
-    """Cycles of a frame of a layer pipeline whose layers run side by side: the busiest layer's
-    output pixels x cycles per pixel, max_l items_l cpp_l."""
-    return max(i * c for i, c in zip(items, cycles, strict=True))
-
-
 def strided_size(n: int, stride: int) -> int:
     """Outputs of a layer of ``stride`` over ``n`` inputs ("same" padding): ceil(n / s)."""
     return -(-n // stride)
@@ -184,16 +166,6 @@ def line_buffer_bits(rows: int, width: int, channels_in: int) -> int:
     """SRAM bits of a line buffer of ``rows`` rows of ``width`` pixels of ``channels_in`` int8
     activations: rows x width x C_in x 8."""
     return rows * width * channels_in * 8
-
-
-def layer_cycles(cfg: NnaConfig) -> tuple[int, ...]:
-    """Cycles each layer's MAC array spends on one output pixel: cpp_l = ceil(m_l / macs_l)
-    (:func:`mac_shares`, :func:`cycles_per_pixel`); the census unit: 1. One layer:
-    :func:`cycles_per_descriptor`."""
-    if cfg.descriptor == "census":
-        return (1,)
-    return tuple(cycles_per_pixel(m, share) for m, share in
-                 zip(layer_macs_per_pixel(cfg), mac_shares(cfg), strict=True))
 
 
 def layer_rows(cfg: NnaConfig) -> tuple[int, ...]:

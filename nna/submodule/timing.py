@@ -8,13 +8,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from stereosim.core.config import ChipConfig
+from numba.extending import register_jitable
+
+from stereosim.core.config import ChipConfig, NnaConfig
 from stereosim.core.timing import BufferPlan, StagePlan
 from stereosim.nna.descriptor import network
 from stereosim.nna.geometry import (
     Tile,
     census_rows,
-    layer_cycles,
     layer_halves,
     layer_macs_per_pixel,
     layer_rows,
@@ -131,3 +132,49 @@ def nna_stages(cfg: ChipConfig, layers: tuple[LayerPlan, ...]) -> tuple[StagePla
                              f"pixel from {source}, in the MAC array's last cycle: its bits "
                              "join the sign bits above them"))
     return tuple(out)
+
+
+# ---- the MAC array's timing rule ----------------------------------------------------------------
+# An output pixel occupies its layer's MAC array from the cycle it starts (its input rows in, the
+# previous output gone) to the cycle it may leave, both included: cycles_per_pixel of them. Both
+# engines and the estimate read the plan's LayerPlan.cycles, and the compiled walkers and the
+# estimate place the push with mac_done.
+
+
+def cycles_per_descriptor(cfg: NnaConfig) -> int:
+    """The submodule's initiation interval, cycles per descriptor: its slowest layer's cycles
+    per output pixel, max_l cpp_l (:func:`layer_cycles`; one layer: ceil(K*K*C / macs)), 1 for
+    the census unit."""
+    return max(layer_cycles(cfg))
+
+
+def cycles_per_pixel(macs_per_pixel: int, share: int) -> int:
+    """Cycles a layer's MAC array of ``share`` units spends on one output pixel of
+    ``macs_per_pixel`` MACs: ceil(m_l / macs_l)."""
+    return -(-macs_per_pixel // share)
+
+
+def pipeline_cycles(items: tuple[int, ...], cycles: tuple[int, ...]) -> int:
+    """Cycles of a frame of a layer pipeline whose layers run side by side: the busiest layer's
+    output pixels x cycles per pixel, max_l items_l cpp_l."""
+    return max(i * c for i, c in zip(items, cycles, strict=True))
+
+
+def layer_cycles(cfg: NnaConfig) -> tuple[int, ...]:
+    """Cycles each layer's MAC array spends on one output pixel: cpp_l = ceil(m_l / macs_l)
+    (:func:`mac_shares`, :func:`cycles_per_pixel`); the census unit: 1. One layer:
+    :func:`cycles_per_descriptor`."""
+    if cfg.descriptor == "census":
+        return (1,)
+    return tuple(cycles_per_pixel(m, share) for m, share in
+                 zip(layer_macs_per_pixel(cfg), mac_shares(cfg), strict=True))
+
+
+@register_jitable
+def mac_done(start, cycles):
+    """The MAC cycle in which the output started in cycle ``start`` is done and may leave (room
+    permitting), on an array that spends ``cycles`` cycles an output
+    (:func:`cycles_per_pixel`): start + cycles - 1. This is what an array's ``cycles`` mean
+    (the readable MacArray counts them as its phase); the rule that sets them is
+    :func:`cycles_per_pixel`."""
+    return start + cycles - 1

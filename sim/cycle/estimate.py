@@ -67,6 +67,7 @@ import math
 from stereosim.core.config import ChipConfig, config_to_dict
 from stereosim.core.errors import InputError, UserError
 from stereosim.nna.geometry import Tile
+from stereosim.nna.submodule.timing import mac_done
 from stereosim.sim.cycle.energy import EnergyTable, energy_table, estimate_energy
 from stereosim.sim.cycle.fifo import rule as fifo_rule
 from stereosim.sim.cycle.fifo.rule import room_from, room_seen_within, seen_from, visible_from
@@ -389,7 +390,7 @@ def _tile_rows(plan: ChipPlan, sub, pops: list | None = None,
         prev_end = end
         while next_out < tile.y1 and nna_last_input_row(next_out, half, h_img) <= y_in:
             ready = pop_end[nna_last_input_row(next_out, half, h_img)] + 1
-            first = max(ready, prev_out_last + 1) + c - 1
+            first = mac_done(max(ready, prev_out_last + 1), c)
             last = first + (tw - 1) * c
             out[next_out] = (first, last)
             prev_out_last = last
@@ -412,7 +413,7 @@ def _later_layers(sub, rows: dict[int, tuple[float, float]], h_img: int
         prev = -1.0
         for y in range(t.y0, t.y1):
             start = max(rows[nna_last_input_row(y, lay.half, h_img)][1], prev) + 1
-            out[y] = (start + c - 1, start + (t.x1 - t.x0) * c - 1)
+            out[y] = (mac_done(start, c), mac_done(start, (t.x1 - t.x0) * c))
             prev = out[y][1]
         rows = out
     return rows

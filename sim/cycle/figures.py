@@ -15,7 +15,8 @@ import functools
 from stereosim.core.config import ChipConfig
 from stereosim.core.errors import ConfigError
 from stereosim.nna.descriptor import file_identity, network, weights_file
-from stereosim.nna.geometry import cycles_per_descriptor, macs_per_descriptor, window_rows
+from stereosim.nna.geometry import macs_per_descriptor, window_rows
+from stereosim.nna.submodule.timing import cycles_per_descriptor
 from stereosim.sim.cycle.plan import ChipPlan, build_plan
 from stereosim.sim.rtl_synth import silicon_section
 

@@ -16,8 +16,9 @@ while the submodule is lent). The network's layers run as the stereo NNA's layer
   ceil(H / s) x ceil(W / s) output pixels (items_l, :func:`~nna.geometry.strided_size`) of
   m_l = K^2 C_in C_out MACs; its submodule's MACs are shared over its group in proportion to
   m_l items_l (:func:`~nna.geometry.share_macs`), cpp_l = ceil(m_l / share)
-  (:func:`~nna.geometry.cycles_per_pixel`); a submodule's frame takes max_l items_l cpp_l over
-  its group (:func:`~nna.geometry.pipeline_cycles`), the network's frame its busiest
+  (:func:`~nna.submodule.timing.cycles_per_pixel`); a submodule's frame takes max_l items_l cpp_l
+  over
+  its group (:func:`~nna.submodule.timing.pipeline_cycles`), the network's frame its busiest
   submodule's: fps_max = f_nna / that. ``fps = "max"`` runs at fps_max; a target runs there
   (refused when above fps_max);
 - **line buffers**: layer l holds K_l + slack s_l rows (:func:`~nna.geometry.buffer_rows`,
@@ -45,14 +46,8 @@ from functools import cached_property
 from stereosim.core.config import ChipConfig, LentLayer, LentNetwork, read_lent_network
 from stereosim.core.errors import ConfigError
 from stereosim.core.timing import BufferPlan
-from stereosim.nna.geometry import (
-    buffer_rows,
-    cycles_per_pixel,
-    line_buffer_bits,
-    pipeline_cycles,
-    share_macs,
-    strided_size,
-)
+from stereosim.nna.geometry import buffer_rows, line_buffer_bits, share_macs, strided_size
+from stereosim.nna.submodule.timing import cycles_per_pixel, pipeline_cycles
 from stereosim.sim.cycle.dram import DramPlan
 
 BYTES_PER_CHANNEL = 8  # an int32 bias and a 32-bit multiply-shift per output channel

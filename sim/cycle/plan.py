@@ -37,14 +37,18 @@ from stereosim.nna.geometry import (
     Tile,
     census_rows,
     check_line_buffer,
-    cycles_per_descriptor,
     half_window,
     layer_halves,
     layer_tiles,
-    pipeline_cycles,
     split_frame,
 )
-from stereosim.nna.submodule.timing import LayerPlan, nna_layers, nna_stages
+from stereosim.nna.submodule.timing import (
+    LayerPlan,
+    cycles_per_descriptor,
+    nna_layers,
+    nna_stages,
+    pipeline_cycles,
+)
 from stereosim.sim.cycle.dram import DramPlan, dram_plan
 from stereosim.sim.cycle.fifo.rule import fifo_edges
 from stereosim.sim.cycle.lent import LentPlan, lent_plan

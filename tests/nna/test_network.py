@@ -13,13 +13,8 @@ from stereosim.core.datasets import find_scene, load_scene, shared_data_dir
 from stereosim.core.errors import ConfigError
 from stereosim.core.io import to_grey
 from stereosim.nna.descriptor import compute_descriptor, descriptor_bits, network
-from stereosim.nna.geometry import (
-    cycles_per_descriptor,
-    half_window,
-    layer_cycles,
-    macs_per_descriptor,
-    window_rows,
-)
+from stereosim.nna.geometry import half_window, macs_per_descriptor, window_rows
+from stereosim.nna.submodule.timing import cycles_per_descriptor, layer_cycles
 from stereosim.nna.training.trainconfig import VARIANTS
 from stereosim.quant.artifact import load_quantized
 from stereosim.quant.intconv import int_forward, int_forward_ref, signs_ref

@@ -29,14 +29,8 @@ import stereosim.sim.cycle.readable.blocks.nna as nna_block
 from stereosim.core.config import load_config
 from stereosim.core.errors import ConfigError
 from stereosim.nna.descriptor import compute_descriptor
-from stereosim.nna.geometry import (
-    Tile,
-    layer_cycles,
-    layer_rows,
-    layer_tiles,
-    mac_shares,
-    split_frame,
-)
+from stereosim.nna.geometry import Tile, layer_rows, layer_tiles, mac_shares, split_frame
+from stereosim.nna.submodule.timing import layer_cycles
 from stereosim.quant.intconv import int_forward_ref, int_layer_rows, signs_ref
 from stereosim.sim.api import run
 from stereosim.sim.cycle.buffers import BufferOverflow

@@ -30,6 +30,7 @@ from __future__ import annotations
 import numpy as np
 
 from stereosim.core.kernel_cache import njit, njit_borrowing
+from stereosim.nna.submodule.timing import mac_done
 from stereosim.sim.cycle.compiled.layout import (
     A_BLOCKED,
     A_BUSY,
@@ -302,7 +303,7 @@ def advance_layer(net, ti, li):
                     break
                 err |= jj <= p_lo
                 room = room_from(rd(ring, p_off, p_mask, jj), per_src, per_dst, rat, se)
-        e = max(max(e_prev + 1, rows_in) + cpd - 1, room)
+        e = max(mac_done(max(e_prev + 1, rows_in), cpd), room)
         if e * per >= cap:
             break
         ring[e_off + (j & e_mask)] = e
@@ -384,7 +385,7 @@ def walk_nna(net, ti, final):
             rows_in = rd(ring, b_off, b_mask, need - 1) + 1 if need <= nb else INF
             rows_row = r
         s_j = max(prev + 1, rows_in)
-        done = s_j + cpd - 1
+        done = mac_done(s_j, cpd)
         if j >= ne:
             if final:
                 ptr, lost = catch_up(ring, b_off, b_mask, ptr, b_lo + 1, prev + 1)
@@ -468,7 +469,7 @@ def mark_layer(ring, streams, lr, h, cover, c0, c1):
         s = max(prev + 1, rows_in)
         if s >= c1:
             break
-        f = s + cpd - 1
+        f = mac_done(s, cpd)
         e = rd(ring, e_off, e_mask, k)
         mark(cover, c0, c1, s, f, 0)
         mark(cover, c0, c1, e, e, 0)
@@ -477,7 +478,7 @@ def mark_layer(ring, streams, lr, h, cover, c0, c1):
         if e >= c1:
             break
         # the layer's own activity: busy over [s, f] and at e, blocked over (f, e)
-        l_busy += cpd + (1 if e > f else 0)
+        l_busy += f - s + 1 + (1 if e > f else 0)
         l_blocked += max(0, e - f - 1)
         if k == 0:
             l_first = e
@@ -535,7 +536,7 @@ def walk_layers(net, ti, final):
             else:
                 s = layer_start(ring, streams, lr, h, st.count)  # works, then waits
                 if s < INF:
-                    end = max(end, s + lr.cpd)
+                    end = max(end, mac_done(s, lr.cpd) + 1)
     stop = min(front, end)
     c0 = a.walk
     chunk = 1 << 14
@@ -562,7 +563,7 @@ def walk_layers(net, ti, final):
             if k == st.count and k < st.n and final:
                 s = layer_start(ring, streams, lr, h, k)
                 if s < INF:
-                    mark(cover, c0, c1, s, s + lr.cpd - 1, 0)
+                    mark(cover, c0, c1, s, mac_done(s, lr.cpd), 0)
             lr.wk = k
         n_busy, n_blocked = 0, 0  # the running sums of cover's rows
         for i in range(c1 - c0):
@@ -623,7 +624,7 @@ def layer_status(ring, streams, cursors, prm, lr, c):
     s_j = layer_start(ring, streams, lr, prm.h, emitted)
     if c < s_j:
         return A_STARVED, emitted, push_at
-    if c <= s_j + lr.cpd - 1:
+    if c <= mac_done(s_j, lr.cpd):
         return A_BUSY, emitted, push_at
     return A_BLOCKED, emitted, push_at
 
@@ -674,7 +675,7 @@ def sample_nna(ring, streams, cursors, prm, tile, data, c, out):
         if not push_at and emitted < prm.frames * lr.n_out:
             s_j = layer_start(ring, streams, lr, prm.h, emitted)
             if c >= s_j:
-                phase = c - s_j + 1 if c < s_j + lr.cpd - 1 else lr.cpd
+                phase = c - s_j + 1 if c < mac_done(s_j, lr.cpd) else lr.cpd
         out[k] = lr.iy0 + r_in
         out[k + 1] = max(0, f_in * in_rows + r_in - oldest)
         out[k + 2] = phase
