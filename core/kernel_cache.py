@@ -13,7 +13,7 @@ nothing to say so.
 kernel of a file under the package's folder with (numba's stamp of its file, :func:`source_digest`
 of the package's modules): an edit of any module recompiles every kernel, once, and the
 compile notice says so. Importing this module registers it; ``njit`` is re-exported so that a
-kernel module gets it from here (tests/sim/test_kernel_cache.py checks that every cached kernel
+kernel module gets it from here (tests/core/test_kernel_cache.py checks that every cached kernel
 uses the locator). numba's ``NUMBA_CACHE_LOCATOR_CLASSES``, when set, replaces the chain.
 """
 

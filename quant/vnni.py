@@ -22,6 +22,7 @@ the whole kernel, two a channel (eight chains of dependent instructions, not fou
 from __future__ import annotations
 
 import os
+from typing import NamedTuple
 
 import numpy as np
 from llvmlite import binding, ir
@@ -35,6 +36,27 @@ from stereosim.quant.vectors import VectorCode
 VNNI_LANES = 16  # int32 lanes of one instruction
 VNNI_GROUP = 4  # bytes a lane
 VNNI_KERNELS = (9, 11)  # the kernel sizes with code of their own (_taps9, _taps11)
+
+
+class TapSums(NamedTuple):
+    """The int32 rows :func:`_taps9` / :func:`_taps11` store four channels' tap sums to (the
+    channels c, c + 1, c + 2, c + 3 of the call)."""
+
+    ch0: np.ndarray
+    ch1: np.ndarray
+    ch2: np.ndarray
+    ch3: np.ndarray
+
+
+class Band(NamedTuple):
+    """What the tap sums of a band read: its horizontal quads ``q`` and vertical quads ``v``
+    (uint32, flat, both ``qs`` words a row, :func:`_band_quads`) and every channel's weight
+    words ``w`` in turn (int32)."""
+
+    q: np.ndarray
+    v: np.ndarray
+    w: np.ndarray
+    qs: int
 
 
 def numba_targets_vnni(cpu_name, cpu_features, host: dict) -> bool:
@@ -74,14 +96,19 @@ def _taps_codegen(k: int):
     g_n, t_n, v_n = k // VNNI_GROUP, k % VNNI_GROUP, -(-k // VNNI_GROUP)
 
     def codegen(context, builder, signature, args):
-        a0, a1, a2, a3, q_v, v_v, w_v, qs, y, x, c = args
+        sums_v, band_v, y, x, c = args
+        sums_t, band_t = signature.args[:2]
         code = VectorCode(context, builder, 32, VNNI_LANES)
-        q = code.data(signature.args[4], q_v)
-        v = code.data(signature.args[5], v_v)
-        w = code.data(signature.args[6], w_v)
+
+        def field(ty, value, name):  # a field of a NamedTuple argument
+            i = ty.fields.index(name)
+            return ty.types[i], builder.extract_value(value, i)
+
+        q, v, w = (code.data(*field(band_t, band_v, name)) for name in ("q", "v", "w"))
+        qs = field(band_t, band_v, "qs")[1]
         fn = builder.module.declare_intrinsic("llvm.x86.avx512.vpdpbusd.512",
                                               fnty=ir.FunctionType(code.vec, [code.vec] * 3))
-        accs = [code.data(signature.args[ch], args[ch]) for ch in range(4)]
+        accs = [code.data(*field(sums_t, sums_v, name)) for name in TapSums._fields]
         per = k * g_n + v_n * t_n  # weight words of a channel
         # two sums a channel, the taps in turn: eight chains of dependent instructions
         sums = [code.full(0) for _ in range(8)]
@@ -112,22 +139,22 @@ def _taps_codegen(k: int):
     return codegen
 
 
-def _taps_signature(a0, a1, a2, a3, q, v, w, qs, y, x, c):
-    return types.void(a0, a1, a2, a3, q, v, w, qs, y, x, c)
+def _taps_signature(sums, band, y, x, c):
+    return types.void(sums, band, y, x, c)
 
 
 @intrinsic
-def _taps9(typingctx, a0, a1, a2, a3, q, v, w, qs, y, x, c):
-    """a_j[x:x+16] = the tap sums of channel c + j for the 16 pixels from x of output row y
-    (:func:`_taps_codegen`, K = 9): ``q``, ``v`` the band's horizontal and vertical quads
-    (flat, both ``qs`` words a row), ``w`` every channel's weight words in turn."""
-    return _taps_signature(a0, a1, a2, a3, q, v, w, qs, y, x, c), _taps_codegen(9)
+def _taps9(typingctx, sums, band, y, x, c):
+    """sums.ch<j>[x:x+16] = the tap sums of channel c + j for the 16 pixels from x of output
+    row y (:func:`_taps_codegen`, K = 9) over the :class:`Band` ``band``; ``sums`` a
+    :class:`TapSums`."""
+    return _taps_signature(sums, band, y, x, c), _taps_codegen(9)
 
 
 @intrinsic
-def _taps11(typingctx, a0, a1, a2, a3, q, v, w, qs, y, x, c):
+def _taps11(typingctx, sums, band, y, x, c):
     """:func:`_taps9` for K = 11."""
-    return _taps_signature(a0, a1, a2, a3, q, v, w, qs, y, x, c), _taps_codegen(11)
+    return _taps_signature(sums, band, y, x, c), _taps_codegen(11)
 
 
 @njit(cache=True, inline="always")
@@ -190,20 +217,19 @@ def _vnni_sign_layer(q, v, wq, k, threshold, masks, acc, out):
     rows, width = out.shape
     blocks = acc.shape[1]
     n_c = threshold.shape[0]
-    qs = q.shape[1]
-    qf, vf = q.reshape(q.size), v.reshape(v.size)
+    band = Band(q.reshape(q.size), v.reshape(v.size), wq, q.shape[1])
     zero = masks[0] ^ masks[0]
-    a0, a1, a2, a3 = acc[0], acc[1], acc[2], acc[3]
+    sums = TapSums(acc[0], acc[1], acc[2], acc[3])
     for y in range(rows):
         bits = out[y]
         bits[:] = zero
         for c in range(0, n_c, 4):
             if k == 9:
                 for x in range(0, blocks, VNNI_LANES):
-                    _taps9(a0, a1, a2, a3, qf, vf, wq, qs, y, x, c)
+                    _taps9(sums, band, y, x, c)
             else:
                 for x in range(0, blocks, VNNI_LANES):
-                    _taps11(a0, a1, a2, a3, qf, vf, wq, qs, y, x, c)
+                    _taps11(sums, band, y, x, c)
             for j in range(min(4, n_c - c)):
                 t, m, aj = threshold[c + j], masks[c + j], acc[j]
                 for x in range(width):

@@ -46,8 +46,8 @@ MAX_CHANNELS = 64
 # (nna.geometry.check_line_buffer refuses a plan whose buffer is shorter), and nna.line_buffer_rows
 # allows at most 64 rows, so the widest odd window is 63. Nothing in the paper (it tried 3x3 and
 # 9x9) or the kernels bounds K more tightly: they are exact for K*K*MAX_PRODUCT < 2**31 (in
-# float32 lanes up to K = 21, in float64 beyond: quant.intconv.lane_dtype; tests/nna/test_conv.py
-# runs K = 21 and 23).
+# float32 lanes up to K = 21, in float64 beyond: quant.intconv.lane_dtype;
+# tests/nna/conv/test_conv.py runs K = 21 and 23).
 MAX_KERNEL_SIZE = 63
 # Largest |weight * (pixel - offset)|: -128 * -255.
 MAX_PRODUCT = 128 * 255

@@ -23,8 +23,8 @@ Exactness. The integer weights and biases are formed in float64 (exact integers)
 convolutions run in ``dtype`` (float32 in training, float64 to check); the multiply-shift runs
 in float64, where ``acc * m`` (below 2**47) and the division by a power of two are exact, so
 the floor is the chip's arithmetic shift. In float64 the forward pass equals
-:func:`quant.intconv.int_forward_ref` exactly (``tests/nna/test_trainqat.py``); in float32 it
-is exact while every partial sum of a convolution stays below 2**24.
+:func:`quant.intconv.int_forward_ref` exactly (``tests/nna/training/test_trainqat.py``); in
+float32 it is exact while every partial sum of a convolution stays below 2**24.
 
 The exported artifact (:func:`export_quantized`) holds the QAT's own integer weights and biases
 with the frozen scales and multiply-shift pairs, in the quantiser's format

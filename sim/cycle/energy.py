@@ -25,7 +25,7 @@ clock cycle per domain. The actions of one frame:
   time, as many of its frames as its fps gives (:func:`lent_energy_items`).
 
 The report (``energy``) lists every item -- block, action, what, count, unit energy -- so the
-total is their sum (``tests/sim/test_energy.py`` holds it), the totals by block and by action,
+total is their sum (``tests/sim/cycle/test_energy.py`` holds it), the totals by block and by action,
 and the average power at the stream's measured frame rate (the work bound for one frame).
 """
 

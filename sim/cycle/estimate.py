@@ -41,7 +41,7 @@ row instead of per cycle:
   requested at once: a lower bound, the prefetch never waits) and a burst's pixels one a
   cycle; a memory source reading a camera's DRAM frame buffers not before the first NNA edge
   after the camera wrote the pixel, and a burst requested once the camera wrote its last
-  pixel. Exact to the cycle behind frame buffers (tests/sim/test_estimate.py,
+  pixel. Exact to the cycle behind frame buffers (tests/sim/cycle/test_estimate.py,
   test_estimate_presets.py).
 - **Delivered rate, totals** (:func:`delivered_fps`): the frame rate the chip delivers (the
   work bound, a camera's rate, or fewer behind one frame buffer), the chip's SRAM with every
@@ -232,7 +232,7 @@ def merge_depth_needed(plan: ChipPlan) -> int | None:
 
     The criterion is the cycle model's sustained rate over a stream (``stream.sustained_fps``)
     reaching ``fps_bound``: at this depth it does, one entry less it does not
-    (tests/sim/test_estimate.py; frames from memory). A camera streaming into the NNA staggers
+    (tests/sim/cycle/test_estimate.py; frames from memory). A camera streaming into the NNA staggers
     the tiles by itself (each receives its part of a line later than the one to its left), so
     there the figure is an upper bound (1-2 entries over where measured). At this depth tiles
     still wait a little while they settle, so the frame latency can be a few cycles per row

@@ -70,7 +70,7 @@ def path_step(c, prev, p1: int, p2: int, cap: int) -> list[int]:
     with the terms d - 1 < 0 and d + 1 >= D absent; ``p2`` is the step's P2
     (:func:`effective_p2`), ``cap`` the path cap 2^path_bits - 1. A path starts from an all-zero
     predecessor: L = min(c, cap). :func:`sgm_ref` runs it pixel by pixel; the kernel's vector
-    code (:func:`_step_loop`) computes the same in uint16 lanes, and tests/sva/test_sgm.py holds
+    code (:func:`_step_loop`) computes the same in uint16 lanes, and tests/sva/sgm/test_sgm.py holds
     it against this function."""
     prev = [int(v) for v in prev]
     m = min(prev)

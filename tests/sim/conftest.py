@@ -1,8 +1,7 @@
-"""Shared fixtures of the cycle-model tests."""
+"""Fixtures of the cycle model's and the application's tests (tests/sim and below); the
+suite-wide ones (``lent_toml``, ``run_cycle``) are in tests/conftest.py."""
 
 from __future__ import annotations
-
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -10,7 +9,7 @@ import pytest
 from stereosim.quant.artifact import QuantizedModel, save_quantized
 from stereosim.quant.intconv import network
 from stereosim.sim.cycle.compiled.run import run_compiled
-from stereosim.sim.cycle.readable.chip import build_chip, run_readable
+from stereosim.sim.cycle.readable.chip import run_readable
 
 
 def random_network(shapes, seed):
@@ -37,25 +36,6 @@ def network_artifact(path, net):
         weight_scales=tuple(np.ones(w.shape[0]) for w in net.weights),
         act_scales=np.ones(n), distances=("rms",) * n, sign_agreement=1.0, acc_rms=0.0))
     return str(path)
-
-
-def write_lent_toml(path, layers, width=16, height=16, channels=1, fps="max"):
-    """Write a lent network file (nna.lent_network) of ``layers`` (K, C_in, C_out, stride)
-    tuples; returns its path."""
-    fps_text = '"max"' if fps == "max" else repr(float(fps))
-    text = [f"fps = {fps_text}", "[input]", f"width = {width}", f"height = {height}",
-            f"channels = {channels}"]
-    for k, c_in, c_out, s in layers:
-        text += ["[[layer]]", f"kernel = {k}", f"channels_in = {c_in}",
-                 f"channels_out = {c_out}", f"stride = {s}"]
-    Path(path).write_text("\n".join(text) + "\n")
-    return str(path)
-
-
-@pytest.fixture(scope="session")
-def lent_toml():
-    """:func:`write_lent_toml`: write a lent network file."""
-    return write_lent_toml
 
 
 @pytest.fixture(scope="session")
@@ -95,21 +75,3 @@ def engines_agree():
         return slow, got["slow"]
 
     return check
-
-
-def _run_cycle(left, right, cfg, *, order_seed=None, sink_stall=None, trace=None,
-               on_frame=None):
-    """One frame (or a stream: see ``build_chip``) of ``cfg`` (or a plan) on the readable
-    kernel: (the last frame's output words (H, W) int32, cycle report, the chip -- its blocks,
-    FIFOs and simulator, for tests that look inside)."""
-    chip = build_chip(left, right, cfg, order_seed=order_seed, sink_stall=sink_stall,
-                      trace=trace, on_frame=on_frame)
-    _, report = chip.run()
-    return chip.sink.words.copy(), report, chip
-
-
-@pytest.fixture(scope="session")
-def run_cycle():
-    """The readable kernel's run with its chip: ``run_cycle(left, right, cfg, *, order_seed,
-    sink_stall, trace, on_frame) -> (words, report, chip)``."""
-    return _run_cycle

@@ -15,6 +15,8 @@ producer sees, its cycles full); and its counts at an instant (occupancy, traced
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from stereosim.core.kernel_cache import njit, njit_borrowing
@@ -257,10 +259,21 @@ def finish_fifos(net, cycles):
 # ---- at an instant ------------------------------------------------------------------------------
 
 
+class FifoCounts(NamedTuple):
+    """A FIFO's counts at an instant (:func:`counts_at`): its pushes, its pops, the frees its
+    producer has seen, whether it was pushed at the producer's last edge and popped at the
+    consumer's last edge."""
+
+    pushes: int
+    pops: int
+    seen: int
+    pushed: bool
+    popped: bool
+
+
 @njit(cache=True)
 def counts_at(ring, streams, cursors, prm, tiles, fi, t):
-    """(pushes, pops, frees the producer has seen, pushed at the producer's last edge, popped
-    at the consumer's last edge) of the FIFO ``fi`` (its record) after the step at instant t."""
+    """The :class:`FifoCounts` of the FIFO ``fi`` (its record) after the step at instant t."""
     c_src = t // fi.per_src
     c_dst = t // fi.per_dst
     # the last pop whose free slot the producer sees at c_src
@@ -279,13 +292,15 @@ def counts_at(ring, streams, cursors, prm, tiles, fi, t):
         tl = tiles[fi.side * prm.parts + fi.tile]
         pushes = tile_input_before(tl, prm.w, prm.n, le_push)
         pushed = pushed and tile_input_before(tl, prm.w, prm.n, le_push - 1) < pushes
-        return pushes, le_pop, le_seen, pushed, popped
+        return FifoCounts(pushes=pushes, pops=le_pop, seen=le_seen, pushed=pushed, popped=popped)
     if fi.kind == FIFO_TO_MERGE:
         tl = tiles[fi.side * prm.parts + fi.tile]
         pops = tile_output_before(tl, prm.w, prm.n, le_pop)
         popped = popped and tile_output_before(tl, prm.w, prm.n, le_pop - 1) < pops
-        return le_push, pops, tile_output_before(tl, prm.w, prm.n, le_seen), pushed, popped
-    return le_push, le_pop, le_seen, pushed, popped
+        return FifoCounts(pushes=le_push, pops=pops,
+                          seen=tile_output_before(tl, prm.w, prm.n, le_seen), pushed=pushed,
+                          popped=popped)
+    return FifoCounts(pushes=le_push, pops=le_pop, seen=le_seen, pushed=pushed, popped=popped)
 
 
 

@@ -257,6 +257,17 @@ class Net(NamedTuple):
     # (sim.cycle.rules.sink_pattern)
 
 
+class StatusTables(NamedTuple):
+    """What a block's status at an instant reads besides the streams (the samplers'
+    ``status_*``): the :class:`Net`'s tables of that name (``ids``: its one record)."""
+
+    tiles: np.ndarray
+    fifos: np.ndarray
+    frame_fs: np.ndarray
+    ids: np.void
+    sink: np.ndarray
+
+
 class TraceData(NamedTuple):
     """What a traced window shows of the data, for the frames ``frame0`` .. ``frame0 + F - 1``
     whose beats it sees: both views' descriptors (F, 2, H, W) uint64, the output words

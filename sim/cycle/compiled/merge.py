@@ -130,7 +130,7 @@ def advance_merge(net, side):
 @njit(cache=True)
 def status_merge(ring, streams, cursors, prm, tables, b, c):
     """(activity, FIFO waited on or -1) the merge ``b`` (its record) reports in its cycle c."""
-    tiles, fifos = tables[0], tables[1]
+    tiles, fifos = tables.tiles, tables.fifos
     m_s = fifos[b.fifo_out].push
     m, at_c = lt_at(ring, streams[m_s], cursors[m_s], c)
     if m >= prm.frames * prm.n:

@@ -27,6 +27,8 @@ reports at an instant (status, traced signals, per layer).
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from stereosim.core.kernel_cache import njit, njit_borrowing
@@ -41,6 +43,7 @@ from stereosim.sim.cycle.compiled.layout import (
     INF,
 )
 from stereosim.sim.cycle.compiled.ring import (
+    BusyWatch,
     busy,
     catch_up,
     event,
@@ -60,19 +63,39 @@ from stereosim.sim.cycle.rules import (
 # ---- the line buffer's pops ---------------------------------------------------------------------
 
 
+class LineGeometry(NamedTuple):
+    """What :func:`line_room` reads of a layer's line buffer: its rows, the window's half
+    height, the top halo, the layer's output rows (a frame's) and output row width, and the
+    rows of a frame of its input (the tile's input region, or the layer before's output)."""
+
+    rows: int
+    half: int
+    top_halo: int
+    out_rows: int
+    out_width: int
+    in_rows: int
+
+
+@njit(cache=True, inline="always")
+def line_geometry(lr, in_rows):
+    """The :class:`LineGeometry` of layer ``lr`` (its record), taking ``in_rows`` rows a
+    frame."""
+    return LineGeometry(rows=lr.rows, half=lr.half, top_halo=lr.top_halo,
+                        out_rows=lr.y1 - lr.y0, out_width=lr.ow, in_rows=in_rows)
+
+
 @njit(cache=True, inline="always")
 def line_room(ring, e, r, geometry):
     """(room, known, ring error): the first cycle the line buffer may take the tile's input row
     r (over the stream) -- the cycle after the MAC array pushed the last descriptor of the
     output rows that must have started before it (the readable ``LineBuffer.evaluate``); not
     known while that push is not. ``e`` = (offset, mask, known, highest index lost) of the MAC
-    pushes; ``geometry`` = (buffer rows, window half, top halo, output rows, input rows, output
-    row width)."""
+    pushes; ``geometry`` a :class:`LineGeometry`."""
     e_off, e_mask, ne, e_lo = e
-    rows, half, top_halo, out_rows, in_rows, ow = geometry
-    started = nna_rows_started_before_input(r, rows, half, top_halo, out_rows, in_rows)
+    started = nna_rows_started_before_input(r, geometry.rows, geometry.half, geometry.top_halo,
+                                            geometry.out_rows, geometry.in_rows)
     if started > 0:
-        j = started * ow - 1
+        j = started * geometry.out_width - 1
         if j >= ne:
             return 0, False, False
         return rd(ring, e_off, e_mask, j) + 1, True, j <= e_lo
@@ -96,7 +119,7 @@ def advance_line_pops(net, ti):
     per, cap, w, n = st.period, prm.cap_fs, prm.w, prm.n
     iw, iy0, ix0 = tl.iw, tl.iy0, tl.ix0
     in_rows = tl.iy1 - tl.iy0
-    geometry = (lr.rows, lr.half, lr.top_halo, lr.y1 - lr.y0, in_rows, lr.ow)
+    geometry = line_geometry(lr, in_rows)
     left = tl.side == 0
     row_fs = net.rows[0]
     per_nna = prm.per_nna
@@ -158,33 +181,72 @@ def advance_line_pops(net, ti):
 # ---- the pops of a whole-frame tile (taken in turn with its source's pushes) --------------------
 
 
+class WholePops(NamedTuple):
+    """The constants of :func:`whole_pops`' loop (the line buffer of a camera served by one
+    submodule): the rings of the source's pushes and of its pops, the view of the MAC
+    array's pushes (:func:`~.ring.view`), the FIFO's clock periods (fs), their ratio and its
+    data edges, the line buffer's :class:`LineGeometry`, its occupancy row and its side."""
+
+    push_off: int
+    push_mask: int
+    pop_off: int
+    pop_mask: int
+    macs: tuple  # (offset, mask, known, highest index lost) of the MAC array's pushes
+    per_src: int
+    per_nna: int
+    rat_in: float  # per_src / per_nna (visible_from's ratio)
+    data_edges: int
+    geometry: LineGeometry
+    occ_in: int
+    side: int
+
+
+class PopCursor(NamedTuple):
+    """Where :func:`whole_pops` stands: the pops known, the last pop (cycle), the next pop's
+    column and row over the stream, the row whose room is known (-1: none) and that room, the
+    FIFO's empty cycles so far and a ring error."""
+
+    pops: int
+    last_pop: int
+    x: int
+    row: int
+    room_row: int
+    room: int
+    empty: int
+    ring_error: bool
+
+
 @njit(cache=True, inline="always")
 def whole_pops_begin(net, side):
     """What :func:`whole_pops` reads of the line buffer of a camera served by one submodule:
-    the constants of its loop and its cursor (pops known, the last pop, its pixel, the room of
-    its row, the FIFO's empty cycles, a ring error)."""
+    the constants of its loop (a :class:`WholePops`) and its cursor (a :class:`PopCursor`)."""
     prm = net.prm[0]
     tl = net.tiles[side]
     lr = net.layers[tl.layer0]  # the first layer: its outputs make room in its line buffer
     a_off, a_mask, _, _ = view(net.streams, tl.source_push)
     b_off, b_mask, kb, _ = view(net.streams, tl.line_pop)
-    e = view(net.streams, lr.out_stream)
     f = net.fifos[tl.src_fifo]
-    k = (a_off, a_mask, b_off, b_mask, e, f.per_src, f.per_dst, ratio(f.per_src, f.per_dst),
-         f.data_edges, (lr.rows, lr.half, lr.top_halo, lr.y1 - lr.y0, prm.h, lr.ow), tl.occ_in,
-         side)
+    k = WholePops(push_off=a_off, push_mask=a_mask, pop_off=b_off, pop_mask=b_mask,
+                  macs=view(net.streams, lr.out_stream), per_src=f.per_src, per_nna=f.per_dst,
+                  rat_in=ratio(f.per_src, f.per_dst), data_edges=f.data_edges,
+                  geometry=line_geometry(lr, prm.h), occ_in=tl.occ_in, side=side)
     b_prev = rd(net.ring, b_off, b_mask, kb - 1) if kb > 0 else -1
-    return k, (kb, b_prev, kb % prm.w, kb // prm.w, -1, 0, 0, False)
+    return k, PopCursor(pops=kb, last_pop=b_prev, x=kb % prm.w, row=kb // prm.w, room_row=-1,
+                        room=0, empty=0, ring_error=False)
 
 
 @njit(cache=True, inline="always")
 def whole_pops(net, k, cur, ka):
     """The line buffer's pops of what the source pushed (``ka`` pushes known), while its rows
-    have room. Returns (cursor, moved)."""
+    have room, from the :class:`PopCursor` ``cur`` with the constants ``k`` (a
+    :class:`WholePops`). Returns (cursor, moved)."""
     prm = net.prm[0]
     ring, occ, row_fs = net.ring, net.occ, net.rows[0]
-    a_off, a_mask, b_off, b_mask, e, p_src, p_nna, rat_in, de, geometry, occ_in, side = k
-    kb, b_prev, xb, yb, room_row, room, empty, err = cur
+    a_off, a_mask, b_off, b_mask = k.push_off, k.push_mask, k.pop_off, k.pop_mask
+    e, geometry, occ_in, side = k.macs, k.geometry, k.occ_in, k.side
+    p_src, p_nna, rat_in, de = k.per_src, k.per_nna, k.rat_in, k.data_edges
+    kb, b_prev, xb, yb = cur.pops, cur.last_pop, cur.x, cur.row
+    room_row, room, empty, err = cur.room_row, cur.room, cur.empty, cur.ring_error
     w, h, cap = prm.w, prm.h, prm.cap_fs
     moved = False
     while kb < ka:
@@ -212,17 +274,17 @@ def whole_pops(net, k, cur, ka):
                 row_fs[yb + 1] = b * p_nna
             xb = 0
             yb += 1
-    return (kb, b_prev, xb, yb, room_row, room, empty, err), moved
+    return PopCursor(pops=kb, last_pop=b_prev, x=xb, row=yb, room_row=room_row, room=room,
+                     empty=empty, ring_error=err), moved
 
 
 @njit(cache=True, inline="always")
 def whole_pops_end(net, k, cur):
     """Store what :func:`whole_pops` did: the pops known, the FIFO's empty cycles."""
-    kb, _, _, _, _, _, empty, err = cur
-    tl = net.tiles[k[11]]
-    net.streams[tl.line_pop].count = kb
-    net.acc[len(net.blocks) + tl.src_fifo].empty += empty
-    if err:
+    tl = net.tiles[k.side]
+    net.streams[tl.line_pop].count = cur.pops
+    net.acc[len(net.blocks) + tl.src_fifo].empty += cur.empty
+    if cur.ring_error:
         net.state[0].error = ERR_RING
 
 
@@ -260,7 +322,7 @@ def advance_layer(net, ti, li):
             iw, iy0, n_in = tl.iw, tl.iy0, tl.n_in
     nx = net.layers[li + 1] if not last else lr  # its outputs make room in its line buffer
     nxt = view(streams, nx.out_stream)
-    geometry = (nx.rows, nx.half, nx.top_halo, nx.y1 - nx.y0, out_rows, nx.ow)
+    geometry = line_geometry(nx, out_rows)
     f = net.fifos[tl.out_fifo]
     p_off, p_mask, npop, p_lo = view(streams, f.pop)
     depth, per_src, per_dst, se = f.depth, f.per_src, f.per_dst, f.space_edges
@@ -392,13 +454,13 @@ def walk_nna(net, ti, final):
                 err |= lost
                 long = s_j == INF or (s_j - prev) * per > g
                 ptr, _, n_gaps, last_busy = pops_in(ring, b_pops, ptr, prev + 1, s_j, long, gaps,
-                                                     (blk, n_gaps, last_busy, per, g))
+                                                     BusyWatch(blk, n_gaps, last_busy, per, g))
                 if s_j < INF:
                     n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy, s_j * per,
                                               done * per, g)
                     _, _, n_gaps, last_busy = pops_in(ring, b_pops, ptr, done + 1, INF,
                                                        np.bool_(True), gaps,
-                                                       (blk, n_gaps, last_busy, per, g))
+                                                       BusyWatch(blk, n_gaps, last_busy, per, g))
             break
         e = rd(ring, e_off, e_mask, j)
         if e > known_until:
@@ -408,7 +470,7 @@ def walk_nna(net, ti, final):
             err |= lost
             long = (s_j - prev) * per > g
             ptr, cnt, n_gaps, last_busy = pops_in(ring, b_pops, ptr, prev + 1, s_j, long, gaps,
-                                                   (blk, n_gaps, last_busy, per, g))
+                                                   BusyWatch(blk, n_gaps, last_busy, per, g))
             starved += s_j - prev - 1 - cnt
             n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy, s_j * per, done * per, g)
         if e > done + 1:  # the finished descriptor held for a free slot
@@ -416,7 +478,7 @@ def walk_nna(net, ti, final):
             err |= lost
             long = (e - done) * per > g
             ptr, cnt, n_gaps, last_busy = pops_in(ring, b_pops, ptr, done + 1, e, long, gaps,
-                                                   (blk, n_gaps, last_busy, per, g))
+                                                   BusyWatch(blk, n_gaps, last_busy, per, g))
             blocked += e - done - 1 - cnt
             n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy, e * per, e * per, g)
         last_busy = e * per  # busy through its MAC cycles and its push

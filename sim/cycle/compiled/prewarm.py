@@ -55,7 +55,7 @@ from stereosim.nna.descriptor import compute_descriptor
 from stereosim.quant.intconv import descriptor_dtype
 from stereosim.sim.cycle.compiled.layout import TraceData, serialise
 from stereosim.sim.cycle.compiled.ring import cursors_at
-from stereosim.sim.cycle.compiled.sampler import next_instant, record_window, sample
+from stereosim.sim.cycle.compiled.sampler import WindowLog, next_instant, record_window, sample
 from stereosim.sim.cycle.compiled.schedule import advance_streams, walk_all
 from stereosim.sim.cycle.compiled.source import note_source_wait
 from stereosim.sim.cycle.plan import ChipPlan, build_plan
@@ -189,7 +189,7 @@ def _compile_sampler(plan: ChipPlan) -> None:
     sample(net, data, start - 1, scratch, done)
     size = max(1 << 10, 4 * n_sig)
     ctl = np.array([0, next_instant(periods, start - 1)], np.int64)
-    record_window(net, data, periods, 3 * start, (
+    record_window(net, data, periods, 3 * start, WindowLog(
         ctl, scratch.copy(), np.zeros(size, np.int64), np.zeros(size, np.int32),
         np.zeros(size, np.uint64), scratch.copy(), done))
 

@@ -8,10 +8,24 @@ reference counting in the loops).
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 from stereosim.core.kernel_cache import njit
 from stereosim.sim.cycle.compiled.layout import INF, SVA_ISSUE
 
 NEVER = -(1 << 40)  # the previous issue tick before the SVA's first word
+
+
+class BusyWatch(NamedTuple):
+    """A walker's watch over a block's busy instants (:func:`busy`, :func:`pops_in`): the
+    block, the long gaps noted so far, its last busy instant (fs), its clock period (fs) and the
+    watchdog's time (fs): a gap longer than it is noted."""
+
+    block: int
+    n_gaps: int
+    last_busy_fs: int
+    period_fs: int
+    watchdog_fs: int
 
 
 @njit(cache=True, inline="always")
@@ -97,13 +111,14 @@ def catch_up(ring, off, mask, ptr, lowest, lo):
 
 
 @njit(cache=True)
-def pops_in(ring, pops, ptr, lo, hi, long, gaps, state):
+def pops_in(ring, pops, ptr, lo, hi, long, gaps, watch):
     """Count the pops in cycles [lo, hi) (skipping those before lo); inside an interval longer
     than the watchdog's time (``long``) each is a busy instant to note. ``pops`` = (ring offset,
-    mask, known events) of the pop stream; ``state`` = (block, n_gaps, last busy, period,
-    watchdog) of :func:`busy`. Returns (pointer past them, count, n_gaps, last busy)."""
+    mask, known events) of the pop stream; ``watch`` a :class:`BusyWatch` of :func:`busy`.
+    Returns (pointer past them, count, n_gaps, last busy)."""
     off, mask, limit = pops
-    blk, n_gaps, last_busy, per, g = state
+    blk, per, g = watch.block, watch.period_fs, watch.watchdog_fs
+    n_gaps, last_busy = watch.n_gaps, watch.last_busy_fs
     ptr = skip(ring, off, mask, ptr, limit, lo)
     first = ptr
     if long:

@@ -35,7 +35,13 @@ from stereosim.sim.cycle.compiled.layout import (
     serialise,
 )
 from stereosim.sim.cycle.compiled.ring import count_le, cursors_at
-from stereosim.sim.cycle.compiled.sampler import block_status, next_instant, record_window, sample
+from stereosim.sim.cycle.compiled.sampler import (
+    WindowLog,
+    block_status,
+    next_instant,
+    record_window,
+    sample,
+)
 from stereosim.sim.cycle.compiled.schedule import run_pass
 from stereosim.sim.cycle.compiled.source import (
     DRAM,
@@ -314,8 +320,8 @@ def _stop(plan: ChipPlan, sink_stall, cls, now_fs: int, executed: int, tail: str
     cursors_at(net, now_fs, True)
     fifos = {}
     for k, f in enumerate(plan.fifos):
-        pushes, pops, _, _, _ = fifo_state(net, k, now_fs)
-        fifos[f.name] = {"occupancy": int(pushes - pops), "depth": f.depth}
+        counts = fifo_state(net, k, now_fs)
+        fifos[f.name] = {"occupancy": int(counts.pushes - counts.pops), "depth": f.depth}
     blocks = {}
     for i, b in enumerate(plan.blocks):
         act, wait = block_status(net, i, now_fs // plan.domains[b.domain].period_fs)
@@ -428,7 +434,7 @@ def _trace(plan: ChipPlan, sink_stall, window: tuple[int, int], t_end: int, data
     ids = np.zeros(size, np.int32)
     values = np.zeros(size, np.uint64)
     while not record_window(net, data, periods, end,
-                            (ctl, last, times, ids, values, scratch, done)):
+                            WindowLog(ctl, last, times, ids, values, scratch, done)):
         times = np.concatenate([times, np.zeros_like(times)])
         ids = np.concatenate([ids, np.zeros_like(ids)])
         values = np.concatenate([values, np.zeros_like(values)])

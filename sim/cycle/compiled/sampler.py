@@ -14,6 +14,10 @@ blocked.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
+import numpy as np
+
 from stereosim.core.kernel_cache import njit
 from stereosim.sim.cycle.compiled.fifo import counts_at
 from stereosim.sim.cycle.compiled.layout import (
@@ -24,6 +28,7 @@ from stereosim.sim.cycle.compiled.layout import (
     K_NNA,
     K_SINK,
     K_SVA,
+    StatusTables,
 )
 from stereosim.sim.cycle.compiled.merge import sample_merge, status_merge
 from stereosim.sim.cycle.compiled.nna import sample_nna, status_nna
@@ -34,11 +39,17 @@ from stereosim.sim.cycle.compiled.sva import sample_sva, status_sva
 from stereosim.sim.cycle.fifo.compiled import sample_fifo
 
 
+@njit(cache=True, inline="always")
+def _tables(net):
+    """The :class:`.layout.StatusTables` of ``net``."""
+    return StatusTables(net.tiles, net.fifos, net.frame_fs, net.ids[0], net.sink)
+
+
 @njit(cache=True)
 def _block_status(events, prm, state, tables, layers, b, c):
     """(activity, FIFO waited on or a code of :mod:`.source`, or -1) that block ``b`` (its
-    record) reports in its cycle c; ``events`` = (ring, streams, cursors), ``tables`` =
-    (tiles, FIFOs, frame instants, ids, the sink's pattern), ``layers`` the NNA tiles' layers."""
+    record) reports in its cycle c; ``events`` = (ring, streams, cursors), ``tables`` a
+    :class:`.layout.StatusTables`, ``layers`` the NNA tiles' layers."""
     ring, streams, cursors = events
     kind = b.kind
     if kind == K_MEMORY:
@@ -46,7 +57,7 @@ def _block_status(events, prm, state, tables, layers, b, c):
     if kind == K_CAMERA:
         return status_camera(prm, c)
     if kind == K_NNA:
-        return status_nna(ring, streams, cursors, prm, tables[0][b.side * prm.parts + b.tile],
+        return status_nna(ring, streams, cursors, prm, tables.tiles[b.side * prm.parts + b.tile],
                           layers, c)
     if kind == K_MERGE:
         return status_merge(ring, streams, cursors, prm, tables, b, c)
@@ -60,8 +71,7 @@ def block_status(net, blk, c):
     """(activity, FIFO waited on or -1) that block ``blk`` reports in its cycle c (after
     :func:`.ring.cursors_at` for the instant)."""
     return _block_status((net.ring, net.streams, net.cursors), net.prm[0], net.state[0],
-                         (net.tiles, net.fifos, net.frame_fs, net.ids[0], net.sink), net.layers,
-                         net.blocks[blk], c)
+                         _tables(net), net.layers, net.blocks[blk], c)
 
 
 @njit(cache=True, inline="always")
@@ -86,7 +96,7 @@ def sample(net, data, t, out, done):
     ring, streams, cursors, tiles, fifos = net.ring, net.streams, net.cursors, net.tiles, net.fifos
     prm = net.prm[0]
     ids = net.ids[0]
-    tables = (tiles, fifos, net.frame_fs, ids, net.sink)
+    tables = _tables(net)
     blocks = net.blocks
     n_blocks = blocks.shape[0]
     n_layers = tiles[0].n_layers
@@ -136,12 +146,28 @@ def next_instant(periods, t):
     return best
 
 
+class WindowLog(NamedTuple):
+    """What :func:`record_window` writes: ``ctl`` = [changes logged, the next instant], the
+    signals' ``last`` values, the changes' ``times`` (fs), signal ``ids`` and ``values``, and
+    :func:`sample`'s ``scratch`` (the signals) and ``done`` (the cycles it shows)."""
+
+    ctl: np.ndarray  # int64 (2,)
+    last: np.ndarray  # uint64 (signals,)
+    times: np.ndarray  # int64
+    ids: np.ndarray  # int32
+    values: np.ndarray  # uint64
+    scratch: np.ndarray  # uint64 (signals,)
+    done: np.ndarray  # int64 (blocks + FIFOs, 2)
+
+
 @njit(cache=True)
 def record_window(net, data, periods, end, log):
     """Record the traced signals from the instant ``log.ctl[1]`` until ``end`` (exclusive):
-    every change against ``log.last`` goes to (times, ids, values) from ``log.ctl[0]`` on.
-    Returns False when the arrays are full (grow them and call again: ``ctl`` holds where)."""
-    ctl, last, times, ids, values, scratch, done = log
+    every change against ``log.last`` goes to (times, ids, values) from ``log.ctl[0]`` on
+    (``log`` a :class:`WindowLog`). Returns False when the arrays are full (grow them and call
+    again: ``ctl`` holds where)."""
+    ctl, last, times, ids, values = log.ctl, log.last, log.times, log.ids, log.values
+    scratch, done = log.scratch, log.done
     n_sig = last.shape[0]
     n_log = ctl[0]
     t = ctl[1]

@@ -49,15 +49,15 @@ def advance_whole_side(net, side):
     :func:`.source.advance_source` and :func:`.nna.advance_line_pops`."""
     kp, push = source.whole_pushes_begin(net, side)
     kl, pop = nna.whole_pops_begin(net, side)
-    start_a, start_b = push[0], pop[0]
+    start_a, start_b = push.pushes, pop.pops
     while True:
-        pop, popped = nna.whole_pops(net, kl, pop, push[0])
-        push, pushed = source.whole_pushes(net, kp, push, pop[0])
-        if push[11] or not (popped or pushed):  # a camera overflowed, or nothing moved
+        pop, popped = nna.whole_pops(net, kl, pop, push.pushes)
+        push, pushed = source.whole_pushes(net, kp, push, pop.pops)
+        if push.overflow or not (popped or pushed):  # a camera overflowed, or nothing moved
             break
     nna.whole_pops_end(net, kl, pop)
     source.whole_pushes_end(net, kp, push)
-    return push[0] > start_a or pop[0] > start_b
+    return push.pushes > start_a or pop.pops > start_b
 
 
 @njit_borrowing(cache=True)
@@ -66,22 +66,22 @@ def advance_sva_and_sink(net):
     pops (:func:`.sink.pops`) taken in turn (an issue needs the rows' pops and the pushes
     before it, a push its issue and the pop of the word a FIFO depth before, a pop the push of
     its word)."""
-    ki, ai, issue = sva.issues_begin(net)
+    ki, issue = sva.issues_begin(net)
     kp = sva.pushes_begin(net)
-    ks, a_s, pop = sink.pops_begin(net)
+    ks, pop = sink.pops_begin(net)
     ring = net.ring
     ko = net.streams[net.ids[0].sva_push].count
-    start = (issue[0], ko, pop[0])
+    start_i, start_o, start_q = issue.issued, ko, pop.pops
     while True:
-        issue, issued = sva.issues(ki, ai, issue, ko)
-        ko, pushed = sva.pushes(kp, ring, ko, issue[0], pop[0])
-        pop, popped = sink.pops(ks, a_s, pop, ko)
+        issue, issued = sva.issues(ki, issue, ko)
+        ko, pushed = sva.pushes(kp, ring, ko, issue.issued, pop.pops)
+        pop, popped = sink.pops(ks, pop, ko)
         if not (issued or pushed or popped):
             break
     sva.issues_end(net, issue)
     net.streams[net.ids[0].sva_push].count = ko
     sink.pops_end(net, ks, pop)
-    return issue[0] > start[0] or ko > start[1] or pop[0] > start[2]
+    return issue.issued > start_i or ko > start_o or pop.pops > start_q
 
 
 @njit_borrowing(cache=True)

@@ -14,6 +14,10 @@ at an instant is read off the same events.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
+import numpy as np
+
 from stereosim.core.kernel_cache import njit
 from stereosim.sim.cycle.compiled.layout import (
     A_BLOCKED,
@@ -37,12 +41,67 @@ from stereosim.sim.cycle.rules import (
 )
 
 
+class SinkLoop(NamedTuple):
+    """The constants of :func:`pops`' loop: the rings of the sink's pops, of the SVA's pushes
+    and of the write-back bursts, the FIFO's data edges, the clock period (fs), the sink's
+    block, its stall pattern, whether it writes back through the DRAM channel, the cap, a
+    frame's columns and words, whether statistics are taken, the watchdog's time (fs) and the
+    channel's write side (words a burst, bursts the write buffer holds, slot, round, first
+    write slot, write slots a round); with the arrays it writes (taken from the Net once, not
+    per turn): the ring, the long gaps, the first frame's rows out, the frames out and the
+    run's state."""
+
+    pop_off: int
+    pop_mask: int
+    push_off: int
+    push_mask: int
+    write_off: int
+    write_mask: int
+    data_edges: int
+    period: int
+    block: int
+    allowed: np.ndarray  # the stall pattern (Net.sink)
+    dram: int
+    cap_fs: int
+    w: int
+    n: int
+    stats: int
+    watchdog_fs: int
+    d_wwords: int
+    d_wbuf: int
+    d_slot: int
+    d_round: int
+    d_wfirst: int
+    d_wcount: int
+    ring: np.ndarray
+    gaps: np.ndarray
+    row_fs: np.ndarray
+    frame_out: np.ndarray
+    state: np.void  # Net.state's record
+
+
+class SinkCursor(NamedTuple):
+    """Where :func:`pops` stands: the pops known, the last pop (cycle), the next pop's column,
+    the write-back bursts known, the cycles waited for the write buffer, the FIFO's empty
+    cycles, the first pop (-1: not in this pass), the long gaps noted, the last busy instant
+    and a ring error."""
+
+    pops: int
+    last_pop: int
+    x: int
+    bursts: int
+    dram_wait: int
+    empty: int
+    first: int
+    n_gaps: int
+    last_busy_fs: int
+    ring_error: bool
+
+
 @njit(cache=True, inline="always")
 def pops_begin(net):
-    """What :func:`pops` reads: the constants of its loop, the arrays it writes (taken from the
-    Net once, not per turn) and its cursor (pops known, the last pop, its column, write-back
-    bursts known, DRAM wait, the FIFO's empty cycles, the first pop (-1: not in this pass),
-    n_gaps, last busy, a ring error)."""
+    """What :func:`pops` reads: the constants of its loop and the arrays it writes (a
+    :class:`SinkLoop`) and its cursor (a :class:`SinkCursor`)."""
     prm = net.prm[0]
     ids = net.ids[0]
     streams = net.streams
@@ -52,25 +111,35 @@ def pops_begin(net):
     sq = streams[ids.sink_pop]
     fi = net.fifos[ids.fifo_sink]
     acc = net.acc[sq.block]
-    k = (q_off, q_mask, o_off, o_mask, w_off, w_mask, fi.data_edges, sq.period, sq.block,
-         (net.sink, prm.dram, prm.cap_fs, prm.w, prm.n, prm.stats,
-          prm.watchdog_fs, prm.d_wwords, prm.d_wbuf, prm.d_slot, prm.d_round, prm.d_wfirst,
-          prm.d_wcount))
-    arrays = (net.ring, net.gaps, net.rows[1], net.frame_fs[1], net.state[0])
+    k = SinkLoop(
+        pop_off=q_off, pop_mask=q_mask, push_off=o_off, push_mask=o_mask, write_off=w_off,
+        write_mask=w_mask, data_edges=fi.data_edges, period=sq.period, block=sq.block,
+        allowed=net.sink, dram=prm.dram, cap_fs=prm.cap_fs, w=prm.w, n=prm.n, stats=prm.stats,
+        watchdog_fs=prm.watchdog_fs, d_wwords=prm.d_wwords, d_wbuf=prm.d_wbuf,
+        d_slot=prm.d_slot, d_round=prm.d_round, d_wfirst=prm.d_wfirst, d_wcount=prm.d_wcount,
+        ring=net.ring, gaps=net.gaps, row_fs=net.rows[1], frame_out=net.frame_fs[1],
+        state=net.state[0])
     q_prev = rd(net.ring, q_off, q_mask, kq - 1) if kq > 0 else -1
-    return k, arrays, (kq, q_prev, kq % prm.w, kw, 0, 0, -1, acc.gaps, acc.last_busy, False)
+    return k, SinkCursor(pops=kq, last_pop=q_prev, x=kq % prm.w, bursts=kw, dram_wait=0,
+                         empty=0, first=-1, n_gaps=acc.gaps, last_busy_fs=acc.last_busy,
+                         ring_error=False)
 
 
 @njit(cache=True, inline="always")
-def pops(k, arrays, cur, ko):
+def pops(k, cur, ko):
     """The sink's next pops of the words pushed (``ko`` known): the first allowed cycle from the
     word's visibility (and, writing back through the DRAM channel, once the write buffer has
-    room). Returns (cursor, moved)."""
-    ring, gaps, row_fs, frame_out, state = arrays
-    q_off, q_mask, o_off, o_mask, w_off, w_mask, de, per, blk, consts = k
-    (allowed, dram, cap, w, n, stats, g, d_wwords, d_wbuf, d_slot, d_round, d_wfirst,
-     d_wcount) = consts
-    kq, q_prev, xq, kw, d_wait, empty, first, n_gaps, last_busy, err = cur
+    room), from the :class:`SinkCursor` ``cur`` with the constants ``k`` (a
+    :class:`SinkLoop`). Returns (cursor, moved)."""
+    ring, gaps, row_fs, frame_out, state = k.ring, k.gaps, k.row_fs, k.frame_out, k.state
+    q_off, q_mask, o_off, o_mask = k.pop_off, k.pop_mask, k.push_off, k.push_mask
+    w_off, w_mask, de, per, blk = k.write_off, k.write_mask, k.data_edges, k.period, k.block
+    allowed, dram, cap, w, n = k.allowed, k.dram, k.cap_fs, k.w, k.n
+    stats, g, d_wwords, d_wbuf = k.stats, k.watchdog_fs, k.d_wwords, k.d_wbuf
+    d_slot, d_round, d_wfirst, d_wcount = k.d_slot, k.d_round, k.d_wfirst, k.d_wcount
+    kq, q_prev, xq, kw, d_wait = cur.pops, cur.last_pop, cur.x, cur.bursts, cur.dram_wait
+    empty, first, n_gaps = cur.empty, cur.first, cur.n_gaps
+    last_busy, err = cur.last_busy_fs, cur.ring_error
     moved = False
     while kq < ko:
         vis = visible_from(rd(ring, o_off, o_mask, kq), per, per, 1.0, de)  # (one domain)
@@ -110,7 +179,9 @@ def pops(k, arrays, cur, ko):
                 row_fs[kq // w] = q * per
             if kq % n == 0:
                 frame_out[kq // n - 1] = q * per
-    return (kq, q_prev, xq, kw, d_wait, empty, first, n_gaps, last_busy, err), moved
+    return SinkCursor(pops=kq, last_pop=q_prev, x=xq, bursts=kw, dram_wait=d_wait,
+                      empty=empty, first=first, n_gaps=n_gaps, last_busy_fs=last_busy,
+                      ring_error=err), moved
 
 
 @njit(cache=True, inline="always")
@@ -118,19 +189,18 @@ def pops_end(net, k, cur):
     """Store what :func:`pops` did: the pops and write-back bursts known, the statistics."""
     state = net.state[0]
     ids = net.ids[0]
-    kq, _, _, kw, d_wait, empty, first, n_gaps, last_busy, err = cur
-    net.streams[ids.sink_pop].count = kq
-    net.streams[ids.dram_write].count = kw
-    acc = net.acc[k[8]]
-    acc.blocked += d_wait
-    acc.dram += d_wait
-    if first >= 0:
-        state.first_pop = first
-    acc.last_busy, acc.gaps = last_busy, n_gaps
-    net.acc[len(net.blocks) + ids.fifo_sink].empty += empty
-    if err:
+    net.streams[ids.sink_pop].count = cur.pops
+    net.streams[ids.dram_write].count = cur.bursts
+    acc = net.acc[k.block]
+    acc.blocked += cur.dram_wait
+    acc.dram += cur.dram_wait
+    if cur.first >= 0:
+        state.first_pop = cur.first
+    acc.last_busy, acc.gaps = cur.last_busy_fs, cur.n_gaps
+    net.acc[len(net.blocks) + ids.fifo_sink].empty += cur.empty
+    if cur.ring_error:
         state.error = ERR_RING
-    if n_gaps > net.gaps.shape[1]:
+    if cur.n_gaps > net.gaps.shape[1]:
         state.error = ERR_GAPS
 
 
@@ -141,7 +211,7 @@ def pops_end(net, k, cur):
 def status_sink(ring, streams, cursors, prm, tables, b, c):
     """(activity, FIFO waited on, DRAM or -1) the sink ``b`` (its record) reports in its cycle
     c (the readable ``Sink.evaluate``)."""
-    fifos, ids, allowed = tables[1], tables[3], tables[4]
+    fifos, ids, allowed = tables.fifos, tables.ids, tables.sink
     q_s, o_s = ids.sink_pop, ids.sva_push
     received, at_c = lt_at(ring, streams[q_s], cursors[q_s], c)
     if received >= prm.frames * prm.n:

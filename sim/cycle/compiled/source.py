@@ -21,6 +21,8 @@ reports at an instant (status, traced signals).
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 from stereosim.core.kernel_cache import njit, njit_borrowing
 from stereosim.sim.cycle.compiled.layout import (
     A_BLOCKED,
@@ -353,10 +355,51 @@ def advance_source(net, side):
 # ---- the pushes of a whole-frame side (taken in turn with its line buffer's pops) ----------------
 
 
+class WholeSource(NamedTuple):
+    """The constants of :func:`whole_pushes`' loop (a camera served by one submodule): the
+    rings of its pushes and of its line buffer's pops, its FIFO (depth, space edges), the
+    clock periods either side (fs) and their ratio, the stream's pushes, its block and side,
+    and the camera's clock over the source's (frame buffers)."""
+
+    push_off: int
+    push_mask: int
+    pop_off: int
+    pop_mask: int
+    depth: int
+    space_edges: int
+    per_src: int
+    per_nna: int
+    rat_back: float  # per_nna / per_src (room_from's ratio)
+    n: int
+    block: int
+    side: int
+    rat_cam: float
+
+
+class SourceCursor(NamedTuple):
+    """Where :func:`whole_pushes` stands: the pushes known, the last push (cycle), the next
+    pixel's column, row over the stream and frame, the statistics so far (cycles blocked,
+    starved, waiting for DRAM; long gaps noted, the last busy instant), a ring error and an
+    overflow."""
+
+    pushes: int
+    last_push: int
+    x: int
+    row: int
+    frame: int
+    blocked: int
+    starved: int
+    dram_wait: int
+    n_gaps: int
+    last_busy_fs: int
+    ring_error: bool
+    overflow: bool
+
+
 @njit(cache=True, inline="always")
 def whole_pushes_begin(net, side):
     """What :func:`whole_pushes` reads of a camera served by one submodule: the constants of
-    its loop and its cursor (pushes known, the last push, its pixel, the statistics)."""
+    its loop (a :class:`WholeSource`) and its cursor (a :class:`SourceCursor`)."""
     prm = net.prm[0]
     tl = net.tiles[side]
     a_off, a_mask, ka, _ = view(net.streams, tl.source_push)
@@ -364,28 +407,35 @@ def whole_pushes_begin(net, side):
     sa = net.streams[tl.source_push]
     f = net.fifos[tl.src_fifo]
     p_src, p_nna = f.per_src, f.per_dst
-    rat_cam = ratio(prm.per_cam, p_src) if prm.fb > 0 else 1.0
     acc = net.acc[sa.block]
-    k = (a_off, a_mask, b_off, b_mask, f.depth, f.space_edges, p_src, p_nna,
-         ratio(p_nna, p_src), sa.n, sa.block, side, rat_cam)
+    k = WholeSource(
+        push_off=a_off, push_mask=a_mask, pop_off=b_off, pop_mask=b_mask, depth=f.depth,
+        space_edges=f.space_edges, per_src=p_src, per_nna=p_nna, rat_back=ratio(p_nna, p_src),
+        n=sa.n, block=sa.block, side=side,
+        rat_cam=ratio(prm.per_cam, p_src) if prm.fb > 0 else 1.0)
     a_prev = rd(net.ring, a_off, a_mask, ka - 1) if ka > 0 else -1
     ya = ka // prm.w  # rows over the stream
-    # (pushes, last push, x, row over the stream, its frame, blocked, starved, DRAM wait,
-    # n_gaps, last busy, ring error, overflow)
-    cur = (ka, a_prev, ka % prm.w, ya, ya // prm.h, 0, 0, 0, acc.gaps, acc.last_busy, False,
-           False)
+    cur = SourceCursor(
+        pushes=ka, last_push=a_prev, x=ka % prm.w, row=ya, frame=ya // prm.h, blocked=0,
+        starved=0, dram_wait=0, n_gaps=acc.gaps, last_busy_fs=acc.last_busy,
+        ring_error=False, overflow=False)
     return k, cur
 
 
 @njit(cache=True, inline="always")
 def whole_pushes(net, k, cur, kb):
     """The source's pushes while the slot a FIFO depth back has been freed (``kb``: the line
-    buffer's pops known). Returns (cursor, moved)."""
+    buffer's pops known), from the :class:`SourceCursor` ``cur`` with the constants ``k`` (a
+    :class:`WholeSource`). Returns (cursor, moved)."""
     prm = net.prm[0]
     state = net.state[0]
     ring, gaps = net.ring, net.gaps
-    a_off, a_mask, b_off, b_mask, depth, se, p_src, p_nna, rat_back, n, blk, side, rat_cam = k
-    ka, a_prev, xa, ya, fa, blocked, starved, d_wait, n_gaps, last_busy, err, over = cur
+    a_off, a_mask, b_off, b_mask = k.push_off, k.push_mask, k.pop_off, k.pop_mask
+    depth, se, n, blk, side = k.depth, k.space_edges, k.n, k.block, k.side
+    p_src, p_nna, rat_back, rat_cam = k.per_src, k.per_nna, k.rat_back, k.rat_cam
+    ka, a_prev, xa, ya, fa = cur.pushes, cur.last_push, cur.x, cur.row, cur.frame
+    blocked, starved, d_wait = cur.blocked, cur.starved, cur.dram_wait
+    n_gaps, last_busy, err, over = cur.n_gaps, cur.last_busy_fs, cur.ring_error, cur.overflow
     w, h, cap, camera, fb = prm.w, prm.h, prm.cap_fs, prm.camera, prm.fb
     reads = fb > 0 or prm.dram == 1
     line_clocks, frame_clocks, pairs = prm.line_clocks, prm.frame_clocks, prm.pairs
@@ -439,8 +489,10 @@ def whole_pushes(net, k, cur, kb):
             ya += 1
             if ya == (fa + 1) * h:
                 fa += 1
-    return (ka, a_prev, xa, ya, fa, blocked, starved, d_wait, n_gaps, last_busy, err,
-            over), moved
+    return SourceCursor(
+        pushes=ka, last_push=a_prev, x=xa, row=ya, frame=fa, blocked=blocked, starved=starved,
+        dram_wait=d_wait, n_gaps=n_gaps, last_busy_fs=last_busy, ring_error=err,
+        overflow=over), moved
 
 
 @njit(cache=True, inline="always")
@@ -448,22 +500,22 @@ def whole_pushes_end(net, k, cur):
     """Store what :func:`whole_pushes` did: the pushes known, the statistics, an overflow."""
     prm = net.prm[0]
     state = net.state[0]
-    ka, _, xa, ya, fa, blocked, starved, d_wait, n_gaps, last_busy, err, over = cur
-    blk, side = k[10], k[11]
-    net.streams[net.tiles[side].source_push].count = ka
-    acc = net.acc[blk]
-    acc.blocked += blocked
-    acc.starved += starved
-    acc.dram += d_wait
-    acc.last_busy, acc.gaps = last_busy, n_gaps
-    if over and prm.fb == 0:
+    side = k.side
+    net.streams[net.tiles[side].source_push].count = cur.pushes
+    acc = net.acc[k.block]
+    acc.blocked += cur.blocked
+    acc.starved += cur.starved
+    acc.dram += cur.dram_wait
+    acc.last_busy, acc.gaps = cur.last_busy_fs, cur.n_gaps
+    if cur.overflow and prm.fb == 0:
+        fa = cur.frame
         acc.over_cycle, acc.over_k, acc.over_tile = (
-            camera_cycle(fa, xa, ya - fa * prm.h, prm.line_clocks, prm.frame_clocks,
-                         prm.pairs), ka, side)
+            camera_cycle(fa, cur.x, cur.row - fa * prm.h, prm.line_clocks, prm.frame_clocks,
+                         prm.pairs), cur.pushes, side)
         state.end = END_OVERFLOW
-    if err:
+    if cur.ring_error:
         state.error = ERR_RING
-    if n_gaps > net.gaps.shape[1]:
+    if cur.n_gaps > net.gaps.shape[1]:
         state.error = ERR_GAPS
 
 
@@ -588,7 +640,7 @@ def _tile_full(ring, streams, shape, tl, f, k, c):
 def status_memory(ring, streams, cursors, prm, state, tables, b, c):
     """(activity, FIFO waited on, or FRAME_BUFFERS or DRAM, or -1) that memory source ``b``
     (its record) reports in its cycle c (the readable ``MemorySource.evaluate``)."""
-    tiles, fifos, frame_fs, ids = tables[:4]
+    tiles, fifos, frame_fs, ids = tables.tiles, tables.fifos, tables.frame_fs, tables.ids
     k, at_c = lt_at(ring, streams[b.stream], cursors[b.stream], c)
     if prm.fb > 0:  # reading a camera's frame buffers: frames are decided at their start
         instant = c * b.period

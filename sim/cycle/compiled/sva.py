@@ -42,6 +42,8 @@ instant (status, traced signals, its stages').
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from stereosim.core.kernel_cache import njit, njit_borrowing
@@ -56,6 +58,7 @@ from stereosim.sim.cycle.compiled.layout import (
 )
 from stereosim.sim.cycle.compiled.ring import (
     NEVER,
+    BusyWatch,
     busy,
     catch_up,
     event,
@@ -85,22 +88,37 @@ from stereosim.sim.cycle.rules import (
 # ---- the pipeline in closed form ----------------------------------------------------------------
 
 
+class SvaExits(NamedTuple):
+    """What a word's exit tick follows from (``sva_exit_item``): the pipeline's latency L, the
+    median's skew S, a frame's words N and the ticks between its flush slots F."""
+
+    latency: int
+    skew: int
+    words: int
+    flush_ii: int
+
+
+@njit(cache=True, inline="always")
+def sva_exits(prm):
+    """The SVA's :class:`SvaExits` from the run's constants ``prm``."""
+    return SvaExits(latency=prm.pipe_latency, skew=prm.skew, words=prm.n, flush_ii=prm.flush_ii)
+
+
 @njit(cache=True, inline="always")
 def exit_tick(ring, t, ex, j):
-    """Word j's exit tick (``ex`` = (L, S, N, F): the latency, the median's skew, a frame's
-    words, the ticks between its flush slots; ``sva_exit_item``), from the issue ring ``t``;
-    the word it leaves with must be issued."""
-    lat, skew, nf, flush = ex
+    """Word j's exit tick (``ex`` a :class:`SvaExits`), from the issue ring ``t``; the word it
+    leaves with must be issued."""
+    nf = ex.words
     f = j // nf
-    item, extra = sva_exit_item(j - f * nf, skew, nf, flush)
-    return rd(ring, t[0], t[1], f * nf + item) + extra + lat
+    item, extra = sva_exit_item(j - f * nf, ex.skew, nf, ex.flush_ii)
+    return rd(ring, t[0], t[1], f * nf + item) + extra + ex.latency
 
 
 @njit(cache=True, inline="always")
 def exits_known(kt, ex):
     """Words whose exit tick is known when ``kt`` words are issued: every word of the frames
     issued whole, and of the frame being issued those S behind the last issued."""
-    _, skew, nf, _ = ex
+    skew, nf = ex.skew, ex.words
     f = kt // nf
     return f * nf + max(0, kt - f * nf - skew)
 
@@ -113,7 +131,6 @@ def arrival(ring, o, t, ex, j):
     if j == 0:
         return sva_cycle_of_tick(x, 0, 0)
     return sva_cycle_of_tick(x, rd(ring, o[0], o[1], j - 1), exit_tick(ring, t, ex, j - 1))
-
 
 
 @njit(cache=True, inline="always")
@@ -140,7 +157,6 @@ def tick_at(ring, o, t, ex, ko, kt, c):
     return sva_tick_at(c, last_push, last_exit, nxt), True, err
 
 
-
 @njit(cache=True, inline="always")
 def exiting_from(ring, t, ex, kt, tick):
     """The first of the words whose exit tick is known (of ``kt`` issued) with exit tick >=
@@ -157,7 +173,6 @@ def exiting_from(ring, t, ex, kt, tick):
         else:
             a = mid + 1
     return a, a == lo and lo > 0  # the answer may lie in what the ring no longer holds
-
 
 
 @njit(cache=True, inline="always")
@@ -178,7 +193,6 @@ def cycle_of_after(ring, o, t, ex, ko, kt, tick, k):
     return 0, False
 
 
-
 @njit(cache=True, inline="always")
 def cycle_of(ring, o, t, ex, ko, kt, tick):
     """(cycle, ok, ring error): :func:`cycle_of_after` with the word found by search."""
@@ -187,12 +201,10 @@ def cycle_of(ring, o, t, ex, ko, kt, tick):
     return e, ok, err or (k > 0 and (k - 1 <= o[2] or k - 1 <= t[2]))
 
 
-
 @njit(cache=True, inline="always")
 def issued_before(ring, t, kt, tick):
     """Words (of the ``kt`` whose issue ticks are known) issued at ticks below ``tick``."""
     return first_at_least(ring, t[0], t[1], max(0, t[2] + 1), kt, tick)
-
 
 
 @njit(cache=True, inline="always")
@@ -202,7 +214,6 @@ def words_between(ring, t, kt, lo_tick, hi_tick):
     a = first_at_least(ring, t[0], t[1], first, kt, lo_tick)
     b = first_at_least(ring, t[0], t[1], a, kt, hi_tick)
     return b - a
-
 
 
 # ---- the pops -----------------------------------------------------------------------------------
@@ -279,44 +290,95 @@ def advance_sva_pops(net):
     return j > start
 
 
-
 # ---- the issues and the pushes (taken in turn with the sink's pops) ------------------------------
+
+
+class IssueLoop(NamedTuple):
+    """The constants of :func:`issues`' loop: the view of the SVA's pops (:func:`~.ring.view`),
+    the rings of its pushes and its issue ticks, the words of the stream, the clock period
+    (fs), a frame's columns and box rows, the cap, the sequencer's look-ahead rows, its cycles
+    a pixel, passes and slot II, the first row of a frame's first slot, and the
+    :class:`SvaExits`; with the arrays it writes (taken from the Net once, not per turn): the
+    ring and the issue row ends' occupancy row."""
+
+    pops: tuple  # (offset, mask, known, highest index lost) of the SVA's pops
+    push_off: int
+    push_mask: int
+    issue_off: int
+    issue_mask: int
+    n: int
+    period: int
+    w: int
+    h: int
+    cap_fs: int
+    lookahead: int
+    cpp: int
+    passes: int
+    slot_ii: int
+    first_row: int
+    exits: SvaExits
+    ring: np.ndarray
+    issue_rows: np.ndarray
+
+
+class IssueCursor(NamedTuple):
+    """Where :func:`issues` stands: the issue ticks known, the last one, the next word's box
+    row and column, the first issued word exiting at or after the next issue's tick (-1:
+    search), the row whose readiness is known, its ready cycle and tick, the end of its
+    frame's passes (a frame's first row; else never), whether they are known, a ring
+    error."""
+
+    issued: int
+    last_tick: int
+    row: int
+    x: int
+    exiting: int
+    ready_row: int
+    ready: int
+    ready_tick: int
+    passes_end: int
+    ready_known: bool
+    ring_error: bool
 
 
 @njit(cache=True, inline="always")
 def issues_begin(net):
-    """What :func:`issues` reads: the constants of its loop, the arrays it writes (taken from
-    the Net once, not per turn) and its cursor (issue ticks known, the last one, the next
-    word's row and column, the first issued word exiting at or after the next issue's tick
-    (-1: search), the row whose readiness is known, its ready cycle and tick, the end of its
-    frame's passes (a frame's first row; else never), whether they are known, a ring
-    error)."""
+    """What :func:`issues` reads: the constants of its loop and the arrays it writes (an
+    :class:`IssueLoop`) and its cursor (an :class:`IssueCursor`)."""
     prm = net.prm[0]
     ids = net.ids[0]
     streams = net.streams
-    p = view(streams, ids.sva_pop)
     o_off, o_mask, _, _ = view(streams, ids.sva_push)
     t_off, t_mask, kt, _ = view(streams, ids.sva_issue)
     st = streams[ids.sva_issue]
-    k = (p, o_off, o_mask, t_off, t_mask, st.n, st.period,
-         (prm.w, prm.h, prm.cap_fs, prm.lookahead, prm.cpp, prm.passes, prm.slot_ii,
-          prm.first_row),
-         (prm.pipe_latency, prm.skew, prm.n, prm.flush_ii))
-    arrays = (net.ring, net.occ[ids.occ_sva_out])
+    k = IssueLoop(
+        pops=view(streams, ids.sva_pop), push_off=o_off, push_mask=o_mask, issue_off=t_off,
+        issue_mask=t_mask, n=st.n, period=st.period, w=prm.w, h=prm.h, cap_fs=prm.cap_fs,
+        lookahead=prm.lookahead, cpp=prm.cpp, passes=prm.passes, slot_ii=prm.slot_ii,
+        first_row=prm.first_row, exits=sva_exits(prm), ring=net.ring,
+        issue_rows=net.occ[ids.occ_sva_out])
     t_prev = rd(net.ring, t_off, t_mask, kt - 1) if kt > 0 else NEVER
     yt = kt // prm.w
-    return k, arrays, (kt, t_prev, yt, kt - yt * prm.w, -1, -1, 0, 0, NEVER, False, False)
+    return k, IssueCursor(issued=kt, last_tick=t_prev, row=yt, x=kt - yt * prm.w, exiting=-1,
+                          ready_row=-1, ready=0, ready_tick=0, passes_end=NEVER,
+                          ready_known=False, ring_error=False)
 
 
 @njit(cache=True, inline="always")
-def issues(k, arrays, cur, ko):
+def issues(k, cur, ko):
     """The next words issued, each once its row is ready (a frame's first, its passes too)
-    and the pipeline reaches its tick (``ko``: the pushes known). Returns (cursor, moved)."""
-    ring, issue_rows = arrays
-    p, o_off, o_mask, t_off, t_mask, n, per, consts, ex = k
-    p_off, p_mask, npop, p_lo = p
-    w, h, cap, r, cpp, passes, a, first_row = consts
-    kt, t_prev, yt, xt, kx, ready_row, ready, ready_tick, pend, ready_known, err = cur
+    and the pipeline reaches its tick (``ko``: the pushes known), from the
+    :class:`IssueCursor` ``cur`` with the constants ``k`` (an :class:`IssueLoop`). Returns
+    (cursor, moved)."""
+    ring, issue_rows = k.ring, k.issue_rows
+    p_off, p_mask, npop, p_lo = k.pops
+    o_off, o_mask, t_off, t_mask = k.push_off, k.push_mask, k.issue_off, k.issue_mask
+    n, per, ex = k.n, k.period, k.exits
+    w, h, cap, r, cpp = k.w, k.h, k.cap_fs, k.lookahead, k.cpp
+    passes, a, first_row = k.passes, k.slot_ii, k.first_row
+    kt, t_prev, yt, xt, kx = cur.issued, cur.last_tick, cur.row, cur.x, cur.exiting
+    ready_row, ready, ready_tick = cur.ready_row, cur.ready, cur.ready_tick
+    pend, ready_known, err = cur.passes_end, cur.ready_known, cur.ring_error
     o = (o_off, o_mask, ko - 1 - o_mask)
     t = (t_off, t_mask, kt - 1 - t_mask)
     moved = False
@@ -342,7 +404,7 @@ def issues(k, arrays, cur, ko):
                 pend = NEVER
                 ft = yt // h
                 if yt == ft * h:  # a frame's first row: its passes first
-                    pend = sva_frame_start(t_prev, a, ex[1], ex[3])
+                    pend = sva_frame_start(t_prev, a, ex.skew, ex.flush_ii)
                     for q in range(passes):
                         row = ft * h + sva_slot(q * w, w, h, r, passes, first_row)[0]
                         if (row + 1) * w > npop:  # its row is not in yet
@@ -383,21 +445,40 @@ def issues(k, arrays, cur, ko):
             issue_rows[yt & (issue_rows.shape[0] - 1)] = e
             xt = 0
             yt += 1
-    return (kt, t_prev, yt, xt, kx, ready_row, ready, ready_tick, pend, ready_known, err), moved
+    return IssueCursor(issued=kt, last_tick=t_prev, row=yt, x=xt, exiting=kx,
+                       ready_row=ready_row, ready=ready, ready_tick=ready_tick,
+                       passes_end=pend, ready_known=ready_known, ring_error=err), moved
 
 
 @njit(cache=True, inline="always")
 def issues_end(net, cur):
     """Store what :func:`issues` did: the issue ticks known."""
-    net.streams[net.ids[0].sva_issue].count = cur[0]
-    if cur[10]:
+    net.streams[net.ids[0].sva_issue].count = cur.issued
+    if cur.ring_error:
         net.state[0].error = ERR_RING
+
+
+class PushLoop(NamedTuple):
+    """The constants of :func:`pushes`' loop: the rings of the SVA's pushes, of the sink's
+    pops and of the SVA's issue ticks, the sink FIFO's depth and space edges, the clock period
+    (fs), the cap and the :class:`SvaExits`."""
+
+    push_off: int
+    push_mask: int
+    pop_off: int
+    pop_mask: int
+    issue_off: int
+    issue_mask: int
+    depth: int
+    space_edges: int
+    period: int
+    cap_fs: int
+    exits: SvaExits
 
 
 @njit(cache=True, inline="always")
 def pushes_begin(net):
-    """What :func:`pushes` reads: the pushes' and the issues' rings, the sink's pops' ring, the
-    sink FIFO's (depth, space edges), the clock period, the cap and the pipeline's latency."""
+    """What :func:`pushes` reads (a :class:`PushLoop`)."""
     ids = net.ids[0]
     streams = net.streams
     o_off, o_mask, _, _ = view(streams, ids.sva_push)
@@ -405,18 +486,20 @@ def pushes_begin(net):
     t_off, t_mask, _, _ = view(streams, ids.sva_issue)
     prm = net.prm[0]
     fi = net.fifos[ids.fifo_sink]
-    return (o_off, o_mask, q_off, q_mask, t_off, t_mask, (fi.depth, fi.space_edges),
-            streams[ids.sva_push].period, prm.cap_fs,
-            (prm.pipe_latency, prm.skew, prm.n, prm.flush_ii))
+    return PushLoop(push_off=o_off, push_mask=o_mask, pop_off=q_off, pop_mask=q_mask,
+                    issue_off=t_off, issue_mask=t_mask, depth=fi.depth,
+                    space_edges=fi.space_edges, period=streams[ids.sva_push].period,
+                    cap_fs=prm.cap_fs, exits=sva_exits(prm))
 
 
 @njit(cache=True, inline="always")
 def pushes(k, ring, ko, kt, kq):
     """The next words pushed, each a word whose exit is known (``kt`` issued) at its arrival,
-    once the slot
-    a FIFO depth back is free (``kq``: the sink's pops known). Returns (pushes known, moved)."""
-    o_off, o_mask, q_off, q_mask, t_off, t_mask, room, per, cap, ex = k
-    depth, se = room
+    once the slot a FIFO depth back is free (``kq``: the sink's pops known), with the
+    constants ``k`` (a :class:`PushLoop`). Returns (pushes known, moved)."""
+    o_off, o_mask, q_off, q_mask = k.push_off, k.push_mask, k.pop_off, k.pop_mask
+    t_off, t_mask, depth, se = k.issue_off, k.issue_mask, k.depth, k.space_edges
+    per, cap, ex = k.period, k.cap_fs, k.exits
     o = (o_off, o_mask, ko - 1 - o_mask)
     t = (t_off, t_mask, kt - 1 - t_mask)
     moved = False
@@ -433,7 +516,6 @@ def pushes(k, ring, ko, kt, kq):
         o = (o_off, o_mask, ko - 1 - o_mask)
         moved = True
     return ko, moved
-
 
 
 # ---- statistics ---------------------------------------------------------------------------------
@@ -461,8 +543,8 @@ def walk_sva(net, final):
     t_off, t_mask, kt, t_lo = view(net.streams, ids.sva_issue)
     o, t = (o_off, o_mask, o_lo), (t_off, t_mask, t_lo)
     n, w, h, la = net.streams[p_s].n, prm.w, prm.h, prm.lookahead
-    lat, g = prm.pipe_latency, prm.watchdog_fs
-    ex = (lat, prm.skew, prm.n, prm.flush_ii)
+    g = prm.watchdog_fs
+    ex = sva_exits(prm)
     kx = exits_known(kt, ex)
     per = net.blocks[blk].period
     j, ptr, prev = a.walk, a.ptr, a.prev
@@ -497,14 +579,14 @@ def walk_sva(net, final):
                 err |= lost
                 long = ready == INF or (ready - lo) * per > g
                 ptr, _, n_gaps, last_busy = pops_in(ring, p_pops, ptr, lo, ready, long, gaps,
-                                                     (blk, n_gaps, last_busy, per, g))
+                                                     BusyWatch(blk, n_gaps, last_busy, per, g))
                 if ready < INF:
                     if arrive > max(lo, ready):
                         n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy,
                                                   max(lo, ready) * per, (arrive - 1) * per, g)
                     _, _, n_gaps, last_busy = pops_in(ring, p_pops, ptr, arrive, INF,
                                                        np.bool_(True), gaps,
-                                                       (blk, n_gaps, last_busy, per, g))
+                                                       BusyWatch(blk, n_gaps, last_busy, per, g))
             break
         out = rd(ring, o_off, o_mask, j)
         if out > known_until:
@@ -516,7 +598,7 @@ def walk_sva(net, final):
             err |= lost
             long = (ready - lo) * per > g
             ptr, cnt, n_gaps, last_busy = pops_in(ring, p_pops, ptr, lo, ready, long, gaps,
-                                                   (blk, n_gaps, last_busy, per, g))
+                                                   BusyWatch(blk, n_gaps, last_busy, per, g))
             starved += ready - lo - cnt
             if arrive > ready:
                 n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy, ready * per,
@@ -532,7 +614,7 @@ def walk_sva(net, final):
             err |= lost
             long = (out - arrive) * per > g
             ptr, cnt, n_gaps, last_busy = pops_in(ring, p_pops, ptr, arrive, out, long, gaps,
-                                                   (blk, n_gaps, last_busy, per, g))
+                                                   BusyWatch(blk, n_gaps, last_busy, per, g))
             blocked += out - arrive - cnt
             n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy, out * per, out * per, g)
         err |= _walk_stages(prm, state, net.stages, ring, t, kt, j, out - arrive)
@@ -558,7 +640,6 @@ def walk_sva(net, final):
         state.error = ERR_RING
     if n_gaps > gaps.shape[1]:
         state.error = ERR_GAPS
-
 
 
 @njit(cache=True, inline="always")
@@ -597,12 +678,11 @@ def _walk_stages(prm, state, stages, ring, t, kt, j, stall):
         if st.peak < most:
             full = 0
         if stall > 0:
-            x = exit_tick(ring, t, (prm.pipe_latency, prm.skew, prm.n, prm.flush_ii), j)
+            x = exit_tick(ring, t, sva_exits(prm), j)
             if words_between(ring, t, kt, x - st.off - st.lat, x - st.off) > 0:
                 st.blocked += stall
     state.sva_peaks_full = full
     return err
-
 
 
 # ---- at an instant ------------------------------------------------------------------------------
@@ -617,7 +697,6 @@ def _pipeline(streams, ids):
             st.count)
 
 
-
 @njit(cache=True, inline="always")
 def _tick(ring, o, t, kt, ex, k, c):
     """The SVA pipeline's tick at the start of cycle c, k words pushed before it."""
@@ -629,17 +708,16 @@ def _tick(ring, o, t, kt, ex, k, c):
     return sva_tick_at(c, last_push, last_exit, nxt)
 
 
-
 @njit(cache=True)
 def status_sva(ring, streams, cursors, prm, tables, b, c):
     """(activity, FIFO waited on or -1) the SVA ``b`` (its record) reports in its cycle c."""
-    fifos, ids = tables[1], tables[3]
+    fifos, ids = tables.fifos, tables.ids
     p_s, o_s = ids.sva_pop, ids.sva_push
     n, w, h = prm.frames * prm.n, prm.w, prm.h
     o, t, kt = _pipeline(streams, ids)
     received, pop_at = lt_at(ring, streams[p_s], cursors[p_s], c)
     emitted, push_at = lt_at(ring, streams[o_s], cursors[o_s], c)
-    ex = (prm.pipe_latency, prm.skew, prm.n, prm.flush_ii)
+    ex = sva_exits(prm)
     issued = issued_before(ring, t, kt, _tick(ring, o, t, kt, ex, emitted, c))
     wait = -1
     if received < n and not pop_at and issued // w >= sva_rows_done_before_input(
@@ -666,14 +744,13 @@ def status_sva(ring, streams, cursors, prm, tables, b, c):
     return A_IDLE, -1
 
 
-
 @njit(cache=True)
 def sample_sva(ring, streams, cursors, prm, sva, data, c, out):
     """The SVA's signals after its cycle c into out[0:11 + 2 S]; ``sva`` = (its ids, its
     stages)."""
     ids, stages = sva
     w, h, n = prm.w, prm.h, prm.frames * prm.n
-    ex = (prm.pipe_latency, prm.skew, prm.n, prm.flush_ii)
+    ex = sva_exits(prm)
     o, t, kt = _pipeline(streams, ids)
     received = cursors[ids.sva_pop]
     emitted, push_at = lt_at(ring, streams[ids.sva_push], cursors[ids.sva_push], c)

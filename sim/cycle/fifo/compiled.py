@@ -9,13 +9,12 @@ from stereosim.core.kernel_cache import njit
 
 @njit(cache=True, inline="always")
 def sample_fifo(counts, depth, out):
-    """A FIFO's traced values from its ``counts`` (:func:`~sim.cycle.compiled.fifo.counts_at`)
-    into out[0:5]: occupancy, pushed and popped in the last edges, full as its producer sees
-    it, empty."""
-    pushes, pops, seen, pushed, popped = counts
-    occ = pushes - pops
+    """A FIFO's traced values from its ``counts`` (a
+    :class:`~sim.cycle.compiled.fifo.FifoCounts`) into out[0:5]: occupancy, pushed and popped
+    in the last edges, full as its producer sees it, empty."""
+    occ = counts.pushes - counts.pops
     out[0] = occ
-    out[1] = 1 if pushed else 0
-    out[2] = 1 if popped else 0
-    out[3] = 1 if pushes - seen >= depth else 0
+    out[1] = 1 if counts.pushed else 0
+    out[2] = 1 if counts.popped else 0
+    out[3] = 1 if counts.pushes - counts.seen >= depth else 0
     out[4] = 1 if occ == 0 else 0

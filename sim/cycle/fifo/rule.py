@@ -5,7 +5,7 @@ Every cycle engine and the estimate call these: the compiled walkers and the est
 walk on cycles (:func:`visible_from`, :func:`room_from`, :func:`room_seen_until`), the readable
 :class:`~sim.cycle.readable.fifo.Fifo` on the instants of its commits (:func:`visible_at`,
 :func:`room_at`; the same rule where every clock starts at t = 0:
-``tests/sim/test_fifo_primitive.py``
+``tests/sim/cycle/fifo/test_fifo_primitive.py``
 holds them equal), the plan on the number of edges (:func:`fifo_edges`). ``register_jitable``
 keeps each a plain Python function and lets numba inline it into the compiled kernels.
 :func:`seen_from` is the clock crossing under it (also how a camera's pixel reaches a source).

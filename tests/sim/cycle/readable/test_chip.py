@@ -60,7 +60,7 @@ def test_census_first_and_last_output_cycles(h, w, engine, run_cycle):
     left, right = _pair(h, w)
     cfg = load_config(overrides=SAME_CLOCKS)
     words, report, first, last = _frame(engine, run_cycle, left, right, cfg)
-    lat = build_plan(cfg, (h, w)).block("sva").latency  # tests/sim/test_stages.py checks it
+    lat = build_plan(cfg, (h, w)).block("sva").latency  # tests/sim/cycle/test_stages.py checks it
     assert first == 9 * w + 9 + lat
     assert last == 10 * w + 5 + (h - 1) * (2 * w + 1) + lat
     assert report["throughput"]["bottleneck"] == "sva"

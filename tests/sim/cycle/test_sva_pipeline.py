@@ -14,7 +14,8 @@ from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.cycle.readable.chip import run_readable
 from stereosim.traces.log import changes_of
 
-# the 3x3 median and 5x5 box of tests/sim/test_chip.py's derivation (latency 50 at D = 16)
+# the 3x3 median and 5x5 box of tests/sim/cycle/readable/test_chip.py's derivation (latency 50 at
+# D = 16)
 SAME = {"clocks.nna_mhz": 400, "clocks.sva_mhz": 400, "nna.descriptor": "census",
         "sva.disparities": 16, "sva.median": 3, "sva.box_size": 5}
 

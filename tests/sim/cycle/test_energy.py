@@ -114,7 +114,8 @@ def test_a_custom_table_and_its_mistakes(tmp_path):
 
 
 # the estimate against the cycle model: a 20x112 CNN frame from memory, whose latency the
-# estimate gives to the cycle (tests/sim/test_estimate.py), priced with a table whose clocks cost
+# estimate gives to the cycle (tests/sim/cycle/test_estimate.py), priced with a table whose
+# clocks cost
 ESTIMATED = {"sva.disparities": 32, "nna.descriptor": "cnn", "sva.median": 3}
 
 

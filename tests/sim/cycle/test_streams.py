@@ -27,7 +27,8 @@ from stereosim.sva.pipeline.pipeline import sva_stream
 
 # census (1 NNA cycle per descriptor), equal clocks: the worked example of docs/architecture.md
 # (row 0 of the first frame ready at 6W + 3, its first word popped at 6W + 4 + L)
-# the 3x3 median and 5x5 box of tests/sim/test_chip.py's derivation (first output at 6W + 4 + L)
+# the 3x3 median and 5x5 box of tests/sim/cycle/readable/test_chip.py's derivation (first output
+# at 6W + 4 + L)
 SAME = {"clocks.nna_mhz": 400, "clocks.sva_mhz": 400, "nna.descriptor": "census",
         "sva.disparities": 16, "sva.median": 3, "sva.box_size": 5}
 ENGINES = [run_readable, run_compiled]
@@ -69,8 +70,8 @@ def test_an_sva_bound_stream_leaves_a_word_every_ii_across_frames(run):
     r + 2 .. 2r + 2 once it is issued), so the frames follow one SVA frame apart:
     P = H (W - 1) II + (H - 1) max(II, r + 1) + max(II, r + 1 + S + 4W) ticks
     (``sva_frame_ticks``: a row's words, a row's start, the frame's start). Frame 0's words
-    leave as in tests/sim/test_chip.py::test_census_first_and_last_output_cycles (first
-    9W + 9 + L, last 10W + 5 + (H - 1)(2W + 1) + L), frame f's last P f cycles after frame
+    leave as in tests/sim/cycle/readable/test_chip.py::test_census_first_and_last_output_cycles
+    (first 9W + 9 + L, last 10W + 5 + (H - 1)(2W + 1) + L), frame f's last P f cycles after frame
     0's, and the stream sustains clock / P frames per second."""
     h, w, frames = 7, 40, 3
     plan = build_plan(load_config(overrides=SAME), (h, w), frames)

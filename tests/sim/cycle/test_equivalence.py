@@ -4,6 +4,7 @@ instants, the VCD of a trace window, or the same error with the same message -- 
 kernels equal naive references."""
 
 import itertools
+import os
 
 import numpy as np
 import pytest
@@ -201,8 +202,10 @@ def _the_engines_agree(network_file, case) -> None:
 # The random configurations come in SHARDS tests, each with its own hypothesis seed: tests of
 # about 15 s rather than one of two minutes, which the suite's workers share. Every shard's
 # first example is hypothesis's simplest configuration, the same in all of them, so 8 shards
-# of 41 examples are 328 draws: the simplest one and 320 other random ones.
-SHARDS, EXAMPLES_PER_SHARD = 8, 41
+# of 41 examples are 328 draws: the simplest one and 320 other random ones. A longer run is
+# STEREOSIM_EQUIVALENCE_EXAMPLES=188 (examples a shard: 8 x 188 = 1,504 draws), not a suite test.
+SHARDS = 8
+EXAMPLES_PER_SHARD = int(os.environ.get("STEREOSIM_EQUIVALENCE_EXAMPLES", "41"))
 
 
 def _shard(k: int):

@@ -136,7 +136,7 @@ def test_the_stand_in_net_has_the_run_s_numba_type(preset, over):
     net of a 24-row frame has the numba type of the real frame's, streams of frames included,
     for every preset (whole frames, column tiles, cameras, frame buffers, several layers; here
     on 320 x 96 frames, so without the preset's camera size)."""
-    cfg = load_config(Path(__file__).resolve().parents[2] / "configs" / f"{preset}.toml",
+    cfg = load_config(Path(__file__).resolve().parents[4] / "configs" / f"{preset}.toml",
                       overrides={**over, "source.camera_width": 0, "source.camera_height": 0})
     real = build_plan(cfg, (96, 320), frames=3)
     stand_in = pw._stand_in_plan(real)
@@ -150,6 +150,6 @@ def test_the_stand_in_net_has_the_run_s_numba_type(preset, over):
 def test_a_chip_built_for_its_cameras_size_gets_a_small_stand_in(preset):
     """A preset carries its camera's frame size, which refuses other frames; the helper's
     stand-in is built for a few rows all the same (the size changes no numba type)."""
-    cfg = load_config(Path(__file__).resolve().parents[2] / "configs" / f"{preset}.toml")
+    cfg = load_config(Path(__file__).resolve().parents[4] / "configs" / f"{preset}.toml")
     real = build_plan(cfg, (cfg.source.camera_height, cfg.source.camera_width))
     assert pw._stand_in_plan(real).shape == (pw.SMALL_ROWS, cfg.source.camera_width)

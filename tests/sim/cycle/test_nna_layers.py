@@ -44,7 +44,7 @@ from stereosim.sim.cycle.readable.chip import build_chip, run_readable
 from stereosim.sim.cycle.simulate import simulate
 from stereosim.traces.vcd import vcd_bytes
 
-MODELS = Path(__file__).resolve().parents[2] / "benchmarks" / "models"
+MODELS = Path(__file__).resolve().parents[3] / "benchmarks" / "models"
 # equal clocks, a 16-disparity SVA (II 2) and 64 MACs: the NNA, at 3 or more cycles a
 # descriptor, never waits for the SVA
 BASE = {"nna.descriptor": "cnn", "sva.disparities": 16, "clocks.sva_mhz": 460.0,

@@ -21,8 +21,8 @@ from stereosim.sva.hamming.timing import hamming_stage
 from stereosim.sva.median.timing import sorting_depth
 
 # census (1 NNA cycle per descriptor, 32 bits), equal clocks: the input side is the one of
-# tests/sim/test_chip.py::test_census_first_and_last_output_cycles (row 0 ready at 6W + 3); the
-# 3x3 median and the 5x5 box that derivation takes
+# tests/sim/cycle/readable/test_chip.py::test_census_first_and_last_output_cycles (row 0 ready
+# at 6W + 3); the 3x3 median and the 5x5 box that derivation takes
 BASE = {"clocks.nna_mhz": 400, "clocks.sva_mhz": 400, "nna.descriptor": "census",
         "sva.median": 3, "sva.box_size": 5}
 
@@ -57,8 +57,9 @@ def expected_ii_and_latency(d, lanes, paths, lr, *, levels=8, bits=32, box=5, me
 @pytest.mark.parametrize("paths", [1, 2, 3, 4])
 @pytest.mark.parametrize("lr", [False, True])
 def test_first_and_last_output_cycles_follow_the_stage_formulas(d, lanes, paths, lr):
-    """The input side of tests/sim/test_chip.py::test_census_first_and_last_output_cycles
-    (input row q ready in (q + 3)W + 3; a free sink, so ticks are cycles), any II and slot II
+    """The input side of
+    tests/sim/cycle/readable/test_chip.py::test_census_first_and_last_output_cycles (input row q
+    ready in (q + 3)W + 3; a free sink, so ticks are cycles), any II and slot II
     a: the four passes (rows 0, 0, 0, 1) start in 3W + 3 and take W a ticks each, so box row
     0 starts r = 2 slots after them, s_0 = 3W + 3 + 4W a + 2a; a row's words are an II
     apart and the next row starts max(II, 3a) after the last (its input rows are in by then),
