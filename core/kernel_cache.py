@@ -1,13 +1,11 @@
 """numba's on-disk cache of the kernels, kept in step with the whole package's source.
 
 numba keys a cached kernel on its own file's content only. A kernel that calls or inlines
-kernels of other modules (the fused SVA stream inlines sva/sgm/sgm.py's, sva/hamming/cost.py's,
-...; the
-compiled engine's kernels call each other across sim/cycle/compiled/), or freezes a constant
-of another module, holds their code too: after an edit of sva/sgm/sgm.py numba served the fused
-stream of sva/pipeline/pipeline.py from its cache as it was before the edit -- stale machine code,
-with
-nothing to say so.
+kernels of other modules (the fused SVA stream inlines sva/sgm/sgm.py's,
+sva/hamming/cost.py's, ...; the compiled engine's kernels call each other across
+sim/cycle/compiled/), or freezes a constant of another module, holds their code too: after an
+edit of sva/sgm/sgm.py numba served the fused stream of sva/pipeline/pipeline.py from its cache
+as it was before the edit -- stale machine code, with nothing to say so.
 
 :class:`PackageLocator` finds the same cache folder as numba's own locators but stamps every
 kernel of a file under the package's folder with (numba's stamp of its file, :func:`source_digest`

@@ -7,8 +7,7 @@ operand with the int8 bytes of the other: 64 products an instruction, against th
 lanes of a multiply-add in :mod:`quant.intconv`'s loops (LLVM keeps those at 256 bits on this
 CPU). numba does not vectorise the convolution into it, so :func:`_taps9` / :func:`_taps11`
 emit it (``llvm.x86.avx512.vpdpbusd.512``), as sva/hamming/cost.py's popcount emits ``llvm.ctpop``.
-A
-layer of one input channel (the grey image) then needs no offset in its lanes: its tap sum is
+A layer of one input channel (the grey image) then needs no offset in its lanes: its tap sum is
 ``sum w * p - offset * sum w`` with p the uint8 pixels, so bit c is ``sum w_c * p > offset *
 sum w_c - bias_c``. The pixels go four to an int32 twice (:func:`_band_quads`): a pixel and the
 three to its right, and a pixel and the three below it. A kernel row's first 4 G taps (G = K //

@@ -1,13 +1,11 @@
 """Training the learned descriptor in torch, on the CPU (or a CUDA GPU, ``device``): the run loop.
 
 The pieces, one module each: the settings and the three variants (:mod:`nna.training.trainconfig`),
-the
-scenes and batches (:mod:`nna.training.traindata`), the networks and losses
+the scenes and batches (:mod:`nna.training.traindata`), the networks and losses
 (:mod:`nna.training.trainloss`), the
 output file (:mod:`nna.training.floatmodel`), the thread count, checkpoints and resuming a long run
 (:mod:`nna.training.trainrun`). :func:`train` draws a batch, takes one step of the objective and
-keeps
-the history.
+keeps the history.
 
 ReLU between layers, none after the last. Training uses 'valid' convolutions on crops; at
 inference the same weights run on whole images with the chip's replicate border
@@ -24,17 +22,14 @@ Two objectives:
   longer, gives the descriptors; their relaxed bits ``tanh(a f)`` give the Hamming distance
   ``(C - b . b') / 2`` of every reference pixel to each of its ``disparities`` candidates, which
   is box-filtered as the SVA does (:func:`~nna.training.trainloss.cost_curves`). The loss is the
-  softmax
-  cross-entropy of ``-cost / T`` (T learnt) against the ground truth split between its two
+  softmax cross-entropy of ``-cost / T`` (T learnt) against the ground truth split between its two
   neighbouring integer disparities (:func:`~nna.training.trainloss.curve_loss`). The tanh scale
-  ``a``
-  grows geometrically from ``scale_start`` to ``scale_end`` so the relaxation tends to the
+  ``a`` grows geometrically from ``scale_start`` to ``scale_end`` so the relaxation tends to the
   signs, and the last ``sign_fraction`` of the run uses the signs themselves (straight-through
   gradient, :func:`~nna.training.trainloss.relaxed_bits`), so the network is trained for the Hamming
   costs the chip computes. Two small regularisers keep every bit informative
   (:func:`~nna.training.trainloss.bit_regularisers`): its mean over the batch (balanced bits) and
-  the
-  correlations between bits.
+  the correlations between bits.
 * ``triplet``: MC-CNN's recipe. For a left pixel (x, y) with known, non-occluded ground truth
   d, the positive right patch is centred at x - d + U(-pos, pos), the negative one at
   x - d +- U(neg_low, neg_high), both interpolated linearly along the row; hinge loss
@@ -125,11 +120,9 @@ def train(cfg: TrainConfig, scene_dirs, *, progress: bool = True, checkpoint=Non
     records the count used). With ``checkpoint`` (a path) and ``checkpoint_every`` N > 0 the
     state is written there every N steps; ``resume`` continues from it, to the same weights as
     an uninterrupted run (:mod:`nna.training.trainrun`). ``log(line)`` receives the line that says
-    how
-    many threads the run uses, before the first step. ``make_net()``: builds the network to train
-    instead of a fresh one of ``cfg.variant`` (a QAT network, :mod:`nna.training.trainqat`), after
-    the
-    seeds are set."""
+    how many threads the run uses, before the first step. ``make_net()``: builds the network to
+    train instead of a fresh one of ``cfg.variant`` (a QAT network, :mod:`nna.training.trainqat`),
+    after the seeds are set."""
     import torch
 
     requested = cfg.threads

@@ -272,8 +272,7 @@ def sample_strips(ss: StripSet, cfg: TrainConfig, rng: np.random.Generator) -> d
     photometric change; ``target`` (S, Ws) GT or NaN, ``max_disp`` (S, Ws) the largest
     disparity whose match lies inside the other view, and ``mirror`` (S,) bool: right
     reference, whose descriptor maps :func:`~nna.training.trainloss.cost_curves` mirrors into the
-    left
-    geometry (``target`` and ``max_disp`` are already mirrored); ``image``, ``y``, ``x0`` (S,)
+    left geometry (``target`` and ``max_disp`` are already mirrored); ``image``, ``y``, ``x0`` (S,)
     say where each strip was taken (view index in ``ss.views``, row, first reference column).
     """
     n, ws, dn = cfg.strips, cfg.strip_width, cfg.disparities

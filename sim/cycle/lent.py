@@ -17,8 +17,7 @@ while the submodule is lent). The network's layers run as the stereo NNA's layer
   m_l = K^2 C_in C_out MACs; its submodule's MACs are shared over its group in proportion to
   m_l items_l (:func:`~nna.geometry.share_macs`), cpp_l = ceil(m_l / share)
   (:func:`~nna.submodule.timing.cycles_per_pixel`); a submodule's frame takes max_l items_l cpp_l
-  over
-  its group (:func:`~nna.submodule.timing.pipeline_cycles`), the network's frame its busiest
+  over its group (:func:`~nna.submodule.timing.pipeline_cycles`), the network's frame its busiest
   submodule's: fps_max = f_nna / that. ``fps = "max"`` runs at fps_max; a target runs there
   (refused when above fps_max);
 - **line buffers**: layer l holds K_l + slack s_l rows (:func:`~nna.geometry.buffer_rows`,

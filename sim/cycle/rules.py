@@ -378,8 +378,7 @@ def sva_first_slot_row(band_rows, image_rows):
     """The input row a frame's first slot (its first matching costs) waits for besides its
     own: with the hybrid's automatic weights the noise band's last row, min(b, H) - 1 (the
     frame's weights come from the band's statistic, :mod:`sva.hamming.noise`); else row 0
-    (``band_rows``
-    0)."""
+    (``band_rows`` 0)."""
     return max(0, min(band_rows, image_rows) - 1)
 
 

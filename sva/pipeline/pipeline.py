@@ -77,8 +77,7 @@ def frame_cost(bits, cfg: SvaConfig, img_l) -> tuple[CostParts, dict | None]:
     with its Hamming distance; the hybrid's two parts (``bits`` = (CNN bits, census bits))
     with the frame's weights -- ``sva.cost_weights``, or with ``sva.weight_mode = "auto"`` the
     weights the noise statistic of ``img_l``'s first rows picks (:mod:`sva.hamming.noise`; the
-    second
-    value says what it found, None when fixed)."""
+    second value says what it found, None when fixed)."""
     parts = cost_parts(bits).bits
     if len(parts) == 1:
         return cost_parts(parts), None

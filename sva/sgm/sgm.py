@@ -249,8 +249,7 @@ def sgm_pixel(c, x, y, state, params, s_out, diag, box=None):
 
     ``c`` (D,) uint16: the aggregated cost, already clamped to the path cap. ``state`` is
     :func:`new_path_buffers`, set by :func:`sgm_row_start` for row y; ``params`` the
-    :class:`SgmParams` (:func:`sgm_params`). Pixels must come in raster order (x = 0..W-1 per
-    row).
+    :class:`SgmParams` (:func:`sgm_params`). Pixels must come in raster order (x = 0..W-1 per row).
     ``s_out[d]`` = min(sum of the enabled paths' L_r(p, d), sum_cap). ``diag`` = (best,
     best_d, base): S is also offered to the right view's diagonal search
     (:func:`sva.lr.lr_check.diagonal_update`'s arrays; right pixel x - d at index base + d).

@@ -3,8 +3,7 @@
 Random pixels (left descriptor, the D right descriptors of its window, which lie outside the
 right image, the weights) are offered with random gaps; every output must equal the cost of
 sva/hamming/cost.py's definition, leave in the cycle the chip plan's stage says (taken + latency),
-and
-the stage must take a pixel every II cycles when offered one -- the plan's II and latency
+and the stage must take a pixel every II cycles when offered one -- the plan's II and latency
 (sva.hamming.timing.hamming_stage), read from the plan, not from the RTL's parameters.
 """
 

@@ -3,9 +3,8 @@
 A random frame of output words (-1 among them, narrow ranges full of ties) goes in raster order,
 then the M W + M flush slots, with random bubbles and random stalls (en = 0); every median must
 equal sva/median/median.py's reference (``median_ref``, replicate borders, -1 below every
-disparity),
-in raster order, leave the plan's median latency (sim.cycle.stages.sva_stages, read from the
-plan) after the slot that completes its window -- the word at (y + M, x + M), clamped to the
+disparity), in raster order, leave the plan's median latency (sim.cycle.stages.sva_stages, read from
+the plan) after the slot that completes its window -- the word at (y + M, x + M), clamped to the
 frame, i.e. slot j + M W + M for centre j -- and a slot offered back to back must be taken
 one plan median II after the one before (1 with 1r1w row banks, 2 with 1rw: the run's
 sva.sram_ports), none closer.

@@ -1,9 +1,8 @@
 """A worked example: a user's own cocotb test of their own matching-cost RTL, with stereosim
 as the scoreboard (docs/rtl.md, "Your RTL against stereosim"). stereosim gives the expected
 costs (its reference, sva/hamming/cost.py) and the expected cycles (its chip plan's stage for the
-same
-configuration). The RTL under test here is sva/hamming/sva_hamming.sv built for D = 16, 16 lanes,
-V = 8 and one 32-bit descriptor, its ports at the top level; put yours in its place.
+same configuration). The RTL under test here is sva/hamming/sva_hamming.sv built for D = 16, 16
+lanes, V = 8 and one 32-bit descriptor, its ports at the top level; put yours in its place.
 """
 
 import cocotb
