@@ -77,7 +77,7 @@ from stereosim.core.timing import StagePlan, with_slots
 from stereosim.sva.box.timing import box_registers, box_stage
 from stereosim.sva.hamming.timing import hamming_registers, hamming_stage
 from stereosim.sva.lr.timing import lr_registers, lr_stage
-from stereosim.sva.median.timing import median_ii, median_registers, median_stage
+from stereosim.sva.median.timing import median_registers, median_stage
 from stereosim.sva.sgm.timing import path_sum_registers, path_sum_stage, sgm_registers, sgm_stage
 from stereosim.sva.wta.timing import wta_registers, wta_stage
 
@@ -104,15 +104,14 @@ def sva_stages(cfg: ChipConfig, width: int, parts: tuple[int, ...], word_bits: i
         with_slots(path_sum_stage(cfg), *path_sum_registers(cfg)),
         with_slots(wta_stage(cfg), *wta_registers(cfg, word_bits)),
     ]
-    median_on = s.median > 1
-    ii = max([st.ii for st in stages]  # the pipeline's
-             + ([median_ii(cfg, width, word_bits)] if median_on else []))
+    # the median after the LR check, whose latency is D - 1 of the whole pipeline's IIs
+    median = ([with_slots(median_stage(cfg, width, word_bits), *median_registers(word_bits))]
+              if s.median > 1 else [])
+    ii = max(st.ii for st in stages + median)  # the pipeline's
     if s.lr_check:
         bits, holds, slots = lr_registers(cfg, word_bits)
         stages.append(with_slots(lr_stage(cfg, ii, word_bits), bits, holds, slots=slots))
-    if median_on:
-        stages.append(with_slots(median_stage(cfg, width, word_bits),
-                                 *median_registers(word_bits)))
+    stages += median
     stages.append(with_slots(StagePlan("output", 1, 1, "II = 1; latency = 1 (the output "
                                        "register)"), word_bits, f"the {word_bits}-bit word"))
     return tuple(stages)

@@ -14,27 +14,16 @@ def sorting_depth(n: int) -> int:
     return k * (k + 1) // 2
 
 
-def median_rows(cfg: ChipConfig, width: int, word_bits: int) -> BufferPlan:
-    """The median's output rows: a bank per row, its column read and the new word written."""
-    s = cfg.sva
-    return BufferPlan("sva.median_rows", s.median * width * word_bits,
-                      "the median's output rows (a bank per row: its column read, the new "
-                      "word written)", reads=1, writes=1, ports=s.sram_ports,
-                      banks=max(1, s.median), word_bits=word_bits,
-                      pixel_reads=s.median if s.median > 1 else 0,
-                      pixel_writes=1 if s.median > 1 else 0)
-
-
-def median_ii(cfg: ChipConfig, width: int, word_bits: int) -> int:
-    """The median's II: max(1, the row banks' port cycles)."""
-    return max(1, median_rows(cfg, width, word_bits).port_cycles)
-
-
 def median_stage(cfg: ChipConfig, width: int, word_bits: int) -> StagePlan:
-    """The median stage: II = :func:`median_ii`; latency = tree(the sorting network's depth)."""
+    """The median stage (``sva.median`` > 1): II = max(1, its row banks' port cycles); latency =
+    tree(the sorting network's depth)."""
     s = cfg.sva
-    rows = median_rows(cfg, width, word_bits)
-    ii = median_ii(cfg, width, word_bits)
+    # its output rows: a bank per row, a word's column read and the new word written
+    rows = BufferPlan("sva.median_rows", s.median * width * word_bits,
+                      "the median's output rows (a bank per row: its column read, the new "
+                      "word written)", reads=1, writes=1, ports=s.sram_ports, banks=s.median,
+                      word_bits=word_bits, pixel_reads=s.median, pixel_writes=1)
+    ii = max(1, rows.port_cycles)
     depth = sorting_depth(s.median * s.median)
     tree = tree_cycles(depth, s.compare_levels)
     return StagePlan(

@@ -79,23 +79,17 @@ def room_seen_until(cycle, per_src, per_dst, space_edges):
     return (x - 1) // per_dst if x > 0 else -1
 
 
-def edge_after(t_fs: int, phase_fs: int, period_fs: int, edges: int) -> int:
-    """The ``edges``-th edge (its cycle) of a clock of ``period_fs`` starting at ``phase_fs``
-    strictly after the instant ``t_fs``: :func:`seen_from` on instants."""
-    first = 0 if t_fs < phase_fs else (t_fs - phase_fs) // period_fs + 1
-    return first + edges - 1
-
-
-def visible_at(push_fs: int, dst_phase_fs: int, dst_period_fs: int, data_edges: int) -> int:
+def visible_at(push_fs: int, dst, data_edges: int) -> int:
     """:func:`visible_from` for a push committed at the instant ``push_fs`` (the readable FIFO):
-    the ``data_edges``-th consumer edge strictly after it."""
-    return edge_after(push_fs, dst_phase_fs, dst_period_fs, data_edges)
+    the ``data_edges``-th edge of the consumer's clock ``dst`` (its ``first_edge_after``)
+    strictly after it."""
+    return dst.first_edge_after(push_fs) + data_edges - 1
 
 
-def room_at(pop_fs: int, src_phase_fs: int, src_period_fs: int, space_edges: int) -> int:
+def room_at(pop_fs: int, src, space_edges: int) -> int:
     """:func:`room_from` for a pop committed at the instant ``pop_fs`` (the readable FIFO): the
-    ``space_edges``-th producer edge strictly after it."""
-    return edge_after(pop_fs, src_phase_fs, src_period_fs, space_edges)
+    ``space_edges``-th edge of the producer's clock ``src`` strictly after it."""
+    return src.first_edge_after(pop_fs) + space_edges - 1
 
 
 def round_trip_fs(data_edges: int, space_edges: int, p_src: int, p_dst: int,

@@ -239,8 +239,7 @@ class Fifo:
             self.popped = self._pop_staged
         pushed = self._push_staged
         if pushed:
-            dst = self.dst
-            ready = visible_at(now_fs, dst.phase_fs, dst.period_fs, self._data_edges)
+            ready = visible_at(now_fs, self.dst, self._data_edges)
             self._items.append((ready, self._push_item))
             self._pushes += 1
             self._push_staged = False
@@ -249,8 +248,7 @@ class Fifo:
         if popped:
             self._items.popleft()
             self._pops += 1
-            src = self.src
-            self._frees.append(room_at(now_fs, src.phase_fs, src.period_fs, self._space_edges))
+            self._frees.append(room_at(now_fs, self.src, self._space_edges))
             self._pop_staged = False
         if pushed:  # only a push raises the occupancy, or the producer's view of it
             occ = self._pushes - self._pops

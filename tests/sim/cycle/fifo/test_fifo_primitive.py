@@ -30,13 +30,12 @@ def test_the_cycle_and_instant_forms_are_one_rule(c, p_src, p_dst, lat, sync):
     de, se = fifo_edges(lat, sync, crossing)
     push_fs = c * p_src  # every clock of the chip starts at t = 0
     v = visible_from(c, p_src, p_dst, p_src / p_dst, de)
-    assert v == visible_at(push_fs, 0, p_dst, de) == seen_from(c, p_src, p_dst, de)
-    # the readable FIFO's own domain object says the same
-    dom = ClockDomain("d", 1e15 / p_dst)
-    assert dom.period_fs == p_dst
-    assert v == dom.first_edge_after(push_fs) + de - 1
+    # the readable FIFO's form, on the domain objects it holds
+    dst, src = ClockDomain("dst", 1e15 / p_dst), ClockDomain("src", 1e15 / p_src)
+    assert (dst.period_fs, src.period_fs) == (p_dst, p_src)
+    assert v == visible_at(push_fs, dst, de) == seen_from(c, p_src, p_dst, de)
     r = room_from(c, p_src, p_dst, p_dst / p_src, se)
-    assert r == room_at(c * p_dst, 0, p_src, se) == seen_from(c, p_dst, p_src, se)
+    assert r == room_at(c * p_dst, src, se) == seen_from(c, p_dst, p_src, se)
 
 
 @given(c=st.integers(0, 10**6), p_src=PERIODS, p_dst=PERIODS, se=st.integers(1, 4))
