@@ -415,7 +415,7 @@ def _trace(plan: ChipPlan, sink_stall, window: tuple[int, int], t_end: int, data
     span = (end - start) // int(periods.min()) + 16
     cap = ring_capacity(plan) + span
     net, names = _pass(plan, sink_stall, end, False, capacity=1 << int(cap - 1).bit_length())
-    if plan.dram is not None and not plan.frame_buffered:
+    if plan.dram is not None:
         # a source held past the window's end has asked the channel for its next read burst
         # (the readable MemorySource does so whenever it evaluates): its DRAM_READ event
         note_source_wait(net)

@@ -225,6 +225,37 @@ for _k in range(SHARDS):
     globals()[f"test_the_compiled_engine_equals_the_readable_kernel_{_k}"] = _shard(_k)
 
 
+# Configurations the long runs (STEREOSIM_EQUIVALENCE_EXAMPLES=188) found the engines to differ
+# on, kept as explicit cases after the fix. Each entry is (h, w, overrides, sink stall, pixel
+# seed, trace window (fs), frames).
+FOUND = [
+    # a camera's frame buffers read through the TDM DRAM channel, every FIFO 1 deep: at the
+    # window's last instants the memory sources wait on full FIFOs with their next read burst
+    # asked for (blocked); the compiled sampler read the burst as not yet asked (starved)
+    (2, 26, {"sva.disparities": 16, "nna.descriptor": "census", "clocks.nna_mhz": 200,
+             "clocks.sva_mhz": 150, "fifo.source_to_nna_depth": 2, "fifo.nna_to_sva_depth": 1,
+             "fifo.nna_to_merge_depth": 1, "fifo.sva_to_sink_depth": 1,
+             "fifo.latency_cycles": 1, "fifo.sync_cycles": 1, "sva.lanes": 1,
+             "sva.compare_levels": 1, "sva.sram_ports": "1r1w", "sva.box_size": 1,
+             "sva.median": 0, "sva.paths": 1, "sva.lr_check": False,
+             "nna.line_buffer_rows": 3, "nna.macs": 288, "source.kind": "camera",
+             "clocks.camera_mhz": 120, "source.camera_hblank": 0, "source.camera_vblank": 0,
+             "source.frame_buffers": 2, "source.on_overflow": "error",
+             "source.memory_gbps": 0.05, "sva.pairs": 1, "dram.model": "tdm", "dram.gbps": 4.0,
+             "dram.latency_ns": 0, "dram.read_prefetch_bursts": 1,
+             "dram.write_buffer_bursts": 1, "dram.spill": "none", "dram.burst_bytes": 4},
+     None, 0, (46_666_669, 4_613_333_564), 3),
+]
+
+
+@pytest.mark.parametrize("h, w, over, stall, pixel_seed, window, frames", FOUND)
+def test_the_cases_long_runs_found_stay_equal(network_file, h, w, over, stall, pixel_seed,
+                                              window, frames):
+    """The configurations of :data:`FOUND`: both engines give the same words, report,
+    statistics and trace."""
+    _the_engines_agree(network_file, (h, w, over, stall, pixel_seed, window, frames, None))
+
+
 @pytest.mark.parametrize(
     "shape, over, stall",
     [
