@@ -617,6 +617,7 @@ ELSEWHERE = {
     "robustness": ("ablation.md",
                    "python benchmarks/robustness.py --seed 0 --write docs/ablation.md"),
     "spill-study": ("energy.md", "python benchmarks/descriptor_dram_study.py --write"),
+    "tech-model": ("energy.md", "python -m stereosim.core.tech"),  # held by tests/core/tech
     "hardware-study": ("hardware-study.md", "python benchmarks/hardware_study.py --write"),
     "hybrid-tuning": ("hybrid.md", "python benchmarks/hybrid_tuning.py --jobs 2 --write "
                       "docs/hybrid.md"),

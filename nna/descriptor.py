@@ -8,7 +8,18 @@ input rows (:mod:`nna.geometry`: the census rows a network of several layers add
 submodule). The SVA matches the word part by part with the weighted sum of the two Hamming
 distances (:mod:`sva.hamming.cost`). A census window taller than the network's receptive field would
 make a descriptor wait for rows the network does not, so its half height is at most the
-network's reach."""
+network's reach (:func:`resolve_nna` checks it, with the network it loads).
+
+The NNA of a run is resolved here once (:func:`resolve_nna`, an :class:`NnaSpec`): the checked
+``nna`` section, the integer network its ``nna.cnn.weights`` names (loaded once, its channel
+count checked: :func:`load_cnn`) and the descriptor's parts (the hybrid's fit checked). This is
+the one place that loads the CNN and runs the rules that need it. What depends on the
+configuration alone is checked where the configuration enters (:mod:`core.config.check`); what
+depends on the frame shape or builds the submodule (its line buffers, its MAC shares) is a rule
+of the plan (:func:`nna.geometry.check_line_buffer`, :func:`nna.geometry.mac_shares`). The rules
+of :mod:`nna.geometry` and :mod:`nna.submodule.timing` read the spec; the chip's spec
+(:mod:`sim.cycle.spec`) carries it from where a run starts to the plan, the engines and the
+reports."""
 
 from __future__ import annotations
 
@@ -16,6 +27,7 @@ import os
 import threading
 import time
 from collections import OrderedDict
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -25,6 +37,104 @@ from stereosim.nna.census_unit.census import census, census_bits
 from stereosim.nna.conv.conv import network_descriptor
 from stereosim.nna.conv.weights import SHIPPED_WEIGHTS, load_network
 from stereosim.quant.intconv import IntNetwork
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class NnaSpec:
+    """The NNA of a checked configuration, resolved (:func:`resolve_nna`; its type says the
+    section passed the checks, so nothing below the entry checks it again).
+
+    ``cfg``: the checked :class:`~core.config.schema.NnaConfig`; ``cnn``: the integer network
+    of ``nna.cnn.weights`` (None for the census); ``parts``: the descriptor's parts in bit
+    order, (kind, bits) -- one for the census or the CNN, the hybrid's CNN part then its census
+    part; ``halves``: each stage's half kernel h_l (the CNN's layers; the census unit: one
+    stage of half height h // 2); ``layer_macs``: each stage's MACs per output pixel,
+    K_l^2 C_in,l C_out,l (the census unit: 0)."""
+
+    cfg: NnaConfig
+    cnn: IntNetwork | None
+    parts: tuple[tuple[str, int], ...]
+    halves: tuple[int, ...]
+    layer_macs: tuple[int, ...]
+
+    @property
+    def descriptor(self) -> str:
+        """``nna.descriptor``: census, cnn or hybrid."""
+        return self.cfg.descriptor
+
+    @property
+    def bits(self) -> int:
+        """Width in bits of the descriptor: the sum of its parts' bits."""
+        return sum(b for _, b in self.parts)
+
+    @property
+    def part_bits(self) -> tuple[int, ...]:
+        """Each part's bits, as the SVA matches them (:mod:`sva.hamming.cost`)."""
+        return tuple(b for _, b in self.parts)
+
+
+def resolve_nna(section: NnaConfig, *, checked: bool = False) -> NnaSpec:
+    """The :class:`NnaSpec` of an ``nna`` section: the section checked
+    (:func:`core.config.check_section`; ``checked=True`` where the caller holds what
+    :func:`core.config.load_config` or :func:`core.config.check_config` has just returned),
+    the CNN loaded once (:func:`load_cnn`) and the hybrid's fit checked. Raises
+    :class:`ConfigError` with one line."""
+    cfg = section if checked else check_section(section, "nna.")
+    c = cfg.census
+    if cfg.descriptor == "census":
+        return NnaSpec(cfg=cfg, cnn=None, parts=(("census", census_bits(c.window, c.kind,
+                                                                        c.stride)),),
+                       halves=(c.window[1] // 2,), layer_macs=(0,))
+    cnn = load_cnn(cfg)
+    return NnaSpec(cfg=cfg, cnn=cnn, parts=_parts(cfg, cnn), halves=cnn.halves,
+                   layer_macs=cnn.layer_macs)
+
+
+def as_nna_spec(spec: NnaSpec | NnaConfig) -> NnaSpec:
+    """``spec`` itself, or the spec of a raw ``nna`` section (:func:`resolve_nna`: checked,
+    its network loaded) -- the form the NNA's rules take from a tool that holds only a
+    configuration; a run hands its spec down."""
+    return spec if isinstance(spec, NnaSpec) else resolve_nna(spec)
+
+
+def _parts(cfg: NnaConfig, cnn: IntNetwork) -> tuple[tuple[str, int], ...]:
+    """The parts of a CNN or hybrid descriptor: the CNN's bits, then (the hybrid) the census's.
+    A hybrid of more than 64 bits, or whose census is taller than the network's receptive
+    field, is a :class:`ConfigError` saying what to change."""
+    if cfg.descriptor == "cnn":
+        return (("cnn", cnn.channels),)
+    c = cfg.census
+    bits = census_bits(c.window, c.kind, c.stride)
+    if cnn.channels + bits > 64:
+        raise ConfigError(
+            f"the hybrid descriptor would have {cnn.channels} CNN bits + {bits} census bits = "
+            f"{cnn.channels + bits}, more than the 64 a descriptor word holds: use a smaller "
+            "nna.census.window (or kind symmetric, or a stride)")
+    if c.window[1] // 2 > cnn.reach:
+        raise ConfigError(
+            f"the census window {c.window[0]}x{c.window[1]} reaches {c.window[1] // 2} rows "
+            f"above and below, beyond the network's {cnn.reach} (its receptive field): the "
+            "hybrid descriptor would wait for rows the network does not read; use a census "
+            f"window at most {2 * cnn.reach + 1} rows tall")
+    return (("cnn", cnn.channels), ("census", bits))
+
+
+def load_cnn(cfg: NnaConfig) -> IntNetwork:
+    """The integer network of the CNN descriptor the section names (``nna.cnn.weights``: a
+    weight file of one layer or a quantized artifact of 1..4 layers), as the file holds it now
+    (a relative path from the working directory of this call; :func:`_read_cnn`) -- the first
+    step of :func:`resolve_nna`, and the command line's early check of a weight file.
+
+    Its last layer must have ``nna.cnn.channels`` output channels -- the SVA's register widths
+    were worked out for that many bits -- else :class:`ConfigError` says which value to set."""
+    cnn = _read_cnn(cfg.cnn.weights)
+    if cnn.channels != cfg.cnn.channels:
+        raise ConfigError(
+            f"the CNN {cfg.cnn.weights!r} has {cnn.channels} output channels but "
+            f"nna.cnn.channels is {cfg.cnn.channels}: set nna.cnn.channels = "
+            f"{cnn.channels} (the SVA's automatic register widths follow it)"
+        )
+    return cnn
 
 
 def weights_file(weights: str) -> str:
@@ -60,74 +170,38 @@ def file_identity(path: str) -> tuple | None:
     return (full, st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns)
 
 
-def _network(weights: str) -> IntNetwork:
-    """The network of ``nna.cnn.weights``, read once per file content (:func:`file_identity`):
-    a file rewritten, replaced or deleted since, or a relative path from another working
-    directory, is read (and checked) again; so is a file modified less than 2 s before it was
-    read."""
+def _read_cnn(weights: str) -> IntNetwork:
+    """The network of ``nna.cnn.weights``, read once per file content (:func:`file_identity`)
+    over the runs of a process (a sweep's): a file rewritten, replaced or deleted since, or a
+    relative path from another working directory, is read (and checked) again; so is a file
+    modified less than 2 s before it was read."""
     path = weights_file(weights)
     key = file_identity(path)
     with _NETWORKS_LOCK:
-        net = _NETWORKS.get(key) if key is not None else None
-        if net is not None:
+        cnn = _NETWORKS.get(key) if key is not None else None
+        if cnn is not None:
             _NETWORKS.move_to_end(key)
-            return net
-    net = load_network(path)  # a missing or bad file raises its one line here
+            return cnn
+    cnn = load_network(path)  # a missing or bad file raises its one line here
     settled = key is not None and time.time_ns() - key[-1] > _SETTLED_NS
     if settled and file_identity(path) == key:  # and unchanged while it was read
         with _NETWORKS_LOCK:
-            _NETWORKS[key] = net
+            _NETWORKS[key] = cnn
             while len(_NETWORKS) > _NETWORKS_KEPT:
                 _NETWORKS.popitem(last=False)
-    return net
+    return cnn
 
 
-def network(cfg: NnaConfig) -> IntNetwork:
-    """The integer network of the CNN descriptor the config names (``nna.cnn.weights``: a
-    weight file of one layer or a quantized artifact of 1..4 layers), as the file holds it now
-    (a relative path from the working directory of this call; :func:`_network`).
-
-    Its last layer must have ``nna.cnn.channels`` output channels -- the SVA's register widths
-    were worked out for that many bits -- else :class:`ConfigError` says which value to set."""
-    net = _network(cfg.cnn.weights)
-    if net.channels != cfg.cnn.channels:
-        raise ConfigError(
-            f"the CNN {cfg.cnn.weights!r} has {net.channels} output channels but "
-            f"nna.cnn.channels is {cfg.cnn.channels}: set nna.cnn.channels = "
-            f"{net.channels} (the SVA's automatic register widths follow it)"
-        )
-    return net
-
-
-def descriptor_parts(cfg: NnaConfig) -> tuple[tuple[str, int], ...]:
+def descriptor_parts(spec: NnaSpec | NnaConfig) -> tuple[tuple[str, int], ...]:
     """The parts of the configured descriptor, in bit order, as (kind, bits): one part for the
-    census or the CNN, two for the hybrid (the CNN's, then the census's). A hybrid of more than
-    64 bits, or whose census is taller than the network's receptive field, is a
-    :class:`ConfigError` saying what to change."""
-    c = cfg.census
-    if cfg.descriptor == "census":
-        return (("census", census_bits(c.window, c.kind, c.stride)),)
-    net = network(cfg)  # nna.cnn.channels outputs (network() checks it)
-    if cfg.descriptor == "cnn":
-        return (("cnn", net.channels),)
-    bits = census_bits(c.window, c.kind, c.stride)
-    if net.channels + bits > 64:
-        raise ConfigError(
-            f"the hybrid descriptor would have {net.channels} CNN bits + {bits} census bits = "
-            f"{net.channels + bits}, more than the 64 a descriptor word holds: use a smaller "
-            "nna.census.window (or kind symmetric, or a stride)")
-    if c.window[1] // 2 > net.reach:
-        raise ConfigError(
-            f"the census window {c.window[0]}x{c.window[1]} reaches {c.window[1] // 2} rows "
-            f"above and below, beyond the network's {net.reach} (its receptive field): the "
-            "hybrid descriptor would wait for rows the network does not read; use a census "
-            f"window at most {2 * net.reach + 1} rows tall")
-    return (("cnn", net.channels), ("census", bits))
+    census or the CNN, two for the hybrid (the CNN's, then the census's) -- the spec's
+    (:func:`resolve_nna` refuses a hybrid that does not fit)."""
+    return as_nna_spec(spec).parts
 
 
-def descriptor_bits(cfg: NnaConfig) -> int:
+def descriptor_bits(spec: NnaSpec | NnaConfig) -> int:
     """Width in bits of the configured descriptor: the sum of its parts' bits."""
-    return sum(bits for _, bits in descriptor_parts(cfg))
+    return as_nna_spec(spec).bits
 
 
 def census_of(img: np.ndarray, cfg: NnaConfig) -> np.ndarray:
@@ -145,13 +219,15 @@ def hybrid_word(cnn_bits: np.ndarray, census_bits_: np.ndarray, channels: int,
     return word.astype(np.uint32) if total <= 32 else word
 
 
-def compute_descriptor(img: np.ndarray, cfg: NnaConfig) -> np.ndarray:
-    """Descriptor image (H, W) uint32/uint64 of a grey uint8 image."""
-    cfg = check_section(cfg, "nna.")  # checked once: a checked configuration's is trusted
-    if cfg.descriptor == "census":
-        return census_of(img, cfg)
-    net = network(cfg)
-    if cfg.descriptor == "cnn":
-        return network_descriptor(img, net)
-    total = descriptor_bits(cfg)  # a hybrid that does not fit is refused before it is computed
-    return hybrid_word(network_descriptor(img, net), census_of(img, cfg), net.channels, total)
+def compute_descriptor(img: np.ndarray, spec: NnaSpec | NnaConfig) -> np.ndarray:
+    """Descriptor image (H, W) uint32/uint64 of a grey uint8 image. ``spec``: the NNA's
+    :class:`~nna.descriptor.NnaSpec` (trusted: resolved where the run started), or a raw ``nna``
+    section, checked and resolved here (:func:`resolve_nna`: a hybrid that does not
+    fit is refused before anything is computed)."""
+    spec = as_nna_spec(spec)
+    if spec.cnn is None:
+        return census_of(img, spec.cfg)
+    if spec.descriptor == "cnn":
+        return network_descriptor(img, spec.cnn)
+    return hybrid_word(network_descriptor(img, spec.cnn), census_of(img, spec.cfg),
+                       spec.cnn.channels, spec.bits)

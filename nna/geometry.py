@@ -28,7 +28,9 @@ One layer (and the census) gives one stage with today's figures: macs_0 = ``nna.
 cpp_0 = ceil(K^2 C / macs), rows_0 = ``nna.line_buffer_rows``, the tile's own regions.
 
 These are facts of the stage, used by the chip plan (``sim.cycle.plan``), the clocked blocks and
-the analytic estimate alike.
+the analytic estimate alike. Each reads the NNA's :class:`~nna.descriptor.NnaSpec` (the checked
+section and the network loaded once where the run started); a tool holding only a raw ``nna``
+section gets it resolved first (:func:`~nna.descriptor.as_nna_spec`).
 """
 
 from __future__ import annotations
@@ -38,28 +40,29 @@ from dataclasses import dataclass
 
 from stereosim.core.config import NnaConfig
 from stereosim.core.errors import ConfigError
-from stereosim.nna.descriptor import network
+from stereosim.nna.descriptor import NnaSpec, as_nna_spec
 
 
-def half_window(cfg: NnaConfig) -> int:
+def half_window(spec: NnaSpec | NnaConfig) -> int:
     """Rows above and below a pixel that its descriptor reads: the sum of the layers' K // 2
-    (CNN), h // 2 (census)."""
-    if cfg.descriptor == "census":
-        return cfg.census.window[1] // 2
-    return network(cfg).reach
+    (CNN), h // 2 (census). The hybrid's census is no taller than its network's reach
+    (:func:`nna.descriptor.resolve_nna`)."""
+    return sum(as_nna_spec(spec).halves)
 
 
-def half_window_width(cfg: NnaConfig) -> int:
+def half_window_width(spec: NnaSpec | NnaConfig) -> int:
     """Columns left and right of a pixel that its descriptor reads: the sum of the layers'
     K // 2, or w // 2 (the hybrid: the larger of the two)."""
-    if cfg.descriptor == "census":
-        return cfg.census.window[0] // 2
-    if cfg.descriptor == "hybrid":
-        return max(network(cfg).reach, cfg.census.window[0] // 2)
-    return network(cfg).reach
+    spec = as_nna_spec(spec)
+    census = spec.cfg.census.window[0] // 2
+    if spec.descriptor == "census":
+        return census
+    if spec.descriptor == "hybrid":
+        return max(spec.cnn.reach, census)
+    return spec.cnn.reach
 
 
-def census_rows(cfg: NnaConfig) -> int:
+def census_rows(spec: NnaSpec | NnaConfig) -> int:
     """Input rows the hybrid descriptor's census unit must hold beside a network of several
     layers (0: it reads layer 0's line buffer -- one layer, whose window holds the census's --
     or the descriptor has no census part).
@@ -75,38 +78,33 @@ def census_rows(cfg: NnaConfig) -> int:
     span from y - r_c: sum_l rows_l + r_c rows (:func:`layer_rows`). Both engines track the
     window against this capacity (:mod:`sim.cycle.buffers`), which the first frames of a
     stream can reach."""
-    if cfg.descriptor != "hybrid" or len(layer_halves(cfg)) == 1:
+    spec = as_nna_spec(spec)
+    if spec.descriptor != "hybrid" or len(spec.halves) == 1:
         return 0
-    return sum(layer_rows(cfg)) + cfg.census.window[1] // 2
+    return sum(layer_rows(spec)) + spec.cfg.census.window[1] // 2
 
 
-def window_rows(cfg: NnaConfig) -> int:
+def window_rows(spec: NnaSpec | NnaConfig) -> int:
     """Input rows one output row of descriptors reads: 2 h + 1."""
-    return 2 * half_window(cfg) + 1
+    return 2 * half_window(spec) + 1
 
 
-def macs_per_descriptor(cfg: NnaConfig) -> int:
+def macs_per_descriptor(spec: NnaSpec | NnaConfig) -> int:
     """Multiply-accumulates of one descriptor: the sum over the CNN's layers of K*K*C_in*C_out
     (one layer: K*K*C); census descriptors use no MACs."""
-    if cfg.descriptor == "census":
-        return 0
-    return sum(network(cfg).layer_macs)
+    return sum(as_nna_spec(spec).layer_macs)
 
 
-def layer_halves(cfg: NnaConfig) -> tuple[int, ...]:
+def layer_halves(spec: NnaSpec | NnaConfig) -> tuple[int, ...]:
     """Each layer's half kernel h_l = K_l // 2 (rows above and below an output pixel that it
     reads of its input); the census unit is one stage of half height h // 2."""
-    if cfg.descriptor == "census":
-        return (half_window(cfg),)
-    return network(cfg).halves
+    return as_nna_spec(spec).halves
 
 
-def layer_macs_per_pixel(cfg: NnaConfig) -> tuple[int, ...]:
+def layer_macs_per_pixel(spec: NnaSpec | NnaConfig) -> tuple[int, ...]:
     """Multiply-accumulates of one output pixel of each layer: m_l = K_l^2 C_in,l C_out,l
     (census: one stage of no MACs, 0)."""
-    if cfg.descriptor == "census":
-        return (0,)
-    return network(cfg).layer_macs
+    return as_nna_spec(spec).layer_macs
 
 
 def share_macs(total: int, work: tuple[int, ...]) -> tuple[int, ...]:
@@ -133,12 +131,13 @@ def share_macs(total: int, work: tuple[int, ...]) -> tuple[int, ...]:
     return tuple(shares)
 
 
-def mac_shares(cfg: NnaConfig) -> tuple[int, ...]:
+def mac_shares(spec: NnaSpec | NnaConfig) -> tuple[int, ...]:
     """The MAC units of each layer's stage: ``nna.layer_macs`` when given (one per layer,
     summing to at most ``nna.macs``), else ``nna.macs`` = M split in proportion to the layers'
     MACs per pixel m_l (:func:`share_macs`). A ``nna.layer_macs`` of the wrong length or sum is
     a ConfigError. One layer (and the census): (M,)."""
-    m = layer_macs_per_pixel(cfg)
+    spec = as_nna_spec(spec)
+    cfg, m = spec.cfg, spec.layer_macs
     if cfg.layer_macs:
         if len(cfg.layer_macs) != len(m) or sum(cfg.layer_macs) > cfg.macs:
             raise ConfigError(
@@ -168,21 +167,24 @@ def line_buffer_bits(rows: int, width: int, channels_in: int) -> int:
     return rows * width * channels_in * 8
 
 
-def layer_rows(cfg: NnaConfig) -> tuple[int, ...]:
+def layer_rows(spec: NnaSpec | NnaConfig) -> tuple[int, ...]:
     """Input rows each layer's line buffer holds: layer 0 ``nna.line_buffer_rows``, layer
     l >= 1 K_l + (``nna.line_buffer_rows`` - K_0) -- its window and the same slack
     (:func:`buffer_rows` at stride 1)."""
-    kernels = tuple(2 * r + 1 for r in layer_halves(cfg))
-    return buffer_rows(kernels, (1,) * len(kernels), cfg.line_buffer_rows - kernels[0])
+    spec = as_nna_spec(spec)
+    kernels = tuple(2 * r + 1 for r in spec.halves)
+    return buffer_rows(kernels, (1,) * len(kernels), spec.cfg.line_buffer_rows - kernels[0])
 
 
-def check_line_buffer(cfg: NnaConfig) -> None:
+def check_line_buffer(spec: NnaSpec | NnaConfig) -> None:
     """A line buffer must hold its layer's window: layer 0's K_0 rows, the descriptor window
     for a network of one layer; and no later layer's (:func:`layer_rows`) may need more rows
     than ``nna.line_buffer_rows`` may be (ConfigError otherwise)."""
-    need = 2 * layer_halves(cfg)[0] + 1
+    spec = as_nna_spec(spec)
+    cfg = spec.cfg
+    need = 2 * spec.halves[0] + 1
     if cfg.line_buffer_rows < need:
-        what = ("descriptor window" if len(layer_halves(cfg)) == 1
+        what = ("descriptor window" if len(spec.halves) == 1
                 else "window of the network's first layer")
         raise ConfigError(
             f"nna.line_buffer_rows={cfg.line_buffer_rows} cannot hold the {need}-row "
@@ -190,7 +192,7 @@ def check_line_buffer(cfg: NnaConfig) -> None:
         )
     most = next(f.metadata["hi"] for f in dataclasses.fields(NnaConfig)
                 if f.name == "line_buffer_rows")
-    for i, rows in enumerate(layer_rows(cfg)[1:], start=1):
+    for i, rows in enumerate(layer_rows(spec)[1:], start=1):
         if rows > most:  # a later layer's window plus layer 0's slack
             raise ConfigError(
                 f"layer {i}'s line buffer would need {rows} rows (its window and the "
@@ -251,12 +253,13 @@ def widened(tile: Tile, reach_out: int, reach_in: int, shape: tuple[int, int]) -
     return Tile(x0, x1, y0, y1, ix0, ix1, iy0, iy1)
 
 
-def layer_tiles(tile: Tile, cfg: NnaConfig, shape: tuple[int, int]) -> tuple[Tile, ...]:
+def layer_tiles(tile: Tile, spec: NnaSpec | NnaConfig, shape: tuple[int, int]
+                ) -> tuple[Tile, ...]:
     """Each layer's regions within a submodule serving ``tile``: layer l's output region is the
     tile's widened by R_l = the half kernels of the layers after l, its input region the tile's
     widened by R_l + h_l (layer l - 1's output region), clipped to the frame; layer 0's input
     region is the tile's own (one layer: the tile itself)."""
-    halves = layer_halves(cfg)
+    halves = layer_halves(spec)
     out = []
     for i in range(len(halves)):
         after = sum(halves[i + 1:])
@@ -275,14 +278,15 @@ def whole_frame(shape: tuple[int, int]) -> Tile:
     return Tile(0, w, 0, h, 0, w, 0, h)
 
 
-def split_frame(shape: tuple[int, int], parts: int, split: str, cfg: NnaConfig) -> list[Tile]:
+def split_frame(shape: tuple[int, int], parts: int, split: str, spec: NnaSpec | NnaConfig
+                ) -> list[Tile]:
     """``parts`` tiles of a frame: column tiles (split = "columns") or row bands ("rows"),
     as equal as integers allow (part t covers [floor(t N / parts), floor((t+1) N / parts))),
     each with the halo its window needs. One part is the whole frame."""
     h, w = shape
     if parts == 1:
         return [whole_frame(shape)]
-    hy, hx = half_window(cfg), half_window_width(cfg)
+    hy, hx = half_window(spec), half_window_width(spec)
     n = w if split == "columns" else h
     if parts > n:
         raise ConfigError(

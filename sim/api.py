@@ -34,6 +34,7 @@ from stereosim.sim.cycle.lent import lent_report
 from stereosim.sim.cycle.plan import ChipPlan, build_plan
 from stereosim.sim.cycle.report import power_basis
 from stereosim.sim.cycle.simulate import simulate
+from stereosim.sim.cycle.spec import resolve_chip
 from stereosim.sim.formats import read_calibration
 from stereosim.sim.metrics import check_truth, evaluate, mean_metrics, undefined_metrics
 from stereosim.sim.tracing import run_traced, trace_section
@@ -107,7 +108,9 @@ def prepare_pair(left, right, max_pixels: int | None = MAX_PIXELS) -> tuple[np.n
 
 def resolve_config(config: ChipConfig | str | None, overrides: dict[str, Any] | None) -> ChipConfig:
     """The checked configuration of ``run``'s ``config``/``overrides``: a :class:`ChipConfig`
-    (however built, it passes :func:`core.config.check_config`), a TOML path or None."""
+    (however built, it passes :func:`core.config.check_config`, once: the run's entry), a TOML
+    path or None. The run then resolves it (:func:`~sim.cycle.spec.resolve_chip`) into the
+    spec its plan carries down."""
     if isinstance(config, ChipConfig):
         if overrides:
             raise ConfigError("give either a ChipConfig object or overrides, not both")
@@ -193,7 +196,10 @@ def run(
     cfg = resolve_config(config, overrides)
     gl, gr = prepare_pair(left, right, max_pixels)
     masks = check_ground_truth(gt, masks, gl.shape)
-    plan = build_plan(cfg, gl.shape)  # refuses a chip that cannot be built, in every mode
+    # the chip resolved once (the network loaded, the widths derived) and handed down in the
+    # plan, which refuses a chip that cannot be built, in every mode
+    plan = build_plan(resolve_chip(cfg, checked=True), gl.shape)
+    spec = plan.spec
     log = None
     if trace is not None and mode != "cycle":
         raise ConfigError("traces need the cycle model: use mode='cycle' (--mode cycle)")
@@ -209,9 +215,9 @@ def run(
         fixed, cycle_report = frame.words, frame.report
     else:
         with compile_notice():
-            desc_l = compute_descriptor(gl, cfg.nna)
-            desc_r = compute_descriptor(gr, cfg.nna)
-            fixed = sva_stream(desc_l, desc_r, gl, cfg.sva, plan.part_bits)
+            desc_l = compute_descriptor(gl, spec.nna)
+            desc_r = compute_descriptor(gr, spec.nna)
+            fixed = sva_stream(desc_l, desc_r, gl, spec.sva, plan.part_bits)
     disp = to_float(fixed, cfg.sva.subpixel_bits)
     report = build_report(plan, mode, fixed)
     if plan.hybrid:
@@ -430,7 +436,7 @@ class Stream:
             elif not new:
                 fixed = shown[1]
             else:
-                fixed = functional_words(plan.cfg, plan.part_bits, *pair)
+                fixed = functional_words(plan.spec, plan.part_bits, *pair)
             disparity = to_float(fixed, bits)
             metrics = None
             if self._truth is not None:  # pairs showing one input frame share its words
@@ -518,7 +524,7 @@ def run_stream(pairs, *, mode: str = "cycle", config: ChipConfig | str | None = 
     cfg = resolve_config(config, overrides)
     supply = stream_supply(pairs, max_pixels, cfg.sva.pairs)
     masks = check_ground_truth(gt, masks, supply.shape)
-    plan = build_plan(cfg, supply.shape, supply.count)
+    plan = build_plan(resolve_chip(cfg, checked=True), supply.shape, supply.count)
     report = build_report(plan, mode, None) | {"frames": supply.count}
     words = None
     if mode == "cycle":

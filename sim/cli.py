@@ -64,7 +64,7 @@ from stereosim.core.outputs import (
     publish,
 )
 from stereosim.core.progress import compile_notice
-from stereosim.nna.descriptor import network
+from stereosim.nna.descriptor import load_cnn
 from stereosim.sim import formats, rtl_check, rtl_synth, train_cli, whatif_cli
 from stereosim.sim.api import run, version_text
 from stereosim.sim.argtypes import (
@@ -173,7 +173,7 @@ def _notes(args, cfg) -> None:
         return
     args._noted = True
     if cfg.nna.descriptor in ("cnn", "hybrid"):
-        network(cfg.nna)  # a bad weight file is its one line, before any note about it
+        load_cnn(cfg.nna)  # a bad weight file is its one line, before any note about it
     lines = layer_notes(args.config) if len(args.config or ()) > 1 else []
     note = backend_note(cfg.nna.cnn.weights, cfg.nna.descriptor,
                         keys_set(args.config, _overrides(args)))
@@ -464,7 +464,7 @@ def cmd_config_backend(args) -> int:
         base = {f"sva.{k}": v for k, v in (carried or DESCRIPTOR_DEFAULTS["cnn"]).items()}
         cfg = load_config(None, {"nna.descriptor": "cnn", "nna.cnn.weights": path,
                                  **base, **over})  # every value's range
-        network(cfg.nna)  # and the file's network
+        load_cnn(cfg.nna)  # and the file's network
         carried = {k: getattr(cfg.sva, k) for k in BACKEND_KEYS}
         write_backend(path, carried)
         print(f"wrote the back end into {path}")

@@ -13,7 +13,7 @@ file), :mod:`~core.config.lent` (the file of the network on lent NNA submodules)
 diffs). Their public names are imported from here.
 """
 
-from stereosim.core.config.check import check_config, check_section, is_checked
+from stereosim.core.config.check import check_config, check_section
 from stereosim.core.config.files import read_toml
 from stereosim.core.config.lent import LentLayer, LentNetwork, read_lent_network
 from stereosim.core.config.loader import (
@@ -28,8 +28,11 @@ from stereosim.core.config.schema import (
     DEFAULT_DESCRIPTOR,
     DESCRIPTOR_DEFAULTS,
     LEGAL_DISPARITIES,
+    PATH_BITS_MAX,
+    PENALTY_MAX,
     RETIRED,
     SECTIONS,
+    SUM_BITS_MAX,
     CensusConfig,
     ChipConfig,
     ClockConfig,
@@ -47,10 +50,10 @@ from stereosim.core.config.writer import config_diff, config_to_dict, config_to_
 
 __all__ = [
     "AUTO_BUDGET_FACTOR", "CNN_BITS", "DEFAULT_DESCRIPTOR", "DESCRIPTOR_DEFAULTS",
-    "LEGAL_DISPARITIES", "SECTIONS", "CensusConfig", "ChipConfig", "ClockConfig", "CnnConfig",
-    "DramConfig", "FifoConfig", "LentLayer", "LentNetwork", "NnaConfig", "RETIRED", "SimConfig",
-    "SourceConfig", "SvaConfig", "check_config", "check_section", "config_diff",
-    "config_to_dict", "config_to_toml", "descriptor_width", "is_checked", "keys_set",
-    "layer_notes", "load_config", "param", "parse_set_options", "read_lent_network",
-    "read_toml", "sgm_widths",
+    "LEGAL_DISPARITIES", "PATH_BITS_MAX", "PENALTY_MAX", "SECTIONS", "SUM_BITS_MAX",
+    "CensusConfig", "ChipConfig", "ClockConfig", "CnnConfig", "DramConfig", "FifoConfig",
+    "LentLayer", "LentNetwork", "NnaConfig", "RETIRED", "SimConfig", "SourceConfig", "SvaConfig",
+    "check_config", "check_section", "config_diff", "config_to_dict", "config_to_toml",
+    "descriptor_width", "keys_set", "layer_notes", "load_config", "param", "parse_set_options",
+    "read_lent_network", "read_toml", "sgm_widths",
 ]

@@ -6,12 +6,12 @@ keys (:func:`check_combinations`). :func:`core.config.load_config` runs them on 
 :func:`check_config` on a :class:`ChipConfig` built by hand or with ``dataclasses.replace``,
 :func:`check_section` on one section given to a stage's entry point.
 
-A configuration (and each of its sections) that passed is remembered, by identity and weak
-reference: the entry points -- ``stereosim.run``, ``build_plan``, the SVA's and the NNA's --
-each call :func:`check_config` or :func:`check_section`, which return a remembered object at
-once, so a configuration is checked where it enters and trusted on its way to the kernels, while
-an object built any other way is still checked before a kernel sees it. Frozen objects cannot
-change after the check; a new one (``dataclasses.replace``) is a different object.
+Each entry point runs them once on the configuration it is given -- ``stereosim.run`` and
+``build_plan`` on a ``ChipConfig``, the NNA's and the SVA's functional entry points on a
+section -- and hands down a resolved spec (:class:`sim.cycle.spec.ChipSpec`, with the NNA's
+:class:`nna.descriptor.NnaSpec` and the SVA's :class:`sva.spec.SvaSpec`), whose type says it is
+checked: the code below an entry takes the spec and checks nothing again. No object is
+remembered as checked: a configuration handed to an entry is checked there, every time.
 """
 
 from __future__ import annotations
@@ -21,7 +21,6 @@ import functools
 import math
 import numbers
 import typing
-import weakref
 from typing import Any
 
 import numpy as np
@@ -30,39 +29,19 @@ from stereosim.core.config.lent import read_lent_network
 from stereosim.core.config.schema import RETIRED, SECTIONS, ChipConfig
 from stereosim.core.errors import ConfigError
 
-# id -> the object that passed the checks; an entry goes with its object
-_CHECKED: weakref.WeakValueDictionary = weakref.WeakValueDictionary()
-
-
-def is_checked(obj) -> bool:
-    """Did ``obj`` itself (not an equal copy) pass the checks?"""
-    return _CHECKED.get(id(obj)) is obj
-
-
-def _remember(obj):
-    """Mark ``obj`` and every section nested in it as checked; return it."""
-    _CHECKED[id(obj)] = obj
-    for f in dataclasses.fields(obj):
-        value = getattr(obj, f.name)
-        if dataclasses.is_dataclass(value):
-            _remember(value)
-    return obj
-
 
 def checked_chip(tree: dict) -> ChipConfig:
     """The checked configuration of the nested dict ``tree`` (every value, then the
     combinations); raises :class:`ConfigError` naming the first bad key."""
-    return _remember(check_combinations(_build(ChipConfig, tree, "")))
+    return check_combinations(_build(ChipConfig, tree, ""))
 
 
 def check_config(cfg) -> ChipConfig:
     """The same checks as :func:`core.config.load_config` for a configuration built any other
     way (by hand, with ``dataclasses.replace``): every section of the right class, every value of
-    its declared type and in range, every combination legal. Returns the checked configuration
-    (values normalised: numpy scalars become Python numbers, lists become tuples) -- ``cfg``
-    itself when it has passed already; raises :class:`ConfigError` naming the first bad key."""
-    if is_checked(cfg) and type(cfg) is ChipConfig:
-        return cfg
+    its declared type and in range, every combination legal. Returns the checked configuration,
+    a new object (values normalised: numpy scalars become Python numbers, lists become tuples);
+    raises :class:`ConfigError` naming the first bad key."""
     if not isinstance(cfg, ChipConfig):
         raise ConfigError("a chip configuration must be a sim.ChipConfig; got "
                           f"{type(cfg).__name__}")
@@ -71,12 +50,10 @@ def check_config(cfg) -> ChipConfig:
 
 def check_section(section, prefix: str):
     """:func:`check_config` for one section (``prefix`` ``"sva."``, ``"nna."``, ...): the check a
-    stage's entry point runs before any kernel sees the values. Returns the checked section
-    (``section`` itself when it has passed already, alone or in a checked configuration)."""
+    stage's entry point runs before any kernel sees the values. Returns the checked section, a
+    new object."""
     cls = SECTIONS[prefix]
-    if is_checked(section) and type(section) is cls:
-        return section
-    return _remember(_build(cls, _tree_of(section, cls, prefix), prefix))
+    return _build(cls, _tree_of(section, cls, prefix), prefix)
 
 
 def _is_config_class(tp) -> bool:

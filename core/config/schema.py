@@ -43,6 +43,13 @@ HYBRID_WEIGHTS = (3, 2)
 NOISY_WEIGHTS = (2, 0)
 NOISE_THRESHOLD = 31
 NOISE_GRADIENT = 16
+#: The SGM kernel's uint16 lanes bound its registers and penalties (:func:`sva.sgm.sgm.sgm`
+#: checks the same numbers): a path cost of at most 14 bits (four paths and the kernel's ABSENT
+#: sentinel fit), a sum of at most 16, P1 and P2 below 2^15. The largest values of
+#: ``sva.path_bits``, ``sva.sum_bits``, ``sva.p1`` and ``sva.p2``.
+PATH_BITS_MAX = 14
+SUM_BITS_MAX = 16
+PENALTY_MAX = 32767
 _DEFAULT_WIDTHS = sgm_widths(DESCRIPTOR_DEFAULTS[DEFAULT_DESCRIPTOR]["p2"],
                              DESCRIPTOR_DEFAULTS[DEFAULT_DESCRIPTOR]["box_size"])
 
@@ -52,10 +59,6 @@ _DEFAULT_WIDTHS = sgm_widths(DESCRIPTOR_DEFAULTS[DEFAULT_DESCRIPTOR]["p2"],
 #: message of a run that exhausts it quote this number.
 AUTO_BUDGET_FACTOR = 20
 
-# Every class below has a weakref slot: the checks (core.config.check) remember which objects
-# passed them by weak reference, so that a checked configuration is trusted, not checked again.
-
-
 def param(default, help: str, *, lo=None, hi=None, choices=None, odd=False, path=False):
     """A config field with its validation rules in the metadata. ``path``: the value names a
     file, which a config file gives relative to its own folder (:mod:`core.config.loader`);
@@ -64,7 +67,7 @@ def param(default, help: str, *, lo=None, hi=None, choices=None, odd=False, path
     return field(default=default, metadata=meta)
 
 
-@dataclass(frozen=True, slots=True, kw_only=True, weakref_slot=True)
+@dataclass(frozen=True, slots=True, kw_only=True)
 class CensusConfig:
     """The census descriptor. The default, plain 11x3, is exactly 32 bits -- the width of the NNA
     descriptor -- and won the sweep in docs/tuning.md among the 31/32-bit windows."""
@@ -80,7 +83,7 @@ class CensusConfig:
     stride: int = param(1, "sampling step inside the window (2 = sparse census)", lo=1, hi=4)
 
 
-@dataclass(frozen=True, slots=True, kw_only=True, weakref_slot=True)
+@dataclass(frozen=True, slots=True, kw_only=True)
 class CnnConfig:
     weights: str = param(
         "default", "int8 weight file (.npz) of the descriptor network (in a config file: "
@@ -92,7 +95,7 @@ class CnnConfig:
     )
 
 
-@dataclass(frozen=True, slots=True, kw_only=True, weakref_slot=True)
+@dataclass(frozen=True, slots=True, kw_only=True)
 class NnaConfig:
     descriptor: str = param(
         DEFAULT_DESCRIPTOR,
@@ -136,7 +139,7 @@ class NnaConfig:
     )
 
 
-@dataclass(frozen=True, slots=True, kw_only=True, weakref_slot=True)
+@dataclass(frozen=True, slots=True, kw_only=True)
 class SvaConfig:
     """The stereo accelerator. Accuracy defaults (box, P1, P2, adaptive P2, checks, median) come
     from the protocol of docs/tuning.md; register widths left unset are the narrowest that never
@@ -162,12 +165,12 @@ class SvaConfig:
     p1: int = param(
         DESCRIPTOR_DEFAULTS[DEFAULT_DESCRIPTOR]["p1"],
         "SGM penalty for a disparity change of 1 (default: the descriptor's tuned value)",
-        lo=0, hi=32767,
+        lo=0, hi=PENALTY_MAX,
     )
     p2: int = param(
         DESCRIPTOR_DEFAULTS[DEFAULT_DESCRIPTOR]["p2"],
         "SGM penalty for a disparity change of more than 1 (default: the descriptor's tuned value)",
-        lo=0, hi=32767,
+        lo=0, hi=PENALTY_MAX,
     )
     p2_adaptive: bool = param(
         DESCRIPTOR_DEFAULTS[DEFAULT_DESCRIPTOR]["p2_adaptive"],
@@ -181,12 +184,12 @@ class SvaConfig:
     path_bits: int = param(
         _DEFAULT_WIDTHS["path_bits"],
         "width of each SGM path cost register (saturating; default: the narrowest that never "
-        "saturates at the configured box and P2)", lo=8, hi=14,
+        "saturates at the configured box and P2)", lo=8, hi=PATH_BITS_MAX,
     )
     sum_bits: int = param(
         _DEFAULT_WIDTHS["sum_bits"],
         "width of the summed path cost S (saturating; default: the narrowest that holds the "
-        "configured paths)", lo=8, hi=16,
+        "configured paths)", lo=8, hi=SUM_BITS_MAX,
     )
     paths: int = param(
         4, "SGM paths: 1 = left-to-right, 2 = + top, 3 = + top-left, 4 = + top-right", lo=1, hi=4
@@ -250,7 +253,7 @@ class SvaConfig:
     )
 
 
-@dataclass(frozen=True, slots=True, kw_only=True, weakref_slot=True)
+@dataclass(frozen=True, slots=True, kw_only=True)
 class ClockConfig:
     camera_mhz: float = param(74.25, "camera pixel clock (CEA-861 720p: 74.25 MHz)",
                               lo=0.001, hi=10000.0)
@@ -258,7 +261,7 @@ class ClockConfig:
     sva_mhz: float = param(465.0, "SVA clock", lo=0.001, hi=10000.0)
 
 
-@dataclass(frozen=True, slots=True, kw_only=True, weakref_slot=True)
+@dataclass(frozen=True, slots=True, kw_only=True)
 class SourceConfig:
     kind: str = param(
         "memory", "where frames come from: memory (at memory_gbps) or camera (pixel clock with "
@@ -290,7 +293,7 @@ class SourceConfig:
     )
 
 
-@dataclass(frozen=True, slots=True, kw_only=True, weakref_slot=True)
+@dataclass(frozen=True, slots=True, kw_only=True)
 class DramConfig:
     """The DRAM channel the memory sources read from and the sink writes the disparities back
     to (a what-if: ``model = "none"`` keeps the memory sources' own token bucket and an ideal
@@ -320,7 +323,7 @@ class DramConfig:
     )
 
 
-@dataclass(frozen=True, slots=True, kw_only=True, weakref_slot=True)
+@dataclass(frozen=True, slots=True, kw_only=True)
 class FifoConfig:
     source_to_nna_depth: int = param(16, "pixels the source-to-NNA FIFO holds", lo=1, hi=1 << 24)
     nna_to_sva_depth: int = param(64, "descriptors each NNA-to-SVA FIFO holds", lo=1, hi=1 << 24)
@@ -334,7 +337,7 @@ class FifoConfig:
     sync_cycles: int = param(2, "synchroniser stages of a clock-domain crossing", lo=1, hi=16)
 
 
-@dataclass(frozen=True, slots=True, kw_only=True, weakref_slot=True)
+@dataclass(frozen=True, slots=True, kw_only=True)
 class SimConfig:
     engine: str = param(
         "auto", "cycle-model engine: fast (compiled: every configuration, traces and runs that "
@@ -354,7 +357,7 @@ class SimConfig:
     )
 
 
-@dataclass(frozen=True, slots=True, kw_only=True, weakref_slot=True)
+@dataclass(frozen=True, slots=True, kw_only=True)
 class ChipConfig:
     nna: NnaConfig = field(default_factory=NnaConfig)
     sva: SvaConfig = field(default_factory=SvaConfig)

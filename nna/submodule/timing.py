@@ -10,14 +10,12 @@ from dataclasses import dataclass
 
 from numba.extending import register_jitable
 
-from stereosim.core.config import ChipConfig, NnaConfig
+from stereosim.core.config import NnaConfig
 from stereosim.core.timing import BufferPlan, StagePlan
-from stereosim.nna.descriptor import network
+from stereosim.nna.descriptor import NnaSpec, as_nna_spec
 from stereosim.nna.geometry import (
     Tile,
     census_rows,
-    layer_halves,
-    layer_macs_per_pixel,
     layer_rows,
     layer_tiles,
     line_buffer_bits,
@@ -50,7 +48,7 @@ class LayerPlan:
         return self.tile.shape[0] * self.tile.shape[1]
 
 
-def nna_layers(cfg: ChipConfig, tile: Tile, shape: tuple[int, int], widths: tuple[int, ...]
+def nna_layers(spec: NnaSpec, tile: Tile, shape: tuple[int, int], widths: tuple[int, ...]
                ) -> tuple[LayerPlan, ...]:
     """The layer stages of a submodule serving ``tile`` of a frame of ``shape``, each line
     buffer sized for ``widths[l]``, the widest input region of layer l over the camera's
@@ -58,17 +56,16 @@ def nna_layers(cfg: ChipConfig, tile: Tile, shape: tuple[int, int], widths: tupl
     activations (8 bits each; layer 0: the pixel) from each of its 2 h_l + 1 rows' banks, and
     per input pixel one word is written. One layer: the buffer ``nna.line_buffer``, else
     ``nna.layer<l>.line_buffer``."""
-    n = cfg.nna
-    halves = layer_halves(n)
-    if n.descriptor == "census":
+    halves = spec.halves
+    if spec.cnn is None:
         channels = [(1, 1)]
     else:
-        channels = [(int(w.shape[1]), int(w.shape[0])) for w in network(n).weights]
+        channels = [(int(w.shape[1]), int(w.shape[0])) for w in spec.cnn.weights]
     single = len(halves) == 1
     out = []
     for i, (t, h, rows, share, m, cpp, (c_in, c_out)) in enumerate(zip(
-            layer_tiles(tile, n, shape), halves, layer_rows(n), mac_shares(n),
-            layer_macs_per_pixel(n), layer_cycles(n), channels, strict=True)):
+            layer_tiles(tile, spec, shape), halves, layer_rows(spec), mac_shares(spec),
+            spec.layer_macs, layer_cycles(spec), channels, strict=True)):
         width = widths[i]
         what = ("pixels x 8 bits" if c_in == 1 else f"pixels x {c_in} channels x 8 bits")
         buf = BufferPlan("nna.line_buffer" if single else f"nna.layer{i}.line_buffer",
@@ -83,7 +80,7 @@ def nna_layers(cfg: ChipConfig, tile: Tile, shape: tuple[int, int], widths: tupl
     return tuple(out)
 
 
-def nna_stages(cfg: ChipConfig, layers: tuple[LayerPlan, ...]) -> tuple[StagePlan, ...]:
+def nna_stages(spec: NnaSpec, layers: tuple[LayerPlan, ...]) -> tuple[StagePlan, ...]:
     """An NNA submodule's stages, per layer: its line buffer (a bank per row: each output pixel
     takes the next column of the layer's window, one word from each of its 2 h + 1 banks,
     while the arriving one is written), its MAC array (m_l multiply-accumulates an output
@@ -92,7 +89,7 @@ def nna_stages(cfg: ChipConfig, layers: tuple[LayerPlan, ...]) -> tuple[StagePla
     layer: the sign bit), in the MAC array's last cycle. One layer: ``line_buffer``,
     ``mac_array`` (or ``census_unit``), ``requantise_sign``; more: the same names prefixed
     ``layer<l>.``, the last layer's requantise stage named ``layer<l>.sign``."""
-    n = cfg.nna
+    n = spec.cfg
     single = len(layers) == 1
     out = []
     for lay in layers:
@@ -126,7 +123,7 @@ def nna_stages(cfg: ChipConfig, layers: tuple[LayerPlan, ...]) -> tuple[StagePla
     if n.descriptor == "hybrid":
         c = n.census
         source = ("layer 0's line buffer" if single else
-                  f"its own {census_rows(n)} input rows (nna.census_rows)")
+                  f"its own {census_rows(spec)} input rows (nna.census_rows)")
         out.append(StagePlan("census_unit", 1, 0,
                              f"the {c.window[0]}x{c.window[1]} {c.kind} census of the output "
                              f"pixel from {source}, in the MAC array's last cycle: its bits "
@@ -141,11 +138,11 @@ def nna_stages(cfg: ChipConfig, layers: tuple[LayerPlan, ...]) -> tuple[StagePla
 # estimate place the push with mac_done.
 
 
-def cycles_per_descriptor(cfg: NnaConfig) -> int:
+def cycles_per_descriptor(spec: NnaSpec | NnaConfig) -> int:
     """The submodule's initiation interval, cycles per descriptor: its slowest layer's cycles
     per output pixel, max_l cpp_l (:func:`layer_cycles`; one layer: ceil(K*K*C / macs)), 1 for
     the census unit."""
-    return max(layer_cycles(cfg))
+    return max(layer_cycles(spec))
 
 
 def cycles_per_pixel(macs_per_pixel: int, share: int) -> int:
@@ -160,14 +157,15 @@ def pipeline_cycles(items: tuple[int, ...], cycles: tuple[int, ...]) -> int:
     return max(i * c for i, c in zip(items, cycles, strict=True))
 
 
-def layer_cycles(cfg: NnaConfig) -> tuple[int, ...]:
+def layer_cycles(spec: NnaSpec | NnaConfig) -> tuple[int, ...]:
     """Cycles each layer's MAC array spends on one output pixel: cpp_l = ceil(m_l / macs_l)
     (:func:`mac_shares`, :func:`cycles_per_pixel`); the census unit: 1. One layer:
     :func:`cycles_per_descriptor`."""
-    if cfg.descriptor == "census":
+    spec = as_nna_spec(spec)
+    if spec.cnn is None:
         return (1,)
     return tuple(cycles_per_pixel(m, share) for m, share in
-                 zip(layer_macs_per_pixel(cfg), mac_shares(cfg), strict=True))
+                 zip(spec.layer_macs, mac_shares(spec), strict=True))
 
 
 @register_jitable

@@ -4,8 +4,9 @@ engine ran it, defined once so that neither engine owns it.
 - the result of a frame or a stream (:class:`FrameResult`) and the trace's signal and clock
   lists the plan gives (:func:`trace_signals`, :func:`trace_clocks`);
 - the statistics both count: a block's cycles by activity (:data:`ACTIVITIES`,
-  :func:`activity_counts`), a FIFO's counts (:func:`fifo_counts`) and the kernel's steps (one
-  per distinct clock edge instant, :func:`count_instants`);
+  :func:`activity_counts`; a FIFO's counts are the FIFO primitive's,
+  :func:`sim.cycle.fifo.counts.fifo_counts`) and the kernel's steps (one per distinct clock edge
+  instant, :func:`count_instants`);
 - how a run stops early, as both report it: a deadlock (:class:`DeadlockError`) and an
   exhausted cycle budget (:class:`BudgetExceeded`: the user's ``--max-cycles``, a stop asked
   for, or the automatic budget's safety net, :attr:`ChipPlan.budget_reason`) are the
@@ -121,25 +122,6 @@ def activity_counts(busy: int, starved: int, blocked: int, idle: int) -> dict[st
     """A block's cycles by activity, as every engine reports them (sorted keys)."""
     return {"blocked": int(blocked), "busy": int(busy), "idle": int(idle),
             "starved": int(starved)}
-
-
-def fifo_counts(*, pushes: int, pops: int, depth: int, width_bits: int, max_occupancy: int,
-                max_producer_occupancy: int, histogram, cycles_full: int,
-                cycles_empty: int) -> dict:
-    """A FIFO's statistics, as every engine reports them (sorted keys; see
-    :class:`sim.cycle.readable.fifo.Fifo`)."""
-    return {
-        "bits_transferred": int(pops) * width_bits,
-        "cycles_empty": int(cycles_empty),
-        "cycles_full": int(cycles_full),
-        "depth": int(depth),
-        "max_occupancy": int(max_occupancy),
-        "max_producer_occupancy": int(max_producer_occupancy),
-        "occupancy_histogram": [int(v) for v in histogram],
-        "pops": int(pops),
-        "pushes": int(pushes),
-        "width_bits": int(width_bits),
-    }
 
 
 def watchdog_message(quiet_fs: int, p_max_fs: int, remedy: str | None = None) -> str:

@@ -625,7 +625,8 @@ def delivered_fps(plan: ChipPlan, tl: dict, fps_bound: float, bottleneck: str
         return fps_bound, "the work bound (the chip drops the camera frames beyond it)"
     period_fs = cam.frame_clocks * plan.domains["camera"].period_fs
     link = plan.fifo(_feeder(plan).outputs[0])
-    read_end_fs = (tl["source_last_pop_nna"] - link.data_edges) * plan.domains["nna"].period_fs
+    read_end_fs = (p_src := plan.domains[link.src].period_fs) * fifo_rule.visible_until(
+        tl["source_last_pop_nna"], p_src, plan.domains[link.dst].period_fs, link.data_edges)
     periods = read_end_fs // period_fs + 1
     return (min(fps_bound, plan.camera_fps / periods),
             f"one frame buffer: one camera frame in {periods} (the chip drops the others)")

@@ -14,7 +14,7 @@ import functools
 
 from stereosim.core.config import ChipConfig
 from stereosim.core.errors import ConfigError
-from stereosim.nna.descriptor import file_identity, network, weights_file
+from stereosim.nna.descriptor import file_identity, weights_file
 from stereosim.nna.geometry import macs_per_descriptor, window_rows
 from stereosim.nna.submodule.timing import cycles_per_descriptor
 from stereosim.sim.cycle.plan import ChipPlan, build_plan
@@ -81,8 +81,8 @@ def action_counts(plan: ChipPlan) -> dict[str, dict[str, int]]:
     def accesses(block, attr):
         return sum(n * getattr(buf, attr) for buf in block.buffers)
 
-    requant = (0 if cfg.nna.descriptor == "census"
-               else n * sum(w.shape[0] for w in network(cfg.nna).weights))
+    cnn = plan.spec.nna.cnn
+    requant = 0 if cnn is None else n * sum(w.shape[0] for w in cnn.weights)
     layers = {}
     if len(nna.layers) > 1:  # each layer over its regions, one camera's tiles
         subs = [b for b in plan.blocks_of("nna") if b.side == 0]
@@ -90,7 +90,8 @@ def action_counts(plan: ChipPlan) -> dict[str, dict[str, int]]:
             items = sum(b.layers[i].items for b in subs)
             layers[f"layer{i}"] = {"macs": items * lay.macs_per_pixel,
                                    "requant_multiplies": items * lay.channels_out}
-    per_camera = {"macs": n * macs_per_descriptor(cfg.nna), "requant_multiplies": requant}
+    per_camera = {"macs": n * macs_per_descriptor(plan.spec.nna),
+                  "requant_multiplies": requant}
     if layers:
         per_camera = {k: sum(lay[k] for lay in layers.values()) for k in per_camera}
     return {
@@ -112,8 +113,8 @@ def architecture_report(plan: ChipPlan) -> dict:
     buffers = sram_bits(plan)
     return {
         "descriptor_bits": plan.descriptor_bits,
-        "nna_cycles_per_descriptor": cycles_per_descriptor(plan.cfg.nna),
-        "nna_window_rows": window_rows(plan.cfg.nna),
+        "nna_cycles_per_descriptor": cycles_per_descriptor(plan.spec.nna),
+        "nna_window_rows": window_rows(plan.spec.nna),
         "sram_bits": buffers,
         "sram_bits_total": {
             "nna_per_submodule": sum(v for k, v in buffers.items() if k.startswith("nna.")),

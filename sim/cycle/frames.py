@@ -98,9 +98,10 @@ def camera_frames(supply: FrameSupply, plan) -> FrameSupply:
     return FrameSupply(supply.count * pairs, supply.shape, lambda f: supply.pair(f // pairs))
 
 
-def functional_words(cfg, bits, left: np.ndarray, right: np.ndarray) -> np.ndarray:
+def functional_words(spec, bits, left: np.ndarray, right: np.ndarray) -> np.ndarray:
     """One frame's output words by the functional model (the chip's words: every engine's
     timing is independent of them, and the readable kernel computes the same from the beats
-    it moves)."""
-    desc_l, desc_r = compute_descriptor(left, cfg.nna), compute_descriptor(right, cfg.nna)
-    return sva_stream(desc_l, desc_r, left, cfg.sva, bits)
+    it moves); ``spec`` the run's resolved chip (:class:`~sim.cycle.spec.ChipSpec`, the
+    plan's ``spec``)."""
+    desc_l, desc_r = compute_descriptor(left, spec.nna), compute_descriptor(right, spec.nna)
+    return sva_stream(desc_l, desc_r, left, spec.sva, bits)

@@ -28,17 +28,15 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from functools import cached_property
 
-from stereosim.core.config import AUTO_BUDGET_FACTOR, ChipConfig, check_config
-from stereosim.core.config.widths import largest_cost, weight_sets
+from stereosim.core.config import AUTO_BUDGET_FACTOR, ChipConfig
 from stereosim.core.errors import ConfigError, InputError
 from stereosim.core.timing import BufferPlan, StagePlan
-from stereosim.nna.descriptor import descriptor_parts, network
+from stereosim.nna.descriptor import NnaSpec
 from stereosim.nna.geometry import (
     Tile,
     census_rows,
     check_line_buffer,
     half_window,
-    layer_halves,
     layer_tiles,
     split_frame,
 )
@@ -58,6 +56,7 @@ from stereosim.sim.cycle.rules import (
     sva_first_slot_row,
     sva_frame_ticks,
 )
+from stereosim.sim.cycle.spec import ChipSpec, resolve_chip
 from stereosim.sim.cycle.stages import (
     flush_ii,
     pipeline_ii,
@@ -65,12 +64,7 @@ from stereosim.sim.cycle.stages import (
     slot_ii,
     sva_stages,
 )
-from stereosim.sva.geometry import (
-    box_radius,
-    check_disparity_range,
-    median_radius,
-    output_word_bits,
-)
+from stereosim.sva.geometry import box_radius, check_disparity_range, median_radius
 from stereosim.sva.hamming.noise import band_rows
 
 SIDES = ("left", "right")
@@ -193,30 +187,53 @@ class SignalPlan:
 @dataclass(frozen=True)
 class ChipPlan:
     """The chip of a configuration at a frame size: clock domains, blocks, FIFOs, buffers,
-    signals and the derived constants every engine, the estimate and the reports read."""
+    signals and the derived constants every engine, the estimate and the reports read; the
+    resolved chip it was built from (``spec``, :class:`~sim.cycle.spec.ChipSpec`: the checked
+    configuration, the NNA's network, the SVA's widths), which they read from here."""
 
-    cfg: ChipConfig
+    spec: ChipSpec
     shape: tuple[int, int]
     domains: dict[str, DomainPlan]
     fifos: tuple[FifoPlan, ...]
     blocks: tuple[BlockPlan, ...]
     tiles: tuple[Tile, ...]
     budget: dict[str, int]
-    descriptor_bits: int
     beat_bits: int  # NNA -> SVA beat: the descriptor (+ 8 bits of intensity: adaptive P2, auto)
-    word_bits: int  # SVA output word
     frames: int = 1  # camera frames of the stream (all of ``shape``; every pair's: ``pairs``)
     signals: tuple[SignalPlan, ...] = field(default=())
     dram: DramPlan | None = None  # the DRAM channel (dram.model = "tdm"), else None
     lent: LentPlan | None = None  # the network on the lent NNA submodules (nna.lent_network)
-    # the descriptor's parts in bit order, (kind, bits): one, or the hybrid's CNN and census
-    descriptor_parts: tuple[tuple[str, int], ...] = ()
-    cost_max: int = 0  # the largest matching cost of a pixel (the hybrid: weighted)
+
+    @property
+    def cfg(self) -> ChipConfig:
+        """The checked configuration (the spec's)."""
+        return self.spec.cfg
+
+    @property
+    def descriptor_parts(self) -> tuple[tuple[str, int], ...]:
+        """The descriptor's parts in bit order, (kind, bits): one, or the hybrid's CNN and
+        census parts (:attr:`nna.descriptor.NnaSpec.parts`)."""
+        return self.spec.nna.parts
+
+    @property
+    def descriptor_bits(self) -> int:
+        """Width in bits of the descriptor: the sum of its parts' bits."""
+        return self.spec.nna.bits
 
     @property
     def part_bits(self) -> tuple[int, ...]:
         """Each descriptor part's bits, as the SVA's kernels take them (:mod:`sva.hamming.cost`)."""
-        return tuple(b for _, b in self.descriptor_parts)
+        return self.spec.sva.parts
+
+    @property
+    def word_bits(self) -> int:
+        """Bits of the SVA's output word."""
+        return self.spec.sva.word_bits
+
+    @property
+    def cost_max(self) -> int:
+        """The largest matching cost of a pixel (the hybrid: weighted)."""
+        return self.spec.sva.cost_max
 
     @property
     def hybrid(self) -> bool:
@@ -475,31 +492,31 @@ def expected_frame_s(cfg: ChipConfig, shape: tuple[int, int], freqs: dict[str, f
 # ---- buffers -----------------------------------------------------------------------------------
 
 
-def nna_buffers(cfg: ChipConfig, layers: tuple[LayerPlan, ...]) -> tuple[BufferPlan, ...]:
+def nna_buffers(spec: NnaSpec, layers: tuple[LayerPlan, ...]) -> tuple[BufferPlan, ...]:
     """SRAM of one NNA submodule: its layers' line buffers (:func:`~sim.cycle.stages.
     nna_layers`), the hybrid's census rows beside a network of several layers
     (:func:`~nna.geometry.census_rows`, of layer 0's input width) and the network's weights."""
     out = [lay.buffer for lay in layers]
-    rows = census_rows(cfg.nna)
+    rows = census_rows(spec)
     if rows:
         width = layers[0].buffer.bits // (layers[0].rows * 8)
-        r_c = cfg.nna.census.window[1] // 2
+        r_c = spec.cfg.census.window[1] // 2
         out.append(BufferPlan("nna.census_rows", rows * width * 8,
                               f"{rows} input rows x {width} pixels x 8 bits the census unit "
                               "reads beside the layers (a bank per row: per descriptor the "
                               f"census window's next column, {2 * r_c + 1} reads; per pixel 1 "
                               "write)", rows=rows, banks=rows, word_bits=8,
                               pixel_reads=2 * r_c + 1, pixel_writes=1))
-    if cfg.nna.descriptor in ("cnn", "hybrid"):
-        net = network(cfg.nna)
+    cnn = spec.cnn
+    if cnn is not None:
         shapes = " + ".join(f"{w.shape[2]}x{w.shape[3]}x{w.shape[1]}x{w.shape[0]}"
-                            for w in net.weights)
-        outs = sum(w.shape[0] for w in net.weights)
-        requant = sum(int(m.size) for m in net.mult)
-        out.append(BufferPlan("nna.weights", 8 * sum(net.layer_macs) + 32 * outs
-                              + 2 * net.z_bits * requant,
+                            for w in cnn.weights)
+        outs = sum(w.shape[0] for w in cnn.weights)
+        requant = sum(int(m.size) for m in cnn.mult)
+        out.append(BufferPlan("nna.weights", 8 * sum(spec.layer_macs) + 32 * outs
+                              + 2 * cnn.z_bits * requant,
                               f"{shapes} int8 weights, {outs} int32 biases and {requant} "
-                              f"multiply-shift pairs of {net.z_bits} bits (loaded into the MAC "
+                              f"multiply-shift pairs of {cnn.z_bits} bits (loaded into the MAC "
                               "array's registers once: weight-stationary)"))
     return tuple(out)
 
@@ -547,23 +564,27 @@ def sva_block(cfg: ChipConfig, stages, shape: tuple[int, int], n: int, to_sink,
                      buffers=tuple(b for st in stages for b in st.buffers), stages=stages)
 
 
-def build_plan(cfg: ChipConfig, shape: tuple[int, int], frames: int = 1) -> ChipPlan:
-    """The plan of ``cfg`` for a stream of ``frames`` frames of ``shape`` = (H, W), back to back
-    -- per camera pair: with ``sva.pairs`` = P pairs sharing the chip the stream has P x
-    ``frames`` camera frames, frame f pair f % P's (f // P)-th (``ChipPlan.frames``). Raises
-    ConfigError for a chip that cannot be built (a line buffer smaller than the descriptor
-    window, more tiles than rows or columns, D not below the width) or a stream without
-    frames."""
-    cfg = check_config(cfg)  # a configuration built by hand is checked; a checked one trusted
+def build_plan(chip: ChipSpec | ChipConfig, shape: tuple[int, int], frames: int = 1
+               ) -> ChipPlan:
+    """The plan of ``chip`` for a stream of ``frames`` frames of ``shape`` = (H, W), back to
+    back -- per camera pair: with ``sva.pairs`` = P pairs sharing the chip the stream has P x
+    ``frames`` camera frames, frame f pair f % P's (f // P)-th (``ChipPlan.frames``).
+    ``chip``: the run's :class:`~sim.cycle.spec.ChipSpec` (resolved where it started), or a
+    bare configuration, checked and resolved here once (:func:`~sim.cycle.spec.resolve_chip`).
+    Raises ConfigError for a chip that cannot be built (a line buffer smaller than the
+    descriptor window, more tiles than rows or columns, D not below the width) or a stream
+    without frames."""
+    spec = chip if isinstance(chip, ChipSpec) else resolve_chip(chip)
+    cfg, nna = spec.cfg, spec.nna
     h, w = shape
     if isinstance(frames, bool) or not isinstance(frames, int) or frames < 1:
         raise ConfigError(f"a stream needs at least one frame, got frames={frames!r}")
     n = h * w
     check_frame_size(cfg.source, shape)
-    check_line_buffer(cfg.nna)
+    check_line_buffer(nna)
     check_disparity_range(cfg.sva, w)
     parts = cfg.nna.stereo_submodules // 2
-    tiles = tuple(split_frame(shape, parts, cfg.nna.split, cfg.nna))
+    tiles = tuple(split_frame(shape, parts, cfg.nna.split, nna))
     camera = cfg.source.kind == "camera"
     buffered = camera and cfg.source.frame_buffers > 0
     src_dom = "camera" if camera and not buffered else "nna"
@@ -571,16 +592,13 @@ def build_plan(cfg: ChipConfig, shape: tuple[int, int], frames: int = 1) -> Chip
     if camera:
         freqs["camera"] = cfg.clocks.camera_mhz * 1e6
     domains = {name: DomainPlan(name, f, period_fs(f)) for name, f in freqs.items()}
-    desc_parts = descriptor_parts(cfg.nna)
-    bits = sum(b for _, b in desc_parts)
-    cost_max = largest_cost(tuple(b for _, b in desc_parts), weight_sets(cfg.sva))
+    bits, word_bits = nna.bits, spec.sva.word_bits
     # the left pixel rides with its descriptor where the SVA reads it: the adaptive P2, the
     # hybrid's noise statistic (sva.noise)
-    auto = len(desc_parts) > 1 and cfg.sva.weight_mode == "auto"
+    auto = len(nna.parts) > 1 and cfg.sva.weight_mode == "auto"
     beat_bits = bits + (8 if cfg.sva.p2_adaptive or auto else 0)
-    word_bits = output_word_bits(cfg.sva)
-    cpd = cycles_per_descriptor(cfg.nna)
-    half = half_window(cfg.nna)
+    cpd = cycles_per_descriptor(nna)
+    half = half_window(nna)
     f = cfg.fifo
     fifos: list[FifoPlan] = []
     blocks: list[BlockPlan] = []
@@ -590,10 +608,11 @@ def build_plan(cfg: ChipConfig, shape: tuple[int, int], frames: int = 1) -> Chip
                               f.latency_cycles, f.sync_cycles, beats))
         return name
 
-    tile_layers = [layer_tiles(t, cfg.nna, shape) for t in tiles]
+    tile_layers = [layer_tiles(t, nna, shape) for t in tiles]
     widths = tuple(max(lt[i].in_shape[1] for lt in tile_layers)
                    for i in range(len(tile_layers[0])))
-    layers = [nna_layers(cfg, t, shape, widths) for t in tiles]
+    layers = [nna_layers(nna, t, shape, widths) for t in tiles]
+    buffers = [nna_buffers(nna, lays) for lays in layers]
     for s, side in enumerate(SIDES):
         src = f"camera_{side}" if camera and not buffered else f"memory_{side}"
         subs = [f"nna_{side}" if parts == 1 else f"nna_{side}{t}" for t in range(parts)]
@@ -631,31 +650,28 @@ def build_plan(cfg: ChipConfig, shape: tuple[int, int], frames: int = 1) -> Chip
                 subs[t], "nna", "nna", s, (src_fifos[t],), (sub_outs[t],),
                 f"top.nna.{side}.sub{t}", tile.shape[0] * tile.shape[1], cycles=cpd,
                 tile=tile, half=half, rows=cfg.nna.line_buffer_rows,
-                buffers=nna_buffers(cfg, layers[t]), stages=nna_stages(cfg, layers[t]),
+                buffers=buffers[t], stages=nna_stages(nna, layers[t]),
                 layers=layers[t]))
         if parts > 1:
             blocks.append(BlockPlan(merge, "merge", "nna", s, tuple(sub_outs), (to_sva,),
                                     f"top.nna.{side}.merge", n))
     to_sink = fifo("sva_to_sink", "fifo.sva_to_sink_depth", f.sva_to_sink_depth, word_bits,
                    "sva", "sink", "sva", "sva", n)
-    stages = sva_stages(cfg, w, tuple(b for _, b in desc_parts), word_bits, cost_max)
+    stages = sva_stages(cfg, w, spec.sva.parts, word_bits, spec.sva.cost_max)
     sva_ii = pipeline_ii(stages)
-    blocks.append(sva_block(cfg, stages, (h, w), n, to_sink, len(desc_parts)))
+    blocks.append(sva_block(cfg, stages, (h, w), n, to_sink, len(nna.parts)))
     blocks.append(BlockPlan("sink", "sink", "sva", None, (to_sink,), (), "top.sink", n))
-    lent = lent_plan(cfg, nna_buffers(cfg, layers[0]),
-                     cfg.nna.line_buffer_rows - 2 * layer_halves(cfg.nna)[0] - 1)
+    lent = lent_plan(cfg, buffers[0], cfg.nna.line_buffer_rows - 2 * nna.halves[0] - 1)
     dram = None
     if cfg.dram.model == "tdm":
         dram = dram_plan(cfg, not (camera and not buffered), buffered, beat_bits, word_bits,
                          bits, freqs.get("camera", 0.0), w / (w + cfg.source.camera_hblank),
                          lent.gbps if lent is not None else 0.0)
-    plan = ChipPlan(cfg=cfg, shape=(h, w), domains=domains, fifos=tuple(fifos),
+    plan = ChipPlan(spec=spec, shape=(h, w), domains=domains, fifos=tuple(fifos),
                     blocks=tuple(blocks), tiles=tiles,
                     budget=frame_budget(cfg, shape, freqs, cpd, sva_ii,
                                         frames * cfg.sva.pairs, dram),
-                    descriptor_bits=bits, beat_bits=beat_bits, word_bits=word_bits,
-                    frames=frames * cfg.sva.pairs, dram=dram, lent=lent,
-                    descriptor_parts=desc_parts, cost_max=cost_max)
+                    beat_bits=beat_bits, frames=frames * cfg.sva.pairs, dram=dram, lent=lent)
     object.__setattr__(plan, "signals", tuple(_signals(plan)))
     return plan
 

@@ -9,6 +9,9 @@ Two implementations that must agree bit for bit:
   L1 cache: one row of vertical box sums (slid down a row by adding the entering cost row and
   subtracting the leaving one), one row per SGM top path (updated in place), a few D-vectors.
   Memory grows with W x D, not H x W x D.
+
+Each entry point takes the SVA's section as an :class:`~sva.spec.SvaSpec` (resolved where the
+run started: trusted) or as a raw :class:`~core.config.schema.SvaConfig` (checked on entry).
 """
 
 from __future__ import annotations
@@ -17,7 +20,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from stereosim.core.config import SvaConfig, check_section
+from stereosim.core.config import SvaConfig
 from stereosim.core.errors import InputError
 from stereosim.core.kernel_cache import njit
 from stereosim.quant.vectors import aligned_full
@@ -52,19 +55,21 @@ from stereosim.sva.sgm.sgm import (
     sgm_ref,
     sgm_row_start,
 )
+from stereosim.sva.spec import SvaSpec, sva_config
 from stereosim.sva.wta.wta import disparity_index, subpixel_mode_code, wta, wta_ref, wta_select
 
 
-def check_inputs(desc_l, desc_r, img_l, cfg: SvaConfig, bits) -> SvaConfig:
+def check_inputs(desc_l, desc_r, img_l, cfg: SvaSpec | SvaConfig, bits) -> SvaConfig:
     """The checks of the SVA's entry points before a kernel sees anything: the descriptor pair
     and the left image alike in shape, D below the width, the descriptor's bits (an int, or
     a tuple of its parts' bits: :func:`frame_cost`), and the section's values (returned
-    checked; a section of a checked configuration is trusted)."""
+    checked: an :class:`~sva.spec.SvaSpec`'s, resolved where the run started, is trusted; a raw
+    section is checked here, :func:`~sva.spec.sva_config`)."""
     check_descriptor_pair(desc_l, desc_r)
     h, w = desc_l.shape
     if img_l.shape != (h, w) or img_l.dtype != np.uint8:
         raise InputError(f"the left grey image must be uint8 {h}x{w} like the descriptors")
-    cfg = check_section(cfg, "sva.")
+    cfg = sva_config(cfg)
     check_disparity_range(cfg, w, InputError)
     parts = cost_parts(bits).bits  # one or two parts of 1..64 bits in all
     if 8 * desc_l.dtype.itemsize < sum(parts):
@@ -85,7 +90,7 @@ def frame_cost(bits, cfg: SvaConfig, img_l) -> tuple[CostParts, dict | None]:
     return cost_parts(parts, weights), noise
 
 
-def sva_ref(desc_l, desc_r, img_l, cfg: SvaConfig, bits) -> np.ndarray:
+def sva_ref(desc_l, desc_r, img_l, cfg: SvaSpec | SvaConfig, bits) -> np.ndarray:
     """Output words (H, W) int32 (-1 invalid) from the naive references, stage by stage."""
     cfg = check_inputs(desc_l, desc_r, img_l, cfg, bits)
     cost = hamming_cost_ref(desc_l, desc_r, cfg.disparities, frame_cost(bits, cfg, img_l)[0])
@@ -237,7 +242,7 @@ class SvaStream:
     ``cost`` and ``noise`` hold it from then on.
     """
 
-    def __init__(self, desc_l, desc_r, img_l, cfg: SvaConfig, bits):
+    def __init__(self, desc_l, desc_r, img_l, cfg: SvaSpec | SvaConfig, bits):
         cfg = check_inputs(desc_l, desc_r, img_l, cfg, bits)
         self._bits = bits
         self.cost: CostParts | None = None
@@ -313,7 +318,7 @@ class SvaStream:
         return self.rows_final
 
 
-def sva_frame(desc_l, desc_r, img_l, cfg: SvaConfig, bits) -> SvaStream:
+def sva_frame(desc_l, desc_r, img_l, cfg: SvaSpec | SvaConfig, bits) -> SvaStream:
     """The compiled streaming pipeline run over a whole frame: its ``q`` holds the output words
     (H, W) int32 (-1 invalid), its ``cost`` and ``noise`` the frame's cost."""
     stream = SvaStream(
@@ -324,12 +329,12 @@ def sva_frame(desc_l, desc_r, img_l, cfg: SvaConfig, bits) -> SvaStream:
     return stream
 
 
-def sva_stream(desc_l, desc_r, img_l, cfg: SvaConfig, bits) -> np.ndarray:
+def sva_stream(desc_l, desc_r, img_l, cfg: SvaSpec | SvaConfig, bits) -> np.ndarray:
     """Output words (H, W) int32 (-1 invalid) from the compiled streaming pipeline."""
     return sva_frame(desc_l, desc_r, img_l, cfg, bits).q
 
 
-def sva_cost_volume(cost, img_l, cfg: SvaConfig) -> np.ndarray:
+def sva_cost_volume(cost, img_l, cfg: SvaSpec | SvaConfig) -> np.ndarray:
     """Output words (H, W) int32 (-1 invalid) from a given uint8 cost volume (H, W, D).
 
     The same back end as :func:`sva_stream` -- box filter, SGM, WTA with sub-pixel fit, LR check,
@@ -338,7 +343,7 @@ def sva_cost_volume(cost, img_l, cfg: SvaConfig) -> np.ndarray:
     ``benchmarks/ablation.py``). Given the Hamming volume of two descriptors it equals
     :func:`sva_stream` bit for bit (tested).
     """
-    cfg = check_section(cfg, "sva.")
+    cfg = sva_config(cfg)
     if not isinstance(cost, np.ndarray) or cost.ndim != 3 or cost.dtype != np.uint8:
         raise InputError("the cost volume must be a uint8 array (H, W, D)")
     h, w, dn = cost.shape

@@ -31,7 +31,7 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic, register_jitable
 
-from stereosim.core.config import SvaConfig
+from stereosim.core.config import PATH_BITS_MAX, PENALTY_MAX, SUM_BITS_MAX, SvaConfig
 from stereosim.core.errors import InputError
 from stereosim.core.kernel_cache import njit
 from stereosim.quant.vectors import U16_LANES, VectorCode, aligned_full, contiguous_rows
@@ -499,20 +499,21 @@ def sgm(agg, *, p1, p2, paths, path_bits, sum_bits, img=None, p2_adaptive=False,
     """S (H, W, D) uint16 with the numba row kernel; same arguments as :func:`sgm_ref`.
 
     The uint16 lanes of the kernel bound the registers: path_bits <= 14 (so four paths and the
-    ABSENT sentinel fit), sum_bits <= 16 and P1, P2 < 2^15.
+    ABSENT sentinel fit), sum_bits <= 16 and P1, P2 < 2^15 -- the bounds of the configuration's
+    keys too (:data:`core.config.schema.PATH_BITS_MAX`, ``SUM_BITS_MAX``, ``PENALTY_MAX``).
     """
     if not isinstance(agg, np.ndarray) or agg.ndim != 3 or agg.dtype not in (np.uint8, np.uint16):
         raise InputError("the aggregated volume must be a uint8 or uint16 array (H, W, D)")
     h, w, dn = agg.shape
     if not 1 <= paths <= len(PATHS):
         raise InputError(f"the number of SGM paths must be 1..{len(PATHS)}, got {paths}")
-    if not 1 <= path_bits <= 14:
-        raise InputError(f"the path cost width must be 1..14 bits, got {path_bits}")
-    if not 1 <= sum_bits <= 16:
-        raise InputError(f"the summed cost width must be 1..16 bits, got {sum_bits}")
+    if not 1 <= path_bits <= PATH_BITS_MAX:
+        raise InputError(f"the path cost width must be 1..{PATH_BITS_MAX} bits, got {path_bits}")
+    if not 1 <= sum_bits <= SUM_BITS_MAX:
+        raise InputError(f"the summed cost width must be 1..{SUM_BITS_MAX} bits, got {sum_bits}")
     for name, value in (("P1", p1), ("P2", p2)):
-        if not 0 <= value <= 32767:
-            raise InputError(f"{name} must be in 0..32767, got {value}")
+        if not 0 <= value <= PENALTY_MAX:
+            raise InputError(f"{name} must be in 0..{PENALTY_MAX}, got {value}")
     if p2_slope < 0:
         raise InputError(f"the adaptive P2 slope must be >= 0, got {p2_slope}")
     if img is None:

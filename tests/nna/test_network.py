@@ -12,13 +12,16 @@ from stereosim.core.config import load_config
 from stereosim.core.datasets import find_scene, load_scene, shared_data_dir
 from stereosim.core.errors import ConfigError
 from stereosim.core.io import to_grey
-from stereosim.nna.descriptor import compute_descriptor, descriptor_bits, network
+from stereosim.nna import descriptor as descriptor_module
+from stereosim.nna.descriptor import compute_descriptor, descriptor_bits, resolve_nna
 from stereosim.nna.geometry import half_window, macs_per_descriptor, window_rows
 from stereosim.nna.submodule.timing import cycles_per_descriptor, layer_cycles
 from stereosim.nna.training.trainconfig import VARIANTS
 from stereosim.quant.artifact import load_quantized
 from stereosim.quant.intconv import int_forward, int_forward_ref, signs_ref
 from stereosim.sim.api import run
+from stereosim.sim.cycle.plan import build_plan
+from stereosim.sim.cycle.spec import resolve_chip
 
 MODELS = Path(__file__).resolve().parents[2] / "benchmarks" / "models"
 NETWORKS = ("mccnn4", "mccnn4-slim", "mccnn4-mid", "mixed5x5-wide", "mixed5x5-wide-n6")
@@ -44,16 +47,16 @@ def test_the_artifact_is_the_network_the_nna_runs(name):
     3x3, like 9x9) and MACs per descriptor (sum of K*K*C_in*C_out) as the geometry reports
     them."""
     qm = load_quantized(MODELS / f"{name}.int8.npz")
-    cfg = _cfg(name).nna
-    net = network(cfg)
-    assert net.n_layers == qm.n_layers == len(VARIANTS[qm.variant])
+    spec = resolve_nna(_cfg(name).nna)
+    cnn = spec.cnn
+    assert cnn.n_layers == qm.n_layers == len(VARIANTS[qm.variant])
     assert [w.shape for w in qm.weights] == [(o, i, k, k) for i, o, k in VARIANTS[qm.variant]]
-    assert half_window(cfg) == net.reach == sum(w.shape[2] // 2 for w in qm.weights) == 4
-    assert window_rows(cfg) == 9
+    assert half_window(spec) == cnn.reach == sum(w.shape[2] // 2 for w in qm.weights) == 4
+    assert window_rows(spec) == 9
     macs = sum(int(np.prod(w.shape)) for w in qm.weights)
-    assert macs_per_descriptor(cfg) == macs
-    assert cycles_per_descriptor(cfg) == max(layer_cycles(cfg)) >= -(-macs // cfg.macs)
-    assert descriptor_bits(cfg) == qm.weights[-1].shape[0] == 32
+    assert macs_per_descriptor(spec) == macs
+    assert cycles_per_descriptor(spec) == max(layer_cycles(spec)) >= -(-macs // spec.cfg.macs)
+    assert descriptor_bits(spec) == qm.weights[-1].shape[0] == 32 == spec.bits
 
 
 @pytest.mark.parametrize("name", NETWORKS)
@@ -65,6 +68,7 @@ def test_descriptors_are_the_signs_of_the_integer_network(name, shape):
     ref = int_forward_ref(img, *args)
     assert_array_equal(int_forward(img, *args), ref)
     assert_array_equal(compute_descriptor(img, _cfg(name).nna), signs_ref(ref))
+    assert_array_equal(compute_descriptor(img, resolve_nna(_cfg(name).nna)), signs_ref(ref))
 
 
 @pytest.mark.parametrize("name", NETWORKS)
@@ -82,7 +86,24 @@ def test_cycle_model_equals_the_functional_model(name, over):
 
 def test_a_network_with_other_descriptor_bits_names_the_key_to_set():
     with pytest.raises(ConfigError, match="nna.cnn.channels = 32"):
-        network(_cfg("mccnn4", **{"nna.cnn.channels": 16}).nna)
+        resolve_nna(_cfg("mccnn4", **{"nna.cnn.channels": 16}).nna)
+
+
+def test_the_network_is_read_once_and_handed_down_in_the_plan(monkeypatch):
+    """Resolving the chip reads the weight file once; the plan built from that spec keeps it
+    (its layers, buffers and figures read the spec's network) and reads nothing again."""
+    reads = []
+    read = descriptor_module._read_cnn
+    monkeypatch.setattr(descriptor_module, "_read_cnn", lambda weights: (
+        reads.append(weights), read(weights))[1])
+    cfg = _cfg("mccnn4", **{"sva.disparities": 16, "nna.stereo_submodules": 4})
+    chip = resolve_chip(cfg)
+    assert reads == [cfg.nna.cnn.weights]
+    plan = build_plan(chip, (21, 47))
+    assert reads == [cfg.nna.cnn.weights] and plan.spec is chip and plan.cfg == cfg
+    assert plan.descriptor_parts == chip.nna.parts == (("cnn", 32),)
+    assert [lay.channels_out for lay in plan.block("nna_left0").layers] == [
+        int(w.shape[0]) for w in chip.nna.cnn.weights]
 
 
 @pytest.mark.skipif(DATA is None, reason="shared Middlebury data not found (../shared/data)")

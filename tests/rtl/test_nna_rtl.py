@@ -39,7 +39,7 @@ import dataclasses
 import numpy as np
 
 from stereosim.core.config import load_config
-from stereosim.nna.descriptor import compute_descriptor, network
+from stereosim.nna.descriptor import compute_descriptor
 from stereosim.quant.artifact import QuantizedModel, save_quantized
 from stereosim.quant.intconv import network as int_network
 from stereosim.sim.cycle.plan import build_plan
@@ -135,7 +135,7 @@ def _case(cfg, seed: int, name: str, mutant: bool = False) -> tuple[dict, dict]:
     left, right = _frame(seed)
     plan = build_plan(cfg, left.shape)
     layers = plan.block("nna_left").layers
-    net = network(cfg.nna)
+    net = plan.spec.nna.cnn  # the network the run resolved
     params = {"LAYERS": len(layers), "W": SHAPE[1], "H": SHAPE[0]}
     for i, lay in enumerate(layers):
         assert lay.tile.shape == SHAPE and lay.macs % lay.channels_out == 0, lay

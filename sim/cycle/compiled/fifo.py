@@ -1,7 +1,7 @@
 """The FIFOs on the compiled engine: their occupancy from the push and pop streams of their
-producer and consumer (twin of the readable kernel's :class:`~sim.cycle.readable.fifo.Fifo`,
-:mod:`sim.cycle.readable.fifo`; the rule -- edges, visibility, room -- is the FIFO block's,
-:mod:`sim.cycle.fifo.rule`, and what a FIFO traces :mod:`sim.cycle.fifo.compiled`).
+producer and consumer (its readable twin is the FIFO block's own,
+:class:`~sim.cycle.fifo.readable.Fifo`, beside the rule -- edges, visibility, room --
+:mod:`sim.cycle.fifo.rule`, and what a FIFO traces, :mod:`sim.cycle.fifo.compiled`).
 
 A FIFO has no stream of its own: its items are its producer's pushes and its consumer's pops
 (a tile's FIFO: the pixels of the tile's input region among the source's pushes, or the
@@ -21,8 +21,14 @@ import numpy as np
 
 from stereosim.core.kernel_cache import njit, njit_borrowing
 from stereosim.sim.cycle.compiled.layout import ERR_RING, FIFO_TO_MERGE, FIFO_TO_NNA, INF
-from stereosim.sim.cycle.compiled.ring import at, rd, view
-from stereosim.sim.cycle.fifo.rule import room_from, room_seen_until, seen_from, seen_from_scaled
+from stereosim.sim.cycle.compiled.ring import at, event, ratio, rd, view
+from stereosim.sim.cycle.fifo.rule import (
+    room_from,
+    room_seen_until,
+    seen_from,
+    seen_from_scaled,
+    visible_from,
+)
 
 # ---- items and streams --------------------------------------------------------------------------
 
@@ -257,6 +263,24 @@ def finish_fifos(net, cycles):
 
 
 # ---- at an instant ------------------------------------------------------------------------------
+
+
+@njit(cache=True, inline="always")
+def visible_by(ring, streams, fi, i, c):
+    """Can the consumer of FIFO ``fi`` (its record) pop its item i (the index of its push on
+    the push stream) in its cycle c? False while the push is not known (later than asked)."""
+    e = event(ring, streams[fi.push], i)
+    return e != INF and visible_from(e, fi.per_src, fi.per_dst, ratio(fi.per_src, fi.per_dst),
+                                     fi.data_edges) <= c
+
+
+@njit(cache=True, inline="always")
+def seen_free_by(ring, streams, fi, j, c):
+    """Does the producer of FIFO ``fi`` (its record) see the slot its pop j (the index on the
+    pop stream) frees in its cycle c? False while the pop is not known."""
+    b = event(ring, streams[fi.pop], j)
+    return b != INF and room_from(b, fi.per_src, fi.per_dst, ratio(fi.per_dst, fi.per_src),
+                                  fi.space_edges) <= c
 
 
 class FifoCounts(NamedTuple):

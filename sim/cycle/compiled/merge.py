@@ -12,16 +12,21 @@ off the same events.
 from __future__ import annotations
 
 from stereosim.core.kernel_cache import njit, njit_borrowing
+from stereosim.sim.cycle.compiled.fifo import visible_by
 from stereosim.sim.cycle.compiled.layout import (
     A_BLOCKED,
     A_BUSY,
     A_IDLE,
     A_STARVED,
-    ERR_GAPS,
-    ERR_RING,
-    INF,
 )
-from stereosim.sim.cycle.compiled.ring import busy, event, lt_at, ratio, rd, view
+from stereosim.sim.cycle.compiled.ring import (
+    busy,
+    lt_at,
+    ratio,
+    rd,
+    store_activity,
+    view,
+)
 from stereosim.sim.cycle.fifo.rule import room_from, visible_from
 
 
@@ -116,13 +121,7 @@ def advance_merge(net, side):
         f = net.tiles[side * parts + t].out_fifo
         net.acc[nb + f].empty = tab[t].empty
         net.acc[nb + f].last_pop = tab[t].last_pop
-    acc.starved += starved
-    acc.blocked += blocked
-    acc.last_busy, acc.gaps = last_busy, n_gaps
-    if err:
-        state.error = ERR_RING
-    if n_gaps > gaps.shape[1]:
-        state.error = ERR_GAPS
+    store_activity(acc, state, (starved, blocked, 0), (n_gaps, last_busy), err, gaps.shape[1])
     return m > start
 
 
@@ -146,10 +145,8 @@ def status_merge(ring, streams, cursors, prm, tables, b, c):
         if tl.x0 <= x < tl.x1 and tl.y0 <= y < tl.y1:
             ti = b.side * prm.parts + t
     tl = tiles[ti]
-    e = event(ring, streams[tl.mac_push], fr * tl.n_out + (y - tl.y0) * tl.ow + x - tl.x0)
-    fin = fifos[tl.out_fifo]
-    if e == INF or visible_from(e, fin.per_src, fin.per_dst, ratio(fin.per_src, fin.per_dst),
-                                 fin.data_edges) > c:
+    if not visible_by(ring, streams, fifos[tl.out_fifo],
+                      fr * tl.n_out + (y - tl.y0) * tl.ow + x - tl.x0, c):
         return A_STARVED, tl.out_fifo
     return A_BLOCKED, b.fifo_out
 

@@ -38,19 +38,19 @@ from stereosim.sim.cycle.compiled.layout import (
     A_BUSY,
     A_IDLE,
     A_STARVED,
-    ERR_GAPS,
     ERR_RING,
     INF,
 )
 from stereosim.sim.cycle.compiled.ring import (
     BusyWatch,
     busy,
-    catch_up,
     event,
     lt_at,
+    note_wait,
     pops_in,
     ratio,
     rd,
+    store_activity,
     view,
 )
 from stereosim.sim.cycle.fifo.rule import room_from, visible_from
@@ -419,7 +419,7 @@ def walk_nna(net, ti, final):
     blk = tl.block
     a = net.acc[blk]
     b_off, b_mask, nb, b_lo = view(net.streams, tl.line_pop)
-    b_pops = (b_off, b_mask, nb)
+    b_pops = (b_off, b_mask, nb, b_lo + 1)
     e_off, e_mask, ne, e_lo = view(net.streams, tl.mac_push)
     lr = net.layers[tl.layer0]
     cpd, half, h, g = lr.cpd, lr.half, prm.h, prm.watchdog_fs
@@ -450,15 +450,14 @@ def walk_nna(net, ti, final):
         done = mac_done(s_j, cpd)
         if j >= ne:
             if final:
-                ptr, lost = catch_up(ring, b_off, b_mask, ptr, b_lo + 1, prev + 1)
+                ptr, _, lost, watch = note_wait(ring, b_pops, ptr, prev, s_j, gaps,
+                                                BusyWatch(blk, n_gaps, last_busy, per, g))
                 err |= lost
-                long = s_j == INF or (s_j - prev) * per > g
-                ptr, _, n_gaps, last_busy = pops_in(ring, b_pops, ptr, prev + 1, s_j, long, gaps,
-                                                     BusyWatch(blk, n_gaps, last_busy, per, g))
+                n_gaps, last_busy = watch.n_gaps, watch.last_busy_fs
                 if s_j < INF:
                     n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy, s_j * per,
                                               done * per, g)
-                    _, _, n_gaps, last_busy = pops_in(ring, b_pops, ptr, done + 1, INF,
+                    _, _, n_gaps, last_busy = pops_in(ring, (b_off, b_mask, nb), ptr, done + 1, INF,
                                                        np.bool_(True), gaps,
                                                        BusyWatch(blk, n_gaps, last_busy, per, g))
             break
@@ -466,21 +465,19 @@ def walk_nna(net, ti, final):
         if e > known_until:
             break  # a pop before e may still come
         if s_j > prev + 1:  # waiting for the row's input (phase 0)
-            ptr, lost = catch_up(ring, b_off, b_mask, ptr, b_lo + 1, prev + 1)
+            ptr, waited, lost, watch = note_wait(ring, b_pops, ptr, prev, s_j, gaps,
+                                                 BusyWatch(blk, n_gaps, last_busy, per, g))
             err |= lost
-            long = (s_j - prev) * per > g
-            ptr, cnt, n_gaps, last_busy = pops_in(ring, b_pops, ptr, prev + 1, s_j, long, gaps,
-                                                   BusyWatch(blk, n_gaps, last_busy, per, g))
-            starved += s_j - prev - 1 - cnt
-            n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy, s_j * per, done * per, g)
+            starved += waited
+            n_gaps, last_busy = busy(gaps, blk, watch.n_gaps, watch.last_busy_fs, s_j * per,
+                                     done * per, g)
         if e > done + 1:  # the finished descriptor held for a free slot
-            ptr, lost = catch_up(ring, b_off, b_mask, ptr, b_lo + 1, done + 1)
+            ptr, waited, lost, watch = note_wait(ring, b_pops, ptr, done, e, gaps,
+                                                 BusyWatch(blk, n_gaps, last_busy, per, g))
             err |= lost
-            long = (e - done) * per > g
-            ptr, cnt, n_gaps, last_busy = pops_in(ring, b_pops, ptr, done + 1, e, long, gaps,
-                                                   BusyWatch(blk, n_gaps, last_busy, per, g))
-            blocked += e - done - 1 - cnt
-            n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy, e * per, e * per, g)
+            blocked += waited
+            n_gaps, last_busy = busy(gaps, blk, watch.n_gaps, watch.last_busy_fs, e * per,
+                                     e * per, g)
         last_busy = e * per  # busy through its MAC cycles and its push
         prev = e
         j += 1
@@ -489,13 +486,8 @@ def walk_nna(net, ti, final):
             c = 0
             r += 1
     a.walk, a.ptr, a.prev = j, ptr, prev
-    a.starved += starved
-    a.blocked += blocked
-    a.last_busy, a.gaps = last_busy, n_gaps
-    if err:
-        state.error = ERR_RING
-    if n_gaps > gaps.shape[1]:
-        state.error = ERR_GAPS
+    store_activity(a, state, (starved, blocked, 0), (n_gaps, last_busy), err,
+                   gaps.shape[1])
 
 
 
@@ -633,12 +625,7 @@ def walk_layers(net, ti, final):
             n_blocked += cover[1, i]
             if n_busy > 0:
                 t = (c0 + i) * per
-                if t - last_busy > g:
-                    if n_gaps < gaps.shape[1]:
-                        gaps[blk, n_gaps, 0] = last_busy
-                        gaps[blk, n_gaps, 1] = t
-                    n_gaps += 1
-                last_busy = t
+                n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy, t, t, g)
             elif n_blocked > 0:
                 blocked += 1
             else:
@@ -646,13 +633,8 @@ def walk_layers(net, ti, final):
         c0 = c1
     a.walk = max(a.walk, c0)
     a.ptr = ptr
-    a.starved += starved
-    a.blocked += blocked
-    a.last_busy, a.gaps = last_busy, n_gaps
-    if err:
-        state.error = ERR_RING
-    if n_gaps > gaps.shape[1]:
-        state.error = ERR_GAPS
+    store_activity(a, state, (starved, blocked, 0), (n_gaps, last_busy), err,
+                   gaps.shape[1])
 
 
 # ---- at an instant ------------------------------------------------------------------------------

@@ -206,7 +206,7 @@ def _compile_descriptors(plan: ChipPlan) -> None:
     leaves the kernels to the run."""
     view = _stand_in_view(plan, np.random.default_rng(0))
     with contextlib.suppress(UserError, ValueError):
-        compute_descriptor(view, plan.cfg.nna)
+        compute_descriptor(view, plan.spec.nna)
 
 
 def _compile_sva_stream(plan: ChipPlan) -> None:
@@ -217,7 +217,7 @@ def _compile_sva_stream(plan: ChipPlan) -> None:
     top = 1 << plan.descriptor_bits
     desc_l, desc_r = (rng.integers(0, top, left.shape, dtype=np.uint64).astype(dtype)
                       for _ in range(2))
-    sva_stream(desc_l, desc_r, left, plan.cfg.sva, plan.part_bits)
+    sva_stream(desc_l, desc_r, left, plan.spec.sva, plan.part_bits)
 
 
 def _helper_main() -> None:

@@ -11,7 +11,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 from stereosim.core.kernel_cache import njit
-from stereosim.sim.cycle.compiled.layout import INF, SVA_ISSUE
+from stereosim.sim.cycle.compiled.layout import ERR_GAPS, ERR_RING, INF, SVA_ISSUE
 
 NEVER = -(1 << 40)  # the previous issue tick before the SVA's first word
 
@@ -131,6 +131,43 @@ def pops_in(ring, pops, ptr, lo, hi, long, gaps, watch):
     else:
         ptr = skip(ring, off, mask, ptr, limit, hi)
     return ptr, ptr - first, n_gaps, last_busy
+
+
+@njit(cache=True, inline="always")
+def note_wait(ring, pops, ptr, last, hi, gaps, watch):
+    """A block's wait over its cycles last + 1 .. hi - 1, after its busy cycle ``last`` (for
+    its input or for a free slot): a cycle of it with a pop is busy, the others are the wait's
+    (starved or blocked). The pops are the block's busy instants; they are noted
+    (:func:`pops_in`) only when the wait reaches further than the watchdog's time past the
+    last busy instant -- else none of them can end a long gap, nor can the wait's end. ``pops``
+    = (ring offset, mask, known events, the lowest index the ring holds) of the pop stream,
+    ``ptr`` the first pop not counted, ``watch`` a :class:`BusyWatch`. Returns (pointer past
+    the wait's pops, cycles waited, whether the ring lost pops, the watch after them)."""
+    off, mask, limit, lowest = pops
+    ptr, lost = catch_up(ring, off, mask, ptr, lowest, last + 1)
+    per, g = watch.period_fs, watch.watchdog_fs
+    long = hi >= INF or hi * per - watch.last_busy_fs > g
+    ptr, cnt, n_gaps, last_busy = pops_in(ring, (off, mask, limit), ptr, last + 1, hi, long,
+                                          gaps, watch)
+    return ptr, hi - last - 1 - cnt, lost, BusyWatch(watch.block, n_gaps, last_busy, per, g)
+
+
+@njit(cache=True, inline="always")
+def store_activity(acc, state, waits, noted, err, room):
+    """Add a pass of a block's walker to its statistics ``acc``: ``waits`` = (cycles starved,
+    blocked, of those waiting for the DRAM channel), ``noted`` = (long gaps noted, last busy
+    instant) (:func:`busy`); a ring that lost events (``err``) or more gaps than the ``room``
+    kept is the run's error (``state``)."""
+    starved, blocked, dram = waits
+    n_gaps, last_busy = noted
+    acc.starved += starved
+    acc.blocked += blocked
+    acc.dram += dram
+    acc.last_busy, acc.gaps = last_busy, n_gaps
+    if err:
+        state.error = ERR_RING
+    if n_gaps > room:
+        state.error = ERR_GAPS
 
 
 # ---- what the samplers share: the events up to an instant ---------------------------------------

@@ -61,7 +61,6 @@ from stereosim.sim.cycle.contract import (
     activity_counts,
     budget_message,
     count_instants,
-    fifo_counts,
     frame_buffer_message,
     overflow_message,
     stop_message,
@@ -69,6 +68,7 @@ from stereosim.sim.cycle.contract import (
     trace_signals,
     watchdog_message,
 )
+from stereosim.sim.cycle.fifo.counts import fifo_counts
 from stereosim.sim.cycle.fifo.rule import seen_from
 from stereosim.sim.cycle.frames import FrameSupply, camera_frames
 from stereosim.sim.cycle.plan import ChipPlan
@@ -499,9 +499,10 @@ def _stop_trace(plan: ChipPlan, sink_stall, window: tuple[int, int], supply, net
             words.append(np.zeros((h, w), np.int32))
             continue
         left_f, right_f = supply.pair(src)
-        desc = (compute_descriptor(left_f, plan.cfg.nna), compute_descriptor(right_f, plan.cfg.nna))
+        desc = (compute_descriptor(left_f, plan.spec.nna),
+                compute_descriptor(right_f, plan.spec.nna))
         descs.append(np.stack(desc).astype(np.uint64))
-        words.append(sva_stream(desc[0], desc[1], left_f, plan.cfg.sva, plan.part_bits))
+        words.append(sva_stream(desc[0], desc[1], left_f, plan.spec.sva, plan.part_bits))
     data = _trace_data(plan, descs, words, traced.start)
     return _trace(plan, sink_stall, window, stop.time_fs, data)
 
@@ -565,9 +566,10 @@ def run_compiled(plan: ChipPlan, left, right=None, *, sink_stall=None,
             continue
         left_f, right_f = supply.pair(int(frame_fs[2, f]))
         ta = time.process_time()
-        desc = (compute_descriptor(left_f, plan.cfg.nna), compute_descriptor(right_f, plan.cfg.nna))
+        desc = (compute_descriptor(left_f, plan.spec.nna),
+                compute_descriptor(right_f, plan.spec.nna))
         tb = time.process_time()
-        last = sva_stream(desc[0], desc[1], left_f, plan.cfg.sva, plan.part_bits)
+        last = sva_stream(desc[0], desc[1], left_f, plan.spec.sva, plan.part_bits)
         nna_s += tb - ta
         sva_s += time.process_time() - tb
         if f in traced:

@@ -19,15 +19,20 @@ from typing import NamedTuple
 import numpy as np
 
 from stereosim.core.kernel_cache import njit
+from stereosim.sim.cycle.compiled.fifo import visible_by
 from stereosim.sim.cycle.compiled.layout import (
     A_BLOCKED,
     A_BUSY,
     A_IDLE,
     A_STARVED,
-    ERR_GAPS,
-    ERR_RING,
 )
-from stereosim.sim.cycle.compiled.ring import busy, event, lt_at, ratio, rd, view
+from stereosim.sim.cycle.compiled.ring import (
+    busy,
+    lt_at,
+    rd,
+    store_activity,
+    view,
+)
 from stereosim.sim.cycle.compiled.source import DRAM
 from stereosim.sim.cycle.fifo.rule import visible_from
 from stereosim.sim.cycle.rules import (
@@ -191,17 +196,12 @@ def pops_end(net, k, cur):
     ids = net.ids[0]
     net.streams[ids.sink_pop].count = cur.pops
     net.streams[ids.dram_write].count = cur.bursts
-    acc = net.acc[k.block]
-    acc.blocked += cur.dram_wait
-    acc.dram += cur.dram_wait
     if cur.first >= 0:
         state.first_pop = cur.first
-    acc.last_busy, acc.gaps = cur.last_busy_fs, cur.n_gaps
     net.acc[len(net.blocks) + ids.fifo_sink].empty += cur.empty
-    if cur.ring_error:
-        state.error = ERR_RING
-    if cur.n_gaps > net.gaps.shape[1]:
-        state.error = ERR_GAPS
+    # (the sink waits only for the write buffer: blocked)
+    store_activity(net.acc[k.block], state, (0, cur.dram_wait, cur.dram_wait),
+                   (cur.n_gaps, cur.last_busy_fs), cur.ring_error, net.gaps.shape[1])
 
 
 # ---- at an instant ------------------------------------------------------------------------------
@@ -212,7 +212,7 @@ def status_sink(ring, streams, cursors, prm, tables, b, c):
     """(activity, FIFO waited on, DRAM or -1) the sink ``b`` (its record) reports in its cycle
     c (the readable ``Sink.evaluate``)."""
     fifos, ids, allowed = tables.fifos, tables.ids, tables.sink
-    q_s, o_s = ids.sink_pop, ids.sva_push
+    q_s = ids.sink_pop
     received, at_c = lt_at(ring, streams[q_s], cursors[q_s], c)
     if received >= prm.frames * prm.n:
         return A_IDLE, -1
@@ -220,11 +220,9 @@ def status_sink(ring, streams, cursors, prm, tables, b, c):
         return A_IDLE, -1
     if at_c:
         return A_BUSY, -1
-    if prm.dram == 1 and received < streams[o_s].count:  # its word is visible: the write
-        fi = fifos[b.fifo_in]  # buffer is full
-        if visible_from(event(ring, streams[o_s], received), fi.per_src, fi.per_dst,
-                        ratio(fi.per_src, fi.per_dst), fi.data_edges) <= c:
-            return A_BLOCKED, DRAM
+    # its word is visible: the write buffer is full
+    if prm.dram == 1 and visible_by(ring, streams, fifos[b.fifo_in], received, c):
+        return A_BLOCKED, DRAM
     return A_STARVED, b.fifo_in
 
 

@@ -12,6 +12,10 @@ stream of frames) to every tile that takes it, in one joint push:
   memory_first_cycle(k), free(b_t[i - depth]) per tile t)``;
 - camera: ``a[k] = camera_cycle(x, y)``, an overflow if a tile's slot is not free by then.
 
+Two loops push: :func:`advance_source` (every tile of a side) and :func:`whole_pushes` (a camera
+served by one submodule, in turn with its line buffer's pops); a memory source's pixel is the
+same step in both (:func:`memory_pixel`, then :func:`store_push`).
+
 Here also: which camera frame the stream's g-th frame is (:func:`decide_frame`), the DRAM
 channel's read bursts (``DRAM_READ``, :func:`dram_ready`), the sources' statistics (blocked
 while a FIFO is full, starved waiting for a camera or the channel, busy otherwise), a camera's
@@ -24,19 +28,26 @@ from __future__ import annotations
 from typing import NamedTuple
 
 from stereosim.core.kernel_cache import njit, njit_borrowing
+from stereosim.sim.cycle.compiled.fifo import seen_free_by
 from stereosim.sim.cycle.compiled.layout import (
     A_BLOCKED,
     A_BUSY,
     A_IDLE,
     A_STARVED,
     END_OVERFLOW,
-    ERR_GAPS,
-    ERR_RING,
     INF,
     K_CAMERA,
     K_MEMORY,
 )
-from stereosim.sim.cycle.compiled.ring import busy, event, lt_at, ratio, rd, view
+from stereosim.sim.cycle.compiled.ring import (
+    busy,
+    event,
+    lt_at,
+    ratio,
+    rd,
+    store_activity,
+    view,
+)
 from stereosim.sim.cycle.fifo.rule import room_from, seen_from, seen_from_scaled
 from stereosim.sim.cycle.rules import (
     burst_last,
@@ -252,45 +263,143 @@ def _tiles_free(ring, tab, fno, x, y, rat, camera, c):
     return free, True, err, full_tile
 
 
+class SourcePush(NamedTuple):
+    """The constants of a source's pushes (:func:`memory_pixel`, :func:`store_push`): its ring
+    (offset, mask), side, block and clock period (fs), the camera's clock over it (frame
+    buffers), whether it reads a camera's frame buffers or through the DRAM channel, its token
+    bucket (memory clock Hz, bytes/s), the cap and the watchdog's time (fs), whether statistics
+    are kept, a frame's columns and rows, and the frame buffers."""
+
+    ring_off: int
+    ring_mask: int
+    side: int
+    block: int
+    period: int
+    rat_cam: float
+    reads: bool
+    mem_hz: float
+    mem_bps: float
+    cap_fs: int
+    watchdog_fs: int
+    stats: int
+    w: int
+    h: int
+    fb: int
+
+
+class SourceTally(NamedTuple):
+    """A source's statistics over a pass: cycles blocked (a FIFO full), starved (waiting for a
+    camera or the DRAM channel), the DRAM channel's share of the waits, the long gaps noted
+    (:func:`~.ring.busy`), its last busy instant (fs), a ring error."""
+
+    blocked: int
+    starved: int
+    dram_wait: int
+    n_gaps: int
+    last_busy_fs: int
+    ring_error: bool
+
+
+@njit(cache=True, inline="always")
+def source_push(net, side):
+    """The :class:`SourcePush` of camera ``side``'s source and its :class:`SourceTally` so
+    far."""
+    prm = net.prm[0]
+    st = net.streams[net.tiles[side * prm.parts].source_push]
+    acc = net.acc[st.block]
+    sp = SourcePush(
+        ring_off=st.off, ring_mask=st.mask, side=side, block=st.block, period=st.period,
+        rat_cam=ratio(prm.per_cam, st.period) if prm.fb > 0 else 1.0,
+        reads=prm.fb > 0 or prm.dram == 1, mem_hz=prm.mem_hz, mem_bps=prm.mem_bps,
+        cap_fs=prm.cap_fs, watchdog_fs=prm.watchdog_fs, stats=prm.stats, w=prm.w, h=prm.h,
+        fb=prm.fb)
+    return sp, SourceTally(blocked=0, starved=0, dram_wait=0, n_gaps=acc.gaps,
+                           last_busy_fs=acc.last_busy, ring_error=False)
+
+
+@njit(cache=True, inline="always")
+def frame_taken(net, sp, pixel):
+    """False when pixel = (column, row, frame of the stream) starts a frame that a memory source
+    reading a camera's frame buffers cannot take yet: which camera frame it is is not decided
+    (:func:`decide_frame`; or the run stops there)."""
+    x, y, f = pixel
+    if sp.fb > 0 and x == 0 and y == 0 and f >= net.state[0].fb_taken:
+        return decide_frame(net, f, net.acc[sp.block], sp.cap_fs) == 1
+    return True
+
+
+@njit(cache=True, inline="always")
+def memory_pixel(net, sp, k, a_prev, free, tally):
+    """(a, tally): the cycle ``a`` memory source ``sp`` (a :class:`SourcePush`) pushes pixel k
+    after its push ``a_prev`` once every slot it needs is free (``free``), the readable
+    ``MemorySource.evaluate`` (:func:`reader_first`, :func:`memory_push`), and its
+    :class:`SourceTally` with that push (:func:`note_memory_push`); a = -1: not now (a push its
+    read burst needs is not known, or the push is beyond the cap)."""
+    first = a_prev + 1
+    d_wait, err = tally.dram_wait, tally.ring_error
+    if sp.reads:  # frame buffers or the DRAM channel (the Net only on that path)
+        first, wait, ok, bad = reader_first(net, k, sp.side, a_prev, sp.period, sp.rat_cam)
+        err |= bad
+        d_wait += wait
+        if not ok:
+            return -1, SourceTally(tally.blocked, tally.starved, d_wait, tally.n_gaps,
+                                   tally.last_busy_fs, err)
+    lo, a = memory_push(k, first, free, (sp.mem_hz, sp.mem_bps))
+    if a * sp.period >= sp.cap_fs:
+        return -1, SourceTally(tally.blocked, tally.starved, d_wait, tally.n_gaps,
+                               tally.last_busy_fs, err)
+    if sp.stats != 1:
+        return a, SourceTally(tally.blocked, tally.starved, d_wait, tally.n_gaps,
+                              tally.last_busy_fs, err)
+    starved, blocked, n_gaps, last_busy = note_memory_push(
+        net.gaps, sp.block, (tally.n_gaps, tally.last_busy_fs), a_prev, first, lo, a,
+        (sp.period, sp.watchdog_fs))
+    return a, SourceTally(tally.blocked + blocked, tally.starved + starved, d_wait, n_gaps,
+                          last_busy, err)
+
+
+@njit(cache=True, inline="always")
+def store_push(net, sp, k, a, pixel):
+    """Source ``sp`` pushes pixel k, at pixel = (column, row, frame of the stream), in cycle a:
+    its ring, the frame's first push (frames from memory or a camera; side 0 stands for the
+    stream) or, reading a camera's frame buffers, its last (the reader is done with the
+    frame's buffer)."""
+    net.ring[sp.ring_off + (k & sp.ring_mask)] = a
+    x, y, f = pixel
+    if sp.fb == 0:
+        if sp.side == 0 and x == 0 and y == 0:
+            net.frame_fs[0, f] = a * sp.period
+    elif x == sp.w - 1 and y == sp.h - 1:
+        net.fbuf[1, f] = a * sp.period
+
+
 @njit_borrowing(cache=True)
 def advance_source(net, side):
     """Source pushes of camera ``side`` to its tiles (a joint push to every tile that takes the
     pixel), as far as their line buffers' pops allow."""
     prm = net.prm[0]
     state = net.state[0]
-    ring, streams, gaps = net.ring, net.streams, net.gaps
-    a_s = net.tiles[side * prm.parts].source_push
-    a_off, a_mask, k, _ = view(streams, a_s)
-    st = streams[a_s]
+    ring, streams = net.ring, net.streams
+    sp, tally = source_push(net, side)
+    st = streams[net.tiles[side * prm.parts].source_push]
+    k = st.count
     n, w, h, per, cap = st.n, prm.w, prm.h, st.period, prm.cap_fs
-    parts, camera, stats, g = prm.parts, prm.camera, prm.stats, prm.watchdog_fs
+    parts, camera = prm.parts, prm.camera
     line_clocks, frame_clocks = prm.line_clocks, prm.frame_clocks
-    bucket = (prm.mem_hz, prm.mem_bps)
-    frame_in = net.frame_fs[0]
-    blk = st.block
-    acc = net.acc[blk]
-    last_busy, n_gaps = acc.last_busy, acc.gaps
     tab = net.scratch
     _source_tables(net.tiles, net.fifos, streams, side, parts, tab)
     rat = ratio(tab[0].per_dst, tab[0].per_src)
-    blocked = 0
     err = False
     start = k
-    a_prev = rd(ring, a_off, a_mask, k - 1) if k > 0 else -1
+    a_prev = rd(ring, sp.ring_off, sp.ring_mask, k - 1) if k > 0 else -1
     full_tile = -1
     y = k // w  # row of frame fno
     x = k - y * w
     fno = y // h
     y -= fno * h
-    fb = prm.fb
-    rat_cam = ratio(prm.per_cam, per) if fb > 0 else 1.0
-    reads = fb > 0 or prm.dram == 1
-    starved = 0
-    d_wait = 0
     while k < n:
-        if fb > 0 and x == 0 and y == 0 and fno >= state.fb_taken:  # a camera's next frame
-            if decide_frame(net, fno, acc, prm.cap_fs) != 1:
-                break
+        if not frame_taken(net, sp, (x, y, fno)):
+            break
         c = camera_cycle(fno, x, y, line_clocks, frame_clocks, prm.pairs)
         free, ok, bad, full = _tiles_free(ring, tab, fno, x, y, rat, camera, c)
         err |= bad
@@ -306,26 +415,10 @@ def advance_source(net, side):
             if full_tile >= 0:
                 break
         else:
-            first = a_prev + 1
-            if reads:  # frame buffers or the DRAM channel (the Net only on that path)
-                first, wait, ok, bad = reader_first(net, k, side, a_prev, per, rat_cam)
-                err |= bad
-                if not ok:
-                    break
-                d_wait += wait
-            lo, a = memory_push(k, first, free, bucket)
-            if a * per >= cap:
+            a, tally = memory_pixel(net, sp, k, a_prev, free, tally)
+            if a < 0:
                 break
-            if stats == 1:
-                more_starved, more_blocked, n_gaps, last_busy = note_memory_push(
-                    gaps, blk, (n_gaps, last_busy), a_prev, first, lo, a, (per, g))
-                starved += more_starved
-                blocked += more_blocked
-        ring[a_off + (k & a_mask)] = a
-        if side == 0 and x == 0 and y == 0 and fb == 0:
-            frame_in[fno] = a * per
-        if fb > 0 and x == w - 1 and y == h - 1:
-            net.fbuf[1, fno] = a * per  # the reader is done with this frame's buffer
+        store_push(net, sp, k, a, (x, y, fno))
         a_prev = a
         k += 1
         x += 1
@@ -336,19 +429,15 @@ def advance_source(net, side):
                 y = 0
                 fno += 1
     st.count = k
-    acc.blocked += blocked
-    acc.starved += starved
-    acc.dram += d_wait
-    acc.last_busy, acc.gaps = last_busy, n_gaps
+    store_activity(net.acc[sp.block], state, (tally.starved, tally.blocked, tally.dram_wait),
+                   (tally.n_gaps, tally.last_busy_fs), tally.ring_error or err,
+                   net.gaps.shape[1])
     if full_tile >= 0:
+        acc = net.acc[sp.block]
         acc.over_cycle, acc.over_k, acc.over_tile = (
             camera_cycle(fno, x, y, line_clocks, frame_clocks, prm.pairs), k,
             side * parts + full_tile)
         state.end = END_OVERFLOW
-    if err:
-        state.error = ERR_RING
-    if n_gaps > gaps.shape[1]:
-        state.error = ERR_GAPS
     return k > start
 
 
@@ -357,42 +446,31 @@ def advance_source(net, side):
 
 class WholeSource(NamedTuple):
     """The constants of :func:`whole_pushes`' loop (a camera served by one submodule): the
-    rings of its pushes and of its line buffer's pops, its FIFO (depth, space edges), the
-    clock periods either side (fs) and their ratio, the stream's pushes, its block and side,
-    and the camera's clock over the source's (frame buffers)."""
+    source's pushes (a :class:`SourcePush`), the ring of its line buffer's pops, its FIFO
+    (depth, space edges), the NNA's clock period (fs) and its ratio to the source's, the
+    stream's pushes."""
 
-    push_off: int
-    push_mask: int
+    push: SourcePush
     pop_off: int
     pop_mask: int
     depth: int
     space_edges: int
-    per_src: int
     per_nna: int
     rat_back: float  # per_nna / per_src (room_from's ratio)
     n: int
-    block: int
-    side: int
-    rat_cam: float
 
 
 class SourceCursor(NamedTuple):
     """Where :func:`whole_pushes` stands: the pushes known, the last push (cycle), the next
-    pixel's column, row over the stream and frame, the statistics so far (cycles blocked,
-    starved, waiting for DRAM; long gaps noted, the last busy instant), a ring error and an
-    overflow."""
+    pixel's column, row of its frame and frame of the stream, the statistics so far (a
+    :class:`SourceTally`) and an overflow."""
 
     pushes: int
     last_push: int
     x: int
     row: int
     frame: int
-    blocked: int
-    starved: int
-    dram_wait: int
-    n_gaps: int
-    last_busy_fs: int
-    ring_error: bool
+    tally: SourceTally
     overflow: bool
 
 
@@ -402,23 +480,19 @@ def whole_pushes_begin(net, side):
     its loop (a :class:`WholeSource`) and its cursor (a :class:`SourceCursor`)."""
     prm = net.prm[0]
     tl = net.tiles[side]
-    a_off, a_mask, ka, _ = view(net.streams, tl.source_push)
+    sp, tally = source_push(net, side)
     b_off, b_mask, _, _ = view(net.streams, tl.line_pop)
     sa = net.streams[tl.source_push]
     f = net.fifos[tl.src_fifo]
-    p_src, p_nna = f.per_src, f.per_dst
-    acc = net.acc[sa.block]
     k = WholeSource(
-        push_off=a_off, push_mask=a_mask, pop_off=b_off, pop_mask=b_mask, depth=f.depth,
-        space_edges=f.space_edges, per_src=p_src, per_nna=p_nna, rat_back=ratio(p_nna, p_src),
-        n=sa.n, block=sa.block, side=side,
-        rat_cam=ratio(prm.per_cam, p_src) if prm.fb > 0 else 1.0)
-    a_prev = rd(net.ring, a_off, a_mask, ka - 1) if ka > 0 else -1
+        push=sp, pop_off=b_off, pop_mask=b_mask, depth=f.depth, space_edges=f.space_edges,
+        per_nna=f.per_dst, rat_back=ratio(f.per_dst, f.per_src), n=sa.n)
+    ka = sa.count
+    a_prev = rd(net.ring, sp.ring_off, sp.ring_mask, ka - 1) if ka > 0 else -1
     ya = ka // prm.w  # rows over the stream
-    cur = SourceCursor(
-        pushes=ka, last_push=a_prev, x=ka % prm.w, row=ya, frame=ya // prm.h, blocked=0,
-        starved=0, dram_wait=0, n_gaps=acc.gaps, last_busy_fs=acc.last_busy,
-        ring_error=False, overflow=False)
+    fa = ya // prm.h
+    cur = SourceCursor(pushes=ka, last_push=a_prev, x=ka % prm.w, row=ya - fa * prm.h, frame=fa,
+                       tally=tally, overflow=False)
     return k, cur
 
 
@@ -428,26 +502,21 @@ def whole_pushes(net, k, cur, kb):
     buffer's pops known), from the :class:`SourceCursor` ``cur`` with the constants ``k`` (a
     :class:`WholeSource`). Returns (cursor, moved)."""
     prm = net.prm[0]
-    state = net.state[0]
-    ring, gaps = net.ring, net.gaps
-    a_off, a_mask, b_off, b_mask = k.push_off, k.push_mask, k.pop_off, k.pop_mask
-    depth, se, n, blk, side = k.depth, k.space_edges, k.n, k.block, k.side
-    p_src, p_nna, rat_back, rat_cam = k.per_src, k.per_nna, k.rat_back, k.rat_cam
+    ring = net.ring
+    sp = k.push
+    b_off, b_mask, depth, se, n = k.pop_off, k.pop_mask, k.depth, k.space_edges, k.n
+    p_src, p_nna, rat_back = sp.period, k.per_nna, k.rat_back
     ka, a_prev, xa, ya, fa = cur.pushes, cur.last_push, cur.x, cur.row, cur.frame
-    blocked, starved, d_wait = cur.blocked, cur.starved, cur.dram_wait
-    n_gaps, last_busy, err, over = cur.n_gaps, cur.last_busy_fs, cur.ring_error, cur.overflow
-    w, h, cap, camera, fb = prm.w, prm.h, prm.cap_fs, prm.camera, prm.fb
-    reads = fb > 0 or prm.dram == 1
+    tally, over = cur.tally, cur.overflow
+    w, h, cap, camera = prm.w, prm.h, prm.cap_fs, prm.camera
     line_clocks, frame_clocks, pairs = prm.line_clocks, prm.frame_clocks, prm.pairs
-    stats, clock = prm.stats, (p_src, prm.watchdog_fs)
-    bucket = (prm.mem_hz, prm.mem_bps)
     moved = False
     while ka < n and ka - depth < kb:
         free = 0
         if ka >= depth:
             free = room_from(rd(ring, b_off, b_mask, ka - depth), p_src, p_nna, rat_back, se)
         if camera == 1:
-            c = camera_cycle(fa, xa, ya - fa * h, line_clocks, frame_clocks, pairs)
+            c = camera_cycle(fa, xa, ya, line_clocks, frame_clocks, pairs)
             if c * p_src >= cap:
                 break
             if free > c:
@@ -455,31 +524,12 @@ def whole_pushes(net, k, cur, kb):
                 break
             a = c
         else:
-            # from a camera's frame buffer: decided at each frame's start
-            if fb > 0 and xa == 0 and ya == fa * h and fa >= state.fb_taken:
-                if decide_frame(net, fa, net.acc[blk], prm.cap_fs) != 1:
-                    over = state.end == END_OVERFLOW
-                    break
-            first = a_prev + 1
-            if reads:  # frame buffers or the DRAM channel (the Net only on that path)
-                first, wait, ok, bad = reader_first(net, ka, side, a_prev, p_src, rat_cam)
-                err |= bad
-                if not ok:
-                    break
-                d_wait += wait
-            lo, a = memory_push(ka, first, free, bucket)
-            if a * p_src >= cap:
+            if not frame_taken(net, sp, (xa, ya, fa)):  # from a camera's frame buffer
                 break
-            if stats == 1:
-                more_starved, more_blocked, n_gaps, last_busy = note_memory_push(
-                    gaps, blk, (n_gaps, last_busy), a_prev, first, lo, a, clock)
-                starved += more_starved
-                blocked += more_blocked
-        ring[a_off + (ka & a_mask)] = a
-        if side == 0 and xa == 0 and ya == fa * h and fb == 0:
-            net.frame_fs[0, fa] = a * p_src
-        if fb > 0 and xa == w - 1 and ya == fa * h + h - 1:
-            net.fbuf[1, fa] = a * p_src  # the reader is done with this frame's buffer
+            a, tally = memory_pixel(net, sp, ka, a_prev, free, tally)
+            if a < 0:
+                break
+        store_push(net, sp, ka, a, (xa, ya, fa))
         a_prev = a
         ka += 1
         moved = True
@@ -487,36 +537,29 @@ def whole_pushes(net, k, cur, kb):
         if xa == w:
             xa = 0
             ya += 1
-            if ya == (fa + 1) * h:
+            if ya == h:
+                ya = 0
                 fa += 1
-    return SourceCursor(
-        pushes=ka, last_push=a_prev, x=xa, row=ya, frame=fa, blocked=blocked, starved=starved,
-        dram_wait=d_wait, n_gaps=n_gaps, last_busy_fs=last_busy, ring_error=err,
-        overflow=over), moved
+    return SourceCursor(pushes=ka, last_push=a_prev, x=xa, row=ya, frame=fa, tally=tally,
+                        overflow=over), moved
 
 
 @njit(cache=True, inline="always")
 def whole_pushes_end(net, k, cur):
     """Store what :func:`whole_pushes` did: the pushes known, the statistics, an overflow."""
     prm = net.prm[0]
-    state = net.state[0]
-    side = k.side
-    net.streams[net.tiles[side].source_push].count = cur.pushes
-    acc = net.acc[k.block]
-    acc.blocked += cur.blocked
-    acc.starved += cur.starved
-    acc.dram += cur.dram_wait
-    acc.last_busy, acc.gaps = cur.last_busy_fs, cur.n_gaps
-    if cur.overflow and prm.fb == 0:
-        fa = cur.frame
+    sp = k.push
+    net.streams[net.tiles[sp.side].source_push].count = cur.pushes
+    tally = cur.tally
+    store_activity(net.acc[sp.block], net.state[0], (tally.starved, tally.blocked,
+                                                     tally.dram_wait),
+                   (tally.n_gaps, tally.last_busy_fs), tally.ring_error, net.gaps.shape[1])
+    if cur.overflow:
+        acc = net.acc[sp.block]
         acc.over_cycle, acc.over_k, acc.over_tile = (
-            camera_cycle(fa, cur.x, cur.row - fa * prm.h, prm.line_clocks, prm.frame_clocks,
-                         prm.pairs), cur.pushes, side)
-        state.end = END_OVERFLOW
-    if cur.ring_error:
-        state.error = ERR_RING
-    if cur.n_gaps > net.gaps.shape[1]:
-        state.error = ERR_GAPS
+            camera_cycle(cur.frame, cur.x, cur.row, prm.line_clocks, prm.frame_clocks,
+                         prm.pairs), cur.pushes, sp.side)
+        net.state[0].end = END_OVERFLOW
 
 
 @njit_borrowing(cache=True)
@@ -544,14 +587,11 @@ def pending_overflow(net, side):
             continue
         f = net.fifos[tl.src_fifo]
         j = fr * tl.n_in + (y - tl.iy0) * tl.iw + x - tl.ix0 - f.depth
-        if j >= 0:
-            b_off, b_mask, nb, _ = view(streams, tl.line_pop)
-            if j >= nb or room_from(rd(ring, b_off, b_mask, j), f.per_src, f.per_dst,
-                                    ratio(f.per_dst, f.per_src), f.space_edges) > a:
-                acc = net.acc[st.block]
-                acc.over_cycle, acc.over_k, acc.over_tile = a, k, ti
-                net.state[0].end = END_OVERFLOW
-                return
+        if j >= 0 and not seen_free_by(ring, streams, f, j, a):
+            acc = net.acc[st.block]
+            acc.over_cycle, acc.over_k, acc.over_tile = a, k, ti
+            net.state[0].end = END_OVERFLOW
+            return
 
 
 # ---- statistics and a stopped run ---------------------------------------------------------------
@@ -594,7 +634,7 @@ def note_source_wait(net):
         first, _, ok, _ = reader_first(net, k, b.side, a_prev, per, ratio(prm.per_cam, per))
         if not ok:
             continue
-        lo = max(first, memory_first_cycle(k, prm.mem_hz, prm.mem_bps))
+        lo, _ = memory_push(k, first, 0, (prm.mem_hz, prm.mem_bps))
         if lo > first:
             a = net.acc[blk]
             a.gaps, a.last_busy = busy(net.gaps, blk, a.gaps, a.last_busy, first * per,
@@ -629,11 +669,7 @@ def _tile_full(ring, streams, shape, tl, f, k, c):
     if not (tl.ix0 <= x < tl.ix1 and tl.iy0 <= y < tl.iy1):
         return False
     i = fr * tl.n_in + (y - tl.iy0) * tl.iw + x - tl.ix0
-    if i < f.depth:
-        return False
-    b = event(ring, streams[tl.line_pop], i - f.depth)
-    return b == INF or room_from(b, f.per_src, f.per_dst, ratio(f.per_dst, f.per_src),
-                                 f.space_edges) > c
+    return i >= f.depth and not seen_free_by(ring, streams, f, i - f.depth, c)
 
 
 @njit(cache=True)

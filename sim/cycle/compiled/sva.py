@@ -47,12 +47,12 @@ from typing import NamedTuple
 import numpy as np
 
 from stereosim.core.kernel_cache import njit, njit_borrowing
+from stereosim.sim.cycle.compiled.fifo import visible_by
 from stereosim.sim.cycle.compiled.layout import (
     A_BLOCKED,
     A_BUSY,
     A_IDLE,
     A_STARVED,
-    ERR_GAPS,
     ERR_RING,
     INF,
 )
@@ -60,13 +60,14 @@ from stereosim.sim.cycle.compiled.ring import (
     NEVER,
     BusyWatch,
     busy,
-    catch_up,
     event,
     first_at_least,
     lt_at,
+    note_wait,
     pops_in,
     ratio,
     rd,
+    store_activity,
     view,
 )
 from stereosim.sim.cycle.fifo.rule import room_from, visible_from
@@ -538,7 +539,7 @@ def walk_sva(net, final):
     blk, p_s = ids.block_sva, ids.sva_pop
     a = net.acc[blk]
     p_off, p_mask, npop, p_lo = view(net.streams, p_s)
-    p_pops = (p_off, p_mask, npop)
+    p_pops = (p_off, p_mask, npop, p_lo + 1)
     o_off, o_mask, no, o_lo = view(net.streams, ids.sva_push)
     t_off, t_mask, kt, t_lo = view(net.streams, ids.sva_issue)
     o, t = (o_off, o_mask, o_lo), (t_off, t_mask, t_lo)
@@ -575,17 +576,16 @@ def walk_sva(net, final):
         arrive = arrival(ring, o, t, ex, j) if j < kx else never
         if j >= no:
             if final:
-                ptr, lost = catch_up(ring, p_off, p_mask, ptr, p_lo + 1, lo)
+                ptr, _, lost, watch = note_wait(ring, p_pops, ptr, lo - 1, ready, gaps,
+                                                BusyWatch(blk, n_gaps, last_busy, per, g))
                 err |= lost
-                long = ready == INF or (ready - lo) * per > g
-                ptr, _, n_gaps, last_busy = pops_in(ring, p_pops, ptr, lo, ready, long, gaps,
-                                                     BusyWatch(blk, n_gaps, last_busy, per, g))
+                n_gaps, last_busy = watch.n_gaps, watch.last_busy_fs
                 if ready < INF:
                     if arrive > max(lo, ready):
                         n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy,
                                                   max(lo, ready) * per, (arrive - 1) * per, g)
-                    _, _, n_gaps, last_busy = pops_in(ring, p_pops, ptr, arrive, INF,
-                                                       np.bool_(True), gaps,
+                    _, _, n_gaps, last_busy = pops_in(ring, (p_off, p_mask, npop), ptr, arrive,
+                                                       INF, np.bool_(True), gaps,
                                                        BusyWatch(blk, n_gaps, last_busy, per, g))
             break
         out = rd(ring, o_off, o_mask, j)
@@ -594,12 +594,11 @@ def walk_sva(net, final):
         if out > arrive and next_tick < exit_tick(ring, t, ex, j):
             break  # a stall: the words in the stages then may not all be issued yet
         if ready > lo:  # waiting for the word's row
-            ptr, lost = catch_up(ring, p_off, p_mask, ptr, p_lo + 1, lo)
+            ptr, waited, lost, watch = note_wait(ring, p_pops, ptr, lo - 1, ready, gaps,
+                                                 BusyWatch(blk, n_gaps, last_busy, per, g))
             err |= lost
-            long = (ready - lo) * per > g
-            ptr, cnt, n_gaps, last_busy = pops_in(ring, p_pops, ptr, lo, ready, long, gaps,
-                                                   BusyWatch(blk, n_gaps, last_busy, per, g))
-            starved += ready - lo - cnt
+            starved += waited
+            n_gaps, last_busy = watch.n_gaps, watch.last_busy_fs
             if arrive > ready:
                 n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy, ready * per,
                                           (arrive - 1) * per, g)
@@ -610,13 +609,12 @@ def walk_sva(net, final):
             elif (arrive - 1) * per > last_busy:  # too short to hide a gap: just move on
                 last_busy = (arrive - 1) * per
         if out > arrive:  # the pipeline stalled: the word waits for a free slot
-            ptr, lost = catch_up(ring, p_off, p_mask, ptr, p_lo + 1, arrive)
+            ptr, waited, lost, watch = note_wait(ring, p_pops, ptr, arrive - 1, out, gaps,
+                                                 BusyWatch(blk, n_gaps, last_busy, per, g))
             err |= lost
-            long = (out - arrive) * per > g
-            ptr, cnt, n_gaps, last_busy = pops_in(ring, p_pops, ptr, arrive, out, long, gaps,
-                                                   BusyWatch(blk, n_gaps, last_busy, per, g))
-            blocked += out - arrive - cnt
-            n_gaps, last_busy = busy(gaps, blk, n_gaps, last_busy, out * per, out * per, g)
+            blocked += waited
+            n_gaps, last_busy = busy(gaps, blk, watch.n_gaps, watch.last_busy_fs, out * per,
+                                     out * per, g)
         err |= _walk_stages(prm, state, net.stages, ring, t, kt, j, out - arrive)
         last_busy = out * per
         prev = out
@@ -633,13 +631,8 @@ def walk_sva(net, final):
             st.done, _, bad = cycle_of(ring, o, t, ex, no, kt, tick)
             err |= bad
     a.walk, a.ptr, a.prev = j, ptr, prev
-    a.starved += starved
-    a.blocked += blocked
-    a.last_busy, a.gaps = last_busy, n_gaps
-    if err:
-        state.error = ERR_RING
-    if n_gaps > gaps.shape[1]:
-        state.error = ERR_GAPS
+    store_activity(a, state, (starved, blocked, 0), (n_gaps, last_busy), err,
+                   gaps.shape[1])
 
 
 @njit(cache=True, inline="always")
@@ -723,10 +716,7 @@ def status_sva(ring, streams, cursors, prm, tables, b, c):
     if received < n and not pop_at and issued // w >= sva_rows_done_before_input(
             received // w, prm.lookahead, h):
         for f in (b.fifo_in, b.fifo_in2):
-            fi = fifos[f]
-            e = event(ring, streams[fi.push], received)
-            if e == INF or visible_from(e, fi.per_src, fi.per_dst, ratio(fi.per_src, fi.per_dst),
-                                        fi.data_edges) > c:
+            if not visible_by(ring, streams, fifos[f], received, c):
                 wait = f
                 break
     if pop_at or push_at:

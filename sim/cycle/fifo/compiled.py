@@ -1,6 +1,6 @@
 """The FIFO's helpers on the compiled engine that are FIFO rules rather than a walk over
 streams (the walk of every FIFO's occupancy is :mod:`sim.cycle.compiled.fifo`): what a FIFO
-traces at an instant, as the readable :meth:`~sim.cycle.readable.fifo.Fifo.signal_values`."""
+traces at an instant, as the readable :meth:`~sim.cycle.fifo.readable.Fifo.signal_values`."""
 
 from __future__ import annotations
 

@@ -2,11 +2,11 @@
 slot a pop frees is seen by the producer -- push k waits until pop k - depth is seen.
 
 Every cycle engine and the estimate call these: the compiled walkers and the estimate's link
-walk on cycles (:func:`visible_from`, :func:`room_from`, :func:`room_seen_until`), the readable
-:class:`~sim.cycle.readable.fifo.Fifo` on the instants of its commits (:func:`visible_at`,
-:func:`room_at`; the same rule where every clock starts at t = 0:
-``tests/sim/cycle/fifo/test_fifo_primitive.py``
-holds them equal), the plan on the number of edges (:func:`fifo_edges`). ``register_jitable``
+walk on cycles (:func:`visible_from`, :func:`room_from`, and read back :func:`visible_until`,
+:func:`room_seen_until`), the readable :class:`~sim.cycle.fifo.readable.Fifo` on the instants
+of its commits (:func:`visible_at`, :func:`room_at`; the same rule where every clock starts at
+t = 0: ``tests/sim/cycle/fifo/test_fifo_primitive.py`` holds them equal), the plan on the
+number of edges (:func:`fifo_edges`). ``register_jitable``
 keeps each a plain Python function and lets numba inline it into the compiled kernels.
 :func:`seen_from` is the clock crossing under it (also how a camera's pixel reaches a source).
 """
@@ -70,13 +70,28 @@ def room_from(pop, per_src, per_dst, ratio, space_edges):
 
 
 @register_jitable
+def seen_until(cycle, period_from, period_to, edges):
+    """:func:`seen_from` read back: the last cycle of the sending domain whose event counts in
+    the receiving domain's ``cycle`` (the largest p with ``seen_from(p) <= cycle``; -1:
+    none)."""
+    if period_from == period_to:
+        return max(cycle - edges, -1)
+    x = (cycle - edges + 1) * period_to
+    return (x - 1) // period_from if x > 0 else -1
+
+
+@register_jitable
+def visible_until(cycle, per_src, per_dst, data_edges):
+    """The visibility rule read back: the last producer cycle whose push the consumer can pop
+    in its ``cycle`` (the largest p with ``visible_from(p) <= cycle``; -1: none)."""
+    return seen_until(cycle, per_src, per_dst, data_edges)
+
+
+@register_jitable
 def room_seen_until(cycle, per_src, per_dst, space_edges):
     """The room rule read back: the last consumer cycle whose pop's free slot the producer sees
     in its ``cycle`` (the largest p with ``room_from(p) <= cycle``; -1: none)."""
-    if per_src == per_dst:
-        return max(cycle - space_edges, -1)
-    x = (cycle - space_edges + 1) * per_src
-    return (x - 1) // per_dst if x > 0 else -1
+    return seen_until(cycle, per_dst, per_src, space_edges)
 
 
 def visible_at(push_fs: int, dst, data_edges: int) -> int:

@@ -27,6 +27,7 @@ from stereosim.sim.cycle.contract import (
     trace_clocks,
     trace_signals,
 )
+from stereosim.sim.cycle.fifo.readable import Fifo
 from stereosim.sim.cycle.frames import FrameSupply, camera_frames
 from stereosim.sim.cycle.plan import ChipPlan, build_plan
 from stereosim.sim.cycle.readable.blocks.nna import Merge, NnaSubmodule
@@ -38,7 +39,6 @@ from stereosim.sim.cycle.readable.blocks.sources import (
     Sink,
 )
 from stereosim.sim.cycle.readable.blocks.sva import SvaBlock
-from stereosim.sim.cycle.readable.fifo import Fifo
 from stereosim.sim.cycle.readable.kernel import Simulator
 from stereosim.sim.cycle.report import cycle_report
 from stereosim.sim.cycle.rules import camera_frame_start, sink_may_pop, sink_pattern

@@ -26,13 +26,8 @@ from __future__ import annotations
 
 from stereosim.core.errors import ConfigError
 from stereosim.sim.cycle.contract import ACTIVITIES, activity_counts
+from stereosim.sim.cycle.fifo.readable import KernelError
 from stereosim.sim.cycle.rules import ClockDomain
-
-
-class KernelError(RuntimeError):
-    """A block or the wiring broke a rule of the kernel (a bug in a model, not in user input):
-    pushing into a full FIFO, two pushes in one cycle, popping an item that is not visible,
-    touching a FIFO outside its domain's edge, reporting no or two activities in a cycle."""
 
 
 class Block:

@@ -19,8 +19,8 @@ from stereosim.sim.cycle.contract import (
     stop_message,
     watchdog_message,
 )
-from stereosim.sim.cycle.readable.clock import Block, KernelError
-from stereosim.sim.cycle.readable.fifo import Fifo
+from stereosim.sim.cycle.fifo.readable import Fifo, KernelError
+from stereosim.sim.cycle.readable.clock import Block
 from stereosim.sim.cycle.rules import ClockDomain, check_int
 
 # Steps between two calls of Simulator.run's on_progress (some tens per second).

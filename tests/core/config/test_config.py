@@ -10,10 +10,8 @@ from stereosim.core.config import (
     ChipConfig,
     check,
     check_config,
-    check_section,
     config_diff,
     config_to_toml,
-    is_checked,
     load_config,
     parse_set_options,
     sgm_widths,
@@ -25,6 +23,7 @@ from stereosim.nna.descriptor import compute_descriptor, descriptor_bits
 from stereosim.sim.api import run
 from stereosim.sim.cycle import plan as plan_module
 from stereosim.sim.cycle.plan import build_plan
+from stereosim.sim.cycle.spec import resolve_chip
 from stereosim.sva.box.aggregation import box_filter
 from stereosim.sva.hamming.cost import hamming_cost
 from stereosim.sva.pipeline.pipeline import SvaStream
@@ -189,34 +188,48 @@ def test_default_sgm_registers_never_saturate(descriptor):
 
 
 def test_a_configuration_is_checked_where_it_enters_and_trusted_after(monkeypatch):
-    """load_config checks once and marks the configuration (and its sections) checked;
-    stereosim.run, build_plan and the stages' entry points trust it -- not one more value check
-    on its way to the kernels, in either mode -- and check any other object, such as the new
-    one dataclasses.replace makes."""
-    cfg = load_config(overrides={"sva.disparities": 16, "nna.descriptor": "census",
-                                 "nna.submodules": 2})
-    checked = []
+    """stereosim.run checks the configuration it is given once, at its entry, and hands the
+    resolved spec down (build_plan, the NNA's and the SVA's entry points take it as checked).
+    No object is remembered as checked: each entry checks a raw configuration or section it is
+    given, so a bad one (dataclasses.replace) is refused at every entry."""
+    cfg = load_config(overrides={"sva.disparities": 16, "nna.submodules": 2})
+    built = []
     build = check._build
     monkeypatch.setattr(check, "_build", lambda cls, data, prefix: (
-        checked.append(cls.__name__), build(cls, data, prefix))[1])
+        built.append(prefix), build(cls, data, prefix))[1])
+    check_config(cfg)
+    one_check = list(built)  # the chip, then each section it nests
+    assert one_check[0] == "" and "nna." in one_check and "sva." in one_check
     rng = np.random.default_rng(3)
     left = rng.integers(0, 256, (24, 64), dtype=np.uint8)
-    for mode in ("functional", "cycle"):
-        run(left, np.roll(left, -2, axis=1), mode=mode, config=cfg)
-    assert checked == []
-    assert check_config(cfg) is cfg and check_section(cfg.sva, "sva.") is cfg.sva
+    right = np.roll(left, -2, axis=1)
+    built.clear()
+    functional = run(left, right, mode="functional", config=cfg)
+    assert built[:len(one_check)] == one_check  # the chip, at the run's entry
+    assert built.count("") == 1 and built.count("sva.") == 1  # the SVA ran on the spec
+    built.clear()
+    cycle = run(left, right, mode="cycle", config=cfg)
+    assert built[:len(one_check)] == one_check and built.count("") == 1
+    assert (functional.disparity_fixed == cycle.disparity_fixed).all()
+    # below the entry: the spec is trusted, a raw section checked
+    chip = resolve_chip(cfg)
+    built.clear()
+    desc = compute_descriptor(left, chip.nna)
+    SvaStream(desc, desc, left, chip.sva, chip.nna.part_bits)
+    assert built == []
+    compute_descriptor(left, cfg.nna)
+    SvaStream(desc, desc, left, cfg.sva, chip.nna.part_bits)
+    assert built == ["nna.", "nna.census.", "nna.cnn.", "sva."]
     bad = dataclasses.replace(cfg, sva=dataclasses.replace(cfg.sva, paths=5))
-    desc = compute_descriptor(left, cfg.nna)
     for entry in (lambda: build_plan(bad, left.shape),
+                  lambda: resolve_chip(bad),
                   lambda: SvaStream(desc, desc, left, bad.sva, 32),
                   lambda: compute_descriptor(left, dataclasses.replace(cfg.nna, macs=0))):
         with pytest.raises(ConfigError, match=r"must be in \[1, "):
             entry()
-    assert checked
     numpy_p1 = dataclasses.replace(cfg, sva=dataclasses.replace(cfg.sva, p1=np.int64(9)))
     fixed = check_config(numpy_p1)
-    assert not is_checked(numpy_p1) and is_checked(fixed) and is_checked(fixed.sva)
-    assert type(fixed.sva.p1) is int and check_config(fixed) is fixed
+    assert type(fixed.sva.p1) is int and fixed.sva.p1 == 9 and check_config(fixed) == fixed
 
 
 def test_the_budget_factor_is_quoted_from_its_constant(monkeypatch):

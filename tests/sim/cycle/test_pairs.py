@@ -159,7 +159,7 @@ def test_the_engines_agree_with_pairs(over, engines_agree):
     slow, words = engines_agree(plan, left, right)
     p = over["sva.pairs"]
     for f, a in words:  # camera frame f shows the stream's frame f // P
-        np.testing.assert_array_equal(a, functional_words(plan.cfg, plan.descriptor_bits,
+        np.testing.assert_array_equal(a, functional_words(plan.spec, plan.descriptor_bits,
                                                           left[f // p], right[f // p]))
     assert sum(p["frames"] for p in slow.report["stream"]["pairs"]) == 3 * over["sva.pairs"]
 

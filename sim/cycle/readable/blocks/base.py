@@ -11,9 +11,9 @@ signal_values` gives their committed values.
 
 from __future__ import annotations
 
+from stereosim.sim.cycle.fifo.readable import Fifo, KernelError
 from stereosim.sim.cycle.plan import STATUS_CODES, BlockPlan, ChipPlan
-from stereosim.sim.cycle.readable.clock import Block, KernelError
-from stereosim.sim.cycle.readable.fifo import Fifo
+from stereosim.sim.cycle.readable.clock import Block
 
 
 class ChipBlock(Block):

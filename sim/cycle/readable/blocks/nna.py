@@ -51,14 +51,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from stereosim.core.config import NnaConfig
-from stereosim.nna.descriptor import census_of, compute_descriptor, hybrid_word, network
+from stereosim.nna.descriptor import NnaSpec, census_of, compute_descriptor, hybrid_word
 from stereosim.nna.submodule.timing import LayerPlan
 from stereosim.quant.intconv import int_layer_rows
+from stereosim.sim.cycle.fifo.readable import Fifo
 from stereosim.sim.cycle.plan import STATUS_CODES, BlockPlan, ChipPlan
 from stereosim.sim.cycle.readable.beats import DescriptorBeat
 from stereosim.sim.cycle.readable.blocks.base import ChipBlock
-from stereosim.sim.cycle.readable.fifo import Fifo
 from stereosim.sim.cycle.rules import frame_row, nna_last_input_row, nna_rows_started_before_input
 
 ACTIVITIES = ("busy", "starved", "blocked", "idle")
@@ -166,13 +165,13 @@ class MacArray:
     left, over the stream), ``first_cycle`` / ``last_cycle`` (of the first and last output),
     ``activity`` (cycles busy, starved, blocked, idle)."""
 
-    def __init__(self, layer: LayerPlan, frames: int, cfg: NnaConfig, image_rows: int,
+    def __init__(self, layer: LayerPlan, frames: int, spec: NnaSpec, image_rows: int,
                  last: bool, census_source: LineBuffer | None = None, bits: int = 0):
         self.tile = layer.tile
         self.index, self.last = layer.index, last
         self.half, self.cycles = layer.half, layer.cycles
-        self.cfg = cfg
-        self.net = network(cfg) if cfg.descriptor in ("cnn", "hybrid") else None
+        self.spec = spec
+        self.cnn = spec.cnn  # None for the census
         # the hybrid's last layer: layer 0's line buffer, whose rows its census unit reads,
         # and the descriptor's bits
         self.census_source = census_source
@@ -218,13 +217,13 @@ class MacArray:
         if self._row_key != (f, y):
             t = self.tile
             lo, window = buffer.window(f, y)
-            if self.net is None:
-                row = compute_descriptor(np.ascontiguousarray(window), self.cfg)[y - lo]
+            if self.cnn is None:
+                row = compute_descriptor(np.ascontiguousarray(window), self.spec)[y - lo]
             else:
-                row = int_layer_rows(self.net, self.index, window, lo, y, y + 1)[..., 0, :]
+                row = int_layer_rows(self.cnn, self.index, window, lo, y, y + 1)[..., 0, :]
             row = row[..., t.x0 - t.in_x0:t.x1 - t.in_x0]
             if self.census_source is not None:
-                row = hybrid_word(row, self._census_of_row(f, y), self.net.channels,
+                row = hybrid_word(row, self._census_of_row(f, y), self.cnn.channels,
                                   self.bits)
             self._row = row.copy()
             self._row_key = (f, y)
@@ -237,11 +236,11 @@ class MacArray:
         (both engines track them against their capacity, :mod:`sim.cycle.buffers`)."""
         src, t = self.census_source, self.tile
         t0 = src.tile
-        r_c = self.cfg.census.window[1] // 2
+        r_c = self.spec.cfg.census.window[1] // 2
         lo = max(t0.in_y0, y - r_c)
         hi = min(t0.in_y1, y + r_c + 1)
         rows = np.ascontiguousarray(src.values[f][lo:hi, t0.in_x0:t0.in_x1])
-        return census_of(rows, self.cfg)[y - lo, t.x0 - t0.in_x0:t.x1 - t0.in_x0]
+        return census_of(rows, self.spec.cfg)[y - lo, t.x0 - t0.in_x0:t.x1 - t0.in_x0]
 
     def evaluate(self, buffer: LineBuffer, room: bool, now_cycle: int):
         """One MAC cycle; ``room``: the finished output may leave now. Returns (status, output)
@@ -314,7 +313,7 @@ class NnaSubmodule(ChipBlock):
         n = len(entry.layers)
         self.buffers = [LineBuffer(lay, plan.shape, self.frames) for lay in entry.layers]
         hybrid = plan.hybrid
-        self.macs = [MacArray(lay, self.frames, plan.cfg.nna, plan.shape[0], lay.index == n - 1,
+        self.macs = [MacArray(lay, self.frames, plan.spec.nna, plan.shape[0], lay.index == n - 1,
                               self.buffers[0] if hybrid and lay.index == n - 1 else None,
                               plan.descriptor_bits)
                      for lay in entry.layers]

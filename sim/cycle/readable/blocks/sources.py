@@ -19,11 +19,11 @@ from collections.abc import Callable
 
 import numpy as np
 
+from stereosim.sim.cycle.fifo.readable import Fifo
 from stereosim.sim.cycle.fifo.rule import seen_from
 from stereosim.sim.cycle.plan import BlockPlan, ChipPlan, DramPlan
 from stereosim.sim.cycle.readable.beats import PixelBeat
 from stereosim.sim.cycle.readable.blocks.base import ChipBlock
-from stereosim.sim.cycle.readable.fifo import Fifo
 from stereosim.sim.cycle.rules import (
     burst_last,
     burst_of,

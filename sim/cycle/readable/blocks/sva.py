@@ -57,10 +57,10 @@ from collections import deque
 import numpy as np
 
 from stereosim.sim.cycle.contract import ACTIVITIES
+from stereosim.sim.cycle.fifo.readable import Fifo
 from stereosim.sim.cycle.plan import STATUS_CODES, BlockPlan, ChipPlan
 from stereosim.sim.cycle.readable.beats import WordBeat
 from stereosim.sim.cycle.readable.blocks.base import ChipBlock
-from stereosim.sim.cycle.readable.fifo import Fifo
 from stereosim.sim.cycle.rules import (
     frame_row,
     rows_ready_in_frame,
@@ -90,7 +90,7 @@ class SvaBlock(ChipBlock):
         self.height, self.width = plan.shape
         self.in_left, self.in_right = inputs
         (self.out,) = outputs
-        self.cfg = plan.cfg.sva
+        self.sva = plan.spec.sva  # the resolved SVA (trusted: checked where the run started)
         self.radius = entry.lookahead
         self.passes = entry.passes
         self.skew = entry.skew
@@ -148,7 +148,7 @@ class SvaBlock(ChipBlock):
             shape = (self.height, self.width)
             d_l, d_r, img = np.zeros(shape, dtype), np.zeros(shape, dtype), np.zeros(shape,
                                                                                    np.uint8)
-            self.data[f] = (d_l, d_r, img, SvaStream(d_l, d_r, img, self.cfg, self.parts))
+            self.data[f] = (d_l, d_r, img, SvaStream(d_l, d_r, img, self.sva, self.parts))
         return self.data[f]
 
     def _rows_complete(self, f: int) -> int:

@@ -1,6 +1,6 @@
 """The FIFOs, one by one: sim/cycle/compiled/fifo.py (occupancy and statistics from the
 producer's pushes and the consumer's pops, by the rule of sim/cycle/fifo/rule.py) against the
-readable twin (sim/cycle/readable/fifo.py: Fifo). Each test runs one plan on both engines and
+readable twin (sim/cycle/fifo/readable.py: Fifo). Each test runs one plan on both engines and
 holds every FIFO's own results equal -- pushes, pops, occupancy histogram, largest occupancy on
 each side, cycles full and empty, its traced occupancy, push, pop, full and empty, or its
 occupancy when the run stops -- on a configuration that stresses the FIFOs."""

@@ -16,6 +16,7 @@ from stereosim.sim.cycle.fifo.rule import (
     seen_from,
     visible_at,
     visible_from,
+    visible_until,
 )
 from stereosim.sim.cycle.rules import ClockDomain
 
@@ -38,13 +39,16 @@ def test_the_cycle_and_instant_forms_are_one_rule(c, p_src, p_dst, lat, sync):
     assert r == room_at(c * p_dst, src, se) == seen_from(c, p_dst, p_src, se)
 
 
-@given(c=st.integers(0, 10**6), p_src=PERIODS, p_dst=PERIODS, se=st.integers(1, 4))
+@given(c=st.integers(0, 10**6), p_src=PERIODS, p_dst=PERIODS, edges=st.integers(1, 5))
 @settings(max_examples=300, deadline=None)
-def test_room_seen_until_is_the_last_pop_the_room_rule_lets_through(c, p_src, p_dst, se):
-    last = room_seen_until(c, p_src, p_dst, se)
-    rat = p_dst / p_src
-    assert last == -1 or room_from(last, p_src, p_dst, rat, se) <= c
-    assert room_from(last + 1, p_src, p_dst, rat, se) > c
+def test_the_rules_read_back_give_the_last_event_they_let_through(c, p_src, p_dst, edges):
+    """room_seen_until: the last pop whose free slot the producer sees in its cycle c;
+    visible_until: the last push the consumer can pop in its cycle c."""
+    for forward, back, rat in ((room_from, room_seen_until, p_dst / p_src),
+                               (visible_from, visible_until, p_src / p_dst)):
+        last = back(c, p_src, p_dst, edges)
+        assert last == -1 or forward(last, p_src, p_dst, rat, edges) <= c
+        assert forward(last + 1, p_src, p_dst, rat, edges) > c
 
 
 def test_one_domain_is_whole_cycles():
@@ -53,6 +57,7 @@ def test_one_domain_is_whole_cycles():
     assert visible_from(7, 5, 5, 1.0, 1) == 8
     assert room_from(7, 5, 5, 1.0, 1) == 8
     assert room_seen_until(8, 5, 5, 1) == 7
+    assert visible_until(8, 5, 5, 2) == 6
     assert round_trip_fs(1, 1, 5, 5, False) == 10
     assert round_trip_fs(2, 2, 4, 6, True) == 1.5 * 6 + 1.5 * 4
 

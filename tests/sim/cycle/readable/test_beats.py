@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from stereosim.core.config import load_config
+from stereosim.sim.cycle.fifo.readable import Fifo
 from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.cycle.readable.beats import BEATS
-from stereosim.sim.cycle.readable.fifo import Fifo
 
 CENSUS = {"sva.disparities": 16, "nna.descriptor": "census"}
 

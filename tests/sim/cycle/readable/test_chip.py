@@ -7,10 +7,9 @@ from stereosim.core.config import load_config
 from stereosim.sim.api import run
 from stereosim.sim.cycle.compiled.run import run_compiled
 from stereosim.sim.cycle.contract import CameraOverflow, DeadlockError
+from stereosim.sim.cycle.fifo.readable import Fifo, KernelError
 from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.cycle.readable.blocks.nna import NnaSubmodule
-from stereosim.sim.cycle.readable.clock import KernelError
-from stereosim.sim.cycle.readable.fifo import Fifo
 
 # Equal NNA and SVA clocks make the crossing easy to count by hand: an item pushed at NNA cycle
 # t is visible at SVA cycle t + 2 (latency 1 + synchroniser 2 - 1, edges coinciding).

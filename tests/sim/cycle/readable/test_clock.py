@@ -5,8 +5,8 @@ import pytest
 
 from stereosim.core.errors import ConfigError, UserError
 from stereosim.sim.cycle.contract import BudgetExceeded, DeadlockError, count_instants
-from stereosim.sim.cycle.readable.clock import Block, KernelError
-from stereosim.sim.cycle.readable.fifo import Fifo
+from stereosim.sim.cycle.fifo.readable import Fifo, KernelError
+from stereosim.sim.cycle.readable.clock import Block
 from stereosim.sim.cycle.readable.kernel import Simulator
 from stereosim.sim.cycle.rules import ClockDomain
 

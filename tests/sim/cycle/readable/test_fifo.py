@@ -8,8 +8,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from stereosim.core.errors import ConfigError
-from stereosim.sim.cycle.readable.clock import Block, KernelError
-from stereosim.sim.cycle.readable.fifo import Fifo
+from stereosim.sim.cycle.fifo.readable import Fifo, KernelError
+from stereosim.sim.cycle.readable.clock import Block
 from stereosim.sim.cycle.readable.kernel import Simulator
 from stereosim.sim.cycle.rules import ClockDomain
 

@@ -18,10 +18,12 @@ Consequences in one domain with latency 1: depth 1 moves one item every 2 cycles
 item per cycle; in general a FIFO sustains ``min(1, depth / (latency_cycles + 1))`` items per
 cycle.
 
-The rule itself (the edges, visibility and room) is the FIFO block's, :mod:`sim.cycle.fifo.rule`,
-which the compiled engine and the estimate call too; this class is its readable twin (it stays
-beside the readable kernel, whose :class:`KernelError` it raises). Compiled twin:
-``sim/cycle/compiled/fifo.py`` (the walk) and ``sim/cycle/fifo/compiled.py``.
+The rule itself (the edges, visibility and room) is the FIFO block's, :mod:`.rule`, which the
+compiled engine and the estimate call too; this class is its readable twin, and its statistics
+are the ones every engine reports (:mod:`.counts`). Compiled twin: ``sim/cycle/compiled/fifo.py``
+(the walk) and :mod:`.compiled`. :class:`KernelError`, the readable kernel's error, lives here
+too: most of the rules it enforces are the FIFO's, and the kernel (:mod:`sim.cycle.readable`)
+raises it for the rest.
 """
 
 from __future__ import annotations
@@ -29,10 +31,15 @@ from __future__ import annotations
 from collections import deque
 
 from stereosim.core.errors import ConfigError
-from stereosim.sim.cycle.contract import fifo_counts
+from stereosim.sim.cycle.fifo.counts import fifo_counts
 from stereosim.sim.cycle.fifo.rule import fifo_edges, room_at, visible_at
-from stereosim.sim.cycle.readable.clock import KernelError
 from stereosim.sim.cycle.rules import ClockDomain, check_int
+
+
+class KernelError(RuntimeError):
+    """A block or the wiring broke a rule of the kernel (a bug in a model, not in user input):
+    pushing into a full FIFO, two pushes in one cycle, popping an item that is not visible,
+    touching a FIFO outside its domain's edge, reporting no or two activities in a cycle."""
 
 
 class Fifo:
