@@ -86,7 +86,7 @@ def overrides(variant: str, **extra) -> dict:
 
 def nna_fps(variant: str, per_camera: int, shape=SHAPE) -> float:
     """The plan's NNA work bound with ``per_camera`` column tiles a camera (its busiest tile's
-    busiest layer: f / max over layers of output pixels x cpp_l; ``nna.submodules`` raised
+    busiest layer: f / max over layers of output pixels x II_l; ``nna.submodules`` raised
     to 2 x ``per_camera`` when that exceeds the chip's 10)."""
     n = 2 * per_camera
     cfg = load_config(overrides=overrides(variant, **{"nna.stereo_submodules": n,
@@ -98,19 +98,19 @@ def first_outputs_formula(halves, cycles, shape) -> list[int]:
     """Each layer's first output cycle on a whole frame from a memory source (one pixel a
     cycle from cycle a = 1), nothing stalling (docs/architecture.md, NNA submodule): input row
     r complete in D_-1(r) = a + r W + W - 1; S_l(y) = max(D_l-1(min(y + h_l, H - 1)),
-    D_l(y - 1)) + 1, D_l(y) = S_l(y) + W cpp_l - 1; first output S_l(0) + cpp_l - 1."""
+    D_l(y - 1)) + 1, D_l(y) = S_l(y) + W II_l - 1; first output S_l(0) + II_l - 1."""
     h_img, w = shape
     reach = [sum(halves[i + 1:]) for i in range(len(halves))]
     done = [1 + r * w + w - 1 for r in range(h_img)]  # D_-1
     firsts = []
-    for half, cpp, rows in zip(halves, cycles, reach, strict=True):
+    for half, ii, rows in zip(halves, cycles, reach, strict=True):
         mine, prev_end = [], -math.inf
         for y in range(min(rows, h_img - 1) + 1):
             start = max(done[min(y + half, h_img - 1)], prev_end) + 1
-            prev_end = start + w * cpp - 1
+            prev_end = start + w * ii - 1
             mine.append(prev_end)
             if y == 0:
-                firsts.append(start + cpp - 1)
+                firsts.append(start + ii - 1)
         done = mine
     return firsts
 
@@ -126,11 +126,11 @@ def plan_figures(variant: str, shape=SHAPE) -> dict:
     sub = plan.blocks_of("nna")[0]
     h, w = shape
     f_hz = cfg.clocks.nna_mhz * 1e6
-    cpd = cycles_per_descriptor(nna)
+    nna_ii = cycles_per_descriptor(nna)
     layers = [{"kernel": 2 * lay.half + 1, "c_in": lay.channels_in, "c_out": lay.channels_out,
                "rows": lay.rows, "width": lay.buffer.bits // (lay.rows * lay.channels_in * 8),
                "bits": lay.buffer.bits} for lay in sub.layers]
-    fps_formula = f_hz / (cpd * w * h)
+    fps_formula = f_hz / (nna_ii * w * h)
     need = {}
     for target in TARGETS:
         ceil_n = math.ceil(target / fps_formula)
@@ -142,8 +142,8 @@ def plan_figures(variant: str, shape=SHAPE) -> dict:
     return {
         "variant": variant, "f_hz": f_hz, "macs": nna.macs, "shape": shape,
         "line_buffer_rows": nna.line_buffer_rows, "layers": layers,
-        "m": layer_macs_per_pixel(nna), "shares": mac_shares(nna), "cpp": layer_cycles(nna),
-        "halves": layer_halves(nna), "cpd": cpd,
+        "m": layer_macs_per_pixel(nna), "shares": mac_shares(nna), "layer_ii": layer_cycles(nna),
+        "halves": layer_halves(nna), "nna_ii": nna_ii,
         "macs_per_pixel": sum(layer_macs_per_pixel(nna)),
         "lb_bits": sum(lay["bits"] for lay in layers),
         "hidden_bytes": ablation.architecture(variant)["fmap_bytes"],
@@ -225,7 +225,7 @@ TIME_HEAD = ("| network | first descriptor: formula (cycles) | cycle model: cycl
              "| per-layer first outputs (cycles) | energy / frame: total (NNA), uJ "
              "| power at 30 fps, mW |")
 TIME_KINDS = ("plan", "plan") + ("cycle",) * 4
-FILL_HEAD = ("| network | 1 / NNA fps = max_l cpp_l W H / f, ms "
+FILL_HEAD = ("| network | 1 / NNA fps = max_l II_l W H / f, ms "
              "| one frame: first input pixel to last word, ms | difference, us "
              "| of which before the first descriptor, us | after it, us |")
 FILL_KINDS = ("plan", "plan") + ("cycle",) * 4
@@ -269,7 +269,7 @@ def rate_row(p: dict, c: dict | None) -> list[str]:
     return [
         p["variant"],
         ", ".join(str(s) for s in p["shares"]),
-        ", ".join(str(s) for s in p["cpp"]),
+        ", ".join(str(s) for s in p["layer_ii"]),
         f"{p['fps_formula']:.3f}",
         f"{p['fps_plan']:.3f}",
         f"{c['fps_measured']:.3f}" if c else MISSING,
@@ -304,13 +304,13 @@ def formula_lines(p: dict) -> list[str]:
     """The hand arithmetic of a network's fps and first descriptor, numbers filled in."""
     h, w = p["shape"]
     f_mhz = p["f_hz"] / 1e6
-    cpp = ", ".join(f"ceil({mm:,} / {s}) = {c}" for mm, s, c in
-                    zip(p["m"], p["shares"], p["cpp"], strict=True))
+    ii = ", ".join(f"ceil({mm:,} / {s}) = {c}" for mm, s, c in
+                    zip(p["m"], p["shares"], p["layer_ii"], strict=True))
     lines = [
         f"- **{p['variant']}**: m_l = {', '.join(f'{x:,}' for x in p['m'])} "
         f"(sum {p['macs_per_pixel']:,}); MAC shares (of {p['macs']}) "
-        f"{', '.join(str(s) for s in p['shares'])}; cpp_l = {cpp}; "
-        f"fps = {f_mhz:g}e6 / ({p['cpd']} x {w} x {h}) = {p['fps_formula']:.3f}.",
+        f"{', '.join(str(s) for s in p['shares'])}; II_l = {ii}; "
+        f"fps = {f_mhz:g}e6 / ({p['nna_ii']} x {w} x {h}) = {p['fps_formula']:.3f}.",
     ]
     for target in TARGETS:
         nd = p["need"][target]
@@ -336,7 +336,7 @@ def sva_drain_line(variant: str, shape=SHAPE) -> str:
     the last word leaves with the median's S = m W + m flush ticks and L cycles later."""
     cfg = load_config(overrides=overrides(variant))
     sva = build_plan(cfg, shape).block("sva")
-    r, a, ii, s_ = sva.lookahead, sva.slot_cycles, sva.cycles, sva.skew
+    r, a, ii, s_ = sva.lookahead, sva.slot_ii, sva.ii, sva.skew
     w = shape[1]
     gap = max(ii, (r + 1) * a)
     cycles = r * a + (r + 1) * (w - 1) * ii + r * gap + s_ + sva.latency
@@ -372,8 +372,8 @@ def block_lines(plans: list[dict], acc: dict, cycles: dict | None) -> list[str]:
         *(_row(fill_row(p, cyc.get(p["variant"]))) for p in plans),
         "",
         "The arithmetic (f = NNA clock, W x H = 1280 x 720, one submodule a camera, memory "
-        "source; m_l = K_l^2 C_in,l C_out,l, macs_l its share, cpp_l = ceil(m_l / macs_l), "
-        "fps = f / (max_l cpp_l x W x H)):",
+        "source; m_l = K_l^2 C_in,l C_out,l, macs_l its share, II_l = ceil(m_l / macs_l), "
+        "fps = f / (max_l II_l x W x H)):",
         "",
     ]
     for p in plans:

@@ -249,7 +249,7 @@ def line_buffer_fill() -> Section:
             (_us(blocked), f"the source FIFO holds {src.depth} pixels: `memory_left.status` "
                            "blocked"),
             (f"every {_us(mac[1] - mac[0])}", f"`mac.row` advances: {w} descriptors of "
-                                              f"{nna.cycles} NNA cycles ("
+                                              f"{nna.ii} NNA cycles ("
                                               f"{mac_stage.formula.split(';')[0]})"),
             (_us(freed), f"`mac.row` = {nna.half + 1}: image row 0 is free, `fill` = "
                          f"{nna.rows - 1}"),
@@ -290,7 +290,7 @@ def sva_row_delay() -> Section:
     words0 = tr.rises("top.sva.output.valid", first_word, row1 + 1)
     rejects0 = tr.rises("top.sva.lr_check.reject", first_word, row1 + 1)
     _claim(words0 == w, "2", f"output row 0 is {w} words")
-    per_row = w * sva.cycles
+    per_row = w * sva.ii
     end = tr.log.end_fs
     pic = Picture("trace_sva_row_delay.png", DEFAULT, window,
                   "top.sva.input.row,top.sva.input.rows_ready,top.sva.status,"
@@ -301,7 +301,7 @@ def sva_row_delay() -> Section:
         f"{_commands(pic)}: `sva.box_size` = {cfg.box_size} (radius {cfg.box_size // 2}), "
         f"`sva.median` = {cfg.median} (radius {cfg.median // 2}): an output row needs "
         f"{sva.lookahead} input rows below it; the SVA clock is {tr.mhz('sva')}, its II "
-        f"{sva.cycles} cycles; the report's bottleneck: "
+        f"{sva.ii} cycles; the report's bottleneck: "
         f"`{tr.report['throughput']['bottleneck']}`.",
         "",
         *_table([
@@ -315,7 +315,7 @@ def sva_row_delay() -> Section:
                               "takes them apart)"),
             (_us(first_sink), "the sink holds it (`sink.count` = 1; the report's first "
                               f"output: {tr.report['latency']['first_output_us']:.3f} us)"),
-            (_us(row1), f"row 0 is out: {w} words, one every {sva.cycles} SVA cycles "
+            (_us(row1), f"row 0 is out: {w} words, one every {sva.ii} SVA cycles "
                         f"({per_row} cycles, {_us(per_row * tr.period['sva'])}); "
                         f"`lr_check.reject` pulsed {rejects0} times"),
             (_us(end), f"the window ends with row 2 in the sink: `sink.count` = "
@@ -382,8 +382,8 @@ def fifo_stall(chip=SHALLOW) -> Section:
                     "3b. The stall ends: the SVA pops, the NNA pushes (census)"))
     lines = [
         f"{_commands(*pics)}: `nna.descriptor` = {tr.cfg.nna.descriptor} "
-        f"({tr.plan.block('nna_left').cycles} NNA cycle per descriptor at {tr.mhz('nna')}; "
-        f"the SVA issues a word every {sva.cycles} cycles at {tr.mhz('sva')}; the report's "
+        f"({tr.plan.block('nna_left').ii} NNA cycle per descriptor at {tr.mhz('nna')}; "
+        f"the SVA issues a word every {sva.ii} cycles at {tr.mhz('sva')}; the report's "
         f"bottleneck: `{tr.report['throughput']['bottleneck']}`), "
         f"`fifo.nna_to_sva_depth` = {fifo.depth}, `fifo.sync_cycles` = {fifo.sync_cycles}.",
         "",
@@ -440,11 +440,11 @@ def sva_stages() -> Section:
     _claim(tr.values("top.sva.pipeline.stall", a, b) == (0, 0), "4",
            "the pipeline does not stall around the first output word")
     _claim(tr.values("top.sva.stage.sgm.status", a, b) == (BUSY, BUSY)
-           and [st.name for st in sva.stages if st.ii == sva.cycles] == ["sgm"], "4",
+           and [st.name for st in sva.stages if st.ii == sva.ii] == ["sgm"], "4",
            "the SGM stage alone sets the II and is busy in every cycle")
     for st in sva.stages:  # once the first word has left, each holds latency / II words
         lo, hi = tr.values(f"top.sva.stage.{st.name}.words", out + p_sva, b)
-        _claim(st.latency // sva.cycles <= lo and hi <= -(-st.latency // sva.cycles), "4",
+        _claim(st.latency // sva.ii <= lo and hi <= -(-st.latency // sva.ii), "4",
                f"the {st.name} stage holds its latency over the II in words")
     lr = tr.values("top.sva.stage.lr_check.words", a, b)
     _claim(lr[1] == d, "4", "the LR check fills to D words")
@@ -455,14 +455,14 @@ def sva_stages() -> Section:
                   "4. Inside the SVA: the stages around the first output word (census)")
     lines = [
         f"{_commands(pic)}: `nna.descriptor` = {tr.cfg.nna.descriptor}, D = {d}; the SVA "
-        f"issues a word every II = {sva.cycles} cycles.",
+        f"issues a word every II = {sva.ii} cycles.",
         "",
         "| SVA cycle | what the trace shows |", "|---|---|",
         f"| {c_ready} | `rows_ready` = 1: box row 0 is ready (input rows 0 to "
         f"{sva.lookahead} in) |",
         f"| {c_issue} | the first word enters the pipeline (`pipeline.issue`) after the column "
         f"sums' {sva.passes} passes and the row's r = {sva.lookahead} look-ahead slots, then "
-        f"one every {sva.cycles} cycles (a row's first max({sva.cycles}, r + 1) after the "
+        f"one every {sva.ii} cycles (a row's first max({sva.ii}, r + 1) after the "
         "last) |",
         f"| {c_issue_s} | word S = m W + m = {sva.skew} enters: with it the median's window "
         "around word 0 is complete |",
@@ -473,10 +473,10 @@ def sva_stages() -> Section:
         "",
         "| stage | latency (cycles) | stage II | latency / II | words it holds in the picture |",
         "|---|---|---|---|---|",
-        *(f"| {st.name} | {st.latency} | {st.ii} | {st.latency / sva.cycles:g} | "
+        *(f"| {st.name} | {st.latency} | {st.ii} | {st.latency / sva.ii:g} | "
           f"{_held(tr, f'top.sva.stage.{st.name}.words', a, b)} |" for st in sva.stages),
         f"| **pipeline** (the stages' words and the median's S = {sva.skew}) | **L = "
-        f"{sva.latency}** | **II = {sva.cycles}** | | "
+        f"{sva.latency}** | **II = {sva.ii}** | | "
         f"**{_held(tr, 'top.sva.pipeline.words', a, b)}** |",
     ]
     return Section(lines, (pic,))

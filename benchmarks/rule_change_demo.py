@@ -34,7 +34,7 @@ def main() -> None:
                 and slow.report == fast.report)
         est = estimate(plan.cfg, shape)
         c, e = slow.report["cycles"], est["latency"]
-        print(f"{shape} {over}: readable = compiled: {same}; SVA II {plan.block('sva').cycles}; "
+        print(f"{shape} {over}: readable = compiled: {same}; SVA II {plan.block('sva').ii}; "
               f"first/last output (SVA cycles): engines {c['first_output']['sva']}/"
               f"{c['last_output']['sva']}, estimate {e['first_output_sva_cycle']}/"
               f"{e['last_output_sva_cycle']}; estimate's fps bound "

@@ -8,7 +8,7 @@ C_out,l output channels):
 
 - MACs per output pixel m_l = K_l^2 C_in,l C_out,l; the MAC share macs_l: ``nna.layer_macs``
   when given, else ``nna.macs`` split in proportion to m_l by largest remainder, each at least
-  1 (:func:`mac_shares`); cycles per output pixel cpp_l = ceil(m_l / macs_l)
+  1 (:func:`mac_shares`); cycles per output pixel II_l = ceil(m_l / macs_l)
   (:func:`~nna.submodule.timing.layer_cycles`: the MAC array's timing rule);
 - line buffer rows: layer 0 holds ``nna.line_buffer_rows`` rows (at least K_0), layer l >= 1
   K_l plus the same slack (:func:`layer_rows`); a layer of stride s_l holds K_l + slack s_l
@@ -18,7 +18,7 @@ C_out,l output channels):
   the input padded by h_l ("same" padding): an input of N pixels gives ceil(N / s) outputs
   (:func:`strided_size`); the stereo descriptor's layers all have stride 1;
 - a layer pipeline's frame: its layers run side by side, so a frame takes the busiest layer's
-  output pixels x cycles per pixel, max_l items_l cpp_l
+  output pixels x cycles per pixel, max_l items_l II_l
   (:func:`~nna.submodule.timing.pipeline_cycles`);
 - regions: layer l's output region is the tile's output region widened by R_l = h_{l+1} + ...
   + h_{L-1} (clipped to the frame), its input region the tile's widened by R_l + h_l -- layer

@@ -463,10 +463,10 @@ class _LayerPlan(NamedTuple):
         return self.buffer[: shape[0] * shape[1] * shape[2]].reshape(shape)
 
 
-def _layer_plans(net, width: int, band_rows: int) -> list[_LayerPlan]:
+def _layer_plans(cnn, width: int, band_rows: int) -> list[_LayerPlan]:
     """Each layer's :class:`_LayerPlan` for bands of ``band_rows`` output rows: a layer's
     input spans the band plus the half kernels of it and of every layer after it, each side."""
-    weights, _, _, _, input_offset = net
+    weights, _, _, _, input_offset = cnn
     halves = [w.shape[2] // 2 for w in weights]
     x_max = max(input_offset, 255 - input_offset)
     plans = []
@@ -479,15 +479,15 @@ def _layer_plans(net, width: int, band_rows: int) -> list[_LayerPlan]:
     return plans
 
 
-def forward_bands(img, net, out, band_rows: int = BAND_ROWS) -> None:
-    """Run the checked network ``net`` = (weights, biases, mult, shift, input_offset) over
+def forward_bands(img, cnn, out, band_rows: int = BAND_ROWS) -> None:
+    """Run the checked network ``cnn`` = (weights, biases, mult, shift, input_offset) over
     ``img`` band by band into ``out``: the descriptor (H, W) of unsigned ints
     (:func:`int_signs`) or the last layer's int32 accumulators (H, W, C) (:func:`int_forward`).
     Each layer's requantised outputs go straight into the next layer's padded input buffer;
     the buffers are allocated once per call."""
-    weights, biases, mult, shift, input_offset = net
+    weights, biases, mult, shift, input_offset = cnn
     height, width = img.shape
-    plans = _layer_plans(net, width, band_rows)
+    plans = _layer_plans(cnn, width, band_rows)
     halves = tuple(p.r for p in plans)
     shifts = [(np.asarray(m, np.int64), np.asarray(h, np.int64)) for m, h in zip(mult, shift)]
     n_out = weights[-1].shape[0]
@@ -519,8 +519,8 @@ def forward_bands(img, net, out, band_rows: int = BAND_ROWS) -> None:
                         out[y0:y1].transpose(2, 0, 1))
 
 
-def int_layer_rows(net: IntNetwork, layer: int, x, lo: int, a: int, b: int) -> np.ndarray:
-    """Output rows [a, b) of layer ``layer`` of the checked network ``net``, computed from the
+def int_layer_rows(cnn: IntNetwork, layer: int, x, lo: int, a: int, b: int) -> np.ndarray:
+    """Output rows [a, b) of layer ``layer`` of the checked network ``cnn``, computed from the
     input rows a line buffer received: ``x`` holds the layer's input rows [lo, lo + n) over the
     columns of its region -- the uint8 image rows (n, W) for layer 0, the int32 activations
     (C_in, n, W) of the layer before otherwise. The replicate border clamps into the rows and
@@ -528,7 +528,7 @@ def int_layer_rows(net: IntNetwork, layer: int, x, lo: int, a: int, b: int) -> n
     keeps only the outputs whose window lies within the columns given. Returns, for a layer
     before the last, its requantised activations int32 (C_out, b - a, W); for the last, the
     descriptors (b - a, W) (bit c: ``acc[c] > 0``, as :func:`int_signs`)."""
-    weights, biases, mult, shift, offset, _ = net.args
+    weights, biases, mult, shift, offset, _ = cnn.args
     w = weights[layer]
     if layer == 0:
         x = (np.asarray(x, np.int32) - np.int32(offset))[None]
@@ -576,9 +576,9 @@ def int_forward(img, weights, biases, mult, shift, input_offset, z_bits=8, *,
     """Integer inference of the network (the fast form: row bands, exact float lanes); returns
     the last layer's int32 accumulators (H, W, C_out)."""
     img = _as_image(img)
-    net = check_network(weights, biases, mult, shift, input_offset, z_bits)
-    out = np.empty(img.shape + (net[0][-1].shape[0],), dtype=np.int32)
-    forward_bands(img, net, out, band_rows)
+    cnn = check_network(weights, biases, mult, shift, input_offset, z_bits)
+    out = np.empty(img.shape + (cnn[0][-1].shape[0],), dtype=np.int32)
+    forward_bands(img, cnn, out, band_rows)
     return out
 
 
@@ -595,12 +595,12 @@ def int_signs(img, weights, biases, mult, shift, input_offset, z_bits=8, *,
     held; a single wide layer on a CPU with AVX512-VNNI by byte dot products instead
     (:func:`vnni_signs`)."""
     img = _as_image(img)
-    net = check_network(weights, biases, mult, shift, input_offset, z_bits)
-    out = np.empty(img.shape, dtype=descriptor_dtype(net[0][-1].shape[0]))
-    if vnni_applies(net[0]):
-        vnni_signs(img, net[0][0], net[1][0], net[4], out, band_rows)
+    cnn = check_network(weights, biases, mult, shift, input_offset, z_bits)
+    out = np.empty(img.shape, dtype=descriptor_dtype(cnn[0][-1].shape[0]))
+    if vnni_applies(cnn[0]):
+        vnni_signs(img, cnn[0][0], cnn[1][0], cnn[4], out, band_rows)
     else:
-        forward_bands(img, net, out, band_rows)
+        forward_bands(img, cnn, out, band_rows)
     return out
 
 

@@ -43,7 +43,7 @@ def _edges(n: int) -> str:
 def _block_line(plan: ChipPlan, b: BlockPlan) -> str:
     parts = [f"{b.kind}", f"{b.items:,} items"]
     if b.kind in ("nna", "sva"):
-        parts.append(f"{b.cycles} cycles/item")
+        parts.append(f"{b.ii} cycles/item")
     if b.kind == "nna":
         t = b.tile
         parts.append(f"window +-{b.half} rows, line buffer {b.rows} rows")
@@ -51,7 +51,7 @@ def _block_line(plan: ChipPlan, b: BlockPlan) -> str:
             parts.append(f"tile x {t.x0}..{t.x1 - 1}, y {t.y0}..{t.y1 - 1}")
     if b.kind == "sva":
         parts.append(f"look-ahead {b.lookahead} rows, {b.passes} passes, slot II "
-                     f"{b.slot_cycles}, median skew {b.skew} words, latency {b.latency}")
+                     f"{b.slot_ii}, median skew {b.skew} words, latency {b.latency}")
     if b.kind == "memory":
         parts.append(f"{b.bytes_per_s / 1e9:g} GB/s")
     if b.kind == "camera":
@@ -64,7 +64,7 @@ def _block_line(plan: ChipPlan, b: BlockPlan) -> str:
         for lay in b.layers:
             k, t = 2 * lay.half + 1, lay.tile
             lines.append(f"    layer {lay.index}: {k}x{k}x{lay.channels_in}x{lay.channels_out}, "
-                         f"{lay.macs_per_pixel} MACs/pixel on {lay.macs} MACs, {lay.cycles} "
+                         f"{lay.macs_per_pixel} MACs/pixel on {lay.macs} MACs, {lay.ii} "
                          f"cycles/pixel; line buffer {lay.rows} rows; output x {t.x0}..{t.x1 - 1}"
                          f", y {t.y0}..{t.y1 - 1}")
     return "\n".join(lines)
@@ -258,7 +258,7 @@ def _layout(plan: ChipPlan) -> tuple[list[_Node], list[_Edge], list[str]]:
             each = (f"{items[0]:,} items each" if len(items) == 1
                     else f"{items[0]:,}-{items[-1]:,} items")
             nodes[name] = _Node(name, tuple(g.name for g in group), b.domain, x, -y * ROW_STEP,
-                                f"{each}, {b.cycles} cyc", len(group))
+                                f"{each}, {b.ii} cyc", len(group))
             continue
         if b.kind == "camera":
             detail = (f"{plan.domains[b.domain].freq_hz / 1e6:g} MHz, {b.line_clocks}x"
@@ -266,7 +266,7 @@ def _layout(plan: ChipPlan) -> tuple[list[_Node], list[_Edge], list[str]]:
         elif b.kind == "memory":
             detail = f"{b.items:,} items, {b.bytes_per_s / 1e9:g} GB/s"
         else:
-            detail = f"{b.items:,} items" + (f", {b.cycles} cyc" if b.kind in ("nna", "sva")
+            detail = f"{b.items:,} items" + (f", {b.ii} cyc" if b.kind in ("nna", "sva")
                                              else "")
         drawn_as[b.name] = b.name
         nodes[b.name] = _Node(b.name, (b.name,), b.domain, x, -y * ROW_STEP, detail)

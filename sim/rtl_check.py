@@ -170,8 +170,8 @@ def rtl_case(cfg, entry, rec, width: int, height: int) -> dict:
     regs = {"width": width, "height": height, "k": s.box_size, "p1": s.p1, "p2": s.p2,
             "adaptive": int(s.p2_adaptive), "slope": s.p2_slope, "paths": s.paths,
             "uniq": s.uniqueness, "mode": subpixel_mode_code(s.subpixel), "lr_on": int(s.lr_check),
-            "max_diff": s.lr_max_diff, "med_on": int(s.median > 1), "ii": entry.cycles,
-            "sii": entry.slot_cycles}
+            "max_diff": s.lr_max_diff, "med_on": int(s.median > 1), "ii": entry.ii,
+            "sii": entry.slot_ii}
     for name in ("ii", "sii"):
         if regs[name] >= 1 << REG_BITS:
             raise InputError(f"the plan's SVA {name} is {regs[name]} cycles, above the RTL's "

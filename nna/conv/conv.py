@@ -150,17 +150,17 @@ def cnn_descriptor(img, weights, bias, input_offset) -> np.ndarray:
     img: uint8 (H, W); weights: int8 (C, K, K); bias: int32 (C,); input_offset: int 0..255.
     Returns uint32 (H, W) for C <= 32, uint64 for C <= 64; bit c is the sign of channel c.
     """
-    img, net = _one_layer(img, weights, bias, input_offset)
-    return int_signs(img, *net.args)
+    img, cnn = _one_layer(img, weights, bias, input_offset)
+    return int_signs(img, *cnn.args)
 
 
 def cnn_accumulators(img, weights, bias, input_offset) -> np.ndarray:
     """Raw int32 accumulators (H, W, C) of the descriptor layer, before the sign threshold."""
-    img, net = _one_layer(img, weights, bias, input_offset)
-    return int_forward(img, *net.args)
+    img, cnn = _one_layer(img, weights, bias, input_offset)
+    return int_forward(img, *cnn.args)
 
 
-def network_descriptor(img, net: IntNetwork) -> np.ndarray:
+def network_descriptor(img, cnn: IntNetwork) -> np.ndarray:
     """The descriptor of a checked network (:func:`quant.intconv.network`): the signs of its
     last layer, uint32 (H, W) for up to 32 channels, uint64 for up to 64."""
-    return int_signs(as_image_u8(img), *net.args)
+    return int_signs(as_image_u8(img), *cnn.args)

@@ -80,10 +80,10 @@ def load_network(path) -> IntNetwork:
         weights, bias, offset = load_weights(name)
         return network((weights[:, None],), (bias,), (), (), offset)
     try:
-        net = network(qm.weights, qm.biases, qm.mult, qm.shift, qm.input_offset, qm.z_bits)
+        cnn = network(qm.weights, qm.biases, qm.mult, qm.shift, qm.input_offset, qm.z_bits)
     except ConfigError as err:
         raise ConfigError(f"weight file {name!r}: {err}") from None
-    for layer, w in enumerate(net.weights):
+    for layer, w in enumerate(cnn.weights):
         k_size = w.shape[2]
         if k_size > MAX_KERNEL_SIZE:  # the bound check_layer puts on a one-layer file
             raise ConfigError(
@@ -91,7 +91,7 @@ def load_network(path) -> IntNetwork:
                 f"than the {MAX_KERNEL_SIZE}x{MAX_KERNEL_SIZE} window the largest NNA line "
                 "buffer can hold (nna.line_buffer_rows <= 64): use a smaller kernel"
             )
-    return net
+    return cnn
 
 
 def placeholder_weights() -> tuple[np.ndarray, np.ndarray, int]:

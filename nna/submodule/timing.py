@@ -1,5 +1,5 @@
 """The NNA submodule's timing rule: its layers' stages -- each layer's line buffer (a bank per
-row), its MAC array (m_l multiply-accumulates an output pixel on its share of the MACs: cpp_l =
+row), its MAC array (m_l multiply-accumulates an output pixel on its share of the MACs: II_l =
 ceil(m_l / share) cycles) and its requantise or sign stage -- as the RTL builds them
 (nna_submodule.sv). The window and share arithmetic they read is :mod:`nna.geometry`'s; the chip
 plan collects the stages (:mod:`sim.cycle.plan`)."""
@@ -28,7 +28,7 @@ class LayerPlan:
     """One layer's stage of an NNA submodule (:mod:`nna.geometry` gives its rules): ``tile``
     its regions (output [x0, x1) x [y0, y1), input in_*), ``half`` its half kernel h_l,
     ``rows`` its line buffer's rows, ``macs`` its MAC share of ``macs_per_pixel`` = m_l MACs
-    an output pixel, ``cycles`` = cpp_l per output pixel, ``channels_in`` / ``channels_out``,
+    an output pixel, ``cycles`` = II_l per output pixel, ``channels_in`` / ``channels_out``,
     ``buffer`` its line buffer (rows x its widest input region x C_in x 8 bits)."""
 
     index: int
@@ -37,7 +37,7 @@ class LayerPlan:
     rows: int
     macs: int
     macs_per_pixel: int
-    cycles: int
+    ii: int
     channels_in: int
     channels_out: int
     buffer: BufferPlan
@@ -63,7 +63,7 @@ def nna_layers(spec: NnaSpec, tile: Tile, shape: tuple[int, int], widths: tuple[
         channels = [(int(w.shape[1]), int(w.shape[0])) for w in spec.cnn.weights]
     single = len(halves) == 1
     out = []
-    for i, (t, h, rows, share, m, cpp, (c_in, c_out)) in enumerate(zip(
+    for i, (t, h, rows, share, m, ii, (c_in, c_out)) in enumerate(zip(
             layer_tiles(tile, spec, shape), halves, layer_rows(spec), mac_shares(spec),
             spec.layer_macs, layer_cycles(spec), channels, strict=True)):
         width = widths[i]
@@ -76,7 +76,7 @@ def nna_layers(spec: NnaSpec, tile: Tile, shape: tuple[int, int], widths: tuple[
                          "written)",
                          rows=rows, banks=rows, word_bits=8 * c_in, pixel_reads=2 * h + 1,
                          pixel_writes=1)
-        out.append(LayerPlan(i, t, h, rows, share, m, cpp, c_in, c_out, buf))
+        out.append(LayerPlan(i, t, h, rows, share, m, ii, c_in, c_out, buf))
     return tuple(out)
 
 
@@ -84,7 +84,7 @@ def nna_stages(spec: NnaSpec, layers: tuple[LayerPlan, ...]) -> tuple[StagePlan,
     """An NNA submodule's stages, per layer: its line buffer (a bank per row: each output pixel
     takes the next column of the layer's window, one word from each of its 2 h + 1 banks,
     while the arriving one is written), its MAC array (m_l multiply-accumulates an output
-    pixel on its share of the MACs, cpp_l = ceil(m_l / share) cycles; the census unit: 1
+    pixel on its share of the MACs, II_l = ceil(m_l / share) cycles; the census unit: 1
     cycle) and its requantise stage (per channel a multiply-shift and the ReLU clamp; the last
     layer: the sign bit), in the MAC array's last cycle. One layer: ``line_buffer``,
     ``mac_array`` (or ``census_unit``), ``requantise_sign``; more: the same names prefixed
@@ -100,11 +100,11 @@ def nna_stages(spec: NnaSpec, layers: tuple[LayerPlan, ...]) -> tuple[StagePlan,
             mac = StagePlan("census_unit", 1, 1, "II = latency = 1 (one comparison per window "
                             "sample, all in one cycle)")
         else:
-            m, cpp, share = lay.macs_per_pixel, lay.cycles, lay.macs
+            m, ii, share = lay.macs_per_pixel, lay.ii, lay.macs
             mac = StagePlan(
-                f"{pre}mac_array", cpp, cpp,
-                f"II = latency = ceil({m} MACs / {share}) = {cpp}; {m / cpp:g} MACs per cycle, "
-                f"{100 * m / (cpp * share):.1f} % of {'the array' if single else 'its MACs'} "
+                f"{pre}mac_array", ii, ii,
+                f"II = latency = ceil({m} MACs / {share}) = {ii}; {m / ii:g} MACs per cycle, "
+                f"{100 * m / (ii * share):.1f} % of {'the array' if single else 'its MACs'} "
                 "busy")
         out.append(StagePlan(f"{pre}line_buffer", 1, 0,
                              f"a bank per row: per {'descriptor' if single else 'output pixel'}"
@@ -140,7 +140,7 @@ def nna_stages(spec: NnaSpec, layers: tuple[LayerPlan, ...]) -> tuple[StagePlan,
 
 def cycles_per_descriptor(spec: NnaSpec | NnaConfig) -> int:
     """The submodule's initiation interval, cycles per descriptor: its slowest layer's cycles
-    per output pixel, max_l cpp_l (:func:`layer_cycles`; one layer: ceil(K*K*C / macs)), 1 for
+    per output pixel, max_l II_l (:func:`layer_cycles`; one layer: ceil(K*K*C / macs)), 1 for
     the census unit."""
     return max(layer_cycles(spec))
 
@@ -153,12 +153,12 @@ def cycles_per_pixel(macs_per_pixel: int, share: int) -> int:
 
 def pipeline_cycles(items: tuple[int, ...], cycles: tuple[int, ...]) -> int:
     """Cycles of a frame of a layer pipeline whose layers run side by side: the busiest layer's
-    output pixels x cycles per pixel, max_l items_l cpp_l."""
+    output pixels x cycles per pixel, max_l items_l II_l."""
     return max(i * c for i, c in zip(items, cycles, strict=True))
 
 
 def layer_cycles(spec: NnaSpec | NnaConfig) -> tuple[int, ...]:
-    """Cycles each layer's MAC array spends on one output pixel: cpp_l = ceil(m_l / macs_l)
+    """Cycles each layer's MAC array spends on one output pixel: II_l = ceil(m_l / macs_l)
     (:func:`mac_shares`, :func:`cycles_per_pixel`); the census unit: 1. One layer:
     :func:`cycles_per_descriptor`."""
     spec = as_nna_spec(spec)

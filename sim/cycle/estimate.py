@@ -247,11 +247,11 @@ def merge_depth_needed(plan: ChipPlan) -> int | None:
         return None
     h = plan.shape[0]
     subs = [b for b in plan.blocks_of("nna") if b.side == 0]  # one camera's tiles
-    c = subs[0].cycles
+    c = subs[0].ii
     f_nna = plan.domains["nna"].freq_hz
     sva = plan.block("sva")
     # the SVA's pace a descriptor inside a frame: a row's words and the gap before the next
-    sva_row = sva_frame_ticks(1, plan.shape[1], sva.cycles, sva.lookahead, sva.slot_cycles,
+    sva_row = sva_frame_ticks(1, plan.shape[1], sva.ii, sva.lookahead, sva.slot_ii,
                               0, 0, 1)
     a = max(1.0, sva_row / plan.shape[1] * f_nna / plan.domains["sva"].freq_hz)
     work = block_work(plan)
@@ -360,7 +360,7 @@ def _tile_rows(plan: ChipPlan, sub, pops: list | None = None,
     h_img, w_img = plan.shape
     first_layer = sub.layers[0]
     tile: Tile = first_layer.tile
-    half, c, rows = first_layer.half, first_layer.cycles, first_layer.rows
+    half, c, rows = first_layer.half, first_layer.ii, first_layer.rows
     tw_in = tile.in_x1 - tile.in_x0
     tw = tile.x1 - tile.x0
     src = plan.fifo(sub.inputs[0])
@@ -404,11 +404,11 @@ def _later_layers(sub, rows: dict[int, tuple[float, float]], h_img: int
                   ) -> dict[int, tuple[float, float]]:
     """The rows of a submodule's last layer from its first layer's (``rows``: first and last
     output of each row): layer l's row y starts once layer l - 1's row min(y + h_l, H - 1) is
-    out and its own row before has ended, and takes W_l cpp_l cycles (no room wait: exact while
+    out and its own row before has ended, and takes W_l II_l cycles (no room wait: exact while
     each layer's line buffer has a row of slack and no later layer is faster than one before,
     else a lower bound)."""
     for lay in sub.layers[1:]:
-        t, c = lay.tile, lay.cycles
+        t, c = lay.tile, lay.ii
         out = {}
         prev = -1.0
         for y in range(t.y0, t.y1):
@@ -425,7 +425,7 @@ def _merged_rows(plan: ChipPlan, side: int):
     was popped (the source's read of the frame is over)."""
     h, w = plan.shape
     subs = [b for b in plan.blocks if b.kind == "nna" and b.side == side]
-    c = subs[0].cycles
+    c = subs[0].ii
     pops: list = []
     times = SourceTimes(plan)
     per_tile = [_tile_rows(plan, b, pops, times) for b in subs]
@@ -497,15 +497,15 @@ def timeline(plan: ChipPlan) -> dict:
     ii_in = max(ii_link, nna_ii * p_nna / p_sva)
     # the SVA -> sink FIFO: the SVA's II, or depth words per round trip
     sink_trip = round_trip_fs(to_sink, plan) / p_sva  # cycles (one domain)
-    ii_out = max(float(sva.cycles), sink_trip / to_sink.depth)
+    ii_out = max(float(sva.ii), sink_trip / to_sink.depth)
     walk = None
     if fills(link, plan):
         # the producer's pace after a block: a submodule's II, or the merge's one beat a cycle
         producer = plan.block(link.producer)
-        walk = LinkWalk(link, plan, producer.cycles if producer.kind == "nna" else 1)
+        walk = LinkWalk(link, plan, producer.ii if producer.kind == "nna" else 1)
     in_end: dict[int, float] = {}
     box_rows: dict[int, tuple[float, float]] = {}  # each box row's first and last issue
-    r, a, skew = la, sva.slot_cycles, sva.skew
+    r, a, skew = la, sva.slot_ii, sva.skew
     never = -(1 << 40)
     next_out = 0
     prev_end = -1.0
@@ -710,7 +710,7 @@ def estimate(cfg: ChipConfig, shape: tuple[int, int], table: EnergyTable | None 
     if plan.camera_direct:  # with frame buffers the camera writes into DRAM: no FIFO to fill
         camera = plan.blocks_of("camera")[0]
         line_s = camera.line_clocks / plan.domains["camera"].freq_hz
-        if widest * subs[0].cycles / plan.domains["nna"].freq_hz > line_s:
+        if widest * subs[0].ii / plan.domains["nna"].freq_hz > line_s:
             warnings.append(
                 "the NNA needs more time per row than the camera gives it: the camera will "
                 "overflow the source FIFO (more nna.stereo_submodules, nna.macs or clocks.nna_mhz)"

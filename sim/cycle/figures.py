@@ -142,7 +142,7 @@ def layer_report(plan: ChipPlan) -> list[dict]:
         out.append({"layer": lay.index, "kernel": 2 * lay.half + 1,
                     "channels_in": lay.channels_in, "channels_out": lay.channels_out,
                     "macs_per_pixel": lay.macs_per_pixel, "mac_share": lay.macs,
-                    "cycles_per_pixel": lay.cycles, "line_buffer": lay.buffer.name,
+                    "cycles_per_pixel": lay.ii, "line_buffer": lay.buffer.name,
                     "line_buffer_rows": lay.rows, "line_buffer_bits": lay.buffer.bits,
                     "output_pixels": lay.items})
     return out
@@ -200,7 +200,7 @@ def sva_pipeline_report(plan: ChipPlan) -> dict:
     sva = plan.block("sva")
     return {
         "lanes": min(plan.cfg.sva.lanes, plan.cfg.sva.disparities),
-        "initiation_interval": sva.cycles,
+        "initiation_interval": sva.ii,
         "latency": sva.latency,
         "register_bits": sum(st.register_bits for st in sva.stages),
         "stages": [{"name": st.name, "ii": st.ii, "latency": st.latency, "formula": st.formula,

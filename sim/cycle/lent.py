@@ -15,8 +15,8 @@ while the submodule is lent). The network's layers run as the stereo NNA's layer
 - **a layer l** of kernel K, stride s, C_in -> C_out on an input of H x W makes
   ceil(H / s) x ceil(W / s) output pixels (items_l, :func:`~nna.geometry.strided_size`) of
   m_l = K^2 C_in C_out MACs; its submodule's MACs are shared over its group in proportion to
-  m_l items_l (:func:`~nna.geometry.share_macs`), cpp_l = ceil(m_l / share)
-  (:func:`~nna.submodule.timing.cycles_per_pixel`); a submodule's frame takes max_l items_l cpp_l
+  m_l items_l (:func:`~nna.geometry.share_macs`), II_l = ceil(m_l / share)
+  (:func:`~nna.submodule.timing.cycles_per_pixel`); a submodule's frame takes max_l items_l II_l
   over its group (:func:`~nna.submodule.timing.pipeline_cycles`), the network's frame its busiest
   submodule's: fps_max = f_nna / that. ``fps = "max"`` runs at fps_max; a target runs there
   (refused when above fps_max);
@@ -55,7 +55,7 @@ BYTES_PER_CHANNEL = 8  # an int32 bias and a 32-bit multiply-shift per output ch
 @dataclass(frozen=True)
 class LentLayerPlan:
     """A layer of the lent network on its submodule: ``in_shape`` / ``out_shape`` (H, W), its
-    MAC ``share`` of the submodule, ``cycles`` per output pixel, its line buffer's ``rows`` and
+    MAC ``share`` of the submodule, ``ii`` (cycles per output pixel), its line buffer's ``rows`` and
     ``buffer_bits``, and whether the buffer is ``on_chip`` (else the layer spills)."""
 
     index: int
@@ -64,7 +64,7 @@ class LentLayerPlan:
     in_shape: tuple[int, int]
     out_shape: tuple[int, int]
     share: int
-    cycles: int
+    ii: int
     rows: int
     buffer_bits: int
     on_chip: bool
@@ -77,7 +77,7 @@ class LentLayerPlan:
     @property
     def frame_cycles(self) -> int:
         """Its MAC array's cycles per frame: items x cycles per pixel."""
-        return self.items * self.cycles
+        return self.items * self.ii
 
     @property
     def spill_bytes(self) -> int:
@@ -137,9 +137,9 @@ class LentPlan:
     @cached_property
     def bytes_per_frame(self) -> dict[str, int]:
         """DRAM bytes of a frame: input, output, spill, weights."""
-        net, last = self.network, self.layers[-1]
+        lent_cnn, last = self.network, self.layers[-1]
         return {
-            "input": net.width * net.height * net.channels,
+            "input": lent_cnn.width * lent_cnn.height * lent_cnn.channels,
             "output": last.items * last.layer.channels_out,
             "spill": sum(lay.spill_bytes for lay in self.layers),
             "weights": sum(lay.weight_bytes for lay in self.layers
@@ -159,8 +159,8 @@ class LentPlan:
 def _group_cycles(items: list[int], mpp: list[int], macs: int) -> tuple[int, tuple[int, ...]]:
     """A group of layers on one submodule: its cycles per frame and the MAC shares."""
     shares = share_macs(macs, tuple(m * i for m, i in zip(mpp, items, strict=True)))
-    cpp = tuple(cycles_per_pixel(m, s) for m, s in zip(mpp, shares, strict=True))
-    return pipeline_cycles(tuple(items), cpp), shares
+    ii = tuple(cycles_per_pixel(m, s) for m, s in zip(mpp, shares, strict=True))
+    return pipeline_cycles(tuple(items), ii), shares
 
 
 def cut_layers(items: list[int], mpp: list[int], macs: int, submodules: int
@@ -199,14 +199,14 @@ def lent_plan(cfg: ChipConfig, stereo_buffers: tuple[BufferPlan, ...], slack: in
     and whose line buffers have ``slack`` rows beyond the window; None when none is lent."""
     if not cfg.nna.lent_network:
         return None
-    net = read_lent_network(cfg.nna.lent_network)
-    shapes, shape = [], (net.height, net.width)
-    for lay in net.layers:
+    lent_cnn = read_lent_network(cfg.nna.lent_network)
+    shapes, shape = [], (lent_cnn.height, lent_cnn.width)
+    for lay in lent_cnn.layers:
         out = (strided_size(shape[0], lay.stride), strided_size(shape[1], lay.stride))
         shapes.append((shape, out))
         shape = out
     items = [o[0] * o[1] for _, o in shapes]
-    mpp = [lay.macs_per_pixel for lay in net.layers]
+    mpp = [lay.macs_per_pixel for lay in lent_cnn.layers]
     subs = cut_layers(items, mpp, cfg.nna.macs, cfg.nna.lent_submodules)
     budget = sum(b.bits for b in stereo_buffers if b.rows)
     layers = []
@@ -215,19 +215,19 @@ def lent_plan(cfg: ChipConfig, stereo_buffers: tuple[BufferPlan, ...], slack: in
         _, shares = _group_cycles([items[i] for i in idx], [mpp[i] for i in idx], cfg.nna.macs)
         used = 0
         for i, share in zip(idx, shares, strict=True):
-            lay, (inp, out) = net.layers[i], shapes[i]
+            lay, (inp, out) = lent_cnn.layers[i], shapes[i]
             (rows,) = buffer_rows((lay.kernel,), (lay.stride,), slack)
             bits = line_buffer_bits(rows, inp[1], lay.channels_in)
             fits = used + bits <= budget
             used += bits if fits else 0
             layers.append(LentLayerPlan(i, lay, s, inp, out, share,
                                         cycles_per_pixel(mpp[i], share), rows, bits, fits))
-    plan = LentPlan(net, cfg.nna.lent_submodules, tuple(layers), budget,
+    plan = LentPlan(lent_cnn, cfg.nna.lent_submodules, tuple(layers), budget,
                     sum(b.bits for b in stereo_buffers if b.name == "nna.weights"),
                     cfg.clocks.nna_mhz * 1e6)
-    if net.fps is not None and net.fps > plan.fps_max:
+    if lent_cnn.fps is not None and lent_cnn.fps > plan.fps_max:
         raise ConfigError(
-            f"lent network {net.path}: fps = {net.fps:g} but it reaches only "
+            f"lent network {lent_cnn.path}: fps = {lent_cnn.fps:g} but it reaches only "
             f"{plan.fps_max:.3f} fps on {cfg.nna.lent_submodules} lent submodules (clocks."
             "nna_mhz, nna.macs): lower fps, give \"max\" or lend more submodules")
     return plan
@@ -239,7 +239,7 @@ def lent_report(lent: LentPlan, dram: DramPlan | None, pixels: int) -> dict:
     the frame rate, the DRAM bytes and GB/s, and what the stereo pair (``pixels`` a view)
     loses on the DRAM channel: the lent client's slots and the read-bound fps with and
     without them."""
-    net = lent.network
+    lent_cnn = lent.network
     layers = [{
         "layer": lay.index, "submodule": lay.submodule, "kernel": lay.layer.kernel,
         "stride": lay.layer.stride, "channels_in": lay.layer.channels_in,
@@ -247,7 +247,7 @@ def lent_report(lent: LentPlan, dram: DramPlan | None, pixels: int) -> dict:
         "input": [lay.in_shape[1], lay.in_shape[0]], "output": [lay.out_shape[1],
                                                                 lay.out_shape[0]],
         "macs_per_pixel": lay.layer.macs_per_pixel, "mac_share": lay.share,
-        "cycles_per_pixel": lay.cycles, "cycles_per_frame": lay.frame_cycles,
+        "cycles_per_pixel": lay.ii, "cycles_per_frame": lay.frame_cycles,
         "line_buffer_rows": lay.rows, "line_buffer_bits": lay.buffer_bits,
         "on_chip": lay.on_chip, "spill_bytes_per_frame": lay.spill_bytes,
         "weight_bytes": lay.weight_bytes} for lay in lent.layers]
@@ -257,9 +257,10 @@ def lent_report(lent: LentPlan, dram: DramPlan | None, pixels: int) -> dict:
              "weights_resident": lent.weights_resident(s)} for s in range(lent.used)]
     per_frame = lent.bytes_per_frame
     out = {
-        "file": net.path, "about": net.about,
-        "input": {"width": net.width, "height": net.height, "channels": net.channels},
-        "fps_target": net.fps if net.fps is not None else "max",
+        "file": lent_cnn.path, "about": lent_cnn.about,
+        "input": {"width": lent_cnn.width, "height": lent_cnn.height,
+                  "channels": lent_cnn.channels},
+        "fps_target": lent_cnn.fps if lent_cnn.fps is not None else "max",
         "submodules_lent": lent.submodules, "submodules_used": lent.used,
         "sram_budget_bits_per_submodule": lent.sram_budget_bits,
         "weight_store_bits_per_submodule": lent.weight_store_bits,

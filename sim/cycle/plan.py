@@ -125,8 +125,8 @@ class BlockPlan:
       (``line_clocks``, ``frame_clocks``: the camera's raster);
     - camera: ``line_clocks`` = W + hblank, ``frame_clocks`` = (H + vblank)(W + hblank); with
       frame buffers it writes into DRAM (no FIFO) and admits or drops each frame;
-    - nna: ``tile``, ``half`` (window rows above/below), ``rows`` (line buffer), ``cycles`` per
-      descriptor (the MAC array's initiation interval and latency; a network of several
+    - nna: ``tile``, ``half`` (window rows above/below), ``rows`` (line buffer), ``ii``, the
+      cycles per descriptor (the MAC array's initiation interval and latency; a network of several
       layers: the slowest layer's cycles per output pixel), ``layers`` (the layer pipeline,
       :class:`~nna.submodule.timing.LayerPlan`: one stage per layer, one for a single layer or
       the census);
@@ -134,11 +134,11 @@ class BlockPlan:
     - sva: ``lookahead`` rows (the box radius r: box row y needs input row y + r),
       ``passes`` (k - 1: the column sums' seeding passes before a frame's row 0), ``skew``
       (S = m W + m: the median's words behind, 0 without it), ``flush_ii`` (f: the ticks
-      between its flush slots, the median's II), ``slot_cycles`` (a: the
+      between its flush slots, the median's II), ``slot_ii`` (a: the
       sequencer's slot II), ``first_row`` (the input row a frame's first slot waits for: the
       automatic weights' noise band), ``stages`` (its pipeline, :mod:`sim.cycle.stages`),
-      ``latency`` (a word issued -> in the output register: the stages' latencies), ``cycles``
-      per word (initiation interval: the slowest stage's) -- the rules are
+      ``latency`` (a word issued -> in the output register: the stages' latencies), ``ii``, the
+      cycles per word (initiation interval: the slowest stage's) -- the rules are
       :func:`~sim.cycle.rules.sva_slot` and the issue rules after it;
     - sink: one word per cycle.
     """
@@ -151,7 +151,7 @@ class BlockPlan:
     outputs: tuple[str, ...]
     scope: str  # trace scope, e.g. "top.nna.left.sub0"
     items: int  # beats it emits per frame (the sink: words it takes)
-    cycles: int = 1
+    ii: int = 1
     latency: int = 0
     tile: Tile | None = None
     half: int = 0
@@ -160,7 +160,7 @@ class BlockPlan:
     passes: int = 0  # sva: the column sums' seeding passes (k - 1)
     skew: int = 0  # sva: the median's skew in words, m W + m
     flush_ii: int = 1  # sva: ticks between the median's flush slots (its II)
-    slot_cycles: int = 1  # sva: the slot II
+    slot_ii: int = 1  # sva: the slot II
     first_row: int = 0  # sva: the input row a frame's first slot waits for (automatic weights)
     bytes_per_s: int = 0
     line_clocks: int = 0
@@ -299,7 +299,7 @@ class ChipPlan:
         timing tells them apart, and the compiled engine computes one side for both.)"""
 
         def side(s):
-            blocks = [(b.kind, b.domain, b.items, b.cycles, b.tile, b.half, b.rows,
+            blocks = [(b.kind, b.domain, b.items, b.ii, b.tile, b.half, b.rows,
                        b.bytes_per_s, b.line_clocks, b.frame_clocks)
                       for b in self.blocks if b.side == s]
             fifos = [(f.depth, f.width_bits, f.src, f.dst, f.latency_cycles, f.sync_cycles,
@@ -377,8 +377,8 @@ class ChipPlan:
         at :func:`expected_frame_s` each."""
         freqs = {name: d.freq_hz for name, d in self.domains.items()}
         return self.frames * expected_frame_s(self.cfg, self.shape, freqs,
-                                              self.blocks_of("nna")[0].cycles,
-                                              self.block("sva").cycles, self.frames, self.dram)
+                                              self.blocks_of("nna")[0].ii,
+                                              self.block("sva").ii, self.frames, self.dram)
 
     @property
     def budget_head(self) -> str:
@@ -429,12 +429,12 @@ class ChipPlan:
             return block.frame_clocks // self.pairs
         if block.kind == "nna":  # its busiest layer's MAC array (one layer: items x cycles)
             return pipeline_cycles(tuple(lay.items for lay in block.layers),
-                                   tuple(lay.cycles for lay in block.layers))
+                                   tuple(lay.ii for lay in block.layers))
         if block.kind == "sva":  # its sequencer's ticks: words, row starts, passes, flush
             h, w = self.shape
-            return sva_frame_ticks(h, w, block.cycles, block.lookahead, block.slot_cycles,
+            return sva_frame_ticks(h, w, block.ii, block.lookahead, block.slot_ii,
                                    block.skew, block.passes, block.flush_ii)
-        return block.items * block.cycles
+        return block.items * block.ii
 
 
 def _nb(n: int) -> int:
@@ -450,7 +450,7 @@ MAX_RUN_FS = 1 << 61
 
 
 def frame_budget(cfg: ChipConfig, shape: tuple[int, int], freqs: dict[str, float],
-                 cpd: int, sva_ii: int, frames: int = 1, dram: DramPlan | None = None
+                 nna_ii: int, sva_ii: int, frames: int = 1, dram: DramPlan | None = None
                  ) -> dict[str, int]:
     """The cycles each domain may run: ``sim.max_cycles`` for every domain when set, else a
     generous budget of :data:`~core.config.AUTO_BUDGET_FACTOR` times the expected run
@@ -458,13 +458,13 @@ def frame_budget(cfg: ChipConfig, shape: tuple[int, int], freqs: dict[str, float
     cap = {name: MAX_RUN_FS // period_fs(f) for name, f in freqs.items()}
     if cfg.sim.max_cycles:
         return {name: min(cfg.sim.max_cycles, cap[name]) for name in freqs}
-    frame_s = expected_frame_s(cfg, shape, freqs, cpd, sva_ii, frames, dram)
+    frame_s = expected_frame_s(cfg, shape, freqs, nna_ii, sva_ii, frames, dram)
     return {name: min(int(min(AUTO_BUDGET_FACTOR * frames * frame_s * f, cap[name])) + 100_000,
                       cap[name]) for name, f in freqs.items()}
 
 
 def expected_frame_s(cfg: ChipConfig, shape: tuple[int, int], freqs: dict[str, float],
-                     cpd: int, sva_ii: int, frames: int = 1, dram: DramPlan | None = None
+                     nna_ii: int, sva_ii: int, frames: int = 1, dram: DramPlan | None = None
                      ) -> float:
     """The seconds of chip time the automatic budget expects a frame of a run of ``frames``
     to take (a little more: 16 rows more): the frame at the slowest block's rate. Through the
@@ -474,7 +474,7 @@ def expected_frame_s(cfg: ChipConfig, shape: tuple[int, int], freqs: dict[str, f
     h, w = shape
     camera = cfg.source.kind == "camera"
     per_pixel_s = max(
-        cpd / freqs["nna"],
+        nna_ii / freqs["nna"],
         sva_ii / freqs["sva"],
         (w + cfg.source.camera_hblank) / w / freqs["camera"] if camera else 0.0,
         dram.round_fs / dram.read_pixels / 1e15 if dram is not None else 0.0,
@@ -556,10 +556,10 @@ def sva_block(cfg: ChipConfig, stages, shape: tuple[int, int], n: int, to_sink,
     h, w = shape
     band = band_rows(cfg.sva, h) if parts > 1 and cfg.sva.weight_mode == "auto" else 0
     return BlockPlan("sva", "sva", "sva", None, ("nna_left_to_sva", "nna_right_to_sva"),
-                     (to_sink,), "top.sva", n, cycles=pipeline_ii(stages),
+                     (to_sink,), "top.sva", n, ii=pipeline_ii(stages),
                      latency=pipeline_latency(stages), lookahead=box_radius(cfg.sva),
                      passes=cfg.sva.box_size - 1, skew=median_radius(cfg.sva) * (w + 1),
-                     flush_ii=flush_ii(stages), slot_cycles=slot_ii(stages),
+                     flush_ii=flush_ii(stages), slot_ii=slot_ii(stages),
                      first_row=sva_first_slot_row(band, h),
                      buffers=tuple(b for st in stages for b in st.buffers), stages=stages)
 
@@ -597,7 +597,7 @@ def build_plan(chip: ChipSpec | ChipConfig, shape: tuple[int, int], frames: int 
     # hybrid's noise statistic (sva.noise)
     auto = len(nna.parts) > 1 and cfg.sva.weight_mode == "auto"
     beat_bits = bits + (8 if cfg.sva.p2_adaptive or auto else 0)
-    cpd = cycles_per_descriptor(nna)
+    nna_ii = cycles_per_descriptor(nna)
     half = half_window(nna)
     f = cfg.fifo
     fifos: list[FifoPlan] = []
@@ -648,7 +648,7 @@ def build_plan(chip: ChipSpec | ChipConfig, shape: tuple[int, int], frames: int 
         for t, tile in enumerate(tiles):
             blocks.append(BlockPlan(
                 subs[t], "nna", "nna", s, (src_fifos[t],), (sub_outs[t],),
-                f"top.nna.{side}.sub{t}", tile.shape[0] * tile.shape[1], cycles=cpd,
+                f"top.nna.{side}.sub{t}", tile.shape[0] * tile.shape[1], ii=nna_ii,
                 tile=tile, half=half, rows=cfg.nna.line_buffer_rows,
                 buffers=buffers[t], stages=nna_stages(nna, layers[t]),
                 layers=layers[t]))
@@ -669,7 +669,7 @@ def build_plan(chip: ChipSpec | ChipConfig, shape: tuple[int, int], frames: int 
                          lent.gbps if lent is not None else 0.0)
     plan = ChipPlan(spec=spec, shape=(h, w), domains=domains, fifos=tuple(fifos),
                     blocks=tuple(blocks), tiles=tiles,
-                    budget=frame_budget(cfg, shape, freqs, cpd, sva_ii,
+                    budget=frame_budget(cfg, shape, freqs, nna_ii, sva_ii,
                                         frames * cfg.sva.pairs, dram),
                     beat_bits=beat_bits, frames=frames * cfg.sva.pairs, dram=dram, lent=lent)
     object.__setattr__(plan, "signals", tuple(_signals(plan)))
@@ -697,7 +697,7 @@ def _signals(plan: ChipPlan) -> list[SignalPlan]:
                     sig(b.name, b.scope, f"{pre}status", 2, d)
                 sig(b.name, b.scope, f"{pre}line_buffer.row_in", _nb(h), d)
                 sig(b.name, b.scope, f"{pre}line_buffer.fill", _nb(lay.rows), d)
-                sig(b.name, b.scope, f"{pre}mac.phase", _nb(lay.cycles), d)
+                sig(b.name, b.scope, f"{pre}mac.phase", _nb(lay.ii), d)
                 sig(b.name, b.scope, f"{pre}mac.row", _nb(h), d)
                 sig(b.name, b.scope, f"{pre}mac.col", _nb(w), d)
             sig(b.name, b.scope, "out.valid", 1, d)
@@ -711,7 +711,7 @@ def _signals(plan: ChipPlan) -> list[SignalPlan]:
                                ("output.col", _nb(w)), ("output.valid", 1),
                                ("output.disparity", plan.word_bits), ("lr_check.reject", 1),
                                ("pipeline.issue", 1), ("pipeline.stall", 1),
-                               ("pipeline.words", _nb(b.skew + 1 - (-b.latency // b.cycles)))):
+                               ("pipeline.words", _nb(b.skew + 1 - (-b.latency // b.ii)))):
                 sig(b.name, b.scope, key, width, d)
             for st in b.stages:
                 sig(b.name, b.scope, f"stage.{st.name}.status", 2, d)

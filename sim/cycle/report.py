@@ -155,7 +155,7 @@ def nna_layer_report(plan: ChipPlan, layers: dict, buffers: dict) -> dict:
         entry = plan.block(name)
         out[name] = [{
             "layer": lay.index, "macs_per_pixel": lay.macs_per_pixel, "mac_share": lay.macs,
-            "cycles_per_pixel": lay.cycles, "output_pixels": lay.items,
+            "cycles_per_pixel": lay.ii, "output_pixels": lay.items,
             **{a: counts[a] for a in ACTIVITY_ORDER},
             "first_output_cycle": counts["first_output_cycle"],
             "last_output_cycle": counts["last_output_cycle"],

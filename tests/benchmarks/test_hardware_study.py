@@ -45,7 +45,7 @@ def test_check_fails_on_a_changed_cell(monkeypatch):
 def test_the_hand_formulas_are_what_the_cycle_model_measures(variant):
     """On a 200 x 30 frame: the first output of every layer by the formula is the report's (and
     the last the trace's ``out.valid``), and the stream's sustained rate is the formula's
-    f / (max_l cpp_l W H), which the plan's work bound also gives. The stream's rate is timed
+    f / (max_l II_l W H), which the plan's work bound also gives. The stream's rate is timed
     between the frames' last output words, on SVA clock edges: it may differ from the formula
     by one SVA period over the span of STREAM_FRAMES - 1 frames (and by its rounding to 3
     decimals)."""

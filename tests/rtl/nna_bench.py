@@ -89,13 +89,13 @@ async def one_run(dut, p: dict) -> None:
               "buffer's nna_rows_started_before_input)"
               for i, (got, exp) in enumerate(zip(pops, model_pops)) if got != exp][:3]
     model_pushes = [c - t0 for c in p["pushes"]]
-    cpp = p["cycles"]
+    ii = p["cycles"]
     for j, ((got, _), exp) in enumerate(zip(pushes, model_pushes)):
         y, x = divmod(j, width)
         what = "first" if j == 0 else "last" if j == len(want) - 1 else f"number {j}"
         if got != exp and (len(wrong) < 6 or what == "last"):
             wrong.append(f"the {what} descriptor ({x}, {y}) leaves in cycle {got}, the cycle "
-                         f"model's MAC array (cpp {cpp}) pushes it in {exp}")
+                         f"model's MAC array (II {ii}) pushes it in {exp}")
     assert not wrong, f"{name}: " + "; ".join(wrong)
     dut._log.info("%s: %d descriptors and %d pops equal, first out %d, last %d", name,
                   len(pushes), len(pops), pushes[0][0], pushes[-1][0])

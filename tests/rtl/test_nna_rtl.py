@@ -6,7 +6,7 @@ pushed in the cycle the readable cycle engine pops and pushes it (its NNA block,
 sim/cycle/readable/blocks/nna.py), run on the same frame and configuration at test time.
 
 Structure (build-time): the frame's size, each layer's kernel, channels, line-buffer rows and
-P multipliers per output channel -- the layer's MAC share is C_out P, so cpp = ceil(K^2 C_in /
+P multipliers per output channel -- the layer's MAC share is C_out P, so ii = ceil(K^2 C_in /
 P) = ceil(m / share). The networks (weights, biases, multiply-shift, the input offset) are
 run-time inputs: the chain's build serves two networks here.
 
@@ -17,14 +17,14 @@ Findings (structure vs plan), which the configurations here stay clear of (asser
    (column 0 replicated, then 1 .. h); read one a cycle, MAC cycle j of that output (taps
    kx-major, P a cycle) can run when min(kx of its last tap, 2 h) <= h + c, c the columns
    read. So its MAC cycle j runs in t_j = max(t_(j-1) + 1, min(kx_j, 2 h) - h) (t_(-1) = -1)
-   and the row's first output leaves e = t_(cpp-1) - (cpp - 1) cycles after the plan's
-   S_l(y) + cpp - 1. e = 0 here (:func:`_window_keeps_up`); a 7x7 x 1 x 4 layer on 68 MACs
-   (P 17, cpp 3) has min(kx_j, 6) = 2, 4, 6 -> t = 0, 1, 3, e = 1: on the RTL every output
+   and the row's first output leaves e = t_(ii-1) - (ii - 1) cycles after the plan's
+   S_l(y) + ii - 1. e = 0 here (:func:`_window_keeps_up`); a 7x7 x 1 x 4 layer on 68 MACs
+   (P 17, ii 3) has min(kx_j, 6) = 2, 4, 6 -> t = 0, 1, 3, e = 1: on the RTL every output
    row left one cycle later than the one before relative to the model (row y: y + 1 cycles
    late, the last descriptor 12 cycles late on 20 x 12), the words still bit-exact. The
-   plan's rule holds for cpp >= the cycles the reads take; otherwise a second read port, or
+   plan's rule holds for ii >= the cycles the reads take; otherwise a second read port, or
    reading the next row's first columns during the previous row, would be needed.
-2. The MAC share. The plan's cpp = ceil(m / share) lets any multiplier feed any channel's
+2. The MAC share. The plan's ii = ceil(m / share) lets any multiplier feed any channel's
    accumulator in any cycle. The structure here (P multipliers and an adder tree per output
    channel) gives it when the share is a multiple of C_out; otherwise
    ceil(K^2 C_in / floor(share / C_out)) cycles: mccnn4's 95 MACs for a 3x3 x 32 x 32 layer
@@ -82,9 +82,9 @@ def _random_network(path, shapes, seed: int, offset: int) -> str:
 def _window_keeps_up(k: int, c_in: int, p: int) -> bool:
     """The RTL's window loads a row's first h + 1 columns one a cycle (column c in MAC cycle
     c) while the taps go column by column, P a cycle: it keeps up with the taps if, in every
-    MAC cycle j of cpp, min(kx of the cycle's last tap, 2 h) <= h + j."""
-    h, cpp = k // 2, -(-(k * k * c_in) // p)
-    return all(min(((j + 1) * p - 1) // (k * c_in), 2 * h) <= h + j for j in range(cpp))
+    MAC cycle j of ii, min(kx of the cycle's last tap, 2 h) <= h + j."""
+    h, ii = k // 2, -(-(k * k * c_in) // p)
+    return all(min(((j + 1) * p - 1) // (k * c_in), 2 * h) <= h + j for j in range(ii))
 
 
 def _model_run(plan, left, right) -> dict:
@@ -118,14 +118,14 @@ def _model_run(plan, left, right) -> dict:
 
 
 def _late_mac_rule(plan):
-    """The plan with the last layer's MAC array one cycle slower per output (cpp + 1): a
+    """The plan with the last layer's MAC array one cycle slower per output (ii + 1): a
     mutant of the rule, which the unchanged RTL must catch."""
     def late(entry):
         if entry.kind != "nna":
             return entry
         *rest, last = entry.layers
         return dataclasses.replace(entry, layers=(*rest, dataclasses.replace(
-            last, cycles=last.cycles + 1)))
+            last, ii=last.ii + 1)))
     return dataclasses.replace(plan, blocks=tuple(late(b) for b in plan.blocks))
 
 
@@ -150,7 +150,7 @@ def _case(cfg, seed: int, name: str, mutant: bool = False) -> tuple[dict, dict]:
     run = {"name": name, "width": SHAPE[1], "pixels": left.ravel().tolist(),
            "offset": net.input_offset, "words": [int(x) for x in words],
            "visible": rec["visible"], "pops": rec["pops"], "pushes": rec["pushes"],
-           "cycles": [lay.cycles for lay in model.block("nna_left").layers],
+           "cycles": [lay.ii for lay in model.block("nna_left").layers],
            "layers": [{"weights": w.transpose(0, 3, 2, 1).ravel().tolist(),
                        "bias": b.tolist(),
                        "mult": net.mult[i].tolist() if i < net.n_layers - 1 else [],
@@ -167,7 +167,7 @@ def _runs(configs, mutant: bool = False) -> tuple[dict, list[dict]]:
 
 
 def test_one_9x9_layer_of_32_channels(rtl_run):
-    """The repo's default network (nna/conv/single9x9.npz) on 288 MACs (9 per channel: cpp 9; its
+    """The repo's default network (nna/conv/single9x9.npz) on 288 MACs (9 per channel: ii 9; its
     10-row line buffer makes rows 10 and 11 wait for room)."""
     params, runs = _runs([("single9x9", load_config(overrides={**BASE, "nna.macs": 288}))])
     assert params["P0"] == 9 and params["ROWS0"] == 10
@@ -187,7 +187,7 @@ def _chain_configs(tmp_path, seeds) -> list:
 
 
 def test_a_chain_of_two_3x3_layers(rtl_run, tmp_path):
-    """3x3 x 1 x 4 requantised into 3x3 x 4 x 8 on 12 + 48 MACs (cpp 3 and 6: layer 0 waits for
+    """3x3 x 1 x 4 requantised into 3x3 x 4 x 8 on 12 + 48 MACs (ii 3 and 6: layer 0 waits for
     room in layer 1's 4-row line buffer), two random networks."""
     params, runs = _runs(_chain_configs(tmp_path, ((1, 128), (2, 60))))
     assert [runs[0]["cycles"], params["P0"], params["P1"]] == [[3, 6], 3, 6]
@@ -195,7 +195,7 @@ def test_a_chain_of_two_3x3_layers(rtl_run, tmp_path):
 
 
 def test_a_one_cycle_mutant_of_the_mac_rule_is_caught_by_name(rtl_run, tmp_path):
-    """The plan's last MAC array one cycle slower an output (cpp 7 for the structure's 6): the
+    """The plan's last MAC array one cycle slower an output (ii 7 for the structure's 6): the
     unchanged RTL (the chain's build) catches it, by the name of the MAC array's rule."""
     params, runs = _runs(_chain_configs(tmp_path, ((1, 128),)), mutant=True)
     xml = rtl_run(SOURCE, "nna_submodule", params, "nna_bench", {"runs": runs}, fails=True)

@@ -152,7 +152,7 @@ def judge(c: dict, entry, rec, got) -> str:
     found = rtl_check.compare(rec, got, rtl_check.word_bits(p))
     assert found.overrun is None, (
         f"{c}: cycle {found.overrun}: a box pixel reached the SGM before its recurrence let "
-        f"it in (the plan's II {entry.cycles}, sva.sgm.timing.left_path_ii, too short for "
+        f"it in (the plan's II {entry.ii}, sva.sgm.timing.left_path_ii, too short for "
         "the structure)")
     # (a) the words
     words = found.kinds["word"]
@@ -179,12 +179,12 @@ def judge(c: dict, entry, rec, got) -> str:
         assert not len(nz), (
             f"{len(nz)} of {len(lag)} {name} off the model's cycle -- {rule}: the first of "
             f"pixel {divmod(int(nz[0]), c['w'])} (row, col): RTL cycle {rtl[nz[0]]}, model "
-            f"{model[nz[0]]}; lags min/max {lag.min()}/{lag.max()} (plan: II {entry.cycles}, "
-            f"slot II {entry.slot_cycles}, passes {entry.passes}); case {c}")
+            f"{model[nz[0]]}; lags min/max {lag.min()}/{lag.max()} (plan: II {entry.ii}, "
+            f"slot II {entry.slot_ii}, passes {entry.passes}); case {c}")
     assert found.equal
     return (f"{len(words.rtl)} words, pops {got['pops'][0]}..{got['pops'][-1]}, pushes "
             f"{got['pushes'][0]}..{got['pushes'][-1]} as the model's (latency {entry.latency},"
-            f" II {entry.cycles}, slot II {entry.slot_cycles})")
+            f" II {entry.ii}, slot II {entry.slot_ii})")
 
 
 def check(builds, c: dict, text: str | None = None, equivalence: bool = True) -> str:

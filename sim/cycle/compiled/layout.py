@@ -74,7 +74,7 @@ CONSTANTS = np.dtype([
     ("sides", np.int64),  # sides computed: 1 when the right side's events are the left's
     ("merge", np.int64), ("camera", np.int64), ("line_clocks", np.int64),
     ("mem_hz", np.int64), ("mem_bps", np.int64), ("half", np.int64), ("rows", np.int64),
-    ("cpd", np.int64), ("lookahead", np.int64), ("pipe_latency", np.int64), ("cpp", np.int64),
+    ("nna_ii", np.int64), ("lookahead", np.int64), ("pipe_latency", np.int64), ("sva_ii", np.int64),
     ("passes", np.int64), ("skew", np.int64), ("flush_ii", np.int64),  # the SVA's sequencer
     ("slot_ii", np.int64), ("first_row", np.int64),
     ("latency", np.int64),
@@ -146,7 +146,7 @@ TILE = np.dtype([
 # loop counts (busy and blocked cycles, its first output) and the block's walker's cursor
 LAYER = np.dtype([
     ("tile", np.int64), ("index", np.int64), ("last", np.int64), ("half", np.int64),
-    ("rows", np.int64), ("cpd", np.int64), ("top_halo", np.int64),
+    ("rows", np.int64), ("ii", np.int64), ("top_halo", np.int64),
     ("x0", np.int64), ("x1", np.int64), ("y0", np.int64), ("y1", np.int64), ("ix0", np.int64),
     ("ix1", np.int64), ("iy0", np.int64), ("iy1", np.int64), ("iw", np.int64), ("ow", np.int64),
     ("n_in", np.int64), ("n_out", np.int64), ("in_stream", np.int64), ("out_stream", np.int64),
@@ -404,7 +404,7 @@ def _tiles(plan: ChipPlan, names: dict, block_index: dict, fifo_index: dict
             r = lay.tile
             i = lay.index
             layers[first + i] = (
-                ti, i, 1 if i == n_layers - 1 else 0, lay.half, lay.rows, lay.cycles,
+                ti, i, 1 if i == n_layers - 1 else 0, lay.half, lay.rows, lay.ii,
                 r.top_halo, r.x0, r.x1, r.y0, r.y1, r.in_x0, r.in_x1, r.in_y0, r.in_y1,
                 r.in_x1 - r.in_x0, r.x1 - r.x0, r.in_shape[0] * r.in_shape[1],
                 r.shape[0] * r.shape[1], names["line_pop"][b.side, t] if i == 0 else outs[i - 1],
@@ -472,10 +472,10 @@ def _constants(plan: ChipPlan, sides: int, cap_fs: int, stats: bool) -> np.ndarr
     p["mem_hz"] = round(doms[plan.source_domain].freq_hz)
     p["mem_bps"] = src.bytes_per_s
     sub = plan.blocks_of("nna")[0]
-    p["half"], p["rows"], p["cpd"] = sub.half, sub.rows, sub.cycles
+    p["half"], p["rows"], p["nna_ii"] = sub.half, sub.rows, sub.ii
     sva = plan.block("sva")
-    p["lookahead"], p["pipe_latency"], p["cpp"] = sva.lookahead, sva.latency, sva.cycles
-    p["passes"], p["skew"], p["slot_ii"] = sva.passes, sva.skew, sva.slot_cycles
+    p["lookahead"], p["pipe_latency"], p["sva_ii"] = sva.lookahead, sva.latency, sva.ii
+    p["passes"], p["skew"], p["slot_ii"] = sva.passes, sva.skew, sva.slot_ii
     p["flush_ii"] = sva.flush_ii
     p["first_row"] = sva.first_row
     p["latency"] = cfg.fifo.latency_cycles

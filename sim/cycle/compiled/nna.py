@@ -6,7 +6,7 @@ line buffer and a MAC array (twin of the readable kernel's :mod:`sim.cycle.reada
 FIFOs' :mod:`sim.cycle.fifo.rule`).
 One layer (and the census) is one stage: the same streams, loops and walker as ever.
 
-Streams, per tile (layer l of L, its record ``Net.layers``: regions, h_l, rows_l, cpp_l):
+Streams, per tile (layer l of L, its record ``Net.layers``: regions, h_l, rows_l, II_l):
 
 - ``LINE_POP``: layer 0's line buffer pops input pixel i (row r of the tile's input region)
   ``b[i] = max(b[i-1] + 1, vis(a[k]), room_0(r))``, ``room_l(r)`` the cycle after layer l's
@@ -14,7 +14,7 @@ Streams, per tile (layer l of L, its record ``Net.layers``: regions, h_l, rows_l
   (:func:`~sim.cycle.rules.nna_rows_started_before_input`, :func:`line_room`);
 - ``LAYER_PUSH`` (l < L - 1) and ``MAC_PUSH`` (the last layer): layer l's output k (output row
   y) starts at ``s_k = max(e[k-1] + 1, in_l[last item of nna_last_input_row(y, h_l)] + 1)``
-  (``in_l``: layer 0's pops, else layer l - 1's outputs), finishes at ``f_k = s_k + cpp_l - 1``
+  (``in_l``: layer 0's pops, else layer l - 1's outputs), finishes at ``f_k = s_k + II_l - 1``
   and leaves at ``e[k] = max(f_k, room_l+1(k // W_l))`` into the next layer's line buffer, or,
   the last layer, ``max(f_k, free(p[k - depth]))`` into the tile's FIFO
   (:func:`advance_layer`, layer after layer).
@@ -297,7 +297,7 @@ def advance_layer(net, ti, li):
     after it allow: a layer before the last writes into the next layer's line buffer (room: its
     :func:`line_room`, row by row), the last pushes into the tile's FIFO (room: the slot a
     FIFO depth back, :func:`~sim.cycle.fifo.rule.room_from`, item by item). Output k starts at
-    max(e[k-1] + 1, its input rows in), is done ``cpd - 1`` cycles later and leaves once the
+    max(e[k-1] + 1, its input rows in), is done ``ii - 1`` cycles later and leaves once the
     room is there."""
     prm = net.prm[0]
     state = net.state[0]
@@ -310,7 +310,7 @@ def advance_layer(net, ti, li):
     e_off, e_mask, j, _ = view(streams, out_s)
     st = streams[out_s]
     per, cap, w, h, n = st.period, prm.cap_fs, prm.w, prm.h, prm.n
-    cpd, half = lr.cpd, lr.half
+    ii, half = lr.ii, lr.half
     # the output region (the last layer's: the tile's) and the input region
     ow, y0, x0, n_out, out_rows, occ_out = lr.ow, lr.y0, lr.x0, lr.n_out, lr.y1 - lr.y0, \
         lr.occ_out
@@ -365,7 +365,7 @@ def advance_layer(net, ti, li):
                     break
                 err |= jj <= p_lo
                 room = room_from(rd(ring, p_off, p_mask, jj), per_src, per_dst, rat, se)
-        e = max(mac_done(max(e_prev + 1, rows_in), cpd), room)
+        e = max(mac_done(max(e_prev + 1, rows_in), ii), room)
         if e * per >= cap:
             break
         ring[e_off + (j & e_mask)] = e
@@ -422,7 +422,7 @@ def walk_nna(net, ti, final):
     b_pops = (b_off, b_mask, nb, b_lo + 1)
     e_off, e_mask, ne, e_lo = view(net.streams, tl.mac_push)
     lr = net.layers[tl.layer0]
-    cpd, half, h, g = lr.cpd, lr.half, prm.h, prm.watchdog_fs
+    ii, half, h, g = lr.ii, lr.half, prm.h, prm.watchdog_fs
     per = net.blocks[blk].period
     ow, iw, y0, iy0, n_in = tl.ow, tl.iw, tl.y0, tl.iy0, tl.n_in
     out_rows = tl.y1 - tl.y0
@@ -447,7 +447,7 @@ def walk_nna(net, ti, final):
             rows_in = rd(ring, b_off, b_mask, need - 1) + 1 if need <= nb else INF
             rows_row = r
         s_j = max(prev + 1, rows_in)
-        done = mac_done(s_j, cpd)
+        done = mac_done(s_j, ii)
         if j >= ne:
             if final:
                 ptr, _, lost, watch = note_wait(ring, b_pops, ptr, prev, s_j, gaps,
@@ -494,7 +494,7 @@ def walk_nna(net, ti, final):
 @njit(cache=True, inline="always")
 def mark_layer(ring, streams, lr, h, cover, c0, c1):
     """Mark layer ``lr``'s known outputs from ``lr.wk`` on in the chunk of cycles [c0, c1):
-    output k starts once the previous one has left and its input rows are in, works ``cpd``
+    output k starts once the previous one has left and its input rows are in, works ``ii``
     cycles [s, f] and leaves at e when there is room -- busy over [s, f] and at e (``cover`` row 0),
     the last layer blocked over (f, e) (row 1). Each output that has left before c1 adds to the
     layer's own busy, blocked and first output. Returns (the first output not settled, a ring
@@ -502,7 +502,7 @@ def mark_layer(ring, streams, lr, h, cover, c0, c1):
     st = streams[lr.out_stream]
     e_off, e_mask, _, e_lo = view(streams, lr.out_stream)
     b_off, b_mask, _, b_lo = view(streams, lr.in_stream)
-    k, count, cpd, ow = lr.wk, st.count, lr.cpd, lr.ow
+    k, count, ii, ow = lr.wk, st.count, lr.ii, lr.ow
     out_rows = lr.y1 - lr.y0
     r = k // ow
     col = k - r * ow
@@ -523,7 +523,7 @@ def mark_layer(ring, streams, lr, h, cover, c0, c1):
         s = max(prev + 1, rows_in)
         if s >= c1:
             break
-        f = mac_done(s, cpd)
+        f = mac_done(s, ii)
         e = rd(ring, e_off, e_mask, k)
         mark(cover, c0, c1, s, f, 0)
         mark(cover, c0, c1, e, e, 0)
@@ -590,7 +590,7 @@ def walk_layers(net, ti, final):
             else:
                 s = layer_start(ring, streams, lr, h, st.count)  # works, then waits
                 if s < INF:
-                    end = max(end, mac_done(s, lr.cpd) + 1)
+                    end = max(end, mac_done(s, lr.ii) + 1)
     stop = min(front, end)
     c0 = a.walk
     chunk = 1 << 14
@@ -617,7 +617,7 @@ def walk_layers(net, ti, final):
             if k == st.count and k < st.n and final:
                 s = layer_start(ring, streams, lr, h, k)
                 if s < INF:
-                    mark(cover, c0, c1, s, mac_done(s, lr.cpd), 0)
+                    mark(cover, c0, c1, s, mac_done(s, lr.ii), 0)
             lr.wk = k
         n_busy, n_blocked = 0, 0  # the running sums of cover's rows
         for i in range(c1 - c0):
@@ -668,7 +668,7 @@ def layer_status(ring, streams, cursors, prm, lr, c):
     s_j = layer_start(ring, streams, lr, prm.h, emitted)
     if c < s_j:
         return A_STARVED, emitted, push_at
-    if c <= mac_done(s_j, lr.cpd):
+    if c <= mac_done(s_j, lr.ii):
         return A_BUSY, emitted, push_at
     return A_BLOCKED, emitted, push_at
 
@@ -719,7 +719,7 @@ def sample_nna(ring, streams, cursors, prm, tile, data, c, out):
         if not push_at and emitted < prm.frames * lr.n_out:
             s_j = layer_start(ring, streams, lr, prm.h, emitted)
             if c >= s_j:
-                phase = c - s_j + 1 if c < mac_done(s_j, lr.cpd) else lr.cpd
+                phase = c - s_j + 1 if c < mac_done(s_j, lr.ii) else lr.ii
         out[k] = lr.iy0 + r_in
         out[k + 1] = max(0, f_in * in_rows + r_in - oldest)
         out[k + 2] = phase

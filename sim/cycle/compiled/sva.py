@@ -313,7 +313,7 @@ class IssueLoop(NamedTuple):
     h: int
     cap_fs: int
     lookahead: int
-    cpp: int
+    ii: int
     passes: int
     slot_ii: int
     first_row: int
@@ -355,7 +355,7 @@ def issues_begin(net):
     k = IssueLoop(
         pops=view(streams, ids.sva_pop), push_off=o_off, push_mask=o_mask, issue_off=t_off,
         issue_mask=t_mask, n=st.n, period=st.period, w=prm.w, h=prm.h, cap_fs=prm.cap_fs,
-        lookahead=prm.lookahead, cpp=prm.cpp, passes=prm.passes, slot_ii=prm.slot_ii,
+        lookahead=prm.lookahead, ii=prm.sva_ii, passes=prm.passes, slot_ii=prm.slot_ii,
         first_row=prm.first_row, exits=sva_exits(prm), ring=net.ring,
         issue_rows=net.occ[ids.occ_sva_out])
     t_prev = rd(net.ring, t_off, t_mask, kt - 1) if kt > 0 else NEVER
@@ -375,7 +375,7 @@ def issues(k, cur, ko):
     p_off, p_mask, npop, p_lo = k.pops
     o_off, o_mask, t_off, t_mask = k.push_off, k.push_mask, k.issue_off, k.issue_mask
     n, per, ex = k.n, k.period, k.exits
-    w, h, cap, r, cpp = k.w, k.h, k.cap_fs, k.lookahead, k.cpp
+    w, h, cap, r, ii = k.w, k.h, k.cap_fs, k.lookahead, k.ii
     passes, a, first_row = k.passes, k.slot_ii, k.first_row
     kt, t_prev, yt, xt, kx = cur.issued, cur.last_tick, cur.row, cur.x, cur.exiting
     ready_row, ready, ready_tick = cur.ready_row, cur.ready, cur.ready_tick
@@ -422,9 +422,9 @@ def issues(k, cur, ko):
                     if not ok:
                         break
                 ready_known = True
-            tick = sva_first_word_tick(ready_tick, t_prev, cpp, r, a, pend)
+            tick = sva_first_word_tick(ready_tick, t_prev, ii, r, a, pend)
         else:  # the row was ready when its first word was issued: T(ready) <= t_prev
-            tick = sva_issue_tick(NEVER, t_prev, cpp)
+            tick = sva_issue_tick(NEVER, t_prev, ii)
         # the first issued word exiting at or after the tick: it only moves forward
         if kx < 0:
             kx, bad = exiting_from(ring, t, ex, kt, tick)
@@ -556,7 +556,7 @@ def walk_sva(net, final):
     known_until = INF if npop >= n or final else (rd(ring, p_off, p_mask, npop - 1) + 1
                                                   if npop > 0 else 0)
     # issues after the last one known come at ticks from t[kt - 1] + II on
-    next_tick = INF if kt >= n or final else (rd(ring, t_off, t_mask, kt - 1) + prm.cpp
+    next_tick = INF if kt >= n or final else (rd(ring, t_off, t_mask, kt - 1) + prm.sva_ii
                                               if kt > 0 else 0)
     err = (j < no and j <= o_lo) or (j < kt and j - 1 <= t_lo and j > 0)
     starved = 0
@@ -626,7 +626,7 @@ def walk_sva(net, final):
     if j == state.target and a.walk < j:  # every word settled: when the last left each stage
         for s in range(net.stages.shape[0]):
             st = net.stages[s]
-            st.busy += state.sva_regular * min(st.lat, prm.cpp) + st.lat
+            st.busy += state.sva_regular * min(st.lat, prm.sva_ii) + st.lat
             tick = rd(ring, t_off, t_mask, j - 1) + st.off + st.lat
             st.done, _, bad = cycle_of(ring, o, t, ex, no, kt, tick)
             err |= bad
@@ -647,7 +647,7 @@ def _walk_stages(prm, state, stages, ring, t, kt, j, stall):
     err = False
     t_off, t_mask, t_lo = t
     tj = rd(ring, t_off, t_mask, j)
-    ii = prm.cpp
+    ii = prm.sva_ii
     gap = tj - rd(ring, t_off, t_mask, j - 1) if j > 0 else -1
     if j > 0 and j - 1 <= t_lo:
         err = True

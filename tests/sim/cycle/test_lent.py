@@ -52,7 +52,7 @@ def test_one_submodule_in_exact_figures(tmp_path, lent_toml):
     lent = plan.lent
     assert [(lay.in_shape, lay.out_shape) for lay in lent.layers] == [((12, 16), (6, 8)),
                                                                        ((6, 8), (6, 8))]
-    assert [(lay.share, lay.cycles, lay.rows, lay.buffer_bits, lay.on_chip)
+    assert [(lay.share, lay.ii, lay.rows, lay.buffer_bits, lay.on_chip)
             for lay in lent.layers] == [(11, 7, 5, 1280, True), (5, 7, 2, 512, False)]
     assert lent.sram_budget_bits == 1280 and lent.weight_store_bits == 0
     assert lent.frame_cycles == 336 and lent.used == 1
@@ -67,7 +67,7 @@ def test_two_submodules_one_layer_each_and_no_spill(tmp_path, lent_toml):
     cycles a pixel, 240 and 96 cycles a frame (the cut beats 336); both buffers fit."""
     plan = _plan(lent_toml(tmp_path / "n.toml", NET, channels=2, height=12), lent=2)
     lent = plan.lent
-    assert [(lay.submodule, lay.share, lay.cycles, lay.on_chip) for lay in lent.layers] == [
+    assert [(lay.submodule, lay.share, lay.ii, lay.on_chip) for lay in lent.layers] == [
         (0, 16, 5, True), (1, 16, 2, True)]
     assert lent.submodule_cycles == (240, 96) and lent.frame_cycles == 240
     assert lent.bytes_per_frame["spill"] == 0

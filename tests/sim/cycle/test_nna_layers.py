@@ -9,9 +9,9 @@ a + k, a = 1, and nothing stalling (the line buffers' slack and the FIFOs deep e
 
 and layer l's output row y (rows of its output region) starts and ends in
 
-    S_l(y) = max(D_l-1(min(y + h_l, H - 1)), D_l(y - 1)) + 1,    D_l(y) = S_l(y) + W_l cpp_l - 1
+    S_l(y) = max(D_l-1(min(y + h_l, H - 1)), D_l(y - 1)) + 1,    D_l(y) = S_l(y) + W_l II_l - 1
 
-(W_l its output region's width, cpp_l = ceil(m_l / macs_l)); the first descriptor leaves in
+(W_l its output region's width, II_l = ceil(m_l / macs_l)); the first descriptor leaves in
 S_L-1(y0) + cpp_L-1 - 1 and the last in D_L-1(y1 - 1). One layer: the first in a + (h + 1) W - 1
 + c, as docs/architecture.md has it.
 """
@@ -139,7 +139,7 @@ def test_line_buffer_rows_and_regions(weights):
 def test_one_layer_is_one_stage_with_todays_figures():
     plan = build_plan(load_config(), (720, 1280))
     (lay,) = plan.block("nna_left").layers
-    assert (lay.rows, lay.half, lay.cycles, lay.macs, lay.tile) == (10, 4, 9, 288,
+    assert (lay.rows, lay.half, lay.ii, lay.macs, lay.tile) == (10, 4, 9, 288,
                                                                      plan.tiles[0])
     assert lay.buffer.name == "nna.line_buffer" and lay.buffer.bits == 10 * 1280 * 8
     assert [s.name for s in plan.block("nna_left").stages] == ["line_buffer", "mac_array",
@@ -181,8 +181,8 @@ def _expected(plan, block):
         for y in range(t.y0, t.y1):
             start = max(done[min(y + lay.half, h - 1)], prev) + 1
             if y == t.y0 and lay.index == len(entry.layers) - 1:
-                first = start + lay.cycles - 1
-            out[y] = prev = start + width * lay.cycles - 1
+                first = start + lay.ii - 1
+            out[y] = prev = start + width * lay.ii - 1
         done = out
     return first, done[entry.tile.y1 - 1]
 
@@ -236,7 +236,7 @@ def test_first_and_last_descriptor_in_exact_cycles(weights, name, over, split, e
         # the receptive field decides the first descriptor: 2 reach + 1 rows, whatever the
         # layers (here: the first descriptor needs input row `reach`)
         lay0 = plan.block("nna_left").layers[0]
-        assert outputs["nna_left"][0][0] == (lay0.half + 1) * w + lay0.cycles
+        assert outputs["nna_left"][0][0] == (lay0.half + 1) * w + lay0.ii
 
 
 @pytest.mark.parametrize("engine", ENGINES)
@@ -247,7 +247,7 @@ def test_the_first_descriptor_waits_for_the_receptive_field_not_the_layers(weigh
     path, _ = weights["four3x3"]
     h, w = 12, 40
     plan = build_plan(_cfg(path, **{"nna.macs": 1044}), (h, w))
-    assert [lay.cycles for lay in plan.block("nna_left").layers] == [1, 1, 1, 1]
+    assert [lay.ii for lay in plan.block("nna_left").layers] == [1, 1, 1, 1]
     first = _layer_outputs(plan, engine, *_pair(h, w))["nna_left"][-1][0]
     # input row 4 (the receptive field's last) is complete in 5W; then layers 0..2 each
     # finish one more row of W cycles (the row the next layer's first row reads below it)

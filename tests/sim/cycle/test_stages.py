@@ -75,7 +75,7 @@ def test_first_and_last_output_cycles_follow_the_stage_formulas(d, lanes, paths,
                                  "sva.paths": paths, "sva.lr_check": lr})
     plan = build_plan(cfg, (h, w))
     sva = plan.block("sva")
-    assert (sva.cycles, sva.latency, sva.slot_cycles) == (ii, latency, a)
+    assert (sva.ii, sva.latency, sva.slot_ii) == (ii, latency, a)
     rng = np.random.default_rng(d + lanes)
     left = rng.integers(0, 256, (h, w), dtype=np.uint8)
     frame = run_compiled(plan, left, np.roll(left, -2, axis=1))
@@ -101,8 +101,8 @@ def test_the_paper_configuration_gives_250_fps():
     cfg = load_config()
     plan = build_plan(cfg, (720, 1280))
     sva = plan.block("sva")
-    assert sva.cycles == 2
-    fps = cfg.clocks.sva_mhz * 1e6 / (sva.items * sva.cycles)
+    assert sva.ii == 2
+    fps = cfg.clocks.sva_mhz * 1e6 / (sva.items * sva.ii)
     assert abs(fps - 250) / 250 < 0.03
     assert round(fps, 1) == 252.3
 
@@ -112,11 +112,11 @@ def test_lanes_trade_against_the_left_path_recurrence():
     once per pixel, so halving the lanes of D = 128 from 128 to 64 turns II 2 into 2 - 1 + 1 +
     1 = 3 (two groups, the step's tree(5) = 1, then tree(lg 64 + 1) = 1)."""
     ii = {lanes: build_plan(load_config(overrides={"sva.lanes": lanes}), (64, 300)).block("sva")
-          .cycles for lanes in (128, 64, 32, 16, 1)}
+          .ii for lanes in (128, 64, 32, 16, 1)}
     assert ii == {128: 2, 64: 3, 32: 5, 16: 9, 1: 129}
     few_levels = load_config(overrides={"sva.compare_levels": 2})
     # 0 + tree(5 levels of the step) + tree(7) = 3 + 4
-    assert build_plan(few_levels, (64, 300)).block("sva").cycles == 3 + 4
+    assert build_plan(few_levels, (64, 300)).block("sva").ii == 3 + 4
 
 
 def test_helpers():
@@ -150,7 +150,7 @@ def test_single_port_srams_cost_what_their_accesses_need(lanes, d, ii_dual, ii_s
     for ports in ("1r1w", "1rw"):
         cfg = load_config(overrides={"sva.lanes": lanes, "sva.disparities": d,
                                      "sva.sram_ports": ports})
-        ii[ports] = build_plan(cfg, (16, 300)).block("sva").cycles
+        ii[ports] = build_plan(cfg, (16, 300)).block("sva").ii
     assert (ii["1r1w"], ii["1rw"]) == (ii_dual, ii_single)
     g = -(-d // lanes)
     assert ii_single == max(ii_dual, 2 * g)
@@ -181,7 +181,7 @@ def test_a_single_port_chip_runs_at_its_ii():
                                  "sva.sram_ports": "1rw"})
     plan = build_plan(cfg, (5, 400))
     sva = plan.block("sva")
-    assert (sva.cycles, sva.slot_cycles, sva.flush_ii) == (4, 4, 2)
+    assert (sva.ii, sva.slot_ii, sva.flush_ii) == (4, 4, 2)
     rng = np.random.default_rng(3)
     left = rng.integers(0, 256, (5, 400), dtype=np.uint8)
     cycles = run_compiled(plan, left, np.roll(left, -2, axis=1)).report["cycles"]
@@ -220,7 +220,7 @@ def test_stage_activity_follows_the_words_through_the_stages():
     rep = run_compiled(plan, rng.integers(0, 256, (h, w), dtype=np.uint8),
                        rng.integers(0, 256, (h, w), dtype=np.uint8)).report
     stages, sva = rep["sva_stages"], rep["blocks"]["sva"]
-    ii, n = plan.block("sva").cycles, h * w
+    ii, n = plan.block("sva").ii, h * w
     assert ii == 2
     for st in plan.block("sva").stages:
         got = stages[st.name]

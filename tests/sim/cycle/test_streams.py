@@ -75,8 +75,8 @@ def test_an_sva_bound_stream_leaves_a_word_every_ii_across_frames(run):
     0's, and the stream sustains clock / P frames per second."""
     h, w, frames = 7, 40, 3
     plan = build_plan(load_config(overrides=SAME), (h, w), frames)
-    lat, ii = plan.block("sva").latency, plan.block("sva").cycles
-    assert (ii, plan.block("sva").slot_cycles) == (2, 1)
+    lat, ii = plan.block("sva").latency, plan.block("sva").ii
+    assert (ii, plan.block("sva").slot_ii) == (2, 1)
     left, right = _stream(frames, h, w, seed=2)
     rep = run(plan, left, right).report
     p = h * (w - 1) * ii + (h - 1) * max(ii, 3) + max(ii, 3 + w + 1 + 4 * w)

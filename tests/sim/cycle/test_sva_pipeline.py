@@ -43,8 +43,8 @@ def test_a_stall_freezes_the_words_in_flight_and_the_next_rows_issue(run_cycle):
             "fifo.sva_to_sink_depth": 1}
     cfg = load_config(overrides=over)
     plan = build_plan(cfg, (h, w))
-    lat, ii, r = plan.block("sva").latency, plan.block("sva").cycles, 2
-    assert (lat, ii, plan.block("sva").slot_cycles) == (48, 2, 1)
+    lat, ii, r = plan.block("sva").latency, plan.block("sva").ii, 2
+    assert (lat, ii, plan.block("sva").slot_ii) == (48, 2, 1)
     left, right = _pair(h, w)
     _, rep, chip = run_cycle(left, right, cfg)
     r0, r1 = (int(c) for c in chip.blocks["sva"].ready_cycle[:2])
@@ -105,7 +105,7 @@ def test_the_stages_words_add_up_to_the_pipelines_and_the_lr_window_fills(run):
     held = sum(_values_at(log, paths.index(f"top.sva.stage.{s}.words"), times)
                for s in stages)
     np.testing.assert_array_equal(total - held, sva.skew)
-    assert held.max() == -(-sva.latency // sva.cycles)
+    assert held.max() == -(-sva.latency // sva.ii)
     lr = _values_at(log, paths.index("top.sva.stage.lr_check.words"), times[-50:])
     assert lr.max() == 16 and lr.min() >= 15  # D = 16: a word leaves as the next enters
     status = _values_at(log, paths.index("top.sva.stage.lr_check.status"), times[-50:])
@@ -124,7 +124,7 @@ def test_single_port_sram_spaces_the_issues_in_the_trace(run, ports, ii):
     over = {**SAME, "sva.disparities": 128, "sva.lanes": 64, "sva.sram_ports": ports}
     h, w = 4, 140
     plan = build_plan(load_config(overrides=over), (h, w))
-    assert plan.block("sva").cycles == ii
+    assert plan.block("sva").ii == ii
     left, right = _pair(h, w, seed=3)
     per = plan.domains["sva"].period_fs
     first = run_compiled(plan, left, right).report["cycles"]["first_output"]["sva"]
@@ -163,7 +163,7 @@ def test_automatic_weights_hold_the_first_costs_until_the_noise_band_is_in(run):
                                      "sva.disparities": 16})
         plan = build_plan(cfg, (h, w))
         sva = plan.block("sva")
-        assert (sva.lookahead, sva.passes, sva.slot_cycles) == (3, 6, 1)
+        assert (sva.lookahead, sva.passes, sva.slot_ii) == (3, 6, 1)
         assert sva.first_row == (5 if mode == "auto" else 0)
         _, log, paths = _trace(run, plan, left, right, (0, 10**13))
         per = plan.domains["sva"].period_fs

@@ -13,19 +13,19 @@ cycle, each an object of its own (a :class:`LineBuffer` feeding a :class:`MacArr
   row waits until the window has moved on; with 10 it arrives while the window computes.
 - **MAC array** (output): computes the layer's output region in raster order. Output row y may
   start once input row :func:`~sim.cycle.rules.nna_last_input_row` (min(y + h_l, H - 1), the
-  replicate border) is complete. Each output occupies the array for ``cycles`` = cpp_l =
+  replicate border) is complete. Each output occupies the array for ``ii`` = II_l =
   ceil(m_l / macs_l) cycles (census: 1) and leaves in its last cycle -- the last layer pushes
   the descriptor into ``out``, a layer before it writes its activations into the next layer's
   line buffer --; if there is no room (``out`` full, or the next line buffer's rule says
   wait) the finished output is held (the layer is blocked) and the next one starts the cycle
-  after it leaves. Without stalls the initiation interval is cpp_l.
+  after it leaves. Without stalls the initiation interval is II_l.
 
 Rows flow between the layers without a frame store. Latency of the first descriptor, with the
 input arriving one pixel per cycle from cycle a (first pop) and nothing stalling: layer 0's
 input row r is complete in D_-1(r) = a + r W + in_x1 - 1 (W the frame's width, in_x1 the end
 of the tile's input columns: a + (r + 1) W - 1 for a whole frame); layer l's output row y
 starts in S_l(y) = max(D_l-1(min(y + h_l, H - 1)), D_l(y - 1)) + 1 and ends in D_l(y) =
-S_l(y) + W_l cpp_l - 1 (W_l its output region's width); the first descriptor leaves in
+S_l(y) + W_l II_l - 1 (W_l its output region's width); the first descriptor leaves in
 S_L-1(0) + cpp_L-1 - 1 -- one layer: a + min(h + 1, H) W - 1 + cycles. The receptive field
 decides: 9 input rows for one 9x9 layer and for four 3x3 layers alike.
 
@@ -38,7 +38,7 @@ so any mistake in what reached a buffer shows in the bit-exactness tests.
 
 Traced signals (:mod:`sim.cycle.plan`): ``status``; ``line_buffer.row_in`` (the image row being
 received), ``line_buffer.fill`` (rows held for the next output row), ``mac.phase`` (MAC cycles
-spent on the current output; ``cycles`` while a finished one waits), ``mac.row`` / ``mac.col``
+spent on the current output; ``ii`` while a finished one waits), ``mac.row`` / ``mac.col``
 (the next output) -- with several layers, per layer, prefixed ``layer<l>.``, with the layer's
 own ``layer<l>.status`` --, ``out.valid`` (pushed in its last cycle) and ``out.descriptor`` (the
 last pushed).
@@ -157,10 +157,10 @@ class LineBuffer:
 
 class MacArray:
     """A layer's output half: the outputs of its output region, in raster order, frame after
-    frame, each ``cycles`` MAC cycles from the line buffer's rows.
+    frame, each ``ii`` MAC cycles from the line buffer's rows.
 
     State (committed): ``emitted`` outputs so far, ``phase`` (MAC cycles spent on the current
-    output; ``cycles`` while a finished one waits for room), ``pushed`` (in the last cycle),
+    output; ``ii`` while a finished one waits for room), ``pushed`` (in the last cycle),
     ``last_value`` (the last output), ``rows_done`` (the cycle each output row's last output
     left, over the stream), ``first_cycle`` / ``last_cycle`` (of the first and last output),
     ``activity`` (cycles busy, starved, blocked, idle)."""
@@ -169,7 +169,7 @@ class MacArray:
                  last: bool, census_source: LineBuffer | None = None, bits: int = 0):
         self.tile = layer.tile
         self.index, self.last = layer.index, last
-        self.half, self.cycles = layer.half, layer.cycles
+        self.half, self.ii = layer.half, layer.ii
         self.spec = spec
         self.cnn = spec.cnn  # None for the census
         # the hybrid's last layer: layer 0's line buffer, whose rows its census unit reads,
@@ -255,13 +255,13 @@ class MacArray:
         f, y, x = self.position()
         if self.phase == 0 and not self._row_ready(buffer, f, y):
             return self._report("starved"), None
-        cpd = self.cycles
-        if self.phase + 1 < cpd:
+        ii = self.ii
+        if self.phase + 1 < ii:
             self._phase_next = self.phase + 1
             return self._report("busy"), None
-        worked = self.phase < cpd
+        worked = self.phase < ii
         if not room:
-            self._phase_next = cpd
+            self._phase_next = ii
             return self._report("busy" if worked else "blocked"), None
         value = self._outputs_of_row(buffer, f, y)[..., x - self.tile.x0]
         self._out = (f, x, y, value if value.ndim else int(value))

@@ -17,7 +17,7 @@ r % H of frame r // H.
   seed the box filter's column sums, then per box row W + r slots, the first r of a row
   filling the box's row window and the others each *issuing* a word (read from the row
   buffers into the first stage). In a cycle in which the pipeline advances the next slot goes
-  if the input row it adds is complete, a slot II (``slot_cycles``) of ticks after the
+  if the input row it adds is complete, a slot II (``slot_ii``) of ticks after the
   previous slot, a word an II of ticks after the previous word, and a frame's first slot
   after the median's flush of the previous frame (:func:`~sim.cycle.rules.sva_frame_start`).
 - **Pipeline** (:mod:`sim.cycle.stages`): the stages in stream order, L cycles of latency in all,
@@ -95,10 +95,10 @@ class SvaBlock(ChipBlock):
         self.passes = entry.passes
         self.skew = entry.skew
         self.flush_ii = entry.flush_ii
-        self.slot_ii = entry.slot_cycles
+        self.slot_ii = entry.slot_ii
         self.first_row = entry.first_row
         self.latency = entry.latency
-        self.ii = entry.cycles
+        self.ii = entry.ii
         self.stages = entry.stages
         self.offsets = stage_offsets(entry.stages)
         self.n = self.height * self.width
