@@ -2,6 +2,7 @@
 synth` and the plan's `silicon` section read (sva/synth_table.json).
 
     python benchmarks/rtl_synth.py [--whole LANES,...] [--out PATH] [--cache PATH]
+    python benchmarks/rtl_synth.py --section area_rules   # only the area rules (docs/area.md)
 
 For every stage of ``sim.rtl_synth.STAGES`` (one line each: source, top module, parameters,
 its memory) and every configuration of ``TABLE_CONFIGS`` (D = 64, 128, 256 with the defaults'
@@ -406,6 +407,201 @@ def liberty_figures(path: Path) -> dict:
     return out
 
 
+# ---- the area rules (--section area_rules): the table's other sections are kept -------------
+
+# the NNA submodule's RTL at K = 9 (the default 9 x 9 x 1 x C layer), one layer, a 4-wide frame
+# (its line buffer taken out: LINE_BUFFER_W); (C1, P0): C1 output channels x P0 multipliers
+NNA_BASE = {"LAYERS": 1, "W": 4, "H": 13, "K0": 9, "ROWS0": 10}
+NNA_FIT = ((2, 3), (4, 3), (2, 9))
+NNA_CHECK = ((8, 3), (4, 9))
+LINE_BUFFER_W = (4, 8)  # the line buffer's W at (C1, P0) = NNA_FIT[0], extrapolated to none
+# builds of the table's own sections each stage's rule is fitted on (by role)
+FIT_ROLES = {"lr_check": ("whole",), "median": ("whole",)}
+# the stages' memories' offsets (words proportional to value + offset), by parameter
+_MEMORY = {st.name: st.memory for st in rs.STAGES if st.memory}
+
+
+def _area_checks(sva) -> list[tuple[str, dict]]:
+    """New SVA builds that check the rules (stage, parameters; a memory parameter is added at
+    both of its sizes): 4 lane groups, another width, other D / words."""
+    p = rs.STAGE
+    parts = (32,)
+    out = [("hamming", p["hamming"].params(32, 8, 8, parts, sva)),
+           ("hamming", p["hamming"].params(8, 8, 8, (16,), sva)),
+           ("box_filter", p["box_filter"].params(32, 8, 8, parts, sva)),
+           ("box_filter", p["box_filter"].params(24, 24, 8, parts, sva)),
+           ("box_filter", {**p["box_filter"].params(8, 8, 8, parts, sva), "COST_W": 8}),
+           ("sgm", p["sgm"].params(32, 8, 8, parts, sva)),
+           ("sgm", p["sgm"].params(24, 24, 8, parts, sva)),
+           ("sgm", p["sgm"].params(32, 32, 8, parts, sva)),
+           ("sgm", {**p["sgm"].params(8, 8, 8, parts, sva), "PATH_W": 14}),
+           ("wta", p["wta"].params(32, 8, 8, parts, sva)),
+           ("wta", {**p["wta"].params(8, 8, 8, parts, sva), "SW": 16}),
+           ("lr_check", p["lr_check"].params(32, 32, 8, parts, sva)),
+           ("lr_check", p["lr_check"].params(16, 16, 8, parts, sva)),
+           ("median", {**p["median"].params(16, 16, 8, parts, sva), "WB": 9}),
+           ("median", {**p["median"].params(16, 16, 8, parts, sva), "WB": 15})]
+    return out
+
+
+# the SGM's previous rows at a third size (W_MAX 4) beside the rows' two: is the memory linear
+# in its slots? (D, lanes)
+SGM_MEMORY_PROBE = ((8, 8), (16, 16))
+
+
+def _sgm_memory_probe(cache: Cache, table: dict, new: list) -> list[dict]:
+    """The SGM build's NAND2 logic per slot of its memories (W_MAX + 2 slots) between W_MAX 1
+    and 2 (the rows' extrapolation) and between 2 and 4, at SGM_MEMORY_PROBE's sizes."""
+    st, out = rs.STAGE["sgm"], []
+    for d, lanes in SGM_MEMORY_PROBE:
+        params = st.params(d, lanes, 8, (32,), rs.default_sva())
+        fig = {}
+        for w in (1, 2, 4):
+            full = {**params, "W_MAX": w}
+            r = cache.run(rs.ROOT / st.source, st.top, full)
+            new.append({"stage": "sgm", "top": st.top, "role": "memory_probe", "params": full,
+                        **r})
+            fig[w] = rs.area_point(r["cells"])["nand2_logic"]
+        out.append({"params": params, "nand2_logic": {str(w): round(v, 1) for w, v in
+                                                      fig.items()},
+                    "per_slot_w1_w2": round(fig[2] - fig[1], 1),
+                    "per_slot_w2_w4": round((fig[4] - fig[2]) / 2, 1),
+                    "without_memory_from_w1_w2": round(fig[1] - 3 * (fig[2] - fig[1]), 1),
+                    "without_memory_from_w2_w4": round(fig[2] - 4 * (fig[4] - fig[2]) / 2, 1)})
+    return out
+
+
+def _memory_free(stage: str, builds: list[dict]) -> list[dict]:
+    """Points (params without the memory parameter, the area figures) of a stage's builds: a
+    stage with a memory pairs the builds at its two sizes and extrapolates each figure to no
+    words (a parameter set built at one size only gives no point)."""
+    mem = _MEMORY.get(stage)
+    groups: dict[str, dict] = {}
+    for b in builds:
+        params = dict(b["params"])
+        value = params.pop(mem.param) if mem else None
+        key = json.dumps(params, sort_keys=True)
+        groups.setdefault(key, {"params": params, "by": {}})
+        groups[key]["by"][value] = (rs.area_point(b["cells"]), b.get("role", ""),
+                                    b.get("seconds", 0.0))
+    out = []
+    for g in groups.values():
+        used = [None] if mem is None else list(mem.values)
+        if not all(v in g["by"] for v in used):
+            continue
+        if mem is None:
+            fig = g["by"][None][0]
+        else:
+            (v1, v2), (f1, f2) = mem.values, (g["by"][v][0] for v in mem.values)
+            n1, n2 = v1 + mem.offset, v2 + mem.offset
+            fig = {q: f1[q] - n1 * (f2[q] - f1[q]) / (n2 - n1) for q in rs.AREA_QUANTITIES}
+        out.append({"params": g["params"], **fig,
+                    "roles": sorted({g["by"][v][1] for v in used}),
+                    "seconds": round(sum(g["by"][v][2] for v in used), 1)})
+    return out
+
+
+def _check(rule: rs.AreaRule, coef: dict, point: dict, what: str) -> dict | None:
+    pred = rs.area_rule_eval(coef, rule, point["params"])
+    if pred is None:
+        return None
+    return {"what": what, "params": point["params"],
+            "measured": {q: round(point[q], 1) for q in rs.AREA_QUANTITIES},
+            "predicted": {q: round(pred[q], 1) for q in rs.AREA_QUANTITIES},
+            "error_pct": {q: round(100 * (pred[q] - point[q]) / point[q], 2)
+                          for q in rs.AREA_QUANTITIES},
+            "seconds": point.get("seconds", 0.0)}
+
+
+def _nna_points(cache: Cache, new: list) -> tuple[list, list, dict]:
+    """The NNA rule's fit and check points: NNA_FIT and NNA_CHECK builds at W = 4 less the line
+    buffer (its figures between W = 4 and 8 at NNA_FIT[0], extrapolated to W = 0)."""
+    src = rs.ROOT / "nna" / "submodule" / "nna_submodule.sv"
+
+    def build(c1, p0, w=LINE_BUFFER_W[0]):
+        params = {**NNA_BASE, "W": w, "C1": c1, "P0": p0}
+        print(f"nna: nna_submodule {params}", flush=True)
+        r = cache.run(src, "nna_submodule", params, timeout=SMALL_TIMEOUT_S)
+        if not any(b["stage"] == "nna" and b["params"] == params for b in new):
+            new.append({"stage": "nna", "top": "nna_submodule", "params": params, **r})
+        return rs.area_point(r["cells"]), r["seconds"]
+
+    (f4, _), (f8, _) = (build(*NNA_FIT[0], w) for w in LINE_BUFFER_W)
+    w1, w2 = LINE_BUFFER_W
+    line = {q: w1 * (f8[q] - f4[q]) / (w2 - w1) for q in rs.AREA_QUANTITIES}
+
+    def point(c1, p0):
+        fig, sec = build(c1, p0)
+        return {"params": {**NNA_BASE, "W": 0, "C1": c1, "P0": p0}, "seconds": sec,
+                "roles": ["area_check"],
+                **{q: fig[q] - line[q] for q in rs.AREA_QUANTITIES}}
+
+    return ([point(*cp) for cp in NNA_FIT], [point(*cp) for cp in NNA_CHECK],
+            {q: round(v, 1) for q, v in line.items()})
+
+
+def area_rules_section(cache: Cache, out: Path, command: str) -> dict:
+    """Fit each block's area rule (:data:`sim.rtl_synth.AREA_RULES`) on the table's builds and
+    the NNA's, check it against new builds, and write the table's ``area_rules`` section
+    (every other section kept as it is)."""
+    t0 = time.perf_counter()
+    table = json.loads(out.read_text())
+    sva = rs.default_sva()
+    new: list[dict] = []
+    for stage, params in _area_checks(sva):
+        mem = _MEMORY.get(stage)
+        for value in (mem.values if mem else (None,)):
+            full = {**params, mem.param: value} if mem else params
+            print(f"{stage}: {rs.STAGE[stage].top} {full}", flush=True)
+            r = cache.run(rs.ROOT / rs.STAGE[stage].source, rs.STAGE[stage].top, full)
+            new.append({"stage": stage, "top": rs.STAGE[stage].top, "role": "area_check",
+                        "params": full, **r})
+    stages = {}
+    for rule in rs.AREA_RULES:
+        if rule.stage == "nna":
+            fit, checks, line = _nna_points(cache, new)
+            extra = {"line_buffer_out": line}
+        else:
+            pts = _memory_free(rule.stage, [b for b in table["builds"] + new
+                                            if b["stage"] == rule.stage])
+            roles = FIT_ROLES.get(rule.stage, ("slice",))
+            fit = [p for p in pts if set(p["roles"]) <= set(roles)]
+            pts = [p for p in pts if "memory_probe" not in p["roles"]]
+            checks = [p for p in pts if p not in fit]
+            extra = {}
+        coef = rs.fit_area_rule(rule, fit)
+        domain = {k: fit[0]["params"][k] for k in rule.domain}
+        stages[rule.stage] = {
+            "terms": rule.terms, "width": list(rule.width), "width_ref": rule.width_ref,
+            "domain": domain, "coef": coef, **extra,
+            "fit": [{"params": p["params"], **{q: round(p[q], 1) for q in rs.AREA_QUANTITIES}}
+                    for p in fit],
+            "checks": [c for c in (_check(rule, coef, p, "a new build" if "area_check" in
+                                          p.get("roles", ()) else "a build of the table's")
+                                   for p in checks) if c is not None],
+            "outside": [{"params": p["params"], "group": rs.area_group(rule, p["params"]),
+                         **{q: round(p[q], 1) for q in rs.AREA_QUANTITIES}}
+                        for p in checks if rs.area_rule_eval(coef, rule, p["params"]) is None]}
+        worst = max((abs(e) for c in stages[rule.stage]["checks"]
+                     for e in c["error_pct"].values()), default=float("nan"))
+        print(f"{rule.stage}: fit on {len(fit)}, {len(checks)} checks, worst {worst:.2f} %",
+              flush=True)
+    probe = _sgm_memory_probe(cache, table, new)
+    # the builds this section adds (a check may reuse one the table's rows recorded)
+    known = [(b["stage"], b["params"]) for b in table["builds"]]
+    new = [b for b in new if (b["stage"], b["params"]) not in known]
+    table["area_rules"] = {
+        "rule": rs.AREA_RULE, "error_pct": rs.AREA_RULE_ERROR_PCT, "command": command,
+        "written": datetime.date.today().isoformat(),
+        "yosys_s": round(sum(b["seconds"] for b in new), 1),
+        "wall_s": round(time.perf_counter() - t0, 1), "stages": stages,
+        "sgm_memory_probe": probe,
+        "builds": [{k: b[k] for k in ("stage", "top", "params", "cells", "flip_flops",
+                                      "gates", "depth", "seconds")} for b in new]}
+    out.write_text(json.dumps(table, indent=1) + "\n")
+    return table
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--whole", default="", metavar="LANES,...",
@@ -418,6 +614,9 @@ def main(argv=None) -> int:
                     help="rerun a small build the last table records as not synthesised")
     ap.add_argument("--out", type=Path, default=rs.TABLE, help=f"default {rs.TABLE}")
     ap.add_argument("--cache", type=Path, default=CACHE, help=f"default {CACHE}")
+    ap.add_argument("--section", choices=("area_rules",), default=None,
+                    help="regenerate only this section of the table (area_rules: the blocks' "
+                    "area rules, fits and checks), keeping every other section")
     ap.add_argument("--liberty", type=Path, metavar="LIB",
                     help="only print the areas and delays recomputed from this Nangate liberty "
                     "file (nangate45_typ.lib.gz) and exit")
@@ -428,6 +627,11 @@ def main(argv=None) -> int:
     whole = {int(x) for x in args.whole.split(",") if x}
     command = "python benchmarks/rtl_synth.py" + (" " + " ".join(sys.argv[1:])
                                                   if argv is None and sys.argv[1:] else "")
+    if args.section == "area_rules":
+        table = area_rules_section(Cache(args.cache, cached_only=args.cached_only), args.out,
+                                   command)
+        print(f"wrote {args.out}'s area_rules: Yosys {table['area_rules']['yosys_s']:.0f} s")
+        return 0
     old = json.loads(args.out.read_text()) if args.out.exists() else {}
     cache = Cache(args.cache, cached_only=args.cached_only)
     table = Table(args.out, command)

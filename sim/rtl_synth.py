@@ -28,6 +28,10 @@ function from a configuration to the module's parameters: a row per configuratio
 stage's RTL joins the table with one line. :data:`PROBE` is a tree of L levels of one of the
 plan's two-input operators (compare-select, adder) between registers: its depth per level
 (:func:`verdict`) judges ``sva.compare_levels`` against a clock.
+
+**Area rules** (:data:`AREA_RULES`, the table's ``area_rules`` section, ``benchmarks/
+rtl_synth.py --section area_rules``): a block's logic at a configuration the rows do not hold,
+fitted on small builds and checked against others (:func:`area_rule_figures`; docs/area.md).
 """
 
 from __future__ import annotations
@@ -42,6 +46,8 @@ import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
+
+import numpy as np
 
 from stereosim.core.config import ChipConfig
 from stereosim.core.config.widths import largest_cost
@@ -625,3 +631,146 @@ def main_rtl_synth(argv: list[str] | None = None) -> int:
     add_parser(sub)
     args = p.parse_args(["synth", *(argv or [])])
     return args.func(args)
+
+
+# ---- area rules: a block's logic at a configuration the rows do not hold --------------------
+
+# A rule's checks (builds it did not fit) must be within this of the synthesised figure
+# (NAND2 logic and flip-flops each); ``benchmarks/rtl_synth.py --section area_rules`` records it
+# with the rules, and a rule whose check misses is marked as such (:func:`area_rule_holds`).
+AREA_RULE_ERROR_PCT = 10.0
+AREA_RULE = (
+    "per block, NAND2-equivalent logic and flip-flops apart, least squares over the fit builds "
+    "(a memory extrapolated out as in the rows): y = a_G + w b_G L for an SVA stage that "
+    "scales with its lanes (L lanes, w its datapath width over the fit's; a and b per number "
+    "of lane groups G = ceil(D / L), fitted at the G of the 8- and 16-lane slices); y = a + w "
+    "(b D + c D DB) for the LR check (DB = bits of d); y = a + b WB for the median (WB = bits "
+    "of a word); y = a + b C + c C P for an NNA layer (C output channels, P multipliers each: "
+    "C P MACs; its line buffer extrapolated out). Checked against builds the fit did not use")
+
+
+@dataclass(frozen=True)
+class AreaRule:
+    """The area rule of a block's RTL: ``terms`` (``lanes``, ``lr``, ``median``, ``nna``: the
+    features of :func:`area_terms`), the parameters whose sum over ``width_ref`` is the width
+    factor w (none: 1), and the parameters held at the fit builds' values (``domain``: a
+    configuration with another value is outside the rule)."""
+
+    stage: str
+    terms: str
+    width: tuple[str, ...] = ()
+    width_ref: int = 1
+    domain: tuple[str, ...] = ()
+
+
+AREA_RULES = (
+    AreaRule("hamming", "lanes", ("B0", "B1"), 32, ("V", "B1")),
+    AreaRule("box_filter", "lanes", ("CS_W",), 9, ("V", "K_MAX", "A_W")),
+    AreaRule("sgm", "lanes", ("PATH_W",), 12, ("V", "A_W", "SUM_W")),
+    AreaRule("wta", "lanes", ("SW",), 14, ("V", "F")),
+    AreaRule("lr_check", "lr", (), 1, ("SW", "XW")),
+    AreaRule("median", "median", (), 1, ("K", "V", "XW", "YW")),
+    AreaRule("nna", "nna", (), 1, ("LAYERS", "K0", "ROWS0")),
+)
+AREA_RULE_OF = {r.stage: r for r in AREA_RULES}
+AREA_QUANTITIES = ("nand2_logic", "flip_flops")
+
+
+def area_group(rule: AreaRule, params: dict) -> str:
+    """The coefficients' group of ``params``: ``G<n>`` (lane groups) for a rule fitted per G,
+    else ``all``."""
+    if rule.terms == "lanes":
+        d = params["D"] if "D" in params else params["D_MAX"]
+        return f"G{-(-d // params['LANES'])}"
+    return "all"
+
+
+# widths an RTL derives from its parameters: the box filter's column sum, clog2(k C_max + 1)
+DERIVED_WIDTHS = {"CS_W": lambda p: (p["K_MAX"] * ((1 << p["COST_W"]) - 1)).bit_length()}
+
+
+def area_terms(rule: AreaRule, params: dict) -> list[float]:
+    """The features of ``rule`` at a build's (or configuration's) ``params``."""
+    w = (sum(params[k] if k in params else DERIVED_WIDTHS[k](params) for k in rule.width)
+         / rule.width_ref if rule.width else 1.0)
+    if rule.terms == "lanes":
+        return [1.0, w * params["LANES"]]
+    if rule.terms == "lr":
+        return [1.0, w * params["D"], w * params["D"] * params["DB"]]
+    if rule.terms == "median":
+        return [1.0, float(params["WB"])]
+    if rule.terms == "nna":
+        return [1.0, float(params["C1"]), float(params["C1"] * params["P0"])]
+    raise ValueError(f"unknown area rule terms {rule.terms!r}")
+
+
+def area_point(cells: dict[str, int]) -> dict[str, float]:
+    """A build's measured figures: NAND2-equivalent logic and flip-flops (Yosys's
+    ``$scopeinfo`` annotations, which are no cells, left out)."""
+    eq = nand2_equivalents({k: n for k, n in cells.items() if k != "scopeinfo"
+                            and k != "$scopeinfo"})
+    flops = sum(n for k, n in cells.items() if k in FLIP_FLOPS)
+    return {"nand2_logic": eq["logic"], "flip_flops": float(flops)}
+
+
+def default_table() -> dict:
+    """The cached table (read once per process)."""
+    return _default_table()
+
+
+def fit_area_rule(rule: AreaRule, points: list[dict]) -> dict[str, dict[str, list[float]]]:
+    """Least-squares coefficients of ``rule`` over ``points`` (each its ``params`` and the
+    measured :data:`AREA_QUANTITIES`), per group (:func:`area_group`) and quantity."""
+    groups: dict[str, list[dict]] = {}
+    for p in points:
+        groups.setdefault(area_group(rule, p["params"]), []).append(p)
+    out = {}
+    for g, pts in sorted(groups.items()):
+        x = np.array([area_terms(rule, p["params"]) for p in pts], dtype=float)
+        out[g] = {}
+        for q in AREA_QUANTITIES:
+            coef, *_ = np.linalg.lstsq(x, np.array([p[q] for p in pts], dtype=float),
+                                       rcond=None)
+            out[g][q] = [float(c) for c in coef]
+    return out
+
+
+def area_rule_eval(coef: dict, rule: AreaRule, params: dict) -> dict[str, float] | None:
+    """The rule's figures at ``params``; None where its group was not fitted."""
+    group = coef.get(area_group(rule, params))
+    if group is None:
+        return None
+    x = area_terms(rule, params)
+    return {q: sum(c * t for c, t in zip(group[q], x, strict=True)) for q in AREA_QUANTITIES}
+
+
+def area_rule_holds(entry: dict, error_pct: float = AREA_RULE_ERROR_PCT) -> bool:
+    """Whether a stage's recorded checks are all within ``error_pct`` (both quantities)."""
+    return bool(entry["checks"]) and all(abs(c["error_pct"][q]) <= error_pct
+                                         for c in entry["checks"] for q in AREA_QUANTITIES)
+
+
+def area_rule_figures(stage: str, params: dict, table: dict | None = None) -> dict:
+    """A block's logic at ``params`` by its area rule (the table's ``area_rules``): its
+    ``nand2_logic`` and ``flip_flops``, or ``{"reason": ...}`` where the table has no rule
+    for it, its rule missed a check, or ``params`` lie outside its domain."""
+    table = _default_table() if table is None else table
+    entry = table.get("area_rules", {}).get("stages", {}).get(stage)
+    if entry is None:
+        return {"reason": f"no area rule for {stage} in {TABLE.name}"}
+    bound = table["area_rules"]["error_pct"]
+    if not area_rule_holds(entry, bound):
+        miss = max(entry["checks"], key=lambda c: max(abs(e) for e in c["error_pct"].values()))
+        errs = ", ".join(f"{q} {e:+.1f} %" for q, e in miss["error_pct"].items())
+        return {"reason": f"{stage}'s area rule missed its check at {miss['params']} ({errs}; "
+                          f"bound {bound:g} %)"}
+    rule = AREA_RULE_OF[stage]
+    off = {k: (params.get(k), v) for k, v in entry["domain"].items() if params.get(k) != v}
+    if off:
+        return {"reason": f"outside {stage}'s area rule: " + ", ".join(
+            f"{k} = {a} (fitted at {b})" for k, (a, b) in sorted(off.items()))}
+    fig = area_rule_eval(entry["coef"], rule, params)
+    if fig is None:
+        return {"reason": f"outside {stage}'s area rule: {area_group(rule, params)} (fitted "
+                          f"at {', '.join(sorted(entry['coef']))})"}
+    return {q: max(0.0, v) for q, v in fig.items()}
