@@ -357,6 +357,16 @@ class SimConfig:
     )
 
 
+#: The process nodes the technology model (:mod:`core.tech`) holds figures for.
+NODES = ("130nm", "45nm", "7nm")
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class PowerConfig:
+    node: str = param("45nm", "process node of the area and power figures (core.tech: every "
+                      "figure read from a cited cell library; docs/energy.md)", choices=NODES)
+
+
 @dataclass(frozen=True, slots=True, kw_only=True)
 class ChipConfig:
     nna: NnaConfig = field(default_factory=NnaConfig)
@@ -366,6 +376,7 @@ class ChipConfig:
     fifo: FifoConfig = field(default_factory=FifoConfig)
     sim: SimConfig = field(default_factory=SimConfig)
     dram: DramConfig = field(default_factory=DramConfig)
+    power: PowerConfig = field(default_factory=PowerConfig)
 
 
 #: Keys that no longer exist, with what replaces them (a configuration that sets one is refused
@@ -380,4 +391,4 @@ RETIRED = {
 #: The sections a stage's entry point may check on their own (:func:`core.config.check_section`).
 SECTIONS = {"nna.": NnaConfig, "sva.": SvaConfig, "clocks.": ClockConfig,
             "source.": SourceConfig, "fifo.": FifoConfig, "sim.": SimConfig,
-            "dram.": DramConfig}
+            "dram.": DramConfig, "power.": PowerConfig}
