@@ -26,12 +26,14 @@ from stereosim.core.io import MAX_PIXELS, check_gt_values, pixel_cap, to_grey
 from stereosim.core.progress import compile_notice
 from stereosim.nna.conv.weights import SHIPPED_WEIGHTS
 from stereosim.nna.descriptor import compute_descriptor
+from stereosim.sim.cycle.area import chip_area
 from stereosim.sim.cycle.contract import RunStopped, stop_report
 from stereosim.sim.cycle.energy import energy_report, energy_table
 from stereosim.sim.cycle.figures import architecture_report
 from stereosim.sim.cycle.frames import FrameSupply, check_frame_count, functional_words
 from stereosim.sim.cycle.lent import lent_report
 from stereosim.sim.cycle.plan import ChipPlan, build_plan
+from stereosim.sim.cycle.power import power_report
 from stereosim.sim.cycle.report import power_basis
 from stereosim.sim.cycle.simulate import simulate
 from stereosim.sim.cycle.spec import resolve_chip
@@ -225,9 +227,7 @@ def run(
     if mode == "cycle":
         report.update(cycle_report)
         if table is not None:
-            report["energy"] = energy_report(plan, frame.stats,
-                                             *power_basis(report["throughput"], report["stream"]),
-                                             table)
+            _reprice(report, plan, frame, table)
     if gt is not None:
         report["metrics"] = evaluate(disp, gt, masks)
         notes = undefined_metrics(report["metrics"])
@@ -246,6 +246,14 @@ def check_ground_truth(gt, masks, shape: tuple[int, int]) -> dict | None:
     masks = check_truth(gt, {} if masks is None else masks, shape)[1]
     check_gt_values(np.asarray(gt, dtype=np.float64), "the gt= array")
     return masks or {"all": np.isfinite(gt)}
+
+
+def _reprice(report: dict, plan, frame, table) -> None:
+    """The cycle report's ``energy`` and ``power`` sections priced with the user's energy table
+    ``table`` (the engines built them with the default)."""
+    report["energy"] = energy_report(plan, frame.stats,
+                                     *power_basis(report["throughput"], report["stream"]), table)
+    report["power"] = power_report(plan, frame.stats, report["energy"], frame.frame_times)
 
 
 def _energy_table(path, mode: str):
@@ -319,7 +327,8 @@ def descriptor_report(plan: ChipPlan) -> dict:
 def build_report(plan: ChipPlan, mode: str, fixed: np.ndarray | None) -> dict:
     """The report's sections every run has -- a frame's, a stream's (which adds ``frames``), a
     stopped run's -- and the ``output`` words' (``fixed``; None: a stream or a stopped run has
-    no one frame's output)."""
+    no one frame's output). ``area``: the chip's area and leakage by block at ``power.node``
+    (:func:`~sim.cycle.area.chip_area`, from the plan)."""
     cfg = plan.cfg
     h, w = plan.shape
     report = {
@@ -330,6 +339,7 @@ def build_report(plan: ChipPlan, mode: str, fixed: np.ndarray | None) -> dict:
         "image": {"width": w, "height": h},
         "descriptor": descriptor_report(plan),
         "config": config_to_dict(cfg),
+        "area": chip_area(plan, cfg.power.node),
     }
     if plan.lent is not None:
         report["lent_network"] = lent_report(plan.lent, plan.dram, h * w)
@@ -542,7 +552,5 @@ def run_stream(pairs, *, mode: str = "cycle", config: ChipConfig | str | None = 
             raise
         report.update(frame.report)
         if table is not None:
-            report["energy"] = energy_report(plan, frame.stats,
-                                             *power_basis(report["throughput"], report["stream"]),
-                                             table)
+            _reprice(report, plan, frame, table)
     return Stream(report, cfg, plan, supply, words, None if gt is None else (gt, masks))

@@ -176,6 +176,16 @@ RULES: tuple[tuple[str, str, str], ...] = (
      "in {blk}"),
     (r"(architecture\.)?chip_sram\.by_kind\.(?P<kind>.+)", "SRAM", "bits of the chip's SRAM "
      "of the kind {kind}, every instance counted"),
+    (r"area_mm2", "silicon", "mm^2: the chip's area at power.node, logic + SRAM macros "
+     "(sim.cycle.area.chip_area; no wires, clock tree or pads; docs/area.md); empty where the "
+     "node has no SRAM figure. A Pareto axis (stereosim plot --x area_mm2)"),
+    (r"logic_mm2", "silicon", "mm^2: the chip's logic at power.node (the RTL twin's gate "
+     "equivalents and flip-flops; blocks without RTL or a checked area rule not costed)"),
+    (r"power_mw", "silicon", "mW: the chip's average power over the run (the report's "
+     "power.average_power_mw, sim.cycle.power; a cycle run's only; docs/energy.md). A Pareto "
+     "axis (stereosim plot --pareto --x power_mw)"),
+    (r"sram_mm2", "silicon", "mm^2: the chip's SRAM macros at power.node; empty where the "
+     "node has no SRAM figure"),
     (r"(architecture\.)?silicon\.library", "silicon", "the standard-cell library of the RTL "
      "twin's synthesis figures (docs/rtl-synth.md)"),
     (r"(architecture\.)?silicon\.table", "silicon", "the cached synthesis table the figures "

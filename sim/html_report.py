@@ -23,6 +23,7 @@ import cv2
 import numpy as np
 
 from stereosim.core.io import disparity_to_colour, encode_png
+from stereosim.sim.cycle.area import area_rows
 from stereosim.sim.metrics import MIDDLEBURY_KEYS
 from stereosim.traces.log import changes_of
 from stereosim.traces.timeline import STATUS_NAMES
@@ -413,6 +414,21 @@ def _config_section(config: Mapping) -> str:
             f'<code>--set</code>).</p><div class="config">{"".join(tables)}</div>')
 
 
+def _area_section(report: dict) -> str:
+    """The chip's area and leakage at the configured node (``report["area"]``), or nothing for
+    a report without it (an older report.json)."""
+    area = report.get("area")
+    if not area:
+        return ""
+    rows = "".join(f'<tr><td class="key">{html.escape(what)}</td><td>{html.escape(figs)}'
+                   "</td></tr>" for what, figs in area_rows(area))
+    return (f'<h2 id="area">Area</h2><p class="caption">The chip\'s area in mm<sup>2</sup> and '
+            f"leakage at {html.escape(area['node'])} ({html.escape(area['node_description'])}): "
+            "logic from the RTL twin's synthesis, SRAM as macros; no wires, clock tree or pads "
+            "(docs/area.md; report.json's <code>area</code> has every block).</p>"
+            f"<table>{rows}</table>")
+
+
 def _metrics_section(report: dict) -> str:
     metrics = report.get("metrics")  # with ground truth only
     if not metrics:
@@ -616,6 +632,7 @@ def html_report(report: dict, disparity: np.ndarray, *, gt: np.ndarray | None = 
         _activity_section(report),
         _fifo_section(report),
         _timeline_section(report, log),
+        _area_section(report),
         _config_section(report["config"]),
     ]
     return (

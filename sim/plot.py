@@ -7,9 +7,10 @@ of nanoseconds or femtoseconds is drawn in us, ms or s, whichever reads best, an
 says which; a frame-rate column says which rate it is (:data:`RATE_KINDS`: measured, or a work
 bound); an axis whose values are all whole numbers (a count such as
 ``nna.stereo_submodules``) is ticked at whole numbers only. :func:`pareto_plot` shows SRAM
-bits against fps, coloured by accuracy, with the Pareto-optimal points ringed and every point
-labelled by its configuration (the swept keys), the labels placed where they overlap neither
-one another nor the points; with a target rate (the camera's, :func:`target_rate`, or one
+bits (or another cost: the chip's area in mm^2, power in mW, :data:`COSTS`) against fps,
+coloured by accuracy, with the Pareto-optimal points ringed and every point labelled by its
+configuration (the swept keys), the labels placed where they overlap neither one another nor
+the points; with a target rate (the camera's, :func:`target_rate`, or one
 given) it draws the target as a dashed line, rings only the optimal points that reach it and
 boxes the least SRAM among them, or says that none does. :func:`sweep_plots`
 makes the built-in plots a sweep's columns allow; they use the rate the runs measured wherever
@@ -495,12 +496,31 @@ def _place_labels(fig, ax, anchors, texts) -> tuple[list[tuple[float, float, flo
     return placed, clear
 
 
+# the cost columns a Pareto view may put on its x axis besides SRAM bits: (column suffix,
+# what it is, its unit); sim.sweep.area_columns writes them
+COSTS = (("_mm2", "chip area", "mm^2"), ("_mw", "average power", "mW"))
+
+
+def _cost_kind(column: str) -> tuple[str, str] | None:
+    """(what, unit) of a cost column in mm^2 or mW (:data:`COSTS`); None: SRAM bits."""
+    return next(((what, unit) for end, what, unit in COSTS if column.endswith(end)), None)
+
+
 def _bits_unit(data: ParetoData) -> tuple[float, str]:
-    """(bits per unit, unit) for the SRAM axis: M bits, k bits or bits, whichever keeps its
-    largest value at least 1 (eight-digit tick labels run into each other)."""
+    """(x per unit, unit) for the cost axis: mm^2 or mW as they are (:data:`COSTS`); SRAM in M
+    bits, k bits or bits, whichever keeps its largest value at least 1 (eight-digit tick
+    labels run into each other)."""
+    kind = _cost_kind(data.sram)
+    if kind is not None:
+        return 1.0, kind[1]
     top = max(p.sram for p in data.points)
     return next(((size, name) for size, name in ((1e6, "M bits"), (1e3, "k bits"))
                  if top >= size), (1.0, "bits"))
+
+
+def _cost_name(data: ParetoData) -> str:
+    kind = _cost_kind(data.sram)
+    return "SRAM" if kind is None else kind[0]
 
 
 def _target_words(data: ParetoData) -> str:
@@ -511,7 +531,8 @@ def _target_words(data: ParetoData) -> str:
     if data.chosen is None:
         best = max(p.fps for p in data.points)
         return f"{goal}\nno point reaches it (best {best:,.4g} fps): none ringed"
-    return f"{goal}\nringed: Pareto-optimal at or above it; boxed: the least SRAM there"
+    return (f"{goal}\nringed: Pareto-optimal at or above it; boxed: the least "
+            f"{_cost_name(data)} there")
 
 
 def _pareto_axes(data: ParetoData, key: list[str] | None):
@@ -546,14 +567,16 @@ def _pareto_axes(data: ParetoData, key: list[str] | None):
         fig.colorbar(sc, ax=ax, label=f"{data.error} (lower is better)")
     _plain_numbers(ax, "both")
     ax.margins(x=0.25, y=0.2)
-    ax.set_xlabel(f"{data.sram} (chip SRAM, in {unit})")
+    kind = _cost_kind(data.sram)
+    ax.set_xlabel(f"{data.sram} ({kind[0] if kind else 'chip SRAM'}, in {unit})")
     ax.set_ylabel(_axis_label(data.fps, ys)[1])
     ax.grid(True, alpha=0.3)
     labels = "numbers: the points (key on the right)" if key else "labels: the swept keys"
     marks = (f"ringed: Pareto-optimal; {labels}" if data.target is None
              else f"{_target_words(data)}\n{labels}")
-    ax.set_title("Pareto view: SRAM vs fps" + (f" vs {data.error}" if data.error else "")
-                 + f"\n{marks}", fontsize="medium")
+    ax.set_title(f"Pareto view: {_cost_name(data)} vs fps"
+                 + (f" vs {data.error}" if data.error else "") + f"\n{marks}",
+                 fontsize="medium")
     if key:
         fig.tight_layout(rect=(0, 0, 0.62, 1))
         fig.text(0.64, 0.97, "\n".join(key), va="top", ha="left", fontsize="x-small")
@@ -601,19 +624,23 @@ def _totbad(cols) -> str | None:
     return next((c for c in ("metrics.nonocc.totbad", "metrics.all.totbad") if c in cols), None)
 
 
-def sweep_pareto(rows: list[dict], axes: list[str],
-                 target_fps: float | None = None) -> ParetoData | None:
-    """The Pareto view a sweep's plots show (None when its columns allow none): chip SRAM
-    against the rate :func:`rate_column` picks, coloured by totbad when the scenes are scored,
-    each point labelled by the swept keys that vary; the target ``target_fps``, else the
-    camera's rate the rows carry (:func:`target_rate`)."""
+def sweep_pareto(rows: list[dict], axes: list[str], target_fps: float | None = None, *,
+                 cost: str = "sram_bits") -> ParetoData | None:
+    """A Pareto view a sweep's plots show (None when its columns allow none): ``cost`` (chip
+    SRAM bits; ``area_mm2``, mW: :data:`COSTS`) against the rate :func:`rate_column` picks,
+    coloured by totbad when the scenes are scored, each point labelled by the swept keys that
+    vary; the target ``target_fps``, else the camera's rate the rows carry
+    (:func:`target_rate`). A cost some row leaves empty (area at a node without an SRAM
+    figure) gives no view."""
     ok = _ok_rows(rows)
     cols = set().union(*(r.keys() for r in ok)) if ok else set()
     varying = [a for a in axes if _varies(ok, a)]
     fps = rate_column(ok)
-    if "sram_bits" not in cols or not fps or not varying:
+    if cost not in cols or not fps or not varying:
         return None
-    return pareto_data(ok, fps=fps, error=_totbad(cols), label_keys=varying,
+    if any(_number(r.get(cost)) is None for r in ok):
+        return None
+    return pareto_data(ok, sram=cost, fps=fps, error=_totbad(cols), label_keys=varying,
                        target_fps=target_fps)
 
 
@@ -660,10 +687,11 @@ def sweep_plots(rows: list[dict], axes: list[str], out_dir: str | Path,
         hued, hue = other(x)
         plot_xy(hued, x, totbad, p, hue=hue, title=f"accuracy: {totbad} vs {x}")
         written.append(p)
-    view = sweep_pareto(ok, axes, target_fps)
-    if view is not None:
-        p = out / ("pareto_sram_fps_totbad.png" if view.error else "pareto_sram_fps.png")
-        pareto_plot(ok, p, fps=view.fps, error=view.error, label_keys=varying,
-                    target_fps=target_fps)
-        written.append(p)
+    for cost, name in (("sram_bits", "sram"), ("area_mm2", "area"), ("power_mw", "power")):
+        view = sweep_pareto(ok, axes, target_fps, cost=cost)
+        if view is not None:
+            p = out / f"pareto_{name}_fps{'_totbad' if view.error else ''}.png"
+            pareto_plot(ok, p, sram=cost, fps=view.fps, error=view.error, label_keys=varying,
+                        target_fps=target_fps)
+            written.append(p)
     return written

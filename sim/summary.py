@@ -25,6 +25,7 @@ from rich.console import Console
 from rich.table import Table
 
 from stereosim.core.config.backend import describe
+from stereosim.sim.cycle.area import area_lines, area_rows
 from stereosim.sim.cycle.lent import lent_lines
 from stereosim.sim.metrics import DENSE_KEYS, format_table, mean_metrics
 from stereosim.sim.plot import RATE_GAP
@@ -266,6 +267,14 @@ def _chip_table(report: dict) -> Table:
     return t
 
 
+def _area_table(area: dict) -> Table:
+    """The chip's area and leakage at the configured node (:func:`~sim.cycle.area.area_rows`)."""
+    t = _pairs_table(f"area ({area['node']}; logic from the RTL twin's synthesis, SRAM macros)")
+    for what, figures in area_rows(area):
+        t.add_row(what, figures)
+    return t
+
+
 def _energy_table(energy: dict) -> Table:
     e = energy["per_frame_uj"]
     t = _pairs_table(f"energy ({energy['table']['node']})")
@@ -274,6 +283,21 @@ def _energy_table(energy: dict) -> Table:
     if energy["power_mw"] is not None:
         t.add_row("average power", f"{energy['power_mw']:,.1f} mW at "
                   f"{_fps(energy['power_at_fps'])} fps, {energy['fps_basis']}")
+    return t
+
+
+def _power_table(power: dict) -> Table:
+    """The run's power from its own activity (:func:`~sim.cycle.power.power_report`)."""
+    t = _pairs_table(f"power ({power['node']}; clock gating {power['clock_gating']}, unused "
+                     f"submodules {'gated' if power['gate_unused'] else 'on'})")
+    e = power["per_frame_pj"]
+    t.add_row("per frame", f"{_energy(power['energy_per_frame_uj'])}: dynamic "
+              f"{_energy(e['dynamic'] / 1e6)}, clock {_energy(e['clock'] / 1e6)}, leakage "
+              f"{_energy(e['leakage'] / 1e6)}")
+    avg = power["average_power_mw"]
+    t.add_row("power", ("-" if avg is None else f"average {avg:,.1f} mW")
+              + f", peak {power['peak_power_mw']:,.1f} mW ({power['peak_window']}), leakage "
+              f"{power['leakage_power_mw']:,.1f} mW")
     return t
 
 
@@ -306,8 +330,12 @@ def summary_tables(report: dict, seconds: float) -> list[Table]:
         tables += [_throughput_table(report), _blocks_table(report)]
     if "chip_sram" in report.get("architecture", {}):
         tables.append(_chip_table(report))
+    if "area" in report:
+        tables.append(_area_table(report["area"]))
     if "energy" in report:
         tables.append(_energy_table(report["energy"]))
+    if "power" in report:
+        tables.append(_power_table(report["power"]))
     if report.get("metrics"):
         tables.append(_metrics_table(report["metrics"]))
     if report.get("metrics_mean"):
@@ -365,6 +393,7 @@ def format_estimate(est: dict) -> str:
         f"pair), SVA {sram['sva']} bits, FIFOs {sram['fifos']} bits",
         *sram_lines(est["chip_sram"]),
         *energy_lines(est["energy"]),
+        *(area_lines(est["area"]) if "area" in est else ()),
         "FIFO bytes per frame: " + ", ".join(
             f"{n} {b}" for n, b in est["fifo_bytes_per_frame"].items()
         ),

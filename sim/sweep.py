@@ -76,7 +76,9 @@ from stereosim.core.errors import ConfigError, InputError, UserError
 from stereosim.core.outputs import describe_os_error
 from stereosim.core.progress import progress_bar
 from stereosim.sim.api import prepare_pair, run
+from stereosim.sim.cycle.area import chip_area
 from stereosim.sim.cycle.estimate import estimate
+from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.sweep_results import CSV_NAME, append_rows, done_point_ids, finish_results
 
 MODES = ("cycle", "functional", "estimate")
@@ -312,6 +314,18 @@ def flatten(tree, prefix: str = "", out: dict | None = None) -> dict[str, Any]:
     return out
 
 
+def area_columns(area: dict, power: dict | None = None) -> dict[str, Any]:
+    """A row's silicon columns: ``area_mm2`` (the chip; "" where the node has no SRAM
+    figure), ``logic_mm2`` and ``sram_mm2`` (:func:`~sim.cycle.area.chip_area`'s totals); and
+    ``power_mw``, the average power (``average_power_mw``), where the report has a ``power``
+    section giving it (:mod:`sim.cycle.power`)."""
+    t = area["totals"]
+    out = {"area_mm2": t["chip_mm2"], "logic_mm2": t["logic_mm2"], "sram_mm2": t["sram_mm2"]}
+    if power and power.get("average_power_mw") is not None:
+        out["power_mw"] = power["average_power_mw"]
+    return {k: "" if v is None else v for k, v in out.items()}
+
+
 def _one_line(exc: BaseException) -> str:
     message = " ".join(str(exc).split()) or type(exc).__name__
     return message if isinstance(exc, UserError) else f"{type(exc).__name__}: {message}"
@@ -348,7 +362,10 @@ def _run(task: Task) -> dict[str, Any]:
     else:
         report = run(left, right, mode=task.mode, config=cfg, gt=data.get("gt"),
                      masks=data.get("masks")).report
+    area = report.pop("area", None) or chip_area(build_plan(cfg, left.shape), cfg.power.node)
+    power = report.pop("power", None)  # its per-block figures stay in report.json
     flat = flatten(report)
+    flat.update(area_columns(area, power))
     flat["sram_bits"] = sum(est["sram_bits_total"][k] for k in ("nna_stereo", "sva", "fifos"))
     for key in ("throughput.fps_bound", "throughput.bottleneck", "throughput.merge_depth_needed",
                 "throughput.camera_fps", "latency.first_output_us", "latency.frame_ms"):

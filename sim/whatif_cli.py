@@ -13,13 +13,15 @@ from pathlib import Path
 from stereosim.core.errors import InputError, UserError
 from stereosim.core.outputs import json_text
 from stereosim.sim.argtypes import finite_float, nonempty_path, nonempty_size
+from stereosim.sim.cycle.area import chip_area
 from stereosim.sim.cycle.energy import energy_table
 from stereosim.sim.cycle.estimate import estimate, parse_size
-from stereosim.sim.cycle.plan import frame_size
+from stereosim.sim.cycle.plan import build_plan, frame_size
 from stereosim.sim.plot import (
     BOUND_RATE,
     MEASURED_RATE,
     RATE_GAP,
+    pareto_plot,
     plot_xy,
     point_labels,
     rate_gaps,
@@ -115,13 +117,15 @@ def register(sub, add_config_options, scene_config) -> None:
         cfg = scene_config(args, ndisp)
         shape = shape or frame_size(cfg)
         est = estimate(cfg, shape, table)  # the plan refuses a chip it cannot build
+        est["area"] = chip_area(build_plan(cfg, shape), cfg.power.node)
         if args.json:
             sys.stdout.write(json_text(est))
         else:
             print(format_estimate(est))
         return 0
 
-    e = sub.add_parser("estimate", help="analytic fps, latency, SRAM and traffic (no simulation)")
+    e = sub.add_parser("estimate", help="analytic fps, latency, SRAM, area and traffic (no "
+                       "simulation)")
     e.add_argument("--size", metavar="WxH|SCENE", type=nonempty_size,
                    help="frame size (default: the configured camera's, source.camera_width x "
                    "camera_height, else 1280x720), 'default' or a scene folder")
@@ -192,8 +196,11 @@ def register(sub, add_config_options, scene_config) -> None:
         if not path.is_file():
             raise InputError(f"results file {path} not found: give a sweep's results.csv")
         rows = read_rows(path)
-        plot_xy(rows, args.x, args.y, args.png, hue=args.hue, title=args.title, source=str(path),
-                logx=args.logx, logy=args.logy)
+        if args.pareto:  # a cost (SRAM bits, area_mm2, power_mw) against a frame rate
+            pareto_plot(rows, args.png, sram=args.x, fps=args.y, source=str(path))
+        else:
+            plot_xy(rows, args.x, args.y, args.png, hue=args.hue, title=args.title,
+                    source=str(path), logx=args.logx, logy=args.logy)
         print(f"wrote {args.png}")
         return 0
 
@@ -206,4 +213,7 @@ def register(sub, add_config_options, scene_config) -> None:
     p.add_argument("--png", required=True, metavar="OUT.png", type=nonempty_path)
     p.add_argument("--logx", action="store_true", help="logarithmic x axis (positive values)")
     p.add_argument("--logy", action="store_true", help="logarithmic y axis (positive values)")
+    p.add_argument("--pareto", action="store_true",
+                   help="a Pareto view instead: --x a cost (sram_bits, area_mm2 or power_mw), "
+                   "--y a frame rate; the Pareto-optimal points ringed")
     p.set_defaults(func=cmd_plot)

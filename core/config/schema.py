@@ -365,6 +365,13 @@ NODES = ("130nm", "45nm", "7nm")
 class PowerConfig:
     node: str = param("45nm", "process node of the area and power figures (core.tech: every "
                       "figure read from a cited cell library; docs/energy.md)", choices=NODES)
+    clock_gating: str = param(
+        "off", "which cycles of a block clock its flip-flops (the run's power, docs/energy.md): "
+        "off: every cycle of its domain; idle: all but its idle cycles; stalled: its busy "
+        "cycles only (idle, blocked and starved gated)", choices=("off", "idle", "stalled"))
+    gate_unused: bool = param(
+        False, "power-gate the NNA submodules neither the stereo pair nor the lent network uses: "
+        "no leakage, no clock; they stay off for the whole run, so no wake-up latency applies")
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

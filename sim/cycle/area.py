@@ -284,6 +284,75 @@ def format_area(area: dict) -> str:
     return "\n".join(out)
 
 
+def _total(b: dict) -> float | None:
+    """A block's area, None where its SRAM has no figure at the node."""
+    return None if "sram" in b and b["sram"] is None else b["area_mm2"]
+
+
+def _group(blocks: list[dict]) -> str:
+    """``blocks``' area: total, logic and SRAM apart ("n/a" where the node has no SRAM figure
+    for one of them, "-" where none of them has that part)."""
+    logics = [b["logic"]["area_mm2"] for b in blocks if b["logic"]]
+    srams = [b["sram"] for b in blocks if "sram" in b]
+    sram = None if any(s is None for s in srams) else sum(s["area_mm2"] for s in srams)
+    total = None if sram is None else sum(logics) + sram
+    logic = _mm2(sum(logics)) if logics else "-"
+    return (f"{_mm2(total)} mm2 (logic {logic}, SRAM "
+            f"{_mm2(sram) if srams else '-'})")
+
+
+def _not_costed(area: dict) -> str:
+    """The blocks without a logic figure: FIFOs and merges counted, SVA stages named."""
+    kinds = {b["name"]: b["kind"] for b in area["blocks"]}
+    names = [nc["block"] for nc in area["not_costed"]]
+    out = []
+    for kind, what in (("nna_submodule", "NNA submodules"), ("merge", "merges"),
+                       ("fifo", "FIFOs")):
+        n = sum(kinds[x] == kind for x in names)
+        if n:
+            out.append(f"{n} {what}")
+    out += [x for x in names if kinds[x] == "sva_stage"]
+    return ", ".join(out)
+
+
+def area_rows(area: dict) -> list[tuple[str, str]]:
+    """The area in a few (what, figures) rows, for ``estimate`` and a run's summary: the chip
+    (logic and SRAM apart, and its leakage), the NNA submodules by use, the SVA stages (each
+    with its area), the FIFOs, and the blocks whose logic is not costed."""
+    t = area["totals"]
+    leak = "n/a" if t["leakage_mw"] is None else f"{t['leakage_mw']:,.2f} mW"
+    sram = f"{_mm2(t['sram_mm2'])} mm2"
+    if t["sram_mm2"] is None:
+        sram = f"not available ({t.get('sram_reason', 'no SRAM figure at this node')})"
+    chip = "n/a" if t["chip_mm2"] is None else f"{_mm2(t['chip_mm2'])} mm2"
+    rows = [("chip", f"{chip}: logic {_mm2(t['logic_mm2'])} mm2 ({t['nand2_logic']:,.0f} GE, "
+             f"{t['flip_flops']:,.0f} flip-flops), SRAM {sram}; leakage {leak} (logic "
+             f"{t['logic_leakage_mw']:,.2f} mW)")]
+    blocks = area["blocks"]
+    for use in ("stereo", "lent", "idle"):
+        subs = [b for b in blocks if b["kind"] == "nna_submodule" and b.get("use") == use]
+        if subs:
+            rows.append((f"NNA submodules, {use}", f"{len(subs)}: {_group(subs)}"))
+    stages = [b for b in blocks if b["kind"] == "sva_stage"]
+    if stages:
+        each = ", ".join(f"{b['name'].removeprefix('sva.')} {_mm2(_total(b))}"
+                         for b in stages if b["logic"] or "sram" in b)
+        rows.append(("SVA stages", f"{_group(stages)}: {each}"))
+    fifos = [b for b in blocks if b["kind"] == "fifo"]
+    if fifos:
+        rows.append(("FIFOs", f"{len(fifos)}: {_group(fifos)}"))
+    if area["not_costed"]:
+        rows.append(("logic not costed", f"{_not_costed(area)} (no RTL, or outside a checked "
+                     "area rule: docs/area.md)"))
+    return rows
+
+
+def area_lines(area: dict) -> list[str]:
+    """:func:`area_rows` as lines ``area <what>: <figures>``, the first naming the node."""
+    return [f"area at {area['node']}, {what}: {figs}" if i == 0 else f"area, {what}: {figs}"
+            for i, (what, figs) in enumerate(area_rows(area))]
+
+
 def main(argv: list[str] | None = None) -> int:
     """``python -m stereosim.sim.cycle.area [--config FILE] [--node 45nm] [--json]``."""
     ap = argparse.ArgumentParser(prog="python -m stereosim.sim.cycle.area",

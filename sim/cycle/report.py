@@ -7,6 +7,7 @@ import numpy as np
 
 from stereosim.sim.cycle.energy import energy_report
 from stereosim.sim.cycle.plan import ChipPlan
+from stereosim.sim.cycle.power import power_report
 from stereosim.sim.cycle.rules import FS_PER_S
 
 
@@ -120,6 +121,7 @@ def cycle_report(plan: ChipPlan, first_cycle: int, last_cycle: int, stats: dict,
         extra["dram"] = dram_report(plan, stats, last_fs, taken)
     if "nna_layers" in stats:
         extra["nna_layers"] = nna_layer_report(plan, stats["nna_layers"], buffers)
+    energy = energy_report(plan, stats, *power_basis(thr, stream))
     return {
         **extra,
         "cycles": {
@@ -137,7 +139,8 @@ def cycle_report(plan: ChipPlan, first_cycle: int, last_cycle: int, stats: dict,
         "buffers": {b: buffers[b] for b in sorted(buffers)},
         "sva_stages": sva_stage_activity(plan, stats["stages"]["sva"]),
         "stream": stream,
-        "energy": energy_report(plan, stats, *power_basis(thr, stream)),
+        "energy": energy,
+        "power": power_report(plan, stats, energy, frame_times),
     }
 
 

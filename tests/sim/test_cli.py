@@ -3,6 +3,7 @@
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -178,3 +179,74 @@ def test_rtl_synth_prints_the_cached_table_and_judges_the_clock(capsys):
         code, _, stderr = _run(bad, capsys)
         lines = stderr.strip().splitlines()
         assert code == 2 and len(lines) == 1 and lines[0].startswith("stereosim: error: "), stderr
+
+
+# ---- the chip's area (sim/cycle/area.py) in estimate, run and report.json ----------------------
+
+
+def _words(text: str) -> str:
+    return " ".join(text.split())
+
+
+def _area_of(config: str | None, overrides: dict, shape=None) -> dict:
+    from stereosim.core.config import load_config
+    from stereosim.sim.cycle.area import chip_area
+    from stereosim.sim.cycle.plan import build_plan, frame_size
+
+    cfg = load_config(config, overrides)
+    return chip_area(build_plan(cfg, shape or frame_size(cfg)), cfg.power.node)
+
+
+def test_estimate_prints_the_chips_area_at_its_node(capsys):
+    from stereosim.sim.cycle.area import area_lines
+
+    code, stdout, _ = _run(["estimate", "--config", "1080p60"], capsys)
+    assert code == 0
+    area = _area_of(str(Path(__file__).resolve().parents[2] / "configs" / "1080p60.toml"), {})
+    t = area["totals"]
+    lines = area_lines(area)
+    assert [ln for ln in stdout.splitlines() if ln.startswith("area")] == lines
+    assert lines[0].startswith(f"area at 45nm, chip: {t['chip_mm2']:.4f} mm2: logic "
+                               f"{t['logic_mm2']:.4f} mm2")
+    assert f"SRAM {t['sram_mm2']:.4f} mm2" in lines[0]
+    assert f"leakage {t['leakage_mw']:,.2f} mW" in lines[0]
+    stereo = [b for b in area["blocks"] if b.get("use") == "stereo"]
+    assert lines[1].startswith(f"area, NNA submodules, stereo: {len(stereo)}: "
+                               f"{sum(b['area_mm2'] for b in stereo):.4f} mm2")
+    code, stdout, _ = _run(["estimate", "--config", "1080p60", "--json"], capsys)
+    assert json.loads(stdout)["area"] == json.loads(json.dumps(area))
+
+
+def test_a_cycle_run_prints_its_area_and_reports_it(tmp_path, capsys):
+    from stereosim.sim.cycle.area import area_rows
+
+    left, right = _write_pair(tmp_path)
+    out = tmp_path / "out"
+    code, stdout, _ = _run(["run", "--left", str(left), "--right", str(right), "--disparities",
+                            "16", "--mode", "cycle", "--out", str(out)], capsys)
+    assert code == 0
+    report = json.loads((out / "report.json").read_text())
+    area = _area_of(None, {"sva.disparities": 16}, (21, 57))
+    assert report["area"] == json.loads(json.dumps(area))
+    assert "area (45nm;" in stdout
+    for what, figs in area_rows(area):
+        assert _words(f"{what} {figs}") in _words(stdout)
+    assert _words(f"chip {area['totals']['chip_mm2']:.4f} mm2: logic") in _words(stdout)
+
+
+def test_at_7nm_the_sram_area_is_not_available(tmp_path, capsys):
+    left, right = _write_pair(tmp_path)
+    code, stdout, _ = _run(["run", "--left", str(left), "--right", str(right), "--disparities",
+                            "16", "--mode", "cycle", "--set", "power.node=7nm", "--out",
+                            str(tmp_path / "out")], capsys)
+    assert code == 0
+    area = _area_of(None, {"sva.disparities": 16, "power.node": "7nm"}, (21, 57))
+    t = area["totals"]
+    assert t["sram_mm2"] is None and t["chip_mm2"] is None
+    text = _words(stdout)
+    assert "area (7nm;" in stdout
+    assert _words(f"chip n/a: logic {t['logic_mm2']:.4f} mm2") in text
+    assert _words(f"SRAM not available ({t['sram_reason']})") in text
+    code, stdout, _ = _run(["estimate", "--set", "power.node=7nm"], capsys)
+    assert code == 0
+    assert "SRAM not available (no cited SRAM macro table for 7nm" in stdout

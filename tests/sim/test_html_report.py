@@ -299,3 +299,22 @@ def test_page_renders_in_headless_chromium(cycle_run, cycle_page, tmp_path):
     # saturated colours (map, colour bar, activity bars): far more than text could give
     hsv = cv2.cvtColor(img, cv2.COLOR_BGR2HSV).reshape(-1, 3)
     assert np.count_nonzero((hsv[:, 1] > 120) & (hsv[:, 2] > 80)) > 100_000
+
+
+def test_cycle_page_shows_the_chips_area(cycle_run, cycle_page):
+    """The area section: chip_area of the run's plan, each row of area_rows, escaped."""
+    import html as html_text
+
+    from stereosim.core.config import load_config
+    from stereosim.sim.cycle.area import area_rows, chip_area
+    from stereosim.sim.cycle.plan import build_plan
+
+    result, _ = cycle_run
+    area = chip_area(build_plan(load_config(None, {"sva.disparities": D}), (H, W)), "45nm")
+    assert result.report["area"] == area
+    assert '<h2 id="area">Area</h2>' in cycle_page
+    for what, figs in area_rows(area):
+        assert (f'<td class="key">{html_text.escape(what)}</td><td>{html_text.escape(figs)}'
+                "</td>") in cycle_page
+    old = {k: v for k, v in result.report.items() if k != "area"}  # an older report.json
+    assert 'id="area"' not in html_report(old, result.disparity)

@@ -16,10 +16,14 @@ from pathlib import Path
 import distributed
 import pytest
 
+from stereosim.core.config import load_config
 from stereosim.core.datasets import shared_data_dir
 from stereosim.core.errors import ConfigError
 from stereosim.sim.cli import main
+from stereosim.sim.cycle.area import chip_area
+from stereosim.sim.cycle.plan import build_plan
 from stereosim.sim.plot import (
+    pareto_data,
     pareto_front,
     pareto_plot,
     rate_gaps,
@@ -27,7 +31,15 @@ from stereosim.sim.plot import (
     sweep_plots,
     xy_data,
 )
-from stereosim.sim.sweep import MAX_POINTS, Task, load_sweep, run_sweep, run_task, synthetic_pair
+from stereosim.sim.sweep import (
+    MAX_POINTS,
+    Task,
+    area_columns,
+    load_sweep,
+    run_sweep,
+    run_task,
+    synthetic_pair,
+)
 from stereosim.sim.sweep_results import (
     CSV_NAME,
     GUIDE_NAME,
@@ -263,8 +275,47 @@ def test_built_in_plots(tmp_path):
 
     csv_path, sweep = _results(tmp_path)
     written = sweep_plots(read_rows(csv_path), sweep.axes, tmp_path)
-    assert [p.name for p in written] == ["fps_vs_submodules.png", "pareto_sram_fps.png"]
+    assert [p.name for p in written] == ["fps_vs_submodules.png", "pareto_sram_fps.png",
+                                         "pareto_area_fps.png"]
     assert all(p.stat().st_size > 1000 for p in written)
+
+
+def test_a_rows_area_columns_are_chip_areas(tmp_path):
+    """area_mm2, logic_mm2 and sram_mm2 of a row are chip_area's totals for its point."""
+    csv_path, sweep = _results(tmp_path)
+    rows = read_rows(csv_path)
+    assert len(rows) == len(sweep.tasks) == 6
+    for task, row in zip(sweep.tasks, rows, strict=True):
+        cfg = load_config(task.config_path, dict(task.overrides))
+        t = chip_area(build_plan(cfg, (64, 256)), cfg.power.node)["totals"]
+        assert float(row["area_mm2"]) == pytest.approx(t["chip_mm2"], rel=1e-12)
+        assert float(row["logic_mm2"]) == pytest.approx(t["logic_mm2"], rel=1e-12)
+        assert float(row["sram_mm2"]) == pytest.approx(t["sram_mm2"], rel=1e-12)
+        assert "power_mw" not in row  # no power section in an estimate's report
+    assert len({r["area_mm2"] for r in rows}) > 1  # the column follows the configuration
+
+
+def test_area_columns_at_a_node_without_sram_figures_are_empty():
+    """7 nm has no SRAM macro table: area_mm2 and sram_mm2 are empty, logic_mm2 a number;
+    power_mw comes from a power section's average where a report has one."""
+    cfg = load_config(None, {"power.node": "7nm"})
+    area = chip_area(build_plan(cfg, (64, 256)), "7nm")
+    cols = area_columns(area)
+    assert cols == {"area_mm2": "", "logic_mm2": area["totals"]["logic_mm2"], "sram_mm2": ""}
+    assert cols["logic_mm2"] > 0
+    assert area_columns(area, {"average_power_mw": 12.5})["power_mw"] == 12.5
+
+
+def test_the_pareto_view_takes_area_as_its_axis(tmp_path, capsys):
+    csv_path, _ = _results(tmp_path)
+    png = tmp_path / "area.png"
+    assert main(["plot", str(csv_path), "--pareto", "--x", "area_mm2", "--y",
+                 "throughput.fps_bound", "--png", str(png)]) == 0
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    rows = read_rows(csv_path)
+    data = pareto_data(rows, sram="area_mm2", fps="throughput.fps_bound")
+    assert sorted(p.sram for p in data.points) == sorted(
+        {r["point"]: float(r["area_mm2"]) for r in rows}.values())
 
 
 # The 720p study of docs/whatif.md (nna.stereo_submodules 2/4/6 x fifo.nna_to_merge_depth
@@ -294,7 +345,13 @@ def test_a_tiles_and_merge_depths_study_plots_and_ranks_the_measured_rate(tmp_pa
     rows = read_rows(out / CSV_NAME)
     assert [r["status"] for r in rows] == ["ok"] * 6
     written = sweep_plots(rows, sweep.axes, out)
-    assert [p.name for p in written] == ["fps_vs_submodules.png", "pareto_sram_fps.png"]
+    assert [p.name for p in written] == ["fps_vs_submodules.png", "pareto_sram_fps.png",
+                                         "pareto_area_fps.png", "pareto_power_fps.png"]
+    # a cycle run's report has a power section: its average power is the row's power_mw
+    assert all(float(r["power_mw"]) > 0 for r in rows)
+    power = sweep_pareto(rows, sweep.axes, cost="power_mw")
+    assert {p.point: p.sram for p in power.points} == {r["point"]: float(r["power_mw"])
+                                                       for r in rows}
     measured = {r["point"]: float(r["throughput.fps_measured"]) for r in rows}
     bound = {r["point"]: float(r["throughput.fps_bound"]) for r in rows}
     point = {(r["nna.stereo_submodules"], r["fifo.nna_to_merge_depth"]): r["point"]

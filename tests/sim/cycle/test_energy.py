@@ -185,3 +185,17 @@ def test_the_estimates_energy_at_its_rate_is_a_streams(tmp_path):
     for d in plan.domains:
         mix = (first[d] + (frames - 1) * at_rate[d]) / frames
         assert stream_clocks[f"{d} domain cycles"] == pytest.approx(mix, abs=frames)
+
+
+def test_a_users_energy_table_prices_the_power_section_too(tmp_path):
+    """``energy=FILE`` re-prices the report's ``energy`` and its ``power`` alike: the power
+    section's dynamic energy a frame is the user's table's items, for a frame and a stream."""
+    path, _ = _clocked_table(tmp_path)
+    cfg = load_config(overrides=ESTIMATED)
+    pair = _estimated_pair((20, 112))
+    for rep in (run(*pair, config=cfg, energy=path).report,
+                run_stream([pair] * 2, config=cfg, energy=path).report):
+        items = rep["energy"]["items"]
+        assert any(it["action"] == "clock" and it["pj_each"] > 0 for it in items)
+        assert rep["power"]["per_frame_pj"]["dynamic"] == pytest.approx(
+            sum(it["count"] * it["pj_each"] for it in items), rel=1e-12)
