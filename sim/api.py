@@ -221,7 +221,7 @@ def run(
             desc_r = compute_descriptor(gr, spec.nna)
             fixed = sva_stream(desc_l, desc_r, gl, spec.sva, plan.part_bits)
     disp = to_float(fixed, cfg.sva.subpixel_bits)
-    report = build_report(plan, mode, fixed)
+    report = build_report(plan, mode, fixed, cycle_report["area"] if mode == "cycle" else None)
     if plan.hybrid:
         report["descriptor"]["frame"] = frame_cost_report(plan, gl)
     if mode == "cycle":
@@ -253,7 +253,8 @@ def _reprice(report: dict, plan, frame, table) -> None:
     ``table`` (the engines built them with the default)."""
     report["energy"] = energy_report(plan, frame.stats,
                                      *power_basis(report["throughput"], report["stream"]), table)
-    report["power"] = power_report(plan, frame.stats, report["energy"], frame.frame_times)
+    report["power"] = power_report(plan, frame.stats, report["energy"], frame.frame_times,
+                                   report["area"])
 
 
 def _energy_table(path, mode: str):
@@ -324,11 +325,13 @@ def descriptor_report(plan: ChipPlan) -> dict:
     return out
 
 
-def build_report(plan: ChipPlan, mode: str, fixed: np.ndarray | None) -> dict:
+def build_report(plan: ChipPlan, mode: str, fixed: np.ndarray | None,
+                 area: dict | None = None) -> dict:
     """The report's sections every run has -- a frame's, a stream's (which adds ``frames``), a
     stopped run's -- and the ``output`` words' (``fixed``; None: a stream or a stopped run has
     no one frame's output). ``area``: the chip's area and leakage by block at ``power.node``
-    (:func:`~sim.cycle.area.chip_area`, from the plan)."""
+    (:func:`~sim.cycle.area.chip_area`, from the plan) -- a cycle run's report has it already
+    (``area``), else it is worked out here."""
     cfg = plan.cfg
     h, w = plan.shape
     report = {
@@ -339,7 +342,7 @@ def build_report(plan: ChipPlan, mode: str, fixed: np.ndarray | None) -> dict:
         "image": {"width": w, "height": h},
         "descriptor": descriptor_report(plan),
         "config": config_to_dict(cfg),
-        "area": chip_area(plan, cfg.power.node),
+        "area": chip_area(plan, cfg.power.node) if area is None else area,
     }
     if plan.lent is not None:
         report["lent_network"] = lent_report(plan.lent, plan.dram, h * w)
@@ -535,8 +538,7 @@ def run_stream(pairs, *, mode: str = "cycle", config: ChipConfig | str | None = 
     supply = stream_supply(pairs, max_pixels, cfg.sva.pairs)
     masks = check_ground_truth(gt, masks, supply.shape)
     plan = build_plan(resolve_chip(cfg, checked=True), supply.shape, supply.count)
-    report = build_report(plan, mode, None) | {"frames": supply.count}
-    words = None
+    words, cycle_report = None, {}
     if mode == "cycle":
         try:
             if cfg.sim.engine == "readable":
@@ -550,7 +552,9 @@ def run_stream(pairs, *, mode: str = "cycle", config: ChipConfig | str | None = 
             stop.report = stopped_report(plan, stop) | {"frames": supply.count}
             stop.plan, stop.supply = plan, supply  # to trace it up to the stop
             raise
-        report.update(frame.report)
-        if table is not None:
-            _reprice(report, plan, frame, table)
+        cycle_report = frame.report
+    report = build_report(plan, mode, None, cycle_report.get("area")) | {"frames": supply.count}
+    report.update(cycle_report)
+    if table is not None:
+        _reprice(report, plan, frame, table)
     return Stream(report, cfg, plan, supply, words, None if gt is None else (gt, masks))

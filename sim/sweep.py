@@ -363,7 +363,7 @@ def _run(task: Task) -> dict[str, Any]:
         report = run(left, right, mode=task.mode, config=cfg, gt=data.get("gt"),
                      masks=data.get("masks")).report
     area = report.pop("area", None) or chip_area(build_plan(cfg, left.shape), cfg.power.node)
-    power = report.pop("power", None)  # its per-block figures stay in report.json
+    power = report.pop("power", None)  # hundreds of per-block figures: the row keeps power_mw
     flat = flatten(report)
     flat.update(area_columns(area, power))
     flat["sram_bits"] = sum(est["sram_bits_total"][k] for k in ("nna_stereo", "sva", "fifos"))

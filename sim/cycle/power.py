@@ -40,25 +40,22 @@ from __future__ import annotations
 import numpy as np
 
 from stereosim.core.tech.nodes import node
-from stereosim.sim.cycle.area import chip_area
 from stereosim.sim.cycle.plan import ChipPlan
 from stereosim.sim.cycle.rules import FS_PER_S
 
-GATING = ("off", "idle", "stalled")
 PEAK_WINDOW = ("peak over one frame: the highest frame average (the dynamic energy a frame over "
                "the frame's interval, plus the run's average clock and leakage power)")
 
 
 def clocked_cycles(counts: dict, domain_cycles: int, gating: str) -> int:
-    """The cycles a block's registers are clocked: every cycle of its domain (``off``), all but
-    the idle ones (``idle``), the busy ones only (``stalled``)."""
-    if gating == "off":
-        return int(domain_cycles)
-    if gating == "idle":
-        return int(domain_cycles) - int(counts["idle"])
+    """The cycles a block's registers are clocked under ``power.clock_gating`` (the schema
+    holds its choices): every cycle of its domain (``off``), all but the idle ones (``idle``),
+    the busy ones only (``stalled``)."""
     if gating == "stalled":
         return int(counts["busy"])
-    raise ValueError(f"power.clock_gating must be one of {', '.join(GATING)}, got {gating!r}")
+    if gating == "idle":
+        return int(domain_cycles) - int(counts["idle"])
+    return int(domain_cycles)
 
 
 def block_energy_pj(flip_flops: float, ff_clock_fj: float, clocked: int, leakage_mw: float,
@@ -125,15 +122,15 @@ def dynamic_by_block(plan: ChipPlan, items: list[dict]) -> dict[str, float]:
     return out
 
 
-def power_report(plan: ChipPlan, stats: dict, energy: dict, frame_times) -> dict:
+def power_report(plan: ChipPlan, stats: dict, energy: dict, frame_times, area: dict) -> dict:
     """The ``power`` section of a cycle report (module docstring: every formula): the node and
     the gating, per block its dynamic, clock, leakage and total pJ a frame, the chip's totals,
     the energy a frame, the average, leakage and peak power (mW) over the run. ``energy``: the
     report's ``energy`` section (its items); ``frame_times``: the engine's (first and last
-    instants in fs per frame, :func:`~sim.cycle.report.stream_report`)."""
+    instants in fs per frame, :func:`~sim.cycle.report.stream_report`); ``area``: the chip's
+    (:func:`~sim.cycle.area.chip_area` at ``power.node``, worked out once per run)."""
     cfg = plan.cfg.power
     n = node(cfg.node)
-    area = chip_area(plan, cfg.node)
     frames = plan.frames
     end_fs = int(stats["end_time_fs"])
     activity = _activity(plan, stats)

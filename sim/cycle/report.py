@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from stereosim.sim.cycle.area import chip_area
 from stereosim.sim.cycle.energy import energy_report
 from stereosim.sim.cycle.plan import ChipPlan
 from stereosim.sim.cycle.power import power_report
@@ -122,6 +123,7 @@ def cycle_report(plan: ChipPlan, first_cycle: int, last_cycle: int, stats: dict,
     if "nna_layers" in stats:
         extra["nna_layers"] = nna_layer_report(plan, stats["nna_layers"], buffers)
     energy = energy_report(plan, stats, *power_basis(thr, stream))
+    area = chip_area(plan, plan.cfg.power.node)
     return {
         **extra,
         "cycles": {
@@ -140,7 +142,8 @@ def cycle_report(plan: ChipPlan, first_cycle: int, last_cycle: int, stats: dict,
         "sva_stages": sva_stage_activity(plan, stats["stages"]["sva"]),
         "stream": stream,
         "energy": energy,
-        "power": power_report(plan, stats, energy, frame_times),
+        "area": area,
+        "power": power_report(plan, stats, energy, frame_times, area),
     }
 
 
